@@ -1,0 +1,1 @@
+"""Real-robot backends of robotexp: P3-DX (ARIA), Kobuki and MAVLink rovers."""

@@ -1,0 +1,1 @@
+"""Built-in explorer plugins of robotexp, registered through the robotexp.explorers entry point."""

@@ -1,0 +1,63 @@
+"""Clocks for the control loop: a stepped clock for simulators and a wall clock for real robots."""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+
+__all__ = ["Clock", "SimClock", "WallClock"]
+
+
+class Clock(ABC):
+    """Paces the control loop at a fixed `period` [s] and tells the robot time [s]."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+
+    @abstractmethod
+    def now(self) -> float:
+        """Robot time [s] since the clock started."""
+
+    @abstractmethod
+    def tick(self) -> None:
+        """Let one period pass (advance the simulator, or sleep until the next period)."""
+
+
+class SimClock(Clock):
+    """A stepped clock: each tick advances the simulated world by exactly `period`.
+
+    Runs are deterministic for a seed and go as fast as the CPU allows.
+    """
+
+    def __init__(self, period: float, advance: Callable[[float], None]) -> None:
+        super().__init__(period)
+        self._advance = advance
+        self._ticks = 0
+
+    def now(self) -> float:
+        return self._ticks * self.period
+
+    def tick(self) -> None:
+        self._advance(self.period)
+        self._ticks += 1
+
+
+class WallClock(Clock):
+    """Real time: each tick sleeps until the next multiple of `period` (skipping missed ones)."""
+
+    def __init__(self, period: float) -> None:
+        super().__init__(period)
+        self._start = time.monotonic()
+        self._next = self._start + period
+
+    def now(self) -> float:
+        return time.monotonic() - self._start
+
+    def tick(self) -> None:
+        now = time.monotonic()
+        if self._next > now:
+            time.sleep(self._next - now)
+        else:       # we are late: do not try to catch up with a burst of ticks
+            self._next = now
+        self._next += self.period

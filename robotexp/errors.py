@@ -1,0 +1,44 @@
+"""The one exception tree of robotexp.
+
+Every error robotexp raises on purpose is a `RobotexpError`; messages say what failed, where,
+and what to do. Only `robotexp.cli` maps these to exit codes (2 for bad input, 1 for run failures).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError",
+    "WorldError", "ScriptError", "PluginError", "ConfigError",
+]
+
+
+class RobotexpError(Exception):
+    """Root of every error robotexp raises on purpose."""
+
+
+class RobotError(RobotexpError):
+    """Talking to or driving a robot failed."""
+
+
+class ConnectionLost(RobotError, ConnectionError):
+    """The link to the robot closed or went silent."""
+
+
+class ProtocolError(RobotError):
+    """Bad checksum, impossible length or a failed handshake."""
+
+
+class WorldError(RobotexpError):
+    """A malformed map file, an unknown world, or a start pose inside an obstacle."""
+
+
+class ScriptError(RobotexpError):
+    """A Lua syntax or runtime error (script, line, message)."""
+
+
+class PluginError(RobotexpError):
+    """An unknown plugin name, a failed plugin import or a contract violation."""
+
+
+class ConfigError(RobotexpError, ValueError):
+    """A parameter out of range."""

@@ -1,0 +1,1 @@
+"""robotexp.mapping."""

@@ -1,0 +1,203 @@
+"""The abstract `Robot` every backend implements, and the data it exchanges. SI units throughout.
+
+A backend provides `_read`, `_command` and `_close`; the public methods here check the robot is
+open, clamp commands to the backend's `Limits` and guarantee that `close()` stops the robot first.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar, Self
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.clock import Clock, WallClock
+from robotexp.errors import ConfigError, RobotError
+
+__all__ = [
+    "Pose", "Twist", "Limits", "LaserScan", "SonarScan", "RobotState", "Robot", "wrap_angle",
+]
+
+
+def wrap_angle(angle: float) -> float:
+    """Return `angle` [rad] wrapped to [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True, slots=True)
+class Pose:
+    """A planar pose: position [m] and heading [rad], counter-clockwise from +x."""
+
+    x: float
+    y: float
+    theta: float = 0.0
+
+    def distance_to(self, other: Pose) -> float:
+        """Euclidean distance [m] between the two positions."""
+        return math.hypot(other.x - self.x, other.y - self.y)
+
+    def as_list(self) -> list[float]:
+        """[x_m, y_m, theta_rad] as plain floats (for JSON)."""
+        return [float(self.x), float(self.y), float(self.theta)]
+
+
+@dataclass(frozen=True, slots=True)
+class Twist:
+    """A velocity command: forward speed `v` [m/s] and turn rate `w` [rad/s]."""
+
+    v: float
+    w: float
+
+    ZERO: ClassVar[Twist]
+
+
+Twist.ZERO = Twist(0.0, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """Velocity and acceleration limits of a base."""
+
+    v_max: float            # [m/s]
+    w_max: float            # [rad/s]
+    a_max: float = 0.5      # [m/s^2]
+    alpha_max: float = 2.0  # [rad/s^2]
+
+    def clamp(self, twist: Twist) -> Twist:
+        """Return `twist` with each component clamped to +-its maximum; NaN becomes 0."""
+        v = 0.0 if math.isnan(twist.v) else max(-self.v_max, min(self.v_max, twist.v))
+        w = 0.0 if math.isnan(twist.w) else max(-self.w_max, min(self.w_max, twist.w))
+        return Twist(v, w)
+
+
+@dataclass(frozen=True)
+class LaserScan:
+    """One planar laser scan in the robot frame.
+
+    `angles` and `ranges` are float64 arrays of shape (n,): beam angle [rad] relative to the
+    robot heading and measured range [m]; a beam that hit nothing reads `inf`.
+    """
+
+    angles: npt.NDArray[np.float64]
+    ranges: npt.NDArray[np.float64]
+    range_max: float        # [m]
+    offset_x: float = 0.0   # [m] sensor position ahead of the robot centre
+
+    def nearest(self) -> float:
+        """The smallest finite range [m], or `inf` when no beam hit."""
+        finite = self.ranges[np.isfinite(self.ranges)]
+        return float(finite.min()) if finite.size else math.inf
+
+
+@dataclass(frozen=True)
+class SonarScan:
+    """Ranges [m] of a sonar ring; `angles` [rad] are the transducer headings in the robot frame."""
+
+    angles: npt.NDArray[np.float64]
+    ranges: npt.NDArray[np.float64]
+    range_max: float
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Everything a robot reports at one instant.
+
+    `pose` is what the robot believes (odometry); `true_pose` is the ground truth where a
+    simulator knows it, else None. `stalled` is true while a wheel is blocked or a bumper pressed.
+    """
+
+    time: float                              # [s] robot clock
+    pose: Pose
+    velocity: Twist
+    laser: LaserScan | None = None
+    sonar: SonarScan | None = None
+    stalled: bool = False
+    bumpers: tuple[bool, ...] = ()
+    battery: float | None = None             # [V]
+    true_pose: Pose | None = None
+    distance: float = 0.0                    # [m] travelled since connect (odometry)
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+class Robot(ABC):
+    """A mobile base driven by a Twist and sensed as a RobotState. SI units throughout.
+
+    Use it as a context manager: the robot is stopped and its link released on exit, on an
+    exception and on Ctrl-C.
+    """
+
+    name: ClassVar[str] = "robot"
+    capabilities: ClassVar[frozenset[str]] = frozenset()   # e.g. {"sonar", "move_to", "ground_truth"}
+    limits: Limits
+    radius: float = 0.25                                   # [m] footprint for planning
+    _closed: bool = True                                   # close() skips half-built robots
+
+    def __init__(self) -> None:
+        self._closed = False            # backends call this last, once their link is up
+
+    # -- public, checked -------------------------------------------------------------
+    def read(self) -> RobotState:
+        """Return the newest state. Raises RobotError when closed."""
+        self._ensure_open()
+        return self._read()
+
+    def command(self, twist: Twist) -> None:
+        """Send a velocity command, clamped to `limits`. Raises RobotError when closed."""
+        self._ensure_open()
+        self._command(self.limits.clamp(twist))
+
+    def stop(self) -> None:
+        """Command zero velocity."""
+        self.command(Twist.ZERO)
+
+    def move_to(self, pose: Pose) -> None:
+        """Teleport the robot (simulators only) and reset odometry to `pose`."""
+        raise NotImplementedError(f"{self.name}: this robot cannot be moved by command")
+
+    def make_clock(self, period: float) -> Clock:
+        """The clock that paces a control loop on this robot: real time unless overridden."""
+        return WallClock(period)
+
+    def set_max_speed(self, v_max: float) -> None:
+        """Lower or raise the forward speed limit [m/s]."""
+        if not v_max > 0:
+            raise ConfigError(f"{self.name}: max speed must be > 0 m/s, got {v_max}")
+        lim = self.limits
+        self.limits = Limits(v_max, lim.w_max, lim.a_max, lim.alpha_max)
+
+    def close(self) -> None:
+        """Stop the robot, then release the link. Safe to call twice."""
+        if not self._closed:
+            try:
+                self._command(Twist.ZERO)
+            finally:
+                self._closed = True
+                self._close()
+
+    @property
+    def closed(self) -> bool:
+        """True once `close()` ran (or before the backend finished connecting)."""
+        return self._closed
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _ensure_open(self) -> None:
+        if self._closed:
+            raise RobotError(f"{self.name}: the robot is closed")
+
+    # -- backend hooks ---------------------------------------------------------------
+    @abstractmethod
+    def _read(self) -> RobotState: ...
+
+    @abstractmethod
+    def _command(self, twist: Twist) -> None: ...
+
+    @abstractmethod
+    def _close(self) -> None: ...
