@@ -1,1 +1,6 @@
-"""robotexp.sim."""
+"""The embedded simulator: a pybullet world and the `SimRobot` backend (imports pybullet)."""
+
+from robotexp.sim.presets import PRESETS, LaserConfig, OdometryError, RobotPreset, SonarConfig, preset
+from robotexp.sim.robot import SimRobot
+
+__all__ = ["SimRobot", "LaserConfig", "SonarConfig", "OdometryError", "RobotPreset", "PRESETS", "preset"]

@@ -98,7 +98,7 @@ class World:
             ys += [cy - r, cy + r]
         if not xs:
             raise WorldError(f"world {self.name!r} ({self.source}): it has no obstacles at all")
-        return (min(xs), min(ys), max(xs), max(ys))
+        return (float(min(xs)), float(min(ys)), float(max(xs)), float(max(ys)))
 
     @property
     def size(self) -> tuple[float, float]:

@@ -1,0 +1,445 @@
+"""Numba kernels for grid planning: distance transform, Dijkstra, A*, supercover line of sight.
+
+Grids are C-contiguous arrays indexed [row, col], row 0 at the bottom (see
+`robotexp.mapping.geometry`); a cell's flat index is ``row * cols + col``. Costs are float64 per
+cell, ``inf`` marks a blocked cell. Moves are 8-connected: a step costs its length (1 or sqrt 2)
+times the mean of the two cells' costs, and a diagonal step needs both orthogonal neighbours it
+passes between to be passable (no corner cutting).
+
+These kernels trust their inputs (shapes, dtypes, no NaN, no negative cost, cells inside the
+grid); `robotexp.planning.grid_planner` checks them and is the documented entry point.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.mapping.kernels import kernel
+
+__all__ = [
+    "SQRT2", "edt_1d", "distance_transform_kernel", "dijkstra_search", "dijkstra_fill",
+    "astar_kernel", "trace_path", "line_of_sight_kernel", "simplify_kernel",
+]
+
+SQRT2 = math.sqrt(2.0)
+
+# Cell states in the `pos` array of the indexed heap.
+_UNSEEN = -1
+_CLOSED = -2
+
+
+# ---------------------------------------------------------------------------------------------
+# Exact Euclidean distance transform (Felzenszwalb & Huttenlocher 2012, "Distance Transforms of
+# Sampled Functions", Theory of Computing 8: lower envelope of parabolas, one 1D pass per axis).
+# ---------------------------------------------------------------------------------------------
+
+@kernel
+def edt_1d(f: npt.NDArray[np.float64], d: npt.NDArray[np.float64], v: npt.NDArray[np.int64],
+           z: npt.NDArray[np.float64]) -> None:
+    """1D squared distance transform: d[q] = min_p (q - p)^2 + f[p].
+
+    Args:
+        f: (n,) float64 sampled function; ``inf`` entries are skipped (no parabola), so the
+            result is ``inf`` everywhere when every entry is ``inf``.
+        d: (n,) float64 output, must not alias `f`.
+        v: (>= n,) int64 scratch (parabola vertices).
+        z: (>= n + 1,) float64 scratch (envelope breakpoints).
+    """
+    n = f.shape[0]
+    k = -1
+    for q in range(n):
+        fq = f[q]
+        if math.isinf(fq):
+            continue
+        if k < 0:
+            k = 0
+            v[0] = q
+            z[0] = -np.inf
+            z[1] = np.inf
+            continue
+        p = v[k]
+        s = ((fq + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+        while s <= z[k]:  # z[0] = -inf stops this at k = 0
+            k -= 1
+            p = v[k]
+            s = ((fq + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+        k += 1
+        v[k] = q
+        z[k] = s
+        z[k + 1] = np.inf
+    if k < 0:
+        for q in range(n):
+            d[q] = np.inf
+        return
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        p = v[k]
+        d[q] = (q - p) * (q - p) + f[p]
+
+
+@kernel
+def distance_transform_kernel(occ: npt.NDArray[np.bool_], out: npt.NDArray[np.float32]) -> None:
+    """Euclidean distance [cells] from each cell centre to the nearest occupied cell centre.
+
+    Args:
+        occ: (rows, cols) bool, True = occupied.
+        out: (rows, cols) float32 output; ``inf`` everywhere when no cell is occupied.
+    """
+    rows, cols = occ.shape
+    n = max(rows, cols)
+    f = np.empty(n, dtype=np.float64)
+    d = np.empty(n, dtype=np.float64)
+    v = np.empty(n, dtype=np.int64)
+    z = np.empty(n + 1, dtype=np.float64)
+    sq = np.empty((rows, cols), dtype=np.float64)
+    for c in range(cols):  # columns: squared distance along the column
+        for r in range(rows):
+            f[r] = 0.0 if occ[r, c] else np.inf
+        edt_1d(f[:rows], d[:rows], v, z)
+        for r in range(rows):
+            sq[r, c] = d[r]
+    for r in range(rows):  # rows: combine the column results
+        for c in range(cols):
+            f[c] = sq[r, c]
+        edt_1d(f[:cols], d[:cols], v, z)
+        for c in range(cols):
+            out[r, c] = np.float32(math.sqrt(d[c]))
+
+
+# ---------------------------------------------------------------------------------------------
+# Indexed binary min-heap over flat cell indices, ordered by (key, tie); `pos` holds each cell's
+# heap slot, _UNSEEN or _CLOSED. Decrease-key keeps the heap at most one entry per cell.
+# ---------------------------------------------------------------------------------------------
+
+@kernel
+def _less(a: int, b: int, key: npt.NDArray[np.float64], tie: npt.NDArray[np.float64]) -> bool:
+    ka = key[a]
+    kb = key[b]
+    return ka < kb or (ka == kb and tie[a] < tie[b])
+
+
+@kernel
+def _sift_up(heap: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], i: int,
+             key: npt.NDArray[np.float64], tie: npt.NDArray[np.float64]) -> None:
+    item = heap[i]
+    while i > 0:
+        up = (i - 1) >> 1
+        other = heap[up]
+        if not _less(item, other, key, tie):
+            break
+        heap[i] = other
+        pos[other] = i
+        i = up
+    heap[i] = item
+    pos[item] = i
+
+
+@kernel
+def _pop(heap: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], size: int,
+         key: npt.NDArray[np.float64], tie: npt.NDArray[np.float64]) -> int:
+    """Remove and return the top cell; the caller decrements its size and sets pos[top]."""
+    top = heap[0]
+    size -= 1
+    if size > 0:
+        item = heap[size]
+        i = 0
+        while True:
+            child = 2 * i + 1
+            if child >= size:
+                break
+            if child + 1 < size and _less(heap[child + 1], heap[child], key, tie):
+                child += 1
+            if not _less(heap[child], item, key, tie):
+                break
+            heap[i] = heap[child]
+            pos[heap[i]] = i
+            i = child
+        heap[i] = item
+        pos[item] = i
+    return top
+
+
+@kernel
+def _dijkstra(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bool_],
+              use_goal: bool, max_dist: float, dist: npt.NDArray[np.float64],
+              parent: npt.NDArray[np.int32]) -> int:
+    rows, cols = cost.shape
+    n = rows * cols
+    c = cost.ravel()
+    g = goal.ravel()
+    dist[:] = np.inf
+    parent[:] = -1
+    if math.isinf(c[start]):
+        return -1
+    pos = np.full(n, _UNSEEN, dtype=np.int64)
+    heap = np.empty(n, dtype=np.int64)
+    dist[start] = 0.0
+    heap[0] = start
+    pos[start] = 0
+    size = 1
+    found = -1
+    while size > 0:
+        u = _pop(heap, pos, size, dist, dist)
+        size -= 1
+        pos[u] = _CLOSED
+        if use_goal and g[u]:
+            found = u
+            break
+        du = dist[u]
+        cu = c[u]
+        ur = u // cols
+        uc = u - ur * cols
+        for dr in range(-1, 2):
+            vr = ur + dr
+            if vr < 0 or vr >= rows:
+                continue
+            for dc in range(-1, 2):
+                vc = uc + dc
+                if (dr == 0 and dc == 0) or vc < 0 or vc >= cols:
+                    continue
+                w = vr * cols + vc
+                if pos[w] == _CLOSED or math.isinf(c[w]):
+                    continue
+                if dr != 0 and dc != 0:
+                    if math.isinf(c[ur * cols + vc]) or math.isinf(c[vr * cols + uc]):
+                        continue
+                    nd = du + SQRT2 * (0.5 * (cu + c[w]))
+                else:
+                    nd = du + 0.5 * (cu + c[w])
+                if nd > max_dist or nd >= dist[w]:
+                    continue
+                dist[w] = nd
+                parent[w] = u
+                if pos[w] == _UNSEEN:
+                    heap[size] = w
+                    size += 1
+                    _sift_up(heap, pos, size - 1, dist, dist)
+                else:
+                    _sift_up(heap, pos, pos[w], dist, dist)
+    # Cells still queued after an early exit hold only upper bounds: forget them.
+    for i in range(size):
+        w = heap[i]
+        dist[w] = np.inf
+        parent[w] = -1
+    return found
+
+
+@kernel
+def dijkstra_search(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bool_],
+                    max_dist: float, dist: npt.NDArray[np.float64],
+                    parent: npt.NDArray[np.int32]) -> int:
+    """Dijkstra from `start` that stops when the first goal cell is settled.
+
+    Args:
+        cost: (rows, cols) float64 cell costs, ``inf`` = blocked.
+        start: flat index of the start cell.
+        goal: (rows, cols) bool goal cells.
+        max_dist: [cost units] cells farther than this are not reached.
+        dist: (rows * cols,) float64 output: exact distance of every settled cell, ``inf`` for
+            the others (so the goal found is the only goal cell with a finite distance).
+        parent: (rows * cols,) int32 output: previous cell on a shortest path, -1 for the start
+            and for cells not settled.
+
+    Returns:
+        Flat index of the goal cell reached, or -1 when none is reachable within `max_dist`.
+    """
+    return _dijkstra(cost, start, goal, True, max_dist, dist, parent)
+
+
+@kernel
+def dijkstra_fill(cost: npt.NDArray[np.float64], start: int, max_dist: float,
+                  dist: npt.NDArray[np.float64], parent: npt.NDArray[np.int32]) -> None:
+    """Dijkstra from `start` over every cell within `max_dist` (see `dijkstra_search`)."""
+    no_goal = np.zeros((1, 1), dtype=np.bool_)
+    _dijkstra(cost, start, no_goal, False, max_dist, dist, parent)
+
+
+@kernel
+def astar_kernel(cost: npt.NDArray[np.float64], start: int, goal: int, min_cost: float,
+                 parent: npt.NDArray[np.int32]) -> float:
+    """A* from `start` to `goal` with the octile heuristic times `min_cost`.
+
+    The heuristic is consistent when every step costs at least its length times `min_cost`
+    (true when `min_cost` is the smallest finite cell cost), so cells are never reopened and the
+    result equals Dijkstra's distance. Ties on f go to the larger g (the deeper cell).
+
+    Args:
+        cost: (rows, cols) float64 cell costs, ``inf`` = blocked.
+        start: flat index of the start cell.
+        goal: flat index of the goal cell.
+        min_cost: smallest finite cell cost (>= 0).
+        parent: (rows * cols,) int32 output: previous cell on the path (-1 for the start and
+            unexplored cells); follow it back from `goal`.
+
+    Returns:
+        Path cost [cost units] from start to goal, ``inf`` when the goal is unreachable.
+    """
+    rows, cols = cost.shape
+    n = rows * cols
+    c = cost.ravel()
+    parent[:] = -1
+    if math.isinf(c[start]) or math.isinf(c[goal]):
+        return np.inf
+    gr = goal // cols
+    gc = goal - gr * cols
+    g = np.full(n, np.inf, dtype=np.float64)
+    f = np.empty(n, dtype=np.float64)
+    h = np.empty(n, dtype=np.float64)
+    pos = np.full(n, _UNSEEN, dtype=np.int64)
+    heap = np.empty(n, dtype=np.int64)
+    sr = start // cols
+    ar = abs(sr - gr)
+    ac = abs(start - sr * cols - gc)
+    h[start] = min_cost * (max(ar, ac) + (SQRT2 - 1.0) * min(ar, ac))
+    g[start] = 0.0
+    f[start] = h[start]
+    heap[0] = start
+    pos[start] = 0
+    size = 1
+    while size > 0:
+        u = _pop(heap, pos, size, f, h)
+        size -= 1
+        pos[u] = _CLOSED
+        if u == goal:
+            return g[u]
+        gu = g[u]
+        cu = c[u]
+        ur = u // cols
+        uc = u - ur * cols
+        for dr in range(-1, 2):
+            vr = ur + dr
+            if vr < 0 or vr >= rows:
+                continue
+            for dc in range(-1, 2):
+                vc = uc + dc
+                if (dr == 0 and dc == 0) or vc < 0 or vc >= cols:
+                    continue
+                w = vr * cols + vc
+                if pos[w] == _CLOSED or math.isinf(c[w]):
+                    continue
+                if dr != 0 and dc != 0:
+                    if math.isinf(c[ur * cols + vc]) or math.isinf(c[vr * cols + uc]):
+                        continue
+                    ng = gu + SQRT2 * (0.5 * (cu + c[w]))
+                else:
+                    ng = gu + 0.5 * (cu + c[w])
+                if ng >= g[w]:
+                    continue
+                g[w] = ng
+                parent[w] = u
+                if pos[w] == _UNSEEN:
+                    ar = abs(vr - gr)
+                    ac = abs(vc - gc)
+                    h[w] = min_cost * (max(ar, ac) + (SQRT2 - 1.0) * min(ar, ac))
+                    f[w] = ng + h[w]
+                    heap[size] = w
+                    size += 1
+                    _sift_up(heap, pos, size - 1, f, h)
+                else:
+                    f[w] = ng + h[w]
+                    _sift_up(heap, pos, pos[w], f, h)
+    return np.inf
+
+
+@kernel
+def trace_path(parent: npt.NDArray[np.int32], cols: int, end: int) -> npt.NDArray[np.int32]:
+    """Follow `parent` back from flat cell `end` to a cell whose parent is -1.
+
+    Returns:
+        (k, 2) int32 [row, col] cells from that root to `end`, both included.
+    """
+    k = 1
+    i = end
+    while parent[i] >= 0:
+        i = parent[i]
+        k += 1
+    out = np.empty((k, 2), dtype=np.int32)
+    i = end
+    for j in range(k - 1, -1, -1):
+        out[j, 0] = i // cols
+        out[j, 1] = i % cols
+        i = parent[i]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Supercover line of sight: every cell the segment between two cell centres touches, corners
+# included (a segment through a grid corner touches all four cells around it).
+# ---------------------------------------------------------------------------------------------
+
+@kernel
+def line_of_sight_kernel(passable: npt.NDArray[np.bool_], r0: int, c0: int, r1: int,
+                         c1: int) -> bool:
+    """True when every cell touched by the segment from centre (r0, c0) to (r1, c1) is passable.
+
+    Exact integer walk: with centres at integer coordinates, the segment crosses the i-th
+    vertical cell border at t = (i + 1/2)/dc and the j-th horizontal one at t = (j + 1/2)/dr;
+    the comparison (2i + 1)*dr vs (2j + 1)*dc tells which comes first, equality is a corner.
+    """
+    if not passable[r0, c0]:
+        return False
+    dc = abs(c1 - c0)
+    dr = abs(r1 - r0)
+    sc = 1 if c1 > c0 else -1
+    sr = 1 if r1 > r0 else -1
+    r = r0
+    c = c0
+    i = 0
+    j = 0
+    while i < dc or j < dr:
+        lhs = (2 * i + 1) * dr
+        rhs = (2 * j + 1) * dc
+        if lhs < rhs:  # vertical border first: step along the columns
+            c += sc
+            i += 1
+        elif lhs > rhs:  # horizontal border first: step along the rows
+            r += sr
+            j += 1
+        else:  # through a corner: the two side cells are touched too
+            if not passable[r, c + sc] or not passable[r + sr, c]:
+                return False
+            c += sc
+            r += sr
+            i += 1
+            j += 1
+        if not passable[r, c]:
+            return False
+    return True
+
+
+@kernel
+def simplify_kernel(path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_],
+                    keep: npt.NDArray[np.bool_]) -> int:
+    """Mark in `keep` the cells of `path` needed so that consecutive kept cells see each other.
+
+    Greedy string pulling: from the last kept cell, extend while the next path cell is still in
+    line of sight; keep the last visible one. First and last cells are always kept.
+
+    Args:
+        path: (k, 2) int32 [row, col], consecutive cells 8-neighbours (as from A*).
+        passable: (rows, cols) bool.
+        keep: (k,) bool output.
+
+    Returns:
+        Number of kept cells.
+    """
+    k = path.shape[0]
+    keep[:] = False
+    if k == 0:
+        return 0
+    keep[0] = True
+    keep[k - 1] = True
+    anchor = 0
+    count = 1 if k == 1 else 2
+    for i in range(2, k):
+        if not line_of_sight_kernel(passable, path[anchor, 0], path[anchor, 1], path[i, 0],
+                                    path[i, 1]):
+            anchor = i - 1
+            keep[anchor] = True
+            count += 1
+    return count

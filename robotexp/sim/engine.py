@@ -1,0 +1,136 @@
+"""The pybullet side of the simulator: one DIRECT-mode physics client holding a world's obstacles.
+
+Static obstacles become one compound static body (boxes and cylinders), movers are kinematic
+cylinders, and the robot a cylinder that is placed, never pushed: the robot's motion is integrated
+by `SimRobot` and pybullet answers the geometric questions (contacts and ray casts).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.world.model import World
+
+__all__ = ["Engine"]
+
+WALL_HEIGHT = 1.0       # [m] every static obstacle reaches above the sensors
+_MAX_SHAPES = 2000      # children per compound shape (pybullet handles more, but slower to build)
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence the C-level stdout (pybullet prints its build time on connect)."""
+    try:
+        fd = os.dup(1)
+    except OSError:
+        yield
+        return
+    libc = ctypes.CDLL(None)
+    c_stdout = ctypes.c_void_p.in_dll(libc, "stdout")
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            yield
+            libc.fflush(c_stdout)   # the message sits in C's stdout buffer until flushed
+    finally:
+        os.dup2(fd, 1)
+        os.close(fd)
+
+
+with _quiet_stdout():
+    import pybullet as pb
+
+
+class Engine:
+    """A pybullet client with the static obstacles of `world`, its movers and one robot cylinder."""
+
+    def __init__(self, world: World, robot_radius: float, robot_height: float) -> None:
+        with _quiet_stdout():      # pybullet prints its build time on the first connect
+            self.client = pb.connect(pb.DIRECT)
+        self._robot_z = robot_height / 2
+        self.statics: list[int] = []
+        try:
+            self._add_statics(world)
+            shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=robot_radius, height=robot_height,
+                                            physicsClientId=self.client)
+            self.robot = pb.createMultiBody(0, shape, basePosition=[0, 0, self._robot_z],
+                                            physicsClientId=self.client)
+            self.movers: list[int] = []
+            for mover in world.movers:
+                ms = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=mover.radius, height=mover.height,
+                                             physicsClientId=self.client)
+                x, y = mover.position(0.0)
+                self.movers.append(pb.createMultiBody(0, ms, basePosition=[x, y, mover.height / 2],
+                                                      physicsClientId=self.client))
+        except Exception:
+            self.close()
+            raise
+
+    def _add_statics(self, world: World) -> None:
+        boxes, discs = world.boxes, world.discs
+        for start in range(0, len(boxes), _MAX_SHAPES):
+            chunk = boxes[start:start + _MAX_SHAPES]
+            n = len(chunk)
+            shape = pb.createCollisionShapeArray(
+                [pb.GEOM_BOX] * n,
+                halfExtents=[[hx, hy, WALL_HEIGHT / 2] for _, _, hx, hy, _ in chunk],
+                collisionFramePositions=[[cx, cy, WALL_HEIGHT / 2] for cx, cy, _, _, _ in chunk],
+                collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, yaw]) for *_, yaw in chunk],
+                physicsClientId=self.client)
+            self.statics.append(pb.createMultiBody(0, shape, physicsClientId=self.client))
+        for cx, cy, r in discs:
+            shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=r, height=WALL_HEIGHT,
+                                            physicsClientId=self.client)
+            self.statics.append(pb.createMultiBody(0, shape, basePosition=[cx, cy, WALL_HEIGHT / 2],
+                                                   physicsClientId=self.client))
+
+    def place_robot(self, x: float, y: float) -> None:
+        """Put the robot cylinder at (x, y) [m] (it is round: heading does not matter)."""
+        pb.resetBasePositionAndOrientation(self.robot, [x, y, self._robot_z], [0, 0, 0, 1],
+                                           physicsClientId=self.client)
+
+    def place_mover(self, index: int, x: float, y: float, height: float) -> None:
+        """Put mover `index` at (x, y) [m]."""
+        pb.resetBasePositionAndOrientation(self.movers[index], [x, y, height / 2], [0, 0, 0, 1],
+                                           physicsClientId=self.client)
+
+    def robot_collides(self, include_movers: bool = True) -> bool:
+        """True when the robot cylinder, where it was last placed, touches an obstacle."""
+        return self.robot_near_obstacle(0.0, include_movers)
+
+    def robot_near_obstacle(self, margin: float, include_movers: bool = True) -> bool:
+        """True when an obstacle is within `margin` [m] of the robot cylinder."""
+        bodies = self.statics + (self.movers if include_movers else [])
+        return any(pb.getClosestPoints(self.robot, body, margin, physicsClientId=self.client)
+                   for body in bodies)
+
+    def mover_touches_robot(self, index: int, margin: float) -> bool:
+        """True when mover `index` is within `margin` [m] of the robot."""
+        return bool(pb.getClosestPoints(self.robot, self.movers[index], margin, physicsClientId=self.client))
+
+    def cast(self, origins: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Cast rays from `origins` to `ends` ((n, 3) [m]); return the hit fraction (n,), 1.0 for no hit.
+
+        Rays start inside the robot cylinder, which Bullet does not report, so the robot never
+        sees itself.
+        """
+        hits: Any = pb.rayTestBatch(origins, ends, physicsClientId=self.client)
+        fraction = np.fromiter((h[2] for h in hits), dtype=np.float64, count=len(hits))
+        body = np.fromiter((h[0] for h in hits), dtype=np.int64, count=len(hits))
+        fraction[body < 0] = 1.0
+        return fraction
+
+    def close(self) -> None:
+        """Disconnect the physics client. Safe to call twice."""
+        if self.client >= 0:
+            with contextlib.suppress(Exception):
+                pb.disconnect(physicsClientId=self.client)
+            self.client = -1
+
