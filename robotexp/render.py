@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
+import unicodedata
 from pathlib import Path
 from typing import NamedTuple
 
@@ -25,7 +26,7 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose
 
 __all__ = [
-    "COLORS", "MapLayout", "map_layout", "render_map", "save_png", "viridis",
+    "COLORS", "MapLayout", "drawable_text", "font", "map_layout", "render_map", "save_png", "viridis",
 ]
 
 RGB = tuple[int, int, int]
@@ -45,7 +46,7 @@ COLORS: dict[str, RGB] = {
     "frame": (120, 120, 120),       # 1 px line around the map
     "text": (30, 30, 30),
 }
-GRID_ALPHA = 0.3
+GRID_ALPHA = 0.2
 TITLE_FONT = 15                     # [px]
 FOOTER_FONT = 12                    # [px]
 TITLE_HEIGHT = 28                   # [px] band above the map when a title is given
@@ -58,14 +59,49 @@ ARROW_SPACING = 14                  # [px] minimum distance between vector-field
 # Viridis sampled at 0, 1/4, 1/2, 3/4, 1 (its published anchor colours); linear in between.
 _VIRIDIS_ANCHORS = np.array([(68, 1, 84), (59, 82, 139), (33, 145, 140), (94, 201, 98),
                              (253, 231, 37)], dtype=np.float64)
-_VIRIDIS = np.stack([np.interp(np.linspace(0.0, 1.0, 256), np.linspace(0.0, 1.0, 5),
-                               _VIRIDIS_ANCHORS[:, k]) for k in range(3)], axis=1)
-_VIRIDIS = np.round(_VIRIDIS).astype(np.uint8)
+_VIRIDIS: npt.NDArray[np.uint8] = np.round(np.stack(
+    [np.interp(np.linspace(0.0, 1.0, 256), np.linspace(0.0, 1.0, 5), _VIRIDIS_ANCHORS[:, k])
+     for k in range(3)], axis=1)).astype(np.uint8)
 
 
 @functools.lru_cache(maxsize=16)
-def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+def font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    """Pillow's built-in font at `size` [px] (Pillow >= 10.1 scales it), cached."""
     return ImageFont.load_default(size=size)
+
+
+# Stand-ins for characters the built-in font lacks (it would draw a box).
+_FALLBACK = {"\u2014": "-", "\u2013": "-", "\u2212": "-", "\u00d7": "x", "\u00b5": "u",
+             "\u00b0": " deg", "\u2026": "...", "\u2018": "'", "\u2019": "'", "\u201c": '"',
+             "\u201d": '"'}
+
+
+@functools.lru_cache(maxsize=4096)
+def _has_glyph(size: int, char: str) -> bool:
+    f = font(size)
+    if not isinstance(f, ImageFont.FreeTypeFont) or char.isspace():
+        return True
+    missing = f.getmask("\uffff")          # a code point no font has: the "missing" box
+    mask = f.getmask(char)
+    return mask.size != missing.size or bytes(mask) != bytes(missing)
+
+
+def drawable_text(text: str, size: int) -> str:
+    """Return `text` with the characters the built-in font at `size` [px] cannot draw replaced.
+
+    Dashes become "-", the multiplication sign "x", accented letters their base letter and
+    anything else "?", instead of the font's empty box.
+    """
+    out = []
+    for ch in text:
+        if not _has_glyph(size, ch):
+            base = "".join(c for c in unicodedata.normalize("NFKD", ch) if not unicodedata.combining(c))
+            if base and all(_has_glyph(size, c) for c in base):
+                ch = base
+            else:
+                ch = _FALLBACK.get(ch, "?")
+        out.append(ch)
+    return "".join(out)
 
 
 def viridis(values: npt.ArrayLike) -> npt.NDArray[np.uint8]:
@@ -147,7 +183,7 @@ def map_layout(geo: GridGeometry, *, scale: int | None = None, title: str | None
         raise ConfigError(f"render_map: scale must be an integer >= 1 px per cell, got {scale!r}")
     scale = int(scale)
     width, height = geo.cols * scale, geo.rows * scale
-    image_width = max(width + 2 * FRAME, MIN_WIDTH)
+    image_width = max(width + 2 * FRAME, min(MIN_WIDTH, max_size))
     left = (image_width - width) // 2
     return MapLayout(geo, scale, left, top, width, height, image_width, chrome_h + height)
 
@@ -217,8 +253,8 @@ def _draw_arrows(canvas: Image.Image, lay: MapLayout, vectors: npt.NDArray[np.fl
             if not free[r, c] or not norm > 0.0 or not math.isfinite(norm):
                 continue
             ux, uy = vx / norm, -vy / norm          # image rows grow southwards
-            cx = (c + 0.5) * lay.scale - 0.5
-            cy = (lay.geo.rows - r - 0.5) * lay.scale - 0.5
+            cx = (c + 0.5) * lay.scale
+            cy = (lay.geo.rows - r - 0.5) * lay.scale
             tip = (cx + half * ux, cy + half * uy)
             draw.line([(cx - half * ux, cy - half * uy), tip], fill=255, width=width)
             head = 0.7 * half
@@ -233,7 +269,7 @@ def _draw_arrows(canvas: Image.Image, lay: MapLayout, vectors: npt.NDArray[np.fl
 
 def _draw_pose(draw: ImageDraw.ImageDraw, lay: MapLayout, pose: Pose, color: RGB) -> None:
     u, v = lay.to_pixel(pose.x, pose.y)
-    u, v = u - lay.left - 0.5, v - lay.top - 0.5
+    u, v = u - lay.left, v - lay.top
     r = max(4.0, ROBOT_RADIUS * lay.pixels_per_metre)
     dark = tuple(int(0.6 * c) for c in color)
     draw.ellipse([u - r, v - r, u + r, v + r], fill=color, outline=dark,
@@ -248,29 +284,29 @@ def _scale_bar(draw: ImageDraw.ImageDraw, lay: MapLayout) -> None:
     if metres * k > lay.image_width - 80:           # a very zoomed map: 1 m is the shortest bar
         metres = 1
     length = max(1, round(metres * k))
-    font = _font(FOOTER_FONT)
+    fnt = font(FOOTER_FONT)
     y = lay.image_height - FOOTER_HEIGHT // 2
     x0 = 8
     x1 = x0 + length - 1
     draw.line([(x0, y), (x1, y)], fill=COLORS["text"], width=3)
     for x in (x0, x1):
         draw.line([(x, y - 5), (x, y + 5)], fill=COLORS["text"], width=1)
-    draw.text((x1 + 6, y), f"{metres} m", fill=COLORS["text"], font=font, anchor="lm")
+    draw.text((x1 + 6, y), f"{metres} m", fill=COLORS["text"], font=fnt, anchor="lm")
     info = f"{lay.geo.cols} x {lay.geo.rows} cells of {lay.geo.cell:g} m"
-    text_w = draw.textlength(info, font=font)
+    text_w = draw.textlength(info, font=fnt)
     if x1 + 60 + text_w < lay.image_width - 8:
-        draw.text((lay.image_width - 8, y), info, fill=COLORS["text"], font=font, anchor="rm")
+        draw.text((lay.image_width - 8, y), info, fill=COLORS["text"], font=fnt, anchor="rm")
 
 
 def _draw_title(draw: ImageDraw.ImageDraw, lay: MapLayout, title: str) -> None:
-    font = _font(TITLE_FONT)
+    fnt = font(TITLE_FONT)
     room = lay.image_width - 16
-    text = title
-    if draw.textlength(text, font=font) > room:
-        while text and draw.textlength(text + "…", font=font) > room:
+    text = drawable_text(title, TITLE_FONT)
+    if draw.textlength(text, font=fnt) > room:
+        while text and draw.textlength(text + "...", font=fnt) > room:
             text = text[:-1]
-        text += "…"
-    draw.text((8, TITLE_HEIGHT // 2), text, fill=COLORS["text"], font=font, anchor="lm")
+        text += "..."
+    draw.text((8, TITLE_HEIGHT // 2), text, fill=COLORS["text"], font=fnt, anchor="lm")
 
 
 def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
@@ -335,14 +371,16 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
     canvas = Image.fromarray(np.ascontiguousarray(canvas_px), mode="RGB")
     if vectors is not None:
         _draw_arrows(canvas, lay, _check_field("vectors", vectors, geo, (2,)), free)
+    # PIL puts a float coordinate in the pixel it truncates to, i.e. the pixel holding that
+    # continuous point, so canvas coordinates are passed unshifted.
     draw = ImageDraw.Draw(canvas)
     k = lay.pixels_per_metre
-    dot = max(1.0, 0.04 * k)                        # [px] laser dot radius: 4 cm, at least 1 px
+    dot = max(1.5, 0.04 * k)                        # [px] laser dot radius: 4 cm, at least 1.5 px
     line_w = max(2, round(max(lay.width, lay.height) / 500))
     if path is not None:
         pts = _as_points("path", path)
         pts = pts[np.all(np.isfinite(pts), axis=1)]
-        uv = [((x - geo.origin_x) * k - 0.5, lay.height - (y - geo.origin_y) * k - 0.5) for x, y in pts]
+        uv = [((x - geo.origin_x) * k, lay.height - (y - geo.origin_y) * k) for x, y in pts]
         if len(uv) >= 2:
             draw.line(uv, fill=COLORS["path"], width=line_w, joint="curve")
         elif uv:
@@ -351,7 +389,7 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
     if laser is not None:
         for x, y in _as_points("laser", laser):
             if math.isfinite(x) and math.isfinite(y):
-                u, v = (x - geo.origin_x) * k - 0.5, lay.height - (y - geo.origin_y) * k - 0.5
+                u, v = (x - geo.origin_x) * k, lay.height - (y - geo.origin_y) * k
                 draw.ellipse([u - dot, v - dot, u + dot, v + dot], fill=COLORS["laser"])
     for pose, name in ((start, "start"), (end, "end")):
         if pose is not None:

@@ -1,7 +1,476 @@
-"""Numba kernels for occupancy-grid mapping (work in progress)."""
+"""Numba kernels of the occupancy grids.
+
+Beam traversal, scan integration (log-odds, HIMM), rasterisation, frontiers, connected components,
+distance transform, clearance, flood fill and laser visibility.
+
+Every grid is a (rows, cols) array over a `GridGeometry` (row 0 at the bottom, smallest y). The
+kernels are pure functions of arrays and scalars compiled by the one shared decorator `kernel`
+(`cache=True`, no `fastmath`: max-range beams are `inf`). Their slow plain-numpy references live in
+`robotexp.mapping.reference` and in the tests.
+
+Beam convention (exact cell traversal, Amanatides & Woo 1987): a beam visits every cell its open
+segment crosses with positive length, in order. Where a point lies exactly on a cell border, it
+belongs to the cell the beam moves into (the "forward" cell), so a beam ending exactly on a face
+ends in the cell behind that face, where the obstacle is. A beam passing through a corner (within
+1e-9 cell) steps diagonally. Beams are clipped to the grid: cells outside are never touched.
+"""
 
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numba
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.mapping.geometry import GridGeometry
+
+__all__ = [
+    "LogOddsModel",
+    "clearance_mask",
+    "edt_sq",
+    "flood8",
+    "frontier_mask",
+    "integrate_scan_himm",
+    "integrate_scan_logodds",
+    "kernel",
+    "label8",
+    "rasterize",
+    "traverse",
+    "view_free",
+]
 
 kernel = numba.njit(cache=True)
+
+_TOL = 1e-9        # [m] or [cells]: contacts closer than this count as touching, not overlapping
+_BIG = 1e20        # "infinite" squared distance inside the distance transform (inf - inf is NaN)
+
+
+class LogOddsModel(NamedTuple):
+    """The inverse sensor model of a log-odds grid (all values in log-odds, range in [m])."""
+
+    l_free: float      # added to each cell a beam crosses before its end (< 0)
+    l_occ: float       # added to the cell of a hit (> 0)
+    l_min: float       # lower clamp
+    l_max: float       # upper clamp
+    range_max: float   # [m] beams at or beyond this range are free up to it and record no hit
+
+
+@kernel
+def _forward_index(g: float, d: float) -> int:
+    """Index of the cell a ray with direction component `d` is in just after grid coordinate `g`."""
+    if d < 0.0:
+        return math.ceil(g) - 1
+    return math.floor(g)
+
+
+@kernel
+def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, length: float,
+             cells: npt.NDArray[np.int64]) -> tuple[int, bool]:
+    """Write the cells a beam crosses into `cells`, in order from the sensor.
+
+    Args:
+        geo: the grid.
+        x0: [m] world x of the beam origin (may lie outside the grid).
+        y0: [m] world y of the beam origin.
+        dx: x component of the unit beam direction.
+        dy: y component of the unit beam direction.
+        length: [m] beam length (may be `inf`).
+        cells: int64 (k, 2) output of (row, col) pairs; k >= rows + cols is always enough.
+
+    Returns:
+        (n, ended): the number of cells written and whether the last one holds the beam end
+        (False when the beam left the grid, or never entered it, before its end).
+    """
+    cell = geo.cell
+    rows = geo.rows
+    cols = geo.cols
+    gx = (x0 - geo.origin_x) / cell
+    gy = (y0 - geo.origin_y) / cell
+    glen = length / cell
+    # Slab clipping of the ray (t >= 0, in cells) against the grid box.
+    t_in = 0.0
+    t_out = math.inf
+    if dx != 0.0:
+        ta = (0.0 - gx) / dx
+        tb = (cols - gx) / dx
+        t_in = max(t_in, min(ta, tb))
+        t_out = min(t_out, max(ta, tb))
+    elif gx < 0.0 or gx >= cols:
+        return 0, False
+    if dy != 0.0:
+        ta = (0.0 - gy) / dy
+        tb = (rows - gy) / dy
+        t_in = max(t_in, min(ta, tb))
+        t_out = min(t_out, max(ta, tb))
+    elif gy < 0.0 or gy >= rows:
+        return 0, False
+    if t_in >= t_out or t_in > glen:
+        return 0, False
+    c = min(max(_forward_index(gx + t_in * dx, dx), 0), cols - 1)
+    r = min(max(_forward_index(gy + t_in * dy, dy), 0), rows - 1)
+    sx = 1 if dx > 0.0 else -1
+    sy = 1 if dy > 0.0 else -1
+    cap = cells.shape[0]
+    n = 0
+    while n < cap:
+        cells[n, 0] = r
+        cells[n, 1] = c
+        n += 1
+        # Parameters of the next vertical / horizontal border, from the indices (no drift).
+        if dx > 0.0:
+            tx = (c + 1 - gx) / dx
+        elif dx < 0.0:
+            tx = (c - gx) / dx
+        else:
+            tx = math.inf
+        if dy > 0.0:
+            ty = (r + 1 - gy) / dy
+        elif dy < 0.0:
+            ty = (r - gy) / dy
+        else:
+            ty = math.inf
+        if min(tx, ty) > glen:
+            return n, True
+        if tx < ty - _TOL:
+            c += sx
+        elif ty < tx - _TOL:
+            r += sy
+        else:                 # through a corner (within 1e-9 cell): step diagonally
+            c += sx
+            r += sy
+        if c < 0 or c >= cols or r < 0 or r >= rows:
+            return n, False
+    return n, False
+
+
+@kernel
+def _beam(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rng: float, range_max: float,
+          cells: npt.NDArray[np.int64]) -> tuple[int, int]:
+    """Trace one beam into `cells`; return (cells crossed, cells before the hit cell).
+
+    The two are equal when the beam records no hit (max range, or its end lies beyond the grid).
+    """
+    a = pose[2] + angle
+    hit = rng < range_max
+    n, ended = traverse(geo, pose[0], pose[1], math.cos(a), math.sin(a), rng if hit else range_max, cells)
+    return n, (n - 1 if (hit and ended) else n)
+
+
+@kernel
+def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[np.int32], scan_id: int,
+                           geo: GridGeometry, pose: npt.NDArray[np.float64],
+                           angles: npt.NDArray[np.float64], ranges: npt.NDArray[np.float64],
+                           model: LogOddsModel) -> int:
+    """Add one scan to `logodds` (rows, cols) float32 in place; return the number of cells updated.
+
+    Each cell is updated at most once per scan, as in the cell-wise inverse sensor model of
+    Thrun et al. (Probabilistic Robotics, table 9.2), and a hit wins: the end cell of a hit gets
+    `l_occ` even when other beams of the same scan cross it. Without this rule, beams grazing a
+    wall clear the cells its face lies in (those cells are partly free) as fast as the beams that
+    hit it mark them. The cells a beam crosses before its end cell get `l_free`; a beam with
+    range >= `model.range_max` (or `inf`) records no hit and frees every cell up to `range_max`.
+    Values are clamped to [l_min, l_max]; NaN and negative ranges are skipped.
+
+    Args:
+        logodds: float32 (rows, cols) log-odds, updated in place.
+        stamp: int32 (rows, cols): the id of the last scan that touched each cell (0: never);
+            cells this scan touches are set to `scan_id`.
+        scan_id: > 0 and different from every earlier scan's id.
+        geo: the grid.
+        pose: float64 (3,) sensor x [m], y [m], heading [rad].
+        angles: float64 (n,) beam angles [rad] relative to the heading.
+        ranges: float64 (n,) measured ranges [m].
+        model: the inverse sensor model.
+
+    Returns:
+        The number of cells this scan updated.
+    """
+    cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
+    touched = 0
+    for sweep in range(2):          # hits first, then the free cells no hit claimed
+        for i in range(angles.shape[0]):
+            rng = ranges[i]
+            if math.isnan(rng) or rng < 0.0:
+                continue
+            n, n_free = _beam(geo, pose, angles[i], rng, model.range_max, cells)
+            lo, hi = (n_free, n) if sweep == 0 else (0, n_free)
+            delta = model.l_occ if sweep == 0 else model.l_free
+            for j in range(lo, hi):
+                r = cells[j, 0]
+                c = cells[j, 1]
+                if stamp[r, c] == scan_id:
+                    continue
+                stamp[r, c] = scan_id
+                # Sum in float64 (explicitly: NumPy would keep float32), round once on the store.
+                v = np.float64(logodds[r, c]) + delta
+                logodds[r, c] = min(max(v, model.l_min), model.l_max)
+                touched += 1
+    return touched
+
+
+@kernel
+def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32], scan_id: int,
+                        geo: GridGeometry, pose: npt.NDArray[np.float64], angles: npt.NDArray[np.float64],
+                        ranges: npt.NDArray[np.float64], range_max: float) -> int:
+    """Add one scan to the HIMM certainty grid `cert` (rows, cols) uint8 in place (Borenstein & Koren).
+
+    The end cell of a hit gains 3 (cap 15); cells a beam crosses lose 1 (floor 0). Each cell is
+    updated at most once per scan and a hit wins, as in `integrate_scan_logodds`, whose `stamp`,
+    `scan_id`, clipping and return value this follows; `range_max` is in [m].
+    """
+    cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
+    touched = 0
+    for sweep in range(2):
+        for i in range(angles.shape[0]):
+            rng = ranges[i]
+            if math.isnan(rng) or rng < 0.0:
+                continue
+            n, n_free = _beam(geo, pose, angles[i], rng, range_max, cells)
+            lo, hi = (n_free, n) if sweep == 0 else (0, n_free)
+            for j in range(lo, hi):
+                r = cells[j, 0]
+                c = cells[j, 1]
+                if stamp[r, c] == scan_id:
+                    continue
+                stamp[r, c] = scan_id
+                v = int(cert[r, c])
+                cert[r, c] = min(v + 3, 15) if sweep == 0 else max(v - 1, 0)
+                touched += 1
+    return touched
+
+
+@kernel
+def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[np.float64],
+              discs: npt.NDArray[np.float64]) -> None:
+    """Set `occ` (rows, cols) where a cell's square overlaps an obstacle with positive area.
+
+    Boxes (n, 5) are [cx, cy, half_x, half_y, yaw] [m, rad], tested exactly by separating axes;
+    discs (m, 3) are [cx, cy, r] [m], overlapping when the square is nearer than r to the centre.
+    Contacts within 1e-9 m (a face lying on a cell border) do not count.
+    """
+    h = 0.5 * geo.cell
+    for k in range(boxes.shape[0]):
+        cx, cy, hx, hy, yaw = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3], boxes[k, 4]
+        ca = math.cos(yaw)
+        sa = math.sin(yaw)
+        ex = abs(hx * ca) + abs(hy * sa)
+        ey = abs(hx * sa) + abs(hy * ca)
+        cell_proj = h * (abs(ca) + abs(sa))    # half extent of a cell along the box axes
+        c0 = max(math.floor((cx - ex - geo.origin_x) / geo.cell), 0)
+        c1 = min(math.floor((cx + ex - geo.origin_x) / geo.cell), geo.cols - 1)
+        r0 = max(math.floor((cy - ey - geo.origin_y) / geo.cell), 0)
+        r1 = min(math.floor((cy + ey - geo.origin_y) / geo.cell), geo.rows - 1)
+        for r in range(r0, r1 + 1):
+            qy = geo.origin_y + (r + 0.5) * geo.cell - cy
+            if ey + h - abs(qy) <= _TOL:
+                continue
+            for c in range(c0, c1 + 1):
+                qx = geo.origin_x + (c + 0.5) * geo.cell - cx
+                if ex + h - abs(qx) <= _TOL:
+                    continue
+                if hx + cell_proj - abs(qx * ca + qy * sa) <= _TOL:
+                    continue
+                if hy + cell_proj - abs(qy * ca - qx * sa) <= _TOL:
+                    continue
+                occ[r, c] = True
+    for k in range(discs.shape[0]):
+        cx, cy, rad = discs[k, 0], discs[k, 1], discs[k, 2]
+        c0 = max(math.floor((cx - rad - geo.origin_x) / geo.cell), 0)
+        c1 = min(math.floor((cx + rad - geo.origin_x) / geo.cell), geo.cols - 1)
+        r0 = max(math.floor((cy - rad - geo.origin_y) / geo.cell), 0)
+        r1 = min(math.floor((cy + rad - geo.origin_y) / geo.cell), geo.rows - 1)
+        for r in range(r0, r1 + 1):
+            qy = geo.origin_y + (r + 0.5) * geo.cell
+            ny = min(max(cy, qy - h), qy + h)
+            for c in range(c0, c1 + 1):
+                qx = geo.origin_x + (c + 0.5) * geo.cell
+                nx = min(max(cx, qx - h), qx + h)
+                if math.sqrt((cx - nx) ** 2 + (cy - ny) ** 2) < rad - _TOL:
+                    occ[r, c] = True
+
+
+@kernel
+def frontier_mask(free: npt.NDArray[np.bool_], unknown: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): free cells with an unknown 4-neighbour (outside the grid is not unknown)."""
+    rows, cols = free.shape
+    out = np.zeros((rows, cols), np.bool_)
+    for r in range(rows):
+        for c in range(cols):
+            if free[r, c] and ((r > 0 and unknown[r - 1, c]) or (r + 1 < rows and unknown[r + 1, c])
+                               or (c > 0 and unknown[r, c - 1]) or (c + 1 < cols and unknown[r, c + 1])):
+                out[r, c] = True
+    return out
+
+
+@kernel
+def label8(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.int32], int]:
+    """8-connected components of `mask` (rows, cols).
+
+    Returns:
+        (labels, k): int32 (rows, cols) labels, 0 outside the mask and 1..k inside, numbered in
+        row-major order of each component's first cell; and the number of components k.
+    """
+    rows, cols = mask.shape
+    labels = np.zeros((rows, cols), np.int32)
+    stack = np.empty(rows * cols, np.int64)
+    k = 0
+    for r0 in range(rows):
+        for c0 in range(cols):
+            if not mask[r0, c0] or labels[r0, c0] != 0:
+                continue
+            k += 1
+            labels[r0, c0] = k
+            top = 0
+            stack[top] = r0 * cols + c0
+            top += 1
+            while top > 0:
+                top -= 1
+                r = stack[top] // cols
+                c = stack[top] % cols
+                for rr in range(max(r - 1, 0), min(r + 2, rows)):
+                    for cc in range(max(c - 1, 0), min(c + 2, cols)):
+                        if mask[rr, cc] and labels[rr, cc] == 0:
+                            labels[rr, cc] = k
+                            stack[top] = rr * cols + cc
+                            top += 1
+    return labels, k
+
+
+@kernel
+def flood8(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): the 8-connected component of `mask` holding cell (row, col) (empty if unset)."""
+    rows, cols = mask.shape
+    out = np.zeros((rows, cols), np.bool_)
+    if row < 0 or row >= rows or col < 0 or col >= cols or not mask[row, col]:
+        return out
+    stack = np.empty(rows * cols, np.int64)
+    out[row, col] = True
+    stack[0] = row * cols + col
+    top = 1
+    while top > 0:
+        top -= 1
+        r = stack[top] // cols
+        c = stack[top] % cols
+        for rr in range(max(r - 1, 0), min(r + 2, rows)):
+            for cc in range(max(c - 1, 0), min(c + 2, cols)):
+                if mask[rr, cc] and not out[rr, cc]:
+                    out[rr, cc] = True
+                    stack[top] = rr * cols + cc
+                    top += 1
+    return out
+
+
+@kernel
+def _edt_1d(f: npt.NDArray[np.float64], d: npt.NDArray[np.float64], v: npt.NDArray[np.int64],
+            z: npt.NDArray[np.float64]) -> None:
+    """Lower envelope of parabolas (Felzenszwalb & Huttenlocher 2012): d[q] = min_p (q-p)^2 + f[p]."""
+    n = f.shape[0]
+    k = 0
+    v[0] = 0
+    z[0] = -math.inf
+    z[1] = math.inf
+    for q in range(1, n):
+        s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2 * q - 2 * v[k])
+        while s <= z[k]:
+            k -= 1
+            s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2 * q - 2 * v[k])
+        k += 1
+        v[k] = q
+        z[k] = s
+        z[k + 1] = math.inf
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        d[q] = (q - v[k]) ** 2 + f[v[k]]
+
+
+@kernel
+def edt_sq(occ: npt.NDArray[np.bool_]) -> npt.NDArray[np.float64]:
+    """Exact squared Euclidean distance [cells^2] from each cell centre to the nearest set cell centre.
+
+    Returns float64 (rows, cols); `inf` everywhere when `occ` has no set cell.
+    """
+    rows, cols = occ.shape
+    n = max(rows, cols)
+    f = np.empty(n, np.float64)
+    d = np.empty(n, np.float64)
+    v = np.empty(n, np.int64)
+    z = np.empty(n + 1, np.float64)
+    out = np.empty((rows, cols), np.float64)
+    for c in range(cols):
+        for r in range(rows):
+            f[r] = 0.0 if occ[r, c] else _BIG
+        _edt_1d(f[:rows], d[:rows], v, z)
+        for r in range(rows):
+            out[r, c] = d[r]
+    for r in range(rows):
+        for c in range(cols):
+            f[c] = out[r, c]
+        _edt_1d(f[:cols], d[:cols], v, z)
+        for c in range(cols):
+            out[r, c] = d[c] if d[c] < 0.5 * _BIG else math.inf
+    return out
+
+
+@kernel
+def clearance_mask(occ: npt.NDArray[np.bool_], radius: float) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): cells whose centre is farther than `radius` [cells] from every set square.
+
+    Exact: the distance transform to set cell centres settles all but a band of cells, which are
+    checked against each set square near them. A distance equal to `radius` (within 1e-9) blocks.
+    """
+    rows, cols = occ.shape
+    d2 = edt_sq(occ)
+    out = np.zeros((rows, cols), np.bool_)
+    lim = radius + _TOL
+    w = int(radius + 0.5) + 1
+    for r in range(rows):
+        for c in range(cols):
+            d = math.sqrt(d2[r, c])
+            if d - 0.5 <= lim:          # the nearest centre's square lies within d - 0.5
+                continue
+            if d - math.sqrt(0.5) > lim:  # every square lies beyond its centre distance - sqrt(1/2)
+                out[r, c] = True
+                continue
+            best = math.inf
+            for rr in range(max(r - w, 0), min(r + w + 1, rows)):
+                ay = max(abs(rr - r) - 0.5, 0.0)
+                for cc in range(max(c - w, 0), min(c + w + 1, cols)):
+                    if occ[rr, cc]:
+                        ax = max(abs(cc - c) - 0.5, 0.0)
+                        best = min(best, ax * ax + ay * ay)
+            out[r, c] = math.sqrt(best) > lim
+    return out
+
+
+@kernel
+def view_free(occ: npt.NDArray[np.bool_], views: npt.NDArray[np.int64], offsets: npt.NDArray[np.int64],
+              skip: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): free cells seen from the cells `views` (k, 2) through a tree of rays.
+
+    The rays of a laser at a cell centre cross the same cell offsets wherever the cell is, so they
+    are given once as a prefix tree in depth-first order: node j is the cell offset `offsets[j]`
+    (drow, dcol), node 0 the viewpoint itself, and `skip[j]` the first node after j's subtree. A
+    node is seen when it lies in the grid and neither it nor an ancestor is set in `occ`; a ray
+    stopped by an occupied cell or by the grid edge stops all its descendants (rays are monotone
+    along each axis, so a ray that left the grid never re-enters).
+    """
+    rows, cols = occ.shape
+    seen = np.zeros((rows, cols), np.bool_)
+    n = offsets.shape[0]
+    for k in range(views.shape[0]):
+        vr = views[k, 0]
+        vc = views[k, 1]
+        j = 0
+        while j < n:
+            r = vr + offsets[j, 0]
+            c = vc + offsets[j, 1]
+            if r < 0 or r >= rows or c < 0 or c >= cols or occ[r, c]:
+                j = skip[j]
+            else:
+                seen[r, c] = True
+                j += 1
+    return seen

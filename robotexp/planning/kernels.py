@@ -20,8 +20,15 @@ import numpy.typing as npt
 from robotexp.mapping.kernels import kernel
 
 __all__ = [
-    "SQRT2", "edt_1d", "distance_transform_kernel", "dijkstra_search", "dijkstra_fill",
-    "astar_kernel", "trace_path", "line_of_sight_kernel", "simplify_kernel",
+    "SQRT2",
+    "astar_kernel",
+    "dijkstra_fill",
+    "dijkstra_search",
+    "distance_transform_kernel",
+    "edt_1d",
+    "line_of_sight_kernel",
+    "simplify_kernel",
+    "trace_path",
 ]
 
 SQRT2 = math.sqrt(2.0)
@@ -120,7 +127,7 @@ def distance_transform_kernel(occ: npt.NDArray[np.bool_], out: npt.NDArray[np.fl
 def _less(a: int, b: int, key: npt.NDArray[np.float64], tie: npt.NDArray[np.float64]) -> bool:
     ka = key[a]
     kb = key[b]
-    return ka < kb or (ka == kb and tie[a] < tie[b])
+    return bool(ka < kb or (ka == kb and tie[a] < tie[b]))
 
 
 @kernel
@@ -161,7 +168,7 @@ def _pop(heap: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], size: int,
             i = child
         heap[i] = item
         pos[item] = i
-    return top
+    return int(top)
 
 
 @kernel
@@ -306,7 +313,7 @@ def astar_kernel(cost: npt.NDArray[np.float64], start: int, goal: int, min_cost:
         size -= 1
         pos[u] = _CLOSED
         if u == goal:
-            return g[u]
+            return float(g[u])
         gu = g[u]
         cu = c[u]
         ur = u // cols

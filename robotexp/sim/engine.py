@@ -1,6 +1,6 @@
 """The pybullet side of the simulator: one DIRECT-mode physics client holding a world's obstacles.
 
-Static obstacles become one compound static body (boxes and cylinders), movers are kinematic
+Static obstacles become static bodies (boxes and cylinders), movers are kinematic
 cylinders, and the robot a cylinder that is placed, never pushed: the robot's motion is integrated
 by `SimRobot` and pybullet answers the geometric questions (contacts and ray casts).
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import math
 import os
 from collections.abc import Iterator
 from typing import Any
@@ -21,7 +22,6 @@ from robotexp.world.model import World
 __all__ = ["Engine"]
 
 WALL_HEIGHT = 1.0       # [m] every static obstacle reaches above the sensors
-_MAX_SHAPES = 2000      # children per compound shape (pybullet handles more, but slower to build)
 
 
 @contextlib.contextmanager
@@ -55,6 +55,8 @@ class Engine:
         with _quiet_stdout():      # pybullet prints its build time on the first connect
             self.client = pb.connect(pb.DIRECT)
         self._robot_z = robot_height / 2
+        self._robot_radius = robot_radius
+        self._robot_xy = (0.0, 0.0)
         self.statics: list[int] = []
         try:
             self._add_statics(world)
@@ -74,25 +76,27 @@ class Engine:
             raise
 
     def _add_statics(self, world: World) -> None:
-        boxes, discs = world.boxes, world.discs
-        for start in range(0, len(boxes), _MAX_SHAPES):
-            chunk = boxes[start:start + _MAX_SHAPES]
-            n = len(chunk)
-            shape = pb.createCollisionShapeArray(
-                [pb.GEOM_BOX] * n,
-                halfExtents=[[hx, hy, WALL_HEIGHT / 2] for _, _, hx, hy, _ in chunk],
-                collisionFramePositions=[[cx, cy, WALL_HEIGHT / 2] for cx, cy, _, _, _ in chunk],
-                collisionFrameOrientations=[pb.getQuaternionFromEuler([0, 0, yaw]) for *_, yaw in chunk],
-                physicsClientId=self.client)
-            self.statics.append(pb.createMultiBody(0, shape, physicsClientId=self.client))
-        for cx, cy, r in discs:
+        # One body per obstacle: pybullet's broadphase keeps ray casts and contact queries fast,
+        # and (unlike a compound shape) every child keeps exactly the pose we give it.
+        shapes: dict[tuple[float, float], int] = {}
+        for cx, cy, hx, hy, yaw in world.boxes:
+            key = (round(hx, 9), round(hy, 9))
+            if key not in shapes:
+                shapes[key] = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[hx, hy, WALL_HEIGHT / 2],
+                                                      physicsClientId=self.client)
+            self.statics.append(pb.createMultiBody(
+                0, shapes[key], basePosition=[cx, cy, WALL_HEIGHT / 2],
+                baseOrientation=[0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)], physicsClientId=self.client))
+        for cx, cy, r in world.discs:
             shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=r, height=WALL_HEIGHT,
                                             physicsClientId=self.client)
             self.statics.append(pb.createMultiBody(0, shape, basePosition=[cx, cy, WALL_HEIGHT / 2],
                                                    physicsClientId=self.client))
+        self._static_set = frozenset(self.statics)
 
     def place_robot(self, x: float, y: float) -> None:
         """Put the robot cylinder at (x, y) [m] (it is round: heading does not matter)."""
+        self._robot_xy = (x, y)
         pb.resetBasePositionAndOrientation(self.robot, [x, y, self._robot_z], [0, 0, 0, 1],
                                            physicsClientId=self.client)
 
@@ -107,7 +111,13 @@ class Engine:
 
     def robot_near_obstacle(self, margin: float, include_movers: bool = True) -> bool:
         """True when an obstacle is within `margin` [m] of the robot cylinder."""
-        bodies = self.statics + (self.movers if include_movers else [])
+        x, y = self._robot_xy
+        reach = self._robot_radius + margin + 1e-3
+        near = pb.getOverlappingObjects([x - reach, y - reach, 0.0], [x + reach, y + reach, WALL_HEIGHT],
+                                        physicsClientId=self.client) or ()
+        bodies = {b for b, _ in near if b in self._static_set}
+        if include_movers:
+            bodies.update(self.movers)
         return any(pb.getClosestPoints(self.robot, body, margin, physicsClientId=self.client)
                    for body in bodies)
 

@@ -1,0 +1,257 @@
+"""Frontier-based exploration (Yamauchi 1997) as a robotexp explorer plugin."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.follower import PathFollower
+from robotexp.planning.grid_planner import astar, cost_grid, distance_transform, nearest_goal, simplify
+from robotexp.robot import Pose, RobotState, Twist
+
+__all__ = ["FrontierExplorer", "plan_costs"]
+
+MARGIN = 0.05   # [m] kept between the robot and the walls by every plan
+
+
+def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
+    """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
+
+    A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
+    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger zone whose cost
+    rises towards the obstacle, so paths keep off walls where there is room.
+    """
+    cell = grid.geo.cell
+    dist = distance_transform(grid.occupied())
+    return cost_grid(dist, robot_radius_cells=(radius + MARGIN) / cell + 0.5, danger_radius_cells=clearance / cell,
+                     danger_cost=4.0, blocked=~grid.free())
+
+
+def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach: int) -> tuple[int, int] | None:
+    """The passable cell nearest (row, col) within `reach` cells, or None."""
+    rows, cols = passable.shape
+    r0, r1 = max(row - reach, 0), min(row + reach + 1, rows)
+    c0, c1 = max(col - reach, 0), min(col + reach + 1, cols)
+    cand = np.argwhere(passable[r0:r1, c0:c1])
+    if cand.size == 0:
+        return None
+    cand += (r0, c0)
+    best = int(np.argmin((cand[:, 0] - row) ** 2 + (cand[:, 1] - col) ** 2))
+    return int(cand[best, 0]), int(cand[best, 1])
+
+
+class FrontierExplorer(Explorer):
+    """Drive to the nearest reachable frontier group (Yamauchi 1997); done when none is left.
+
+    Frontier cells are free cells next to unknown ones, grouped by 8-connectivity; groups smaller
+    than the robot (`min_group_cells`, default the robot's diameter in cells) are ignored. The goal
+    is the free cell, among those the robot can stand on within a robot radius of a frontier
+    cell, with the shortest path (Dijkstra on the map inflated by the robot radius); on arrival the
+    robot turns to face the frontier. The plan is refreshed every `replan_period` [s] and whenever
+    the path is done. Frontier cells are given up on (blacklisted) when the robot stood by them and
+    looked their way yet they stayed frontier, or when their goal brought no progress for
+    `goal_timeout` [s]: a run neither ends early nor loops on an unreachable goal.
+
+    Args:
+        min_group_cells: smallest frontier group considered (None: the robot's diameter in cells).
+        replan_period: [s] robot time between plans.
+        goal_timeout: [s] without progress before a goal is blacklisted.
+        clearance: [m] width of the costly zone beyond the robot radius.
+        return_home: drive back to the start pose when exploration is done.
+    """
+
+    def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
+                 goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False) -> None:
+        if min_group_cells is not None and min_group_cells < 1:
+            raise ConfigError(f"frontier: min_group_cells must be >= 1, got {min_group_cells}")
+        for name, value in (("replan_period", replan_period), ("goal_timeout", goal_timeout)):
+            if not value > 0:
+                raise ConfigError(f"frontier: {name} must be > 0, got {value}")
+        if clearance < 0:
+            raise ConfigError(f"frontier: clearance must be >= 0 m, got {clearance}")
+        self.min_group_cells = min_group_cells
+        self.replan_period = replan_period
+        self.goal_timeout = goal_timeout
+        self.clearance = clearance
+        self.return_home = return_home
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run."""
+        super().reset(ctx)
+        self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.blacklist = np.zeros((0, 0), dtype=bool)     # frontier cells given up on
+        self.blacklist_events = 0
+        self.goal_cells = np.zeros((0, 2), dtype=np.int64)
+        self.goal: tuple[float, float] | None = None
+        self.face: tuple[float, float] | None = None      # the frontier cell to look at on arrival
+        self.next_plan = -math.inf
+        self.best_remaining = math.inf
+        self.last_progress = 0.0
+        self.homing = False
+        self.plans = 0
+        self.reach = 0.0            # [cells] from the goal to the frontier cells it serves
+        self._now = 0.0
+
+    # -- the decision ----------------------------------------------------------------
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        """Follow the current plan, re-planning when due; Done when no reachable frontier is left."""
+        pose, now = state.pose, state.time
+        self._now = now
+        if self.homing:
+            if self.follower.done:
+                return Done("explored; back at the start")
+            return self.follower.twist(pose, state.laser)
+        if self.follower.done and self.face is not None:
+            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x))
+            if not facing:
+                return twist
+            # we stand by these frontier cells and look their way: those still frontier cannot be
+            # resolved (seen from here, they stay next to unknown cells the laser cannot reach)
+            self._blacklist_unresolved(grid)
+            self.face = None
+            self.next_plan = -math.inf
+        if self.goal is not None and not self.follower.done:
+            self._watch_progress(pose, now)
+        if now >= self.next_plan or self.follower.done:
+            if not self._plan(pose, grid):
+                return self._finish(pose, grid)
+            self.next_plan = now + self.replan_period
+        return self.follower.twist(pose, state.laser)
+
+    def _watch_progress(self, pose: Pose, now: float) -> None:
+        remaining = self.follower.remaining(pose)
+        if remaining < self.best_remaining - 0.1:
+            self.best_remaining = remaining
+            self.last_progress = now
+        elif now - self.last_progress > self.goal_timeout and self.goal is not None:
+            self.blacklist[self.goal_cells[:, 0], self.goal_cells[:, 1]] = True
+            self.blacklist_events += 1
+            self.follower.clear()
+            self.goal = self.face = None
+            self.next_plan = -math.inf
+
+    def _blacklist_unresolved(self, grid: OccupancyGrid) -> None:
+        still = self._frontier_targets(grid)[self.goal_cells[:, 0], self.goal_cells[:, 1]]
+        if still.any():
+            stuck = self.goal_cells[still]
+            self.blacklist[stuck[:, 0], stuck[:, 1]] = True
+            self.blacklist_events += 1
+
+    def _plan(self, pose: Pose, grid: OccupancyGrid) -> bool:
+        """Choose the nearest reachable frontier goal; False when there is none."""
+        geo = grid.geo
+        self.plans += 1
+        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        passable = np.isfinite(cost)
+        start = self._start_cell(pose, grid, passable)
+        if start is None:
+            return False
+        targets = self._frontier_targets(grid)
+        if not targets.any():
+            return False
+        # stand within a robot radius (plus the inflation) of a frontier cell
+        # stand on or right by a frontier cell where possible (inside the room, not in its door);
+        # frontier cells in pockets too narrow for the robot are looked at from up to a metre away
+        dist = distance_transform(targets)
+        found = None
+        for reach in (self.ctx.radius / geo.cell + 1.5, (self.ctx.radius + 1.0) / geo.cell):
+            found = nearest_goal(cost, start, (dist <= reach) & passable)
+            if found is not None:
+                self.reach = reach
+                break
+        if found is None:
+            return False
+        goal_rc, path, _ = found
+        gx, gy = geo.center_of(*goal_rc)
+        if self.goal is None or math.hypot(gx - self.goal[0], gy - self.goal[1]) > geo.cell * 1.5:
+            self.best_remaining = math.inf
+            self.last_progress = self._now
+        self.goal = (gx, gy)
+        self._aim(targets, goal_rc, grid)
+        self._follow(path, passable, pose, grid)
+        return True
+
+    def _frontier_targets(self, grid: OccupancyGrid) -> npt.NDArray[np.bool_]:
+        """Frontier cells of the groups large enough to matter, wall faces left out.
+
+        A free cell beside an occupied one, with unknown on its other side, is the face of a wall
+        whose far half the laser never sees (or a cell that grazing beams cleared): not an opening
+        into unknown space. Openings are cells with no occupied 8-neighbour.
+        """
+        min_cells = self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
+        occ = grid.occupied()
+        near_occ = occ.copy()
+        near_occ[1:, :] |= occ[:-1, :]
+        near_occ[:-1, :] |= occ[1:, :]
+        near_occ[:, 1:] |= near_occ[:, :-1].copy()
+        near_occ[:, :-1] |= near_occ[:, 1:].copy()
+        mask = np.zeros((grid.geo.rows, grid.geo.cols), dtype=bool)
+        if self.blacklist.shape != mask.shape:
+            self.blacklist = np.zeros_like(mask)
+        skip = near_occ | self.blacklist
+        for cells in grid.frontier_groups(1):
+            keep = cells[~skip[cells[:, 0], cells[:, 1]]]
+            if len(keep) >= min_cells:
+                mask[keep[:, 0], keep[:, 1]] = True
+        return mask
+
+    def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_]) -> tuple[int, int] | None:
+        r, c = grid.geo.cell_of(pose.x, pose.y)
+        if not grid.geo.contains(r, c):
+            return None
+        if passable[r, c]:
+            return r, c
+        return nearest_passable(passable, r, c, int(math.ceil(0.5 / grid.geo.cell)))
+
+    def _aim(self, targets: npt.NDArray[np.bool_], goal_rc: tuple[int, int], grid: OccupancyGrid) -> None:
+        """Remember the frontier cells this goal is for, and where to look on arrival: the centre of
+        their unknown neighbours."""
+        geo = grid.geo
+        k = int(math.ceil(self.reach)) + 1
+        r0, c0 = max(goal_rc[0] - k, 0), max(goal_rc[1] - k, 0)
+        window = targets[r0:goal_rc[0] + k + 1, c0:goal_rc[1] + k + 1]
+        self.goal_cells = np.argwhere(window) + (r0, c0)
+        if len(self.goal_cells) == 0:
+            self.face = None
+            return
+        # look at the unknown 4-neighbours of those frontier cells: they are what must be seen
+        unknown = grid.unknown()
+        rows, cols = unknown.shape
+        seen_from: list[tuple[int, int]] = []
+        for r, c in self.goal_cells:
+            for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                rr, cc = r + dr, c + dc
+                if 0 <= rr < rows and 0 <= cc < cols and unknown[rr, cc]:
+                    seen_from.append((rr, cc))
+        centre = np.mean(seen_from, axis=0) if seen_from else self.goal_cells.mean(axis=0)
+        self.face = (geo.origin_x + (centre[1] + 0.5) * geo.cell, geo.origin_y + (centre[0] + 0.5) * geo.cell)
+
+    def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
+                grid: OccupancyGrid) -> None:
+        cells = simplify(path, passable) if len(path) > 2 else path
+        pts = np.array([grid.geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
+        pts[0] = (pose.x, pose.y)
+        self.follower.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
+
+    def _finish(self, pose: Pose, grid: OccupancyGrid) -> Twist | Done:
+        """No frontier left: done, or drive home first."""
+        self.follower.clear()
+        if not self.return_home:
+            return Done("no reachable frontier left")
+        start = self.ctx.start
+        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        passable = np.isfinite(cost)
+        here = self._start_cell(pose, grid, passable)
+        home = grid.geo.cell_of(start.x, start.y)
+        path = astar(cost, here, home) if here is not None and grid.geo.contains(*home) else None
+        self.homing = True
+        if path is None:
+            return Done("no reachable frontier left; the start is unreachable")
+        self._follow(path, passable, pose, grid)
+        self.follower.path[-1] = (start.x, start.y)
+        return Twist.ZERO

@@ -1,0 +1,183 @@
+"""The `robotexp` command line. Parses, calls the library, prints; maps errors to exit codes.
+
+Exit codes: 0 ok; 1 a run failed (robot or script error); 2 bad input (world, method, parameter);
+130 interrupted by Ctrl-C (the partial result is written first).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+
+from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _fail(message: str, code: int) -> None:
+    click.echo(f"robotexp: error: {message}", err=True)
+    sys.exit(code)
+
+
+def handle_errors(func: F) -> F:
+    """Turn our errors into one line and an exit code (a traceback only with --debug)."""
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        debug = click.get_current_context().find_root().params.get("debug", False)
+        try:
+            return func(*args, **kwargs)
+        except (ConfigError, WorldError, PluginError) as exc:
+            if debug:
+                raise
+            _fail(str(exc), 2)
+        except (RobotError, ScriptError, RobotexpError) as exc:
+            if debug:
+                raise
+            _fail(str(exc), 1)
+        except KeyboardInterrupt:
+            click.echo("robotexp: interrupted", err=True)
+            sys.exit(130)
+        except OSError as exc:
+            if debug:
+                raise
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            _fail(f"{exc.strerror or exc}{where}", 1)
+    return wrapper  # type: ignore[return-value]
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--debug", is_flag=True, help="Show Python tracebacks on errors.")
+@click.version_option(package_name="robotexp")
+def main(debug: bool) -> None:
+    """Mobile-robot exploration experiments, on the embedded simulator or a real robot."""
+
+
+class Progress:
+    """A one-line progress display on stderr (only when stderr is a terminal)."""
+
+    def __init__(self, label: str, enabled: bool | None = None) -> None:
+        self.label = label
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.shown = False
+
+    def __call__(self, t: float, coverage: float | None) -> None:
+        if not self.enabled:
+            return
+        width = 30
+        if coverage is None:
+            bar = "?" * 0
+            text = f"\r{self.label}  robot time {t:7.0f} s"
+        else:
+            done = int(round(coverage * width))
+            bar = "#" * done + "-" * (width - done)
+            text = f"\r{self.label}  [{bar}] {coverage * 100:5.1f}%  robot time {t:7.0f} s"
+        click.echo(text, nl=False, err=True)
+        self.shown = True
+
+    def close(self) -> None:
+        """End the progress line."""
+        if self.shown:
+            click.echo("", err=True)
+
+
+def _mm(value: float | None, what: str) -> float | None:
+    if value is None:
+        return None
+    if not (value > 0 and math.isfinite(value)):
+        raise ConfigError(f"{what} must be a positive number of mm, got {value:g}")
+    return value / 1000.0
+
+
+def _params(items: tuple[str, ...]) -> dict[str, Any]:
+    """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
+    import json
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.isidentifier():
+            raise ConfigError(f"--param {item!r}: expected key=value with key a parameter name")
+        try:
+            out[key] = json.loads(raw)
+        except json.JSONDecodeError:
+            out[key] = raw
+    return out
+
+
+@main.command()
+@click.option("--world", "-w", default="dense", show_default=True,
+              help="Built-in world name, or the path of a MobileSim .map or ROS .yaml map.")
+@click.option("--method", "-m", default="frontier", show_default=True, help="Explorer plugin name.")
+@click.option("--pose", default=None, help="Start pose: a name of the world's poses, or x,y,theta in mm, mm, deg.")
+@click.option("--speed", type=float, default=300.0, show_default=True, help="Maximum speed [mm/s].")
+@click.option("--laser-range", type=float, default=3000.0, show_default=True, help="Laser range [mm].")
+@click.option("--cell", type=float, default=None, help="Map cell size [mm] (default: the method's, else 100).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random choice.")
+@click.option("--robot", default="p3dx", show_default=True, help="Simulated robot preset (p3dx, kobuki).")
+@click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
+@click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
+@click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
+              show_default=True, help="Output folder (results.jsonl, images).")
+@handle_errors
+def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
+            seed: int, robot: str, param: tuple[str, ...], show: str, max_time: float, out: Path) -> None:
+    """Run one exploration on the embedded simulator and write its results."""
+    from robotexp.experiment import RunSpec, run_experiment
+
+    overlays = tuple(s for s in show.split(",") if s)
+    unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
+    if unknown:
+        raise ConfigError(f"--show: unknown overlay(s) {', '.join(sorted(unknown))}; "
+                          "use grid, laser, vectors, potential")
+    if speed <= 0 or not math.isfinite(speed):
+        raise ConfigError(f"--speed must be > 0 mm/s, got {speed:g}")
+    spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
+                   laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
+                   params=_params(param), max_time=max_time)
+    progress = Progress(f"{Path(world).stem} {method}")
+    try:
+        result = run_experiment(spec, out, on_sample=progress, show=overlays)
+    finally:
+        progress.close()
+    r = result.record
+    cov = "n/a" if r["coverage"] is None else f"{r['coverage'] * 100:.1f}%"
+    click.echo(f"{r['run']}: {r['reason']}; path {r['path_length_m']:.1f} m, robot time {r['robot_time_s']:.0f} s "
+               f"(wall {r['wall_time_s']:.1f} s), coverage {cov}, collisions {r['collisions']}")
+    click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
+    if result.interrupted:
+        sys.exit(130)
+
+
+@main.command()
+@handle_errors
+def worlds() -> None:
+    """List the built-in worlds with their sizes and start poses."""
+    from robotexp.world.builtin import builtin_names, builtin_world
+
+    for name in builtin_names():
+        w = builtin_world(name)
+        width, height = w.size
+        click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+
+
+@main.command()
+@handle_errors
+def plugins() -> None:
+    """List the explorers and robot backends found through entry points."""
+    from robotexp.registry import EXPLORERS, ROBOTS, available, lua_name
+
+    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS)):
+        click.echo(f"{title} ({group}):")
+        for info in available(group).values():
+            extra = f"  Lua: ExplorationMethod.{lua_name(info.name)}" if group == EXPLORERS else ""
+            click.echo(f"  {info.name:16s} {info.target:45s} {info.distribution} {info.version}{extra}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

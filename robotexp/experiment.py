@@ -1,0 +1,238 @@
+"""One exploration experiment on the embedded simulator, from a `RunSpec` to written results.
+
+This is what `robotexp explore`, the Lua `exploration.start()` and campaigns all call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robotexp.errors import ConfigError, WorldError
+from robotexp.explorer import ExplorationRun, Explorer
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.robot import Pose
+from robotexp.world.model import World
+
+__all__ = ["RunSpec", "RunOutput", "run_experiment", "parse_pose", "resolve_pose", "make_explorer",
+           "DEFAULT_CELL", "MAP_MARGIN"]
+
+DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
+MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
+
+
+@dataclass
+class RunSpec:
+    """Everything that defines one run (SI units)."""
+
+    world: str = "dense"
+    method: str = "frontier"
+    pose: str | None = None             # a pose name, "x_mm,y_mm,theta_deg", or None for the default
+    speed: float = 0.3                  # [m/s] maximum forward speed
+    laser_range: float = 3.0            # [m]
+    cell: float | None = None           # [m] map cell (None: the method's preferred, else 0.1)
+    seed: int = 0
+    robot: str = "p3dx"
+    params: dict[str, Any] = field(default_factory=dict)   # explorer keyword parameters
+    max_time: float = 4 * 3600.0        # [s] robot time
+    laser_sigma: float = 0.0            # [m] gaussian laser noise
+    laser_uniform: float = 0.0          # [m] uniform laser noise half-width
+
+    def validate(self) -> None:
+        """Raise ConfigError on a value out of range."""
+        if not (self.speed > 0 and math.isfinite(self.speed)):
+            raise ConfigError(f"speed must be > 0, got {self.speed * 1000:g} mm/s")
+        if not (self.laser_range > 0 and math.isfinite(self.laser_range)):
+            raise ConfigError(f"laser range must be > 0, got {self.laser_range * 1000:g} mm")
+        if self.cell is not None and not (0.005 <= self.cell <= 2.0):
+            raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
+        if not self.max_time > 0:
+            raise ConfigError(f"max time must be > 0 s, got {self.max_time}")
+        if self.laser_sigma < 0 or self.laser_uniform < 0:
+            raise ConfigError("laser noise must be >= 0")
+
+
+@dataclass
+class RunOutput:
+    """What a run leaves behind: its record and the files written."""
+
+    record: dict[str, Any]
+    run: ExplorationRun
+    image: Path | None
+    plot: Path | None
+    interrupted: bool
+
+
+def parse_pose(text: str) -> Pose:
+    """Parse "x,y,theta" (mm, mm, degrees) into a Pose in SI units. Raises ConfigError."""
+    parts = text.split(",")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        x, y = float(parts[0]), float(parts[1])
+        th = float(parts[2]) if len(parts) == 3 else 0.0
+        if not all(math.isfinite(v) for v in (x, y, th)):
+            raise ValueError
+    except ValueError:
+        raise ConfigError(f"pose {text!r}: expected a pose name or x,y,theta in mm, mm, degrees "
+                          "(e.g. -5000,7500,0)") from None
+    return Pose(x / 1000, y / 1000, math.radians(th))
+
+
+def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, str]:
+    """The start pose and its label: a named pose, "x,y,theta", or the default.
+
+    The default is the world's first named pose, a .map file's RobotHome cairn, or else the free
+    cell nearest the map's centre where the robot fits.
+    """
+    if pose is None:
+        if world.home is not None:
+            return world.home, "home"
+        if world.poses:
+            name = next(iter(world.poses))
+            return world.poses[name], name
+        return _central_free_pose(world, radius), "centre"
+    if pose in world.poses:
+        return world.poses[pose], pose
+    if "," not in pose:
+        world.pose(pose)                    # raises: lists the names the world has
+    p = parse_pose(pose)
+    return p, f"{p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f}"
+
+
+def _central_free_pose(world: World, radius: float) -> Pose:
+    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.planning.grid_planner import distance_transform
+
+    assert world.bounds is not None
+    geo = GridGeometry.covering(*world.bounds, cell=0.05)
+    occ = occupancy(world, geo)
+    clear = distance_transform(occ) * geo.cell > radius + geo.cell
+    cells = np.argwhere(clear)
+    if cells.size == 0:
+        raise WorldError(f"world {world.name!r}: no place where a robot of radius {radius} m fits")
+    cr, cc = geo.rows / 2, geo.cols / 2
+    r, c = cells[int(np.argmin((cells[:, 0] - cr) ** 2 + (cells[:, 1] - cc) ** 2))]
+    x, y = geo.center_of(int(r), int(c))
+    return Pose(x, y, 0.0)
+
+
+def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
+    """Instantiate the explorer plugin `method` with keyword `params`.
+
+    Raises:
+        PluginError: unknown method.
+        ConfigError: an unknown or invalid parameter.
+    """
+    from robotexp.registry import EXPLORERS, load
+
+    cls = load(EXPLORERS, method, Explorer)
+    try:
+        return cls(**params)   # type: ignore[no-any-return]
+    except TypeError as exc:
+        raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
+
+
+def run_experiment(spec: RunSpec, out: Path | None, *,
+                   on_sample: Callable[[float, float | None], None] | None = None,
+                   show: tuple[str, ...] = (), image: bool = True) -> RunOutput:
+    """Run `spec` on the embedded simulator; append the record to `out/results.jsonl` and save the
+    map image, coverage curve and plot there (nothing is written when `out` is None).
+
+    Raises:
+        WorldError, PluginError, ConfigError: bad input, before the robot moves.
+    """
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.mapping.groundtruth import ground_truth
+    from robotexp.sim import LaserConfig, SimRobot, preset
+    from robotexp.world.loader import load_world
+
+    spec.validate()
+    world = load_world(spec.world)
+    explorer = make_explorer(spec.method, spec.params)
+    robot_preset = preset(spec.robot)
+    start, pose_label = resolve_pose(world, spec.pose, robot_preset.radius)
+    cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
+    assert world.bounds is not None
+    geo = GridGeometry.covering(*world.bounds, cell=cell, margin=MAP_MARGIN)
+    truth = ground_truth(world, geo, robot_radius=robot_preset.radius, laser_range=spec.laser_range,
+                         start=start)
+    laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
+                        sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
+    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
+    with SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser,
+                  max_speed=spec.speed) as robot:
+        run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
+                             on_sample=on_sample).run()
+    return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image)
+
+
+def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_label: str, out: Path | None, *,
+                  show: tuple[str, ...] = (), image: bool = True) -> RunOutput:
+    """Append the run's record and save its image, curve and plot under `out`."""
+    from robotexp.results import append_jsonl, make_record, run_id, write_curve_csv
+
+    interrupted = run.reason.startswith("interrupted")
+    if out is None:
+        name = f"{world_name}_{spec.method}_{pose_label}"
+        return RunOutput(make_record(run, name=name, method=spec.method, world=world_name, seed=spec.seed,
+                                     max_speed=spec.speed), run, None, None, interrupted)
+    out.mkdir(parents=True, exist_ok=True)
+    name = run_id(world_name, spec.method, pose_label, spec.speed, spec.seed, out)
+    record = make_record(run, name=name, method=spec.method, world=world_name, seed=spec.seed,
+                         max_speed=spec.speed, extra={"pose": pose_label, "laser_range_m": spec.laser_range,
+                                                      "robot": spec.robot})
+    append_jsonl(out / "results.jsonl", record)       # first: the record is never lost
+    write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
+    img_path = plot_path = None
+    if image:
+        img_path, plot_path = save_run_images(run, out, name, world_name, spec, show)
+    return RunOutput(record, run, img_path, plot_path, interrupted)
+
+
+def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, spec: RunSpec,
+                    show: tuple[str, ...]) -> tuple[Path, Path]:
+    """The map image (grid, walls, path, start, end and the `show` overlays) and the coverage plot."""
+    from robotexp.plot import line_plot
+    from robotexp.render import render_map, save_png
+
+    img_path = out / f"{name}.png"
+    save_png(map_image(run, f"{world_name} - {spec.method} - {run.metrics.path_length:.1f} m", show), img_path)
+    curve = run.metrics.curve
+    plot_path = out / f"{name}.coverage.png"
+    if curve and curve[-1][2] >= 0:
+        ts = [c[0] / 60 for c in curve]
+        plot = line_plot([("coverage", ts, [c[2] for c in curve])], xlabel="robot time [min]",
+                         ylabel="coverage", title=f"{name}: coverage of the explorable free space",
+                         hlines=(0.9, 0.95, 0.99), ylim=(0.0, 1.0))
+        save_png(plot, plot_path)
+    return img_path, plot_path
+
+
+def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = ()) -> Any:
+    """The PIL image of a run's map with its path and the overlays named in `show`
+    (grid, laser, vectors, potential, truth)."""
+    from robotexp.render import render_map
+
+    m = run.metrics
+    overlays = run.explorer.overlays()
+    state = run.state
+    laser = None
+    if "laser" in show and state is not None and state.laser is not None:
+        p, sc = state.pose, state.laser
+        ok = np.isfinite(sc.ranges)
+        a = p.theta + sc.angles[ok]
+        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
+    end = None if state is None else (state.true_pose or state.pose)
+    return render_map(run.grid.states(), run.grid.geo,
+                      truth=run.truth.occupied if run.truth is not None else None,
+                      path=np.array(m.path) if m.path else None, start=run.start_pose, end=end,
+                      show_grid="grid" in show, laser=laser,
+                      vectors=overlays.get("vectors") if "vectors" in show else None,
+                      potential=overlays.get("potential") if "potential" in show else None,
+                      title=title)

@@ -1,0 +1,252 @@
+"""`OccupancyGrid`: the map a robot builds from its laser, as log-odds (UFMG) or HIMM (BVP).
+
+Log-odds: prior 0 (p = 0.5); a beam adds l_free = logit(p_free) to the cells it crosses and
+l_occ = logit(p_occ) to its end cell when it hit something; values are clamped to +-l_clamp.
+A cell is occupied when l > 0, free when l < 0, unknown when l == 0 (never seen, or cancelled:
+with p_free = 1 - p_occ one hit and one pass cancel exactly). Within one scan each cell is
+updated at most once and a hit wins over the beams crossing its cell (see the kernels).
+
+HIMM (Borenstein & Koren 1991): certainty 0..15 (uint8), -1 on the beam (floor 0), +3 at a hit
+(cap 15). A cell is occupied when its certainty is > 2, free when seen and <= 2, unknown when
+never seen.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal, Self, cast
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.kernels import (
+    LogOddsModel,
+    frontier_mask,
+    integrate_scan_himm,
+    integrate_scan_logodds,
+    label8,
+)
+from robotexp.robot import LaserScan, Pose
+
+__all__ = ["HIMM_MAX", "HIMM_OCCUPIED", "OccupancyGrid"]
+
+HIMM_MAX = 15        # certainty cap
+HIMM_OCCUPIED = 2    # a certainty above this is occupied
+
+# HIMM certainty -> probability: free 0..2 -> 0, 0.05, 0.10; occupied 3..15 -> 0.70..1.00 linearly,
+# so the ROS thresholds (free < 0.196, occupied > 0.65) give back the same three states.
+_HIMM_P = np.array([0.0, 0.05, 0.10] + [0.7 + 0.3 * (c - 3) / 12 for c in range(3, 16)], np.float32)
+
+
+def _logit(p: float) -> float:
+    return math.log(p / (1.0 - p))
+
+
+class OccupancyGrid:
+    """An occupancy grid over `geo`, updated in place by laser scans.
+
+    Attributes:
+        geo: the grid geometry (row 0 at the bottom).
+        model: "logodds" or "himm".
+        values: the cell values, (rows, cols): float32 log-odds, or uint8 HIMM certainty.
+        stamp: int32 (rows, cols), the last scan (or mark) that touched each cell, 0 = never;
+            `seen` is stamp > 0.
+        scans: the number of scans and marks so far, which is also the id of the last one.
+        cells_updated: cell updates so far (a cell counts once per scan or mark that touched it).
+        range_max: [m] cap on the sensor model's range, or None to use each scan's `range_max`.
+        l_occ: log-odds added at a hit, logit(p_occ) rounded to float32.
+        l_free: log-odds added on a crossed cell, logit(p_free) rounded to float32.
+        l_clamp: log-odds bound (values stay in [-l_clamp, l_clamp]).
+    """
+
+    def __init__(self, geo: GridGeometry, *, model: Literal["logodds", "himm"] = "logodds",
+                 p_occ: float = 0.9, p_free: float = 0.1, l_clamp: float = 3.5,
+                 range_max: float | None = None) -> None:
+        """Make an empty grid (every cell unknown).
+
+        Args:
+            geo: the grid geometry; cell > 0, rows and cols >= 1.
+            model: "logodds" or "himm".
+            p_occ: log-odds model: probability of occupancy after a hit, in (0.5, 1).
+            p_free: log-odds model: probability of occupancy of a crossed cell, in (0, 0.5).
+            l_clamp: log-odds model: values stay in [-l_clamp, l_clamp]; > 0.
+            range_max: [m] beams at or beyond min(range_max, scan.range_max) record no hit;
+                None uses the scan's own range_max; > 0.
+
+        Raises:
+            ConfigError: a parameter out of range.
+        """
+        if not (geo.cell > 0 and geo.rows >= 1 and geo.cols >= 1):
+            raise ConfigError(f"occupancy grid: need cell > 0 m and rows, cols >= 1, got {geo}")
+        if model not in ("logodds", "himm"):
+            raise ConfigError(f"occupancy grid: model must be 'logodds' or 'himm', got {model!r}")
+        if not 0.5 < p_occ < 1.0:
+            raise ConfigError(f"occupancy grid: p_occ must be in (0.5, 1), got {p_occ}")
+        if not 0.0 < p_free < 0.5:
+            raise ConfigError(f"occupancy grid: p_free must be in (0, 0.5), got {p_free}")
+        if not l_clamp > 0:
+            raise ConfigError(f"occupancy grid: l_clamp must be > 0, got {l_clamp}")
+        if range_max is not None and not range_max > 0:
+            raise ConfigError(f"occupancy grid: range_max must be > 0 m or None, got {range_max}")
+        self.geo = GridGeometry(float(geo.origin_x), float(geo.origin_y), float(geo.cell),
+                                int(geo.rows), int(geo.cols))
+        self.model = model
+        self.range_max = range_max
+        # Rounded to float32, the grid's type, so that with p_free = 1 - p_occ a hit and a pass
+        # cancel exactly and the cell is unknown again.
+        self.l_occ = float(np.float32(_logit(p_occ)))
+        self.l_free = float(np.float32(_logit(p_free)))
+        self.l_clamp = float(np.float32(l_clamp))
+        shape = (self.geo.rows, self.geo.cols)
+        self.values: npt.NDArray[np.float32] | npt.NDArray[np.uint8]
+        if model == "logodds":
+            self.values = np.zeros(shape, np.float32)
+        else:
+            self.values = np.zeros(shape, np.uint8)
+        self.stamp: npt.NDArray[np.int32] = np.zeros(shape, np.int32)   # last scan id per cell, 0 = never
+        self.scans = 0
+        self.cells_updated = 0
+
+    @property
+    def seen(self) -> npt.NDArray[np.bool_]:
+        """(rows, cols) bool: cells some beam has touched."""
+        return self.stamp > 0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return (self.geo.rows, self.geo.cols)
+
+    def update(self, pose: Pose, scan: LaserScan) -> int:
+        """Integrate one laser scan taken at robot pose `pose`; return the cell updates it made.
+
+        The sensor sits `scan.offset_x` [m] ahead of the robot centre along the heading; beam
+        angles are relative to the heading. NaN ranges are skipped.
+
+        Raises:
+            ConfigError: `scan.angles` and `scan.ranges` differ in shape.
+        """
+        angles = np.ascontiguousarray(scan.angles, np.float64)
+        ranges = np.ascontiguousarray(scan.ranges, np.float64)
+        if angles.shape != ranges.shape or angles.ndim != 1:
+            raise ConfigError(f"occupancy grid update: scan angles {angles.shape} and ranges "
+                              f"{ranges.shape} must be equal 1-D shapes")
+        rmax = float(scan.range_max if self.range_max is None else min(self.range_max, scan.range_max))
+        sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
+                           pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
+        self.scans += 1
+        if self.model == "logodds":
+            lm = LogOddsModel(self.l_free, self.l_occ, -self.l_clamp, self.l_clamp, rmax)
+            logodds = cast("npt.NDArray[np.float32]", self.values)
+            n = integrate_scan_logodds(logodds, self.stamp, self.scans, self.geo, sensor, angles, ranges, lm)
+        else:
+            cert = cast("npt.NDArray[np.uint8]", self.values)
+            n = integrate_scan_himm(cert, self.stamp, self.scans, self.geo, sensor, angles, ranges, rmax)
+        self.cells_updated += int(n)
+        return int(n)
+
+    def occupied(self) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols): occupied cells (log-odds > 0; HIMM certainty > 2)."""
+        if self.model == "logodds":
+            return self.values > 0
+        return self.values > HIMM_OCCUPIED
+
+    def free(self) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols): free cells (log-odds < 0; HIMM seen with certainty <= 2)."""
+        if self.model == "logodds":
+            return self.values < 0
+        return self.seen & (self.values <= HIMM_OCCUPIED)
+
+    def unknown(self) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols): unknown cells (log-odds == 0; HIMM never seen)."""
+        if self.model == "logodds":
+            return self.values == 0
+        return ~self.seen
+
+    def states(self) -> npt.NDArray[np.int8]:
+        """Int8 (rows, cols) in the ROS convention: -1 unknown, 0 free, 100 occupied."""
+        out = np.full(self.shape, -1, np.int8)
+        out[self.free()] = 0
+        out[self.occupied()] = 100
+        return out
+
+    def probability(self) -> npt.NDArray[np.float32]:
+        """Float32 (rows, cols) probability of occupancy; 0.5 for unknown cells.
+
+        Log-odds: 1 / (1 + exp(-l)). HIMM: certainty 0, 1, 2 -> 0, 0.05, 0.10 and 3..15 ->
+        0.70..1.00 linearly, so the ROS map thresholds (0.196, 0.65) give back `states()`.
+        """
+        if self.model == "logodds":
+            return (1.0 / (1.0 + np.exp(-self.values))).astype(np.float32)
+        return np.where(self.seen, _HIMM_P[self.values], np.float32(0.5)).astype(np.float32)
+
+    def frontier(self) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols): free cells with an unknown 4-neighbour."""
+        return frontier_mask(self.free(), self.unknown())
+
+    def frontier_groups(self, min_cells: int = 1) -> list[npt.NDArray[np.int64]]:
+        """The 8-connected groups of frontier cells with at least `min_cells` cells.
+
+        Returns:
+            One int64 (k, 2) array of (row, col) per group, in row-major order inside a group;
+            groups ordered by their first cell in row-major order.
+
+        Raises:
+            ConfigError: `min_cells` < 1.
+        """
+        if min_cells < 1:
+            raise ConfigError(f"frontier_groups: min_cells must be >= 1, got {min_cells}")
+        labels, k = label8(self.frontier())
+        if k == 0:
+            return []
+        cells = np.argwhere(labels > 0)
+        order = labels[cells[:, 0], cells[:, 1]]
+        sort = np.argsort(order, kind="stable")
+        cells, order = cells[sort], order[sort]
+        bounds = np.searchsorted(order, np.arange(1, k + 2))
+        groups = [cells[bounds[i]:bounds[i + 1]].astype(np.int64) for i in range(k)]
+        return [g for g in groups if len(g) >= min_cells]
+
+    def _mask(self, mask: npt.NDArray[np.bool_], what: str) -> npt.NDArray[np.bool_]:
+        m = np.asarray(mask)
+        if m.shape != self.shape or m.dtype != np.bool_:
+            raise ConfigError(f"occupancy grid {what}: mask must be bool {self.shape}, "
+                              f"got {m.dtype} {m.shape}")
+        return m
+
+    def mark_free(self, mask: npt.NDArray[np.bool_]) -> None:
+        """Set the cells of `mask` (rows, cols) bool to certainly free (-l_clamp; HIMM 0).
+
+        Raises:
+            ConfigError: `mask` is not a bool array of the grid's shape.
+        """
+        m = self._mask(mask, "mark_free")
+        self.values[m] = -self.l_clamp if self.model == "logodds" else 0
+        self._touch(m)
+        self.cells_updated += int(np.count_nonzero(m))
+
+    def mark_occupied(self, mask: npt.NDArray[np.bool_]) -> None:
+        """Set the cells of `mask` (rows, cols) bool to certainly occupied (+l_clamp; HIMM 15).
+
+        Raises:
+            ConfigError: `mask` is not a bool array of the grid's shape.
+        """
+        m = self._mask(mask, "mark_occupied")
+        self.values[m] = self.l_clamp if self.model == "logodds" else HIMM_MAX
+        self._touch(m)
+        self.cells_updated += int(np.count_nonzero(m))
+
+    def copy(self) -> Self:
+        """An independent copy (arrays copied)."""
+        other = object.__new__(type(self))
+        other.__dict__.update(self.__dict__)
+        other.values = self.values.copy()
+        other.stamp = self.stamp.copy()
+        return other
+
+    def _touch(self, mask: npt.NDArray[np.bool_]) -> None:
+        """Count a mark as one scan that touched the cells of `mask`."""
+        self.scans += 1
+        self.stamp[mask] = self.scans
