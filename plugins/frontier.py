@@ -118,10 +118,33 @@ class FrontierExplorer(Explorer):
         if self.goal is not None and not self.follower.done:
             self._watch_progress(pose, now)
         if now >= self.next_plan or self.follower.done:
-            if not self._plan(pose, grid):
+            # keep the goal while its frontier is still there (switching goals at every plan makes
+            # a robot oscillate between two frontiers); only the path to it is refreshed
+            if not (self._goal_open(grid) and self._replan_path(pose, grid)) and not self._plan(pose, grid):
                 return self._finish(pose, grid)
             self.next_plan = now + self.replan_period
         return self.follower.twist(pose, state.laser)
+
+    def _goal_open(self, grid: OccupancyGrid) -> bool:
+        """True while the robot is on its way to a goal whose frontier cells are not all resolved."""
+        if self.goal is None or self.follower.done or len(self.goal_cells) == 0:
+            return False
+        return bool(self._frontier_targets(grid)[self.goal_cells[:, 0], self.goal_cells[:, 1]].any())
+
+    def _replan_path(self, pose: Pose, grid: OccupancyGrid) -> bool:
+        """A fresh path to the current goal on the current map; False when it cannot be reached."""
+        assert self.goal is not None
+        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        passable = np.isfinite(cost)
+        start = self._start_cell(pose, grid, passable)
+        goal_rc = grid.geo.cell_of(*self.goal)
+        if start is None or not passable[goal_rc]:
+            return False
+        path = astar(cost, start, goal_rc)
+        if path is None:
+            return False
+        self._follow(path, passable, pose, grid)
+        return True
 
     def _watch_progress(self, pose: Pose, now: float) -> None:
         remaining = self.follower.remaining(pose)
@@ -194,10 +217,9 @@ class FrontierExplorer(Explorer):
         if self.blacklist.shape != mask.shape:
             self.blacklist = np.zeros_like(mask)
         skip = near_occ | self.blacklist
-        for cells in grid.frontier_groups(1):
+        for cells in grid.frontier_groups(min_cells):
             keep = cells[~skip[cells[:, 0], cells[:, 1]]]
-            if len(keep) >= min_cells:
-                mask[keep[:, 0], keep[:, 1]] = True
+            mask[keep[:, 0], keep[:, 1]] = True
         return mask
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_]) -> tuple[int, int] | None:

@@ -40,6 +40,9 @@ HIMM_OCCUPIED = 2    # a certainty above this is occupied
 _HIMM_P = np.array([0.0, 0.05, 0.10] + [0.7 + 0.3 * (c - 3) / 12 for c in range(3, 16)], np.float32)
 
 
+HIT_DEPTH = 1e-4   # [m] see OccupancyGrid.update
+
+
 def _logit(p: float) -> float:
     return math.log(p / (1.0 - p))
 
@@ -134,6 +137,12 @@ class OccupancyGrid:
             raise ConfigError(f"occupancy grid update: scan angles {angles.shape} and ranges "
                               f"{ranges.shape} must be equal 1-D shapes")
         rmax = float(scan.range_max if self.range_max is None else min(self.range_max, scan.range_max))
+        # A hit lies on the obstacle's surface; when that surface is a cell border, rounding in the
+        # sensor's arithmetic puts half the hits in the free cell in front of it. Nudging hits
+        # HIT_DEPTH [m] into the obstacle puts them in the obstacle's cell.
+        hits = ranges < rmax
+        ranges = ranges.copy()
+        ranges[hits] = np.minimum(ranges[hits] + HIT_DEPTH, np.nextafter(rmax, 0.0))
         sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
                            pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
         self.scans += 1

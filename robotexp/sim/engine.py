@@ -11,6 +11,7 @@ import contextlib
 import ctypes
 import math
 import os
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -26,22 +27,32 @@ WALL_HEIGHT = 1.0       # [m] every static obstacle reaches above the sensors
 
 @contextlib.contextmanager
 def _quiet_stdout() -> Iterator[None]:
-    """Silence the C-level stdout (pybullet prints its build time on connect)."""
+    """Silence the C-level stdout and stderr (pybullet prints its build time to stderr on import,
+    which would break the CLI's one-line error messages)."""
+    saved: list[int] = []
     try:
-        fd = os.dup(1)
+        for fd in (1, 2):
+            saved.append(os.dup(fd))
     except OSError:
+        for copy in saved:
+            os.close(copy)
         yield
         return
     libc = ctypes.CDLL(None)
     c_stdout = ctypes.c_void_p.in_dll(libc, "stdout")
+    for stream in (sys.stdout, sys.stderr):
+        if stream is not None:
+            stream.flush()
     try:
         with open(os.devnull, "w") as null:
             os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
             yield
-            libc.fflush(c_stdout)   # the message sits in C's stdout buffer until flushed
+            libc.fflush(c_stdout)   # a message may sit in C's stdout buffer until flushed
     finally:
-        os.dup2(fd, 1)
-        os.close(fd)
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
 
 
 with _quiet_stdout():

@@ -175,8 +175,10 @@ class SimRobot(Robot):
         b = self.preset.wheel_base
         dl, dr = ds - dth * b / 2, ds + dth * b / 2
         if err.wheel_mismatch or err.slip_sigma:
-            dl *= 1.0 - err.wheel_mismatch / 2
-            dr *= 1.0 + err.wheel_mismatch / 2
+            # the encoders count turns of wheels of diameter (1 -+ m/2) nominal and odometry
+            # converts them with the nominal one: a larger right wheel under-reads its travel
+            dl /= 1.0 - err.wheel_mismatch / 2
+            dr /= 1.0 + err.wheel_mismatch / 2
             if err.slip_sigma:
                 dl *= 1.0 + self.rng.normal(0.0, err.slip_sigma)
                 dr *= 1.0 + self.rng.normal(0.0, err.slip_sigma)
