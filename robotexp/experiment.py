@@ -166,7 +166,7 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
                         sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
     with SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser,
-                  max_speed=spec.speed) as robot:
+                  max_speed=spec.speed, sonar=explorer.uses_sonar) as robot:
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
                              on_sample=on_sample).run()
     return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image)
@@ -199,7 +199,7 @@ def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, 
                     show: tuple[str, ...]) -> tuple[Path, Path]:
     """The map image (grid, walls, path, start, end and the `show` overlays) and the coverage plot."""
     from robotexp.plot import line_plot
-    from robotexp.render import render_map, save_png
+    from robotexp.render import save_png
 
     img_path = out / f"{name}.png"
     save_png(map_image(run, f"{world_name} - {spec.method} - {run.metrics.path_length:.1f} m", show), img_path)

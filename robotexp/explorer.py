@@ -60,6 +60,7 @@ class Explorer(ABC):
 
     grid_model: ClassVar[str] = "logodds"   # "logodds" or "himm"
     preferred_cell: ClassVar[float | None] = None   # [m] a cell size the method is defined for
+    uses_sonar: ClassVar[bool] = False      # the method reads RobotState.sonar
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Called once before the first step of a run."""

@@ -10,6 +10,8 @@ import pytest
 
 from robotexp.robot import Robot
 
+pytest_plugins = ["pytester"]
+
 # Robots opened during the current test. Strong references on purpose: a robot dropped without
 # close() keeps its link (a pybullet client, a serial port) alive, and must still be found.
 _OPENED: list[Robot] = []

@@ -36,6 +36,8 @@ class SimRobot(Robot):
         laser: laser settings (default: the preset's).
         odometry: odometry error model (default: perfect).
         max_speed: forward speed limit [m/s] (default: the preset's).
+        sonar: read the preset's sonar ring in every state (off saves a third of the time of a
+            step when nothing uses it; `sonar()` still works).
 
     Raises:
         WorldError: the start pose is outside the world or touches an obstacle.
@@ -47,7 +49,7 @@ class SimRobot(Robot):
 
     def __init__(self, world: World, *, robot: str | RobotPreset = "p3dx", pose: Pose | None = None,
                  seed: int = 0, laser: LaserConfig | None = None, odometry: OdometryError | None = None,
-                 max_speed: float | None = None) -> None:
+                 max_speed: float | None = None, sonar: bool = True) -> None:
         self.preset = preset(robot) if isinstance(robot, str) else robot
         self.world = world
         self.radius = self.preset.radius
@@ -56,6 +58,7 @@ class SimRobot(Robot):
         self.odometry_error = odometry or OdometryError()
         if max_speed is not None:
             self.set_max_speed(max_speed)
+        self.sonar_in_state = sonar and self.preset.sonar is not None
         self.rng = np.random.default_rng(seed)
         self.time = 0.0
         self.collisions = 0
@@ -88,7 +91,7 @@ class SimRobot(Robot):
 
     def _read(self) -> RobotState:
         return RobotState(time=self.time, pose=self._odom, velocity=self._vel, laser=self.scan(),
-                          sonar=self.sonar() if self.preset.sonar else None, stalled=self._stalled,
+                          sonar=self.sonar() if self.sonar_in_state else None, stalled=self._stalled,
                           bumpers=(self._stalled,), true_pose=self._true, distance=self._distance,
                           extra={"collisions": float(self.collisions)})
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pybullet as pb
@@ -88,7 +89,7 @@ def _noise_samples(laser: LaserConfig, seed: int, scans: int = 20) -> np.ndarray
         return np.concatenate(out)
 
 
-FULL = dict(beams=360, fov=2 * math.pi, range_max=3.0)
+FULL = {"beams": 360, "fov": 2 * math.pi, "range_max": 3.0}
 
 
 def test_laser_noise_free_is_exact_in_a_room() -> None:
@@ -419,9 +420,37 @@ def test_close_twice_and_read_after_close() -> None:
 
 
 def test_exploration_is_deterministic() -> None:
-    spec = dict(world="ufmg-static", max_time=60.0, seed=5)
-    a = run_experiment(RunSpec(**spec), None, image=False).record      # type: ignore[arg-type]
-    b = run_experiment(RunSpec(**spec), None, image=False).record      # type: ignore[arg-type]
+    a = run_experiment(RunSpec(world="ufmg-static", max_time=60.0, seed=5), None, image=False).record
+    b = run_experiment(RunSpec(world="ufmg-static", max_time=60.0, seed=5), None, image=False).record
     assert a["path_length_m"] > 1.0
     for key in ("path_length_m", "coverage", "collisions", "visited_cells", "robot_time_s", "map_iou"):
         assert a[key] == b[key], key
+
+
+def test_leaked_robot_fails_the_test(pytester: pytest.Pytester) -> None:
+    pytester.makeconftest(Path(__file__).parents[1].joinpath("conftest.py").read_text())
+    pytester.makepyfile(test_leak="""
+        import numpy as np
+        from robotexp.robot import Pose
+        from robotexp.sim import SimRobot
+        from robotexp.world.model import World
+
+        def world():
+            return World("w", np.array([[2.05, 0.0, 0.05, 5.0, 0.0]]), bounds=(-3.0, -5.0, 2.1, 5.0))
+
+        def test_leaks():
+            SimRobot(world(), pose=Pose(0.0, 0.0, 0.0))
+
+        def test_closes():
+            with SimRobot(world(), pose=Pose(0.0, 0.0, 0.0)):
+                pass
+
+        def test_fails_to_open():
+            try:
+                SimRobot(world(), pose=Pose(1.9, 0.0, 0.0))
+            except Exception:
+                pass
+    """)
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=3, errors=1)
+    result.stdout.fnmatch_lines(["*ERROR at teardown of test_leaks*", "*left 1 robot(s) open: SimRobot(sim)*"])

@@ -1,0 +1,58 @@
+"""Speed of a whole exploration: robot time / wall time of a frontier run of `dense`, and the rate of
+the mapping kernel (numba) against its numpy reference, measured in the same process.
+
+Run: python benchmarks/bench_explore.py [--world dense] [--method frontier] [--speed 300]
+Target (issue "Foundation"): robot time / wall time >= 200 on one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+from bench_grid_kernel import CELL, RANGE, _rate, _scans  # noqa: E402
+
+from robotexp.experiment import RunSpec, run_experiment  # noqa: E402
+from robotexp.mapping.geometry import GridGeometry  # noqa: E402
+from robotexp.mapping.kernels import LogOddsModel, integrate_scan_logodds  # noqa: E402
+from robotexp.mapping.reference import integrate_scan_logodds_ref  # noqa: E402
+
+
+def main() -> None:
+    """Print the exploration speed ratio and the kernel rates."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--world", default="dense")
+    ap.add_argument("--method", default="frontier")
+    ap.add_argument("--speed", type=float, default=300.0, help="[mm/s]")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+
+    # warm-up: compile (or load cached) kernels so the timed run measures the steady state
+    run_experiment(RunSpec(world="ufmg-static", method=args.method, max_time=5.0), None, image=False)
+    t0 = time.perf_counter()
+    out = run_experiment(RunSpec(world=args.world, method=args.method, speed=args.speed / 1000, seed=args.seed),
+                         None, image=False)
+    total = time.perf_counter() - t0
+    r = out.record
+    print(f"exploration {args.world} / {args.method} at {args.speed:g} mm/s: {r['reason']}")
+    print(f"  path {r['path_length_m']:.1f} m, coverage {r['coverage']:.4f}, collisions {r['collisions']}")
+    print(f"  robot time {r['robot_time_s']:.1f} s, control loop wall time {r['wall_time_s']:.2f} s "
+          f"(with set-up and ground truth {total:.2f} s)")
+    print(f"  robot time / wall time = {r['robot_time_s'] / r['wall_time_s']:.0f}x (loop), "
+          f"{r['robot_time_s'] / total:.0f}x (whole run)")
+
+    geo = GridGeometry(0.0, 0.0, CELL, int(20 / CELL), int(20 / CELL))
+    model = LogOddsModel(-2.1972246, 2.1972246, -3.5, 3.5, RANGE)
+    fast_cells, fast_scans = _rate(integrate_scan_logodds, _scans(400), geo, model)
+    slow_cells, slow_scans = _rate(integrate_scan_logodds_ref, _scans(20), geo, model)
+    print(f"grid update kernel (181 beams of {RANGE:g} m, {CELL:g} m cells): numba {fast_cells / 1e6:.1f} M cells/s "
+          f"({fast_scans:.0f} scans/s), numpy reference {slow_cells / 1e6:.2f} M cells/s "
+          f"({slow_scans:.0f} scans/s): {fast_cells / slow_cells:.0f}x")
+
+
+if __name__ == "__main__":
+    main()
