@@ -159,6 +159,19 @@ def _beam(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rng: f
 
 
 @kernel
+def _hit_cell(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rng: float) -> tuple[int, int]:
+    """(row, col) of the cell a hit at range `rng` [m] ends in, as `traverse` ends; (-1, -1) off the grid."""
+    a = pose[2] + angle
+    dx = math.cos(a)
+    dy = math.sin(a)
+    r = _forward_index((pose[1] + rng * dy - geo.origin_y) / geo.cell, dy)
+    c = _forward_index((pose[0] + rng * dx - geo.origin_x) / geo.cell, dx)
+    if r < 0 or r >= geo.rows or c < 0 or c >= geo.cols:
+        return -1, -1
+    return r, c
+
+
+@kernel
 def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[np.int32], scan_id: int,
                            geo: GridGeometry, pose: npt.NDArray[np.float64],
                            angles: npt.NDArray[np.float64], ranges: npt.NDArray[np.float64],
@@ -189,24 +202,32 @@ def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[
     """
     cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
     touched = 0
-    for sweep in range(2):          # hits first, then the free cells no hit claimed
-        for i in range(angles.shape[0]):
-            rng = ranges[i]
-            if math.isnan(rng) or rng < 0.0:
+    for i in range(angles.shape[0]):        # hits first: they need no traversal
+        rng = ranges[i]
+        if not (0.0 <= rng < model.range_max):
+            continue
+        r, c = _hit_cell(geo, pose, angles[i], rng)
+        if r < 0 or stamp[r, c] == scan_id:
+            continue
+        stamp[r, c] = scan_id
+        # Sum in float64 (explicitly: NumPy would keep float32), round once on the store.
+        v = np.float64(logodds[r, c]) + model.l_occ
+        logodds[r, c] = min(max(v, model.l_min), model.l_max)
+        touched += 1
+    for i in range(angles.shape[0]):        # then the free cells no hit claimed
+        rng = ranges[i]
+        if math.isnan(rng) or rng < 0.0:
+            continue
+        n, n_free = _beam(geo, pose, angles[i], rng, model.range_max, cells)
+        for j in range(n_free):
+            r = cells[j, 0]
+            c = cells[j, 1]
+            if stamp[r, c] == scan_id:
                 continue
-            n, n_free = _beam(geo, pose, angles[i], rng, model.range_max, cells)
-            lo, hi = (n_free, n) if sweep == 0 else (0, n_free)
-            delta = model.l_occ if sweep == 0 else model.l_free
-            for j in range(lo, hi):
-                r = cells[j, 0]
-                c = cells[j, 1]
-                if stamp[r, c] == scan_id:
-                    continue
-                stamp[r, c] = scan_id
-                # Sum in float64 (explicitly: NumPy would keep float32), round once on the store.
-                v = np.float64(logodds[r, c]) + delta
-                logodds[r, c] = min(max(v, model.l_min), model.l_max)
-                touched += 1
+            stamp[r, c] = scan_id
+            v = np.float64(logodds[r, c]) + model.l_free
+            logodds[r, c] = min(max(v, model.l_min), model.l_max)
+            touched += 1
     return touched
 
 
@@ -222,22 +243,29 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
     """
     cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
     touched = 0
-    for sweep in range(2):
-        for i in range(angles.shape[0]):
-            rng = ranges[i]
-            if math.isnan(rng) or rng < 0.0:
+    for i in range(angles.shape[0]):        # hits first: they need no traversal
+        rng = ranges[i]
+        if not (0.0 <= rng < range_max):
+            continue
+        r, c = _hit_cell(geo, pose, angles[i], rng)
+        if r < 0 or stamp[r, c] == scan_id:
+            continue
+        stamp[r, c] = scan_id
+        cert[r, c] = min(int(cert[r, c]) + 3, 15)
+        touched += 1
+    for i in range(angles.shape[0]):        # then the free cells no hit claimed
+        rng = ranges[i]
+        if math.isnan(rng) or rng < 0.0:
+            continue
+        n, n_free = _beam(geo, pose, angles[i], rng, range_max, cells)
+        for j in range(n_free):
+            r = cells[j, 0]
+            c = cells[j, 1]
+            if stamp[r, c] == scan_id:
                 continue
-            n, n_free = _beam(geo, pose, angles[i], rng, range_max, cells)
-            lo, hi = (n_free, n) if sweep == 0 else (0, n_free)
-            for j in range(lo, hi):
-                r = cells[j, 0]
-                c = cells[j, 1]
-                if stamp[r, c] == scan_id:
-                    continue
-                stamp[r, c] = scan_id
-                v = int(cert[r, c])
-                cert[r, c] = min(v + 3, 15) if sweep == 0 else max(v - 1, 0)
-                touched += 1
+            stamp[r, c] = scan_id
+            cert[r, c] = max(int(cert[r, c]) - 1, 0)
+            touched += 1
     return touched
 
 

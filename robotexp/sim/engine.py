@@ -75,6 +75,10 @@ class Engine:
                                             physicsClientId=self.client)
             self.robot = pb.createMultiBody(0, shape, basePosition=[0, 0, self._robot_z],
                                             physicsClientId=self.client)
+            # Out of every collision-filter group: ray casts skip it (they start inside it and Bullet
+            # would test it for every beam, 40% of a scan's time), while getClosestPoints, which
+            # ignores filters, still finds its contacts.
+            pb.setCollisionFilterGroupMask(self.robot, -1, 0, 0, physicsClientId=self.client)
             self.movers: list[int] = []
             for mover in world.movers:
                 ms = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=mover.radius, height=mover.height,
@@ -136,17 +140,14 @@ class Engine:
         """True when mover `index` is within `margin` [m] of the robot."""
         return bool(pb.getClosestPoints(self.robot, self.movers[index], margin, physicsClientId=self.client))
 
-    def cast(self, origins: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Cast rays from `origins` to `ends` ((n, 3) [m]); return the hit fraction (n,), 1.0 for no hit.
+    def cast(self, origins: list[list[float]], ends: list[list[float]]) -> npt.NDArray[np.float64]:
+        """Cast rays from `origins` to `ends` (n lists of [x, y, z] [m]); return the hit fraction (n,),
+        1.0 for no hit. Plain lists cross into pybullet faster than arrays.
 
-        Rays start inside the robot cylinder, which Bullet does not report, so the robot never
-        sees itself.
+        The robot cylinder is filtered out of ray tests, so the robot never sees itself.
         """
         hits: Any = pb.rayTestBatch(origins, ends, physicsClientId=self.client)
-        fraction = np.fromiter((h[2] for h in hits), dtype=np.float64, count=len(hits))
-        body = np.fromiter((h[0] for h in hits), dtype=np.int64, count=len(hits))
-        fraction[body < 0] = 1.0
-        return fraction
+        return np.array([h[2] if h[0] >= 0 else 1.0 for h in hits], dtype=np.float64)
 
     def close(self) -> None:
         """Disconnect the physics client. Safe to call twice."""

@@ -246,13 +246,13 @@ class SimRobot(Robot):
         return scan
 
     def _cast_fan(self, x: float, y: float, z: float, headings: np.ndarray, reach: float) -> np.ndarray:
+        """Ranges [m] of rays of length `reach` from (x, y, z) at `headings` [rad] (inf: no hit)."""
         n = len(headings)
-        origins = np.empty((n, 3))
-        origins[:, 0], origins[:, 1], origins[:, 2] = x, y, z
-        ends = origins.copy()
-        ends[:, 0] += reach * np.cos(headings)
-        ends[:, 1] += reach * np.sin(headings)
-        fraction = self.engine.cast(origins, ends)
+        ends = np.empty((n, 3))
+        ends[:, 0] = x + reach * np.cos(headings)
+        ends[:, 1] = y + reach * np.sin(headings)
+        ends[:, 2] = z
+        fraction = self.engine.cast([[x, y, z]] * n, ends.tolist())
         ranges = fraction * reach
         ranges[fraction >= 1.0] = np.inf
         return ranges
@@ -281,7 +281,7 @@ class SimRobot(Robot):
         ends = origins.copy()
         ends[:, 0] += cfg.range_max * np.cos(headings)
         ends[:, 1] += cfg.range_max * np.sin(headings)
-        fraction = self.engine.cast(origins, ends).reshape(len(ring), k).min(axis=1)
+        fraction = self.engine.cast(origins.tolist(), ends.tolist()).reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
         return SonarScan(ring, ranges, cfg.range_max)
 
