@@ -14,7 +14,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -58,7 +58,7 @@ class Explorer(ABC):
     implement `step`. Class attributes tell the run which map they want.
     """
 
-    grid_model: ClassVar[str] = "logodds"   # "logodds" or "himm"
+    grid_model: ClassVar[Literal["logodds", "himm"]] = "logodds"
     preferred_cell: ClassVar[float | None] = None   # [m] a cell size the method is defined for
     uses_sonar: ClassVar[bool] = False      # the method reads RobotState.sonar
 

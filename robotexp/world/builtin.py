@@ -75,10 +75,10 @@ def _dense() -> World:
     # corridor walls (y = 6.5 and 8.5) with one door per room
     d.wall(-10, 8.5, 10, 8.5, doors=[(-8.0, -6.8), (-3.2, -2.0), (1.6, 2.8), (6.4, 7.6)])
     d.wall(-10, 6.5, 10, 6.5, doors=[(-7.0, -5.8), (-0.6, 0.6), (6.0, 7.2)])
-    for x in (-5, 0, 5):                        # north rooms, 5 m wide
-        d.wall(x, 8.5, x, 15)
-    for x in (-3.5, 3.5):                       # south rooms
-        d.wall(x, 0, x, 6.5)
+    for xn in (-5.0, 0.0, 5.0):                 # north rooms, 5 m wide
+        d.wall(xn, 8.5, xn, 15)
+    for xs in (-3.5, 3.5):                      # south rooms
+        d.wall(xs, 0, xs, 6.5)
     # room N1 (-10..-5): two desks and a cabinet
     d.rect(-8.6, 12.8, 1.6, 0.8)
     d.rect(-6.2, 11.0, 0.8, 1.6)

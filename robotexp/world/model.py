@@ -52,7 +52,7 @@ class Mover:
         if not self.loop and s > total:
             s = 2 * total - s
         cum = np.concatenate([[0.0], np.cumsum(seg)])
-        i = int(min(np.searchsorted(cum, s, side="right") - 1, len(seg) - 1))
+        i = min(int(np.searchsorted(cum, s, side="right")) - 1, len(seg) - 1)
         f = (s - cum[i]) / seg[i] if seg[i] > 0 else 0.0
         p = pts[i] + f * (pts[i + 1] - pts[i])
         return float(p[0]), float(p[1])
