@@ -179,5 +179,96 @@ def plugins() -> None:
             click.echo(f"  {info.name:16s} {info.target:45s} {info.distribution} {info.version}{extra}")
 
 
+class _CampaignGroup(click.Group):
+    """`robotexp campaign FILE` runs a campaign; `robotexp campaign report RESULTS` reports one."""
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
+        if args and args[0] not in self.commands:
+            args.insert(0, "run")
+        return super().resolve_command(ctx, args)
+
+
+@main.group(cls=_CampaignGroup)
+def campaign() -> None:
+    """Run a campaign file (robotexp campaign FILE) or report its results (robotexp campaign report FILE)."""
+
+
+@campaign.command("run")
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--jobs", "-j", type=int, default=None, help="Parallel runs (default: all cores).")
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output folder (default: out/<campaign name>).")
+@click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+@handle_errors
+def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -> None:
+    """Run every run of a campaign FILE in parallel processes, appending each to results.jsonl."""
+    import os
+    import time
+
+    from robotexp.campaign import load_campaign, run_campaign
+
+    camp = load_campaign(file)
+    out = out or Path("out") / camp.name
+    n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
+    t0 = time.monotonic()
+    tty = sys.stderr.isatty()
+    failed: list[str] = []
+
+    def progress(done: int, total: int, record: dict[str, Any] | None) -> None:
+        if record is not None and not record.get("completed"):
+            failed.append(f"{record['run']}: {record['reason']}")
+        elapsed = time.monotonic() - t0
+        if tty:
+            width = 30
+            bar = "#" * int(width * done / max(total, 1))
+            click.echo(f"\r{camp.name} [{bar:<{width}}] {done}/{total} runs  {elapsed:6.0f} s", nl=False, err=True)
+        elif record is not None:
+            click.echo(f"{done}/{total} {record['run']}: path {record['path_length_m']:.1f} m, coverage "
+                       f"{record['coverage']}, {record['reason']}", err=True)
+
+    click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {n_jobs} jobs, results in {out}", err=True)
+    try:
+        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress)
+    finally:
+        if tty:
+            click.echo("", err=True)
+    click.echo(f"{len(records)} runs made in {time.monotonic() - t0:.0f} s; results: {out / 'results.jsonl'}")
+    for line in failed:
+        click.echo(f"  incomplete: {line}")
+    click.echo(f"tables: robotexp campaign report {out / 'results.jsonl'}")
+
+
+@campaign.command("report")
+@click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for tables.csv and tables.md (default: beside RESULTS).")
+@handle_errors
+def campaign_report(results: Path, out: Path | None) -> None:
+    """Print the thesis-style tables of a results.jsonl and write them as CSV and Markdown."""
+    import csv
+
+    from robotexp.campaign import report_tables, table_markdown, table_text
+    from robotexp.results import read_jsonl
+
+    if not results.is_file():
+        raise ConfigError(f"{results}: no such results file")
+    tables = report_tables(read_jsonl(results))
+    if not tables:
+        raise ConfigError(f"{results}: no finished runs to report")
+    folder = out or results.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "tables.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        for t in tables:
+            w.writerow([t.title])
+            w.writerow(t.header)
+            w.writerows(t.rows)
+            w.writerow([])
+    (folder / "tables.md").write_text("\n".join(table_markdown(t) for t in tables), encoding="utf-8")
+    for t in tables:
+        click.echo(table_text(t))
+    click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  (* = run not completed)")
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

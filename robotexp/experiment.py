@@ -140,7 +140,8 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
 
 def run_experiment(spec: RunSpec, out: Path | None, *,
                    on_sample: Callable[[float, float | None], None] | None = None,
-                   show: tuple[str, ...] = (), image: bool = True) -> RunOutput:
+                   show: tuple[str, ...] = (), image: bool = True,
+                   record_extra: dict[str, Any] | None = None) -> RunOutput:
     """Run `spec` on the embedded simulator; append the record to `out/results.jsonl` and save the
     map image, coverage curve and plot there (nothing is written when `out` is None).
 
@@ -169,11 +170,12 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
                   max_speed=spec.speed, sonar=explorer.uses_sonar) as robot:
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
                              on_sample=on_sample).run()
-    return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image)
+    return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image, record_extra=record_extra)
 
 
 def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_label: str, out: Path | None, *,
-                  show: tuple[str, ...] = (), image: bool = True) -> RunOutput:
+                  show: tuple[str, ...] = (), image: bool = True,
+                  record_extra: dict[str, Any] | None = None) -> RunOutput:
     """Append the run's record and save its image, curve and plot under `out`."""
     from robotexp.results import append_jsonl, make_record, run_id, write_curve_csv
 
@@ -186,9 +188,11 @@ def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_labe
     name = run_id(world_name, spec.method, pose_label, spec.speed, spec.seed, out)
     record = make_record(run, name=name, method=spec.method, world=world_name, seed=spec.seed,
                          max_speed=spec.speed, extra={"pose": pose_label, "laser_range_m": spec.laser_range,
-                                                      "robot": spec.robot})
+                                                      "robot": spec.robot, **(record_extra or {})})
     append_jsonl(out / "results.jsonl", record)       # first: the record is never lost
     write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
+    from robotexp.world.rosmap import save_ros_map
+    save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
     img_path = plot_path = None
     if image:
         img_path, plot_path = save_run_images(run, out, name, world_name, spec, show)

@@ -1,0 +1,341 @@
+"""Campaigns: sets of runs defined in a TOML file, run in parallel processes, and their report tables.
+
+A campaign file (see `campaigns/thesis.toml`):
+
+    [campaign]                      # defaults for every set
+    name = "thesis"
+    laser_range_mm = 3000
+    seeds = [0]
+
+    [[set]]
+    world = "dense"
+    poses = "all"                   # or a list of the world's pose names
+    methods = ["bvp", "srt-laser"]
+    speeds_mm_s = [100, 40]
+
+    [set.params.bvp]                # keyword parameters of one method in this set
+    iterations = 30
+
+Everything is checked before the first run starts, so a bad file leaves no results behind.
+Each finished run is appended to `OUT/results.jsonl` at once; `resume` skips the runs recorded there.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import tomllib
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from robotexp.errors import ConfigError, PluginError, WorldError
+from robotexp.experiment import RunSpec
+
+__all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
+
+_CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
+                  "laser_sigma_mm", "laser_uniform_mm"}
+_SET_KEYS = {"world", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description"}
+
+
+@dataclass
+class Campaign:
+    """A parsed campaign: its name, source file and the expanded list of runs."""
+
+    name: str
+    source: Path
+    runs: list[RunSpec]
+
+
+def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
+    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed)."""
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed)
+
+
+def record_key(record: dict[str, Any]) -> tuple[str, str, str, int, int]:
+    """`run_key` of a results.jsonl record."""
+    return (str(record.get("world_spec", record.get("world"))), str(record.get("method")),
+            str(record.get("pose_spec", record.get("pose"))),
+            round(float(record.get("max_speed_m_s") or 0) * 1000), int(record.get("seed") or 0))
+
+
+def _fail(path: Path, where: str, message: str, kind: type[Exception] = ConfigError) -> Exception:
+    return kind(f"{path}: {where}: {message}")
+
+
+def _get(table: dict[str, Any], key: str, default: Any, kind: type | tuple[type, ...], path: Path, where: str) -> Any:
+    value = table.get(key, default)
+    if value is not default and not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+        raise _fail(path, f"{where}.{key}", f"expected {getattr(kind, '__name__', kind)}, got {value!r}")
+    return value
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Parse and check a campaign file; expand it into runs.
+
+    Raises:
+        ConfigError: unreadable or malformed file, unknown key, a value out of range.
+        PluginError: a method that is not installed.
+        WorldError: an unknown world or a pose name the world lacks.
+    """
+    from robotexp.registry import EXPLORERS, available
+    from robotexp.world.loader import load_world
+
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read the campaign file ({exc.strerror or exc})") from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    unknown = set(data) - {"campaign", "set"}
+    if unknown:
+        raise _fail(p, "top level", f"unknown key(s) {', '.join(sorted(unknown))} (use [campaign] and [[set]])")
+    head = data.get("campaign", {})
+    if not isinstance(head, dict):
+        raise _fail(p, "campaign", "must be a table [campaign]")
+    _check_keys(head, _CAMPAIGN_KEYS, p, "[campaign]")
+    sets = data.get("set", [])
+    if not isinstance(sets, list) or not sets:
+        raise _fail(p, "set", "no [[set]] of runs")
+    methods_installed = available(EXPLORERS)
+    runs: list[RunSpec] = []
+    for i, raw in enumerate(sets, start=1):
+        where = f"[[set]] #{i}"
+        if not isinstance(raw, dict):
+            raise _fail(p, where, "must be a table")
+        _check_keys(raw, _SET_KEYS, p, where)
+        merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
+        runs.extend(_expand(merged, p, where, methods_installed, load_world))
+    return Campaign(str(head.get("name", p.stem)), p, runs)
+
+
+def _check_keys(table: dict[str, Any], allowed: set[str], path: Path, where: str) -> None:
+    bad = sorted(set(table) - allowed)
+    if bad:
+        raise _fail(path, where, f"unknown key {bad[0]!r} (allowed: {', '.join(sorted(allowed))})")
+
+
+def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
+            load_world: Callable[[str], Any]) -> list[RunSpec]:
+    world_name = _get(s, "world", None, str, p, where)
+    if world_name is None:
+        raise _fail(p, f"{where}.world", "missing")
+    world_spec = world_name
+    if world_name.endswith((".map", ".yaml", ".yml")) and not Path(world_name).is_absolute():
+        world_spec = str((p.parent / world_name).resolve())
+    try:
+        world = load_world(world_spec)
+    except WorldError as exc:
+        raise _fail(p, f"{where}.world", str(exc), WorldError) from None
+    poses = s.get("poses", "all")
+    if poses == "all":
+        pose_names: list[str] = list(world.poses) or ["default"]
+    elif isinstance(poses, list) and poses and all(isinstance(x, str) for x in poses):
+        pose_names = poses
+        for name in pose_names:
+            if name not in world.poses:
+                raise _fail(p, f"{where}.poses", f"world {world_name!r} has no pose {name!r} "
+                            f"(it has: {', '.join(world.poses) or 'none'})", WorldError)
+    else:
+        raise _fail(p, f"{where}.poses", f"expected \"all\" or a list of pose names, got {poses!r}")
+    methods = s.get("methods")
+    if not (isinstance(methods, list) and methods and all(isinstance(m, str) for m in methods)):
+        raise _fail(p, f"{where}.methods", f"expected a list of method names, got {methods!r}")
+    for m in methods:
+        if m not in installed:
+            raise _fail(p, f"{where}.methods", f"unknown method {m!r}; available: {', '.join(installed)}",
+                        PluginError)
+    speeds = s.get("speeds_mm_s", [300])
+    seeds = s.get("seeds", [0])
+    for key, values, kind in (("speeds_mm_s", speeds, (int, float)), ("seeds", seeds, int)):
+        if not (isinstance(values, list) and values and all(isinstance(v, kind) and not isinstance(v, bool)
+                                                            for v in values)):
+            raise _fail(p, f"{where}.{key}", f"expected a non-empty list of numbers, got {values!r}")
+    if any(not (v > 0 and math.isfinite(v)) for v in speeds):
+        raise _fail(p, f"{where}.speeds_mm_s", f"speeds must be > 0, got {speeds!r}")
+    params = s.get("params", {})
+    if not isinstance(params, dict) or not all(isinstance(v, dict) for v in params.values()):
+        raise _fail(p, f"{where}.params", "expected tables [set.params.<method>]")
+    for m in params:
+        if m not in methods:
+            raise _fail(p, f"{where}.params.{m}", f"parameters for a method this set does not run ({methods})")
+    laser = float(_get(s, "laser_range_mm", 3000, (int, float), p, where)) / 1000
+    cell_mm = _get(s, "cell_mm", None, (int, float), p, where)
+    max_time = float(_get(s, "max_time_s", 4 * 3600, (int, float), p, where))
+    robot = _get(s, "robot", "p3dx", str, p, where)
+    sigma = float(_get(s, "laser_sigma_mm", 0, (int, float), p, where)) / 1000
+    uniform = float(_get(s, "laser_uniform_mm", 0, (int, float), p, where)) / 1000
+    runs = []
+    for method in methods:
+        for pose in pose_names:
+            for speed in speeds:
+                for seed in seeds:
+                    spec = RunSpec(world=world_spec, method=method, pose=None if pose == "default" else pose,
+                                   speed=speed / 1000, laser_range=laser,
+                                   cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
+                                   params=dict(params.get(method, {})), max_time=max_time,
+                                   laser_sigma=sigma, laser_uniform=uniform)
+                    try:
+                        spec.validate()
+                    except ConfigError as exc:
+                        raise _fail(p, where, str(exc)) from None
+                    runs.append(spec)
+    return runs
+
+
+def _pose_label(spec: RunSpec) -> str:
+    return spec.pose or "default"
+
+
+def _run_one(spec: RunSpec, out: str) -> dict[str, Any]:
+    """Worker: one run, written to `out` (record first, then images). Returns the record."""
+    from robotexp.experiment import run_experiment
+
+    result = run_experiment(spec, Path(out), record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
+    return result.record
+
+
+def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
+                 progress: Callable[[int, int, dict[str, Any] | None], None] | None = None) -> list[dict[str, Any]]:
+    """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes.
+
+    Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
+    writes its partial run) and re-raises KeyboardInterrupt.
+    """
+    from robotexp.results import read_jsonl
+
+    if jobs < 1:
+        raise ConfigError(f"--jobs must be >= 1, got {jobs}")
+    results = out / "results.jsonl"
+    done: set[tuple[str, str, str, int, int]] = set()
+    if resume and results.exists():
+        done = {record_key(r) for r in read_jsonl(results) if not str(r.get("reason", "")).startswith("interrupted")}
+    todo = [s for s in campaign.runs if run_key(s, _pose_label(s)) not in done]
+    total = len(todo)
+    if progress:
+        progress(0, total, None)
+    if not todo:
+        return []
+    out.mkdir(parents=True, exist_ok=True)
+    records: list[dict[str, Any]] = []
+    with ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn")) as pool:
+        pending: set[Future[dict[str, Any]]] = {pool.submit(_run_one, spec, str(out)) for spec in todo}
+        try:
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    record = fut.result()
+                    records.append(record)
+                    if progress:
+                        progress(len(records), total, record)
+        except KeyboardInterrupt:
+            for fut in pending:
+                fut.cancel()
+            raise
+    return records
+
+
+# -- report -------------------------------------------------------------------------------------
+
+@dataclass
+class Table:
+    """One of the thesis's tables: a world at a speed, per start pose and method."""
+
+    title: str
+    methods: list[str]
+    header: list[str]
+    rows: list[list[str]]
+
+
+def _mmss(seconds: float) -> str:
+    s = int(round(seconds))
+    h, rem = divmod(s, 3600)
+    m, sec = divmod(rem, 60)
+    return f"{h}:{m:02d}:{sec:02d}" if h else f"{m:02d}:{sec:02d}"
+
+
+def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
+    """Tables in the layout of the thesis's Tables 4.1-4.4: per start pose the path [m] and duration
+    (mm:ss) of each method and the SRT nodes; then mean, standard deviation, range and mean speed."""
+    groups: dict[tuple[str, int], dict[str, dict[str, dict[str, Any]]]] = {}
+    for r in records:
+        if str(r.get("reason", "")).startswith("interrupted"):
+            continue
+        key = (str(r.get("world")), round(float(r.get("max_speed_m_s") or 0) * 1000))
+        groups.setdefault(key, {}).setdefault(str(r.get("method")), {})[str(r.get("pose"))] = r
+    tables = []
+    for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
+        methods = sorted(by_method)
+        poses = sorted({p for m in by_method.values() for p in m}, key=_natural)
+        header = ["pose"]
+        for m in methods:
+            header += [f"{m} path (m)", f"{m} time (mm:ss)"]
+            if any(by_method[m][p].get("nodes") is not None for p in by_method[m]):
+                header.append(f"{m} nodes")
+        rows = []
+        for pose in poses:
+            row = [pose]
+            for m in methods:
+                rec = by_method[m].get(pose)
+                has_nodes = f"{m} nodes" in header
+                if rec is None:
+                    row += ["-", "-"] + (["-"] if has_nodes else [])
+                    continue
+                flag = "" if rec.get("completed") else "*"
+                row += [f"{rec['path_length_m']:.1f}{flag}", _mmss(rec["robot_time_s"])]
+                if has_nodes:
+                    row.append("-" if rec.get("nodes") is None else str(rec["nodes"]))
+            rows.append(row)
+        for label, fn in (("mean", statistics.fmean), ("std dev", _stdev), ("range", _range)):
+            row = [label]
+            for m in methods:
+                recs = list(by_method[m].values())
+                paths = [r["path_length_m"] for r in recs]
+                times = [r["robot_time_s"] for r in recs]
+                row += [f"{fn(paths):.1f}", _mmss(fn(times))]
+                if f"{m} nodes" in header:
+                    nodes = [r["nodes"] for r in recs if r.get("nodes") is not None]
+                    row.append(f"{fn(nodes):.0f}" if nodes else "-")
+            rows.append(row)
+        row = ["mean speed"]
+        for m in methods:
+            recs = list(by_method[m].values())
+            v = sum(r["path_length_m"] for r in recs) / max(sum(r["robot_time_s"] for r in recs), 1e-9)
+            row += [f"{v * 1000:.0f} mm/s", ""] + ([""] if f"{m} nodes" in header else [])
+        rows.append(row)
+        tables.append(Table(f"{world}, max speed {speed} mm/s", methods, header, rows))
+    return tables
+
+
+def _stdev(values: list[float]) -> float:
+    return statistics.stdev(values) if len(values) > 1 else 0.0
+
+
+def _range(values: list[float]) -> float:
+    return max(values) - min(values)
+
+
+def _natural(s: str) -> tuple[int, str]:
+    return (int(s), "") if s.isdigit() else (1 << 30, s)
+
+
+def table_markdown(table: Table) -> str:
+    """The table as GitHub Markdown."""
+    lines = [f"### {table.title}", "", "| " + " | ".join(table.header) + " |",
+             "|" + "---|" * len(table.header)]
+    lines += ["| " + " | ".join(r) + " |" for r in table.rows]
+    return "\n".join(lines) + "\n"
+
+
+def table_text(table: Table) -> str:
+    """The table as aligned plain text for a terminal."""
+    widths = [max(len(table.header[i]), *(len(r[i]) for r in table.rows)) for i in range(len(table.header))]
+    fmt = "  ".join(f"{{:>{w}}}" for w in widths)
+    out = [table.title, fmt.format(*table.header)]
+    out += [fmt.format(*r) for r in table.rows]
+    return "\n".join(out) + "\n"

@@ -1,0 +1,121 @@
+"""Campaign files, the parallel runner with resume, and the thesis-style report tables."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from robotexp.campaign import load_campaign, record_key, report_tables, run_campaign, run_key
+from robotexp.errors import ConfigError, PluginError, WorldError
+
+MINI = """
+[campaign]
+name = "mini"
+max_time_s = 20
+[[set]]
+world = "ufmg-static"
+poses = ["path1", "path2"]
+methods = ["frontier"]
+speeds_mm_s = [300, 200]
+seeds = [0, 1]
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "c.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_expansion_counts_every_combination(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, MINI))
+    assert camp.name == "mini"
+    assert len(camp.runs) == 2 * 2 * 2          # poses x speeds x seeds
+    keys = {run_key(s, s.pose or "default") for s in camp.runs}
+    assert ("ufmg-static", "frontier", "path2", 200, 1) in keys
+    assert all(s.max_time == 20 for s in camp.runs)
+
+
+def test_thesis_campaign_has_66_runs_when_its_methods_are_installed() -> None:
+    from robotexp.registry import EXPLORERS, available
+    missing = {"bvp", "srt-laser", "srt-ball"} - set(available(EXPLORERS))
+    if missing:
+        with pytest.raises(PluginError, match="unknown method"):
+            load_campaign(Path(__file__).parents[1] / "campaigns" / "thesis.toml")
+        pytest.skip(f"methods not installed yet: {sorted(missing)}")
+    camp = load_campaign(Path(__file__).parents[1] / "campaigns" / "thesis.toml")
+    assert len(camp.runs) == 9 * 2 * 2 + 5 * 3 * 2 == 66
+    assert {round(s.speed * 1000) for s in camp.runs} == {100, 40}
+    assert all(s.laser_range == 3.0 for s in camp.runs)
+
+
+@pytest.mark.parametrize("text, error, words", [
+    (MINI.replace("methods", "methds"), ConfigError, ["[[set]] #1", "methds"]),
+    (MINI.replace('name = "mini"', 'name = "mini"\nspeed = 3'), ConfigError, ["[campaign]", "speed"]),
+    (MINI.replace('"frontier"', '"frontierr"'), PluginError, ["methods", "frontierr", "frontier"]),
+    (MINI.replace('"path2"', '"nowhere"'), WorldError, ["poses", "nowhere", "path1"]),
+    (MINI.replace('"ufmg-static"', '"atlantis"'), WorldError, ["world", "atlantis"]),
+    (MINI.replace("[300, 200]", "[300, -5]"), ConfigError, ["speeds_mm_s"]),
+    (MINI + "\n[[set]]\nworld = 3\n", ConfigError, ["[[set]] #2", "world"]),
+    ("[campaign\nname=1", ConfigError, ["not valid TOML"]),
+])
+def test_bad_files_name_the_file_and_key(tmp_path: Path, text: str, error: type, words: list[str]) -> None:
+    path = _write(tmp_path, text)
+    with pytest.raises(error) as info:
+        load_campaign(path)
+    message = str(info.value)
+    assert str(path) in message
+    for word in words:
+        assert word in message
+
+
+def test_cli_bad_campaign_exits_2_with_one_line_and_writes_nothing(tmp_path: Path) -> None:
+    path = _write(tmp_path, MINI.replace("methods", "methds"))
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "campaign", str(path), "--out", str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("robotexp: error:") and "methds" in lines[0]
+    assert not out.exists()
+
+
+def test_run_resume_and_report(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, MINI.replace("seeds = [0, 1]", "seeds = [0]")))
+    out = tmp_path / "out"
+    seen: list[int] = []
+    records = run_campaign(camp, out, jobs=2, progress=lambda done, total, rec: seen.append(done))
+    assert len(records) == 4 and seen[-1] == 4
+    lines = (out / "results.jsonl").read_text().splitlines()
+    assert len(lines) == 4
+    stored = [json.loads(x) for x in lines]
+    assert {record_key(r) for r in stored} == {run_key(s, s.pose or "default") for s in camp.runs}
+    assert all((out / f"{r['run']}.png").exists() for r in stored)
+    # a resumed campaign runs only what is missing: drop one record, resume, get exactly that one back
+    (out / "results.jsonl").write_text("\n".join(lines[1:]) + "\n")
+    again = run_campaign(camp, out, jobs=1, resume=True)
+    assert [record_key(r) for r in again] == [record_key(stored[0])]
+    assert run_campaign(camp, out, jobs=1, resume=True) == []
+    tables = report_tables(json.loads(x) for x in (out / "results.jsonl").read_text().splitlines())
+    assert [t.title for t in tables] == ["ufmg-static, max speed 300 mm/s", "ufmg-static, max speed 200 mm/s"]
+    t = tables[0]
+    assert t.header == ["pose", "frontier path (m)", "frontier time (mm:ss)"]
+    assert [r[0] for r in t.rows] == ["path1", "path2", "mean", "std dev", "range", "mean speed"]
+
+
+def test_report_statistics_by_hand() -> None:
+    recs = [{"world": "w", "max_speed_m_s": 0.1, "method": "srt-laser", "pose": str(i), "path_length_m": p,
+             "robot_time_s": t, "nodes": n, "completed": True, "reason": "explored"}
+            for i, (p, t, n) in enumerate([(70.0, 1000.0, 17), (74.0, 1060.0, 19), (72.0, 1000.0, 18)], start=1)]
+    (t,) = report_tables(recs)
+    assert t.header == ["pose", "srt-laser path (m)", "srt-laser time (mm:ss)", "srt-laser nodes"]
+    assert t.rows[0] == ["1", "70.0", "16:40", "17"]
+    rows = {r[0]: r for r in t.rows}
+    assert rows["mean"][1:] == ["72.0", "17:00", "18"]          # 1020 s
+    assert rows["std dev"][1:] == ["2.0", "00:35", "1"]         # stdev(1000, 1060, 1000) = 34.6 s
+    assert rows["range"][1:] == ["4.0", "01:00", "2"]
+    assert rows["mean speed"][1] == "71 mm/s"                    # 216 m / 3060 s
