@@ -23,8 +23,8 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
     """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
 
     A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
-    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger zone whose cost
-    rises towards the obstacle, so paths keep off walls where there is room.
+    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger
+    zone whose cost rises towards the obstacle, so paths keep off walls where there is room.
     """
     cell = grid.geo.cell
     dist = distance_transform(grid.occupied())
@@ -49,13 +49,18 @@ class FrontierExplorer(Explorer):
     """Drive to the nearest reachable frontier group (Yamauchi 1997); done when none is left.
 
     Frontier cells are free cells next to unknown ones, grouped by 8-connectivity; groups smaller
-    than the robot (`min_group_cells`, default the robot's diameter in cells) are ignored. The goal
-    is the free cell, among those the robot can stand on within a robot radius of a frontier
-    cell, with the shortest path (Dijkstra on the map inflated by the robot radius); on arrival the
-    robot turns to face the frontier. The plan is refreshed every `replan_period` [s] and whenever
-    the path is done. Frontier cells are given up on (blacklisted) when the robot stood by them and
-    looked their way yet they stayed frontier, or when their goal brought no progress for
-    `goal_timeout` [s]: a run neither ends early nor loops on an unreachable goal.
+    than the robot (`min_group_cells`, default the robot's diameter in cells) are ignored, and so
+    are frontier cells touching an occupied cell (the face of a wall whose far side is never seen
+    is not an opening). Paths are planned on known-free cells with the robot radius (plus a 5 cm
+    margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
+    nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
+    within a robot radius of a frontier cell - inside the room rather than in its door - or, for
+    frontiers in pockets too narrow to enter, within a metre of one; on arrival the robot turns to
+    look at the frontier's unknown neighbours. The goal is kept while its frontier lasts (switching
+    at every plan makes robots oscillate); the path to it is refreshed every `replan_period` [s].
+    Frontier cells are given up on (blacklisted) when the robot stood by them and looked their way
+    yet they stayed frontier, or when their goal brought no progress for `goal_timeout` [s]: a run
+    neither ends early nor loops on an unreachable goal.
 
     Args:
         min_group_cells: smallest frontier group considered (None: the robot's diameter in cells).
