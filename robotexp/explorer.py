@@ -124,6 +124,14 @@ class ExplorationRun:
         self.completed = False
         self.robot_time = 0.0
         self.wall_time = 0.0
+        self._stop_reason: str | None = None
+
+    def request_stop(self, reason: str) -> None:
+        """End the run at its next step with `reason` (`completed` stays False; the robot is stopped).
+
+        Meant for observers such as `on_sample` (a script's --timeout, a supervisor).
+        """
+        self._stop_reason = reason
 
     def coverage(self) -> float | None:
         """Share of the explorable free space the map marks free now (None without ground truth)."""
@@ -139,6 +147,7 @@ class ExplorationRun:
         clock = robot.make_clock(self.period)
         wall0 = time.perf_counter()
         next_sample = 0.0
+        slack = self.period / 2
         try:
             state = robot.read()
             self.start_pose = state.true_pose or state.pose
@@ -154,10 +163,16 @@ class ExplorationRun:
                 self._track(state, collisions0)
                 if state.laser is not None:
                     self.grid.update(state.pose, state.laser)
-                if self.robot_time >= next_sample:
+                # half a period of slack: robot time summed from float periods reads 0.99999 s at
+                # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
+                if self.robot_time >= next_sample - slack:
                     self._sample()
-                    next_sample += self.sample_period
-                if self.robot_time >= self.max_time:
+                    while next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
+                        next_sample += self.sample_period
+                if self._stop_reason is not None:
+                    self.reason = self._stop_reason
+                    break
+                if self.robot_time >= self.max_time - slack:
                     self.reason = f"time limit of {self.max_time:.0f} s reached"
                     break
                 decision = self.explorer.step(state, self.grid)

@@ -24,7 +24,9 @@ __all__ = [
 
 def wrap_angle(angle: float) -> float:
     """Return `angle` [rad] wrapped to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    wrapped = (angle + math.pi) % (2.0 * math.pi) - math.pi
+    # the modulo of a tiny negative number (angle just below -pi) rounds up to 2 pi: that is -pi
+    return wrapped if wrapped < math.pi else -math.pi
 
 
 @dataclass(frozen=True, slots=True)

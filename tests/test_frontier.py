@@ -1,0 +1,195 @@
+"""The frontier explorer plugin on small worlds, run end to end on the SimRobot with real ground truth.
+
+Worlds are 6 x 4 m rooms (walls 0.1 m thick centred on x = 0, 6 m and y = 0, 4 m) split at x = 3 m
+by an inner wall. The laser reaches 2 m so that the robot must
+drive to see everything. Each run takes well under a second of wall time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError
+from robotexp.experiment import make_explorer
+from robotexp.explorer import ExplorationRun
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.groundtruth import GroundTruth, ground_truth
+from robotexp.robot import Pose
+from robotexp.sim import LaserConfig, SimRobot
+from robotexp.world.model import World, segment_box
+from robotexp_plugins.frontier import FrontierExplorer, plan_costs
+
+T = 0.1             # [m] wall thickness
+RANGE = 2.0         # [m] laser range
+CELL = 0.1          # [m]
+START = Pose(1.0, 1.0, math.pi)     # in the left room, facing its wall
+
+
+def outer_walls() -> list[tuple[float, ...]]:
+    return [segment_box(0, 0, 6, 0, T), segment_box(0, 4, 6, 4, T),
+            segment_box(0, 0, 0, 4, T), segment_box(6, 0, 6, 4, T)]
+
+
+def door_room() -> World:
+    """Two 3 x 4 m rooms joined by a 1.1 m door (y 1.45..2.55 m) in the wall x = 3 m."""
+    return World("door", np.array(outer_walls() + [segment_box(3, 0, 3, 1.4, T), segment_box(3, 2.6, 3, 4, T)]))
+
+
+def gap_room(gap: float) -> World:
+    """The same with a slit of `gap` [m] around y = 2 m instead of the door."""
+    lo, hi = 2 - gap / 2 - T / 2, 2 + gap / 2 + T / 2     # segment_box reaches T/2 past each end
+    return World("gap", np.array(outer_walls() + [segment_box(3, 0, 3, lo, T), segment_box(3, hi, 3, 4, T)]))
+
+
+@dataclass
+class Outcome:
+    run: ExplorationRun
+    end: Pose                   # true pose when the run ended
+    truth: GroundTruth
+
+
+def explore(world: World, *, seed: int = 0, sigma: float = 0.0, max_time: float = 600.0,
+            **params: object) -> Outcome:
+    geo = GridGeometry.covering(*world.bounds, cell=CELL, margin=0.5)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=RANGE, start=START)
+    grid = OccupancyGrid(geo, range_max=RANGE)
+    laser = LaserConfig(range_max=RANGE, sigma=sigma)
+    with SimRobot(world, pose=START, seed=seed, laser=laser, max_speed=0.5, sonar=False) as robot:
+        run = ExplorationRun(robot, FrontierExplorer(**params), grid, truth=truth, max_time=max_time,  # type: ignore[arg-type]
+                             seed=seed).run()
+        end = robot.read().true_pose
+    assert end is not None
+    return Outcome(run, end, truth)
+
+
+# -- whole runs ----------------------------------------------------------------------------
+
+def test_explores_two_rooms_through_a_door() -> None:
+    out = explore(door_room())
+    run = out.run
+    assert run.completed and run.reason == "no reachable frontier left"
+    assert run.coverage() is not None and run.coverage() >= 0.99
+    assert run.metrics.collisions == 0
+    # the robot went into the right room (the door is its only way there)
+    assert max(x for x, _ in run.metrics.path) > 3.3
+    assert run.robot_time < 200.0
+    assert run.metrics.milestones[0.99] is not None
+
+
+def test_return_home_ends_at_the_start() -> None:
+    out = explore(door_room(), return_home=True)
+    assert out.run.completed and out.run.reason == "explored; back at the start"
+    assert out.end.distance_to(START) < 0.2
+    assert out.run.coverage() is not None and out.run.coverage() >= 0.99
+    assert out.run.metrics.collisions == 0
+    plain = explore(door_room())
+    # driving home costs path: it is at least the distance from where plain exploration ended
+    assert out.run.metrics.path_length > plain.run.metrics.path_length
+
+
+def test_a_region_behind_a_slit_narrower_than_the_robot_does_not_trap_the_run() -> None:
+    world = gap_room(0.3)           # the robot is 0.5 m wide
+    out = explore(world, max_time=600.0)
+    run = out.run
+    # the right room is seen through the slit (explorable) but cannot be reached
+    assert not out.truth.reachable[:, out.truth.geo.cell_of(4.5, 2.0)[1]].any()
+    assert out.truth.explorable[out.truth.geo.cell_of(3.5, 2.0)]
+    assert run.completed and run.reason == "no reachable frontier left"
+    assert run.robot_time < 300.0                          # ended on its own, long before max_time
+    assert run.metrics.collisions == 0
+    assert max(x for x, _ in run.metrics.path) < 3.0 - 0.05 - 0.25 + 0.01   # never through the slit
+    assert run.coverage() is not None and run.coverage() >= 0.9
+
+
+def test_same_seed_same_run() -> None:
+    a = explore(door_room(), seed=3, sigma=0.02)
+    b = explore(door_room(), seed=3, sigma=0.02)
+    assert a.run.metrics.path_length == b.run.metrics.path_length
+    assert a.run.robot_time == b.run.robot_time
+    assert a.run.metrics.path == b.run.metrics.path
+    assert np.array_equal(a.run.grid.values, b.run.grid.values)
+    # the seed does matter (the laser is noisy): another one gives another map
+    c = explore(door_room(), seed=4, sigma=0.02)
+    assert not np.array_equal(a.run.grid.values, c.run.grid.values)
+
+
+# -- parameters ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("params", "message"), [
+    ({"min_group_cells": 0}, "min_group_cells must be >= 1, got 0"),
+    ({"replan_period": 0.0}, "replan_period must be > 0, got 0.0"),
+    ({"replan_period": math.nan}, "replan_period must be > 0"),
+    ({"goal_timeout": -1.0}, "goal_timeout must be > 0, got -1.0"),
+    ({"clearance": -0.1}, "clearance must be >= 0 m, got -0.1"),
+])
+def test_bad_parameters(params: dict[str, float], message: str) -> None:
+    with pytest.raises(ConfigError, match=f"^frontier: {message}"):
+        FrontierExplorer(**params)  # type: ignore[arg-type]
+
+
+def test_parameters_through_the_registry() -> None:
+    explorer = make_explorer("frontier", {"min_group_cells": 3, "return_home": True})
+    assert isinstance(explorer, FrontierExplorer)
+    assert explorer.min_group_cells == 3 and explorer.return_home
+    with pytest.raises(ConfigError, match="method 'frontier'.*speed"):
+        make_explorer("frontier", {"speed": 1.0})
+    with pytest.raises(ConfigError, match="clearance"):
+        make_explorer("frontier", {"clearance": -1.0})
+
+
+# -- plan_costs ----------------------------------------------------------------------------
+
+def tiny_grid(cell: float, size: int) -> OccupancyGrid:
+    """A size x size grid, all free but the centre cell (occupied)."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, cell, size, size))
+    free = np.ones((size, size), dtype=bool)
+    c = size // 2
+    free[c, c] = False
+    grid.mark_free(free)
+    grid.mark_occupied(~free)
+    return grid
+
+
+def test_plan_costs_blocks_radius_margin_and_half_a_cell() -> None:
+    # cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.05) / 0.1 + 0.5 = 3.5 cells of (5, 5)
+    cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0)
+    for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 3, 2.83, 3.16
+                            (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 4, 3.61, 4, 7.07
+                            (2, 5): True, (5, 1): False}.items():                          # 3, 4
+        assert np.isinf(cost[r, c]) == blocked, (r, c)
+    # without a danger zone every other cell costs 1
+    assert np.all((cost == 1.0) | np.isinf(cost))
+    dr, dc = np.meshgrid(np.arange(11) - 5, np.arange(11) - 5, indexing="ij")
+    assert np.array_equal(np.isinf(cost), dr ** 2 + dc ** 2 <= 3.5 ** 2)
+
+
+def test_plan_costs_half_cell_depends_on_the_cell() -> None:
+    # cell 0.05 m: (0.25 + 0.05) / 0.05 + 0.5 = 6.5 cells; without the half cell it would be 6
+    cost = plan_costs(tiny_grid(0.05, 17), radius=0.25, clearance=0.0)
+    c = 8
+    assert np.isinf(cost[c + 4, c + 5])           # sqrt(41) = 6.40 cells
+    assert np.isinf(cost[c, c + 6])               # 6
+    assert np.isfinite(cost[c + 3, c + 6])        # sqrt(45) = 6.71 cells
+    assert np.isfinite(cost[c, c + 7])
+
+
+def test_plan_costs_danger_zone_and_unknown_cells() -> None:
+    grid = tiny_grid(0.1, 11)
+    # clearance 0.2 m = 2 cells beyond 3.5: cost 1 + 4 (1 - (d - 3.5) / 2) for 3.5 < d <= 5.5
+    cost = plan_costs(grid, radius=0.25, clearance=0.2)
+    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.5 / 2))                      # d = 4: 4.0
+    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.5 / 2))                     # d = 5: 2.0
+    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.sqrt(13) - 3.5) / 2), rel=1e-6)
+    assert cost[0, 0] == 1.0                                                       # d = 7.07
+    # unknown cells are never passable, however far from walls
+    unknown_corner = OccupancyGrid(grid.geo)
+    values = grid.values.copy()
+    values[0, 0] = 0.0
+    unknown_corner.values[:] = values
+    cost2 = plan_costs(unknown_corner, radius=0.25, clearance=0.2)
+    assert np.isinf(cost2[0, 0]) and cost2[0, 1] == 1.0
