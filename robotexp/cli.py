@@ -118,7 +118,11 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--laser-range", type=float, default=3000.0, show_default=True, help="Laser range [mm].")
 @click.option("--cell", type=float, default=None, help="Map cell size [mm] (default: the method's, else 100).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random choice.")
-@click.option("--robot", default="p3dx", show_default=True, help="Simulated robot preset (p3dx, kobuki).")
+@click.option("--robot", default="p3dx", show_default=True,
+              help="Simulated robot preset (p3dx, kobuki); with --address, the robot backend.")
+@click.option("--address", default=None,
+              help="Run on a connected robot at this address (serial device, host[:port], pyserial URL); "
+                   "--world, if given, is then only the ground truth for coverage.")
 @click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
@@ -126,9 +130,10 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
               show_default=True, help="Output folder (results.jsonl, images).")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
-            seed: int, robot: str, param: tuple[str, ...], show: str, max_time: float, out: Path) -> None:
-    """Run one exploration on the embedded simulator and write its results."""
-    from robotexp.experiment import RunSpec, run_experiment
+            seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
+            out: Path) -> None:
+    """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
+    from robotexp.experiment import RunSpec, connect_robot, run_experiment, run_on_robot
 
     overlays = tuple(s for s in show.split(",") if s)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
@@ -142,7 +147,13 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    params=_params(param), max_time=max_time)
     progress = Progress(f"{Path(world).stem} {method}")
     try:
-        result = run_experiment(spec, out, on_sample=progress, show=overlays)
+        if address is None:
+            result = run_experiment(spec, out, on_sample=progress, show=overlays)
+        else:
+            given = click.get_current_context().get_parameter_source("world")
+            truth_world = None if given == click.core.ParameterSource.DEFAULT else world
+            with connect_robot(robot, address) as bot:
+                result = run_on_robot(spec, bot, out, truth_world, on_sample=progress, show=overlays)
     finally:
         progress.close()
     r = result.record
@@ -268,6 +279,119 @@ def campaign_report(results: Path, out: Path | None) -> None:
     for t in tables:
         click.echo(table_text(t))
     click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  (* = run not completed)")
+
+
+@main.command("run")
+@click.argument("script", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--world", "-w", default=None,
+              help="Run on the embedded simulator of this world whatever robot.setAddress says.")
+@click.option("--robot", default="p3dx", show_default=True, help="Simulated robot preset (p3dx, kobuki).")
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
+              show_default=True, help="Output folder; the script's relative paths are relative to it.")
+@click.option("--sandbox", is_flag=True,
+              help="Refuse os.execute, io.popen, C modules and files outside the output folder.")
+@click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
+@handle_errors
+def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None) -> None:
+    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView)."""
+    from robotexp.lua import run_script
+
+    result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
+                        emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True))
+    click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
+    if result.exit_code:
+        sys.exit(result.exit_code)
+
+
+@main.command()
+@click.argument("backend")
+@click.option("--world", "-w", default="dense", show_default=True,
+              help="Built-in world name, or the path of a MobileSim .map or ROS .yaml map.")
+@click.option("--pose", default=None, help="Start pose: a name of the world's poses, or x,y,theta in mm, mm, deg.")
+@click.option("--port", type=int, default=None, help="TCP port on 127.0.0.1 (default: the backend's, 8101 for p3dx).")
+@click.option("--pty", is_flag=True, help="Serve on a pseudo-terminal (prints its device path) instead of TCP.")
+@click.option("--speedup", type=float, default=1.0, show_default=True, help="Robot time per wall time.")
+@handle_errors
+def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float) -> None:
+    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
+    import time
+
+    from robotexp.experiment import make_emulator
+
+    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup)
+    try:
+        emulator.start()
+        click.echo(f"{backend} emulator of world {world!r} at {emulator.address} (speedup {speedup:g}); Ctrl-C stops")
+        while True:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        click.echo("emulator stopped", err=True)
+    finally:
+        emulator.close()
+
+
+def _status_line(state: Any) -> str:
+    """One line of what a robot reports: pose, speeds, battery, bumpers, nearest obstacle."""
+    p, v = state.pose, state.velocity
+    near = [s.nearest() for s in (state.laser,) if s is not None]
+    if state.sonar is not None:
+        finite = [r for r in state.sonar.ranges.tolist() if math.isfinite(r)]
+        near += [min(finite)] if finite else []
+    nearest = f"{min(near) * 1000:.0f} mm" if near and math.isfinite(min(near)) else "none"
+    battery = "?" if state.battery is None else f"{state.battery:.1f} V"
+    bumped = "stalled" if state.stalled else ("bumper" if any(state.bumpers) else "free")
+    return (f"t {state.time:7.1f} s  pose {p.x * 1000:7.0f} {p.y * 1000:7.0f} mm {math.degrees(p.theta):6.1f} deg  "
+            f"v {v.v * 1000:5.0f} mm/s w {math.degrees(v.w):6.1f} deg/s  battery {battery}  {bumped}  "
+            f"nearest {nearest}")
+
+
+@main.command()
+@click.argument("backend")
+@click.argument("address")
+@click.option("--drive", default=None, help="Drive at V,W (mm/s, deg/s) during --for; the robot stops after.")
+@click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
+@handle_errors
+def connect(backend: str, address: str, drive: str | None, duration: float) -> None:
+    """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line."""
+    import time
+
+    from robotexp.experiment import connect_robot
+    from robotexp.robot import Twist
+
+    twist = None
+    if drive is not None:
+        try:
+            v_mm, w_deg = (float(x) for x in drive.split(","))
+        except ValueError:
+            raise ConfigError(f"--drive {drive!r}: expected V,W in mm/s and deg/s, e.g. 200,0") from None
+        twist = Twist(v_mm / 1000, math.radians(w_deg))
+    if not (duration >= 0 and math.isfinite(duration)):
+        raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
+    tty = sys.stdout.isatty()
+    with connect_robot(backend, address) as robot:
+        info = robot.describe() if hasattr(robot, "describe") else {"name": robot.name}
+        click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
+        lim = robot.limits
+        click.echo(f"limits: {lim.v_max * 1000:.0f} mm/s, {math.degrees(lim.w_max):.0f} deg/s; "
+                   f"capabilities: {', '.join(sorted(robot.capabilities)) or 'none'}")
+        end, next_line = time.monotonic() + duration, 0.0
+        try:
+            while True:
+                now = time.monotonic()
+                if twist is not None:
+                    robot.command(twist)
+                if now >= next_line or now >= end:
+                    line = _status_line(robot.read())
+                    click.echo(f"\r{line}" if tty else line, nl=not tty)
+                    next_line = now + 0.5
+                if now >= end:
+                    break
+                time.sleep(0.1)
+        finally:
+            robot.stop()
+            if tty:
+                click.echo("")
+    click.echo("robot stopped and disconnected")
 
 
 if __name__ == "__main__":  # pragma: no cover

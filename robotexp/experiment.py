@@ -16,10 +16,11 @@ import numpy as np
 from robotexp.errors import ConfigError, WorldError
 from robotexp.explorer import ExplorationRun, Explorer
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.robot import Pose
+from robotexp.robot import Pose, Robot
 from robotexp.world.model import World
 
-__all__ = ["RunSpec", "RunOutput", "run_experiment", "parse_pose", "resolve_pose", "make_explorer",
+__all__ = ["RunSpec", "RunOutput", "run_experiment", "run_on_robot", "connect_robot", "make_emulator",
+           "parse_pose", "resolve_pose", "make_explorer",
            "DEFAULT_CELL", "MAP_MARGIN"]
 
 DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
@@ -42,6 +43,8 @@ class RunSpec:
     max_time: float = 4 * 3600.0        # [s] robot time
     laser_sigma: float = 0.0            # [m] gaussian laser noise
     laser_uniform: float = 0.0          # [m] uniform laser noise half-width
+    map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
+    #                                   (None: the world's bounds plus MAP_MARGIN)
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
@@ -55,6 +58,11 @@ class RunSpec:
             raise ConfigError(f"max time must be > 0 s, got {self.max_time}")
         if self.laser_sigma < 0 or self.laser_uniform < 0:
             raise ConfigError("laser noise must be >= 0")
+        if self.map_bounds is not None:
+            x0, y0, x1, y1 = self.map_bounds
+            if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
+                raise ConfigError(f"map limits must be finite with min < max, got x {x0 * 1000:g}..{x1 * 1000:g}, "
+                                  f"y {y0 * 1000:g}..{y1 * 1000:g} mm")
 
 
 @dataclass
@@ -141,9 +149,13 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
 def run_experiment(spec: RunSpec, out: Path | None, *,
                    on_sample: Callable[[float, float | None], None] | None = None,
                    show: tuple[str, ...] = (), image: bool = True,
-                   record_extra: dict[str, Any] | None = None) -> RunOutput:
+                   record_extra: dict[str, Any] | None = None,
+                   on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
     """Run `spec` on the embedded simulator; append the record to `out/results.jsonl` and save the
     map image, coverage curve and plot there (nothing is written when `out` is None).
+
+    `on_run`, when given, is called with the running `ExplorationRun` after each coverage sample
+    (after `on_sample`): it may render frames or call `request_stop`.
 
     Raises:
         WorldError, PluginError, ConfigError: bad input, before the robot moves.
@@ -160,7 +172,14 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
     start, pose_label = resolve_pose(world, spec.pose, robot_preset.radius)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     assert world.bounds is not None
-    geo = GridGeometry.covering(*world.bounds, cell=cell, margin=MAP_MARGIN)
+    if spec.map_bounds is None:
+        geo = GridGeometry.covering(*world.bounds, cell=cell, margin=MAP_MARGIN)
+    else:
+        geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
+        x0, y0, x1, y1 = spec.map_bounds
+        if not (x0 <= start.x <= x1 and y0 <= start.y <= y1):
+            raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
+                              f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
     truth = ground_truth(world, geo, robot_radius=robot_preset.radius, laser_range=spec.laser_range,
                          start=start)
     laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
@@ -168,9 +187,113 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
     with SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser,
                   max_speed=spec.speed, sonar=explorer.uses_sonar) as robot:
+        def chained(t: float, cov: float | None) -> None:
+            if on_sample is not None:
+                on_sample(t, cov)
+            if on_run is not None:
+                on_run(run)
+        sample_cb = on_sample if on_run is None else chained
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                             on_sample=on_sample).run()
+                             on_sample=sample_cb)
+        run.run()
     return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image, record_extra=record_extra)
+
+
+EMULATORS = "robotexp.emulators"     # entry-point group: robot backend name -> its emulator class
+
+
+def connect_robot(backend: str, address: str) -> Robot:
+    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`.
+
+    Raises:
+        PluginError: unknown backend.
+        RobotError: the robot cannot be reached or the handshake fails.
+    """
+    from robotexp.registry import ROBOTS, load
+
+    cls = load(ROBOTS, backend, Robot)
+    if backend == "sim":
+        raise ConfigError("robot 'sim' is the embedded simulator: it has no address; run without --address")
+    return cls(address)   # type: ignore[no-any-return]
+
+
+def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
+                  pty: bool = False, speedup: float = 1.0) -> Any:
+    """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world`.
+
+    The emulator is not started: call its `start()` (and `close()`); `address` tells where it is.
+
+    Raises:
+        PluginError: no emulator for `backend`.
+        WorldError: unknown world or a start pose in an obstacle.
+        ConfigError: a parameter out of range.
+    """
+    from robotexp.registry import load
+    from robotexp.sim import preset
+    from robotexp.world.loader import load_world
+
+    if not (speedup > 0 and math.isfinite(speedup)):
+        raise ConfigError(f"speedup must be > 0, got {speedup}")
+    cls = load(EMULATORS, backend, object)
+    w = load_world(world)
+    radius = preset(backend).radius if backend in ("p3dx", "kobuki") else preset("p3dx").radius
+    start, _ = resolve_pose(w, pose, radius)
+    kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup}
+    if port is not None:
+        kwargs["port"] = port
+    return cls(w, **kwargs)
+
+
+def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
+                 on_sample: Callable[[float, float | None], None] | None = None,
+                 show: tuple[str, ...] = (), image: bool = True, map_size: float = 20.0) -> RunOutput:
+    """Run `spec`'s explorer on a connected robot (a real one, MobileSim or an emulator).
+
+    With a `world` the run starts from `spec.pose` in it: a robot with the "move_to" capability is
+    moved there (MobileSim, emulators; a real robot is told it stands there), and the world is
+    ground truth for coverage. Without one the map is a square of `map_size` [m] centred on the
+    robot's first pose and coverage is unknown. `spec.world`, `spec.robot` and the laser settings
+    of `spec` other than `laser_range` are not used: the robot brings its own sensors. The robot is
+    stopped at the end, not closed. Results are written as by `run_experiment`.
+
+    Raises:
+        WorldError, PluginError, ConfigError: bad input, before the robot moves.
+        RobotError: the robot fails before the run starts (during the run it ends the run).
+    """
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.mapping.groundtruth import ground_truth
+    from robotexp.world.loader import load_world
+
+    spec.validate()
+    if not map_size > 0:
+        raise ConfigError(f"map size must be > 0, got {map_size * 1000:g} mm")
+    explorer = make_explorer(spec.method, spec.params)
+    cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
+    truth = None
+    if world is not None:
+        w = load_world(world) if isinstance(world, str) else world
+        world_name = w.name
+        start, pose_label = resolve_pose(w, spec.pose, robot.radius)
+        if "move_to" in robot.capabilities:
+            robot.move_to(start)
+        assert w.bounds is not None
+        geo = GridGeometry.covering(*(spec.map_bounds or w.bounds), cell=cell,
+                                    margin=0.0 if spec.map_bounds else MAP_MARGIN)
+        truth = ground_truth(w, geo, robot_radius=robot.radius, laser_range=spec.laser_range, start=start)
+    else:
+        world_name, pose_label = robot.name, "robot"
+        p = robot.read().pose
+        half = map_size / 2
+        geo = GridGeometry.covering(*(spec.map_bounds or (p.x - half, p.y - half, p.x + half, p.y + half)),
+                                    cell=cell)
+    robot.set_max_speed(spec.speed)
+    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
+    run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
+                         on_sample=on_sample).run()
+    extra: dict[str, Any] = {"robot": robot.name}
+    if hasattr(robot, "address"):
+        extra["address"] = str(robot.address)
+    return write_outputs(run, spec, world_name, pose_label, out, show=show, image=image, record_extra=extra)
 
 
 def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_label: str, out: Path | None, *,
@@ -218,9 +341,11 @@ def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, 
     return img_path, plot_path
 
 
-def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = ()) -> Any:
+def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, scale: int | None = None,
+              path: bool = True) -> Any:
     """The PIL image of a run's map with its path and the overlays named in `show`
-    (grid, laser, vectors, potential, truth)."""
+    (grid, laser, vectors, potential, truth); `scale` in pixels per cell (None: fit), `path` False
+    leaves the path out."""
     from robotexp.render import render_map
 
     m = run.metrics
@@ -235,7 +360,8 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = ()) -> An
     end = None if state is None else (state.true_pose or state.pose)
     return render_map(run.grid.states(), run.grid.geo,
                       truth=run.truth.occupied if run.truth is not None else None,
-                      path=np.array(m.path) if m.path else None, start=run.start_pose, end=end,
+                      path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
+                      scale=scale,
                       show_grid="grid" in show, laser=laser,
                       vectors=overlays.get("vectors") if "vectors" in show else None,
                       potential=overlays.get("potential") if "potential" in show else None,

@@ -1,0 +1,527 @@
+"""The IfTEA scripting API (thesis section 4.2.2) as plain Python functions for Lua tables.
+
+Units are IfTEA's at this edge: millimetres, mm/s, milliseconds, degrees; everything is SI inside.
+`Session` holds the settings and the runs of one script; `Session.functions()` gives the tables
+(`robot`, `exploration`, `mapView`, `robotView`) of plain functions the prelude wraps. Each
+function checks its arguments and raises `ScriptError` naming itself and what it expects.
+
+Runs. `exploration.start()` validates the settings and arms a run; `exploration.wait()` runs it to
+the end on the stepped simulator. Calls that need a result (`elapsedTime`, `pathLength`,
+`results`, `saveMapImage`, `moveMobileSim`, `getPose`) and the next `start` first finish an armed
+run, and so does the end of the script. Each finished run is appended to OUT/results.jsonl at
+once. Between runs the robot stays where its last run ended, unless `robot.moveMobileSim` moves it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from robotexp.errors import RobotexpError, ScriptError
+from robotexp.robot import Pose
+
+if TYPE_CHECKING:
+    from robotexp.experiment import RunOutput, RunSpec
+    from robotexp.explorer import ExplorationRun
+    from robotexp.lua.sandbox import PathPolicy
+    from robotexp.world.model import World
+
+__all__ = ["Session", "Control", "P3DX_PORT", "parse_address"]
+
+log = logging.getLogger(__name__)
+
+P3DX_PORT = 8101        # MobileSim's and ARIA's default TCP port
+TRACK_WINDOW = (800, 600)       # [px] image size around the robot when tracking is on
+_UPDATE_PARAMS = ("update_period",)   # explorer parameter names of the potential update interval [s]
+_NAME = {"n": "a number", "s": "a string", "b": "a boolean", "i": "an integer"}
+
+
+class Control:
+    """Why a script must stop now (Ctrl-C, --timeout, os.exit), shared by the hook and the runs.
+
+    Args:
+        timeout: [s] wall-time limit of the script, or None.
+        clock: monotonic clock [s] (time.monotonic).
+    """
+
+    def __init__(self, timeout: float | None, clock: Callable[[], float]) -> None:
+        self.timeout = timeout
+        self.clock = clock
+        self.deadline = None if timeout is None else clock() + timeout
+        self.reason: str | None = None      # "interrupted", "timeout", "exit"
+        self.exit_code = 0
+
+    def check(self) -> bool:
+        """True when the script must stop (the deadline passing sets reason "timeout")."""
+        if self.reason is None and self.deadline is not None and self.clock() >= self.deadline:
+            self.reason = "timeout"
+        return self.reason is not None
+
+
+def parse_address(address: str) -> tuple[str, str]:
+    """Classify a robot address: ("sim", "") for "" or "sim", ("serial", path) for a device path,
+    ("tcp", "host:port") otherwise (port 8101 by default).
+
+    Raises:
+        ScriptError: a host:port whose port is not an integer 1..65535.
+    """
+    a = address.strip()
+    if a in ("", "sim"):
+        return "sim", ""
+    if a.startswith(("/", "\\\\.\\")) or re.fullmatch(r"(?i)com\d+", a):
+        return "serial", a
+    host, sep, port = a.rpartition(":")
+    if not sep:
+        return "tcp", f"{a}:{P3DX_PORT}"
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ScriptError(f"robot.setAddress({address!r}): expected '' or 'sim' (embedded simulator), "
+                          "'host' or 'host:port' (P3-DX over TCP, port 1..65535) or a serial device path")
+    return "tcp", a
+
+
+def _lua_kind(value: object) -> str:
+    if value is None:
+        return "nil"
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    from lupa import lua_type  # type: ignore[import-untyped]
+    return f"a {lua_type(value) or 'value'}"
+
+
+def _args(fname: str, usage: str, args: tuple[Any, ...], kinds: str) -> list[Any]:
+    """Check `args` against `kinds` (n number, i integer, s string, b boolean); return them.
+
+    Raises:
+        ScriptError: wrong count or kind, naming `fname(usage)`.
+    """
+    if len(args) != len(kinds):
+        raise ScriptError(f"{fname}({usage}): expected {len(kinds)} argument(s), got {len(args)}")
+    for i, (value, kind) in enumerate(zip(args, kinds, strict=True), start=1):
+        ok = {"n": isinstance(value, (int, float)) and not isinstance(value, bool)
+              and math.isfinite(value),
+              "i": isinstance(value, int) and not isinstance(value, bool),
+              "s": isinstance(value, str),
+              "b": isinstance(value, bool)}[kind]
+        if not ok:
+            raise ScriptError(f"{fname}({usage}): argument {i} must be {_NAME[kind]}"
+                              f"{' (finite)' if kind == 'n' else ''}, got {_lua_kind(value)}")
+    return list(args)
+
+
+def _positive(fname: str, usage: str, value: float, unit: str) -> float:
+    if not value > 0:
+        raise ScriptError(f"{fname}({usage}): expected a value > 0 {unit}, got {value:g}")
+    return float(value)
+
+
+class Session:
+    """The state of one script: settings, view options, the robot's pose and the runs.
+
+    Args:
+        out: output folder (results.jsonl, images).
+        paths: the path rule of the script (relative to `out`; sandbox).
+        control: the stop flags (Ctrl-C, --timeout).
+        world: the world given by `robotexp run --world`, or None (default "dense").
+        robot: simulated robot preset (p3dx, kobuki).
+        notice: prints a one-line notice for the user (stderr).
+        script: the script's name, recorded with each run.
+    """
+
+    def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
+                 robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "") -> None:
+        from robotexp.experiment import RunSpec
+
+        self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
+        self.forced_world = world is not None
+        self.spec = RunSpec(world=world or "dense", robot=robot)
+        self.address = ""
+        self.potential_interval: float | None = None   # [s]
+        self.pose: Pose | None = None                  # where the next run starts (None: world default)
+        # view (IfTEA's Display menu)
+        self.scaling: float | None = None              # [px/mm]; None: fit the image to 1400 px
+        self.zoom = 1.0
+        self.show: dict[str, bool] = {"grid": False, "path": True, "laser": False, "vectors": False,
+                                      "potential": False, "tracking": False}
+        self.frame_folder: Path | None = None
+        self.redraw_interval = 1.0                     # [s] robot time between frames
+        self.frames = 0
+        self.armed: RunSpec | None = None
+        self.last: RunOutput | None = None
+        self.records: list[dict[str, Any]] = []
+        self._told_forced = False
+        self._worlds: dict[str, World] = {}
+
+    # -- plumbing ----------------------------------------------------------------------------------
+    def functions(self) -> dict[str, dict[str, Callable[..., Any]]]:
+        """The Lua tables: {table: {function name: callable}}, each callable checked and named."""
+        tables: dict[str, dict[str, Callable[..., Any]]] = {}
+        for attr in dir(self):
+            if not attr.startswith("lua_"):
+                continue
+            table, _, name = attr[4:].partition("__")
+            tables.setdefault(table, {})[name] = self._entry(f"{table}.{name}", getattr(self, attr))
+        return tables
+
+    @staticmethod
+    def _entry(qualname: str, method: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            try:
+                return method(*args)
+            except ScriptError:
+                raise
+            except (RobotexpError, OSError) as exc:
+                raise ScriptError(f"{qualname}: {exc}") from exc
+        call.__name__ = qualname
+        return call
+
+    def methods(self) -> dict[str, str]:
+        """ExplorationMethod: IfTEA spelling -> plugin name, for every installed explorer."""
+        from robotexp.registry import EXPLORERS, available, lua_name
+        return {lua_name(name): name for name in available(EXPLORERS)}
+
+    def world(self) -> World:
+        """The current world (loaded once per name)."""
+        from robotexp.world.loader import load_world
+        name = self.spec.world
+        if name not in self._worlds:
+            self._worlds[name] = load_world(name)
+        return self._worlds[name]
+
+    def current_pose(self) -> Pose:
+        """Where the next run starts: the last moveMobileSim or run end, else the world's default."""
+        if self.pose is not None:
+            return self.pose
+        from robotexp.experiment import resolve_pose
+        from robotexp.sim import preset
+        return resolve_pose(self.world(), None, preset(self.spec.robot).radius)[0]
+
+    def finish(self) -> None:
+        """Run the armed exploration to its end (nothing when none is armed).
+
+        Raises:
+            ScriptError: the script must stop (Ctrl-C, --timeout) once the run is written.
+        """
+        spec, self.armed = self.armed, None
+        if spec is None:
+            return
+        from robotexp.experiment import run_experiment
+
+        self._next_frame = 0.0
+        watch = self.frame_folder is not None or self.control.deadline is not None
+        output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
+                                on_run=self._on_run if watch else None)
+        self.last = output
+        self.records.append(output.record)
+        state = output.run.state
+        if state is not None:
+            self.pose = state.true_pose or state.pose
+        if self.control.check():
+            raise ScriptError("exploration stopped")    # the runtime reports the real reason
+
+    def _on_run(self, run: ExplorationRun) -> None:
+        if self.frame_folder is not None and run.robot_time >= self._next_frame:
+            from robotexp.render import save_png
+            self.frames += 1
+            save_png(self._image(run), self.frame_folder / f"frame_{self.frames:06d}.png")
+            self._next_frame += self.redraw_interval
+        if self.control.check() and self.control.reason == "timeout":
+            run.request_stop(f"stopped: the script's --timeout of {self.control.timeout:g} s was reached")
+
+    def _image(self, run: ExplorationRun) -> Any:
+        from robotexp.experiment import map_image
+        from robotexp.render import map_layout
+
+        show = tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
+        title = f"{self.spec.world} - {run.explorer.__class__.__name__} - {run.metrics.path_length:.1f} m"
+        geo = run.grid.geo
+        if self.scaling is None:
+            base = float(map_layout(geo, scale=None, title=title).scale)
+        else:
+            base = self.scaling * geo.cell * 1000.0       # px/mm -> px per cell
+        scale = max(1, round(base * self.zoom))
+        image = map_image(run, title, show, scale=scale, path=self.show["path"])
+        state = run.state
+        if self.show["tracking"] and state is not None:
+            p = state.true_pose or state.pose
+            cx, cy = map_layout(geo, scale=scale, title=title).to_pixel(p.x, p.y)
+            w, h = min(TRACK_WINDOW[0], image.width), min(TRACK_WINDOW[1], image.height)
+            left = int(min(max(cx - w / 2, 0), image.width - w))
+            top = int(min(max(cy - h / 2, 0), image.height - h))
+            image = image.crop((left, top, left + w, top + h))
+        return image
+
+    def _last(self, fname: str) -> RunOutput:
+        self.finish()
+        if self.last is None:
+            raise ScriptError(f"{fname}: no exploration has run yet; call exploration.start() and "
+                              "exploration.wait() first")
+        return self.last
+
+    def _flag(self, fname: str, key: str, args: tuple[Any, ...]) -> None:
+        (self.show[key],) = _args(fname, "on", args, "b")
+
+    # -- robot ---------------------------------------------------------------------------------------
+    def lua_robot__setAddress(self, *args: Any) -> None:
+        """'' or 'sim': embedded simulator; 'host[:port]': P3-DX over TCP; a device path: serial."""
+        (address,) = _args("robot.setAddress", "address", args, "s")
+        kind, where = parse_address(address)
+        if kind != "sim":
+            if not self.forced_world:
+                raise ScriptError(
+                    f"robot.setAddress({address!r}): the P3-DX driver ({kind} {where}) is not available yet; "
+                    "use '' or 'sim' for the embedded simulator, or give `robotexp run --world WORLD` to run "
+                    "this script on the simulator of WORLD")
+            if not self._told_forced:
+                self.notice(f"robot.setAddress({address!r}): --world {self.spec.world} given, so the script "
+                            "runs on the embedded simulator of that world")
+                self._told_forced = True
+        self.address = address
+
+    def lua_robot__setMaxLaserRange(self, *args: Any) -> None:
+        """Laser range [mm]."""
+        (mm,) = _args("robot.setMaxLaserRange", "range_mm", args, "n")
+        self.spec.laser_range = _positive("robot.setMaxLaserRange", "range_mm", mm, "mm") / 1000.0
+
+    def lua_robot__setMaxSpeed(self, *args: Any) -> None:
+        """Maximum forward speed [mm/s]."""
+        (v,) = _args("robot.setMaxSpeed", "speed_mm_s", args, "n")
+        self.spec.speed = _positive("robot.setMaxSpeed", "speed_mm_s", v, "mm/s") / 1000.0
+
+    def lua_robot__setModel(self, *args: Any) -> None:
+        """The simulated robot (p3dx, kobuki)."""
+        from robotexp.sim import PRESETS
+        (name,) = _args("robot.setModel", "name", args, "s")
+        if name not in PRESETS:
+            raise ScriptError(f"robot.setModel({name!r}): unknown robot; available: {', '.join(PRESETS)}")
+        self.spec.robot = name
+
+    def lua_robot__moveMobileSim(self, *args: Any) -> None:
+        """Place the simulated robot at (x [mm], y [mm], theta [deg]) and reset odometry there."""
+        x, y, th = _args("robot.moveMobileSim", "x_mm, y_mm, theta_deg", args, "nnn")
+        self.finish()
+        pose = Pose(x / 1000.0, y / 1000.0, math.radians(th))
+        xmin, ymin, xmax, ymax = self.world().bounds or (0.0, 0.0, 0.0, 0.0)
+        if not (xmin <= pose.x <= xmax and ymin <= pose.y <= ymax):
+            raise ScriptError(f"robot.moveMobileSim({x:g}, {y:g}, {th:g}): outside world {self.spec.world!r} "
+                              f"(x {xmin * 1000:.0f}..{xmax * 1000:.0f}, y {ymin * 1000:.0f}..{ymax * 1000:.0f} mm)")
+        self.pose = pose
+
+    def lua_robot__getPose(self, *args: Any) -> tuple[float, float, float]:
+        """Where the robot is (x [mm], y [mm], theta [deg])."""
+        _args("robot.getPose", "", args, "")
+        self.finish()
+        p = self.current_pose()
+        return p.x * 1000.0, p.y * 1000.0, math.degrees(p.theta)
+
+    def lua_robot__pathLength(self, *args: Any) -> float:
+        """Path length of the last run [mm]."""
+        _args("robot.pathLength", "", args, "")
+        return round(self._last("robot.pathLength").record["path_length_m"] * 1000.0, 1)
+
+    # -- exploration -----------------------------------------------------------------------------------
+    def lua_exploration__setMethod(self, *args: Any) -> None:
+        """The explorer: an ExplorationMethod value (or a plugin name)."""
+        methods = self.methods()
+        listing = ", ".join(f"ExplorationMethod.{k}" for k in methods)
+        if len(args) != 1 or not isinstance(args[0], str):
+            got = "nothing" if not args else _lua_kind(args[0])
+            raise ScriptError(f"exploration.setMethod(method): expected an installed method, got {got} "
+                              f"(ExplorationMethod.X is nil when plugin x is not installed); available: {listing}")
+        name = methods.get(args[0], args[0])
+        if name not in methods.values():
+            raise ScriptError(f"exploration.setMethod({args[0]!r}): unknown method; available: {listing}")
+        self.spec.method = name
+
+    def lua_exploration__getMethod(self, *args: Any) -> str:
+        """The plugin name of the chosen method."""
+        _args("exploration.getMethod", "", args, "")
+        return self.spec.method
+
+    def lua_exploration__setParameter(self, *args: Any) -> None:
+        """An explorer keyword parameter (SI units, as `--param`); checked at start()."""
+        if len(args) != 2 or not isinstance(args[0], str) or not (
+                isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
+            got = ", ".join(_lua_kind(a) for a in args) or "nothing"
+            raise ScriptError("exploration.setParameter(name, value): expected a parameter name (string) and a "
+                              f"number, boolean or string, got {got}")
+        name, value = args
+        if not name.isidentifier():
+            raise ScriptError(f"exploration.setParameter({name!r}, ...): expected a parameter name")
+        self.spec.params[name] = value
+
+    def lua_exploration__clearParameters(self, *args: Any) -> None:
+        """Forget every parameter given with setParameter."""
+        _args("exploration.clearParameters", "", args, "")
+        self.spec.params = {}
+
+    def lua_exploration__setWorld(self, *args: Any) -> None:
+        """A built-in world name, or a .map / .yaml file (relative to the output folder)."""
+        (name,) = _args("exploration.setWorld", "name_or_file", args, "s")
+        if Path(name).suffix.lower() in (".map", ".yaml", ".yml"):
+            name = self.paths.resolve(name, "r", "exploration.setWorld")
+        self.finish()
+        old = self.spec.world
+        self.spec.world = name
+        try:
+            self.world()
+        except RobotexpError:
+            self.spec.world = old
+            raise
+        if name != old:
+            self.pose = None
+
+    def lua_exploration__setSeed(self, *args: Any) -> None:
+        """Seed of every random choice of the next runs."""
+        (seed,) = _args("exploration.setSeed", "seed", args, "i")
+        if seed < 0:
+            raise ScriptError(f"exploration.setSeed({seed}): expected an integer >= 0")
+        self.spec.seed = seed
+
+    def lua_exploration__setMaxTime(self, *args: Any) -> None:
+        """Robot-time limit of a run [ms]."""
+        (ms,) = _args("exploration.setMaxTime", "time_ms", args, "n")
+        self.spec.max_time = _positive("exploration.setMaxTime", "time_ms", ms, "ms") / 1000.0
+
+    def lua_exploration__setMapLimits(self, *args: Any) -> None:
+        """Map limits (xmin, ymin, xmax, ymax) [mm]; no argument: the world's bounds plus 1 m."""
+        if not args:
+            self.spec.map_bounds = None
+            return
+        x0, y0, x1, y1 = _args("exploration.setMapLimits", "xmin_mm, ymin_mm, xmax_mm, ymax_mm", args, "nnnn")
+        if not (x0 < x1 and y0 < y1):
+            raise ScriptError(f"exploration.setMapLimits({x0:g}, {y0:g}, {x1:g}, {y1:g}): expected xmin < xmax "
+                              "and ymin < ymax")
+        self.spec.map_bounds = (x0 / 1000.0, y0 / 1000.0, x1 / 1000.0, y1 / 1000.0)
+
+    def lua_exploration__setCellSize(self, *args: Any) -> None:
+        """Map cell size [mm] (5..2000)."""
+        (mm,) = _args("exploration.setCellSize", "cell_mm", args, "n")
+        if not 5 <= mm <= 2000:
+            raise ScriptError(f"exploration.setCellSize({mm:g}): expected 5..2000 mm")
+        self.spec.cell = mm / 1000.0
+
+    def lua_exploration__setPotentialUpdateInterval(self, *args: Any) -> None:
+        """Robot time between potential updates [ms] (methods with an `update_period`, e.g. BVP)."""
+        (ms,) = _args("exploration.setPotentialUpdateInterval", "interval_ms", args, "n")
+        self.potential_interval = _positive("exploration.setPotentialUpdateInterval", "interval_ms", ms, "ms") / 1000
+
+    def lua_exploration__start(self, *args: Any) -> None:
+        """Check the settings and arm a run (wait() runs it)."""
+        _args("exploration.start", "", args, "")
+        self.finish()
+        self.armed = self._spec()
+
+    def lua_exploration__wait(self, *args: Any) -> None:
+        """Run the armed exploration to its end (nothing when none is armed)."""
+        _args("exploration.wait", "", args, "")
+        self.finish()
+
+    def lua_exploration__elapsedTime(self, *args: Any) -> int:
+        """Robot time of the last run [ms]."""
+        _args("exploration.elapsedTime", "", args, "")
+        return round(self._last("exploration.elapsedTime").record["robot_time_s"] * 1000.0)
+
+    def lua_exploration__results(self, *args: Any) -> dict[str, Any]:
+        """Every metric of the last run (README "Results"; SI units; null values are nil)."""
+        _args("exploration.results", "", args, "")
+        return dict(self._last("exploration.results").record)
+
+    def lua_exploration__outputFolder(self, *args: Any) -> str:
+        """The output folder (relative paths of the script are relative to it)."""
+        _args("exploration.outputFolder", "", args, "")
+        return str(self.out)
+
+    def _spec(self) -> RunSpec:
+        from robotexp.experiment import make_explorer
+        from robotexp.sim import preset
+
+        spec = replace(self.spec, params=dict(self.spec.params))
+        if self.pose is not None:
+            p = self.pose
+            spec.pose = f"{p.x * 1000!r},{p.y * 1000!r},{math.degrees(p.theta)!r}"
+        spec.validate()
+        cls = type(make_explorer(spec.method, spec.params))   # unknown method or parameter: now
+        if self.potential_interval is not None:
+            import inspect
+            accepted = [n for n in _UPDATE_PARAMS if n in inspect.signature(cls).parameters]
+            if accepted:
+                spec.params.setdefault(accepted[0], self.potential_interval)
+        if spec.map_bounds is not None:
+            p = self.current_pose()
+            x0, y0, x1, y1 = spec.map_bounds
+            if not (x0 <= p.x <= x1 and y0 <= p.y <= y1):
+                raise ScriptError(f"exploration.start: the robot ({p.x * 1000:.0f}, {p.y * 1000:.0f}) mm is "
+                                  "outside the map limits set by exploration.setMapLimits")
+        preset(spec.robot)
+        return spec
+
+    # -- views -----------------------------------------------------------------------------------------
+    def lua_mapView__setMapScaling(self, *args: Any) -> None:
+        """Image scale [px/mm] (IfTEA: 0.1 = 100 px per metre)."""
+        (s,) = _args("mapView.setMapScaling", "pixels_per_mm", args, "n")
+        self.scaling = _positive("mapView.setMapScaling", "pixels_per_mm", s, "px/mm")
+
+    def lua_mapView__zoomIn(self, *args: Any) -> None:
+        """Double the image scale."""
+        _args("mapView.zoomIn", "", args, "")
+        self.zoom *= 2.0
+
+    def lua_mapView__zoomOut(self, *args: Any) -> None:
+        """Halve the image scale."""
+        _args("mapView.zoomOut", "", args, "")
+        self.zoom /= 2.0
+
+    def lua_mapView__setShowGrid(self, *args: Any) -> None:
+        """Draw cell edges."""
+        self._flag("mapView.setShowGrid", "grid", args)
+
+    def lua_mapView__setShowVectorField(self, *args: Any) -> None:
+        """Draw the explorer's vector field (BVP)."""
+        self._flag("mapView.setShowVectorField", "vectors", args)
+
+    def lua_mapView__setShowPotentialField(self, *args: Any) -> None:
+        """Draw the explorer's potential field (BVP)."""
+        self._flag("mapView.setShowPotentialField", "potential", args)
+
+    def lua_mapView__setRedrawInterval(self, *args: Any) -> None:
+        """Robot time between two frames saved in the frame folder [ms] (rounded to 1 s samples)."""
+        (ms,) = _args("mapView.setRedrawInterval", "interval_ms", args, "n")
+        self.redraw_interval = _positive("mapView.setRedrawInterval", "interval_ms", ms, "ms") / 1000.0
+
+    def lua_mapView__setFrameFolder(self, *args: Any) -> None:
+        """Save a map frame there every redraw interval during runs (nil: stop saving frames)."""
+        if len(args) == 1 and args[0] is None:
+            self.frame_folder = None
+            return
+        (folder,) = _args("mapView.setFrameFolder", "folder", args, "s")
+        self.frame_folder = Path(self.paths.resolve(folder.rstrip("/") + "/frame", "w",
+                                                    "mapView.setFrameFolder")).parent
+
+    def lua_mapView__saveMapImage(self, *args: Any) -> str:
+        """Save the last run's map as a PNG file; returns the path written."""
+        from robotexp.render import save_png
+        (path,) = _args("mapView.saveMapImage", "path", args, "s")
+        target = self.paths.resolve(path, "w", "mapView.saveMapImage")
+        run = self._last("mapView.saveMapImage").run
+        return str(save_png(self._image(run), target))
+
+    def lua_robotView__setShowPath(self, *args: Any) -> None:
+        """Draw the robot's path."""
+        self._flag("robotView.setShowPath", "path", args)
+
+    def lua_robotView__setShowLaser(self, *args: Any) -> None:
+        """Draw the last laser scan."""
+        self._flag("robotView.setShowLaser", "laser", args)
+
+    def lua_robotView__setTracking(self, *args: Any) -> None:
+        """Crop saved images to 800 x 600 px around the robot."""
+        self._flag("robotView.setTracking", "tracking", args)

@@ -1,0 +1,204 @@
+"""Run an IfTEA-style Lua experiment script on lupa (`robotexp run SCRIPT.lua`).
+
+The runtime is locked down whatever the options: no `python` table, no eval or builtins, an
+attribute filter that refuses every Python attribute, and only plain Lua functions and tables in
+the script's globals. Errors come back as `ScriptError` with the script name, line and message.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from robotexp.errors import ConfigError, PluginError, ScriptError, WorldError
+from robotexp.lua.api import Control, Session
+from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, PathPolicy
+
+__all__ = ["ScriptResult", "run_script", "substitute_method"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ScriptResult:
+    """What a script left: its exit status (0, or the code given to os.exit) and the records of
+    its runs (also in OUT/results.jsonl)."""
+
+    exit_code: int = 0
+    records: list[dict[str, Any]] = field(default_factory=list)
+
+
+def substitute_method(code: str, old: str, new: str) -> str:
+    """`code` with every `ExplorationMethod.<old>` replaced by `ExplorationMethod.<new>`.
+
+    Used to run a script written for a plugin that is not installed (e.g. the thesis script's BVP)
+    with another one; nothing else in the script changes.
+    """
+    import re
+    return re.sub(rf"\bExplorationMethod\.{re.escape(old)}\b", f"ExplorationMethod.{new}", code)
+
+
+def _refuse_attribute(obj: object, name: object, is_setting: bool) -> object:
+    raise AttributeError("scripts cannot reach Python attributes")
+
+
+def _plain(lua: Any, value: Any) -> Any:
+    """A Python result as a Lua value: numbers, strings, booleans, nil, tuples (several results)
+    and tables; never a Python object."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, tuple):
+        return tuple(_plain(lua, v) for v in value)
+    if isinstance(value, (dict, list)):
+        return lua.table_from(value, recursive=True)
+    raise ScriptError(f"internal: a {type(value).__name__} cannot be given to a script")
+
+
+def _message(exc: BaseException) -> str:
+    text = str(exc)
+    for prefix in ("error loading code: ",):
+        if text.startswith(prefix):
+            text = text[len(prefix):]
+    return text.split("\nstack traceback:", 1)[0].strip()
+
+
+@contextmanager
+def _sigint_sets(control: Control) -> Iterator[None]:
+    """Ctrl-C marks the script as interrupted, then raises KeyboardInterrupt as usual."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        control.reason = control.reason or "interrupted"
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,
+               timeout: float | None = None, code: str | None = None,
+               emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning) -> ScriptResult:
+    """Run the Lua script at `path` (or the text `code`, named after `path`).
+
+    Relative paths in the script are relative to `out`. An exploration still armed when the script
+    ends is run to its end.
+
+    Args:
+        path: the script file.
+        out: output folder: results.jsonl, images, the script's relative files.
+        world: run on the embedded simulator of this world whatever robot.setAddress says.
+        robot: simulated robot preset (p3dx, kobuki).
+        sandbox: refuse programs, C modules and files outside `out`.
+        timeout: [s] wall-time limit of the whole script.
+        code: the script text (default: read from `path`).
+        emit: receives each line the script prints.
+        notice: receives notices for the user (e.g. the simulator replaces the address).
+
+    Returns:
+        The exit status and the records of the script's runs.
+
+    Raises:
+        ScriptError: syntax or runtime error (script:line: message), a bad API call, --timeout.
+        KeyboardInterrupt: Ctrl-C, after the robot is stopped and the runs so far are written.
+    """
+    from lupa import LuaError, LuaRuntime  # type: ignore[import-untyped]
+
+    if timeout is not None and not timeout > 0:
+        raise ScriptError(f"--timeout must be > 0 s, got {timeout:g}")
+    name = path.name
+    if code is None:
+        try:
+            code = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ScriptError(f"{path}: cannot read the script ({exc.strerror or exc})") from exc
+    control = Control(timeout, time.monotonic)
+    paths = PathPolicy(out, sandbox)
+    session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
+                      script=name)
+    lua = LuaRuntime(register_eval=False, register_builtins=False, unpack_returned_tuples=True,
+                     attribute_filter=_refuse_attribute)
+    g = lua.globals()
+    g.python = None
+    lua.execute("package.loaded.python = nil")
+
+    def exit_request(code_value: object = None) -> None:
+        if code_value is None or code_value is True:
+            control.exit_code = 0
+        elif code_value is False:
+            control.exit_code = 1
+        elif isinstance(code_value, int):
+            control.exit_code = code_value
+        else:
+            raise ScriptError("os.exit([code]): expected an integer or a boolean")
+        control.reason = control.reason or "exit"
+
+    def lua_function(f: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            return _plain(lua, f(*args))
+        return call
+
+    api = lua.table_from({t: lua.table_from({n: lua_function(f) for n, f in funcs.items()})
+                          for t, funcs in session.functions().items()})
+    script_dir = str(path.resolve().parent) if path.parent != Path("") else ""
+    prelude = lua.compile(PRELUDE, name="=robotexp prelude", mode="t")
+    prelude(control.check, paths.resolve, paths.refuse, emit, exit_request, api,
+            lua.table_from(session.methods()), sandbox, HOOK_EVERY, ABORT, script_dir, str(out))
+
+    with _sigint_sets(control):
+        try:
+            chunk = lua.compile(code, name=f"={name}", mode="t")
+            chunk()
+            try:
+                session.finish()
+            except (WorldError, ConfigError, PluginError) as exc:
+                raise ScriptError(f"{name}: the exploration still armed at the end of the script: {exc}") from exc
+        except LuaError as exc:
+            if _stopped(control, name, session):
+                return ScriptResult(control.exit_code, session.records)
+            raise ScriptError(_message(exc)) from None
+        except KeyboardInterrupt:
+            control.reason = control.reason or "interrupted"
+            _stopped(control, name, session)
+            raise
+        except ScriptError:
+            if _stopped(control, name, session):
+                return ScriptResult(control.exit_code, session.records)
+            raise
+        except Exception as exc:     # a raw Python function reached through debug.getupvalue, say
+            if _stopped(control, name, session):
+                return ScriptResult(control.exit_code, session.records)
+            raise ScriptError(f"{name}: {type(exc).__name__}: {exc}") from None
+        finally:
+            _flush_stdout(lua)
+    return ScriptResult(control.exit_code, session.records)
+
+
+def _stopped(control: Control, name: str, session: Session) -> bool:
+    """Turn a stop into its outcome: raise KeyboardInterrupt (Ctrl-C) or ScriptError (--timeout);
+    True for os.exit, False for an ordinary error."""
+    if control.reason == "interrupted":
+        raise KeyboardInterrupt
+    if control.reason == "timeout":
+        raise ScriptError(f"{name}: stopped by --timeout after {control.timeout:g} s; the "
+                          f"{len(session.records)} run(s) finished so far are in {session.out / 'results.jsonl'}")
+    return control.reason == "exit"
+
+
+def _flush_stdout(lua: Any) -> None:
+    try:
+        lua.execute("io.stdout:flush()")
+    except Exception:   # the script closed stdout: nothing to flush
+        log.debug("io.stdout:flush() failed", exc_info=True)

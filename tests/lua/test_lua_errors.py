@@ -1,0 +1,129 @@
+"""Script errors name the script, line and function; stops (timeout, Ctrl-C) keep the results."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from robotexp.cli import main
+from robotexp.errors import ScriptError
+
+
+@pytest.mark.parametrize(("code", "message"), [
+    ("x = 1\nlocal y = = 2", r"^s.lua:2: unexpected symbol near '='$"),
+    ("\n\nlocal x = nil + 1", r"^s.lua:3: attempt to perform arithmetic on a nil value$"),
+    ('error("boom")', r"^s.lua:1: boom$"),
+    ("\nrobot.moveMobileSim(1, 2)",
+     r"^s.lua:2: robot.moveMobileSim\(x_mm, y_mm, theta_deg\): expected 3 argument\(s\), got 2$"),
+    ("function f() exploration.setSeed(1.5) end\nf()",
+     r"^s.lua:1: exploration.setSeed\(seed\): argument 1 must be an integer, got a number$"),
+    ('robot.setMaxSpeed("fast")', r"robot.setMaxSpeed\(speed_mm_s\): argument 1 must be a number"),
+    ("robot.setMaxSpeed(-5)", r"robot.setMaxSpeed\(speed_mm_s\): expected a value > 0 mm/s, got -5"),
+    ("robot.setMaxSpeed(0/0)", r"argument 1 must be a number \(finite\)"),
+    ("mapView.setShowGrid(1)", r"mapView.setShowGrid\(on\): argument 1 must be a boolean, got a number"),
+    ("print(exploration.elapsedTime())", r"^s.lua:1: exploration.elapsedTime: no exploration has run yet"),
+    ("exploration.setMethod(ExplorationMethod.NO_SUCH)",
+     r"exploration.setMethod\(method\): expected an installed method, got nil .*available: .*"
+     r"ExplorationMethod.FRONTIER"),
+    ('exploration.setMethod("nope")', r"unknown method; available: .*ExplorationMethod.FRONTIER"),
+    ('exploration.setWorld("atlantis")', r"^s.lua:1: exploration.setWorld: .*atlantis"),
+    ('robot.setModel("r2d2")', r"unknown robot; available: p3dx, kobuki"),
+    ("exploration.setMapLimits(0, 0, -1, 5)", r"expected xmin < xmax and ymin < ymax"),
+    ("exploration.setCellSize(1)", r"expected 5..2000 mm"),
+])
+def test_errors_name_script_line_and_function(lua, code, message):
+    with pytest.raises(ScriptError, match=message):
+        lua(code, name="s.lua")
+
+
+def test_error_in_pcall_is_a_plain_string(lua):
+    lua('local ok, e = pcall(robot.setMaxSpeed, "x"); print(ok, type(e))')
+    assert lua.lines == ["false\tstring"]
+
+
+def test_cli_prints_one_line_and_exits_1(tmp_path):
+    script = tmp_path / "bad.lua"
+    script.write_text("print('before')\nlocal x = {} .. 1\n")
+    result = CliRunner().invoke(main, ["run", str(script), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1
+    assert "robotexp: error: bad.lua:2: attempt to concatenate a table value" in result.output
+    assert "before" in result.output and "Traceback" not in result.output
+
+
+def test_cli_os_exit_status(tmp_path):
+    script = tmp_path / "exit.lua"
+    script.write_text("os.exit(4)")
+    assert CliRunner().invoke(main, ["run", str(script), "--out", str(tmp_path)]).exit_code == 4
+
+
+@pytest.mark.parametrize("loop", [
+    "while true do end",
+    "while true do pcall(function() while true do end end) end",          # cannot swallow the stop
+    "local co = coroutine.wrap(function() while true do end end); co()",
+    "while true do coroutine.resume(coroutine.create(function() while true do end end)) end",
+])
+def test_timeout_stops_a_stuck_script(lua, loop):
+    t0 = time.monotonic()
+    with pytest.raises(ScriptError, match=r"^s.lua: stopped by --timeout after 0.3 s; the 0 run\(s\)"):
+        lua(loop, name="s.lua", timeout=0.3)
+    assert time.monotonic() - t0 < 5.0
+
+
+def test_timeout_during_a_run_keeps_its_record(lua):
+    with pytest.raises(ScriptError, match="stopped by --timeout after 2 s; the 1 run"):
+        lua('exploration.setWorld("dense"); exploration.start(); exploration.wait(); print("not reached")',
+            name="s.lua", timeout=2.0)
+    (rec,) = [json.loads(x) for x in (lua.out / "results.jsonl").read_text().splitlines()]
+    assert rec["completed"] is False and "--timeout of 2 s" in rec["reason"]
+    assert lua.lines == []
+
+
+def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str) -> tuple[subprocess.CompletedProcess, Path]:
+    """Run `code`, wait for its "ready" line and then for the file `wait_for` in the output folder; Ctrl-C."""
+    script = tmp_path / "s.lua"
+    script.write_text(code)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == "ready"
+        deadline = time.monotonic() + 60
+        while not (out / wait_for).exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), out
+
+
+def test_ctrl_c_stops_a_pure_lua_loop(tmp_path):
+    done, _ = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); io.open("go", "w"):close()\n'
+                                            'while true do pcall(function() end) end', "go")
+    assert done.returncode == 130, done.stderr
+    assert "interrupted" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
+    done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
+                                              'exploration.setWorld("dense"); exploration.start(); exploration.wait()\n'
+                                              'print("not reached")', "f/frame_000003.png")
+    assert done.returncode == 130, done.stderr
+    assert "not reached" not in done.stdout and "Traceback" not in done.stderr
+    (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert rec["completed"] is False and "interrupted" in rec["reason"]
+
+
+if os.name != "posix":   # pragma: no cover
+    pytestmark = pytest.mark.skip("SIGINT tests need POSIX")
