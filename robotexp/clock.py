@@ -6,7 +6,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
-__all__ = ["Clock", "SimClock", "WallClock"]
+__all__ = ["Clock", "SimClock", "WallClock", "PacedClock"]
 
 
 class Clock(ABC):
@@ -61,3 +61,29 @@ class WallClock(Clock):
         else:       # we are late: do not try to catch up with a burst of ticks
             self._next = now
         self._next += self.period
+
+
+class PacedClock(Clock):
+    """Robot-paced: each tick waits for the robot's state packets covering one more `period`.
+
+    `now()` is robot time (packets received x the robot's cycle), so one control loop runs in real
+    time on a real robot and faster than real time against an emulator running with a speed-up.
+
+    Args:
+        period: control period [s].
+        wait_until: blocks until the robot's time [s] reaches the given value and returns it
+            (raising the backend's error when the robot falls silent).
+        start: robot time [s] when the clock starts.
+    """
+
+    def __init__(self, period: float, wait_until: Callable[[float], float], start: float = 0.0) -> None:
+        super().__init__(period)
+        self._wait_until = wait_until
+        self._start = start
+        self._time = start
+
+    def now(self) -> float:
+        return self._time - self._start
+
+    def tick(self) -> None:
+        self._time = self._wait_until(self._time + self.period)

@@ -1,0 +1,455 @@
+"""`P3DXEmulator`: the `sim` robot of a world served over the ARIA protocol, as MobileSim would.
+
+Answers ARIA clients (and our `P3DXRobot`) on TCP (127.0.0.1:8101 by default) or on a
+pseudo-terminal whose slave device path a driver opens as a serial port. It replies to
+SYNC0/1/2 with "MobileSim"/"Pioneer"/"p3dx", to CONFIG with MobileSim's CONFIG packet (carrying the
+emulated robot's limits), sends a SIP every 100 ms of robot time after OPEN (sonar included) and,
+once the simulated laser is enabled (35..38 or 230..233), the scan right after each SIP.
+SIM_SET_POSE moves the robot without changing odometry (`SimRobot.move_to`), SIM_RESET goes back
+to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time / `speedup`.
+
+For fault tests it records the commands it received (`last_command`, `commanded`) and can
+`inject` raw bytes, `stall` (stop sending without closing) or `vanish` (drop the connection).
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import os
+import select
+import socket
+import threading
+import time
+import tty
+from dataclasses import replace
+
+from robotexp.errors import ConfigError, WorldError
+from robotexp.robot import Pose, Twist, wrap_angle
+from robotexp.sim.presets import LaserConfig
+from robotexp.world.model import World
+
+from . import codec as k
+from . import constants as c
+from .robot import compose_pose, relative_pose
+
+__all__ = ["P3DXEmulator"]
+
+log = logging.getLogger(__name__)
+
+_STOPS = frozenset({c.Cmd.STOP, c.Cmd.ESTOP, c.Cmd.QSTOP})
+
+
+class _Closed(Exception):
+    """The client connection ended (EOF or error)."""
+
+
+class _TcpConn:
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def recv(self, timeout: float) -> bytes:
+        ready, _, _ = select.select([self.sock], [], [], max(timeout, 0.0))
+        if not ready:
+            return b""
+        try:
+            data = self.sock.recv(65536)
+        except OSError as exc:
+            raise _Closed(str(exc)) from exc
+        if not data:
+            raise _Closed("client closed the connection")
+        return data
+
+    def send(self, data: bytes) -> None:
+        try:
+            self.sock.sendall(data)
+        except OSError as exc:
+            raise _Closed(str(exc)) from exc
+
+    def close(self) -> None:
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass        # already disconnected
+        self.sock.close()
+
+
+class _PtyConn:
+    """The master side of a pseudo-terminal; the slave stays open so the device always exists."""
+
+    def __init__(self) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)          # no echo, no line editing before the client configures it
+        self.path = os.ttyname(self.slave)
+
+    def recv(self, timeout: float) -> bytes:
+        ready, _, _ = select.select([self.master], [], [], max(timeout, 0.0))
+        if not ready:
+            return b""
+        try:
+            return os.read(self.master, 65536)
+        except OSError as exc:
+            raise _Closed(str(exc)) from exc
+
+    def send(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            try:
+                n = os.write(self.master, view)
+            except BlockingIOError:
+                select.select([], [self.master], [], 0.1)
+                continue
+            except OSError as exc:
+                raise _Closed(str(exc)) from exc
+            view = view[n:]
+
+    def close(self) -> None:
+        for fd in (self.master, self.slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass    # closed already
+
+
+class P3DXEmulator:
+    """Serve a simulated P3-DX over the ARIA protocol.
+
+    Args:
+        world: a World, or a world name / map path (`robotexp.world.loader.load_world`).
+        pose: start pose: a Pose, a pose name of the world or "x,y,theta" (mm, mm, deg); default
+            as `robotexp explore`.
+        port: TCP port on `host` (0 picks a free one); ignored with `pty`.
+        host: address to listen on (127.0.0.1 by default: only this machine).
+        pty: serve on a pseudo-terminal instead of TCP (`address` is its device path).
+        speedup: robot time per wall time (1.0 = real time).
+        seed: seed of the simulator's noise.
+        laser: the simulated laser (default: the preset's, 181 beams over 180 deg).
+        robot: simulator preset name.
+        robot_type, robot_subtype: what SYNC2 and CONFIG report.
+        watchdog: [s of robot time] stop the robot when no command came for this long (None:
+            never, as MobileSim, which only warns).
+        lockstep: send the next SIP as soon as a velocity command answers the last one (at the
+            latest after one cycle / `speedup` of wall time): a client that keeps up then runs
+            exactly as on the embedded simulator, as fast as it can (tests, benchmarks).
+
+    Raises:
+        WorldError: unknown world or a start pose in an obstacle.
+        ConfigError: a parameter out of range.
+        OSError: the port is taken.
+    """
+
+    def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
+                 host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
+                 laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
+                 robot_subtype: str = c.DEFAULT_SUBCLASS, watchdog: float | None = None,
+                 lockstep: bool = False) -> None:
+        from robotexp.experiment import resolve_pose
+        from robotexp.sim import SimRobot, preset
+        from robotexp.world.loader import load_world
+
+        if not (speedup > 0 and math.isfinite(speedup)):
+            raise ConfigError(f"p3dx emulator: speedup must be > 0, got {speedup}")
+        if watchdog is not None and not watchdog > 0:
+            raise ConfigError(f"p3dx emulator: watchdog must be > 0 s or None, got {watchdog}")
+        self.world = load_world(world) if isinstance(world, str) else world
+        robot_preset = preset(robot)
+        if isinstance(pose, Pose):
+            self.start_pose = pose
+        else:
+            self.start_pose, _ = resolve_pose(self.world, pose, robot_preset.radius)
+        self.speedup, self.watchdog, self.lockstep = speedup, watchdog, lockstep
+        self._stepped = False
+        self.robot_type, self.robot_subtype = robot_type, robot_subtype
+        self.dist_conv = c.DIST_CONV_FACTOR_SH if robot_subtype.lower() == "p3dx-sh" else c.DIST_CONV_FACTOR
+        self.commands: collections.deque[k.Command] = collections.deque(maxlen=10000)
+        self.last_command: k.Command | None = None      # the last command other than PULSE
+        self.commanded = (0, 0)                         # last VEL [mm/s] and RVEL [deg/s] in force
+        self.sessions = 0
+        self.sips_sent = 0
+        self._stop = threading.Event()
+        self._stall = threading.Event()
+        self._vanish = threading.Event()
+        self._inject: collections.deque[bytes] = collections.deque()
+        self._server: socket.socket | None = None
+        self._pty: _PtyConn | None = None
+        self.sim = SimRobot(self.world, robot=robot_preset, pose=self.start_pose, seed=seed,
+                            laser=laser, sonar=False)
+        try:
+            lim = self.sim.limits
+            self.config = replace(k.mobilesim_config(robot_type, robot_subtype),
+                                  trans_vel_max=round(lim.v_max * 1000), rot_vel_max=round(math.degrees(lim.w_max)),
+                                  trans_accel=round(lim.a_max * 1000), trans_decel=round(lim.a_max * 1000),
+                                  rot_accel=round(math.degrees(lim.alpha_max)),
+                                  rot_decel=round(math.degrees(lim.alpha_max)))
+            if pty:
+                self._pty = _PtyConn()
+                self.address = self._pty.path
+            else:
+                self._server = socket.create_server((host, port))
+                self._server.settimeout(0.05)
+                self.address = f"{host}:{self._server.getsockname()[1]}"
+        except BaseException:
+            self.sim.close()
+            raise
+        self._thread: threading.Thread | None = None
+        self._odom = Pose(0.0, 0.0)             # MobileSim: odometry starts at 0, 0, 0
+        self._sim_odom = self.start_pose             # the SimRobot's odometry starts at its pose
+        self._reset_session()
+
+    # -- control -----------------------------------------------------------------------
+    def start(self) -> P3DXEmulator:
+        """Serve in a background thread; returns self."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._serve, name=f"p3dx-emulator {self.address}", daemon=True)
+            self._thread.start()
+        return self
+
+    def serve_forever(self) -> None:
+        """Serve in this thread until `close()` from another thread (or Ctrl-C)."""
+        try:
+            self._serve()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop serving and release the port, the terminal and the simulator. Safe to call twice."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+        if self._server is not None:
+            self._server.close()
+        if self._pty is not None:
+            self._pty.close()
+        self.sim.close()
+
+    def __enter__(self) -> P3DXEmulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def inject(self, data: bytes) -> None:
+        """Send raw bytes to the client before the next packet (garbage, bad checksums)."""
+        self._inject.append(bytes(data))
+
+    def stall(self, on: bool = True) -> None:
+        """Stop (or resume) sending anything while keeping the connection and reading commands."""
+        if on:
+            self._stall.set()
+        else:
+            self._stall.clear()
+
+    def vanish(self) -> None:
+        """Drop the client connection at once and stop serving (a crashed simulator)."""
+        self._vanish.set()
+
+    @property
+    def robot_time(self) -> float:
+        """Robot time [s] of the simulator."""
+        return self.sim.time
+
+    # -- serving -----------------------------------------------------------------------
+    def _serve(self) -> None:
+        while not self._stop.is_set() and not self._vanish.is_set():
+            conn: _TcpConn | _PtyConn
+            if self._pty is not None:
+                conn = self._pty
+            else:
+                assert self._server is not None
+                try:
+                    sock, _ = self._server.accept()
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return          # the listening socket was closed
+                sock.setblocking(True)
+                conn = _TcpConn(sock)
+            try:
+                self._session(conn)
+            except _Closed as exc:
+                log.info("p3dx emulator: client gone (%s)", exc)
+            finally:
+                self._end_session()
+                if isinstance(conn, _TcpConn):
+                    conn.close()
+                elif self._vanish.is_set():
+                    conn.close()
+
+    def _reset_session(self) -> None:
+        self._stage = 0                      # next expected SYNC number; 3 = synced
+        self._open = False
+        self._v_mm, self._w_deg = 0, 0
+        self._max_v, self._max_w = 10**9, 10**9
+        self._enabled = True                 # MobileSim: motors enabled at session start
+        self._sonar_on = True                # ARIA assumes sonar on
+        self._laser_mode = c.LRF_OFF
+        self._simstat = c.SIM_STAT_STOP
+        self._decoder = k.CommandDecoder(max_count=255)
+        self._last_cmd_time = self.sim.time
+
+    def _end_session(self) -> None:
+        self.sim.command(Twist.ZERO)
+        self._reset_session()
+
+    def _session(self, conn: _TcpConn | _PtyConn) -> None:
+        period = c.SIP_PERIOD_S / self.speedup
+        next_cycle = time.monotonic()
+        while True:
+            if self._vanish.is_set():
+                conn.close()
+                return
+            if self._stop.is_set():     # take the commands already sent (the client's last stop)
+                for cmd in self._decoder.feed(conn.recv(0.0)):
+                    self._handle(cmd, conn)
+                return
+            now = time.monotonic()
+            wait = min(0.05, next_cycle - now) if self._open else 0.05
+            data = conn.recv(wait)
+            if data:
+                for cmd in self._decoder.feed(data):
+                    if self._handle(cmd, conn):
+                        return               # CLOSE
+            while self._inject and not self._stall.is_set():
+                conn.send(self._inject.popleft())
+            if self._open and (time.monotonic() >= next_cycle or self._stepped):
+                self._stepped = False
+                self._cycle(conn)
+                next_cycle = time.monotonic() + period if self.lockstep else next_cycle + period
+                if next_cycle < time.monotonic() - period:      # late: no burst to catch up
+                    next_cycle = time.monotonic()
+
+    def _send(self, conn: _TcpConn | _PtyConn, data: bytes) -> None:
+        if not self._stall.is_set():
+            conn.send(data)
+
+    def _handle(self, cmd: k.Command, conn: _TcpConn | _PtyConn) -> bool:
+        """Act on one command; True when the session ends (CLOSE)."""
+        n, arg = cmd.cmd, cmd.arg
+        self.commands.append(cmd)
+        if not (n == c.Cmd.PULSE and self._open):
+            self.last_command = cmd
+        self._last_cmd_time = self.sim.time
+        ival = arg if isinstance(arg, int) else 0
+        if not self._open and n in (0, 1, 2) and not (n == 1 and self._stage == 3):
+            # §3: answer SYNCn; an out-of-order number continues from there (as MobileSim)
+            reply = k.SyncReply(2, c.SIM_NAME, self.robot_type, self.robot_subtype) if n == 2 else k.SyncReply(n)
+            self._send(conn, k.encode_packet(reply))
+            self._stage = n + 1
+        elif n == c.Cmd.OPEN and not self._open:
+            self._open = True
+            self.sessions += 1
+            log.info("p3dx emulator: session %d opened", self.sessions)
+        elif n == c.Cmd.CLOSE:
+            self.commanded = (0, 0)
+            return True
+        elif n in (c.Cmd.PULSE, c.Cmd.OPEN):
+            pass
+        elif n == c.Cmd.VEL:
+            self._v_mm = ival
+        elif n in (c.Cmd.RVEL, c.Cmd.ROTATE):
+            self._w_deg = ival
+        elif n == c.Cmd.VEL2:
+            left, right = (b * c.VEL2_DIVISOR for b in k.unpack_2bytes(ival))
+            self._v_mm = round((left + right) / 2)
+            self._w_deg = round(math.degrees((right - left) * c.DIFF_CONV_FACTOR / 2))
+        elif n in _STOPS:
+            self._v_mm = self._w_deg = 0
+        elif n == c.Cmd.ENABLE:
+            self._enabled = bool(ival)
+        elif n == c.Cmd.SETV:
+            self._max_v = abs(ival)
+        elif n == c.Cmd.SETRV:
+            self._max_w = abs(ival)
+        elif n == c.Cmd.SONAR:
+            self._sonar_on = bool(ival)
+        elif n == c.Cmd.CONFIG:
+            self._send(conn, k.encode_packet(self.config))
+        elif n in (c.Cmd.OLD_SIM_LRF_ENABLE, c.Cmd.SIM_LRF_ENABLE):
+            self._laser_mode = ival if ival in (c.LRF_OFF, c.LRF_BASIC, c.LRF_EXTENDED) else c.LRF_OFF
+        elif n == c.Cmd.SIM_SET_POSE and isinstance(arg, tuple):
+            self._move(Pose(arg[0] / 1000.0, arg[1] / 1000.0, wrap_angle(math.radians(arg[2]))), reset_odom=False)
+        elif n == c.Cmd.SIM_RESET:
+            self._move(self.start_pose, reset_odom=True)
+        elif n == c.Cmd.SETO:
+            self._odom = Pose(0.0, 0.0) if not isinstance(arg, tuple) else Pose(
+                arg[0] / 1000.0, arg[1] / 1000.0, math.radians(arg[2]))
+        elif n == c.Cmd.SIM_STAT:
+            self._simstat = ival
+            if ival == c.SIM_STAT_ONCE:
+                self._send(conn, k.encode_packet(self._simstat_packet()))
+        else:
+            # HEAD, DHEAD, MOVE, SETA, BATTERYINFO (62), laser power (31), ...: accepted, not emulated
+            log.debug("p3dx emulator: command %d ignored", n)
+        if n in (c.Cmd.VEL, c.Cmd.RVEL, c.Cmd.ROTATE, c.Cmd.VEL2, *_STOPS):
+            self.commanded = (self._v_mm, self._w_deg)
+            self._stepped = self.lockstep and n != c.Cmd.VEL    # our driver sends VEL, then RVEL
+        return False
+
+    def _move(self, pose: Pose, reset_odom: bool) -> None:
+        try:
+            self.sim.move_to(pose)
+        except WorldError as exc:
+            log.warning("p3dx emulator: cannot move the robot: %s", exc)
+            return
+        self._sim_odom = pose
+        self._v_mm = self._w_deg = 0
+        if reset_odom:
+            self._odom = Pose(0.0, 0.0)
+
+    # -- one SIP cycle ---------------------------------------------------------------
+    def _cycle(self, conn: _TcpConn | _PtyConn) -> None:
+        if self.watchdog is not None and self.sim.time - self._last_cmd_time > self.watchdog:
+            self._v_mm = self._w_deg = 0
+        v = max(-self._max_v, min(self._max_v, self._v_mm)) if self._enabled else 0
+        w = max(-self._max_w, min(self._max_w, self._w_deg)) if self._enabled else 0
+        self.sim.command(Twist(v / 1000.0, math.radians(w)))
+        self.sim.advance(c.SIP_PERIOD_S)
+        state = self.sim.read()
+        # odometry of our own: the sim's odometry jumps on move_to, MobileSim's does not
+        self._odom = compose_pose(self._odom, relative_pose(self._sim_odom, state.pose))
+        self._sim_odom = state.pose
+        if self._simstat == c.SIM_STAT_EVERY_SIP:
+            self._send(conn, k.encode_packet(self._simstat_packet()))
+        self._send(conn, k.encode_packet(self._sip(state.velocity, state.stalled)))
+        self.sips_sent += 1
+        if self._laser_mode != c.LRF_OFF and state.laser is not None:
+            mm = [c.LASER_NO_HIT_MM if not math.isfinite(r) else min(round(r * 1000), c.LASER_NO_HIT_MM)
+                  for r in state.laser.ranges.tolist()]
+            o = self._odom
+            pose = tuple(max(-32768, min(32767, round(val))) for val in
+                         (o.x * 1000, o.y * 1000, math.degrees(o.theta)))
+            moved = c.LASER_FLAG_ROBOT_MOVED if state.velocity.v or state.velocity.w else 0
+            self._send(conn, b"".join(k.encode_laser_scan(mm, extended=self._laser_mode == c.LRF_EXTENDED,
+                                                          pose=pose, flags=moved)))  # type: ignore[arg-type]
+
+    def _sip(self, vel: Twist, stalled: bool) -> k.StandardSip:
+        o = self._odom
+        v_mm, w_dps = vel.v * 1000.0, math.degrees(vel.w)
+        diff = vel.w / c.DIFF_CONV_FACTOR            # §5.1: wheels = v -+ rad(rotvel) / DiffConvFactor
+        sonar: tuple[tuple[int, int], ...] = ()
+        if self._sonar_on and self.sim.preset.sonar is not None:
+            ranges = self.sim.sonar().ranges.tolist()
+            sonar = tuple((i, c.SONAR_NO_ECHO_MM if not math.isfinite(r) else min(round(r * 1000),
+                                                                                  c.SONAR_NO_ECHO_MM))
+                          for i, r in enumerate(ranges[:c.MAX_SONAR_PER_SIP]))
+        flags = (c.FLAG_MOTORS_ENABLED if self._enabled else 0) | (0x06 if self._sonar_on else 0)
+        return k.StandardSip(
+            xpos=k.position_to_raw(o.x * 1000.0, self.dist_conv), ypos=k.position_to_raw(o.y * 1000.0, self.dist_conv),
+            thpos=k.heading_to_raw(math.degrees(o.theta)), left_vel=_i16(v_mm - diff), right_vel=_i16(v_mm + diff),
+            battery_dv=c.SIM_BATTERY_DV, stall_bumpers=(c.STALL_LEFT | c.STALL_RIGHT) if stalled else 0,
+            flags=flags, sonar=sonar, grip_state=0, analog_port=0, analog=0, digin=c.SIM_DIGIN, digout=c.SIM_DIGOUT,
+            battery_x10=c.SIM_BATTERY_DV, charge_state=c.ChargeState.NOT_CHARGING, rot_vel_x10=_i16(w_dps * 10),
+            fault_flags=0, lat_vel=0, temperature=c.TEMPERATURE_NONE, state_of_charge=0)
+
+    def _simstat_packet(self) -> k.SimStat:
+        t = self.sim.read().true_pose or self.start_pose
+        ms = round(c.SIP_PERIOD_S * 1000)
+        return k.SimStat(flags=c.SIMSTAT_HAVE_MAP, sim_interval_ms=ms, real_interval_ms=round(ms / self.speedup),
+                         last_interval_ms=ms, true_x_mm=round(t.x * 1000), true_y_mm=round(t.y * 1000),
+                         true_th_deg=round(math.degrees(t.theta)), dop_x100=-1)
+
+
+def _i16(value: float) -> int:
+    return max(-32768, min(32767, round(value)))

@@ -1,0 +1,139 @@
+"""Byte link to a Pioneer (ARCOS) or MobileSim: `serial.serial_for_url` with read timeouts.
+
+Any address `serial_for_url` accepts works (`/dev/ttyUSB0`, `socket://host:8101`, `rfc2217://...`,
+`loop://`); `address_to_url` also turns the MobileSim forms "host" and "host:port" into a TCP URL.
+Every failure of the other side (EOF, `OSError`, `SerialException`) becomes `ConnectionLost`.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+
+import serial
+
+from robotexp.errors import ConfigError, ConnectionLost
+
+from . import constants as c
+
+__all__ = ["SerialLink", "address_to_url"]
+
+_HOST = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.-]*$")
+_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
+_WINDOWS_PORT = re.compile(r"^COM\d+$", re.IGNORECASE)
+
+
+def address_to_url(address: str) -> str:
+    """The `serial_for_url` URL of a robot address.
+
+    Args:
+        address: "host" or "host:port" (MobileSim over TCP, port 8101 by default), or anything
+            `serial_for_url` accepts as is (a device path, `socket://`, `rfc2217://`, `loop://`).
+
+    Returns:
+        The URL.
+
+    Raises:
+        ConfigError: an empty address or a port outside 1..65535.
+    """
+    address = address.strip()
+    if not address:
+        raise ConfigError("p3dx: empty robot address; give a serial device (/dev/ttyUSB0), host, "
+                          "host:port (MobileSim, port 8101) or a pyserial URL (socket://host:8101)")
+    if "://" in address or address.startswith("/") or _WINDOWS_PORT.match(address):
+        return address
+    m = _HOST_PORT.match(address)
+    if m:
+        port = int(m.group(2))
+        if not 1 <= port <= 65535:
+            raise ConfigError(f"p3dx: address {address!r}: TCP port must be 1..65535, got {port}")
+        return f"socket://{m.group(1)}:{port}"
+    if _HOST.match(address):
+        return f"socket://{address}:{c.SIM_TCP_PORT}"
+    return address
+
+
+class SerialLink:
+    """A byte stream to the robot, safe to write from two threads.
+
+    Args:
+        address: see `address_to_url`.
+        baudrate: serial speed [baud] (ignored by TCP links); 9600 is ARCOS's default.
+        timeout: longest wait of one `read` [s].
+
+    Raises:
+        ConnectionLost: the port or socket cannot be opened.
+    """
+
+    def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, timeout: float = 0.05) -> None:
+        self.address = address
+        self.url = address_to_url(address)
+        self.timeout = timeout
+        self._write_lock = threading.Lock()
+        try:
+            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=timeout, write_timeout=1.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise ConnectionLost(f"p3dx: cannot open {self.url!r}: {exc}; check the address, that the "
+                                 "robot or emulator is running and that the port is not in use") from exc
+        self.closed = False
+
+    def read(self) -> bytes:
+        """Bytes received so far, waiting at most `timeout` for the first one (b"" on timeout).
+
+        Raises:
+            ConnectionLost: the other side closed the link or the port failed.
+        """
+        port = self._port
+        try:
+            first = port.read(1)
+            if not first:
+                return b""
+            # serial_for_url's read(n) waits for n bytes: take whatever else is there without waiting
+            port.timeout = 0
+            try:
+                rest = port.read(65536)
+            finally:
+                port.timeout = self.timeout
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"p3dx: link {self.url!r} lost while reading: {exc}") from exc
+        except (TypeError, AttributeError) as exc:    # pyserial after close() from another thread
+            raise ConnectionLost(f"p3dx: link {self.url!r} closed while reading") from exc
+        return first + rest
+
+    def write(self, data: bytes) -> None:
+        """Send `data` completely.
+
+        Raises:
+            ConnectionLost: the link is closed or the write failed.
+        """
+        with self._write_lock:
+            if self.closed:
+                raise ConnectionLost(f"p3dx: link {self.url!r} is closed")
+            try:
+                self._port.write(data)
+                self._port.flush()
+            except (serial.SerialException, OSError) as exc:
+                raise ConnectionLost(f"p3dx: link {self.url!r} lost while writing: {exc}") from exc
+
+    def reset_input(self) -> None:
+        """Drop bytes received and not read yet (ARIA flushes before SYNC0)."""
+        try:
+            self._port.reset_input_buffer()
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"p3dx: link {self.url!r} lost: {exc}") from exc
+
+    def close(self) -> None:
+        """Close the port. Safe to call twice."""
+        with self._write_lock:
+            if self.closed:
+                return
+            self.closed = True
+        # pyserial's socket:// close() skips closing the socket when shutdown() fails (the peer
+        # is gone already), which leaks it: close it ourselves afterwards
+        sock = getattr(self._port, "_socket", None)
+        try:
+            self._port.close()
+        except (serial.SerialException, OSError):
+            pass        # closing a link whose other side is gone: nothing left to release
+        if sock is not None:
+            sock.close()

@@ -1,0 +1,424 @@
+"""`P3DXRobot`: the Pioneer P3-DX backend (ARCOS over a serial cable, or MobileSim over TCP).
+
+The only place where the protocol's units (mm, degrees, SIP units) become SI. Connect runs
+ARIA's handshake (SYNC0/1/2, OPEN, CONFIG, ENABLE, SONAR and, on a simulator, the simulated
+laser); a reader thread then decodes the stream, keeps the newest state and acts as a watchdog:
+it stops the robot when the control loop has not commanded for `watchdog` seconds, sends PULSE
+when nothing else went out for 0.5 s, and fails the link after `silence` seconds without data.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from robotexp.clock import Clock, PacedClock
+from robotexp.errors import ConfigError, ConnectionLost, ProtocolError, RobotError
+from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
+
+from . import codec as k
+from . import constants as c
+from .link import SerialLink
+
+__all__ = ["P3DXRobot"]
+
+log = logging.getLogger(__name__)
+
+_SONAR_ANGLES = np.radians(np.array([p[2] for p in c.SONAR_POSES], dtype=np.float64))
+_SONAR_RANGE_MAX = c.SONAR_NO_ECHO_MM / 1000.0
+
+
+def compose_pose(a: Pose, b: Pose) -> Pose:
+    """Pose `b` given in the frame of `a`, expressed in `a`'s parent frame."""
+    ca, sa = math.cos(a.theta), math.sin(a.theta)
+    return Pose(a.x + ca * b.x - sa * b.y, a.y + sa * b.x + ca * b.y, wrap_angle(a.theta + b.theta))
+
+
+def relative_pose(a: Pose, b: Pose) -> Pose:
+    """Pose `b` expressed in the frame of `a` (both in the same parent frame)."""
+    ca, sa = math.cos(a.theta), math.sin(a.theta)
+    dx, dy = b.x - a.x, b.y - a.y
+    return Pose(ca * dx + sa * dy, -sa * dx + ca * dy, wrap_angle(b.theta - a.theta))
+
+
+def _int16(value: int) -> int:
+    return value - 0x10000 if value >= 0x8000 else value
+
+
+class P3DXRobot(Robot):
+    """A Pioneer P3-DX (or any ARCOS robot, or MobileSim / our emulator) as a `Robot`.
+
+    Args:
+        address: serial device ("/dev/ttyUSB0"), "host" or "host:port" (MobileSim, port 8101), or
+            any `serial_for_url` URL.
+        baudrate: serial speed [baud]; 9600 (ARCOS default). Ignored over TCP.
+        laser: request MobileSim's simulated laser when the robot is a simulator.
+        laser_range: [m] laser ranges at or beyond this read as no hit (`inf`).
+        laser_offset: [m] laser position ahead of the robot centre (18 mm on a P3-DX).
+        max_speed: forward speed limit [m/s] (default: the robot's CONFIG maximum).
+        watchdog: [s] stop the robot when no command came from the control loop for this long.
+        silence: [s] the link counts as lost after this long without a packet from the robot.
+        connect_timeout: [s] longest handshake.
+
+    Raises:
+        ConnectionLost: the port cannot be opened, or the robot stops answering.
+        ProtocolError: the handshake fails.
+        ConfigError: a parameter out of range.
+    """
+
+    name = "p3dx"
+    capabilities = frozenset({"sonar", "laser", "move_to"})
+    radius = c.ROBOT_RADIUS_MM / 1000.0
+
+    def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, laser: bool = True,
+                 laser_range: float = c.LASER_NO_HIT_MM / 1000.0, laser_offset: float = c.LASER_X_MM / 1000.0,
+                 max_speed: float | None = None, watchdog: float = 0.5, silence: float = 1.0,
+                 connect_timeout: float = 5.0) -> None:
+        if not (watchdog > 0 and silence > 0 and connect_timeout > 0 and laser_range > 0):
+            raise ConfigError(f"p3dx: watchdog, silence, connect_timeout and laser_range must be > 0, got "
+                              f"{watchdog}, {silence}, {connect_timeout}, {laser_range}")
+        self.address = address
+        self.watchdog, self.silence = watchdog, silence
+        self.laser_range, self.laser_offset = laser_range, laser_offset
+        self.decoder = k.PacketDecoder(max_count=255)
+        self.config: k.ConfigPacket | None = None
+        self.robot_name = self.robot_type = self.robot_subtype = ""
+        self._cond = threading.Condition()
+        self._state: RobotState | None = None
+        self._pending: RobotState | None = None
+        self._error: RobotError | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        # odometry [mm] and [rad] in the robot's own frame; the reported pose is anchored by move_to
+        self._raw_xy: tuple[int, int] | None = None
+        self._odom_mm = [0.0, 0.0]
+        self._odom = Pose(0.0, 0.0)
+        self._frame = (Pose(0.0, 0.0), Pose(0.0, 0.0))    # (reported pose, odometry) at the anchor
+        self._distance = 0.0
+        self._sips = 0
+        self._stalled = False
+        self._collisions = 0
+        self._sonar = np.full(c.SONAR_NUM, np.inf)
+        self._scan: LaserScan | None = None
+        self._scan_buf: np.ndarray | None = None
+        self._laser_active = False
+        self._laser_cfg = (c.LASER_DEFAULT_START_DEG, c.LASER_DEFAULT_END_DEG)
+        self._moving = False
+        now = time.monotonic()
+        self._last_command = self._last_write = self._last_rx = now
+        self.link = SerialLink(address, baudrate=baudrate)
+        try:
+            self._connect(connect_timeout, laser)
+            self.limits = self._limits_from_config()
+            if max_speed is not None:
+                self.set_max_speed(max_speed)
+            self._thread = threading.Thread(target=self._reader, name=f"p3dx-reader {address}", daemon=True)
+            self._thread.start()
+            self._wait_state(lambda s: True, min(connect_timeout, 2.0 + silence))
+            if laser and self.is_simulator:
+                try:    # the explorer learns the laser's range from the first state it reads
+                    self._wait_state(lambda s: s.laser is not None, self.silence)
+                except ConnectionLost:
+                    if self._error is not None:
+                        raise
+                    log.warning("p3dx: %s sends no simulated laser packets", self.robot_name)
+        except BaseException:
+            self._shutdown(send_close=True)
+            raise
+        super().__init__()
+
+    # -- connection ------------------------------------------------------------------
+    @property
+    def is_simulator(self) -> bool:
+        """True for MobileSim, AMRISim and our emulator (SYNC2 name or CONFIG serial "SIM")."""
+        sim_serial = self.config is not None and self.config.serial_number == c.SIM_SERIAL
+        return self.robot_name in (c.SIM_NAME, c.AMRISIM_NAME) or sim_serial
+
+    @property
+    def dist_conv(self) -> float:
+        """DistConvFactor [mm/unit] of the reported subclass (§9)."""
+        return c.DIST_CONV_FACTOR_SH if self.robot_subtype.lower() == "p3dx-sh" else c.DIST_CONV_FACTOR
+
+    @property
+    def cycle(self) -> float:
+        """The robot's SIP cycle [s] (CONFIG, else 100 ms)."""
+        ms = self.config.sip_cycle_ms if self.config is not None else 0
+        return ms / 1000.0 if ms > 0 else c.SIP_PERIOD_S
+
+    def describe(self) -> dict[str, str]:
+        """What the robot says about itself: name, type, subtype, serial, firmware, link."""
+        cfg = self.config
+        return {"name": self.robot_name, "type": self.robot_type, "subtype": self.robot_subtype,
+                "serial": cfg.serial_number if cfg else "?", "firmware": cfg.firmware_version if cfg else "?",
+                "simulator": str(self.is_simulator), "link": self.link.url}
+
+    def _write(self, data: bytes) -> None:
+        self.link.write(data)
+        self._last_write = time.monotonic()
+
+    def _next_packet(self, deadline: float, kinds: tuple[type, ...]) -> k.Packet | None:
+        """Read until a packet of one of `kinds` arrives (others are dropped) or `deadline` passes."""
+        while time.monotonic() < deadline:
+            data = self.link.read()
+            packets = self.decoder.feed(data) if data else self.decoder.flush()
+            for pkt in packets:
+                if isinstance(pkt, kinds):
+                    return pkt
+        return None
+
+    def _connect(self, timeout: float, laser: bool) -> None:
+        deadline = time.monotonic() + timeout
+        self.link.reset_input()
+        seq, reply = 0, None
+        while seq < 3:
+            if time.monotonic() >= deadline:
+                raise ProtocolError(f"p3dx: no handshake with {self.link.url!r} within {timeout:g} s (last "
+                                    f"step SYNC{seq}); is it a Pioneer/MobileSim, and the baud rate right?")
+            self._write(k.frame(seq))
+            reply = self._next_packet(min(deadline, time.monotonic() + c.SYNC_REPLY_TIMEOUT_S),
+                                      (k.SyncReply, k.StandardSip))
+            if isinstance(reply, k.StandardSip):
+                # §3: the robot is still open from a previous session; close it and start again
+                self._write(k.cmd_close())
+                time.sleep(0.1)
+                self.link.reset_input()
+                self.decoder = k.PacketDecoder(max_count=255)
+                seq = 0
+            elif isinstance(reply, k.SyncReply) and reply.seq == seq:
+                seq += 1
+            else:
+                seq = 0
+        assert isinstance(reply, k.SyncReply)
+        self.robot_name, self.robot_type, self.robot_subtype = reply.name, reply.robot_type, reply.robot_subtype
+        log.info("p3dx: connected to %s (%s %s) at %s", reply.name, reply.robot_type, reply.robot_subtype,
+                 self.link.url)
+        self._write(k.cmd_open() + k.cmd_config())
+        cfg = self._next_packet(min(deadline, time.monotonic() + c.CONFIG_WAIT_S), (k.ConfigPacket,))
+        self.config = cfg if isinstance(cfg, k.ConfigPacket) else None
+        self._write(k.cmd_enable(True) + k.cmd_sonar(True))
+        if laser and self.is_simulator:
+            start, end = self._laser_cfg
+            self._write(k.cmd_sim_laser(start, end, c.LASER_DEFAULT_RES_CDEG, c.LRF_EXTENDED))
+        self._last_rx = time.monotonic()
+
+    def _limits_from_config(self) -> Limits:
+        cfg = self.config
+        v_max = c.MAX_VELOCITY_MM_S / 1000.0
+        w_max = math.radians(c.MAX_RVELOCITY_DEG_S)
+        a_max, alpha_max = c.SIM_TRANS_ACCEL_MM_S2 / 1000.0, math.radians(c.SIM_ROT_ACCEL_DEG_S2)
+        if cfg is not None:
+            v_max = min(v_max, cfg.trans_vel_max / 1000.0) if cfg.trans_vel_max > 0 else v_max
+            w_max = min(w_max, math.radians(cfg.rot_vel_max)) if cfg.rot_vel_max > 0 else w_max
+            a_max = cfg.trans_accel / 1000.0 if cfg.trans_accel > 0 else a_max
+            alpha_max = math.radians(cfg.rot_accel) if cfg.rot_accel > 0 else alpha_max
+        return Limits(v_max, w_max, a_max, alpha_max)
+
+    # -- reader thread ---------------------------------------------------------------
+    def _reader(self) -> None:
+        try:
+            while not self._stop.is_set():
+                data = self.link.read()
+                now = time.monotonic()
+                if data:
+                    self._last_rx = now
+                    packets = self.decoder.feed(data)
+                elif self.decoder.buffered and now - self._last_rx > c.BODY_GAP_S:
+                    packets = self.decoder.flush()     # §2.1: a gap > 100 ms drops a partial packet
+                else:
+                    packets = []
+                for pkt in packets:
+                    self._handle(pkt)
+                if now - self._last_rx > self.silence:
+                    raise ConnectionLost(f"p3dx: no data from {self.link.url!r} for {self.silence:g} s; the "
+                                         "robot or the link is down")
+                self._watchdog(now)
+        except RobotError as exc:
+            self._fail(exc)
+        except Exception as exc:     # a bug here must not leave read() waiting forever
+            log.exception("p3dx: reader thread failed")
+            self._fail(RobotError(f"p3dx: reader thread failed: {exc!r}"))
+
+    def _fail(self, exc: RobotError) -> None:
+        with self._cond:
+            if self._error is None:
+                self._error = exc
+            self._cond.notify_all()
+        if not self._stop.is_set():
+            try:    # still try to stop a robot whose stream went silent or garbled
+                self.link.write(k.cmd_vel(0) + k.cmd_rvel(0))
+            except ConnectionLost:
+                pass
+
+    def _watchdog(self, now: float) -> None:
+        if self._moving and now - self._last_command > self.watchdog:
+            log.warning("p3dx: no command for %.1f s: stopping the robot", now - self._last_command)
+            self._moving = False
+            self._write(k.cmd_vel(0) + k.cmd_rvel(0))
+        elif now - self._last_write > c.REFRESH_S:
+            self._write(k.cmd_pulse())
+
+    def _handle(self, pkt: k.Packet) -> None:
+        if isinstance(pkt, k.StandardSip):
+            if self._pending is not None:        # the scan for the previous SIP never completed
+                self._publish(self._pending)
+            state = self._sip_state(pkt)
+            if self._laser_active:
+                self._pending = state
+            else:
+                self._publish(state)
+        elif isinstance(pkt, k.SimLaserPacket):
+            self._laser_packet(pkt)
+        elif isinstance(pkt, k.ConfigPacket):
+            self.config = pkt
+
+    def _publish(self, state: RobotState) -> None:
+        self._pending = None
+        with self._cond:
+            self._state = state
+            self._cond.notify_all()
+
+    def _sip_state(self, sip: k.StandardSip) -> RobotState:
+        dist = self.dist_conv
+        if self._raw_xy is None:
+            # first SIP: take the position as MobileSim sends it (a wrapping int16 of units)
+            self._odom_mm = [_int16(sip.xpos) * dist, _int16(sip.ypos) * dist]
+        else:
+            self._odom_mm[0] += k.unwrap_position_delta(self._raw_xy[0], sip.xpos) * dist
+            self._odom_mm[1] += k.unwrap_position_delta(self._raw_xy[1], sip.ypos) * dist
+        self._raw_xy = (sip.xpos, sip.ypos)
+        old = self._odom
+        self._odom = Pose(self._odom_mm[0] / 1000.0, self._odom_mm[1] / 1000.0,
+                          wrap_angle(sip.thpos * c.ANGLE_CONV_FACTOR))
+        if self._sips:
+            self._distance += old.distance_to(self._odom)
+        self._sips += 1
+        left, right = sip.left_vel * c.VEL_CONV_FACTOR, sip.right_vel * c.VEL_CONV_FACTOR
+        v = (left + right) / 2000.0
+        w = (math.radians(sip.rot_vel_x10 / c.ROTVEL_SCALE) if sip.rot_vel_x10 is not None
+             else (right - left) * c.DIFF_CONV_FACTOR / 2.0)
+        for num, rng in sip.sonar:
+            if 0 <= num < c.SONAR_NUM:
+                mm = rng * c.RANGE_CONV_FACTOR
+                self._sonar[num] = math.inf if mm >= c.SONAR_NO_ECHO_MM else mm / 1000.0
+        front = tuple(bool(sip.front_bumpers >> i & 1) for i in range(7))
+        rear = tuple(bool(sip.rear_bumpers >> i & 1) for i in range(7))
+        stalled = sip.left_stalled or sip.right_stalled or any(front) or any(rear)
+        if stalled and not self._stalled:
+            self._collisions += 1
+        self._stalled = stalled
+        battery = (sip.battery_x10 if sip.battery_x10 is not None else sip.battery_dv) / c.BATTERY_SCALE
+        anchor, anchor_odom = self._frame
+        pose = compose_pose(anchor, relative_pose(anchor_odom, self._odom))
+        extra = {"collisions": float(self._collisions), "motors_enabled": float(sip.motors_enabled),
+                 "estop": float(sip.estop)}
+        return RobotState(time=self._sips * self.cycle, pose=pose, velocity=Twist(v, w), laser=self._scan,
+                          sonar=SonarScan(_SONAR_ANGLES, self._sonar.copy(), _SONAR_RANGE_MAX),
+                          stalled=stalled, bumpers=front + rear, battery=battery, distance=self._distance,
+                          extra=extra)
+
+    def _laser_packet(self, pkt: k.SimLaserPacket) -> None:
+        if pkt.total <= 0:
+            return
+        if pkt.first == 0 or self._scan_buf is None or len(self._scan_buf) != pkt.total:
+            self._scan_buf = np.full(pkt.total, np.nan)
+        end = min(pkt.first + len(pkt.ranges), pkt.total)
+        self._scan_buf[pkt.first:end] = np.asarray(pkt.ranges[:end - pkt.first], dtype=np.float64) / 1000.0
+        if pkt.first + len(pkt.ranges) < pkt.total:
+            return
+        ranges = self._scan_buf
+        self._scan_buf = None
+        ranges[(ranges >= self.laser_range) | (ranges >= c.LASER_NO_HIT_MM / 1000.0)] = np.inf
+        lo, hi = sorted(self._laser_cfg)
+        angles = np.radians(np.linspace(lo, hi, len(ranges))) if len(ranges) > 1 else np.zeros(1)
+        self._scan = LaserScan(angles, ranges, min(self.laser_range, c.LASER_NO_HIT_MM / 1000.0), self.laser_offset)
+        self._laser_active = True
+        if self._pending is not None:
+            self._publish(replace(self._pending, laser=self._scan))
+
+    # -- Robot hooks -----------------------------------------------------------------
+    def _wait_state(self, ready: object, timeout: float) -> RobotState:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                if self._error is not None:
+                    raise self._error
+                if self._state is not None and ready(self._state):  # type: ignore[operator]
+                    return self._state
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise ConnectionLost(f"p3dx: no state from {self.link.url!r} for {timeout:g} s")
+                self._cond.wait(left)
+
+    def _wait_until(self, robot_time: float) -> float:
+        eps = self.cycle / 4
+        return self._wait_state(lambda s: s.time >= robot_time - eps, self.silence + 0.5).time
+
+    def make_clock(self, period: float) -> Clock:
+        """A robot-paced clock: each tick waits for the state packets of one more `period`."""
+        state = self._wait_state(lambda s: True, self.silence + 0.5)
+        return PacedClock(period, self._wait_until, start=state.time)
+
+    def _read(self) -> RobotState:
+        with self._cond:
+            if self._error is not None:
+                raise self._error
+            assert self._state is not None
+            return self._state
+
+    def _command(self, twist: Twist) -> None:
+        with self._cond:
+            if self._error is not None:
+                raise self._error
+        v_mm = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(twist.v * 1000.0)))
+        w_deg = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(math.degrees(twist.w))))
+        self._last_command = time.monotonic()
+        self._moving = bool(v_mm or w_deg)
+        self._write(k.cmd_vel(v_mm) + k.cmd_rvel(w_deg))
+
+    def move_to(self, pose: Pose) -> None:
+        """Move the robot to `pose` in MobileSim (SIM_SET_POSE) and report poses from there on.
+
+        On a real robot only the reported pose changes: tell it where the robot stands. The
+        heading sent is whole degrees, so the pose is taken with its heading rounded.
+
+        Raises:
+            RobotError: the robot is closed or the link is lost.
+        """
+        self._ensure_open()
+        x_mm, y_mm, th_deg = round(pose.x * 1000), round(pose.y * 1000), round(math.degrees(pose.theta))
+        self._command(Twist.ZERO)
+        self._write(k.cmd_sim_set_pose(x_mm, y_mm, th_deg))
+        with self._cond:
+            self._frame = (Pose(x_mm / 1000.0, y_mm / 1000.0, wrap_angle(math.radians(th_deg))), self._odom)
+            self._scan = None
+            t = self._state.time if self._state is not None else 0.0
+        # two cycles: the packets in flight when the command left were measured before the move
+        self._wait_state(lambda s: s.time >= t + 2 * self.cycle - 1e-6 and (s.laser is not None
+                                                                          or not self._laser_active),
+                         self.silence + 0.5)
+
+    def close(self) -> None:
+        """Stop the robot, send CLOSE and release the link; a lost link is released quietly."""
+        try:
+            super().close()
+        except ConnectionLost as exc:
+            log.warning("%s", exc)
+
+    def _close(self) -> None:
+        self._shutdown(send_close=True)
+
+    def _shutdown(self, send_close: bool) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        if send_close and not self.link.closed:
+            try:
+                self.link.write(k.cmd_vel(0) + k.cmd_rvel(0) + k.cmd_enable(False) + k.cmd_close())
+            except ConnectionLost:
+                pass
+        self.link.close()

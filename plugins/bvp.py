@@ -1,0 +1,279 @@
+"""BVP ("PVC") exploration: follow the descent of a harmonic potential (Ribacki 2011 section 3.1, Prestes 2003).
+
+Obstacles hold potential 1, unknown cells 0 (the goals); the free cells are relaxed by Gauss-Seidel
+(eq. 3.1) and the robot follows the descent gradient (eq. 3.2) at its cell, with the heading and
+speed laws of eqs. 3.3-3.5. Done when no reachable free cell touches an unknown cell.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.follower import blocked_ahead
+from robotexp.planning.grid_planner import distance_transform
+from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
+from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
+
+__all__ = ["BVPExplorer", "speed_law", "edge_distance"]
+
+RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
+
+
+def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
+    """Forward speed [m/s] of eqs. 3.4 and 3.5.
+
+    v_t = eta * vhat + (1 - eta) * v_prev, vhat = v_max * ((180 - |varphi|) / 180) * rho, with
+    varphi in degrees on the short arc and rho = d / r_max when d <= r_max, else 1.
+
+    Args:
+        v_prev: the previous speed v_{t-1} [m/s].
+        varphi: theta - phi [rad], wrapped to the short arc here.
+        d: distance to the nearest obstacle [m] (clamped at 0).
+        v_max: top speed [m/s].
+        r_max: radius of the collision region [m].
+        eta: smoothing factor in (0, 1].
+    """
+    deg = abs(math.degrees(wrap_angle(varphi)))
+    rho = max(d, 0.0) / r_max if d <= r_max else 1.0
+    vhat = v_max * ((180.0 - deg) / 180.0 * rho)
+    return eta * vhat + (1.0 - eta) * v_prev
+
+
+def edge_distance(scan: LaserScan | None, radius: float) -> float:
+    """Distance [m] from the robot's edge (a disc of `radius` [m]) to the nearest laser return; inf if none."""
+    if scan is None:
+        return math.inf
+    ok = np.isfinite(scan.ranges)
+    if not ok.any():
+        return math.inf
+    r, a = scan.ranges[ok], scan.angles[ok]
+    return float(np.hypot(scan.offset_x + r * np.cos(a), r * np.sin(a)).min()) - radius
+
+
+class BVPExplorer(Explorer):
+    """Harmonic-potential (boundary value problem) exploration of Prestes 2003 as in Ribacki 2011.
+
+    What the thesis fixes is followed as written: HIMM map at 100 mm cells, occupied (certainty > 2)
+    at potential 1, unknown at 0, Gauss-Seidel eq. 3.1 (in place, row-major, never SOR), `sweeps`
+    (30) iterations every `update_period` (1 s of robot time), gradient eq. 3.2 at the robot's cell,
+    heading phi = atan2(v_y, v_x) (eq. 3.3), speed eqs. 3.4-3.5 with r_max = 200 mm, and the stop test
+    by region growing from the robot's cell. Where it is silent, these choices:
+
+    - Warm start: the potential persists between updates; each update resets the boundary cells
+      (obstacle 1, goal 0) and continues the sweeps from the previous field, so a free cell newly
+      seen starts at 0, the value it held while unknown. The map's border is a ring of potential 1.
+    - Precision: the field is stored and relaxed as q = 1 - p (eq. 3.1 is linear, so q obeys the
+      same sweeps; eq. 3.2 gives v = ((q_E - q_W) / 2, (q_N - q_S) / 2)). Far from every goal p is
+      within 1e-16 of 1 and rounds to a flat 1.0 in float64 (a robot in an explored room behind a
+      door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
+      to 1e-308, so the gradient keeps its direction.
+    - Configuration space (`inflate`, default the robot radius): cells whose centre lies within
+      inflate + half a cell of an occupied cell's centre are obstacles (potential 1) too, as in
+      Connolly & Grupen's planner, so the descent never leads into a gap the robot cannot pass and
+      unknown cells right by walls (their unseen faces) are not goals. `inflate=0` is the bare map.
+    - The robot's cell: cells the robot's footprint has covered count as free even if the laser
+      (180 degrees, ahead) never saw them, so the robot is not drawn to the floor under itself.
+      Eq. 3.2 does not use the cell's own value, so a robot cell on the inflated margin still has a
+      gradient (out of it).
+    - Stop test: 4-connected region growing (like the 5-point stencil) over the passable cells
+      (free or covered, not inflated) from the robot's cell (or the nearest passable one within
+      0.5 m); done when no cell of the region has a goal (unknown, not inflated) as 4-neighbour.
+      Run at each potential update.
+    - Turning: omega = -k_turn * varphi, clamped to the robot's limit; varphi = theta - phi on the
+      short arc. The robot moves forward at the speed of eq. 3.5 while it turns.
+    - rho of eq. 3.5: d is measured from the robot's edge (not its centre) to the nearest laser
+      return, the safe reading for a 250 mm robot: with the centre it would always be > 200 mm.
+    - Vanished gradient (|v| <= 1e-12 of the neighbours' q, i.e. flat to round-off): keep the last
+      heading phi; before any heading is known, turn in place (`flat_gradient_steps` counts these).
+    - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
+      robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
+    - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
+      `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
+      discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
+      epsilon > 0 eq. 3.6 as written draws the robot towards goals on the -v side. In q = 1 - p,
+      eq. 3.6 keeps its form and eq. 3.7 changes the sign of eps(r).
+
+    Args:
+        sweeps: Gauss-Seidel iterations per update (>= 1).
+        update_period: [s] robot time between potential updates.
+        r_max: [m] radius of the collision region of eq. 3.5.
+        eta: smoothing factor of eq. 3.4, in (0, 1].
+        k_turn: [1/s] turn rate per radian of heading error.
+        inflate: [m] obstacle growth for the potential and the stop test (None: the robot radius).
+        clearance: [m] kept ahead of the robot by the guard.
+        epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
+        direction: [rad] the preferred direction v of eq. 3.6.
+        epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
+    """
+
+    grid_model = "himm"
+    preferred_cell = 0.1
+
+    def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,
+                 k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.05,
+                 epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0) -> None:
+        if not (isinstance(sweeps, int) and sweeps >= 1):
+            raise ConfigError(f"bvp: sweeps must be an integer >= 1, got {sweeps!r}")
+        for name, value in (("update_period", update_period), ("r_max", r_max), ("k_turn", k_turn)):
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"bvp: {name} must be > 0, got {value}")
+        if not 0 < eta <= 1:
+            raise ConfigError(f"bvp: eta must be within (0, 1], got {eta}")
+        if inflate is not None and not (math.isfinite(inflate) and inflate >= 0):
+            raise ConfigError(f"bvp: inflate must be >= 0 m or None, got {inflate}")
+        if not clearance >= 0:
+            raise ConfigError(f"bvp: clearance must be >= 0 m, got {clearance}")
+        for name, value in (("epsilon", epsilon), ("epsilon_grad", epsilon_grad)):
+            if not abs(value) <= 1:
+                raise ConfigError(f"bvp: {name} must be within [-1, 1] (per cell; larger values break the "
+                                  f"maximum principle of the discrete field), got {value}")
+        if not math.isfinite(direction):
+            raise ConfigError(f"bvp: direction must be a finite angle in rad, got {direction}")
+        self.sweeps, self.update_period, self.r_max, self.eta = sweeps, update_period, r_max, eta
+        self.k_turn, self.inflate, self.clearance = k_turn, inflate, clearance
+        self.epsilon, self.direction, self.epsilon_grad = epsilon, direction, epsilon_grad
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run: empty potential, no heading, speed 0."""
+        super().reset(ctx)
+        self.q = np.zeros((0, 0), np.float64)             # 1 - potential, padded (rows + 2, cols + 2)
+        self.fixed = np.zeros((0, 0), np.bool_)
+        self.covered = np.zeros((0, 0), np.bool_)         # cells the robot's footprint has covered
+        self.next_update = -math.inf
+        self.updates = 0
+        self.phi: float | None = None
+        self.v = 0.0
+        self.flat_steps = 0
+
+    # -- the potential ---------------------------------------------------------------
+    def _ensure(self, grid: OccupancyGrid) -> None:
+        rows, cols = grid.shape
+        if self.q.shape != (rows + 2, cols + 2):
+            # q = 1 - p: unknown (goal) cells 1, walls and the map's border ring 0
+            self.q = np.ones((rows + 2, cols + 2), np.float64)
+            self.fixed = np.ones((rows + 2, cols + 2), np.bool_)
+            self.q[0, :] = self.q[-1, :] = 0.0
+            self.q[:, 0] = self.q[:, -1] = 0.0
+            self.covered = np.zeros((rows, cols), np.bool_)
+
+    def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
+        geo = grid.geo
+        k = int(math.ceil(self.ctx.radius / geo.cell)) + 1
+        r0, c0 = geo.cell_of(x, y)
+        rs = np.arange(max(r0 - k, 0), min(r0 + k + 1, geo.rows))
+        cs = np.arange(max(c0 - k, 0), min(c0 + k + 1, geo.cols))
+        if rs.size == 0 or cs.size == 0:
+            return
+        cy = geo.origin_y + (rs + 0.5) * geo.cell
+        cx = geo.origin_x + (cs + 0.5) * geo.cell
+        inside = (cy[:, None] - y) ** 2 + (cx[None, :] - x) ** 2 <= self.ctx.radius ** 2
+        self.covered[rs[0]:rs[-1] + 1, cs[0]:cs[-1] + 1] |= inside
+
+    def boundary(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+        """The Dirichlet cells of the current map: (wall, goal), each (rows, cols) bool.
+
+        wall: occupied (HIMM > 2) or within the inflation of an occupied cell (potential 1);
+        goal: unknown, not covered by the robot and not a wall (potential 0).
+        """
+        self._ensure(grid)
+        occ = grid.occupied()
+        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        if inflate > 0 and occ.any():
+            wall = distance_transform(occ) <= inflate / grid.geo.cell + 0.5
+        else:
+            wall = occ
+        goal = grid.unknown() & ~self.covered & ~wall
+        return wall, goal
+
+    def update_potential(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+        """Set the boundary values from `grid` and run `sweeps` Gauss-Seidel sweeps from the last field.
+
+        Returns:
+            (wall, goal) as from `boundary`.
+        """
+        wall, goal = self.boundary(grid)
+        inner = self.q[1:-1, 1:-1]
+        inner[wall] = 0.0           # p = 1
+        inner[goal] = 1.0           # p = 0
+        self.fixed[1:-1, 1:-1] = wall | goal
+        e = self.epsilon
+        # in q = 1 - p eq. 3.6 keeps its sign and eq. 3.7 flips it
+        relax(self.q, self.fixed, self.sweeps,
+              preferred=(e * math.cos(self.direction), e * math.sin(self.direction)), eps_abs=-self.epsilon_grad)
+        self.updates += 1
+        return wall, goal
+
+    def explored(self, grid: OccupancyGrid, wall: npt.NDArray[np.bool_], goal: npt.NDArray[np.bool_],
+                 x: float, y: float) -> bool:
+        """The stop test: True when no passable cell reachable from (x, y) [m] touches a goal cell."""
+        passable = ~wall & ~goal & (grid.free() | self.covered)
+        geo = grid.geo
+        r, c = geo.cell_of(x, y)
+        if not (geo.contains(r, c) and passable[r, c]):
+            reach = int(math.ceil(0.5 / geo.cell))
+            r0, c0 = max(r - reach, 0), max(c - reach, 0)
+            cand = np.argwhere(passable[r0:r + reach + 1, c0:c + reach + 1])
+            if cand.size == 0:
+                return False        # squeezed against a wall: keep going (the gradient leads out)
+            cand += (r0, c0)
+            best = int(np.argmin((cand[:, 0] - r) ** 2 + (cand[:, 1] - c) ** 2))
+            r, c = int(cand[best, 0]), int(cand[best, 1])
+        return not touches(flood4(passable, r, c), goal)
+
+    # -- the decision ----------------------------------------------------------------
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        """Update the potential when due, then steer along its descent (eqs. 3.2-3.5)."""
+        pose = state.pose
+        self._ensure(grid)
+        self._cover(grid, pose.x, pose.y)
+        if state.time >= self.next_update:
+            wall, goal = self.update_potential(grid)
+            if self.explored(grid, wall, goal, pose.x, pose.y):
+                return Done("explored: no reachable free cell touches an unknown cell")
+            self.next_update = state.time + self.update_period - 1e-9
+        r, c = grid.geo.cell_of(pose.x, pose.y)
+        if not grid.geo.contains(r, c):
+            return Done("stopped: the robot left the map")
+        q, rq, cq = self.q, r + 1, c + 1
+        wx, wy = descent(q, rq, cq)
+        vx, vy = -wx, -wy          # eq. 3.2 on p = 1 - q
+        lim = self.ctx.limits
+        scale = max(q[rq, cq - 1], q[rq, cq + 1], q[rq - 1, cq], q[rq + 1, cq])
+        if math.hypot(vx, vy) > RELATIVE_FLAT * scale:
+            self.phi = math.atan2(vy, vx)                                   # eq. 3.3
+        else:
+            self.flat_steps += 1
+            if self.phi is None:
+                self.v = 0.0
+                return Twist(0.0, min(lim.w_max, 0.5))
+        varphi = wrap_angle(pose.theta - self.phi)
+        w = max(-lim.w_max, min(lim.w_max, -self.k_turn * varphi))
+        v = speed_law(self.v, varphi, edge_distance(state.laser, self.ctx.radius),
+                      v_max=lim.v_max, r_max=self.r_max, eta=self.eta)
+        if blocked_ahead(state.laser, self.ctx.radius, self.clearance, v):
+            v = 0.0
+        self.v = v
+        return Twist(v, w)
+
+    # -- what the run shows ----------------------------------------------------------
+    def overlays(self) -> dict[str, npt.NDArray[np.float64]]:
+        """{"potential": (rows, cols) in [0, 1], "vectors": (rows, cols, 2) unit descent directions}."""
+        if self.q.size == 0:
+            return {}
+        vectors = -descent_field(self.q, 0.0)      # unit directions: only an exact tie has none
+        vectors[self.fixed[1:-1, 1:-1]] = 0.0
+        return {"potential": self.potential(), "vectors": vectors + 0.0}
+
+    def potential(self) -> npt.NDArray[np.float64]:
+        """The potential p = 1 - q, (rows, cols) float64 in [0, 1] (obstacles 1, goals 0)."""
+        return 1.0 - self.q[1:-1, 1:-1]
+
+    def result_fields(self) -> dict[str, object]:
+        """`potential_updates` and `flat_gradient_steps` (steps with a vanished gradient)."""
+        return {"potential_updates": self.updates, "flat_gradient_steps": self.flat_steps}

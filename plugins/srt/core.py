@@ -1,0 +1,280 @@
+"""The Sensor-based Random Tree (Oriolo et al. 2004; thesis §3.2, Fig. 3.5): tree and algorithm.
+
+`SRTTree` holds the nodes (pose, local safe region, parent). `SRTExplorer` runs Fig. 3.5 as a
+robotexp explorer: perceive at the current node, add it to the tree, look for a valid candidate
+(`_candidate`, per perception) and drive to it in a straight line inside the current safe region,
+or drive back along the tree edge to the parent; at the root with nothing valid the robot is back
+at its start pose and the run is done. The perceptions are in `explorers.py`.
+
+The map of SRT is the union of the safe regions: each new region is rasterised into the run's
+grid (`mark_free`, cells the map already holds as occupied are kept) and the obstacle points it
+knows are marked occupied. The run loop integrates the laser scans into the same grid too.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.follower import PathFollower
+from robotexp.robot import Pose, RobotState, Twist
+
+from .regions import SafeRegion
+
+__all__ = ["Node", "SRTTree", "SRTExplorer", "Phase"]
+
+
+@dataclass
+class Node:
+    """One tree node: where the robot perceived, what it found safe, and its parent (None: root)."""
+
+    x: float                   # [m]
+    y: float                   # [m]
+    region: SafeRegion
+    parent: int | None
+    children: list[int] = field(default_factory=list)
+    failed: list[tuple[float, float]] = field(default_factory=list)   # candidates the robot could not reach
+
+
+class SRTTree:
+    """The SRT tree T: nodes in insertion order, index 0 the root."""
+
+    def __init__(self) -> None:
+        self.nodes: list[Node] = []
+
+    def __len__(self) -> int:
+        return len(self.nodes)
+
+    def add(self, x: float, y: float, region: SafeRegion, parent: int | None) -> int:
+        """ADD(T, (q, S(q))) as a child of `parent` (None only for the first node); returns its index.
+
+        Raises:
+            ConfigError: a parent that is not in the tree, or a second root.
+        """
+        if parent is None and self.nodes:
+            raise ConfigError("srt tree: only the first node may be the root")
+        if parent is not None and not 0 <= parent < len(self.nodes):
+            raise ConfigError(f"srt tree: parent {parent} is not a node (tree has {len(self.nodes)})")
+        self.nodes.append(Node(x, y, region, parent))
+        index = len(self.nodes) - 1
+        if parent is not None:
+            self.nodes[parent].children.append(index)
+        return index
+
+    def path_to_root(self, index: int) -> list[int]:
+        """The backtracking order from node `index`: itself, its parent, ..., the root."""
+        out = [index]
+        while (parent := self.nodes[out[-1]].parent) is not None:
+            out.append(parent)
+        return out
+
+    def inside_other(self, points: npt.NDArray[np.float64], exclude: int | None = None,
+                     margin: float = 0.0) -> npt.NDArray[np.bool_]:
+        """Bool (k,): which of the (k, 2) points [m] lie in the safe region (radius grown by `margin`
+        [m]) of a node other than `exclude`."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        inside = np.zeros(len(p), dtype=bool)
+        for i, node in enumerate(self.nodes):
+            if i != exclude:
+                inside |= node.region.contains(p, margin)
+        return inside
+
+    def near_node(self, points: npt.NDArray[np.float64], gap: float) -> npt.NDArray[np.bool_]:
+        """Bool (k,): which of the (k, 2) points [m] lie within `gap` [m] of a node's position."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if not self.nodes or gap <= 0:
+            return np.zeros(len(p), dtype=bool)
+        q = np.array([(n.x, n.y) for n in self.nodes])
+        d = np.hypot(p[:, None, 0] - q[None, :, 0], p[:, None, 1] - q[None, :, 1])
+        return np.asarray((d < gap).any(axis=1))
+
+    def union_mask(self, grid: OccupancyGrid) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols) of `grid`: the cells inside any node's safe region (SRT's own map)."""
+        out = np.zeros(grid.shape, dtype=bool)
+        for node in self.nodes:
+            out |= node.region.mask(grid.geo)
+        return out
+
+
+class Phase(Enum):
+    """What the explorer is doing."""
+
+    SENSE = "sense"        # taking the perception of a new node
+    TURN = "turn"          # turning on the spot towards the next target
+    MOVE = "move"          # driving straight to the target
+    HOME = "home"          # back at the root: turning to the start heading
+
+
+class SRTExplorer(Explorer):
+    """The SRT algorithm of thesis Fig. 3.5 for a differential robot; subclasses define the perception.
+
+    Motion: the robot turns on the spot to face the target, then drives the straight segment with
+    the shared `PathFollower` (which also stops it before an obstacle the laser sees in its way).
+    A move that makes no progress for `stuck_timeout` [s] is abandoned: the robot goes back to the
+    node it left and never tries a candidate within `failed_radius` of that one again from there.
+
+    Args:
+        max_nodes: K_max, the largest number of nodes (the run ends when it is reached).
+        stuck_timeout: [s] without progress before a move is abandoned.
+        failed_radius: [m] around an abandoned candidate where no candidate is tried again.
+    """
+
+    def __init__(self, *, max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
+        if max_nodes < 1:
+            raise ConfigError(f"{self.name}: max_nodes must be >= 1, got {max_nodes}")
+        if not stuck_timeout > 0 or not failed_radius >= 0:
+            raise ConfigError(f"{self.name}: stuck_timeout must be > 0 s and failed_radius >= 0 m, "
+                              f"got {stuck_timeout} and {failed_radius}")
+        self.max_nodes, self.stuck_timeout, self.failed_radius = max_nodes, stuck_timeout, failed_radius
+
+    name = "srt"
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run: an empty tree, perceiving at the start pose."""
+        super().reset(ctx)
+        self.tree = SRTTree()
+        self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.current: int | None = None       # the node the robot is at (or left from)
+        self.target: tuple[float, float] | None = None
+        self.target_node: int | None = None   # node the target is (None: a new candidate)
+        self.phase = Phase.SENSE
+        self.backtracks = 0
+        self.abandoned = 0
+        self._best = math.inf
+        self._progress_t = 0.0
+        self._begin_sense()
+
+    def result_fields(self) -> dict[str, object]:
+        """`nodes`: the size of the tree; `backtracks`: moves back to a parent."""
+        return {"nodes": len(self.tree), "backtracks": self.backtracks}
+
+    # -- the perception, per variant --------------------------------------------------
+    @abstractmethod
+    def _begin_sense(self) -> None:
+        """Prepare to perceive at a new node."""
+
+    @abstractmethod
+    def _sense(self, state: RobotState) -> tuple[Twist, SafeRegion | None]:
+        """One step of PERCEPTION: the command meanwhile, and the region once it is complete."""
+
+    @abstractmethod
+    def _candidate(self, index: int) -> tuple[float, float] | None:
+        """A valid candidate [m] from node `index`, or None (then the robot backtracks)."""
+
+    # -- the algorithm --------------------------------------------------------------
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        """One control step of Fig. 3.5."""
+        pose = state.pose
+        if self.phase is Phase.SENSE:
+            twist, region = self._sense(state)
+            if region is None:
+                return twist
+            self._add_node(pose, region, grid)
+            if len(self.tree) >= self.max_nodes:
+                return Done(f"node limit of {self.max_nodes} reached")
+            return self._choose(pose, state)
+        if self.phase is Phase.TURN:
+            return self._turn(pose, state)
+        if self.phase is Phase.MOVE:
+            return self._move(pose, state)
+        # HOME: at the root, nothing left to explore
+        twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
+        return Done("explored; back at the start") if facing else twist
+
+    def _turn(self, pose: Pose, state: RobotState) -> Twist | Done:
+        """Turn on the spot to face the target, then drive."""
+        assert self.target is not None
+        twist, facing = self.follower.turn_to(pose, math.atan2(self.target[1] - pose.y, self.target[0] - pose.x))
+        if not facing:
+            return twist
+        self.follower.set_path(np.array([[pose.x, pose.y], self.target]))
+        self.phase = Phase.MOVE
+        self._best, self._progress_t = math.inf, state.time
+        return self._move(pose, state)
+
+    def _move(self, pose: Pose, state: RobotState) -> Twist | Done:
+        """Drive the straight segment to the target."""
+        twist = self.follower.twist(pose, state.laser)
+        if not self.follower.done:
+            return self._watch(pose, state, twist)
+        if self.target_node is None:         # a new candidate: perceive there (line 4)
+            self.phase = Phase.SENSE
+            self._begin_sense()
+            return Twist.ZERO
+        self.current = self.target_node      # back at a known node: choose again (no new node)
+        return self._choose(pose, state)
+
+    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
+        self.current = self.tree.add(pose.x, pose.y, region, self.current)
+        free = region.mask(grid.geo) & ~grid.occupied()
+        grid.mark_free(free)
+        obstacles = region.obstacle_points()
+        if len(obstacles):
+            occ = np.zeros(grid.shape, dtype=bool)
+            geo = grid.geo
+            # a hit lies on the obstacle's face: a hair further along the ray is inside it
+            d = obstacles - (region.x, region.y)
+            n = np.hypot(d[:, 0], d[:, 1])[:, None]
+            inner = obstacles + 1e-4 * d / np.maximum(n, 1e-12)
+            cols = np.floor((inner[:, 0] - geo.origin_x) / geo.cell).astype(np.intp)
+            rows = np.floor((inner[:, 1] - geo.origin_y) / geo.cell).astype(np.intp)
+            ok = (rows >= 0) & (rows < geo.rows) & (cols >= 0) & (cols < geo.cols)
+            occ[rows[ok], cols[ok]] = True
+            grid.mark_occupied(occ)
+
+    def _choose(self, pose: Pose, state: RobotState) -> Twist | Done:
+        """Lines 7-19: a valid candidate, else back to the parent, else (root) done."""
+        assert self.current is not None
+        cand = self._candidate(self.current)
+        if cand is not None:
+            self.target, self.target_node = cand, None
+        else:
+            parent = self.tree.nodes[self.current].parent
+            if parent is None:
+                self.phase = Phase.HOME
+                self.follower.clear()
+                twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
+                return Done("explored; back at the start") if facing else twist
+            self.backtracks += 1
+            node = self.tree.nodes[parent]
+            self.target, self.target_node = (node.x, node.y), parent
+        self.phase = Phase.TURN
+        return self._turn(pose, state)
+
+    def _watch(self, pose: Pose, state: RobotState, twist: Twist) -> Twist | Done:
+        """Abandon a move without progress: back to the node it started from."""
+        remaining = self.follower.remaining(pose)
+        if remaining < self._best - 0.05:
+            self._best, self._progress_t = remaining, state.time
+            return twist
+        if state.time - self._progress_t < self.stuck_timeout:
+            return twist
+        assert self.current is not None
+        if self.target_node is not None or self.target is None:
+            return Done(f"stuck on the way back to node {self.target_node} (no progress for "
+                        f"{self.stuck_timeout:g} s)")
+        node = self.tree.nodes[self.current]
+        node.failed.append(self.target)
+        self.abandoned += 1
+        self.target, self.target_node = (node.x, node.y), self.current
+        self.phase = Phase.TURN
+        self._best, self._progress_t = math.inf, state.time
+        return Twist.ZERO
+
+    def _near_failed(self, index: int, points: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+        """Bool (k,): points within `failed_radius` of a candidate abandoned from node `index`."""
+        failed = self.tree.nodes[index].failed
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if not failed:
+            return np.zeros(len(p), dtype=bool)
+        f = np.asarray(failed)
+        d = np.hypot(p[:, None, 0] - f[None, :, 0], p[:, None, 1] - f[None, :, 1])
+        return np.asarray((d < self.failed_radius).any(axis=1))

@@ -1,0 +1,313 @@
+"""The three SRT perceptions as robotexp explorers: `srt-ball`, `srt-star`, `srt-laser`.
+
+Perception with a 180-degree laser (SRT-Ball, SRT-Laser): SRT assumes the sensors give the free
+space all around the robot (thesis §3.2.1, assumption IV), and the P3-DX's laser covers only
+the front half. At every new node the robot therefore turns on the spot and collects the scans
+of the turn into 1-degree world-angle bins (smallest range per bin) until every bin has a beam:
+about half a turn with a 180-degree laser, none with a 360-degree one. Turning does not add to the
+path length; it costs robot time. SRT-Star reads the sonar ring, which already covers 360 degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+
+import numpy as np
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import ExplorerContext
+from robotexp.robot import RobotState, Twist, wrap_angle
+
+from .core import SRTExplorer
+from .regions import (
+    BallRegion,
+    PolygonRegion,
+    SafeRegion,
+    StarRegion,
+    SweepBuffer,
+    in_sight,
+    ray_reach,
+    reachable_points,
+    star_from_sonar,
+)
+
+__all__ = ["SRTBallExplorer", "SRTStarExplorer", "SRTLaserExplorer", "displace"]
+
+
+def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, float]:
+    """DISPLACE(q, theta, d): the point `distance` [m] from (x, y) [m] along world angle `theta` [rad]."""
+    return x + distance * math.cos(theta), y + distance * math.sin(theta)
+
+
+class _SweepingSRT(SRTExplorer):
+    """SRT whose perception is a turn on the spot with the laser (see the module docstring)."""
+
+    def __init__(self, *, sweep_rate: float = 0.8, bins: int = 360, max_nodes: int = 1000,
+                 stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
+        super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
+        if not sweep_rate > 0 or bins < 3:
+            raise ConfigError(f"{self.name}: sweep_rate must be > 0 rad/s and bins >= 3, got {sweep_rate}, {bins}")
+        self.sweep_rate, self.bins = sweep_rate, bins
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run. Raises ConfigError when the robot has no laser."""
+        if not ctx.laser_range > 0:
+            raise ConfigError(f"{self.name}: needs a laser, and the robot reports none (laser range "
+                              f"{ctx.laser_range} m); choose a robot with a laser")
+        super().reset(ctx)
+
+    def _begin_sense(self) -> None:
+        self.sweep = SweepBuffer(self.bins)
+        self._turned = 0.0
+        self._last_heading: float | None = None
+
+    def _sense(self, state: RobotState) -> tuple[Twist, SafeRegion | None]:
+        pose = state.pose
+        if state.laser is not None:
+            scan = state.laser
+            self.sweep.add(pose.theta, scan.angles, scan.ranges, scan.range_max, scan.offset_x)
+        if self._last_heading is not None:
+            self._turned += abs(wrap_angle(pose.theta - self._last_heading))
+        self._last_heading = pose.theta
+        if self.sweep.complete() or self._turned > 2 * math.pi + 0.2:
+            return Twist.ZERO, self._region(pose.x, pose.y)
+        return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
+
+    @abstractmethod
+    def _region(self, x: float, y: float) -> SafeRegion:
+        """The region perceived at (x, y) [m] from the sweep."""
+
+
+class SRTBallExplorer(_SweepingSRT):
+    """SRT-Ball: the safe region is the disc of the smallest laser range (thesis §3.2, §4.1.1).
+
+    A candidate lies at alpha RADIUS in a direction drawn uniformly; it is valid when it is at
+    least `d_min` from the node and outside every other node's disc (Fig. 3.5 VALIDATE); after
+    `i_max` invalid tries the robot drives back to the parent. With d_min (1/alpha - 1) >= the
+    robot radius, the robot's disc never leaves the safe disc on the straight way (Fig. 4.1).
+
+    Args:
+        alpha: fraction of RADIUS at which candidates are placed, in (0, 1).
+        d_min: [m] shortest move (None: r_robot / (1/alpha - 1), 1.0 m for the P3-DX).
+        i_max: tries per visit of a node.
+        margin: [m] the disc's radius is the smallest range less this: the thesis's d_min leaves no
+            room between robot and obstacle at alpha RADIUS, and a real stop overshoots a little.
+        sweep_rate: [rad/s] turn rate while perceiving.
+        bins: world-angle bins of the perception.
+        max_nodes, stuck_timeout, failed_radius: see `SRTExplorer`.
+
+    Raises:
+        ConfigError: a parameter out of range, or d_min too small for the robot (in `reset`).
+    """
+
+    name = "srt-ball"
+
+    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
+                 sweep_rate: float = 0.8, bins: int = 360, max_nodes: int = 1000, stuck_timeout: float = 8.0,
+                 failed_radius: float = 0.3) -> None:
+        super().__init__(sweep_rate=sweep_rate, bins=bins, max_nodes=max_nodes, stuck_timeout=stuck_timeout,
+                         failed_radius=failed_radius)
+        _check_alpha(self.name, alpha, d_min, i_max, margin)
+        self.alpha, self.d_min_param, self.i_max, self.margin = alpha, d_min, i_max, margin
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run; d_min follows from the robot radius unless given."""
+        super().reset(ctx)
+        self.d_min = _d_min(self.name, self.alpha, self.d_min_param, ctx.radius)
+
+    def _region(self, x: float, y: float) -> SafeRegion:
+        ball = self.sweep.ball(x, y)
+        hit = ball.obstacle_points()
+        return BallRegion(x, y, max(ball.r - self.margin, 0.0), tuple(hit[0]) if len(hit) else None)
+
+    def _candidate(self, index: int) -> tuple[float, float] | None:
+        node = self.tree.nodes[index]
+        assert isinstance(node.region, BallRegion)
+        theta = self.ctx.rng.uniform(-math.pi, math.pi, self.i_max)
+        dist = self.alpha * node.region.r
+        if dist < self.d_min:              # every try is closer than d_min: none can be valid
+            return None
+        pts = np.column_stack([node.x + dist * np.cos(theta), node.y + dist * np.sin(theta)])
+        ok = ~self.tree.inside_other(pts, index) & ~self._near_failed(index, pts)
+        if not ok.any():
+            return None
+        k = int(np.argmax(ok))
+        return float(pts[k, 0]), float(pts[k, 1])
+
+
+class SRTLaserExplorer(_SweepingSRT):
+    """SRT-Laser: the safe region is the polygon of the laser end points (thesis §3.2, §4.1.1).
+
+    The boundary is split into frontier vertices (beams at the maximum range, not inside another
+    node's region) and obstacle vertices (Freda & Oriolo 2005); vertices inside another node's
+    region are free, already explored. Frontier vertices are taken in random order and each is
+    mapped onto the region shrunk by `offset` (thesis Fig. 4.2): the shrunk region is sampled as
+    the points the robot reaches from the node in a straight line keeping `offset` from the
+    boundary (`reachable_points`, every `step` along the 360 bin directions), and the vertex maps to
+    the nearest of them from which it is in sight inside the region, if that is within `view` x
+    the laser range (the new node will see it). A vertex that cannot be mapped lies behind a
+    passage narrower than 2 `offset`. With frontiers VALIDATE needs neither alpha nor d_min
+    (thesis §4.1.1): the frontier vertex, not the candidate, must lie outside every other node's
+    region (the candidate, at least `offset` short of it, often lies inside the previous node's
+    region). No mapped vertex (no frontier) -> back to the parent.
+
+    Args:
+        offset: [m] the shrinking (None: the robot radius + `margin`).
+        margin: [m] added to the robot radius when `offset` is None.
+        view: the farthest a candidate may be from its frontier vertex, as a share of the laser range.
+        tries: nearest reachable points tried per frontier vertex for the line of sight.
+        tolerance: [m] a frontier vertex this close to another node's region counts as explored
+            (polygon chords and grazing beams leave slivers that would otherwise never close).
+        node_gap: [m] no candidate this close to an existing node (every move opens new ground).
+        d_min: [m] shortest move (the thesis needs none: 0; at least `step` is used).
+        step: [m] sampling step of the shrunk region along each direction.
+        sweep_rate, bins, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`.
+    """
+
+    name = "srt-laser"
+
+    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,
+                 tolerance: float = 0.1, node_gap: float = 0.3,
+                 d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
+                 max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
+        super().__init__(sweep_rate=sweep_rate, bins=bins, max_nodes=max_nodes, stuck_timeout=stuck_timeout,
+                         failed_radius=failed_radius)
+        if offset is not None and not offset > 0:
+            raise ConfigError(f"srt-laser: offset must be > 0 m, got {offset}")
+        if not 0 < view <= 1 or tries < 1:
+            raise ConfigError(f"srt-laser: view must be in (0, 1] and tries >= 1, got {view} and {tries}")
+        if margin < 0 or d_min < 0 or not step > 0:
+            raise ConfigError(f"srt-laser: margin and d_min must be >= 0 m and step > 0 m, got {margin}, {d_min}, "
+                              f"{step}")
+        self.offset_param, self.margin, self.d_min, self.ray_step = offset, margin, d_min, step
+        if tolerance < 0 or node_gap < 0:
+            raise ConfigError(f"srt-laser: tolerance and node_gap must be >= 0 m, got {tolerance} and {node_gap}")
+        self.view, self.tries, self.tolerance, self.node_gap = view, tries, tolerance, node_gap
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run."""
+        super().reset(ctx)
+        self.offset = self.offset_param if self.offset_param is not None else ctx.radius + self.margin
+
+    def _region(self, x: float, y: float) -> SafeRegion:
+        return self.sweep.polygon(x, y)
+
+    def frontier(self, index: int) -> np.ndarray:
+        """Indices of the frontier vertices of node `index` that no other node's region holds."""
+        region = self.tree.nodes[index].region
+        assert isinstance(region, PolygonRegion)
+        cand = np.flatnonzero(region.frontier)
+        if cand.size == 0:
+            return cand
+        return cand[~self.tree.inside_other(region.vertices()[cand], index, self.tolerance)]
+
+    def _candidate(self, index: int) -> tuple[float, float] | None:
+        node = self.tree.nodes[index]
+        region = node.region
+        assert isinstance(region, PolygonRegion)
+        front = self.frontier(index)
+        if front.size == 0:
+            return None
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        reach = reachable_points(region, directions, self.offset, step=self.ray_step,
+                                 min_step=max(self.d_min, self.ray_step))
+        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
+        if len(reach) == 0:
+            return None
+        view = self.view * self.ctx.laser_range
+        verts = region.vertices()
+        for k in self.ctx.rng.permutation(front):
+            f = verts[k]
+            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
+            order = np.argsort(d, kind="stable")
+            for j in order[:self.tries]:
+                if d[j] > view:
+                    break
+                if in_sight(region, reach[j], f):
+                    return float(reach[j, 0]), float(reach[j, 1])
+        return None
+
+
+class SRTStarExplorer(SRTExplorer):
+    """SRT-Star: the safe region is a star of cones from the sonar ring (thesis §3.2, Fig. 3.7b).
+
+    The cone between two adjacent transducer axes has the smaller of their readings as radius
+    (`star_from_sonar`). Candidates as in SRT-Ball (alpha RADIUS in a random direction, d_min,
+    i_max); as cones differ in radius, VALIDATE also asks that the robot's disc stays inside the
+    star on the straight way there (the fundamental condition of thesis §4.1.1).
+
+    Args:
+        alpha, d_min, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
+            (each cone's radius is its reading less `margin`).
+        ring_radius: [m] distance of the transducers from the robot centre, added to their
+            readings (0: conservative).
+    """
+
+    name = "srt-star"
+    uses_sonar = True
+
+    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
+                 ring_radius: float = 0.0, max_nodes: int = 1000, stuck_timeout: float = 8.0,
+                 failed_radius: float = 0.3) -> None:
+        super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
+        _check_alpha(self.name, alpha, d_min, i_max, margin)
+        self.margin = margin
+        if ring_radius < 0:
+            raise ConfigError(f"srt-star: ring_radius must be >= 0 m, got {ring_radius}")
+        self.alpha, self.d_min_param, self.i_max, self.ring_radius = alpha, d_min, i_max, ring_radius
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run. Raises ConfigError when the robot has no sonar ring."""
+        if not ctx.sonar:
+            raise ConfigError("srt-star: needs a sonar ring, and the robot reports none; use a robot with "
+                              "sonar (e.g. --robot p3dx)")
+        super().reset(ctx)
+        self.d_min = _d_min(self.name, self.alpha, self.d_min_param, ctx.radius)
+
+    def _begin_sense(self) -> None:
+        pass
+
+    def _sense(self, state: RobotState) -> tuple[Twist, SafeRegion | None]:
+        sonar, p = state.sonar, state.pose
+        if sonar is None:
+            raise ConfigError("srt-star: the robot state carries no sonar reading; use a robot with sonar")
+        star = star_from_sonar(p.x, p.y, p.theta, sonar.angles, sonar.ranges, sonar.range_max, self.ring_radius)
+        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0),
+                                      star.obstacle_points())
+
+    def _candidate(self, index: int) -> tuple[float, float] | None:
+        node = self.tree.nodes[index]
+        region = node.region
+        assert isinstance(region, StarRegion)
+        theta = self.ctx.rng.uniform(-math.pi, math.pi, self.i_max)
+        dist = self.alpha * region.radius(theta)
+        pts = np.column_stack([node.x + dist * np.cos(theta), node.y + dist * np.sin(theta)])
+        ok = (dist >= self.d_min) & ~self.tree.inside_other(pts, index) & ~self._near_failed(index, pts)
+        for k in np.flatnonzero(ok):
+            reach = ray_reach(region, float(theta[k]), self.ctx.radius, length=float(dist[k]))
+            if reach is not None and reach >= dist[k] - 0.021:
+                return float(pts[k, 0]), float(pts[k, 1])
+        return None
+
+
+def _check_alpha(name: str, alpha: float, d_min: float | None, i_max: int, margin: float) -> None:
+    if margin < 0:
+        raise ConfigError(f"{name}: margin must be >= 0 m, got {margin}")
+    if not 0 < alpha < 1:
+        raise ConfigError(f"{name}: alpha must be in (0, 1), got {alpha}")
+    if d_min is not None and not d_min > 0:
+        raise ConfigError(f"{name}: d_min must be > 0 m, got {d_min}")
+    if i_max < 1:
+        raise ConfigError(f"{name}: i_max must be >= 1, got {i_max}")
+
+
+def _d_min(name: str, alpha: float, d_min: float | None, radius: float) -> float:
+    """d_min from d_min (1/alpha - 1) = r_robot (thesis §4.1.1), or the given one if large enough."""
+    need = radius / (1.0 / alpha - 1.0)
+    if d_min is None:
+        return need
+    if d_min < need - 1e-9:
+        raise ConfigError(f"{name}: d_min = {d_min} m is below r_robot / (1/alpha - 1) = {need:.3f} m for "
+                          f"alpha = {alpha}: the robot could leave its safe region; raise d_min or alpha")
+    return d_min

@@ -1,0 +1,219 @@
+"""Harmonic (and perturbed) potentials by Gauss-Seidel relaxation, their gradient and region growing.
+
+Thesis (Ribacki 2011) section 3.1: obstacles are held at potential 1, goals (unknown cells) at 0,
+and every other cell is relaxed in place by Gauss-Seidel, eq. 3.1,
+
+    p[i, j] <- (p[i-1, j] + p[i+1, j] + p[i, j-1] + p[i, j+1]) / 4,
+
+a fixed number of sweeps per update (never SOR: its unconverged states are unsafe). Arrays are
+indexed [row, col] with row 0 at the bottom (see `robotexp.mapping.geometry`), so the thesis's i is
+our column (x) and j our row (y). One sweep visits the cells in row-major order (row 0 first, each
+row from column 0 up), reading the new values of the cells already visited in this sweep (below and
+to the left) and the old values of the others, exactly as eq. 3.1 writes it.
+
+The kernels work on a *padded* array: the outermost ring of cells is never updated and acts as the
+Dirichlet boundary of the map (the plugin sets it to 1, a wall around the map). Inside, a cell is
+updated unless its `fixed` flag is set.
+
+The perturbed equations the thesis left out (eqs. 3.6 and 3.7, Prestes 2003; Prestes & Engel 2011)
+use central differences with a cell side of 1:
+
+    lap p = e . grad p + eps(r) |grad p|,   e = eps * v (eq. 3.6: a preferred direction v, |v| = 1),
+    p <- (sum of the 4 neighbours - (e_x gx + e_y gy) - eps(r) |g|) / 4,
+    gx = (p[i+1, j] - p[i-1, j]) / 2,  gy = (p[i, j+1] - p[i, j-1]) / 2.
+
+With |e_x|, |e_y| <= 1 and |eps(r)| <= 1 every update is a convex combination of the neighbours, so
+values stay within the boundary values and the field keeps the maximum principle (no local minima).
+
+`gauss_seidel_ref` and `gauss_seidel_perturbed_ref` are slow plain-Python references that visit
+the cells in the same order; the tests compare the kernels with them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.mapping.kernels import kernel
+
+__all__ = [
+    "descent",
+    "descent_field",
+    "flood4",
+    "gauss_seidel",
+    "gauss_seidel_perturbed",
+    "gauss_seidel_perturbed_ref",
+    "gauss_seidel_ref",
+    "relax",
+    "touches",
+]
+
+
+@kernel
+def gauss_seidel(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int) -> None:
+    """Relax `p` (rows, cols) float64 in place by `sweeps` Gauss-Seidel sweeps of eq. 3.1.
+
+    Cells with `fixed` (rows, cols) bool set and the outermost ring keep their values.
+    """
+    rows, cols = p.shape
+    for _ in range(sweeps):
+        for r in range(1, rows - 1):
+            for c in range(1, cols - 1):
+                # the left neighbour was written just before: add it last (shorter dependency chain);
+                # computed for every cell and selected, not branched on (obstacle edges mispredict)
+                new = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
+                p[r, c] = p[r, c] if fixed[r, c] else new
+
+
+@kernel
+def gauss_seidel_perturbed(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
+                           ex: float, ey: float, eps_abs: npt.NDArray[np.float64]) -> None:
+    """Relax `p` in place by `sweeps` Gauss-Seidel sweeps of lap p = e . grad p + eps(r) |grad p|.
+
+    Args:
+        p: (rows, cols) float64 potential, padded (the outer ring is the boundary).
+        fixed: (rows, cols) bool, True = Dirichlet cell (kept).
+        sweeps: number of sweeps.
+        ex: eps * v_x of eq. 3.6 [1/cell].
+        ey: eps * v_y of eq. 3.6 [1/cell].
+        eps_abs: (rows, cols) float64 eps(r) of eq. 3.7 [1/cell].
+    """
+    rows, cols = p.shape
+    for _ in range(sweeps):
+        for r in range(1, rows - 1):
+            for c in range(1, cols - 1):
+                if not fixed[r, c]:
+                    w = p[r, c - 1]
+                    e = p[r, c + 1]
+                    s = p[r - 1, c]
+                    n = p[r + 1, c]
+                    gx = 0.5 * (e - w)
+                    gy = 0.5 * (n - s)
+                    total = ((s + n) + e) + w
+                    p[r, c] = 0.25 * (total - (ex * gx + ey * gy) - eps_abs[r, c] * math.sqrt(gx * gx + gy * gy))
+
+
+def gauss_seidel_ref(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int) -> None:
+    """Plain-Python reference of `gauss_seidel` (same sweep order and arithmetic); slow."""
+    rows, cols = p.shape
+    for _ in range(sweeps):
+        for r in range(1, rows - 1):
+            for c in range(1, cols - 1):
+                if not fixed[r, c]:
+                    p[r, c] = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
+
+
+def gauss_seidel_perturbed_ref(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
+                               ex: float, ey: float, eps_abs: npt.NDArray[np.float64]) -> None:
+    """Plain-Python reference of `gauss_seidel_perturbed` (same sweep order and arithmetic); slow."""
+    rows, cols = p.shape
+    for _ in range(sweeps):
+        for r in range(1, rows - 1):
+            for c in range(1, cols - 1):
+                if not fixed[r, c]:
+                    w, e, s, n = p[r, c - 1], p[r, c + 1], p[r - 1, c], p[r + 1, c]
+                    gx, gy = 0.5 * (e - w), 0.5 * (n - s)
+                    total = ((s + n) + e) + w
+                    p[r, c] = 0.25 * (total - (ex * gx + ey * gy) - eps_abs[r, c] * math.sqrt(gx * gx + gy * gy))
+
+
+def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int, *,
+          preferred: tuple[float, float] = (0.0, 0.0),
+          eps_abs: npt.NDArray[np.float64] | float = 0.0) -> None:
+    """Checked entry point: `sweeps` in-place Gauss-Seidel sweeps of the (perturbed) potential.
+
+    Uses the plain Laplace kernel when both perturbations are zero.
+
+    Args:
+        p: (rows, cols) C-contiguous float64 potential, padded: the outer ring is the boundary.
+        fixed: (rows, cols) bool, True = Dirichlet cell.
+        sweeps: number of sweeps, >= 0.
+        preferred: eps * v of eq. 3.6 as (x, y) [1/cell]; each component within [-1, 1].
+        eps_abs: eps(r) of eq. 3.7 [1/cell], a scalar or a (rows, cols) array, within [-1, 1].
+
+    Raises:
+        ConfigError: wrong shapes or dtypes, a negative sweep count, a perturbation out of range.
+    """
+    if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2 and p.flags.c_contiguous):
+        raise ConfigError("relax: p must be a C-contiguous 2-D float64 array")
+    if not (isinstance(fixed, np.ndarray) and fixed.dtype == np.bool_ and fixed.shape == p.shape):
+        raise ConfigError(f"relax: fixed must be a bool array of shape {p.shape}")
+    if sweeps < 0:
+        raise ConfigError(f"relax: sweeps must be >= 0, got {sweeps}")
+    ex, ey = float(preferred[0]), float(preferred[1])
+    if not (abs(ex) <= 1.0 and abs(ey) <= 1.0):
+        raise ConfigError(f"relax: preferred (eps * v) components must be within [-1, 1], got {preferred}")
+    field = np.broadcast_to(np.asarray(eps_abs, np.float64), p.shape)
+    if not (np.abs(field) <= 1.0).all():
+        raise ConfigError("relax: eps_abs must be within [-1, 1] everywhere")
+    if ex == 0.0 and ey == 0.0 and not field.any():
+        gauss_seidel(p, fixed, int(sweeps))
+    else:
+        gauss_seidel_perturbed(p, fixed, int(sweeps), ex, ey, np.ascontiguousarray(field))
+
+
+def descent(p: npt.NDArray[np.float64], row: int, col: int) -> tuple[float, float]:
+    """The descent vector of eq. 3.2 at cell (row, col): ((p_W - p_E) / 2, (p_S - p_N) / 2).
+
+    p_W is p[row, col - 1] (smaller x), p_S is p[row - 1, col] (smaller y). The cell's own value
+    is not used. The cell must not be on the outer ring of `p`.
+    """
+    return (0.5 * float(p[row, col - 1] - p[row, col + 1]), 0.5 * float(p[row - 1, col] - p[row + 1, col]))
+
+
+def descent_field(p: npt.NDArray[np.float64], tiny: float = 1e-14) -> npt.NDArray[np.float64]:
+    """Unit descent directions of eq. 3.2 over the interior of the padded `p`.
+
+    Returns:
+        (rows - 2, cols - 2, 2) float64 (x, y) unit vectors; (0, 0) where |v| <= `tiny`.
+    """
+    vx = 0.5 * (p[1:-1, :-2] - p[1:-1, 2:])
+    vy = 0.5 * (p[:-2, 1:-1] - p[2:, 1:-1])
+    norm = np.hypot(vx, vy)
+    ok = norm > tiny
+    out = np.zeros(vx.shape + (2,), np.float64)
+    out[ok, 0] = vx[ok] / norm[ok]
+    out[ok, 1] = vy[ok] / norm[ok]
+    return out
+
+
+@kernel
+def flood4(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bool_]:
+    """Region growing: bool (rows, cols), the 4-connected component of `mask` holding (row, col).
+
+    4-connected, like the 5-point stencil of eq. 3.1: a region joined to a goal only through a
+    diagonal gets no potential gradient towards it. Empty when (row, col) is outside or unset.
+    """
+    rows, cols = mask.shape
+    out = np.zeros((rows, cols), np.bool_)
+    if row < 0 or row >= rows or col < 0 or col >= cols or not mask[row, col]:
+        return out
+    stack = np.empty(rows * cols, np.int64)
+    out[row, col] = True
+    stack[0] = row * cols + col
+    top = 1
+    while top > 0:
+        top -= 1
+        r = stack[top] // cols
+        c = stack[top] % cols
+        for k in range(4):
+            rr = r + (1 if k == 0 else -1 if k == 1 else 0)
+            cc = c + (1 if k == 2 else -1 if k == 3 else 0)
+            if 0 <= rr < rows and 0 <= cc < cols and mask[rr, cc] and not out[rr, cc]:
+                out[rr, cc] = True
+                stack[top] = rr * cols + cc
+                top += 1
+    return out
+
+
+def touches(region: npt.NDArray[np.bool_], target: npt.NDArray[np.bool_]) -> bool:
+    """True when a cell of `region` has a 4-neighbour in `target` (both (rows, cols) bool)."""
+    hit = np.zeros_like(region)
+    hit[1:, :] |= target[:-1, :]
+    hit[:-1, :] |= target[1:, :]
+    hit[:, 1:] |= target[:, :-1]
+    hit[:, :-1] |= target[:, 1:]
+    return bool((hit & region).any())

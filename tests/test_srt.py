@@ -1,0 +1,274 @@
+"""SRT explorers: validation rules, region geometry and tree order by hand; short end-to-end runs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import ExplorationRun, ExplorerContext
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import Limits, Pose
+from robotexp.sim import SimRobot
+from robotexp.world.model import World, segment_box
+from robotexp_plugins.srt import (
+    BallRegion,
+    PolygonRegion,
+    SRTBallExplorer,
+    SRTLaserExplorer,
+    SRTStarExplorer,
+    SRTTree,
+    StarRegion,
+    SweepBuffer,
+    frontier_arcs,
+    ray_reach,
+    star_from_sonar,
+)
+from robotexp_plugins.srt.regions import reachable_points
+
+LIMITS = Limits(v_max=0.3, w_max=2.0, a_max=0.5, alpha_max=2.0)
+
+
+class FixedRng:
+    """Stands for numpy's Generator: `uniform` returns the given angles, `permutation` keeps order."""
+
+    def __init__(self, angles: list[float]) -> None:
+        self.angles = np.array(angles)
+
+    def uniform(self, low: float, high: float, size: int) -> np.ndarray:
+        return self.angles
+
+    def permutation(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(x)
+
+
+def ctx(rng: object, radius: float = 0.25, sonar: bool = False) -> ExplorerContext:
+    return ExplorerContext(radius=radius, limits=LIMITS, period=0.1, start=Pose(0, 0, 0), laser_range=3.0,
+                           rng=rng, sonar=sonar)  # type: ignore[arg-type]
+
+
+def ball_explorer(nodes: list[tuple[float, float, float]], angles: list[float], **kw: float) -> SRTBallExplorer:
+    ex = SRTBallExplorer(**kw)  # type: ignore[arg-type]
+    ex.reset(ctx(FixedRng(angles)))
+    for i, (x, y, r) in enumerate(nodes):
+        ex.tree.add(x, y, BallRegion(x, y, r), None if i == 0 else i - 1)
+    return ex
+
+
+# -- validation rules (thesis Fig. 3.5, §4.1.1) -----------------------------------------------
+
+def test_ball_d_min_follows_from_alpha_and_radius() -> None:
+    ex = ball_explorer([], [0.0])
+    assert ex.margin == 0.05 and ex.d_min == pytest.approx(1.0)           # 0.25 / (1/0.8 - 1)
+    with pytest.raises(ConfigError, match="d_min"):
+        SRTBallExplorer(d_min=0.5).reset(ctx(FixedRng([0.0])))
+
+
+def test_candidate_inside_an_earlier_ball_is_rejected() -> None:
+    # node 1 at (1.6, 0), R = 2: candidates at 0.8 * 2 = 1.6 m. Direction pi lands on (0, 0), inside
+    # node 0's ball; direction pi/2 lands on (1.6, 1.6), 2.263 m from node 0 (> 2): valid.
+    ex = ball_explorer([(0.0, 0.0, 2.0), (1.6, 0.0, 2.0)], [math.pi, math.pi / 2])
+    assert ex._candidate(1) == pytest.approx((1.6, 1.6))
+    ex = ball_explorer([(0.0, 0.0, 2.0), (1.6, 0.0, 2.0)], [math.pi, math.pi])
+    assert ex._candidate(1) is None
+
+
+def test_candidate_closer_than_d_min_is_rejected() -> None:
+    # R = 1.2: alpha R = 0.96 m < d_min = 1 m, in every direction
+    assert ball_explorer([(0.0, 0.0, 1.2)], [0.0, 1.0, 2.0])._candidate(0) is None
+    # R = 1.3: 1.04 m >= 1 m, nothing else in the tree
+    assert ball_explorer([(0.0, 0.0, 1.3)], [0.0])._candidate(0) == pytest.approx((1.04, 0.0))
+    # a larger d_min rejects the same move
+    assert ball_explorer([(0.0, 0.0, 1.3)], [0.0], d_min=1.1)._candidate(0) is None
+
+
+def test_tree_backtracking_order_and_parents() -> None:
+    tree = SRTTree()
+    r = BallRegion(0, 0, 1)
+    assert tree.add(0, 0, r, None) == 0
+    assert tree.add(1, 0, r, 0) == 1
+    assert tree.add(2, 0, r, 1) == 2
+    assert tree.add(1, 1, r, 1) == 3
+    assert tree.add(0, 1, r, 0) == 4
+    assert tree.path_to_root(2) == [2, 1, 0]
+    assert tree.path_to_root(3) == [3, 1, 0]
+    assert tree.path_to_root(4) == [4, 0]
+    assert tree.nodes[1].children == [2, 3]
+    with pytest.raises(ConfigError):
+        tree.add(5, 5, r, None)
+    with pytest.raises(ConfigError):
+        tree.add(5, 5, r, 9)
+
+
+# -- region geometry ------------------------------------------------------------------------
+
+def test_polygon_radius_by_hand() -> None:
+    # the square |x|, |y| <= 1 given by its corners
+    corners = np.radians([-135.0, -45.0, 45.0, 135.0])
+    sq = PolygonRegion(0.0, 0.0, corners, np.full(4, math.sqrt(2)), np.zeros(4, bool))
+    assert sq.radius(np.array([0.0, math.pi / 4, math.radians(30), math.pi])) == pytest.approx(
+        [1.0, math.sqrt(2), 1 / math.cos(math.radians(30)), 1.0])
+    # a rhombus with vertices (1, 0), (0, 2), (-1, 0), (0, -2): at 45 deg x + y/2 = 1 -> t = 1/(c + c/2);
+    # (0.6, 0.6): 0.9 < 1 inside, (0.7, 0.7): 1.05 > 1 outside
+    rh = PolygonRegion(0.0, 0.0, np.radians([-90.0, 0.0, 90.0, 180.0]), np.array([2.0, 1.0, 2.0, 1.0]),
+                       np.zeros(4, bool))
+    c = math.cos(math.pi / 4)
+    assert float(rh.radius(np.array(math.pi / 4))) == pytest.approx(1 / (1.5 * c))
+    assert rh.contains(np.array([[0.6, 0.6], [0.7, 0.7], [0.0, 1.9], [0.0, 2.1]])).tolist() == [
+        True, False, True, False]
+
+
+def test_star_cones_take_the_smaller_reading_of_their_two_axes() -> None:
+    # axes 0, 90, 180, 270 deg with readings 1, 2, 3, 4: cone [0, 90) -> 1, [90, 180) -> 2, ...
+    star = star_from_sonar(0.0, 0.0, 0.0, np.radians([0.0, 90.0, 180.0, -90.0]), np.array([1.0, 2.0, 3.0, 4.0]),
+                           5.0)
+    got = star.radius(np.radians([45.0, 135.0, 225.0, 315.0]))
+    assert got == pytest.approx([1.0, 2.0, 3.0, 1.0])
+    # duplicated axis: the smaller reading; no echo: the range maximum
+    star2 = star_from_sonar(0.0, 0.0, 0.0, np.radians([0.0, 0.0, 180.0]), np.array([2.0, 1.5, np.inf]), 5.0)
+    assert isinstance(star2, StarRegion)
+    assert star2.radii == pytest.approx([1.5, 1.5])
+    assert star2.obstacle_points() == pytest.approx(np.array([[2.0, 0.0], [1.5, 0.0]]))
+
+
+def test_frontier_arcs_cyclic() -> None:
+    assert frontier_arcs(np.array([1, 1, 0, 0, 1, 0, 1], bool)) == [(4, 4), (6, 1)]
+    assert frontier_arcs(np.ones(5, bool)) == [(0, 4)]
+    assert frontier_arcs(np.zeros(5, bool)) == []
+
+
+def test_frontier_arc_of_a_synthetic_scan() -> None:
+    # a 360-beam scan at the bin centres: nothing within range for world angles in (0, 90) deg
+    sweep = SweepBuffer(360)
+    angles = sweep.bin_angles()
+    ranges = np.where((angles > 0) & (angles < math.pi / 2), np.inf, 2.0)
+    sweep.add(0.0, angles, ranges, 3.0)
+    assert sweep.complete()
+    poly = sweep.polygon(1.0, 2.0)
+    assert frontier_arcs(poly.frontier) == [(181, 269)]     # bins centred on 1..89 deg
+    assert poly.ranges[poly.frontier] == pytest.approx(3.0)
+    assert poly.ranges[~poly.frontier] == pytest.approx(2.0)
+    ball = sweep.ball(1.0, 2.0)
+    assert ball.r == pytest.approx(2.0)
+
+
+def test_sweep_of_a_half_scan_turned_half_a_turn_is_complete() -> None:
+    sweep = SweepBuffer(360)
+    beams = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    sweep.add(0.0, beams, np.full(181, 1.0), 3.0)
+    assert not sweep.complete()
+    sweep.add(math.pi, beams, np.full(181, 1.5), 3.0)
+    assert sweep.complete()
+    assert sweep.ball(0.0, 0.0).r == pytest.approx(1.0)
+
+
+def ring(radius: float, n: int = 360) -> PolygonRegion:
+    a = -math.pi + (np.arange(n) + 0.5) * 2 * math.pi / n
+    return PolygonRegion(0.0, 0.0, a, np.full(n, radius), np.ones(n, bool))
+
+
+def test_frontier_point_mapped_onto_the_shrunk_region() -> None:
+    # a 360-gon of radius 3 at bin centres: along a vertex ray the clearance is (3 - s) cos(0.5 deg);
+    # it must stay >= 0.35, so s <= 3 - 0.35 / cos(0.5 deg) = 2.64998 -> 2.64 on a 0.02 m grid
+    region = ring(3.0)
+    theta = float(region.angles[10])
+    assert ray_reach(region, theta, 0.35, step=0.02) == pytest.approx(2.64)
+
+
+def corridor_region(half_width: float) -> PolygonRegion:
+    """A disc of radius 1.5 with a corridor of `half_width` from x = 1 to x = 3 along +x."""
+    circle = np.radians(np.arange(20.0, 341.0, 10.0))
+    pts = [(1.5 * math.cos(a), 1.5 * math.sin(a)) for a in circle]
+    pts += [(1.0, -half_width), (3.0, -half_width), (3.0, half_width), (1.0, half_width)]
+    xy = np.array(pts)
+    ang = np.arctan2(xy[:, 1], xy[:, 0])
+    order = np.argsort(ang)
+    r = np.hypot(xy[:, 0], xy[:, 1])[order]
+    return PolygonRegion(0.0, 0.0, ang[order], r, r > 2.9)
+
+
+def test_narrow_passage_cannot_be_mapped() -> None:
+    # corridor 0.6 m wide < 2 x 0.35: the ray along it stops where the mouth corner (1, 0.3) is
+    # 0.35 away: (1 - s)^2 + 0.09 = 0.1225 -> s = 0.8197 -> 0.80 on a 0.02 m grid, far from the
+    # frontier at x = 3; a 1 m wide corridor lets the robot reach 3 - 0.35 = 2.65 -> 2.64
+    assert ray_reach(corridor_region(0.3), 0.0, 0.35, step=0.02) == pytest.approx(0.80)
+    assert ray_reach(corridor_region(0.5), 0.0, 0.35, step=0.02) == pytest.approx(2.64)
+    narrow = reachable_points(corridor_region(0.3), np.array([0.0]), 0.35, step=0.05)
+    assert narrow[:, 0].max() < 0.85
+    wide = reachable_points(corridor_region(0.5), np.array([0.0]), 0.35, step=0.05)
+    assert wide[:, 0].max() == pytest.approx(2.65, abs=0.051)
+
+
+def test_laser_candidates_need_an_open_frontier() -> None:
+    # the frontier behind the narrow passage: the nearest reachable point in sight of it is at the
+    # mouth, about 2.26 m away, beyond view = 0.5 x 3 m: not mapped
+    ex = SRTLaserExplorer(view=0.5)
+    ex.reset(ctx(np.random.default_rng(0)))
+    ex.tree.add(0.0, 0.0, corridor_region(0.3), None)
+    assert ex._candidate(0) is None
+    ex = SRTLaserExplorer(view=0.5)
+    ex.reset(ctx(np.random.default_rng(0)))
+    ex.tree.add(0.0, 0.0, corridor_region(0.5), None)
+    cand = ex._candidate(0)
+    assert cand is not None and 2.0 < cand[0] < 2.7 and abs(cand[1]) < 0.2
+    # the same frontier inside another node's region: explored, nothing to do
+    ex.tree.add(3.0, 0.0, BallRegion(3.0, 0.0, 1.0), 0)
+    assert ex.frontier(0).size == 0 and ex._candidate(0) is None
+
+
+def test_region_mask_marks_the_cells_inside() -> None:
+    geo = GridGeometry(-2.0, -2.0, 0.5, 8, 8)
+    mask = BallRegion(0.0, 0.0, 0.8).mask(geo)
+    centres = -2.0 + (np.arange(8) + 0.5) * 0.5
+    gx, gy = np.meshgrid(centres, centres)
+    assert (mask == (np.hypot(gx, gy) < 0.8)).all() and mask.sum() == 12
+
+
+# -- end to end -----------------------------------------------------------------------------
+
+def room_world() -> World:
+    """An 8 m x 6 m room with a pillar (inner faces x = +-4, y = +-3)."""
+    t = 0.1
+    boxes = [segment_box(-4.05, -3.05, 4.05, -3.05, t), segment_box(-4.05, 3.05, 4.05, 3.05, t),
+             segment_box(-4.05, -3.05, -4.05, 3.05, t), segment_box(4.05, -3.05, 4.05, 3.05, t)]
+    return World("room", np.array(boxes), np.array([[2.0, 1.0, 0.3]]))
+
+
+# SRT-Star is left out: its cones do not see between the sonar axes and it can graze the pillar
+@pytest.mark.parametrize("method", [SRTLaserExplorer, SRTBallExplorer])
+def test_explores_a_small_room_and_returns_to_the_start(method: type) -> None:
+    from robotexp.mapping.groundtruth import coverage, ground_truth
+
+    world = room_world()
+    start = Pose(-1.5, 0.0, 0.0)
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)  # type: ignore[misc]
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
+    explorer = method()
+    grid = OccupancyGrid(geo)
+    with SimRobot(world, pose=start, seed=1, max_speed=0.5, sonar=explorer.uses_sonar) as robot:
+        run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=1500.0, seed=3).run()
+        end = robot.read().true_pose
+    assert run.completed, run.reason
+    assert run.metrics.collisions == 0
+    assert end is not None and math.hypot(end.x - start.x, end.y - start.y) < 0.2
+    nodes = explorer.result_fields()["nodes"]
+    assert isinstance(nodes, int) and nodes >= 2
+    assert coverage(explorer.tree.union_mask(grid), truth) > 0.5    # SRT's own map, the union of regions
+    assert coverage(grid.free(), truth) >= 0.9
+
+
+def test_star_needs_a_sonar_ring_and_validates_the_straight_way() -> None:
+    with pytest.raises(ConfigError, match="sonar"):
+        SRTStarExplorer().reset(ctx(FixedRng([0.0])))
+    ex = SRTStarExplorer(margin=0.0)
+    ex.reset(ctx(FixedRng([math.radians(45.0), math.radians(-45.0)]), sonar=True))
+    # cones [0, 90) of radius 3 and [90, 360) of radius 0.5: along 45 deg the way passes the cone
+    # corners (0.5, 0) and (0, 0.5) at 0.5 sin 45 = 0.354 >= 0.25 and ends 0.6 short of the arc: valid
+    ex.tree.add(0.0, 0.0, StarRegion(0.0, 0.0, np.radians([0.0, 90.0]), np.array([3.0, 0.5])), None)
+    assert ex._candidate(0) == pytest.approx((2.4 * math.cos(math.pi / 4), 2.4 * math.sin(math.pi / 4)))
+    # at -45 deg alpha R = 0.4 m < d_min; at 2 deg the way runs s sin 2 deg < 0.25 from the cone's edge
+    ex.ctx.rng = FixedRng([math.radians(-45.0), math.radians(2.0)])  # type: ignore[assignment]
+    assert ex._candidate(0) is None
