@@ -246,7 +246,9 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
 
 def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
                  on_sample: Callable[[float, float | None], None] | None = None,
-                 show: tuple[str, ...] = (), image: bool = True, map_size: float = 20.0) -> RunOutput:
+                 show: tuple[str, ...] = (), image: bool = True, map_size: float = 20.0,
+                 record_extra: dict[str, Any] | None = None,
+                 on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
     """Run `spec`'s explorer on a connected robot (a real one, MobileSim or an emulator).
 
     With a `world` the run starts from `spec.pose` in it: a robot with the "move_to" capability is
@@ -254,7 +256,8 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     ground truth for coverage. Without one the map is a square of `map_size` [m] centred on the
     robot's first pose and coverage is unknown. `spec.world`, `spec.robot` and the laser settings
     of `spec` other than `laser_range` are not used: the robot brings its own sensors. The robot is
-    stopped at the end, not closed. Results are written as by `run_experiment`.
+    stopped at the end, not closed. Results are written as by `run_experiment`; `record_extra` and
+    `on_run` as there.
 
     Raises:
         WorldError, PluginError, ConfigError: bad input, before the robot moves.
@@ -288,11 +291,19 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
                                     cell=cell)
     robot.set_max_speed(spec.speed)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
+
+    def chained(t: float, cov: float | None) -> None:
+        if on_sample is not None:
+            on_sample(t, cov)
+        if on_run is not None:
+            on_run(run)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                         on_sample=on_sample).run()
+                         on_sample=on_sample if on_run is None else chained)
+    run.run()
     extra: dict[str, Any] = {"robot": robot.name}
     if hasattr(robot, "address"):
         extra["address"] = str(robot.address)
+    extra.update(record_extra or {})
     return write_outputs(run, spec, world_name, pose_label, out, show=show, image=image, record_extra=extra)
 
 

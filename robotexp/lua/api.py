@@ -10,6 +10,14 @@ the end on the stepped simulator. Calls that need a result (`elapsedTime`, `path
 `results`, `saveMapImage`, `moveMobileSim`, `getPose`) and the next `start` first finish an armed
 run, and so does the end of the script. Each finished run is appended to OUT/results.jsonl at
 once. Between runs the robot stays where its last run ended, unless `robot.moveMobileSim` moves it.
+
+Robots. With a P3-DX address (`robot.setAddress("host[:port]")` or a serial device) and no
+`robotexp run --world`, runs go to a connected `p3dx` robot (MobileSim, our emulator or the real
+one) through `run_on_robot`, at the robot's pace: one connection for the whole script, opened at
+the first `exploration.start()` (or `robot.getPose()`), closed by `Session.close()` (robot stopped).
+`robot.moveMobileSim` then sends SIM_SET_POSE (at once when connected, else right after
+connecting). Coverage is null unless the script names a world with `exploration.setWorld`, which
+is then ground truth only (as `robotexp explore --address --world`).
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ from robotexp.robot import Pose
 
 if TYPE_CHECKING:
     from robotexp.experiment import RunOutput, RunSpec
+    from robotexp.robot import Robot
     from robotexp.explorer import ExplorationRun
     from robotexp.lua.sandbox import PathPolicy
     from robotexp.world.model import World
@@ -36,6 +45,7 @@ __all__ = ["Session", "Control", "P3DX_PORT", "parse_address"]
 log = logging.getLogger(__name__)
 
 P3DX_PORT = 8101        # MobileSim's and ARIA's default TCP port
+ROBOT_BACKEND = "p3dx"  # the `robotexp.robots` backend of a non-sim address (the P3-DX protocol)
 TRACK_WINDOW = (800, 600)       # [px] image size around the robot when tracking is on
 _UPDATE_PARAMS = ("update_period",)   # explorer parameter names of the potential update interval [s]
 _NAME = {"n": "a number", "s": "a string", "b": "a boolean", "i": "an integer"}
@@ -117,6 +127,11 @@ def _args(fname: str, usage: str, args: tuple[Any, ...], kinds: str) -> list[Any
     return list(args)
 
 
+def _pose_text(p: Pose) -> str:
+    """`p` as a RunSpec pose: "x,y,theta" in mm, mm, degrees."""
+    return f"{p.x * 1000!r},{p.y * 1000!r},{math.degrees(p.theta)!r}"
+
+
 def _positive(fname: str, usage: str, value: float, unit: str) -> float:
     if not value > 0:
         raise ScriptError(f"{fname}({usage}): expected a value > 0 {unit}, got {value:g}")
@@ -144,6 +159,11 @@ class Session:
         self.forced_world = world is not None
         self.spec = RunSpec(world=world or "dense", robot=robot)
         self.address = ""
+        self.target: tuple[str, str] = ("sim", "")     # parse_address(self.address)
+        self.connected: Robot | None = None            # the robot of a P3-DX address, once connected
+        self.truth_world = False                       # the script named a world (exploration.setWorld)
+        self._move_pending = False                     # moveMobileSim not yet sent to the robot
+        self._moved = False                            # self.pose comes from moveMobileSim (no run since)
         self.potential_interval: float | None = None   # [s]
         self.pose: Pose | None = None                  # where the next run starts (None: world default)
         # view (IfTEA's Display menu)
@@ -198,6 +218,10 @@ class Session:
 
     def current_pose(self) -> Pose:
         """Where the next run starts: the last moveMobileSim or run end, else the world's default."""
+        if self.on_robot:
+            if self.connected is None and self.pose is not None:     # placed by moveMobileSim, not sent yet
+                return self.pose
+            return self._robot().read().pose
         if self.pose is not None:
             return self.pose
         from robotexp.experiment import resolve_pose
@@ -213,19 +237,72 @@ class Session:
         spec, self.armed = self.armed, None
         if spec is None:
             return
-        from robotexp.experiment import run_experiment
+        from robotexp.experiment import run_experiment, run_on_robot
 
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
-        output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
-                                on_run=self._on_run if watch else None)
-        self.last = output
+        if self.on_robot:
+            robot = self._robot()
+            if hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
+                robot.laser_range = spec.laser_range
+            if self.truth_world and self.pose is not None and not self._moved:
+                # run_on_robot moves the robot to the start: start where it stands now, not where
+                # the last run's final state was (it went on turning and slowing after it)
+                spec.pose = _pose_text(robot.read().pose)
+            output = run_on_robot(spec, robot, self.out, self.world() if self.truth_world else None,
+                                  image=False, record_extra={"script": self.script},
+                                  on_run=self._on_run if watch else None)
+        else:
+            output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
+                                    on_run=self._on_run if watch else None)
+        self.last, self._moved = output, False
         self.records.append(output.record)
         state = output.run.state
         if state is not None:
             self.pose = state.true_pose or state.pose
         if self.control.check():
             raise ScriptError("exploration stopped")    # the runtime reports the real reason
+
+    @property
+    def on_robot(self) -> bool:
+        """True when runs go to a connected robot (a P3-DX address and no `robotexp run --world`)."""
+        return self.target[0] != "sim" and not self.forced_world
+
+    def _robot(self) -> Robot:
+        """The robot of the address, connected on first use; a pending moveMobileSim is sent.
+
+        Raises:
+            ScriptError: the robot cannot be reached (naming robot.setAddress and the address).
+        """
+        if self.connected is None:
+            from robotexp.experiment import connect_robot
+            kind, where = self.target
+            try:
+                self.connected = connect_robot(ROBOT_BACKEND, where)
+            except RobotexpError as exc:
+                raise ScriptError(f"robot.setAddress({self.address!r}): cannot connect to a P3-DX ({kind} {where}): "
+                                  f"{exc}; start MobileSim or `robotexp emulate p3dx` there, or use '' for the "
+                                  "embedded simulator") from exc
+            log.info("lua: connected to %s at %s", ROBOT_BACKEND, where)
+        if self._move_pending and self.pose is not None:
+            self._move_pending = False
+            self._place(self.connected, self.pose)
+        return self.connected
+
+    def _place(self, robot: Robot, pose: Pose) -> None:
+        if "move_to" not in robot.capabilities:
+            raise ScriptError(f"robot.moveMobileSim: the robot at {self.address!r} ({robot.name}) cannot be "
+                              "moved or told its pose")
+        robot.move_to(pose)
+
+    def close(self) -> None:
+        """Stop the connected robot and close its link (nothing without one). Safe to call twice."""
+        robot, self.connected = self.connected, None
+        if robot is not None:
+            try:
+                robot.close()
+            except RobotexpError as exc:      # a robot already gone cannot be stopped either
+                log.warning("lua: closing the robot at %s: %s", self.address, exc)
 
     def _on_run(self, run: ExplorationRun) -> None:
         if self.frame_folder is not None and run.robot_time >= self._next_frame:
@@ -241,7 +318,8 @@ class Session:
         from robotexp.render import map_layout
 
         show = tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
-        title = f"{self.spec.world} - {run.explorer.__class__.__name__} - {run.metrics.path_length:.1f} m"
+        place = self.spec.world if self.truth_world or not self.on_robot else f"{ROBOT_BACKEND} {self.target[1]}"
+        title = f"{place} - {run.explorer.__class__.__name__} - {run.metrics.path_length:.1f} m"
         geo = run.grid.geo
         if self.scaling is None:
             base = float(map_layout(geo, scale=None, title=title).scale)
@@ -271,20 +349,23 @@ class Session:
 
     # -- robot ---------------------------------------------------------------------------------------
     def lua_robot__setAddress(self, *args: Any) -> None:
-        """'' or 'sim': embedded simulator; 'host[:port]': P3-DX over TCP; a device path: serial."""
+        """'' or 'sim': embedded simulator; 'host[:port]' (TCP, 8101) or a device path (serial): a P3-DX.
+
+        Ignored (said once) when `robotexp run --world` was given: the script stays on the simulator.
+        """
         (address,) = _args("robot.setAddress", "address", args, "s")
-        kind, where = parse_address(address)
-        if kind != "sim":
-            if not self.forced_world:
-                raise ScriptError(
-                    f"robot.setAddress({address!r}): the P3-DX driver ({kind} {where}) is not available yet; "
-                    "use '' or 'sim' for the embedded simulator, or give `robotexp run --world WORLD` to run "
-                    "this script on the simulator of WORLD")
-            if not self._told_forced:
-                self.notice(f"robot.setAddress({address!r}): --world {self.spec.world} given, so the script "
-                            "runs on the embedded simulator of that world")
-                self._told_forced = True
-        self.address = address
+        target = parse_address(address)
+        if target[0] != "sim" and self.forced_world and not self._told_forced:
+            self.notice(f"robot.setAddress({address!r}): --world {self.spec.world} given, so the script "
+                        "runs on the embedded simulator of that world")
+            self._told_forced = True
+        self.finish()
+        if target != self.target and not self.forced_world:   # another robot: its pose is its own
+            self.close()
+            if not self._moved:
+                self.pose = None
+            self._move_pending = self._moved and target[0] != "sim"
+        self.address, self.target = address, target
 
     def lua_robot__setMaxLaserRange(self, *args: Any) -> None:
         """Laser range [mm]."""
@@ -309,11 +390,16 @@ class Session:
         x, y, th = _args("robot.moveMobileSim", "x_mm, y_mm, theta_deg", args, "nnn")
         self.finish()
         pose = Pose(x / 1000.0, y / 1000.0, math.radians(th))
-        xmin, ymin, xmax, ymax = self.world().bounds or (0.0, 0.0, 0.0, 0.0)
-        if not (xmin <= pose.x <= xmax and ymin <= pose.y <= ymax):
-            raise ScriptError(f"robot.moveMobileSim({x:g}, {y:g}, {th:g}): outside world {self.spec.world!r} "
-                              f"(x {xmin * 1000:.0f}..{xmax * 1000:.0f}, y {ymin * 1000:.0f}..{ymax * 1000:.0f} mm)")
-        self.pose = pose
+        if not self.on_robot or self.truth_world:
+            xmin, ymin, xmax, ymax = self.world().bounds or (0.0, 0.0, 0.0, 0.0)
+            if not (xmin <= pose.x <= xmax and ymin <= pose.y <= ymax):
+                raise ScriptError(f"robot.moveMobileSim({x:g}, {y:g}, {th:g}): outside world {self.spec.world!r} (x "
+                                  f"{xmin * 1000:.0f}..{xmax * 1000:.0f}, y {ymin * 1000:.0f}..{ymax * 1000:.0f} mm)")
+        self.pose, self._moved = pose, True
+        if self.on_robot:
+            self._move_pending = True
+            if self.connected is not None:
+                self._robot()
 
     def lua_robot__getPose(self, *args: Any) -> tuple[float, float, float]:
         """Where the robot is (x [mm], y [mm], theta [deg])."""
@@ -376,7 +462,8 @@ class Session:
         except RobotexpError:
             self.spec.world = old
             raise
-        if name != old:
+        self.truth_world = True
+        if name != old and not self.on_robot:     # a robot stays where it is: the world is only truth
             self.pose = None
 
     def lua_exploration__setSeed(self, *args: Any) -> None:
@@ -418,6 +505,8 @@ class Session:
         """Check the settings and arm a run (wait() runs it)."""
         _args("exploration.start", "", args, "")
         self.finish()
+        if self.on_robot:
+            self._robot()
         self.armed = self._spec()
 
     def lua_exploration__wait(self, *args: Any) -> None:
@@ -446,8 +535,7 @@ class Session:
 
         spec = replace(self.spec, params=dict(self.spec.params))
         if self.pose is not None:
-            p = self.pose
-            spec.pose = f"{p.x * 1000!r},{p.y * 1000!r},{math.degrees(p.theta)!r}"
+            spec.pose = _pose_text(self.pose)
         spec.validate()
         cls = type(make_explorer(spec.method, spec.params))   # unknown method or parameter: now
         if self.potential_interval is not None:

@@ -18,7 +18,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from robotexp.errors import ConfigError, PluginError, ScriptError, WorldError
+from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, PathPolicy
 
@@ -94,7 +94,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
-    ends is run to its end.
+    ends is run to its end. A robot the script connected to (robot.setAddress) is stopped and
+    disconnected at the end, on an error and on Ctrl-C.
 
     Args:
         path: the script file.
@@ -163,7 +164,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             chunk()
             try:
                 session.finish()
-            except (WorldError, ConfigError, PluginError) as exc:
+            except (WorldError, ConfigError, PluginError, RobotError) as exc:
                 raise ScriptError(f"{name}: the exploration still armed at the end of the script: {exc}") from exc
         except LuaError as exc:
             if _stopped(control, name, session):
@@ -182,6 +183,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                 return ScriptResult(control.exit_code, session.records)
             raise ScriptError(f"{name}: {type(exc).__name__}: {exc}") from None
         finally:
+            session.close()         # stop the connected robot and release its link (Ctrl-C too)
             _flush_stdout(lua)
     return ScriptResult(control.exit_code, session.records)
 

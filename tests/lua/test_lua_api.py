@@ -10,6 +10,7 @@ import pytest
 from PIL import Image
 
 from robotexp.errors import ScriptError
+from robotexp.lua import parse_address
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.registry import EXPLORERS, available, lua_name
 from robotexp.render import COLORS, map_layout
@@ -145,13 +146,18 @@ exploration.start(); exploration.wait()
     assert frames == ["frame_000001.png", "frame_000002.png", "frame_000003.png"]
 
 
-def test_address_kinds(lua):
-    lua('robot.setAddress(""); robot.setAddress("sim")')
-    for address, kind in (("localhost", "tcp localhost:8101"), ("10.0.0.2:9000", "tcp 10.0.0.2:9000"),
-                          ("/dev/ttyUSB0", "serial /dev/ttyUSB0")):
-        with pytest.raises(ScriptError, match=rf"script.lua:1: robot.setAddress.*P3-DX driver \({kind}\) is "
-                                              r"not available yet.*--world"):
-            lua(f'robot.setAddress("{address}")')
+def test_address_kinds(lua, tmp_path):
+    assert parse_address("") == parse_address(" sim ") == ("sim", "")
+    assert parse_address("localhost") == ("tcp", "localhost:8101")
+    assert parse_address("10.0.0.2:9000") == ("tcp", "10.0.0.2:9000")
+    assert parse_address("/dev/ttyUSB0") == ("serial", "/dev/ttyUSB0") and parse_address("COM3") == ("serial", "COM3")
+    # nothing connects before a run needs the robot
+    lua('robot.setAddress(""); robot.setAddress("sim"); robot.setAddress("10.0.0.2:9000"); '
+        'robot.setAddress("/dev/ttyUSB0")')
+    missing = tmp_path / "no-such-tty"
+    with pytest.raises(ScriptError, match=rf"^script.lua:2: robot.setAddress\('{missing}'\): cannot connect to a "
+                                          rf"P3-DX \(serial {missing}\): .*robotexp emulate p3dx"):
+        lua(f'robot.setAddress("{missing}")\nexploration.start()')
     with pytest.raises(ScriptError, match=r"port 1..65535"):
         lua('robot.setAddress("host:99999")')
     lua(SHORT + 'robot.setAddress("localhost"); robot.setAddress("/dev/ttyS0"); exploration.start()',
