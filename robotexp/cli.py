@@ -311,14 +311,16 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
 @click.option("--port", type=int, default=None, help="TCP port on 127.0.0.1 (default: the backend's, 8101 for p3dx).")
 @click.option("--pty", is_flag=True, help="Serve on a pseudo-terminal (prints its device path) instead of TCP.")
 @click.option("--speedup", type=float, default=1.0, show_default=True, help="Robot time per wall time.")
+@click.option("--udp", default=None, help="mavlink: send to a ground station at HOST:PORT (e.g. 127.0.0.1:14550).")
 @handle_errors
-def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float) -> None:
+def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
+            udp: str | None) -> None:
     """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
     import time
 
     from robotexp.experiment import make_emulator
 
-    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup)
+    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp)
     try:
         emulator.start()
         click.echo(f"{backend} emulator of world {world!r} at {emulator.address} (speedup {speedup:g}); Ctrl-C stops")

@@ -113,6 +113,13 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
     return p, f"{p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f}"
 
 
+def _pose_name(world: World, pose: str | None) -> str | None:
+    """The world's name for the start pose `pose` (a name, or None for the default), else None."""
+    if pose is None:
+        return None if world.home is not None or not world.poses else next(iter(world.poses))
+    return pose if pose in world.poses else None
+
+
 def _central_free_pose(world: World, radius: float) -> Pose:
     from robotexp.mapping.groundtruth import occupancy
     from robotexp.planning.grid_planner import distance_transform
@@ -194,7 +201,7 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
                 on_run(run)
         sample_cb = on_sample if on_run is None else chained
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                             on_sample=sample_cb)
+                             on_sample=sample_cb, goals=world.goals, start_name=_pose_name(world, spec.pose))
         run.run()
     return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image, record_extra=record_extra)
 
@@ -218,10 +225,11 @@ def connect_robot(backend: str, address: str) -> Robot:
 
 
 def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
-                  pty: bool = False, speedup: float = 1.0) -> Any:
+                  pty: bool = False, speedup: float = 1.0, udp: str | None = None) -> Any:
     """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world`.
 
     The emulator is not started: call its `start()` (and `close()`); `address` tells where it is.
+    `udp` ("HOST:PORT", mavlink only) makes it send to a ground station there instead of listening.
 
     Raises:
         PluginError: no emulator for `backend`.
@@ -241,6 +249,10 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
     kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup}
     if port is not None:
         kwargs["port"] = port
+    if udp is not None:                 # MAVLink: send to a ground station at HOST:PORT
+        if backend != "mavlink":
+            raise ConfigError(f"--udp is for the mavlink emulator, not {backend!r}")
+        kwargs["udp"] = udp
     return cls(w, **kwargs)
 
 
@@ -273,6 +285,8 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     explorer = make_explorer(spec.method, spec.params)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     truth = None
+    goals: dict[str, list[tuple[float, float]]] = {}
+    start_name = None
     if world is not None:
         w = load_world(world) if isinstance(world, str) else world
         world_name = w.name
@@ -283,6 +297,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         geo = GridGeometry.covering(*(spec.map_bounds or w.bounds), cell=cell,
                                     margin=0.0 if spec.map_bounds else MAP_MARGIN)
         truth = ground_truth(w, geo, robot_radius=robot.radius, laser_range=spec.laser_range, start=start)
+        goals, start_name = w.goals, _pose_name(w, spec.pose)
     else:
         world_name, pose_label = robot.name, "robot"
         p = robot.read().pose
@@ -298,7 +313,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         if on_run is not None:
             on_run(run)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                         on_sample=on_sample if on_run is None else chained)
+                         on_sample=on_sample if on_run is None else chained, goals=goals, start_name=start_name)
     run.run()
     extra: dict[str, Any] = {"robot": robot.name}
     if hasattr(robot, "address"):

@@ -1,0 +1,450 @@
+"""`MavlinkRobot`: the `Robot` backend of a MAVLink ground rover (ArduPilot Rover in GUIDED mode).
+
+The only place where MAVLink units and frames become ours. Connecting waits for the vehicle's
+HEARTBEAT (its ids become the targets), requests the streams (REQUEST_DATA_STREAM for ArduPilot and
+SET_MESSAGE_INTERVAL for PX4-style autopilots), sets mode GUIDED (MAV_CMD_DO_SET_MODE) and arms
+(MAV_CMD_COMPONENT_ARM_DISARM), then waits for the first pose.
+
+Frames (mavlink-rover.md 3): the vehicle reports NED (x north, y east, yaw clockwise from north);
+we use x east, y north, theta counter-clockwise from east, so
+``x = y_ned, y = x_ned, theta = pi/2 - yaw_ned`` and ``w = -yawspeed``; the forward speed is the
+NED velocity projected on the heading. `move_to(pose)` re-anchors that frame so the current pose
+reads `pose` (a rover's EKF origin is wherever it started). Commands are
+SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_BODY_NED with type mask 1511 (velocity + yaw rate, Rover
+"turn rate and speed"): ``vx = v``, ``yaw_rate = -w``. OBSTACLE_DISTANCE (cm, clockwise sectors from
+the nose in BODY_FRD, or from north in GLOBAL / LOCAL_NED frames) becomes a `LaserScan`: one beam per
+element at the sector's direction; UINT16_MAX and readings below `min_distance` are left out,
+readings above `max_distance` are "nothing hit" (inf).
+
+A background reader thread decodes the stream, keeps the newest state, sends our HEARTBEAT at 1 Hz,
+re-sends the current target every `resend` s (the Rover stops after GUID_TIMEOUT = 3 s without
+one) and is the watchdog: no `command()` for `watchdog` s (0.5 s) -> a zero-velocity target.
+No message from the vehicle for `timeout` s (1 s), or a lost link, makes the next `read()` (and the
+paced clock) raise `ConnectionLost` (`ProtocolError` when only bad frames arrived meanwhile); the
+reader then sends a stop once. `close()` sends a stop and switches the vehicle to HOLD.
+Robot time is the vehicle's `time_boot_ms` of LOCAL_POSITION_NED, counted from the first one.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+
+import numpy as np
+
+from robotexp.clock import Clock, PacedClock
+from robotexp.errors import ConfigError, ConnectionLost, ProtocolError, RobotError
+from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist, wrap_angle
+from robotexp_drivers.mavlink import constants as C
+from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
+from robotexp_drivers.mavlink.link import POLL_TIMEOUT, Link, open_link
+
+__all__ = ["MavlinkRobot", "ROVER_LIMITS", "ROVER_RADIUS", "scan_from_obstacle_distance", "ned_to_enu"]
+
+log = logging.getLogger(__name__)
+
+# A small skid-steer rover (the emulator's too); real vehicles differ: pass `limits` and `radius`.
+ROVER_LIMITS = Limits(v_max=1.0, w_max=math.radians(120), a_max=0.5, alpha_max=math.radians(120))
+ROVER_RADIUS = 0.25     # [m]
+
+
+def ned_to_enu(x_ned: float, y_ned: float, yaw_ned: float) -> Pose:
+    """A NED position [m] and yaw [rad, clockwise from north] as our pose (x east, y north, ccw)."""
+    return Pose(y_ned, x_ned, wrap_angle(math.pi / 2 - yaw_ned))
+
+
+def scan_from_obstacle_distance(msg: Message, yaw_ned: float) -> LaserScan:
+    """An OBSTACLE_DISTANCE message as a scan in the robot frame (see the module docstring).
+
+    Args:
+        msg: the message (pymavlink `MAVLink_obstacle_distance_message`).
+        yaw_ned: the vehicle's yaw [rad] (for north-aligned frames).
+    """
+    step = msg.increment_f if msg.increment_f else float(msg.increment)
+    if msg.frame in (C.MAV_FRAME_GLOBAL, C.MAV_FRAME_LOCAL_NED):
+        base = math.degrees(yaw_ned) - msg.angle_offset      # element 0: counter-clockwise from the nose
+    else:
+        base = -msg.angle_offset                             # body frames: the same, no yaw
+    d = np.asarray(msg.distances, dtype=np.float64)
+    i = np.arange(d.size, dtype=np.float64)
+    n = min(d.size, int(360.0 / step)) if step > 0 else 0    # only 360/increment elements are used
+    valid = (i < n) & (d != C.OBSTACLE_UNKNOWN) & (d >= msg.min_distance)
+    angles = np.array([wrap_angle(a) for a in np.radians(base - i[valid] * step)], dtype=np.float64)
+    ranges = np.where(d[valid] > msg.max_distance, np.inf, d[valid] / 100.0)
+    return LaserScan(angles=angles, ranges=ranges.astype(np.float64), range_max=msg.max_distance / 100.0)
+
+
+class MavlinkRobot(Robot):
+    """A MAVLink ground rover (ArduPilot Rover, GUIDED mode) over UDP, TCP or a serial port.
+
+    Args:
+        address: a pymavlink-style address (`robotexp_drivers.mavlink.link`): ``udp:0.0.0.0:14550``
+            (bind, the vehicle sends first), ``udpout:HOST:PORT``, ``tcp:HOST:PORT``, ``/dev/ttyACM0``.
+        pose: where our frame puts the vehicle once connected (default: as it reports).
+        limits: speed limits of the vehicle.
+        radius: footprint radius [m].
+        timeout: silence after which the link counts as lost [s].
+        watchdog: stop the vehicle when `command()` was not called for this long [s].
+        connect_timeout: wait this long for the heartbeat, GUIDED, arming and the first pose [s].
+        rate: requested rate of position and attitude [Hz].
+        scan_rate: requested rate of OBSTACLE_DISTANCE [Hz].
+        resend: re-send the current target this often [s].
+        arm: set GUIDED and arm when connecting.
+        system, component: our MAVLink ids (255 = ground station).
+        baudrate: serial line speed [bit/s].
+
+    Raises:
+        ConfigError: a bad address or parameter.
+        ConnectionLost: the link cannot be opened or no vehicle answers in time.
+        ProtocolError: bytes arrive but no valid MAVLink frame.
+        RobotError: the vehicle refuses GUIDED or arming.
+    """
+
+    name = "mavlink"
+    capabilities = frozenset({"move_to", "battery", "paced_clock"})
+
+    def __init__(self, address: str = f"udp:0.0.0.0:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,
+                 limits: Limits = ROVER_LIMITS, radius: float = ROVER_RADIUS, timeout: float = 1.0,
+                 watchdog: float = 0.5, connect_timeout: float = 5.0, rate: float = 20.0,
+                 scan_rate: float = 10.0, resend: float = 0.25, arm: bool = True,
+                 system: int = C.GCS_SYSTEM_ID, component: int = C.GCS_COMPONENT_ID,
+                 baudrate: int = C.DEFAULT_BAUD) -> None:
+        for what, value in (("timeout", timeout), ("watchdog", watchdog), ("connect_timeout", connect_timeout),
+                            ("rate", rate), ("scan_rate", scan_rate), ("resend", resend)):
+            if not (value > 0 and math.isfinite(value)):
+                raise ConfigError(f"mavlink: {what} must be > 0, got {value}")
+        self.address = address
+        self.limits, self.radius = limits, radius
+        self.timeout, self.watchdog, self.resend = timeout, watchdog, resend
+        self._codec = MavlinkCodec(system, component)
+        self._cond = threading.Condition()
+        self._tx_lock = threading.Lock()
+        self._target: tuple[int, int] | None = None
+        self._heartbeat: Message | None = None
+        self._position: Message | None = None
+        self._attitude: Message | None = None
+        self._scan_msg: Message | None = None
+        self._battery: float | None = None
+        self._acks: dict[int, int] = {}
+        self._t0_ms: int | None = None
+        self._time_ms = 0
+        self._distance = 0.0
+        self._anchor = (0.0, 0.0, 0.0)         # (dx, dy, dtheta): our frame = R(dtheta) * vehicle ENU + d
+        self._error: RobotError | None = None
+        self._bad_mark = (0, 0)
+        self._twist = Twist.ZERO
+        self._cmd_wall = self._sent_wall = self._hb_wall = 0.0
+        self.watchdog_stops = 0
+        self.state_time = 0.0                  # [s] perf_counter() of the newest LOCAL_POSITION_NED
+        self.command_time = 0.0                # [s] perf_counter() of the newest target sent
+        self._boot = time.perf_counter()
+        self._last_rx = self._boot
+        self._stop = threading.Event()
+        self._link: Link = open_link(address, baudrate=baudrate, poll=POLL_TIMEOUT)
+        self._thread = threading.Thread(target=self._reader, name=f"mavlink {address}", daemon=True)
+        self._thread.start()
+        try:
+            self._connect(connect_timeout, rate, scan_rate, arm)
+            if pose is not None:
+                self._anchor_at(pose)
+        except BaseException:
+            self._shutdown()
+            raise
+        super().__init__()
+
+    # -- connecting ---------------------------------------------------------------------
+    def _wait(self, ready: str, deadline: float, resend: list[Message] | None = None) -> bool:
+        """Wait until `ready` (a predicate method name) holds; re-send `resend` every 0.5 s."""
+        next_send = 0.0
+        while True:
+            now = time.perf_counter()
+            if resend and now >= next_send:
+                for m in resend:
+                    self._send(m)
+                next_send = now + 0.5
+            with self._cond:
+                if self._error is not None:
+                    raise self._error
+                if getattr(self, ready)():
+                    return True
+                left = deadline - time.perf_counter()
+                if left <= 0:
+                    return False
+                self._cond.wait(min(left, 0.05))
+
+    def _has_vehicle(self) -> bool:
+        return self._target is not None
+
+    def _in_guided_armed(self) -> bool:
+        hb = self._heartbeat
+        return hb is not None and hb.custom_mode == C.ROVER_GUIDED and bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)
+
+    def _has_pose(self) -> bool:
+        return self._position is not None and self._attitude is not None
+
+    def _connect(self, connect_timeout: float, rate: float, scan_rate: float, arm: bool) -> None:
+        deadline = time.perf_counter() + connect_timeout
+        if not self._wait("_has_vehicle", deadline):
+            if self._codec.bad_frames or self._codec.dropped_bytes:
+                raise ProtocolError(f"mavlink: bytes from {self.address!r} for {connect_timeout:g} s but no vehicle "
+                                    f"HEARTBEAT ({self._codec.bad_frames} bad frames, {self._codec.dropped_bytes} "
+                                    "bytes dropped): wrong baud rate, or not a MAVLink vehicle?")
+            raise ConnectionLost(f"mavlink: no vehicle HEARTBEAT from {self.address!r} within {connect_timeout:g} s: "
+                                 "is the vehicle (or `robotexp emulate mavlink`) running and sending there?")
+        mav = self._codec.mav
+        ts, tc = self._targets()
+        requests = [mav.request_data_stream_encode(ts, tc, C.STREAM_POSITION, round(rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTRA1, round(rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTRA3, round(scan_rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTENDED_STATUS, 1, 1)]
+        intervals = ((C.MSG_LOCAL_POSITION_NED, rate), (C.MSG_ATTITUDE, rate), (C.MSG_OBSTACLE_DISTANCE, scan_rate))
+        for msg_id, hz in intervals:
+            requests.append(mav.command_long_encode(ts, tc, C.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id,
+                                                    1e6 / hz, 0, 0, 0, 0, 0))
+        for m in requests:
+            self._send(m)
+        if arm:
+            setup = [mav.command_long_encode(ts, tc, C.MAV_CMD_DO_SET_MODE, 0, C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                             C.ROVER_GUIDED, 0, 0, 0, 0, 0),
+                     mav.command_long_encode(ts, tc, C.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)]
+            if not self._wait("_in_guided_armed", deadline, resend=setup):
+                hb = self._heartbeat
+                mode = C.ROVER_MODES.get(hb.custom_mode, str(hb.custom_mode)) if hb is not None else "?"
+                raise RobotError(f"mavlink: the vehicle at {self.address!r} did not enter GUIDED armed within "
+                                 f"{connect_timeout:g} s (mode {mode}, acks {self._acks}): check its pre-arm "
+                                 "checks and that GUIDED is allowed")
+        if not self._wait("_has_pose", deadline):
+            raise ConnectionLost(f"mavlink: no LOCAL_POSITION_NED/ATTITUDE from {self.address!r} within "
+                                 f"{connect_timeout:g} s: has the EKF an origin? are streams enabled?")
+
+    def _targets(self) -> tuple[int, int]:
+        return self._target if self._target is not None else (0, 0)
+
+    def describe(self) -> dict[str, str]:
+        """What the vehicle says about itself (ids, type, autopilot, mode, armed)."""
+        out = {"robot": self.name, "address": self.address}
+        hb = self._heartbeat
+        if hb is not None and self._target is not None:
+            out.update(system=str(self._target[0]), component=str(self._target[1]), type=str(hb.type),
+                       autopilot=str(hb.autopilot), mode=C.ROVER_MODES.get(hb.custom_mode, str(hb.custom_mode)),
+                       armed=str(bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)))
+        return out
+
+    # -- frames ---------------------------------------------------------------------------
+    def _raw_pose(self) -> Pose:
+        p, a = self._position, self._attitude
+        assert p is not None and a is not None
+        return ned_to_enu(p.x, p.y, a.yaw)
+
+    def _anchored(self, raw: Pose) -> Pose:
+        dx, dy, dth = self._anchor
+        c, s = math.cos(dth), math.sin(dth)
+        return Pose(c * raw.x - s * raw.y + dx, s * raw.x + c * raw.y + dy, wrap_angle(raw.theta + dth))
+
+    def _anchor_at(self, pose: Pose) -> None:
+        with self._cond:
+            raw = self._raw_pose()
+            dth = wrap_angle(pose.theta - raw.theta)
+            c, s = math.cos(dth), math.sin(dth)
+            self._anchor = (pose.x - (c * raw.x - s * raw.y), pose.y - (s * raw.x + c * raw.y), dth)
+
+    def move_to(self, pose: Pose) -> None:
+        """Tell the robot it stands at `pose`: poses are reported from there on (the vehicle is stopped
+        first; it is not moved).
+
+        Raises:
+            RobotError: the robot is closed or the link is lost.
+        """
+        self._ensure_open()
+        self._command(Twist.ZERO)
+        self._anchor_at(pose)
+
+    # -- reader thread ----------------------------------------------------------------------
+    def _send(self, message: Message) -> None:
+        with self._tx_lock:
+            self._link.write(self._codec.encode(message))
+
+    def _reader(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self._link.read_some()
+            except ConnectionLost as exc:
+                if not self._stop.is_set():
+                    self._fail(exc)
+                return
+            now = time.perf_counter()
+            for m in self._codec.feed(data) if data else []:
+                self._on_message(m, now)
+            try:
+                if now - self._hb_wall >= C.HEARTBEAT_PERIOD:
+                    self._hb_wall = now
+                    self._send(self._codec.mav.heartbeat_encode(C.MAV_TYPE_GCS, C.MAV_AUTOPILOT_INVALID, 0, 0, 0,
+                                                                C.MAVLINK_VERSION))
+                self._watch(now)
+            except ConnectionLost as exc:
+                self._fail(exc)
+                return
+            if self._target is not None and now - self._last_rx > self.timeout:
+                self._fail(self._silence_error(now))
+                return
+
+    def _silence_error(self, now: float) -> RobotError:
+        quiet = now - self._last_rx
+        if (self._codec.bad_frames, self._codec.dropped_bytes) != self._bad_mark:
+            return ProtocolError(f"mavlink: no valid message from the vehicle at {self.address!r} for {quiet:.2f} s "
+                                 f"({self._codec.bad_frames} bad frames, {self._codec.dropped_bytes} bytes dropped "
+                                 "in all): the link is noisy or the baud rate is wrong")
+        return ConnectionLost(f"mavlink: no message from the vehicle at {self.address!r} for {quiet:.2f} s "
+                              f"(timeout {self.timeout:g} s): the vehicle or emulator stopped sending")
+
+    def _fail(self, exc: RobotError) -> None:
+        """Record the error for read() and the clock, and try once to stop the vehicle."""
+        with self._cond:
+            if self._error is None:
+                self._error = exc
+            self._cond.notify_all()
+        log.error("%s", exc)
+        try:
+            self._twist = Twist.ZERO
+            self._send_target(Twist.ZERO)
+        except ConnectionLost:
+            pass
+
+    def _on_message(self, m: Message, now: float) -> None:
+        kind = m.get_type()
+        src = (m.get_srcSystem(), m.get_srcComponent())
+        with self._cond:
+            if self._target is None:
+                if (kind == "HEARTBEAT" and m.type not in C.NOT_A_VEHICLE
+                        and m.autopilot != C.MAV_AUTOPILOT_INVALID):
+                    self._target = src
+                else:
+                    return
+            if src[0] != self._target[0]:
+                return
+            self._last_rx = now
+            self._bad_mark = (self._codec.bad_frames, self._codec.dropped_bytes)
+            if kind == "HEARTBEAT" and src == self._target:
+                self._heartbeat = m
+            elif kind == "LOCAL_POSITION_NED":
+                old = self._position
+                if old is not None:
+                    self._distance += math.hypot(m.x - old.x, m.y - old.y)
+                    self._time_ms += (m.time_boot_ms - old.time_boot_ms) % (1 << 32)
+                self._position = m
+                self.state_time = now
+            elif kind == "ATTITUDE":
+                self._attitude = m
+            elif kind == "OBSTACLE_DISTANCE":
+                self._scan_msg = m
+            elif kind == "SYS_STATUS" and m.voltage_battery != 0xFFFF:
+                self._battery = m.voltage_battery / 1000.0
+            elif kind == "COMMAND_ACK":
+                self._acks[m.command] = m.result
+            self._cond.notify_all()
+
+    def _watch(self, now: float) -> None:
+        """The watchdog and the keep-alive re-send of the current target."""
+        with self._tx_lock:
+            twist, cmd_wall, sent = self._twist, self._cmd_wall, self._sent_wall
+        if twist != Twist.ZERO and now - cmd_wall > self.watchdog:
+            self._twist = Twist.ZERO
+            self.watchdog_stops += 1
+            log.warning("mavlink: no command for %.2f s: stopping the vehicle", now - cmd_wall)
+            self._send_target(Twist.ZERO)
+        elif self._target is not None and now - sent > self.resend and self._in_guided_armed():
+            self._send_target(twist)
+
+    def _send_target(self, twist: Twist) -> None:
+        ts, tc = self._targets()
+        ms = round((time.perf_counter() - self._boot) * 1000) % (1 << 32)
+        msg = self._codec.mav.set_position_target_local_ned_encode(
+            ms, ts, tc, C.MAV_FRAME_BODY_NED, C.MASK_VELOCITY_YAW_RATE, 0, 0, 0, twist.v, 0, 0, 0, 0, 0, 0, -twist.w)
+        self._send(msg)
+        self._sent_wall = self.command_time = time.perf_counter()
+
+    # -- Robot hooks -------------------------------------------------------------------------
+    def _check(self) -> None:
+        """Raise the reader's error, or a silence error it has not noticed yet (caller holds _cond)."""
+        if self._error is not None:
+            raise type(self._error)(str(self._error)) from self._error
+        now = time.perf_counter()
+        if now - self._last_rx > self.timeout:
+            raise self._silence_error(now)
+
+    def _read(self) -> RobotState:
+        with self._cond:
+            self._check()
+            p, a, hb = self._position, self._attitude, self._heartbeat
+            assert p is not None and a is not None and hb is not None    # _connect waited for them
+            pose = self._anchored(self._raw_pose())
+            v = p.vx * math.cos(a.yaw) + p.vy * math.sin(a.yaw)
+            scan = self._scan_msg
+            laser = scan_from_obstacle_distance(scan, a.yaw) if scan is not None else None
+            return RobotState(
+                time=self._time_ms / 1000.0, pose=pose, velocity=Twist(v, -a.yawspeed), laser=laser,
+                battery=self._battery, distance=self._distance,
+                extra={"mode": float(hb.custom_mode), "armed": float(bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)),
+                       "frames": float(self._codec.frames), "bad_frames": float(self._codec.bad_frames),
+                       "dropped_bytes": float(self._codec.dropped_bytes),
+                       "watchdog_stops": float(self.watchdog_stops)})
+
+    def _command(self, twist: Twist) -> None:
+        if twist != Twist.ZERO:      # a stop is always tried: the link may still carry it
+            with self._cond:
+                self._check()
+        with self._tx_lock:
+            self._twist = twist
+            self._cmd_wall = time.perf_counter()
+        self._send_target(twist)
+
+    def wait_until(self, robot_time: float) -> float:
+        """Block until the robot's time reaches `robot_time` [s]; return the robot time then [s].
+
+        Raises:
+            ConnectionLost, ProtocolError: the vehicle fell silent or the link closed meanwhile.
+        """
+        target_ms = round(robot_time * 1000.0)
+        with self._cond:
+            while self._time_ms < target_ms:
+                self._ensure_open()
+                self._check()
+                left = self._last_rx + self.timeout - time.perf_counter()
+                self._cond.wait(max(left, 0.0) + 1e-3)
+            return self._time_ms / 1000.0
+
+    def make_clock(self, period: float) -> Clock:
+        """A clock paced by LOCAL_POSITION_NED: a tick waits until the vehicle's time has advanced by
+        `period` (real time on a vehicle, the emulator's speed-up against the emulator)."""
+        with self._cond:
+            start = self._time_ms / 1000.0
+        return PacedClock(period, self.wait_until, start)
+
+    def close(self) -> None:
+        """Stop the vehicle, switch it to HOLD and release the link. Safe to call twice; a link
+        already lost is only logged."""
+        try:
+            super().close()
+        except ConnectionLost as exc:
+            log.warning("mavlink: could not send the final stop: %s", exc)
+
+    def _close(self) -> None:
+        try:
+            ts, tc = self._targets()
+            self._send(self._codec.mav.command_long_encode(ts, tc, C.MAV_CMD_DO_SET_MODE, 0,
+                                                           C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, C.ROVER_HOLD,
+                                                           0, 0, 0, 0, 0))
+        except ConnectionLost as exc:
+            log.warning("mavlink: could not switch to HOLD: %s", exc)
+        finally:
+            self._shutdown()
+
+    def _shutdown(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+        self._link.close()
+        with self._cond:
+            self._cond.notify_all()

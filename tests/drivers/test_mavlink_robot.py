@@ -1,0 +1,123 @@
+"""MavlinkRobot against the emulator on real UDP/TCP sockets: connect, units, faults, watchdog."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from robotexp.errors import ConnectionLost
+from robotexp.experiment import RunSpec, resolve_pose, run_on_robot
+from robotexp.robot import Twist
+from robotexp.world.builtin import builtin_world
+from robotexp_drivers.mavlink import constants as C
+from robotexp_drivers.mavlink.emulator import MavlinkEmulator
+from robotexp_drivers.mavlink.robot import MavlinkRobot
+
+
+def wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.002)
+    return cond()
+
+
+@pytest.fixture
+def emu() -> Iterator[MavlinkEmulator]:
+    world = builtin_world("ufmg-static")
+    with MavlinkEmulator(world, pose=resolve_pose(world, "path1", 0.25)[0], speedup=10.0) as e:
+        yield e
+
+
+def test_connect_guided_armed_pose_and_commands(emu: MavlinkEmulator) -> None:
+    with MavlinkRobot(emu.address) as robot:
+        assert emu.mode == C.ROVER_GUIDED and emu.armed
+        assert robot.describe()["mode"] == "GUIDED"
+        s = robot.read()
+        true = emu.sim.read().pose
+        assert math.isclose(s.pose.x, true.x, abs_tol=1e-5) and math.isclose(s.pose.y, true.y, abs_tol=1e-5)
+        assert s.laser is not None and s.laser.angles.size == 72
+        clock = robot.make_clock(0.1)
+        for _ in range(10):
+            robot.command(Twist(0.3, 0.5))
+            clock.tick()
+        assert emu.last_twist is not None and math.isclose(emu.last_twist.v, 0.3, rel_tol=1e-6)
+        s = robot.read()
+        assert math.isclose(s.velocity.w, 0.5, rel_tol=1e-3) and math.isclose(s.velocity.v, 0.3, rel_tol=1e-3)
+        assert s.battery == 12.6
+    assert wait_for(lambda: emu.mode == C.ROVER_HOLD)
+    assert emu.last_twist == Twist.ZERO
+
+
+def test_tcp_and_pty_transports() -> None:
+    world = builtin_world("ufmg-static")
+    for kw in ({"tcp": True}, {"pty": True}):
+        with MavlinkEmulator(world, speedup=10.0, **kw) as e:   # type: ignore[arg-type]
+            with MavlinkRobot(e.address) as robot:
+                assert robot.read().pose.distance_to(e.sim.read().pose) < 1e-5
+
+
+def test_watchdog_stops_the_vehicle(emu: MavlinkEmulator) -> None:
+    with MavlinkRobot(emu.address) as robot:
+        robot.command(Twist(0.3, 0.0))
+        assert wait_for(lambda: robot.watchdog_stops == 1, 1.5)
+        assert emu.last_twist == Twist.ZERO
+
+
+def test_vehicle_vanishing_mid_run_raises_within_a_second_and_writes_partial_result(tmp_path: os.PathLike[str]) -> None:
+    world = builtin_world("ufmg-static")
+    e = MavlinkEmulator(world, pose=resolve_pose(world, "path1", 0.25)[0], speedup=10.0).start()
+    spec = RunSpec(world="ufmg-static", method="frontier", pose="path1", speed=0.3, max_time=300)
+    with MavlinkRobot(e.address) as robot:
+        t_gone: list[float] = []
+
+        def on_sample(t: float, cov: float | None) -> None:
+            if t >= 3.0 and not t_gone:
+                e.close()
+                t_gone.append(time.perf_counter())
+
+        out = run_on_robot(spec, robot, tmp_path, world, on_sample=on_sample)
+        detected = time.perf_counter() - t_gone[0]
+        with pytest.raises(ConnectionLost):
+            robot.read()
+    assert detected < 1.3                  # 1 s silence + one control period
+    assert out.record["completed"] is False
+    assert (tmp_path / "results.jsonl").read_text().count("\n") == 1
+
+
+def test_stalled_link_raises_and_the_last_command_is_a_stop(emu: MavlinkEmulator) -> None:
+    with MavlinkRobot(emu.address) as robot:
+        robot.command(Twist(0.2, 0.0))
+        emu.pause_stream()
+        t0 = time.perf_counter()
+        with pytest.raises(ConnectionLost):
+            clock = robot.make_clock(0.1)
+            while True:
+                robot.command(Twist(0.2, 0.0))
+                clock.tick()
+        assert time.perf_counter() - t0 < 1.2
+        assert wait_for(lambda: emu.last_twist == Twist.ZERO)
+
+
+def test_garbage_burst_and_wrong_checksums_are_survived(emu: MavlinkEmulator) -> None:
+    with MavlinkRobot(emu.address) as robot:
+        clock = robot.make_clock(0.1)
+        emu.send_raw(bytes([0xFD, 0xFF]) + os.urandom(2000))
+        emu.corrupt_frames(20)
+        for _ in range(20):
+            robot.command(Twist(0.2, 0.0))
+            clock.tick()
+        extra = robot.read().extra
+        assert extra["bad_frames"] >= 20 and extra["dropped_bytes"] >= 2000
+        assert emu.last_twist is not None and math.isclose(emu.last_twist.v, 0.2, rel_tol=1e-6)
+    assert wait_for(lambda: emu.last_twist == Twist.ZERO)
+
+
+def test_no_vehicle_is_connection_lost() -> None:
+    with pytest.raises(ConnectionLost, match="no vehicle HEARTBEAT"):
+        MavlinkRobot("udp:127.0.0.1:0", connect_timeout=0.3)
