@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.explorer import ExplorationRun, ExplorerContext
+from robotexp.explorer import Done, ExplorationRun, ExplorerContext
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import Limits, Pose
@@ -27,6 +27,7 @@ from robotexp_plugins.srt import (
     ray_reach,
     star_from_sonar,
 )
+from robotexp_plugins.srt.core import Phase
 from robotexp_plugins.srt.regions import reachable_points
 
 LIMITS = Limits(v_max=0.3, w_max=2.0, a_max=0.5, alpha_max=2.0)
@@ -272,3 +273,134 @@ def test_star_needs_a_sonar_ring_and_validates_the_straight_way() -> None:
     # at -45 deg alpha R = 0.4 m < d_min; at 2 deg the way runs s sin 2 deg < 0.25 from the cone's edge
     ex.ctx.rng = FixedRng([math.radians(-45.0), math.radians(2.0)])  # type: ignore[assignment]
     assert ex._candidate(0) is None
+
+
+# -- task L: re-centring, detours, swept sonar stars ----------------------------------------------
+
+def test_star_sweep_is_the_union_of_the_reading_cones() -> None:
+    from robotexp_plugins.srt import largest_gap, star_from_sweep
+
+    # 8 bins of 45 deg (centres -157.5, -112.5, ..., 157.5); readings with 60-deg cones:
+    # axis 0 deg r=2 (cone -30..30) covers the centres -22.5 and 22.5; axis 30 deg r=1 (0..60) covers
+    # 22.5; axis 180 deg r=3 covers 157.5 and -157.5. Bins -112.5, -67.5, 67.5 and 112.5 are blind.
+    axes = np.radians([0.0, 30.0, 180.0])
+    ranges = np.array([2.0, 1.0, 3.0])
+    union = star_from_sweep(0.0, 0.0, axes, ranges, math.radians(60.0), bins=8)
+    assert union.edges == pytest.approx(np.radians(np.arange(-180.0, 180.0, 45.0)))
+    # centres: -157.5 -> 3; -112.5, -67.5 blind: neighbours -157.5 (3) and -22.5 (2) -> 2; -22.5 -> 2;
+    # 22.5 -> max(2, 1) = 2; 67.5, 112.5 blind: neighbours 22.5 (2) and 157.5 (3) -> 2; 157.5 -> 3
+    assert union.radii == pytest.approx([3.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 3.0])
+    bound = star_from_sweep(0.0, 0.0, axes, ranges, math.radians(60.0), bins=8, combine="min")
+    assert bound.radii[4] == pytest.approx(1.0)           # 22.5 deg: the smaller of 2 and 1
+    assert star_from_sweep(0.0, 0.0, axes[:0], ranges[:0], 0.5, bins=4).radii == pytest.approx(np.zeros(4))
+    # the P3-DX ring: the widest gap between adjacent axes is 40 deg (50 -> 90 and its mirrors)
+    from robotexp.sim.presets import P3DX_SONAR
+    assert math.degrees(largest_gap(P3DX_SONAR.angles())) == pytest.approx(40.0)
+    with pytest.raises(ConfigError, match="combine"):
+        star_from_sweep(0.0, 0.0, axes, ranges, 0.5, combine="mean")
+
+
+def test_star_sweep_closes_a_blind_gap_of_the_ring() -> None:
+    # a pillar of radius 0.15 m, 1.5 m away at 70 deg: between the P3-DX axes 50 and 90 deg, outside
+    # both 15-deg cones (it subtends +-5.7 deg). A single reading does not hear it; the swept star does.
+    room = room_world()
+    world = World("gap", room.boxes, np.array([[1.5 * math.cos(math.radians(70)), 1.5 * math.sin(math.radians(70)),
+                                                0.15]]))
+    with SimRobot(world, pose=Pose(0.0, 0.0, 0.0), seed=0, sonar=True) as robot:
+        state = robot.read()
+        assert state.sonar is not None
+        single = star_from_sonar(0.0, 0.0, 0.0, state.sonar.angles, state.sonar.ranges, state.sonar.range_max)
+        # blind: the cone 50..90 deg reaches the wall y = 3 (2.8 m read from the ring), past the pillar
+        assert float(single.radius(np.array(math.radians(70.0)))) == pytest.approx(2.8, abs=0.01)
+        ex = SRTStarExplorer()
+        ex.reset(ExplorerContext(radius=0.25, limits=robot.limits, period=0.1, start=state.pose, laser_range=3.0,
+                                 rng=np.random.default_rng(0), sonar=True))
+        clock = robot.make_clock(0.1)
+        region = None
+        for _ in range(200):
+            twist, region = ex._sense(state)
+            if region is not None:
+                break
+            robot.command(twist)
+            clock.tick()
+            state = robot.read()
+    assert region is not None
+    # the pillar's near face is 1.35 m from the centre: the swept region stops before it
+    assert float(region.radius(np.array(math.radians(70.0)))) < 1.35
+    assert 3.5 < float(region.radius(np.array(math.radians(0.0)))) < 4.0     # the wall at x = 4
+
+
+def test_detour_around_a_blocked_tree_edge() -> None:
+    # two nodes whose straight edge is cut by a box; their safe regions (and the map) hold a way round
+    ex = SRTLaserExplorer()
+    ex.reset(ctx(np.random.default_rng(0)))
+    geo = GridGeometry(-1.0, -2.0, 0.05, 80, 100)            # x -1..4, y -2..2
+    grid = OccupancyGrid(geo)
+    ex.tree.add(0.0, 0.0, BallRegion(0.0, 0.0, 2.0), None)
+    ex.tree.add(3.0, 0.0, BallRegion(3.0, 0.0, 2.0), 0)
+    for node in ex.tree.nodes:
+        grid.mark_free(node.region.mask(geo))
+    cx = geo.origin_x + (np.arange(geo.cols) + 0.5) * geo.cell
+    cy = geo.origin_y + (np.arange(geo.rows) + 0.5) * geo.cell
+    gx, gy = np.meshgrid(cx, cy)
+    box = (np.abs(gx - 1.5) < 0.2) & (np.abs(gy) < 0.6)      # the obstacle on the edge
+    grid.mark_occupied(box)
+    path = ex.detour(Pose(3.0, 0.0, math.pi), (0.0, 0.0), grid)
+    assert path is not None
+    assert path[0] == pytest.approx([3.0, 0.0]) and path[-1] == pytest.approx([0.0, 0.0])
+    # every point along the path keeps the robot (0.25 m) off the box and inside the union of the balls
+    t = np.linspace(0.0, 1.0, 50)[:, None]
+    pts = np.vstack([a + t * (b - a) for a, b in zip(path[:-1], path[1:], strict=True)])
+    off_box = np.maximum(np.abs(pts[:, 0] - 1.5) - 0.2, 0.0) ** 2 + np.maximum(np.abs(pts[:, 1]) - 0.6, 0.0) ** 2
+    assert np.sqrt(off_box).min() >= 0.25
+    assert ex.tree.inside_other(pts).all()
+    # a wall right across the union: no detour
+    grid.mark_occupied(np.abs(gx - 1.5) < 0.2)
+    assert ex.detour(Pose(3.0, 0.0, math.pi), (0.0, 0.0), grid) is None
+
+
+def test_blocked_way_back_is_detoured_end_to_end() -> None:
+    # the robot drives out to a node past a gap; a box then sits on the straight edge back (a mover
+    # in a real room): the way home stalls at the box, the explorer plans a detour and gets home.
+    from robotexp.planning.follower import PathFollower
+
+    world = room_world()
+    start = Pose(-3.0, 0.0, 0.0)
+    geo = GridGeometry.covering(*world.bounds, cell=0.05, margin=0.5)  # type: ignore[misc]
+    grid = OccupancyGrid(geo)
+    ex = SRTBallExplorer()
+    ex.reset(ExplorerContext(radius=0.25, limits=LIMITS, period=0.1, start=start, laser_range=3.0,
+                             rng=np.random.default_rng(0)))
+    ex.follower = PathFollower(LIMITS, 0.25)
+    r0 = BallRegion(-3.0, 0.0, 2.5)
+    r1 = BallRegion(-0.5, 0.0, 2.5)
+    ex.tree.add(-3.0, 0.0, r0, None)
+    ex.tree.add(-0.5, 0.0, r1, 0)
+    for region in (r0, r1):
+        grid.mark_free(region.mask(geo))
+    blocked = World("room+box", np.vstack([world.boxes, [[-1.75, 0.0, 0.15, 0.4, 0.0]]]), world.discs)
+    with SimRobot(blocked, pose=Pose(-0.5, 0.0, math.pi), seed=1, max_speed=0.3, sonar=False) as robot:
+        clock = robot.make_clock(0.1)
+        ex.current = 1                                    # at node 1, going back to its parent
+        ex.target, ex.target_node = (-3.0, 0.0), 0
+        ex.phase = Phase.TURN
+        state = robot.read()
+        reason = "time"
+        for _ in range(3000):
+            if state.laser is not None:
+                grid.update(state.pose, state.laser)
+            decision = ex.step(state, grid)
+            if isinstance(decision, Done):
+                reason = decision.reason
+                break
+            if ex.current == 0:                           # arrived at the parent
+                reason = "home"
+                break
+            robot.command(decision)
+            clock.tick()
+            state = robot.read()
+        end = robot.read().true_pose
+        collisions = robot.collisions
+    assert reason == "home", reason
+    assert ex.detours >= 1 and collisions == 0
+    assert end is not None and math.hypot(end.x + 3.0, end.y) < 0.2

@@ -6,6 +6,20 @@ robotexp explorer: perceive at the current node, add it to the tree, look for a 
 or drive back along the tree edge to the parent; at the root with nothing valid the robot is back
 at its start pose and the run is done. The perceptions are in `explorers.py`.
 
+Two safeguards keep the motion on the tree's edges (both beyond the thesis's idealised robot):
+
+- Re-centring: the follower stops within its goal tolerance (0.15 m) of a target, so a robot that
+  comes back to a node stands up to 0.15 m beside it, and a straight line from there to the parent
+  is not the edge whose clearance the region guaranteed: in the dense world such a line passed
+  0.25 m from a wall corner that the edge cleared by 0.34 m, the follower's laser guard stopped the
+  robot and the run stalled. Before every move away from a node the robot therefore first drives
+  back onto the node's position (within `settle_tolerance`), so it follows the recorded edge.
+- Detour (an extension of the thesis): when the way back to the parent still makes no progress for
+  `detour_after` [s] (e.g. something moved into it), the robot plans a path to the parent with A*
+  on the run's occupancy grid (`plan_costs` of the frontier plugin: known-free cells, the robot
+  inflated) restricted to the union of the safe regions, the space SRT has perceived as free; a
+  detour that stalls in turn is planned again on the updated grid, up to 3 times.
+
 The map of SRT is the union of the safe regions: each new region is rasterised into the run's
 grid (`mark_free`, cells the map already holds as occupied are kept) and the obstacle points it
 knows are marked occupied. The run loop integrates the laser scans into the same grid too.
@@ -24,7 +38,8 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import PathFollower
+from robotexp.planning.follower import FollowerConfig, PathFollower
+from robotexp.planning.grid_planner import astar, simplify
 from robotexp.robot import Pose, RobotState, Twist
 
 from .regions import SafeRegion
@@ -108,6 +123,7 @@ class Phase(Enum):
     """What the explorer is doing."""
 
     SENSE = "sense"        # taking the perception of a new node
+    SETTLE = "settle"      # driving back onto the current node's position before leaving it
     TURN = "turn"          # turning on the spot towards the next target
     MOVE = "move"          # driving straight to the target
     HOME = "home"          # back at the root: turning to the start heading
@@ -120,20 +136,30 @@ class SRTExplorer(Explorer):
     the shared `PathFollower` (which also stops it before an obstacle the laser sees in its way).
     A move that makes no progress for `stuck_timeout` [s] is abandoned: the robot goes back to the
     node it left and never tries a candidate within `failed_radius` of that one again from there.
+    Before leaving a node the robot re-centres on it; a way back to the parent without progress
+    for `detour_after` [s] is replaced by a detour through the union of the safe regions (see the
+    module docstring); only when no detour exists, or the detour itself stalls, does the run end.
 
     Args:
         max_nodes: K_max, the largest number of nodes (the run ends when it is reached).
         stuck_timeout: [s] without progress before a move is abandoned.
         failed_radius: [m] around an abandoned candidate where no candidate is tried again.
+        settle_tolerance: [m] how close to a node's position the robot re-centres before leaving it.
+        detour_after: [s] without progress on the way back to the parent before a detour is planned.
     """
 
-    def __init__(self, *, max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
+    def __init__(self, *, max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3,
+                 settle_tolerance: float = 0.03, detour_after: float = 3.0) -> None:
         if max_nodes < 1:
             raise ConfigError(f"{self.name}: max_nodes must be >= 1, got {max_nodes}")
         if not stuck_timeout > 0 or not failed_radius >= 0:
             raise ConfigError(f"{self.name}: stuck_timeout must be > 0 s and failed_radius >= 0 m, "
                               f"got {stuck_timeout} and {failed_radius}")
+        if not 0 < settle_tolerance <= 0.15 or not detour_after > 0:
+            raise ConfigError(f"{self.name}: settle_tolerance must be in (0, 0.15] m and detour_after > 0 s, "
+                              f"got {settle_tolerance} and {detour_after}")
         self.max_nodes, self.stuck_timeout, self.failed_radius = max_nodes, stuck_timeout, failed_radius
+        self.settle_tolerance, self.detour_after = settle_tolerance, detour_after
 
     name = "srt"
 
@@ -142,19 +168,26 @@ class SRTExplorer(Explorer):
         super().reset(ctx)
         self.tree = SRTTree()
         self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.settler = PathFollower(ctx.limits, ctx.radius, FollowerConfig(goal_tolerance=self.settle_tolerance,
+                                                                          lookahead=0.05))
         self.current: int | None = None       # the node the robot is at (or left from)
         self.target: tuple[float, float] | None = None
         self.target_node: int | None = None   # node the target is (None: a new candidate)
         self.phase = Phase.SENSE
         self.backtracks = 0
         self.abandoned = 0
+        self.detours = 0
+        self._detoured = 0
+        self._grid: OccupancyGrid | None = None
         self._best = math.inf
         self._progress_t = 0.0
         self._begin_sense()
 
     def result_fields(self) -> dict[str, object]:
-        """`nodes`: the size of the tree; `backtracks`: moves back to a parent."""
-        return {"nodes": len(self.tree), "backtracks": self.backtracks}
+        """`nodes`: the size of the tree; `backtracks`: moves back to a parent; `detours`: planned
+        detours on the way back; `abandoned`: candidates given up."""
+        return {"nodes": len(self.tree), "backtracks": self.backtracks, "detours": self.detours,
+                "abandoned": self.abandoned}
 
     # -- the perception, per variant --------------------------------------------------
     @abstractmethod
@@ -173,6 +206,7 @@ class SRTExplorer(Explorer):
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """One control step of Fig. 3.5."""
         pose = state.pose
+        self._grid = grid
         if self.phase is Phase.SENSE:
             twist, region = self._sense(state)
             if region is None:
@@ -181,6 +215,8 @@ class SRTExplorer(Explorer):
             if len(self.tree) >= self.max_nodes:
                 return Done(f"node limit of {self.max_nodes} reached")
             return self._choose(pose, state)
+        if self.phase is Phase.SETTLE:
+            return self._settle(pose, state)
         if self.phase is Phase.TURN:
             return self._turn(pose, state)
         if self.phase is Phase.MOVE:
@@ -205,6 +241,7 @@ class SRTExplorer(Explorer):
         twist = self.follower.twist(pose, state.laser)
         if not self.follower.done:
             return self._watch(pose, state, twist)
+        self._detoured = 0
         if self.target_node is None:         # a new candidate: perceive there (line 4)
             self.phase = Phase.SENSE
             self._begin_sense()
@@ -239,15 +276,38 @@ class SRTExplorer(Explorer):
         else:
             parent = self.tree.nodes[self.current].parent
             if parent is None:
-                self.phase = Phase.HOME
-                self.follower.clear()
-                twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
-                return Done("explored; back at the start") if facing else twist
-            self.backtracks += 1
-            node = self.tree.nodes[parent]
-            self.target, self.target_node = (node.x, node.y), parent
+                self.target, self.target_node = None, None
+            else:
+                self.backtracks += 1
+                node = self.tree.nodes[parent]
+                self.target, self.target_node = (node.x, node.y), parent
+        self._detoured = 0
+        here = self.tree.nodes[self.current]
+        if math.hypot(here.x - pose.x, here.y - pose.y) > self.settle_tolerance:
+            self.phase = Phase.SETTLE
+            self.settler.set_path(np.array([[pose.x, pose.y], [here.x, here.y]]))
+            self._progress_t = state.time
+            return self._settle(pose, state)
+        return self._leave(pose, state)
+
+    def _leave(self, pose: Pose, state: RobotState) -> Twist | Done:
+        """At the node: turn towards the target, or (no target) to the start heading at the root."""
+        if self.target is None:
+            self.phase = Phase.HOME
+            self.follower.clear()
+            twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
+            return Done("explored; back at the start") if facing else twist
         self.phase = Phase.TURN
         return self._turn(pose, state)
+
+    def _settle(self, pose: Pose, state: RobotState) -> Twist | Done:
+        """Drive onto the current node's position (it was reached within the follower's tolerance),
+        so the next move starts where its straight way was validated; give up after `stuck_timeout`."""
+        twist = self.settler.twist(pose, state.laser)
+        if self.settler.done or state.time - self._progress_t > self.stuck_timeout:
+            self.settler.clear()
+            return self._leave(pose, state)
+        return twist
 
     def _watch(self, pose: Pose, state: RobotState, twist: Twist) -> Twist | Done:
         """Abandon a move without progress: back to the node it started from."""
@@ -255,12 +315,24 @@ class SRTExplorer(Explorer):
         if remaining < self._best - 0.05:
             self._best, self._progress_t = remaining, state.time
             return twist
-        if state.time - self._progress_t < self.stuck_timeout:
-            return twist
+        waited = state.time - self._progress_t
         assert self.current is not None
+        if self.target_node is not None and self._detoured < 3:
+            if waited < self.detour_after:
+                return twist
+            self._detoured += 1
+            path = self._detour(pose)
+            if path is not None:
+                self.detours += 1
+                self.follower.set_path(path)
+                self._best, self._progress_t = math.inf, state.time
+                self.phase = Phase.MOVE
+                return Twist.ZERO
+        if waited < self.stuck_timeout:
+            return twist
         if self.target_node is not None or self.target is None:
             return Done(f"stuck on the way back to node {self.target_node} (no progress for "
-                        f"{self.stuck_timeout:g} s)")
+                        f"{self.stuck_timeout:g} s; no detour through the safe regions)")
         node = self.tree.nodes[self.current]
         node.failed.append(self.target)
         self.abandoned += 1
@@ -278,3 +350,38 @@ class SRTExplorer(Explorer):
         f = np.asarray(failed)
         d = np.hypot(p[:, None, 0] - f[None, :, 0], p[:, None, 1] - f[None, :, 1])
         return np.asarray((d < self.failed_radius).any(axis=1))
+
+    def detour(self, pose: Pose, goal: tuple[float, float], grid: OccupancyGrid) -> npt.NDArray[np.float64] | None:
+        """A path (k, 2) [m] from `pose` to `goal` [m] inside the union of the safe regions, or None.
+
+        A* on `plan_costs` of `grid` (known-free cells, the robot radius plus a margin inflated
+        around occupied cells) with every cell outside the union of the tree's safe regions blocked,
+        string-pulled; the ends are the exact pose and goal. An extension of the thesis, whose
+        robot always retraces the tree edge.
+        """
+        from robotexp_plugins.frontier import nearest_passable, plan_costs
+
+        cost = plan_costs(grid, self.ctx.radius, 0.3)
+        cost[~self.tree.union_mask(grid)] = np.inf
+        passable = np.isfinite(cost)
+        geo = grid.geo
+        reach = int(math.ceil(0.5 / geo.cell))
+        ends = []
+        for x, y in ((pose.x, pose.y), goal):
+            r, c = geo.cell_of(x, y)
+            if not geo.contains(r, c):
+                return None
+            ends.append(nearest_passable(passable, r, c, reach))
+        if ends[0] is None or ends[1] is None:
+            return None
+        cells = astar(cost, ends[0], ends[1])
+        if cells is None:
+            return None
+        cells = simplify(cells, passable) if len(cells) > 2 else cells
+        pts = np.array([geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
+        return np.vstack([[pose.x, pose.y], pts, [goal]])
+
+    def _detour(self, pose: Pose) -> npt.NDArray[np.float64] | None:
+        if self._grid is None or self.target is None:
+            return None
+        return self.detour(pose, self.target, self._grid)

@@ -30,9 +30,12 @@ from .regions import (
     ray_reach,
     reachable_points,
     star_from_sonar,
+    star_from_sweep,
 )
 
-__all__ = ["SRTBallExplorer", "SRTStarExplorer", "SRTLaserExplorer", "displace"]
+__all__ = ["SRTBallExplorer", "SRTStarExplorer", "SRTLaserExplorer", "displace", "largest_gap"]
+
+TAU = 2.0 * math.pi
 
 
 def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, float]:
@@ -232,30 +235,56 @@ class SRTLaserExplorer(_SweepingSRT):
 class SRTStarExplorer(SRTExplorer):
     """SRT-Star: the safe region is a star of cones from the sonar ring (thesis §3.2, Fig. 3.7b).
 
-    The cone between two adjacent transducer axes has the smaller of their readings as radius
-    (`star_from_sonar`). Candidates as in SRT-Ball (alpha RADIUS in a random direction, d_min,
-    i_max); as cones differ in radius, VALIDATE also asks that the robot's disc stays inside the
-    star on the straight way there (the fundamental condition of thesis §4.1.1).
+    Perception: the P3-DX ring has 16 transducers whose axes are 20-40 deg apart, each hearing a
+    cone of about 15 deg, so one reading leaves blind gaps of up to 25 deg between the cones, and
+    a pillar standing in one (it subtends less than the gap beyond about 4.6 pillar radii) is not
+    heard at all; treating a gap as a cone of its smaller neighbour, as a single reading must, let
+    the robot graze a pillar. At every node the robot therefore turns on the spot through the
+    largest gap between adjacent axes (plus `extra_turn`), reading the ring at every control step,
+    so that every world direction lies in the cone of some reading; the region is the union of the
+    cones of these readings (`star_from_sweep`, `combine`), on `bins` world-angle cones.
+    `sweep=False` gives the thesis's single reading (`star_from_sonar`, cones between adjacent
+    axes with the smaller of their two readings), blind gaps and all.
+
+    Candidates as in SRT-Ball (alpha RADIUS in a random direction, d_min, i_max); as cones differ
+    in radius, VALIDATE also asks that the robot's disc stays inside the star on the straight way
+    there (the fundamental condition of thesis §4.1.1).
 
     Args:
         alpha, d_min, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
             (each cone's radius is its reading less `margin`).
         ring_radius: [m] distance of the transducers from the robot centre, added to their
             readings (0: conservative).
+        cone: [rad] opening of one transducer's cone (the P3-DX's: 15 deg).
+        sweep: turn at each node to close the blind gaps (see above).
+        sweep_rate: [rad/s] turn rate while perceiving.
+        extra_turn: [rad] turned beyond the largest gap between adjacent axes.
+        bins: world-angle cones of a swept region.
+        combine: "max" (the union of the readings' cones) or "min" (each cone bounded by every
+            reading whose cone covers it; see `star_from_sweep`).
     """
 
     name = "srt-star"
     uses_sonar = True
 
     def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
-                 ring_radius: float = 0.0, max_nodes: int = 1000, stuck_timeout: float = 8.0,
+                 ring_radius: float = 0.0, cone: float = math.radians(15.0), sweep: bool = True,
+                 sweep_rate: float = 0.5, extra_turn: float = math.radians(10.0), bins: int = 360,
+                 combine: str = "max", max_nodes: int = 1000, stuck_timeout: float = 8.0,
                  failed_radius: float = 0.3) -> None:
         super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
         _check_alpha(self.name, alpha, d_min, i_max, margin)
         self.margin = margin
         if ring_radius < 0:
             raise ConfigError(f"srt-star: ring_radius must be >= 0 m, got {ring_radius}")
+        if not 0 < cone < math.pi or not sweep_rate > 0 or not 0 <= extra_turn < math.pi or bins < 3:
+            raise ConfigError(f"srt-star: cone must be in (0, pi) rad, sweep_rate > 0 rad/s, extra_turn in "
+                              f"[0, pi) rad and bins >= 3, got {cone}, {sweep_rate}, {extra_turn}, {bins}")
         self.alpha, self.d_min_param, self.i_max, self.ring_radius = alpha, d_min, i_max, ring_radius
+        if combine not in ("max", "min"):
+            raise ConfigError(f"srt-star: combine must be 'max' or 'min', got {combine!r}")
+        self.cone, self.sweep, self.sweep_rate, self.extra_turn, self.bins = cone, sweep, sweep_rate, extra_turn, bins
+        self.combine = combine
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run. Raises ConfigError when the robot has no sonar ring."""
@@ -266,15 +295,31 @@ class SRTStarExplorer(SRTExplorer):
         self.d_min = _d_min(self.name, self.alpha, self.d_min_param, ctx.radius)
 
     def _begin_sense(self) -> None:
-        pass
+        self._axes: list[np.ndarray] = []
+        self._ranges: list[np.ndarray] = []
+        self._turned = 0.0
+        self._last_heading: float | None = None
 
     def _sense(self, state: RobotState) -> tuple[Twist, SafeRegion | None]:
         sonar, p = state.sonar, state.pose
         if sonar is None:
             raise ConfigError("srt-star: the robot state carries no sonar reading; use a robot with sonar")
-        star = star_from_sonar(p.x, p.y, p.theta, sonar.angles, sonar.ranges, sonar.range_max, self.ring_radius)
-        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0),
-                                      star.obstacle_points())
+        if not self.sweep:
+            star = star_from_sonar(p.x, p.y, p.theta, sonar.angles, sonar.ranges, sonar.range_max, self.ring_radius)
+            return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0),
+                                          star.obstacle_points())
+        self._axes.append(p.theta + np.asarray(sonar.angles, dtype=np.float64))
+        self._ranges.append(np.where(np.isfinite(sonar.ranges), sonar.ranges, sonar.range_max) + self.ring_radius)
+        if self._last_heading is not None:
+            self._turned += abs(wrap_angle(p.theta - self._last_heading))
+        self._last_heading = p.theta
+        if self._turned < largest_gap(sonar.angles) + self.extra_turn:
+            return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
+        axes, ranges = np.concatenate(self._axes), np.concatenate(self._ranges)
+        star = star_from_sweep(p.x, p.y, axes, ranges, self.cone, self.bins, self.combine)
+        echo = ranges < sonar.range_max + self.ring_radius
+        echoes = np.column_stack([p.x + ranges[echo] * np.cos(axes[echo]), p.y + ranges[echo] * np.sin(axes[echo])])
+        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0), echoes)
 
     def _candidate(self, index: int) -> tuple[float, float] | None:
         node = self.tree.nodes[index]
@@ -289,6 +334,14 @@ class SRTStarExplorer(SRTExplorer):
             if reach is not None and reach >= dist[k] - 0.021:
                 return float(pts[k, 0]), float(pts[k, 1])
         return None
+
+
+def largest_gap(axes: np.ndarray) -> float:
+    """The largest angle [rad] between adjacent transducer axes `axes` [rad] around the ring."""
+    a = np.unique(np.round(np.mod(np.asarray(axes, dtype=np.float64), TAU), 9))
+    if a.size < 2:
+        return TAU
+    return float(np.diff(np.append(a, a[0] + TAU)).max())
 
 
 def _check_alpha(name: str, alpha: float, d_min: float | None, i_max: int, margin: float) -> None:

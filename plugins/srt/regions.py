@@ -25,7 +25,8 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 
 __all__ = ["SafeRegion", "BallRegion", "StarRegion", "PolygonRegion", "SweepBuffer", "frontier_arcs",
-           "segment_clearance", "ray_reach", "reachable_points", "clearance_map", "in_sight", "star_from_sonar"]
+           "segment_clearance", "ray_reach", "reachable_points", "clearance_map", "in_sight", "star_from_sonar",
+           "star_from_sweep"]
 
 TAU = 2.0 * math.pi
 Array = npt.NDArray[np.float64]
@@ -421,3 +422,44 @@ def star_from_sonar(x: float, y: float, theta: float, axes: Array, ranges: Array
     echoes = np.column_stack([x + r[hit] * np.cos(ax[hit]), y + r[hit] * np.sin(ax[hit])])
     radii = np.minimum(dist, np.roll(dist, -1))      # cone [uniq[i], uniq[i+1])
     return StarRegion(x, y, uniq, radii, echoes)
+
+
+def star_from_sweep(x: float, y: float, axes: Array, ranges: Array, cone: float, bins: int = 360,
+                    combine: str = "max") -> StarRegion:
+    """The SRT-Star region of sonar readings gathered while turning on the spot at (x, y) [m].
+
+    Reading k is the nearest echo in its transducer's cone, world angles `axes[k]` +- `cone` / 2
+    [rad]: nothing lies closer than `ranges[k]` [m] (from the robot centre) anywhere in that cone,
+    so the sector is free, and the region is the union of these sectors (thesis Fig. 3.7b: "a set
+    of cones centred on the robot"). Each of the `bins` equal world-angle cones of the region (the
+    first starting at -pi) takes the largest reading among those whose cone covers the bin's
+    centre (`combine="max"`, the union), or the smallest (`combine="min"`, every sensor taking
+    part bounds the cone: sound also for a sensor that may miss echoes off its axis, but a door
+    must then be a cone wider than it is to look open). A bin no reading covers (a blind gap of
+    the ring that the turn did not close) takes the smaller radius of its nearest covered
+    neighbours on either side, and radius 0 when nothing at all was read.
+    """
+    ax = np.asarray(axes, dtype=np.float64).ravel()
+    r = np.asarray(ranges, dtype=np.float64).ravel()
+    if ax.shape != r.shape or bins < 3 or not cone > 0 or combine not in ("max", "min"):
+        raise ConfigError(f"srt star sweep: need as many axes as ranges, bins >= 3, cone > 0 rad and "
+                          f"combine max or min, got {ax.size} axes, {r.size} ranges, {bins} bins, cone {cone}, "
+                          f"combine {combine!r}")
+    edges = -math.pi + np.arange(bins) * TAU / bins
+    centres = edges + math.pi / bins
+    rel = np.abs(np.mod(centres[:, None] - ax[None, :] + math.pi, TAU) - math.pi)     # (bins, k)
+    covered = rel <= cone / 2 + 1e-12
+    if combine == "max":
+        radii = np.where(covered, r[None, :], -np.inf).max(axis=1) if r.size else np.full(bins, -np.inf)
+    else:
+        radii = np.where(covered, r[None, :], np.inf).min(axis=1) if r.size else np.full(bins, np.inf)
+    seen = covered.any(axis=1) if r.size else np.zeros(bins, dtype=bool)
+    if not seen.any():
+        return StarRegion(x, y, edges, np.zeros(bins))
+    if not seen.all():
+        idx = np.flatnonzero(seen)
+        for k in np.flatnonzero(~seen):
+            after = idx[np.searchsorted(idx, k) % idx.size]
+            before = idx[np.searchsorted(idx, k) - 1]
+            radii[k] = min(radii[before], radii[after])
+    return StarRegion(x, y, edges, radii)

@@ -1,0 +1,66 @@
+"""Sweep of the SRT explorers over the start poses of the built-in worlds (issue 3, task L).
+
+For each (world, pose, method) one run at 100 mm/s on the embedded simulator, seed 0: coverage,
+collisions, distance [m] of the robot's true end position from its start, path length [m], nodes,
+detours, robot time [s] and the reason the run ended. Prints a Markdown table; `--jobs 2` runs two
+processes at once (the machine is shared: keep it at 2 or fewer).
+
+Run: python benchmarks/sweep_srt.py [--worlds dense sparse] [--methods srt-laser srt-star] [--jobs 2]
+Default: dense poses 1-9 with srt-laser and srt-star, sparse poses 1-5 with all three.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from concurrent.futures import ProcessPoolExecutor
+
+from robotexp.experiment import RunSpec, run_experiment
+from robotexp.explorer import ExplorationRun
+
+DEFAULT = [("dense", str(p), m) for m in ("srt-laser", "srt-star") for p in range(1, 10)] + \
+          [("sparse", str(p), m) for m in ("srt-laser", "srt-star", "srt-ball") for p in range(1, 6)]
+
+
+def one(job: tuple[str, str, str, float, int]) -> dict[str, object]:
+    """Run one (world, pose, method, speed [m/s], seed); return its row."""
+    world, pose, method, speed, seed = job
+    holder: dict[str, ExplorationRun] = {}
+    out = run_experiment(RunSpec(world=world, method=method, pose=pose, speed=speed, seed=seed), None, image=False,
+                         on_run=lambda run: holder.setdefault("run", run))
+    rec = out.record
+    run = holder["run"]
+    end = run.state.true_pose if run.state is not None else None
+    start = run.start_pose
+    home = math.hypot(end.x - start.x, end.y - start.y) if end is not None and start is not None else math.nan
+    fields = run.explorer.result_fields()
+    return {"world": world, "pose": pose, "method": method, "coverage": rec["coverage"],
+            "collisions": rec["collisions"], "home_m": home, "path_m": rec["path_length_m"],
+            "nodes": fields.get("nodes"), "detours": fields.get("detours"), "time_s": rec["robot_time_s"],
+            "reason": rec["reason"]}
+
+
+def main() -> None:
+    """Run the sweep and print the table."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--worlds", nargs="*", default=None)
+    ap.add_argument("--methods", nargs="*", default=None)
+    ap.add_argument("--poses", nargs="*", default=None)
+    ap.add_argument("--speed", type=float, default=100.0, help="[mm/s]")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=1, help="processes at once (at most 2 on a shared machine)")
+    args = ap.parse_args()
+    jobs = [(w, p, m, args.speed / 1000, args.seed) for w, p, m in DEFAULT
+            if (args.worlds is None or w in args.worlds) and (args.methods is None or m in args.methods)
+            and (args.poses is None or p in args.poses)]
+    print("| world | pose | method | coverage | collisions | home [m] | path [m] | nodes | detours | time [s] | end |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, 2))) as pool:
+        for r in pool.map(one, jobs):
+            print(f"| {r['world']} | {r['pose']} | {r['method']} | {r['coverage']:.3f} | {r['collisions']} | "
+                  f"{r['home_m']:.3f} | {r['path_m']:.1f} | {r['nodes']} | {r['detours']} | {r['time_s']:.0f} | "
+                  f"{r['reason']} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
