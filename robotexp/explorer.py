@@ -49,6 +49,8 @@ class ExplorerContext:
     laser_range: float             # [m]
     rng: np.random.Generator
     sonar: bool = False            # the robot has a sonar ring
+    goals: dict[str, list[tuple[float, float]]] = field(default_factory=dict)   # [m] the world's waypoint lists
+    start_name: str | None = None  # the name of the start pose in the world, when it has one
 
 
 class Explorer(ABC):
@@ -104,12 +106,15 @@ class ExplorationRun:
         max_time: robot time [s] after which the run ends incomplete.
         sample_period: robot time [s] between coverage samples.
         on_sample: called after each coverage sample with (robot time, coverage or None).
+        goals: the world's named waypoint lists [m], for goal-following explorers (ExplorerContext.goals).
+        start_name: the name of the start pose in the world, if any (ExplorerContext.start_name).
     """
 
     def __init__(self, robot: Robot, explorer: Explorer, grid: OccupancyGrid, *,
                  truth: GroundTruth | None = None, period: float = 0.1, max_time: float = 4 * 3600,
                  sample_period: float = 1.0, seed: int = 0,
-                 on_sample: Callable[[float, float | None], None] | None = None) -> None:
+                 on_sample: Callable[[float, float | None], None] | None = None,
+                 goals: dict[str, list[tuple[float, float]]] | None = None, start_name: str | None = None) -> None:
         if not period > 0 or not max_time > 0 or not sample_period > 0:
             raise ConfigError(f"run: period, max_time and sample_period must be > 0 s, got "
                               f"{period}, {max_time}, {sample_period}")
@@ -117,6 +122,8 @@ class ExplorationRun:
         self.period, self.max_time, self.sample_period = period, max_time, sample_period
         self.seed = seed
         self.on_sample = on_sample
+        self.goals = dict(goals or {})
+        self.start_name = start_name
         self.metrics = RunMetrics()
         self.state: RobotState | None = None
         self.start_pose: Pose | None = None
@@ -155,7 +162,8 @@ class ExplorationRun:
             self.explorer.reset(ExplorerContext(
                 radius=robot.radius, limits=robot.limits, period=self.period, start=state.pose,
                 laser_range=state.laser.range_max if state.laser else 0.0,
-                rng=np.random.default_rng(self.seed), sonar=state.sonar is not None))
+                rng=np.random.default_rng(self.seed), sonar=state.sonar is not None,
+                goals=self.goals, start_name=self.start_name))
             collisions0 = int(state.extra.get("collisions", 0))
             while True:
                 self.state = state

@@ -372,6 +372,15 @@ class Session:
         (mm,) = _args("robot.setMaxLaserRange", "range_mm", args, "n")
         self.spec.laser_range = _positive("robot.setMaxLaserRange", "range_mm", mm, "mm") / 1000.0
 
+    def lua_robot__setLaserNoise(self, *args: Any) -> None:
+        """Simulated laser noise: uniform +-`uniform_mm` and, optionally, gaussian `sigma_mm` [mm] (>= 0)."""
+        usage = "uniform_mm[, sigma_mm]"
+        values = _args("robot.setLaserNoise", usage, args, "nn" if len(args) == 2 else "n")
+        if not all(math.isfinite(v) and v >= 0 for v in values):
+            raise ScriptError(f"robot.setLaserNoise({', '.join(f'{v:g}' for v in values)}): expected noise >= 0 mm")
+        self.spec.laser_uniform = values[0] / 1000.0
+        self.spec.laser_sigma = values[1] / 1000.0 if len(values) == 2 else 0.0
+
     def lua_robot__setMaxSpeed(self, *args: Any) -> None:
         """Maximum forward speed [mm/s]."""
         (v,) = _args("robot.setMaxSpeed", "speed_mm_s", args, "n")
