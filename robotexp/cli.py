@@ -126,12 +126,15 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
+@click.option("--noise-uniform", type=float, default=0.0, show_default=True,
+              help="Laser noise: uniform in +-MM (the UFMG study: 100).")
+@click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            out: Path) -> None:
+            noise_uniform: float, noise_sigma: float, out: Path) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, connect_robot, run_experiment, run_on_robot
 
@@ -144,7 +147,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         raise ConfigError(f"--speed must be > 0 mm/s, got {speed:g}")
     spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
-                   params=_params(param), max_time=max_time)
+                   params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
+                   laser_sigma=noise_sigma / 1000)
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:

@@ -57,7 +57,8 @@ class RunSpec:
         if not self.max_time > 0:
             raise ConfigError(f"max time must be > 0 s, got {self.max_time}")
         if self.laser_sigma < 0 or self.laser_uniform < 0:
-            raise ConfigError("laser noise must be >= 0")
+            raise ConfigError(f"laser noise must be >= 0 mm, got uniform {self.laser_uniform * 1000:g}, "
+                              f"sigma {self.laser_sigma * 1000:g}")
         if self.map_bounds is not None:
             x0, y0, x1, y1 = self.map_bounds
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
