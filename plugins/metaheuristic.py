@@ -1,0 +1,290 @@
+"""Metaheuristic exploration targets (Santos 2016): plugins `meta-ga`, `meta-firefly`, `meta-exhaustive`.
+
+At each decision the map gives three cell lists, FRONTIER, OCCUPIED and VISITED (cells the robot
+centre passed, kept here from the state poses); they define Santos's objective surface
+(`robotexp.planning.objective`), whose minimum is the next target. The GA or the firefly algorithm
+(`robotexp.planning.metaheuristics`) searches it, seeded from the run's generator; `meta-exhaustive`
+takes the exact optimum over every cell, the reference the thesis compares them with. A* on the
+grid with danger zones near obstacles (Santos 4.3.3; `plan_costs` of the frontier plugin) gives the
+path and the shared `PathFollower` drives it. Exploration ends when fewer than `min_frontier`
+usable frontier cells remain (Santos's |FRONTIER| < c).
+
+Beyond the thesis, so that runs end and never loop (the same measures as the frontier plugin):
+targets are restricted to cells the robot can stand on and reach (Santos's feasibility h is "the
+cell is known"; a known cell inside a wall's inflation or behind a gap is no target either);
+frontier cells with an occupied 8-neighbour (wall faces) are not FRONTIER; frontier cells farther
+than 3 sigma_f from every reachable cell (their attraction cannot reach a target) are left out of
+FRONTIER and of the count; a target is kept while frontier cells remain near it; and frontier
+cells still there after the robot stood at their target and looked at them, or after
+`goal_timeout` without progress, are given up on.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.follower import PathFollower
+from robotexp.planning.grid_planner import astar, dijkstra, distance_transform, simplify
+from robotexp.planning.metaheuristics import (
+    FireflyConfig,
+    GAConfig,
+    SearchResult,
+    exhaustive,
+    firefly_search,
+    genetic_search,
+)
+from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
+from robotexp.robot import Pose, RobotState, Twist
+from robotexp_plugins.frontier import nearest_passable, plan_costs
+
+__all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer", "usable_frontier"]
+
+
+def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach_cells: float,
+                    blacklist: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+    """FRONTIER: frontier cells with no occupied 8-neighbour, within `reach_cells` of a reachable cell.
+
+    Args:
+        grid: the map.
+        reachable: (rows, cols) bool cells the robot can reach and stand on.
+        reach_cells: [cells] how far a frontier cell may lie from the nearest reachable cell.
+        blacklist: (rows, cols) bool frontier cells given up on, or None.
+
+    Returns:
+        (rows, cols) bool.
+    """
+    occ = grid.occupied()
+    near = occ.copy()
+    near[1:, :] |= occ[:-1, :]
+    near[:-1, :] |= occ[1:, :]
+    near[:, 1:] |= near[:, :-1].copy()
+    near[:, :-1] |= near[:, 1:].copy()
+    front = grid.frontier() & ~near
+    if blacklist is not None:
+        front &= ~blacklist
+    if not front.any() or not reachable.any():
+        return np.zeros_like(front)
+    return front & (distance_transform(reachable) <= reach_cells)
+
+
+class MetaheuristicExplorer(Explorer):
+    """Drive to the minimum of Santos's objective found by a target search (subclasses choose it).
+
+    Args:
+        objective: form of the objective: "proportional" (Santos's best, default), "linear",
+            "conditional" or "basic", with the parameters of Tables 2-5.
+        min_frontier: c, the exploration ends with fewer usable frontier cells [cells]. Default 20:
+            a metre of frontier at 5 cm (Santos's cell), two robot diameters of a P3-DX, so a
+            remaining opening is one the robot could drive through; smaller leftovers are the
+            isolated cells from grazing beams Santos's c is meant to ignore.
+        replan_period: [s] robot time between path refreshes.
+        goal_timeout: [s] without progress before a target's frontier is given up on.
+        clearance: [m] width of the danger zone beyond the robot radius (A* costs).
+    """
+
+    preferred_cell: ClassVar[float | None] = SANTOS_CELL
+    name: ClassVar[str] = "meta"
+
+    def __init__(self, *, objective: str = "proportional", min_frontier: int = 20, replan_period: float = 2.0,
+                 goal_timeout: float = 20.0, clearance: float = 0.3) -> None:
+        if objective not in FORMS:
+            raise ConfigError(f"{self.name}: objective must be one of {', '.join(FORMS)}, got {objective!r}")
+        if min_frontier < 1:
+            raise ConfigError(f"{self.name}: min_frontier must be >= 1 cell, got {min_frontier}")
+        for key, value in (("replan_period", replan_period), ("goal_timeout", goal_timeout)):
+            if not value > 0:
+                raise ConfigError(f"{self.name}: {key} must be > 0 s, got {value}")
+        if clearance < 0:
+            raise ConfigError(f"{self.name}: clearance must be >= 0 m, got {clearance}")
+        self.params = params_for(objective)
+        self.min_frontier = int(min_frontier)
+        self.replan_period = replan_period
+        self.goal_timeout = goal_timeout
+        self.clearance = clearance
+
+    def search(self, surface: npt.NDArray[np.float64]) -> SearchResult:
+        """The target search on an objective surface (overridden by each plugin)."""
+        return exhaustive(surface)
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run."""
+        super().reset(ctx)
+        self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.visited = np.zeros((0, 0), dtype=bool)
+        self.blacklist = np.zeros((0, 0), dtype=bool)
+        self.last_xy: tuple[float, float] | None = None
+        self.target: tuple[int, int] | None = None
+        self.target_cells = np.zeros((0, 2), dtype=np.int64)     # the frontier cells near the target
+        self.face: tuple[float, float] | None = None
+        self.next_plan = -math.inf
+        self.best_remaining = math.inf
+        self.last_progress = 0.0
+        self.targets = 0
+        self.gaps: list[float] = []         # [cells] from each target to the exhaustive optimum
+        self.frontier_left = 0
+
+    def result_fields(self) -> dict[str, object]:
+        """Targets chosen, their mean distance to the exhaustive optimum [cells], frontier left."""
+        return {"targets": self.targets, "frontier_left": self.frontier_left,
+                "target_gap_cells": round(float(np.mean(self.gaps)), 2) if self.gaps else 0.0}
+
+    # -- the decision --------------------------------------------------------------------
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        """Follow the path to the target; choose a new target when it is reached or resolved."""
+        pose, now = state.pose, state.time
+        self._mark_visited(pose, grid)
+        if self.follower.done and self.face is not None:
+            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x))
+            if not facing:
+                return twist
+            self._give_up_open(grid)        # stood there and looked: what is left cannot be resolved
+            self.face = None
+            self.next_plan = -math.inf
+        if self.target is not None and not self.follower.done:
+            remaining = self.follower.remaining(pose)
+            if remaining < self.best_remaining - 0.1:
+                self.best_remaining, self.last_progress = remaining, now
+            elif now - self.last_progress > self.goal_timeout:
+                self._give_up_open(grid)
+                self.follower.clear()
+                self.target = self.face = None
+        if now >= self.next_plan or self.follower.done:
+            if not self._plan(pose, grid, now):
+                self.follower.clear()
+                return Done(f"fewer than {self.min_frontier} usable frontier cells left")
+            self.next_plan = now + self.replan_period
+        return self.follower.twist(pose, state.laser)
+
+    def _mark_visited(self, pose: Pose, grid: OccupancyGrid) -> None:
+        geo = grid.geo
+        if self.visited.shape != grid.shape:
+            self.visited = np.zeros(grid.shape, dtype=bool)
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        x0, y0 = self.last_xy if self.last_xy is not None else (pose.x, pose.y)
+        n = int(math.ceil(math.hypot(pose.x - x0, pose.y - y0) / (geo.cell / 2))) + 1
+        for t in np.linspace(0.0, 1.0, n):
+            r, c = geo.cell_of(x0 + t * (pose.x - x0), y0 + t * (pose.y - y0))
+            if geo.contains(r, c):
+                self.visited[r, c] = True
+        self.last_xy = (pose.x, pose.y)
+
+    def _reach_cells(self, grid: OccupancyGrid) -> float:
+        return 3.0 * self.params.sigma_f * SANTOS_CELL / grid.geo.cell + 1.0
+
+    def _open_cells(self, frontier: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
+        cells = self.target_cells
+        if len(cells) == 0:
+            return cells
+        return cells[frontier[cells[:, 0], cells[:, 1]]]
+
+    def _give_up_open(self, grid: OccupancyGrid) -> None:
+        cells = self._open_cells(grid.frontier())
+        self.blacklist[cells[:, 0], cells[:, 1]] = True
+
+    def _plan(self, pose: Pose, grid: OccupancyGrid, now: float) -> bool:
+        """Refresh the path to the target while its frontier lasts, else choose a new target."""
+        geo = grid.geo
+        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        passable = np.isfinite(cost)
+        r, c = geo.cell_of(pose.x, pose.y)
+        start = (r, c) if geo.contains(r, c) and passable[r, c] else (
+            nearest_passable(passable, r, c, int(math.ceil(0.5 / geo.cell))) if geo.contains(r, c) else None)
+        if start is None:
+            return False
+        dist, _ = dijkstra(cost, start)
+        reachable = np.isfinite(dist)
+        reach = self._reach_cells(grid)
+        frontier = usable_frontier(grid, reachable, reach, self.blacklist)
+        self.frontier_left = int(np.count_nonzero(frontier))
+        if self.frontier_left < self.min_frontier:
+            return False
+        if (self.target is not None and not self.follower.done and reachable[self.target]
+                and len(self._open_cells(frontier))):
+            path = astar(cost, start, self.target)
+            if path is not None:
+                self._follow(path, passable, pose, grid)
+                return True
+        objective = Objective(self.params, frontier, grid.occupied(), self.visited,
+                              ((pose.x - geo.origin_x) / geo.cell, (pose.y - geo.origin_y) / geo.cell),
+                              reachable, cell=geo.cell)
+        found = self.search(objective.surface)
+        if found.value >= INFEASIBLE:
+            return False
+        opt = exhaustive(objective.surface)
+        self.gaps.append(math.hypot(found.cell[0] - opt.cell[0], found.cell[1] - opt.cell[1]))
+        path = astar(cost, start, found.cell)
+        if path is None:
+            return False
+        self.targets += 1
+        self.target = found.cell
+        k = int(math.ceil(reach))
+        r0, c0 = max(found.cell[0] - k, 0), max(found.cell[1] - k, 0)
+        self.target_cells = np.argwhere(frontier[r0:found.cell[0] + k + 1, c0:found.cell[1] + k + 1]) + (r0, c0)
+        if len(self.target_cells):
+            cy, cx = self.target_cells.mean(axis=0)
+            self.face = geo.center_of(int(round(cy)), int(round(cx)))
+        else:
+            self.face = None
+        self.best_remaining, self.last_progress = math.inf, now
+        self._follow(path, passable, pose, grid)
+        return True
+
+    def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
+                grid: OccupancyGrid) -> None:
+        cells = simplify(path, passable) if len(path) > 2 else path
+        pts = np.array([grid.geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
+        pts[0] = (pose.x, pose.y)
+        self.follower.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
+
+
+class GAExplorer(MetaheuristicExplorer):
+    """Targets from a steady-state real-coded GA (Santos Table 6) on the objective surface.
+
+    Args:
+        population: P_size (Santos: 1024).
+        generations: generations of the steady-state GA.
+        **kwargs: those of `MetaheuristicExplorer`.
+    """
+
+    name: ClassVar[str] = "meta-ga"
+
+    def __init__(self, *, population: int = 1024, generations: int = 60, **kwargs: object) -> None:
+        super().__init__(**kwargs)  # type: ignore[arg-type]
+        self.config = GAConfig(population=population, generations=generations)
+
+    def search(self, surface: npt.NDArray[np.float64]) -> SearchResult:
+        """GA target on `surface`, seeded from the run's generator."""
+        return genetic_search(surface, self.ctx.rng, self.config)
+
+
+class FireflyExplorer(MetaheuristicExplorer):
+    """Targets from the firefly algorithm (Santos Table 7) on the objective surface.
+
+    Args:
+        population: P_size (Santos: 20).
+        iterations: sweeps over all pairs of fireflies.
+        **kwargs: those of `MetaheuristicExplorer`.
+    """
+
+    name: ClassVar[str] = "meta-firefly"
+
+    def __init__(self, *, population: int = 20, iterations: int = 100, **kwargs: object) -> None:
+        super().__init__(**kwargs)  # type: ignore[arg-type]
+        self.config = FireflyConfig(population=population, iterations=iterations)
+
+    def search(self, surface: npt.NDArray[np.float64]) -> SearchResult:
+        """Firefly target on `surface`, seeded from the run's generator."""
+        return firefly_search(surface, self.ctx.rng, self.config)
+
+
+class ExhaustiveExplorer(MetaheuristicExplorer):
+    """Targets at the exact optimum of the objective over every cell (the reference of Santos 5.2)."""
+
+    name: ClassVar[str] = "meta-exhaustive"

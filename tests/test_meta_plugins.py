@@ -1,0 +1,126 @@
+"""The metaheuristic explorer plugins (meta-ga, meta-firefly, meta-exhaustive) end to end on a small world.
+
+Two 3 x 4 m rooms joined by a 1.1 m door, mapped at 5 cm (Santos's cell), laser range 2 m, on the
+SimRobot with ground truth. The built-in worlds are measured in the report (too long for the tests).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError
+from robotexp.experiment import make_explorer
+from robotexp.explorer import ExplorationRun
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.groundtruth import ground_truth
+from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
+from robotexp.robot import Pose
+from robotexp.sim import LaserConfig, SimRobot
+from robotexp.world.model import World, segment_box
+from robotexp_plugins.metaheuristic import (
+    ExhaustiveExplorer,
+    FireflyExplorer,
+    GAExplorer,
+    MetaheuristicExplorer,
+    usable_frontier,
+)
+
+T = 0.1
+RANGE = 2.0
+CELL = 0.05
+START = Pose(1.0, 1.0, math.pi)
+
+
+def door_room() -> World:
+    walls = [segment_box(0, 0, 6, 0, T), segment_box(0, 4, 6, 4, T), segment_box(0, 0, 0, 4, T),
+             segment_box(6, 0, 6, 4, T), segment_box(3, 0, 3, 1.4, T), segment_box(3, 2.6, 3, 4, T)]
+    return World("door", np.array(walls))
+
+
+def explore(explorer: MetaheuristicExplorer, seed: int = 0) -> ExplorationRun:
+    world = door_room()
+    geo = GridGeometry.covering(*world.bounds, cell=CELL, margin=0.5)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=RANGE, start=START)
+    grid = OccupancyGrid(geo, range_max=RANGE)
+    with SimRobot(world, pose=START, seed=seed, laser=LaserConfig(range_max=RANGE), max_speed=0.5,
+                  sonar=False) as robot:
+        return ExplorationRun(robot, explorer, grid, truth=truth, max_time=600.0, seed=seed).run()
+
+
+@pytest.mark.parametrize("method", ["meta-firefly", "meta-ga", "meta-exhaustive"])
+def test_explores_two_rooms(method: str) -> None:
+    explorer = make_explorer(method, {})
+    assert isinstance(explorer, MetaheuristicExplorer) and explorer.preferred_cell == CELL
+    run = explore(explorer)
+    assert run.completed and run.reason == "fewer than 20 usable frontier cells left"
+    cov = run.coverage()
+    assert cov is not None and cov >= 0.95
+    assert run.metrics.collisions == 0
+    assert max(x for x, _ in run.metrics.path) > 3.3          # through the door into the right room
+    fields = run.explorer.result_fields()
+    assert fields["targets"] >= 2 and fields["frontier_left"] < 20
+    # visited cells: the explorer's own list holds every cell of the true path (odometry is exact here)
+    visited = run.explorer.visited
+    assert all(visited[r, c] for r, c in run.metrics.visited)
+    if method == "meta-exhaustive":
+        assert fields["target_gap_cells"] == 0.0
+
+
+def test_same_seed_same_run() -> None:
+    a = explore(FireflyExplorer(), seed=3)
+    b = explore(FireflyExplorer(), seed=3)
+    assert a.metrics.path == b.metrics.path
+
+
+def test_usable_frontier_drops_wall_faces_and_unreachable_cells() -> None:
+    geo = GridGeometry(0.0, 0.0, 1.0, 10, 12)
+    grid = OccupancyGrid(geo)
+    free = np.zeros((10, 12), dtype=bool)
+    free[2:8, 2:6] = True
+    grid.mark_free(free)
+    occ = np.zeros((10, 12), dtype=bool)
+    occ[8, 2:4] = True                       # a wall touching the top edge's left part
+    grid.mark_occupied(occ)
+    reachable = np.zeros((10, 12), dtype=bool)
+    reachable[3:7, 2:5] = True               # the right column (col 5) is not reachable but within 1 cell
+    got = usable_frontier(grid, reachable, 1.0)
+    want = grid.frontier().copy()
+    want[7, 1:5] = False                     # row 7, cols 1..4 touch the wall cells (8, 2..3)
+    assert np.array_equal(got, want & (distance_transform(reachable) <= 1.0))
+    assert got[3, 5] and not got[2, 5] and not got[7, 3]     # (2, 5) is sqrt(2) from (3, 4)
+    bl = np.zeros_like(got)
+    bl[3, 5] = True
+    assert not usable_frontier(grid, reachable, 1.0, bl)[3, 5]
+    # within 0.5 cell: only the reachable frontier cells themselves, the left edge (3..6, 2)
+    assert np.array_equal(np.argwhere(usable_frontier(grid, reachable, 0.5)), [[3, 2], [4, 2], [5, 2], [6, 2]])
+
+
+def test_astar_keeps_off_the_danger_zone() -> None:
+    # a 30 x 40 free room with a wall along the bottom row; start and goal 2 cells above the wall
+    occ = np.zeros((30, 40), dtype=bool)
+    occ[0, :] = True
+    dist = distance_transform(occ)
+    plain = cost_grid(dist, robot_radius_cells=1.0)
+    danger = cost_grid(dist, robot_radius_cells=1.0, danger_radius_cells=6.0, danger_cost=10.0)
+    p0 = astar(plain, (2, 3), (2, 36))
+    p1 = astar(danger, (2, 3), (2, 36))
+    assert p0 is not None and p1 is not None
+    assert p0[:, 0].max() == 2                                  # hugs the wall without danger zones
+    assert p1[:, 0].max() >= 6                                  # leaves the zone (d > 7) on its way
+    assert dist[p1[:, 0], p1[:, 1]].mean() > dist[p0[:, 0], p0[:, 1]].mean() + 3
+
+
+def test_parameters_are_checked() -> None:
+    with pytest.raises(ConfigError, match="objective"):
+        GAExplorer(objective="cubic")
+    with pytest.raises(ConfigError, match="min_frontier"):
+        FireflyExplorer(min_frontier=0)
+    with pytest.raises(ConfigError, match="replan_period"):
+        ExhaustiveExplorer(replan_period=0)
+    with pytest.raises(ConfigError, match="GA"):
+        GAExplorer(population=1)
+    assert FireflyExplorer(objective="linear").params.rho == 10
