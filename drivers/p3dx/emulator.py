@@ -4,7 +4,10 @@ Answers ARIA clients (and our `P3DXRobot`) on TCP (127.0.0.1:8101 by default) or
 pseudo-terminal whose slave device path a driver opens as a serial port. It replies to
 SYNC0/1/2 with "MobileSim"/"Pioneer"/"p3dx", to CONFIG with MobileSim's CONFIG packet (carrying the
 emulated robot's limits), sends a SIP every 100 ms of robot time after OPEN (sonar included) and,
-once the simulated laser is enabled (35..38 or 230..233), the scan right after each SIP.
+once the simulated laser is enabled (35 or 230), the scan right after each SIP, with the field of
+view and increment that 36..38 (or 231..233) asked for, as MobileSim does (ARIA labels reading i
+`min(start, end) + i * increment` and counts them as MobileSim does). Odometry restarts at 0, 0, 0
+with each client, as in MobileSim's new session.
 SIM_SET_POSE moves the robot without changing odometry (`SimRobot.move_to`), SIM_RESET goes back
 to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time / `speedup`.
 
@@ -25,6 +28,9 @@ import time
 import tty
 from dataclasses import replace
 
+import numpy as np
+import numpy.typing as npt
+
 from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, wrap_angle
 from robotexp.sim.presets import LaserConfig
@@ -34,11 +40,15 @@ from . import codec as k
 from . import constants as c
 from .robot import compose_pose, relative_pose
 
-__all__ = ["P3DXEmulator"]
+__all__ = ["P3DXEmulator", "reading_beams"]
 
 log = logging.getLogger(__name__)
 
 _STOPS = frozenset({c.Cmd.STOP, c.Cmd.ESTOP, c.Cmd.QSTOP})
+# laser field-of-view commands -> which of (start, end, increment) they set
+_LRF_FOV: dict[int, int] = {c.Cmd.OLD_SIM_LRF_SET_FOV_START: 0, c.Cmd.SIM_LRF_SET_FOV_START: 0,
+                            c.Cmd.OLD_SIM_LRF_SET_FOV_END: 1, c.Cmd.SIM_LRF_SET_FOV_END: 1,
+                            c.Cmd.OLD_SIM_LRF_SET_RES: 2, c.Cmd.SIM_LRF_SET_RES: 2}
 
 
 class _Closed(Exception):
@@ -125,7 +135,10 @@ class P3DXEmulator:
         pty: serve on a pseudo-terminal instead of TCP (`address` is its device path).
         speedup: robot time per wall time (1.0 = real time).
         seed: seed of the simulator's noise.
-        laser: the simulated laser (default: the preset's, 181 beams over 180 deg).
+        laser: the simulated laser (default: the preset's, 181 beams over 180 deg, mounted where
+            ARIA's parameter file and `P3DXRobot` put it: 18 mm ahead, 21 mm on p3dx-sh). A
+            client's field of view and increment are picked from its beams (nearest beam), so a
+            finer increment than the laser's repeats beams.
         robot: simulator preset name.
         robot_type, robot_subtype: what SYNC2 and CONFIG report.
         watchdog: [s of robot time] stop the robot when no command came for this long (None:
@@ -162,7 +175,10 @@ class P3DXEmulator:
         self.speedup, self.watchdog, self.lockstep = speedup, watchdog, lockstep
         self._stepped = False
         self.robot_type, self.robot_subtype = robot_type, robot_subtype
-        self.dist_conv = c.DIST_CONV_FACTOR_SH if robot_subtype.lower() == "p3dx-sh" else c.DIST_CONV_FACTOR
+        sh = robot_subtype.lower() == "p3dx-sh"
+        self.dist_conv = c.DIST_CONV_FACTOR_SH if sh else c.DIST_CONV_FACTOR
+        if laser is None:       # ARIA places the readings at p3dx.p's LaserX, so cast from there
+            laser = replace(robot_preset.laser, offset_x=(c.LASER_X_MM_SH if sh else c.LASER_X_MM) / 1000.0)
         self.commands: collections.deque[k.Command] = collections.deque(maxlen=10000)
         self.last_command: k.Command | None = None      # the last command other than PULSE
         self.commanded = (0, 0)                         # last VEL [mm/s] and RVEL [deg/s] in force
@@ -194,7 +210,6 @@ class P3DXEmulator:
             self.sim.close()
             raise
         self._thread: threading.Thread | None = None
-        self._odom = Pose(0.0, 0.0)             # MobileSim: odometry starts at 0, 0, 0
         self._sim_odom = self.start_pose             # the SimRobot's odometry starts at its pose
         self._reset_session()
 
@@ -285,6 +300,10 @@ class P3DXEmulator:
         self._enabled = True                 # MobileSim: motors enabled at session start
         self._sonar_on = True                # ARIA assumes sonar on
         self._laser_mode = c.LRF_OFF
+        # FOV start, end [deg] and increment [1/100 deg] asked for; None: the laser's own beams
+        self._lrf_fov: tuple[int, int, int] | None = None
+        self._beams: npt.NDArray[np.int64] | None = None      # laser beam of each reading, -1: none
+        self._odom = Pose(0.0, 0.0)          # MobileSim: odometry restarts at 0, 0, 0 every session
         self._simstat = c.SIM_STAT_STOP
         self._decoder = k.CommandDecoder(max_count=255)
         self._last_cmd_time = self.sim.time
@@ -368,6 +387,8 @@ class P3DXEmulator:
             self._send(conn, k.encode_packet(self.config))
         elif n in (c.Cmd.OLD_SIM_LRF_ENABLE, c.Cmd.SIM_LRF_ENABLE):
             self._laser_mode = ival if ival in (c.LRF_OFF, c.LRF_BASIC, c.LRF_EXTENDED) else c.LRF_OFF
+        elif n in _LRF_FOV:
+            self._set_fov(_LRF_FOV[n], ival)
         elif n == c.Cmd.SIM_SET_POSE and isinstance(arg, tuple):
             self._move(Pose(arg[0] / 1000.0, arg[1] / 1000.0, wrap_angle(math.radians(arg[2]))), reset_odom=False)
         elif n == c.Cmd.SIM_RESET:
@@ -386,6 +407,15 @@ class P3DXEmulator:
             self.commanded = (self._v_mm, self._w_deg)
             self._stepped = self.lockstep and n != c.Cmd.VEL    # our driver sends VEL, then RVEL
         return False
+
+    def _set_fov(self, which: int, value: int) -> None:
+        fov = list(self._lrf_fov or (c.LASER_DEFAULT_START_DEG, c.LASER_DEFAULT_END_DEG, c.LASER_DEFAULT_RES_CDEG))
+        fov[which] = abs(value) if which == 2 else value    # MobileSim reads the increment unsigned
+        if fov[2] == 0:
+            log.warning("p3dx emulator: laser increment 0 ignored")
+            return
+        self._lrf_fov = (fov[0], fov[1], fov[2])
+        self._beams = reading_beams(self.sim.laser_config.angles(), *self._lrf_fov)
 
     def _move(self, pose: Pose, reset_odom: bool) -> None:
         try:
@@ -415,8 +445,11 @@ class P3DXEmulator:
         self._send(conn, k.encode_packet(self._sip(state.velocity, state.stalled)))
         self.sips_sent += 1
         if self._laser_mode != c.LRF_OFF and state.laser is not None:
+            ranges = state.laser.ranges
+            if self._beams is not None:
+                ranges = np.where(self._beams >= 0, ranges[self._beams], np.inf)
             mm = [c.LASER_NO_HIT_MM if not math.isfinite(r) else min(round(r * 1000), c.LASER_NO_HIT_MM)
-                  for r in state.laser.ranges.tolist()]
+                  for r in ranges.tolist()]
             o = self._odom
             pose = tuple(max(-32768, min(32767, round(val))) for val in
                          (o.x * 1000, o.y * 1000, math.degrees(o.theta)))
@@ -449,6 +482,42 @@ class P3DXEmulator:
         return k.SimStat(flags=c.SIMSTAT_HAVE_MAP, sim_interval_ms=ms, real_interval_ms=round(ms / self.speedup),
                          last_interval_ms=ms, true_x_mm=round(t.x * 1000), true_y_mm=round(t.y * 1000),
                          true_th_deg=round(math.degrees(t.theta)), dop_x100=-1)
+
+
+def reading_beams(beam_angles: npt.NDArray[np.float64], start_deg: int, end_deg: int,
+                  res_cdeg: int) -> npt.NDArray[np.int64]:
+    """The laser beam that serves each reading of a field of view asked for with 36..38 / 231..233.
+
+    MobileSim (StageInterface::Laser::setResolution) sends ceil(ceil(fov) / increment) + 1
+    readings and ARIA (ArSimulatedLaser) puts reading i at min(start, end) + i * increment.
+
+    Args:
+        beam_angles: angles [rad] of the laser's beams, increasing, (beams,) float64.
+        start_deg, end_deg: field of view [deg], either order.
+        res_cdeg: increment between readings [1/100 deg], > 0.
+
+    Returns:
+        (readings,) int64: the index of the beam nearest to each reading, -1 when the reading
+        lies more than half a beam spacing outside the laser's beams (sent as "no hit").
+
+    Raises:
+        ConfigError: `res_cdeg` is not > 0.
+    """
+    if res_cdeg <= 0:
+        raise ConfigError(f"p3dx emulator: laser increment must be > 0 (1/100 deg), got {res_cdeg}")
+    lo, hi = min(start_deg, end_deg), max(start_deg, end_deg)
+    res = res_cdeg / 100.0
+    n = math.ceil(math.ceil(hi - lo) / res) + 1
+    want = np.radians(lo + res * np.arange(n))
+    beams = np.asarray(beam_angles, dtype=np.float64)
+    if len(beams) == 1:
+        nearest, half = np.zeros(n, dtype=np.int64), math.pi
+    else:
+        i = np.clip(np.searchsorted(beams, want), 1, len(beams) - 1)
+        nearest = np.where(want - beams[i - 1] <= beams[i] - want, i - 1, i)
+        half = (beams[-1] - beams[0]) / (2 * (len(beams) - 1))
+    outside = (want < beams[0] - half - 1e-9) | (want > beams[-1] + half + 1e-9)
+    return np.where(outside, -1, nearest).astype(np.int64)
 
 
 def _i16(value: float) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import threading
+import time
 
 import serial
 
@@ -114,6 +115,20 @@ class SerialLink:
                 self._port.flush()
             except (serial.SerialException, OSError) as exc:
                 raise ConnectionLost(f"p3dx: link {self.url!r} lost while writing: {exc}") from exc
+
+    def drain(self, seconds: float) -> None:
+        """Read and drop what arrives for up to `seconds` [s], or until the other side closes.
+
+        Closing a TCP socket with unread input makes Linux reset the connection, and the peer then
+        loses the last commands we sent (the final stop and CLOSE: seen with AMRISim). ARIA waits
+        one second after CLOSE for the same reason.
+        """
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            try:
+                self.read()
+            except ConnectionLost:
+                return
 
     def reset_input(self) -> None:
         """Drop bytes received and not read yet (ARIA flushes before SYNC0)."""

@@ -50,6 +50,8 @@ def _int16(value: int) -> int:
     return value - 0x10000 if value >= 0x8000 else value
 
 
+CLOSE_DRAIN = 0.5   # [s] input read and dropped after CLOSE before the link closes (see P3DXLink.drain)
+
 class P3DXRobot(Robot):
     """A Pioneer P3-DX (or any ARCOS robot, or MobileSim / our emulator) as a `Robot`.
 
@@ -419,6 +421,7 @@ class P3DXRobot(Robot):
         if send_close and not self.link.closed:
             try:
                 self.link.write(k.cmd_vel(0) + k.cmd_rvel(0) + k.cmd_enable(False) + k.cmd_close())
+                self.link.drain(CLOSE_DRAIN)      # so the peer reads them before the socket closes
             except ConnectionLost:
                 pass
         self.link.close()

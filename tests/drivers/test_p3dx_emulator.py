@@ -225,3 +225,97 @@ def test_cli_connect_and_emulate_help() -> None:
     assert result.exit_code == 0 and "--pty" in result.output
     result = CliRunner().invoke(main, ["emulate", "nosuchrobot", "--port", "0"])
     assert result.exit_code == 2
+
+
+# --- checked against AriaCoda's clients (issue 5) ---------------------------------------------------
+# Hand-framed commands (checksum = sum of big-endian words of ID + DATA): what ArSimulatedLaser sends
+# for "-laserDegrees 100 -laserIncrement half": 36 -50, 37 50, 38 50 (1/100 deg), then 35 2.
+ARIA_LASER_100_HALF = bytes.fromhex("FAFB06241B3200561B" "FAFB06253B3200573B" "FAFB06263B3200583B"
+                                    "FAFB06233B0200253B")
+OPEN_CONFIG = bytes.fromhex("FAFB06013B0100023B") + bytes.fromhex("FAFB06123B0100133B")
+
+
+def _sync(sock: socket.socket) -> None:
+    for seq in (b"FAFB03000000", b"FAFB03010001", b"FAFB03020002"):
+        sock.sendall(bytes.fromhex(seq.decode()))
+        time.sleep(0.02)
+
+
+def _full_scan(sock: socket.socket, dec: k.PacketDecoder) -> list[k.SimLaserPacket]:
+    """The packets of one whole scan, from first == 0 to the one that completes it."""
+    scan: list[k.SimLaserPacket] = []
+    for _ in range(50):
+        for p in _recv_packets(sock, dec, k.SimLaserPacket):
+            if isinstance(p, k.SimLaserPacket) and (scan or p.first == 0):
+                scan.append(p)
+                if p.complete:
+                    return scan
+    raise AssertionError("no complete scan")
+
+
+def test_reading_beams_follow_mobilesim_count_and_aria_angles() -> None:
+    from robotexp_drivers.p3dx.emulator import reading_beams
+
+    beams = np.linspace(-math.pi / 2, math.pi / 2, 181)         # 1 deg apart
+    assert np.array_equal(reading_beams(beams, -90, 90, 100), np.arange(181))
+    half = reading_beams(beams, -50, 50, 50)                    # ceil(100 / 0.5) + 1 readings
+    assert len(half) == 201
+    assert np.array_equal(half[::2], np.arange(40, 141))        # -50 + i * 0.5 deg, even i on a beam
+    assert all(half[i] in (40 + i // 2, 41 + i // 2) for i in range(1, 201, 2))
+    assert len(reading_beams(beams, -90, 90, 25)) == 721
+    assert np.array_equal(reading_beams(beams, 45, -90, 100), np.arange(136))  # either order
+    wide = reading_beams(beams, -100, 100, 100)                 # 10 deg each side beyond the laser
+    assert len(wide) == 201 and (wide[:10] == -1).all() and (wide[-10:] == -1).all()
+    assert np.array_equal(wide[10:191], np.arange(181))
+    with pytest.raises(ValueError, match="increment"):
+        reading_beams(beams, -90, 90, 0)
+
+
+def test_laser_field_of_view_as_aria_asks_for_it() -> None:
+    # ARIA labels reading i of a 201-reading scan at -50 + 0.5 i deg: the emulator used to send its
+    # 181 beams over 180 deg whatever 36..38 said, so every angle but -50 was wrong.
+    with P3DXEmulator("ufmg-static", port=0, speedup=SPEEDUP, laser=LASER) as emu:
+        host, port = emu.address.split(":")
+        with socket.create_connection((host, int(port))) as sock:
+            _sync(sock)
+            sock.sendall(OPEN_CONFIG + ARIA_LASER_100_HALF)
+            dec = k.PacketDecoder(max_count=255)
+            scan = _full_scan(sock, dec)
+            truth = emu.sim.scan().ranges                          # still: the same scan every cycle
+            sock.sendall(k.cmd_close())
+    assert [p.total for p in scan] == [201] * 7 and [p.first for p in scan] == list(range(0, 201, 32))
+    assert all(p.extended for p in scan)
+    got = np.array([r for p in scan for r in p.ranges], dtype=float)
+    want = np.where(np.isfinite(truth), np.round(truth * 1000), 32767)
+    assert np.array_equal(got[::2], want[40:141])                # reading 2j = beam at -50 + j deg
+    assert np.isfinite(truth[40:141]).any()                      # some walls in view
+
+
+def test_odometry_restarts_with_each_client_as_mobilesim() -> None:
+    with P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=SPEEDUP, laser=LASER) as emu:
+        host, port = emu.address.split(":")
+        with socket.create_connection((host, int(port))) as sock:
+            _sync(sock)
+            sock.sendall(OPEN_CONFIG + bytes.fromhex("FAFB060B3B2C01373C"))    # VEL 300
+            assert _wait(lambda: emu.sim.read().pose.distance_to(emu.start_pose) > 0.05)
+            sock.sendall(bytes.fromhex("FAFB031D001D"))                        # STOP
+            assert _wait(lambda: emu.sim.read().velocity.v == 0.0)
+            sock.sendall(k.cmd_close())
+            assert _wait(lambda: emu.last_command is not None and emu.last_command.cmd == 2)
+        with socket.create_connection((host, int(port))) as sock:
+            _sync(sock)
+            sock.sendall(OPEN_CONFIG)
+            dec = k.PacketDecoder(max_count=255)
+            sip = next(p for p in _recv_packets(sock, dec, k.StandardSip) if isinstance(p, k.StandardSip))
+            sock.sendall(k.cmd_close())
+    assert emu.sessions == 2
+    assert (sip.xpos, sip.ypos, sip.thpos) == (0, 0, 0)
+
+
+def test_laser_mounted_where_aria_params_put_it() -> None:
+    # ARIA (p3dx.p LaserX 18, p3dx-sh.p 21) and P3DXRobot place readings ahead of the centre
+    for subtype, x in (("p3dx", 0.018), ("p3dx-sh", 0.021)):
+        with P3DXEmulator("ufmg-static", port=0, robot_subtype=subtype) as emu:
+            assert emu.sim.laser_config.offset_x == pytest.approx(x)
+    with P3DXEmulator("ufmg-static", port=0, laser=LASER) as emu:     # a given laser is kept
+        assert emu.sim.laser_config.offset_x == 0.0
