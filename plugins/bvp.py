@@ -90,7 +90,9 @@ class BVPExplorer(Explorer):
     - rho of eq. 3.5: d is measured from the robot's edge (not its centre) to the nearest laser
       return, the safe reading for a 250 mm robot: with the centre it would always be > 200 mm.
     - Vanished gradient (|v| <= 1e-12 of the neighbours' q, i.e. flat to round-off): keep the last
-      heading phi; before any heading is known, turn in place (`flat_gradient_steps` counts these).
+      heading phi; before any heading is known, head for the nearest goal cell (a free region
+      bounded only by unknown cells - no obstacle in view - has a constant potential), or turn in
+      place while there is no goal yet (`flat_gradient_steps` counts these steps).
     - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
       robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
@@ -234,6 +236,7 @@ class BVPExplorer(Explorer):
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:
             wall, goal = self.update_potential(grid)
+            self._goal = goal
             if self.explored(grid, wall, goal, pose.x, pose.y):
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
@@ -250,6 +253,8 @@ class BVPExplorer(Explorer):
         else:
             self.flat_steps += 1
             if self.phi is None:
+                self.phi = self._toward_nearest_goal(grid, r, c)
+            if self.phi is None:
                 self.v = 0.0
                 return Twist(0.0, min(lim.w_max, 0.5))
         varphi = wrap_angle(pose.theta - self.phi)
@@ -260,6 +265,20 @@ class BVPExplorer(Explorer):
             v = 0.0
         self.v = v
         return Twist(v, w)
+
+    def _toward_nearest_goal(self, grid: OccupancyGrid, r: int, c: int) -> float | None:
+        """Heading [rad] to the nearest goal (unknown) cell, or None when there is none.
+
+        A region bounded only by goals (no obstacle in view: the robot in the middle of a hall)
+        has a constant harmonic potential, hence no gradient anywhere; the field's limit as the
+        nearest boundary dominates is the way to the nearest goal.
+        """
+        goal = getattr(self, "_goal", None)
+        if goal is None or not goal.any():
+            return None
+        cells = np.argwhere(goal)
+        k = int(np.argmin((cells[:, 0] - r) ** 2 + (cells[:, 1] - c) ** 2))
+        return math.atan2(float(cells[k, 0] - r), float(cells[k, 1] - c))
 
     # -- what the run shows ----------------------------------------------------------
     def overlays(self) -> dict[str, npt.NDArray[np.float64]]:
