@@ -261,7 +261,8 @@ def _mmss(seconds: float) -> str:
 
 def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
     """Tables in the layout of the thesis's Tables 4.1-4.4: per start pose the path [m] and duration
-    (mm:ss) of each method and the SRT nodes; then mean, standard deviation, range and mean speed."""
+    (mm:ss) of each method and the SRT nodes; then mean, standard deviation, range and mean speed of
+    the runs that completed (a run cut short is marked * and left out of the statistics)."""
     groups: dict[tuple[str, int], dict[str, dict[str, dict[str, Any]]]] = {}
     for r in records:
         if str(r.get("reason", "")).startswith("interrupted"):
@@ -294,7 +295,10 @@ def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
         for label, fn in (("mean", statistics.fmean), ("std dev", _stdev), ("range", _range)):
             row = [label]
             for m in methods:
-                recs = list(by_method[m].values())
+                recs = _completed(by_method[m].values())
+                if not recs:
+                    row += ["-", "-"] + (["-"] if f"{m} nodes" in header else [])
+                    continue
                 paths = [r["path_length_m"] for r in recs]
                 times = [r["robot_time_s"] for r in recs]
                 row += [f"{fn(paths):.1f}", _mmss(fn(times))]
@@ -304,12 +308,17 @@ def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
             rows.append(row)
         row = ["mean speed"]
         for m in methods:
-            recs = list(by_method[m].values())
+            recs = _completed(by_method[m].values()) or list(by_method[m].values())
             v = sum(r["path_length_m"] for r in recs) / max(sum(r["robot_time_s"] for r in recs), 1e-9)
             row += [f"{v * 1000:.0f} mm/s", ""] + ([""] if f"{m} nodes" in header else [])
         rows.append(row)
         tables.append(Table(f"{world}, max speed {speed} mm/s", methods, header, rows))
     return tables
+
+
+def _completed(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The runs that completed: the statistics leave out runs cut short (marked * in the rows)."""
+    return [r for r in records if r.get("completed")]
 
 
 def _stdev(values: list[float]) -> float:

@@ -282,7 +282,7 @@ def campaign_report(results: Path, out: Path | None) -> None:
     (folder / "tables.md").write_text("\n".join(table_markdown(t) for t in tables), encoding="utf-8")
     for t in tables:
         click.echo(table_text(t))
-    click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  (* = run not completed)")
+    click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  (* = run not completed, left out of the statistics)")
 
 
 @main.command("run")
