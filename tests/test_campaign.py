@@ -119,3 +119,17 @@ def test_report_statistics_by_hand() -> None:
     assert rows["std dev"][1:] == ["2.0", "00:35", "1"]         # stdev(1000, 1060, 1000) = 34.6 s
     assert rows["range"][1:] == ["4.0", "01:00", "2"]
     assert rows["mean speed"][1] == "71 mm/s"                    # 216 m / 3060 s
+
+
+def test_report_leaves_incomplete_runs_out_of_the_statistics() -> None:
+    base = {"world": "w", "max_speed_m_s": 0.1, "method": "bvp", "nodes": None, "reason": "explored"}
+    recs = [{**base, "pose": "1", "path_length_m": 10.0, "robot_time_s": 100.0, "completed": True},
+            {**base, "pose": "2", "path_length_m": 20.0, "robot_time_s": 300.0, "completed": True},
+            {**base, "pose": "3", "path_length_m": 0.0, "robot_time_s": 14400.0, "completed": False,
+             "reason": "time limit of 14400 s reached"}]
+    (t,) = report_tables(recs)
+    rows = {r[0]: r for r in t.rows}
+    assert rows["3"][1] == "0.0*"
+    assert rows["mean"][1:] == ["15.0", "03:20"]
+    assert rows["range"][1:] == ["10.0", "03:20"]
+    assert rows["mean speed"][1] == "75 mm/s"        # 30 m / 400 s
