@@ -257,7 +257,8 @@ class KobukiEmulator:
             self._client = None
 
     def _raw_bytes(self) -> bytes:
-        raw, self._raw = b"".join(self._raw), []
+        taken, self._raw = self._raw, []      # take the list first: a concurrent send_raw() is not lost
+        raw = b"".join(taken)
         return raw
 
     def _send(self, data: bytes) -> None:

@@ -205,8 +205,10 @@ class MavlinkEmulator:
                 now = time.perf_counter()
                 if now >= next_tick:
                     if self._active() and not self._paused:
-                        self._transmit(b"".join(self._raw) + self._step())
-                        self._raw = []
+                        # take the list before joining it: a send_raw() from another thread between the
+                        # join and a reset would be lost (it lands in the list we take, or the next one)
+                        raw, self._raw = self._raw, []
+                        self._transmit(b"".join(raw) + self._step())
                     next_tick = max(next_tick + self.tick / self.speedup, now)
                 self._receive(max(0.0, next_tick - time.perf_counter()))
             except OSError as exc:

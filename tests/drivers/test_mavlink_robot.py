@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import random
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -107,7 +108,11 @@ def test_stalled_link_raises_and_the_last_command_is_a_stop(emu: MavlinkEmulator
 def test_garbage_burst_and_wrong_checksums_are_survived(emu: MavlinkEmulator) -> None:
     with MavlinkRobot(emu.address) as robot:
         clock = robot.make_clock(0.1)
-        emu.send_raw(bytes([0xFD, 0xFF]) + os.urandom(2000))
+        # seeded garbage without frame-start bytes (0xFD, 0xFE): every byte of it must be dropped,
+        # after a false MAVLink 2 start announcing a 255-byte payload
+        rng = random.Random(7)
+        garbage = bytes(rng.choice([b for b in range(256) if b not in (0xFD, 0xFE)]) for _ in range(2000))
+        emu.send_raw(bytes([0xFD, 0xFF]) + garbage)
         emu.corrupt_frames(20)
         for _ in range(20):
             robot.command(Twist(0.2, 0.0))
