@@ -1,5 +1,6 @@
-"""Speed of a whole exploration: robot time / wall time of a frontier run of `dense`, and the rate of
-the mapping kernel (numba) against its numpy reference, measured in the same process.
+"""Speed of a whole exploration: robot time / wall time of a frontier run of `dense`, the laser's ray
+casting (the exact kernel against pybullet's ray test) and the rate of the mapping kernel (numba)
+against its numpy reference, measured in the same process.
 
 Run: python benchmarks/bench_explore.py [--world dense] [--method frontier] [--speed 300]
 Target (issue "Foundation"): robot time / wall time >= 200 on one core.
@@ -12,6 +13,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 sys.path.insert(0, os.path.dirname(__file__))
 
 from bench_grid_kernel import CELL, RANGE, _rate, _scans  # noqa: E402
@@ -20,6 +23,25 @@ from robotexp.experiment import RunSpec, run_experiment  # noqa: E402
 from robotexp.mapping.geometry import GridGeometry  # noqa: E402
 from robotexp.mapping.kernels import LogOddsModel, integrate_scan_logodds  # noqa: E402
 from robotexp.mapping.reference import integrate_scan_logodds_ref  # noqa: E402
+from robotexp.sim.engine import Engine  # noqa: E402
+from robotexp.world.builtin import builtin_world  # noqa: E402
+
+
+def scan_cost(world: str, rays: str, repeats: int) -> float:
+    """[s] per 181-beam scan of 3 m from the world's first start pose, with ray caster `rays`."""
+    w = builtin_world(world)
+    engine = Engine(w, 0.25, 0.5, rays)
+    try:
+        pose = next(iter(w.poses.values()))
+        origins = np.tile([pose.x, pose.y], (181, 1))
+        headings = pose.theta + np.radians(np.arange(-90.0, 91.0))
+        engine.cast_from(origins, headings, 3.0, 0.3)
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            engine.cast_from(origins, headings, 3.0, 0.3)
+        return (time.perf_counter() - t0) / repeats
+    finally:
+        engine.close()
 
 
 def main() -> None:
@@ -44,6 +66,10 @@ def main() -> None:
           f"(with set-up and ground truth {total:.2f} s)")
     print(f"  robot time / wall time = {r['robot_time_s'] / r['wall_time_s']:.0f}x (loop), "
           f"{r['robot_time_s'] / total:.0f}x (whole run)")
+
+    exact, bullet = scan_cost(args.world, "exact", 5000), scan_cost(args.world, "pybullet", 1000)
+    print(f"laser scan (181 rays of 3 m in {args.world}): exact kernel {exact * 1e6:.1f} us, pybullet ray test "
+          f"{bullet * 1e6:.1f} us: {bullet / exact:.1f}x")
 
     geo = GridGeometry(0.0, 0.0, CELL, int(20 / CELL), int(20 / CELL))
     model = LogOddsModel(-2.1972246, 2.1972246, -3.5, 3.5, RANGE)

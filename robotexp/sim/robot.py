@@ -16,6 +16,7 @@ from robotexp.world.model import World
 __all__ = ["SimRobot"]
 
 CONTACT_MARGIN = 0.02   # [m] clearance that ends a contact
+SONAR_HEIGHT = 0.2      # [m] height of the sonar ring
 
 
 class SimRobot(Robot):
@@ -40,6 +41,7 @@ class SimRobot(Robot):
             step when nothing uses it; `sonar()` still works).
         laser_in_state: cast the laser in every state (off: `read()` reports laser None, `scan()`
             still works; emulators that serve a laser-less protocol use this).
+        rays: "exact" (default) or "pybullet": who casts the laser and sonar rays (see `Engine`).
 
     Raises:
         WorldError: the start pose is outside the world or touches an obstacle.
@@ -51,7 +53,8 @@ class SimRobot(Robot):
 
     def __init__(self, world: World, *, robot: str | RobotPreset = "p3dx", pose: Pose | None = None,
                  seed: int = 0, laser: LaserConfig | None = None, odometry: OdometryError | None = None,
-                 max_speed: float | None = None, sonar: bool = True, laser_in_state: bool = True) -> None:
+                 max_speed: float | None = None, sonar: bool = True, laser_in_state: bool = True,
+                 rays: str = "exact") -> None:
         self.preset = preset(robot) if isinstance(robot, str) else robot
         self.world = world
         self.radius = self.preset.radius
@@ -74,7 +77,7 @@ class SimRobot(Robot):
         self._angles = self.laser_config.angles()
         self._sonar_dirs = self._sonar_pattern()
         self._scan_cache: tuple[float, LaserScan] | None = None
-        self.engine = Engine(world, self.preset.radius, self.preset.height)
+        self.engine = Engine(world, self.preset.radius, self.preset.height, rays)
         try:
             start = pose or _default_pose(world)
             self._true = start
@@ -251,12 +254,9 @@ class SimRobot(Robot):
 
     def _cast_fan(self, x: float, y: float, z: float, headings: np.ndarray, reach: float) -> np.ndarray:
         """Ranges [m] of rays of length `reach` from (x, y, z) at `headings` [rad] (inf: no hit)."""
-        n = len(headings)
-        ends = np.empty((n, 3))
-        ends[:, 0] = x + reach * np.cos(headings)
-        ends[:, 1] = y + reach * np.sin(headings)
-        ends[:, 2] = z
-        fraction = self.engine.cast([[x, y, z]] * n, ends.tolist())
+        origins = np.empty((len(headings), 2))
+        origins[:, 0], origins[:, 1] = x, y
+        fraction = self.engine.cast_from(origins, headings, reach, z)
         ranges = fraction * reach
         ranges[fraction >= 1.0] = np.inf
         return ranges
@@ -277,15 +277,12 @@ class SimRobot(Robot):
         p = self._true
         ring = cfg.angles()
         k = self._sonar_dirs.shape[1]
-        origins = np.empty((len(ring) * k, 3))
+        origins = np.empty((len(ring) * k, 2))
         origins[:, 0] = np.repeat(p.x + cfg.ring_radius * np.cos(p.theta + ring), k)
         origins[:, 1] = np.repeat(p.y + cfg.ring_radius * np.sin(p.theta + ring), k)
-        origins[:, 2] = 0.2
         headings = (p.theta + self._sonar_dirs).ravel()
-        ends = origins.copy()
-        ends[:, 0] += cfg.range_max * np.cos(headings)
-        ends[:, 1] += cfg.range_max * np.sin(headings)
-        fraction = self.engine.cast(origins.tolist(), ends.tolist()).reshape(len(ring), k).min(axis=1)
+        fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
+        fraction = fraction.reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
         return SonarScan(ring, ranges, cfg.range_max)
 
