@@ -43,6 +43,7 @@ __all__ = [
     "descent",
     "descent_field",
     "flood4",
+    "free_box",
     "gauss_seidel",
     "gauss_seidel_perturbed",
     "gauss_seidel_perturbed_ref",
@@ -53,15 +54,33 @@ __all__ = [
 
 
 @kernel
+def free_box(fixed: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
+    """Rows r0..r1 and columns c0..c1 (inclusive) that hold every updated cell (not fixed, not on the outer
+    ring); r1 < r0 when there is none. Sweeping only this box changes nothing in the result (every other
+    cell keeps its value anyway) and skips the unknown and walled-off parts of the map."""
+    rows, cols = fixed.shape
+    r0, r1, c0, c1 = rows, -1, cols, -1
+    for r in range(1, rows - 1):
+        for c in range(1, cols - 1):
+            if not fixed[r, c]:
+                r0 = min(r0, r)
+                r1 = max(r1, r)
+                c0 = min(c0, c)
+                c1 = max(c1, c)
+    return r0, r1, c0, c1
+
+
+@kernel
 def gauss_seidel(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int) -> None:
     """Relax `p` (rows, cols) float64 in place by `sweeps` Gauss-Seidel sweeps of eq. 3.1.
 
-    Cells with `fixed` (rows, cols) bool set and the outermost ring keep their values.
+    Cells with `fixed` (rows, cols) bool set and the outermost ring keep their values. Only the box of
+    the updated cells (`free_box`) is swept, in the same order.
     """
-    rows, cols = p.shape
+    r0, r1, c0, c1 = free_box(fixed)
     for _ in range(sweeps):
-        for r in range(1, rows - 1):
-            for c in range(1, cols - 1):
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
                 # the left neighbour was written just before: add it last (shorter dependency chain);
                 # computed for every cell and selected, not branched on (obstacle edges mispredict)
                 new = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
@@ -81,10 +100,10 @@ def gauss_seidel_perturbed(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.boo
         ey: eps * v_y of eq. 3.6 [1/cell].
         eps_abs: (rows, cols) float64 eps(r) of eq. 3.7 [1/cell].
     """
-    rows, cols = p.shape
+    r0, r1, c0, c1 = free_box(fixed)
     for _ in range(sweeps):
-        for r in range(1, rows - 1):
-            for c in range(1, cols - 1):
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
                 if not fixed[r, c]:
                     w = p[r, c - 1]
                     e = p[r, c + 1]

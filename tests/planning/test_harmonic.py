@@ -10,6 +10,7 @@ from robotexp.planning.harmonic import (
     descent,
     descent_field,
     flood4,
+    free_box,
     gauss_seidel,
     gauss_seidel_perturbed,
     gauss_seidel_perturbed_ref,
@@ -73,6 +74,35 @@ def test_kernel_matches_reference_on_random_grids(seed: int) -> None:
     gauss_seidel(a, fixed, 7)
     gauss_seidel_ref(b, fixed, 7)
     np.testing.assert_allclose(a, b, atol=1e-12, rtol=0)
+    assert not np.array_equal(a, p)
+
+
+def test_free_box_bounds_the_updated_cells() -> None:
+    fixed = np.ones((8, 10), bool)
+    assert free_box(fixed)[1] < free_box(fixed)[0]            # nothing to update
+    fixed[2, 3] = fixed[5, 7] = False
+    fixed[0, 0] = fixed[7, 9] = False                          # the outer ring is never updated
+    assert free_box(fixed) == (2, 5, 3, 7)
+
+
+@pytest.mark.parametrize("kernel_fn", ["laplace", "perturbed"])
+def test_kernels_match_reference_on_a_small_free_island(kernel_fn: str) -> None:
+    # Most of the map fixed (unknown or wall), a free island in one corner: the kernels sweep only its box,
+    # the references sweep everything; the results must be identical.
+    rng = np.random.default_rng(11)
+    p = rng.random((40, 50))
+    fixed = np.ones((40, 50), bool)
+    fixed[30:37, 3:12] = rng.random((7, 9)) < 0.8
+    fixed[31:36, 4:11] = rng.random((5, 7)) < 0.2
+    a, b = p.copy(), p.copy()
+    if kernel_fn == "laplace":
+        gauss_seidel(a, fixed, 9)
+        gauss_seidel_ref(b, fixed, 9)
+    else:
+        eps = rng.uniform(-1, 1, p.shape)
+        gauss_seidel_perturbed(a, fixed, 9, 0.3, -0.2, eps)
+        gauss_seidel_perturbed_ref(b, fixed, 9, 0.3, -0.2, eps)
+    assert np.array_equal(a, b)
     assert not np.array_equal(a, p)
 
 
