@@ -2,7 +2,8 @@
 
 Run: python benchmarks/bench_campaign.py [campaigns/thesis.toml] [--jobs N] [--out DIR]
 Target (issue "thesis experiments"): the thesis campaign within 10 minutes on 2 cores.
-Prints the wall time, runs per minute and the sum of robot time / wall time; the results stay in --out
+Prints the wall time, runs per minute, the sum of robot time / wall time and the CPU time the runs took
+(on a machine shared with other work the wall time grows, the CPU time much less); the results stay in --out
 (default out/bench-<name>) for `robotexp campaign report`.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import time
 from pathlib import Path
@@ -37,9 +39,15 @@ def main() -> None:
 
     records = run_campaign(camp, out, jobs=args.jobs, progress=progress)
     wall = time.perf_counter() - t0
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = usage.ru_utime + usage.ru_stime
     robot = sum(r["robot_time_s"] for r in records)
     print(f"campaign {camp.name}: {len(records)} runs in {wall:.0f} s wall ({wall / 60:.1f} min) on {args.jobs} jobs; "
           f"{len(records) / wall * 60:.1f} runs/min; robot time {robot:.0f} s = {robot / wall:.0f}x wall time")
+    print(f"CPU time of the runs {cpu:.0f} s = {cpu / 60:.1f} min; / {args.jobs} jobs = "
+          f"{cpu / args.jobs / 60:.1f} min, "
+          f"the wall time on {args.jobs} idle cores with perfect balance (wall/that = "
+          f"{wall / (cpu / args.jobs):.2f}: above 1 means other work shared the cores or the jobs waited)")
     print(f"incomplete runs: {sum(not r['completed'] for r in records)}; report: robotexp campaign report "
           f"{out / 'results.jsonl'}")
 

@@ -119,24 +119,25 @@ def test_pty_connect_drive_and_move(tmp_path: Path) -> None:
 
 
 def test_exploration_through_emulator_matches_embedded_sim() -> None:
-    spec = RunSpec(world="ufmg-static", method="frontier", pose="path1", speed=0.3, laser_range=3.0, max_time=90.0)
+    spec = RunSpec(world="ufmg-static", method="frontier", pose="path1", speed=0.3, laser_range=3.0, max_time=300.0)
     ref = run_experiment(spec, None, image=False)
     # lockstep: a busy test machine must not make the client miss cycles (the robot would run on)
     # and waits up to 1 s for each command (speedup 0.1), so a slow planning step does not count
     with P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=0.1, laser=LASER, lockstep=True) as emu:
         with P3DXRobot(emu.address, laser_range=3.0, laser_offset=0.0, watchdog=2.0, silence=3.0) as robot:
             got = run_on_robot(spec, robot, None, "ufmg-static", image=False)
-    cov_ref, cov = ref.record["coverage"], got.record["coverage"]
-    assert got.run.robot_time == pytest.approx(90.0, abs=0.15)
     # The protocol quantises RVEL to whole deg/s, poses to 0.485 mm / 0.088 deg and ranges to 1 mm:
     # for the first 10 s the two paths agree within 6 cm (4.2 cm measured) ...
     path_ref, path = np.array(ref.run.metrics.path[:100]), np.array(got.run.metrics.path[:100])
     assert np.max(np.hypot(*(path_ref - path).T)) < 0.06
-    # ... then the small differences pick other frontiers now and then (at 60 s one run may just
-    # have entered a room the other has not: 0.78 vs 0.67 measured); by 90 s both have covered the
-    # same rooms and the coverage agrees within 3 points (0.875 vs 0.886 measured).
-    assert cov == pytest.approx(cov_ref, abs=0.03)
-    assert cov > 0.8
+    # ... then the small differences pick other frontiers now and then, so the paths part; both runs
+    # still explore the whole scene (the embedded one in 123 s of robot time) and map it alike.
+    for out in (ref, got):
+        assert out.record["reason"] == "no reachable frontier left"
+        assert out.run.robot_time < 250.0
+    cov_ref, cov = ref.record["coverage"], got.record["coverage"]
+    assert cov_ref > 0.97 and cov > 0.97
+    assert cov == pytest.approx(cov_ref, abs=0.02)
 
 
 def _faulty_run(tmp_path: Path, fault: str) -> tuple[dict[str, object], P3DXEmulator, P3DXRobot, float]:
