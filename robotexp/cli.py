@@ -257,17 +257,19 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
 @click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Folder for tables.csv and tables.md (default: beside RESULTS).")
+@click.option("--include-incomplete", is_flag=True,
+              help="Count runs cut short in the visited-cells comparison (the thesis tables never do).")
 @handle_errors
-def campaign_report(results: Path, out: Path | None) -> None:
-    """Print the thesis-style tables of a results.jsonl and write them as CSV and Markdown."""
+def campaign_report(results: Path, out: Path | None, include_incomplete: bool) -> None:
+    """Print the thesis-style tables of a results.jsonl, and per world with 2+ methods the visited
+    cells with Welch's t-test (Santos 2016, Table 8); write them as CSV and Markdown."""
     import csv
 
     from robotexp.campaign import report_tables, table_markdown, table_text
-    from robotexp.results import read_jsonl
+    from robotexp.compare import comparison_tables, load_results
 
-    if not results.is_file():
-        raise ConfigError(f"{results}: no such results file")
-    tables = report_tables(read_jsonl(results))
+    records = load_results(results)
+    tables = report_tables(records) + comparison_tables(records, include_incomplete=include_incomplete)
     if not tables:
         raise ConfigError(f"{results}: no finished runs to report")
     folder = out or results.parent
@@ -282,7 +284,26 @@ def campaign_report(results: Path, out: Path | None) -> None:
     (folder / "tables.md").write_text("\n".join(table_markdown(t) for t in tables), encoding="utf-8")
     for t in tables:
         click.echo(table_text(t))
-    click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  (* = run not completed, left out of the statistics)")
+    click.echo(f"written: {folder / 'tables.csv'}, {folder / 'tables.md'}  "
+               "(* = run not completed, left out of the statistics)")
+
+
+@campaign.command("plot")
+@click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for the images (default: beside RESULTS).")
+@click.option("--include-incomplete", is_flag=True, help="Count runs cut short in the box plot.")
+@handle_errors
+def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> None:
+    """Draw visited_cells.png (box plots per world and method) and paths_<world>_<method>.png
+    (the runs' trajectories overlaid on the world's map, from their NAME.path.csv files)."""
+    from robotexp.compare import campaign_plots, load_results
+
+    records = load_results(results)
+    written = campaign_plots(records, results.parent, out or results.parent, include_incomplete=include_incomplete,
+                             note=lambda text: click.echo(f"robotexp: {text}", err=True))
+    for path in written:
+        click.echo(f"written: {path}")
 
 
 @main.command("run")

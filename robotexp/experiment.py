@@ -341,6 +341,8 @@ def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_labe
                                                       "robot": spec.robot, **(record_extra or {})})
     append_jsonl(out / "results.jsonl", record)       # first: the record is never lost
     write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
+    from robotexp.trajectory import write_path_csv
+    write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
     from robotexp.world.rosmap import save_ros_map
     save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
     img_path = plot_path = None

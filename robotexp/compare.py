@@ -1,0 +1,230 @@
+"""Method comparisons of a campaign's results: visited-cells tables with Welch's t-test, box plots
+and overlaid trajectories.
+
+`comparison_tables` gives, for each world (and maximum speed) run with two or more methods, the
+layout of Santos 2016's Table 8: one row per method with the number of runs, visited cells
+mean +- standard deviation, mean coverage and mean path length, then one row per pair of methods
+with the two-sided p-value of Welch's two-sample t-test on visited cells. `campaign_plots` draws
+`visited_cells.png` (a box per world and method) and `paths_<world>_<method>.png` (every run's
+trajectory, read from its `NAME.path.csv`, on the world's map).
+
+As in the thesis tables, runs cut short (not completed) are left out of the statistics unless
+`include_incomplete` is set; interrupted runs are always left out.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import re
+import statistics
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+from robotexp.campaign import Table
+from robotexp.errors import ConfigError, WorldError
+from robotexp.stats import welch_t_test
+
+__all__ = ["REQUIRED_KEYS", "campaign_plots", "comparison_tables", "load_results", "path_file"]
+
+log = logging.getLogger(__name__)
+
+REQUIRED_KEYS = ("run", "world", "method", "visited_cells")
+
+
+def load_results(path: Path) -> list[dict[str, Any]]:
+    """The records of a results.jsonl, checked to be robotexp run records.
+
+    A torn last line (a run killed while writing) is skipped, as by `results.read_jsonl`.
+
+    Raises:
+        ConfigError: no such file, not UTF-8 text, a line that is not a JSON object, a record
+            without the keys `REQUIRED_KEYS`, or no record at all.
+    """
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such results file (give the results.jsonl a run or campaign wrote)")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a results file (not UTF-8 text); give a results.jsonl") from None
+    numbered = [(i, line.strip()) for i, line in enumerate(lines, start=1) if line.strip()]
+    records: list[dict[str, Any]] = []
+    for k, (i, line) in enumerate(numbered):
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError as exc:
+            if k == len(numbered) - 1 and records:
+                log.warning("%s:%d: torn last line skipped", path, i)
+                continue
+            raise ConfigError(f"{path}:{i}: not a JSON record ({exc.msg}); give a results.jsonl "
+                              "(one JSON object per line)") from None
+        if not isinstance(rec, dict):
+            raise ConfigError(f"{path}:{i}: expected a JSON object per line, got {type(rec).__name__}")
+        missing = [key for key in REQUIRED_KEYS if key not in rec]
+        if missing:
+            raise ConfigError(f"{path}:{i}: record lacks {', '.join(missing)}; is this a robotexp results.jsonl?")
+        records.append(rec)
+    if not records:
+        raise ConfigError(f"{path}: no runs recorded (the file is empty)")
+    return records
+
+
+def _selected(records: Iterable[dict[str, Any]], include_incomplete: bool) -> list[dict[str, Any]]:
+    return [r for r in records if not str(r.get("reason", "")).startswith("interrupted")
+            and (include_incomplete or r.get("completed"))]
+
+
+def _speed(record: dict[str, Any]) -> int:
+    return round(float(record.get("max_speed_m_s") or 0) * 1000)
+
+
+def _mean_sd(values: list[float], decimals: int) -> str:
+    if not values:
+        return "-"
+    mean = statistics.fmean(values)
+    if len(values) < 2:
+        return f"{mean:.{decimals}f}"
+    return f"{mean:.{decimals}f} ± {statistics.stdev(values):.{decimals}f}"
+
+
+def _mean(values: list[float | None], decimals: int) -> str:
+    known = [float(v) for v in values if v is not None]
+    return f"{statistics.fmean(known):.{decimals}f}" if known else "-"
+
+
+def comparison_tables(records: Iterable[dict[str, Any]], *, include_incomplete: bool = False) -> list[Table]:
+    """Santos 2016 Table 8 per world (and maximum speed) that has runs of two or more methods.
+
+    Rows: per method (sorted) the runs used (n; "+k*" counts the runs cut short and left out),
+    visited cells mean ± sample standard deviation, mean coverage (0..1) and mean path [m]; then
+    per pair of methods "Welch p, A vs B" with the two-sided p-value of Welch's t-test on the visited
+    cells, its t (A minus B) and df, or "-" when a method has fewer than 2 runs.
+
+    Args:
+        records: results.jsonl records.
+        include_incomplete: also use the runs cut short (time limit, stuck); interrupted runs are
+            always left out.
+
+    Returns:
+        The tables, sorted by world then decreasing speed.
+    """
+    all_runs = [r for r in records if not str(r.get("reason", "")).startswith("interrupted")]
+    used = {id(r) for r in _selected(all_runs, include_incomplete)}
+    groups: dict[tuple[str, int], dict[str, list[dict[str, Any]]]] = {}
+    for r in all_runs:
+        groups.setdefault((str(r.get("world")), _speed(r)), {}).setdefault(str(r.get("method")), []).append(r)
+    tables = []
+    for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
+        if len(by_method) < 2:
+            continue
+        methods = sorted(by_method)
+        header = ["method", "n", "visited cells", "coverage", "path (m)"]
+        rows = []
+        cells: dict[str, list[float]] = {}
+        for m in methods:
+            recs = [r for r in by_method[m] if id(r) in used]
+            left_out = len(by_method[m]) - len(recs)
+            cells[m] = [float(r["visited_cells"]) for r in recs]
+            n = f"{len(recs)}" + (f" +{left_out}*" if left_out else "")
+            rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.get("coverage") for r in recs], 3),
+                         _mean([r.get("path_length_m") for r in recs], 1)])
+        for a, b in itertools.combinations(methods, 2):
+            if len(cells[a]) < 2 or len(cells[b]) < 2:
+                p = "- (fewer than 2 runs)"
+            else:
+                w = welch_t_test(cells[a], cells[b])
+                p = f"{w.p:.3g} (t = {w.t:.2f}, df = {w.df:.1f})"
+            rows.append([f"Welch p, {a} vs {b}", "", p, "", ""])
+        tables.append(Table(f"{world}, max speed {speed} mm/s: visited cells per run", methods, header, rows))
+    return tables
+
+
+def path_file(results_dir: Path, record: dict[str, Any]) -> Path:
+    """The path file `NAME.path.csv` of a run record, in the folder of its results.jsonl."""
+    return results_dir / f"{record['run']}.path.csv"
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "x"
+
+
+def _run_label(record: dict[str, Any], with_speed: bool) -> str:
+    label = f"pose {record.get('pose', record.get('start_pose'))}, seed {record.get('seed')}"
+    if with_speed:
+        label += f", {_speed(record)} mm/s"
+    label += f": {record['visited_cells']} cells"
+    return label + ("" if record.get("completed") else " *")
+
+
+def campaign_plots(records: Iterable[dict[str, Any]], results_dir: Path, out: Path, *,
+                   include_incomplete: bool = False,
+                   note: Callable[[str], None] | None = None) -> list[Path]:
+    """Write `visited_cells.png` and one `paths_<world>_<method>.png` per world and method into `out`.
+
+    The box plot has one box per (world, method) over the runs `comparison_tables` uses. The path
+    images show every run that was not interrupted (a run cut short is marked * in the legend), on
+    the static obstacles of the record's `world_spec` (else `world`); a run whose path file is
+    missing, or a world that cannot be loaded, is reported through `note` and skipped / drawn
+    without its map.
+
+    Args:
+        records: results.jsonl records.
+        results_dir: the folder holding the runs' path files (that of results.jsonl).
+        out: output folder (created when missing).
+        include_incomplete: also count the runs cut short in the box plot.
+        note: called with a one-line message for each skipped run or world.
+
+    Returns:
+        The images written.
+
+    Raises:
+        ConfigError: no run left to plot.
+    """
+    from robotexp.plot import box_plot
+    from robotexp.render import save_png
+    from robotexp.trajectory import paths_image, read_path_csv
+    from robotexp.world.loader import load_world
+
+    say = note or (lambda text: log.info("%s", text))
+    runs = [r for r in records if not str(r.get("reason", "")).startswith("interrupted")]
+    if not runs:
+        raise ConfigError("no finished runs to plot (every run was interrupted)")
+    out.mkdir(parents=True, exist_ok=True)
+    by_group: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in runs:
+        by_group.setdefault((str(r["world"]), str(r["method"])), []).append(r)
+    keys = sorted(by_group)
+    used = {id(r) for r in _selected(runs, include_incomplete)}
+    groups = [(f"{w} {m}", [float(r["visited_cells"]) for r in by_group[(w, m)] if id(r) in used])
+              for w, m in keys]
+    what = "all finished runs" if include_incomplete else "completed runs"
+    written = [save_png(box_plot(groups, ylabel="visited cells",
+                                 title=f"Visited cells per run, by world and method ({what})",
+                                 size=(max(900, 130 * len(groups)), 540)), out / "visited_cells.png")]
+    worlds: dict[str, Any] = {}
+    for world, method in keys:
+        recs = sorted(by_group[(world, method)], key=lambda r: (str(r.get("pose")), _speed(r), r.get("seed") or 0))
+        spec = str(recs[0].get("world_spec") or world)
+        if spec not in worlds:
+            try:
+                worlds[spec] = load_world(spec)
+            except WorldError as exc:
+                say(f"world {spec!r}: {exc}; paths drawn without the map")
+                worlds[spec] = None
+        with_speed = len({_speed(r) for r in recs}) > 1
+        lines = []
+        for r in recs:
+            f = path_file(results_dir, r)
+            if not f.is_file():
+                say(f"{r['run']}: no path file {f.name}; run skipped")
+                continue
+            lines.append((_run_label(r, with_speed), read_path_csv(f)))
+        if not lines:
+            continue
+        title = f"{world} - {method}: {len(lines)} run(s)"
+        notes = ["dot: start of a path"] + (["*: run cut short"] if any(not r.get("completed") for r in recs) else [])
+        image = paths_image(worlds[spec], lines, title=title, notes=notes)
+        written.append(save_png(image, out / f"paths_{_safe(world)}_{_safe(method)}.png"))
+    return written

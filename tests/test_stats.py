@@ -1,0 +1,157 @@
+"""Student's t tail and Welch's test against printed tables, closed forms and hand computations."""
+
+from __future__ import annotations
+
+import math
+import random
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from robotexp.stats import regularized_incomplete_beta, student_t_sf, t_two_sided_p, welch_t_test
+
+
+# -- incomplete beta: closed forms ----------------------------------------------------------------
+
+@pytest.mark.parametrize("b", [0.3, 1.0, 2.5, 17.0, 400.0])
+@pytest.mark.parametrize("x", [0.001, 0.2, 0.5, 0.77, 0.999])
+def test_incomplete_beta_a_one(b: float, x: float) -> None:
+    assert regularized_incomplete_beta(1.0, b, x) == pytest.approx(1 - (1 - x) ** b, rel=1e-12, abs=1e-14)
+
+
+@pytest.mark.parametrize("a", [0.3, 1.0, 2.5, 17.0, 400.0])
+@pytest.mark.parametrize("x", [0.001, 0.2, 0.5, 0.77, 0.999])
+def test_incomplete_beta_b_one(a: float, x: float) -> None:
+    assert regularized_incomplete_beta(a, 1.0, x) == pytest.approx(x ** a, rel=1e-12, abs=1e-14)
+
+
+@pytest.mark.parametrize("a, tol", [(0.1, 1e-13), (0.5, 1e-13), (1.0, 1e-13), (3.7, 1e-13), (50.0, 1e-13),
+                                    (5000.0, 1e-10)])   # lgamma's differences lose digits at large shapes
+def test_incomplete_beta_half_at_symmetric_shapes(a: float, tol: float) -> None:
+    assert regularized_incomplete_beta(a, a, 0.5) == pytest.approx(0.5, abs=tol)
+
+
+def test_incomplete_beta_integer_shapes_equal_a_binomial_tail() -> None:
+    # I_x(a, b) = P(Binomial(a + b - 1, x) >= a) for integer a, b; the sum is exact in fractions.
+    rng = random.Random(7)
+    for _ in range(60):
+        a, b, x = rng.randint(1, 120), rng.randint(1, 120), rng.random()
+        n, fx = a + b - 1, Fraction(x)
+        ref = float(sum(math.comb(n, j) * fx ** j * (1 - fx) ** (n - j) for j in range(a, n + 1)))
+        assert regularized_incomplete_beta(a, b, x) == pytest.approx(ref, abs=1e-12), (a, b, x)
+
+
+def test_incomplete_beta_ends_and_bad_input() -> None:
+    assert regularized_incomplete_beta(2.0, 3.0, 0.0) == 0.0
+    assert regularized_incomplete_beta(2.0, 3.0, 1.0) == 1.0
+    for a, b, x in [(0.0, 1.0, 0.5), (1.0, -1.0, 0.5), (1.0, 1.0, 1.5), (1.0, 1.0, math.nan), (math.inf, 1.0, 0.5)]:
+        with pytest.raises(ValueError, match="incomplete beta"):
+            regularized_incomplete_beta(a, b, x)
+
+
+# -- t distribution: printed critical values and closed forms -------------------------------------
+
+@pytest.mark.parametrize("t, df, p", [
+    (12.706, 1, 0.05), (4.303, 2, 0.05), (2.228, 10, 0.05), (2.042, 30, 0.05),   # two-sided 5 % column
+    (63.657, 1, 0.01), (3.169, 10, 0.01), (2.750, 30, 0.01),                      # two-sided 1 % column
+    (1.812, 10, 0.10), (1.960, 1e6, 0.05), (2.576, 1e6, 0.01),
+])
+def test_two_sided_p_at_printed_critical_values(t: float, df: float, p: float) -> None:
+    # The tables print t to 3 decimals: p is then right to a few parts in 1e4 of itself.
+    assert t_two_sided_p(t, df) == pytest.approx(p, rel=2e-3)
+    assert t_two_sided_p(-t, df) == t_two_sided_p(t, df)
+
+
+@pytest.mark.parametrize("t", [0.0, 0.3, 1.0, 2.5, 12.706, 300.0])
+def test_two_sided_p_closed_forms_for_one_and_two_df(t: float) -> None:
+    # df = 1 is the Cauchy distribution: P(|T| > t) = 1 - (2/pi) atan t;
+    # df = 2: P(|T| > t) = 1 - t / sqrt(2 + t^2).
+    assert t_two_sided_p(t, 1) == pytest.approx(1 - 2 / math.pi * math.atan(t), rel=1e-12, abs=1e-15)
+    assert t_two_sided_p(t, 2) == pytest.approx(1 - t / math.sqrt(2 + t * t), rel=1e-10, abs=1e-15)
+
+
+def test_large_df_tends_to_the_normal() -> None:
+    # First-order expansion in 1/df of the t tail (Abramowitz & Stegun 26.7.5):
+    # P(|T| > t) = erfc(t / sqrt 2) + phi(t) (t^3 + t) / (2 df) + O(1/df^2).
+    for t in (0.5, 1.96, 3.0):
+        normal = math.erfc(t / math.sqrt(2))
+        assert t_two_sided_p(t, math.inf) == pytest.approx(normal, rel=1e-14)
+        phi = math.exp(-t * t / 2) / math.sqrt(2 * math.pi)
+        for df in (1e5, 1e6):           # the 1/df^2 term is below 1e-7 of p here
+            assert t_two_sided_p(t, df) == pytest.approx(normal + phi * (t ** 3 + t) / (2 * df), rel=1e-7)
+
+
+def test_upper_tail_is_half_the_two_sided_p() -> None:
+    assert student_t_sf(2.228, 10) == pytest.approx(0.025, rel=2e-3)
+    assert student_t_sf(-2.228, 10) == pytest.approx(0.975, rel=1e-4)
+    assert student_t_sf(0.0, 4) == 0.5
+    assert student_t_sf(math.inf, 3) == 0.0
+    with pytest.raises(ValueError, match="degrees of freedom"):
+        t_two_sided_p(1.0, 0.0)
+
+
+def _p_by_quadrature(t: float, df: float) -> float:
+    """1 - 2 * integral_0^|t| of the t density, by Simpson's rule on 20000 intervals."""
+    x = np.linspace(0.0, abs(t), 20001)
+    c = math.exp(math.lgamma((df + 1) / 2) - math.lgamma(df / 2)) / math.sqrt(df * math.pi)
+    f = c * (1 + x * x / df) ** (-(df + 1) / 2)
+    h = x[1] - x[0]
+    integral = h / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum())
+    return 1 - 2 * float(integral)
+
+
+# -- Welch ------------------------------------------------------------------------------------------
+
+def test_welch_by_hand() -> None:
+    # a = 1..5: mean 3, s^2 = (4+1+0+1+4)/4 = 2.5, s^2/n = 0.5
+    # b = 2,4,6: mean 4, s^2 = (4+0+4)/2 = 4, s^2/n = 4/3
+    # t = (3 - 4) / sqrt(0.5 + 4/3) = -1 / sqrt(11/6) = -0.7385489...
+    # df = (11/6)^2 / (0.5^2 / 4 + (4/3)^2 / 2) = (121/36) / (1/16 + 8/9) = (121/36) / (137/144)
+    #    = 484/137 = 3.5328467...
+    w = welch_t_test([1, 2, 3, 4, 5], [2, 4, 6])
+    assert w.t == pytest.approx(-1 / math.sqrt(11 / 6), rel=1e-13)
+    assert w.df == pytest.approx(484 / 137, rel=1e-13)
+    assert w.p == pytest.approx(_p_by_quadrature(w.t, w.df), abs=1e-9)
+    assert 0.50 < w.p < 0.51
+
+
+def test_welch_santos_table_8_shape() -> None:
+    # Two samples of five like Santos's env 2 (FA 1426 +- 237 vs GA 1923 +- 262):
+    # a: mean 1426, deviations -300, -150, 0, 150, 300 -> s^2 = 2 * (90000 + 22500) / 4 = 56250
+    # b: mean 1923, deviations -200, -100, 0, 100, 200 -> s^2 = 2 * (40000 + 10000) / 4 = 25000
+    # se^2 = 56250/5 + 25000/5 = 16250, t = -497 / sqrt(16250) = -3.8988...
+    # df = 16250^2 / (11250^2 / 4 + 5000^2 / 4) = 264062500 / 37890625 = 6.9691...
+    a = [1126, 1276, 1426, 1576, 1726]
+    b = [1723, 1823, 1923, 2023, 2123]
+    w = welch_t_test(a, b)
+    assert w.t == pytest.approx(-497 / math.sqrt(16250), rel=1e-13)
+    assert w.df == pytest.approx(16250 ** 2 / (11250 ** 2 / 4 + 5000 ** 2 / 4), rel=1e-13)
+    assert w.p == pytest.approx(_p_by_quadrature(w.t, w.df), abs=1e-9)
+    assert 0.005 < w.p < 0.01
+    swapped = welch_t_test(b, a)
+    assert (swapped.t, swapped.df, swapped.p) == pytest.approx((-w.t, w.df, w.p))
+
+
+def test_welch_one_constant_sample_has_df_n_minus_one() -> None:
+    # b constant: df = (s_a^2/n_a)^2 / ((s_a^2/n_a)^2 / (n_a - 1)) = n_a - 1 = 3
+    w = welch_t_test([1.0, 2.0, 3.0, 4.0], [5.0, 5.0, 5.0])
+    assert w.df == pytest.approx(3.0)
+    # t = (2.5 - 5) / sqrt((5/3) / 4) = -2.5 / sqrt(5/12)
+    assert w.t == pytest.approx(-2.5 / math.sqrt(5 / 12))
+
+
+def test_welch_zero_variances() -> None:
+    same = welch_t_test([3, 3, 3], [3, 3])
+    assert (same.t, same.p, same.df) == (0.0, 1.0, 3.0)
+    apart = welch_t_test([3, 3, 3], [4, 4])
+    assert apart.p == 0.0 and apart.t == -math.inf
+
+
+def test_welch_needs_two_values_per_group() -> None:
+    with pytest.raises(ValueError, match="sample b has 1 value"):
+        welch_t_test([1, 2, 3], [4])
+    with pytest.raises(ValueError, match="sample a has 0 value"):
+        welch_t_test([], [1, 2])
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        welch_t_test([1, math.nan], [1, 2])
