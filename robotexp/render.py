@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import math
 import unicodedata
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -26,7 +27,8 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose
 
 __all__ = [
-    "COLORS", "MapLayout", "drawable_text", "font", "map_layout", "render_map", "save_png", "viridis",
+    "COLORS", "MapLayout", "Marker", "drawable_text", "font", "map_layout", "render_field", "render_map",
+    "save_png", "viridis",
 ]
 
 RGB = tuple[int, int, int]
@@ -45,6 +47,7 @@ COLORS: dict[str, RGB] = {
     "chrome": (255, 255, 255),      # title band, footer, margins
     "frame": (120, 120, 120),       # 1 px line around the map
     "text": (30, 30, 30),
+    "masked": (150, 150, 150),      # render_field: known free cells outside the field's mask
 }
 GRID_ALPHA = 0.2
 TITLE_FONT = 15                     # [px]
@@ -403,6 +406,81 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
     if title:
         _draw_title(chrome, lay, title)
     _scale_bar(chrome, lay)
+    return image
+
+
+class Marker(NamedTuple):
+    """A point drawn over a `render_field` image: a filled disc, or a ring of width 2 px."""
+
+    x: float                # [m] world x of the centre
+    y: float                # [m] world y of the centre
+    color: RGB
+    radius: float = 4.0     # [px]
+    ring: bool = False      # draw only the outline (what lies below stays visible inside)
+    outline: RGB | None = None  # 1 px edge of a disc; None: the colour at half brightness
+
+
+def render_field(field: npt.ArrayLike, geo: GridGeometry, *, mask: npt.ArrayLike | None = None,
+                 states: npt.ArrayLike | None = None, limits: tuple[float, float] | None = None,
+                 markers: Sequence[Marker] = (), scale: int | None = None, title: str | None = None,
+                 max_size: int = 1400) -> Image.Image:
+    """Draw a scalar field over a grid north-up in viridis, with point markers, as an RGB image.
+
+    The image has `render_map`'s layout, title band and scale bar (`map_layout` with the same geo,
+    scale, title and max_size places the map in it). Cell colours: inside `mask` (and where the
+    field is finite), viridis((value - low) / (high - low)) clipped to [0, 1]; outside it, the
+    colour of the cell's state: occupied black, unknown (205, 205, 205), known free
+    `COLORS["masked"]` (150, 150, 150). Markers are drawn in order over the cells.
+
+    Args:
+        field: (rows, cols) float values, row 0 at the bottom of the world.
+        geo: geometry of `field`.
+        mask: (rows, cols) bool cells to colour by value; None: every cell with a finite value.
+        states: (rows, cols) int grid states (-1 unknown, 0 free, 100 occupied) for the cells
+            outside `mask`; None: they are all drawn unknown.
+        limits: (low, high) values at the two ends of the colour map; None: the least and largest
+            value inside the mask.
+        markers: points to draw, in order (later ones on top).
+        scale: pixels per cell (int >= 1), or None to fit `max_size` (see `map_layout`).
+        title: a line of text above the map.
+        max_size: [px] bound on the image size when `scale` is None.
+
+    Returns:
+        An RGB `PIL.Image.Image`.
+
+    Raises:
+        ConfigError: an array of the wrong shape, limits not finite with low < high, a bad scale.
+    """
+    values = _check_field("field", field, geo)
+    inside = np.isfinite(values)
+    if mask is not None:
+        inside &= _check_field("mask", mask, geo) != 0
+    base = np.full((geo.rows, geo.cols), -1, np.int16)
+    if states is not None:
+        base = np.asarray(_check_field("states", states, geo), dtype=np.int16)
+    if limits is None:
+        lo, hi = (float(values[inside].min()), float(values[inside].max())) if inside.any() else (0.0, 1.0)
+    else:
+        lo, hi = float(limits[0]), float(limits[1])
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise ConfigError(f"render_field: limits must be finite with low < high, got {limits!r}")
+    lay = map_layout(geo, scale=scale, title=title, max_size=max_size)
+    image = render_map(base, geo, scale=lay.scale, title=title, max_size=max_size)
+    cells = _state_colors(base)
+    cells[(base >= 0) & (base < 50)] = COLORS["masked"]
+    span = hi - lo if hi > lo else 1.0
+    cells[inside] = viridis((values[inside] - lo) / span)
+    image.paste(Image.fromarray(np.ascontiguousarray(_upscale(cells, lay.scale)), mode="RGB"), (lay.left, lay.top))
+    draw = ImageDraw.Draw(image)
+    for m in markers:
+        u, v = lay.to_pixel(m.x, m.y)
+        r = float(m.radius)
+        box = [u - r, v - r, u + r, v + r]
+        if m.ring:
+            draw.ellipse(box, outline=m.color, width=2)
+        else:
+            edge = m.outline if m.outline is not None else tuple(int(0.5 * c) for c in m.color)
+            draw.ellipse(box, fill=m.color, outline=edge)
     return image
 
 
