@@ -216,6 +216,9 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     if resume and results.exists():
         done = {record_key(r) for r in read_jsonl(results) if not str(r.get("reason", "")).startswith("interrupted")}
     todo = [s for s in campaign.runs if run_key(s, _pose_label(s)) not in done]
+    # Likely-longest first, so that no process is left alone with a long run at the end: a run's robot
+    # time grows with its time limit and falls with its speed (the order of the records does not matter).
+    todo.sort(key=lambda s: (-s.max_time, s.speed))
     total = len(todo)
     if progress:
         progress(0, total, None)
