@@ -16,7 +16,10 @@ frontier cells with an occupied 8-neighbour (wall faces) are not FRONTIER; front
 than 3 sigma_f from every reachable cell (their attraction cannot reach a target) are left out of
 FRONTIER and of the count; a target is kept while frontier cells remain near it; and frontier
 cells still there after the robot stood at their target and looked at them, or after
-`goal_timeout` without progress, are given up on.
+`goal_timeout` without progress, are given up on. A search that ends where no frontier cell is
+within reach (a GA or firefly run caught far from every frontier: found in our dense runs, where a
+meta-ga run then wandered for the whole 4 hours) is replaced by the optimum over the cells near the
+frontier; results count these as `fallbacks`.
 """
 
 from __future__ import annotations
@@ -128,11 +131,13 @@ class MetaheuristicExplorer(Explorer):
         self.last_progress = 0.0
         self.targets = 0
         self.gaps: list[float] = []         # [cells] from each target to the exhaustive optimum
+        self.fallbacks = 0                  # searches that ended with no frontier within reach
         self.frontier_left = 0
 
     def result_fields(self) -> dict[str, object]:
-        """Targets chosen, their mean distance to the exhaustive optimum [cells], frontier left."""
-        return {"targets": self.targets, "frontier_left": self.frontier_left,
+        """Targets chosen, their mean distance to the exhaustive optimum [cells], frontier left, and the
+        searches that ended with no frontier within reach (`fallbacks`, see `_plan`)."""
+        return {"targets": self.targets, "frontier_left": self.frontier_left, "fallbacks": self.fallbacks,
                 "target_gap_cells": round(float(np.mean(self.gaps)), 2) if self.gaps else 0.0}
 
     # -- the decision --------------------------------------------------------------------
@@ -219,14 +224,23 @@ class MetaheuristicExplorer(Explorer):
             return False
         opt = exhaustive(objective.surface)
         self.gaps.append(math.hypot(found.cell[0] - opt.cell[0], found.cell[1] - opt.cell[1]))
+        k = int(math.ceil(reach))
+        self.target_cells = _cells_near(frontier, found.cell, k)
+        if len(self.target_cells) == 0:
+            # The search stopped where no frontier cell is within reach (its C_f is ~0): driving there
+            # resolves nothing, and with that frontier never looked at the run would not end. Take the
+            # optimum over the cells that have a frontier cell within reach instead (counted).
+            near = distance_transform(frontier) <= reach
+            found = exhaustive(np.where(near, objective.surface, INFEASIBLE))
+            if found.value >= INFEASIBLE:
+                return False
+            self.fallbacks += 1
+            self.target_cells = _cells_near(frontier, found.cell, k)
         path = astar(cost, start, found.cell)
         if path is None:
             return False
         self.targets += 1
         self.target = found.cell
-        k = int(math.ceil(reach))
-        r0, c0 = max(found.cell[0] - k, 0), max(found.cell[1] - k, 0)
-        self.target_cells = np.argwhere(frontier[r0:found.cell[0] + k + 1, c0:found.cell[1] + k + 1]) + (r0, c0)
         if len(self.target_cells):
             cy, cx = self.target_cells.mean(axis=0)
             self.face = geo.center_of(int(round(cy)), int(round(cx)))
@@ -242,6 +256,12 @@ class MetaheuristicExplorer(Explorer):
         pts = np.array([grid.geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
         pts[0] = (pose.x, pose.y)
         self.follower.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
+
+
+def _cells_near(mask: npt.NDArray[np.bool_], cell: tuple[int, int], k: int) -> npt.NDArray[np.int64]:
+    """(n, 2) (row, col) of the cells set in `mask` within the square of half-side `k` [cells] around `cell`."""
+    r0, c0 = max(cell[0] - k, 0), max(cell[1] - k, 0)
+    return np.argwhere(mask[r0:cell[0] + k + 1, c0:cell[1] + k + 1]) + (r0, c0)
 
 
 class GAExplorer(MetaheuristicExplorer):

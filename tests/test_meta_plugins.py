@@ -18,6 +18,8 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import ground_truth
 from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
+from robotexp.planning.metaheuristics import SearchResult
+from robotexp.planning.objective import INFEASIBLE
 from robotexp.robot import Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
@@ -68,6 +70,33 @@ def test_explores_two_rooms(method: str) -> None:
     assert all(visited[r, c] for r, c in run.metrics.visited)
     if method == "meta-exhaustive":
         assert fields["target_gap_cells"] == 0.0
+
+
+class _LostSearch(MetaheuristicExplorer):
+    """A search that always answers the feasible cell farthest from every frontier cell."""
+
+    name = "meta-lost"
+
+    def search(self, surface: np.ndarray) -> SearchResult:
+        grid = self.last_grid
+        frontier = grid.frontier()
+        far = np.where(surface < INFEASIBLE, distance_transform(frontier), -1.0)
+        cell = np.unravel_index(int(np.argmax(far)), far.shape)
+        return SearchResult((float(cell[1]), float(cell[0])), (int(cell[0]), int(cell[1])), float(surface[cell]), 1)
+
+    def step(self, state, grid):  # type: ignore[no-untyped-def]
+        self.last_grid = grid
+        return super().step(state, grid)
+
+
+def test_a_search_lost_far_from_the_frontier_falls_back_and_the_run_ends() -> None:
+    # Without the fallback such a search sends the robot to frontier-less cells for ever.
+    run = explore(_LostSearch())
+    assert run.completed and run.reason == "fewer than 20 usable frontier cells left"
+    fields = run.explorer.result_fields()
+    assert fields["fallbacks"] == fields["targets"] >= 2
+    cov = run.coverage()
+    assert cov is not None and cov >= 0.95
 
 
 def test_same_seed_same_run() -> None:
