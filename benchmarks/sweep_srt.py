@@ -5,8 +5,10 @@ collisions, distance [m] of the robot's true end position from its start, path l
 detours, robot time [s] and the reason the run ended. Prints a Markdown table; `--jobs 2` runs two
 processes at once (the machine is shared: keep it at 2 or fewer).
 
-Run: python benchmarks/sweep_srt.py [--worlds dense sparse] [--methods srt-laser srt-star] [--jobs 2]
-Default: dense poses 1-9 with srt-laser and srt-star, sparse poses 1-5 with all three.
+Run: python benchmarks/sweep_srt.py [--worlds dense sparse] [--methods srt-laser srt-star] [--poses 1 2]
+[-p d_min=1.0 ...] [--jobs 1]
+Default: dense poses 1-9 with srt-laser and srt-star, sparse poses 1-5 with all three; `-p` sets an
+explorer parameter of every run (e.g. `--methods srt-star -p d_min=1.0`: srt-star's former default).
 """
 
 from __future__ import annotations
@@ -22,12 +24,30 @@ DEFAULT = [("dense", str(p), m) for m in ("srt-laser", "srt-star") for p in rang
           [("sparse", str(p), m) for m in ("srt-laser", "srt-star", "srt-ball") for p in range(1, 6)]
 
 
-def one(job: tuple[str, str, str, float, int]) -> dict[str, object]:
-    """Run one (world, pose, method, speed [m/s], seed); return its row."""
-    world, pose, method, speed, seed = job
+def parse_param(text: str) -> tuple[str, object]:
+    """`key=value` -> (key, value): value as int, float, bool (true/false) or else the string."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"-p expects key=value, got {text!r}")
+    value: object = raw
+    if raw.lower() in ("true", "false"):
+        value = raw.lower() == "true"
+    else:
+        for kind in (int, float):
+            try:
+                value = kind(raw)
+                break
+            except ValueError:
+                pass
+    return key, value
+
+
+def one(job: tuple[str, str, str, float, int, dict[str, object]]) -> dict[str, object]:
+    """Run one (world, pose, method, speed [m/s], seed, explorer params); return its row."""
+    world, pose, method, speed, seed, params = job
     holder: dict[str, ExplorationRun] = {}
-    out = run_experiment(RunSpec(world=world, method=method, pose=pose, speed=speed, seed=seed), None, image=False,
-                         on_run=lambda run: holder.setdefault("run", run))
+    out = run_experiment(RunSpec(world=world, method=method, pose=pose, speed=speed, seed=seed, params=dict(params)),
+                         None, image=False, on_run=lambda run: holder.update(run=run))
     rec = out.record
     run = holder["run"]
     end = run.state.true_pose if run.state is not None else None
@@ -49,8 +69,11 @@ def main() -> None:
     ap.add_argument("--speed", type=float, default=100.0, help="[mm/s]")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1, help="processes at once (at most 2 on a shared machine)")
+    ap.add_argument("-p", "--param", action="append", type=parse_param, default=[],
+                    help="explorer parameter key=value for every run (repeatable)")
     args = ap.parse_args()
-    jobs = [(w, p, m, args.speed / 1000, args.seed) for w, p, m in DEFAULT
+    params = dict(args.param)
+    jobs = [(w, p, m, args.speed / 1000, args.seed, params) for w, p, m in DEFAULT
             if (args.worlds is None or w in args.worlds) and (args.methods is None or m in args.methods)
             and (args.poses is None or p in args.poses)]
     print("| world | pose | method | coverage | collisions | home [m] | path [m] | nodes | detours | time [s] | end |")

@@ -404,3 +404,47 @@ def test_blocked_way_back_is_detoured_end_to_end() -> None:
     assert reason == "home", reason
     assert ex.detours >= 1 and collisions == 0
     assert end is not None and math.hypot(end.x + 3.0, end.y) < 0.2
+
+
+# -- task T: srt-star's d_min and a doorway ------------------------------------------------------
+
+def test_star_d_min_defaults_to_the_robot_diameter_and_takes_any_positive_value() -> None:
+    ex = SRTStarExplorer()
+    ex.reset(ctx(FixedRng([0.0]), radius=0.25, sonar=True))
+    assert ex.d_min == pytest.approx(0.5)                      # 2 r_robot, not 0.25 / (1/0.8 - 1) = 1
+    low = SRTStarExplorer(d_min=0.3)                           # below SRT-Ball's bound: accepted here
+    low.reset(ctx(FixedRng([0.0]), sonar=True))
+    assert low.d_min == pytest.approx(0.3)
+    with pytest.raises(ConfigError, match="d_min"):
+        SRTStarExplorer(d_min=0.0)
+    # a uniform star of radius 1 m and alpha 0.6: the candidate at alpha R = 0.6 m ends 0.4 m from
+    # the arc (>= r_robot): valid under the default d_min 0.5 m, rejected under d_min = 1 m (the
+    # former default) and 0.7 m
+    for d_min, want in ((None, (0.6, 0.0)), (1.0, None), (0.7, None)):
+        star = SRTStarExplorer(alpha=0.6, d_min=d_min, margin=0.0)
+        star.reset(ctx(FixedRng([0.0]), sonar=True))
+        star.tree.add(0.0, 0.0, StarRegion(0.0, 0.0, np.radians([0.0]), np.array([1.0])), None)
+        got = star._candidate(0)
+        assert got == (pytest.approx(want) if want is not None else None)
+
+
+def test_star_validates_the_way_through_a_doorway() -> None:
+    # the robot 1 m in front of a doorway: every cone 1 m long except a fan [-121, -59) deg of 3 m
+    # through the gap (a 1.2 m door seen from 1 m: +-31 deg)
+    star = StarRegion(0.0, 0.0, np.radians([-121.0, -59.0]), np.array([3.0, 1.0]))
+    tries = [0.0, -62.0, -90.0]
+    ex = SRTStarExplorer(margin=0.0)
+    ex.reset(ctx(FixedRng([math.radians(a) for a in tries]), sonar=True))
+    ex.tree.add(0.0, 0.0, star, None)
+    # 0 deg: alpha R = 0.8 m >= d_min, but the disc there is 0.2 m from the cone's arc (< 0.25): the
+    #   way check brings back SRT-Ball's bound alpha R >= r / (1/alpha - 1) = 1 m, whatever d_min is.
+    # -62 deg: alpha R = 2.4 m; the way passes the fan's corner (1 m at -59 deg) at 1 sin 3 deg = 0.05 m.
+    # -90 deg: passes both corners at 1 sin 31 deg = 0.52 m and ends 0.6 m short of the arc: valid.
+    assert ex._candidate(0) == pytest.approx((0.0, -2.4), abs=1e-9)
+    ex.ctx.rng = FixedRng([math.radians(a) for a in tries[:2]])  # type: ignore[assignment]
+    assert ex._candidate(0) is None
+    # the same doorway with a second node whose region holds the far end of the fan: (b) rejects
+    # the only candidate whose way is free (the fan of a doorway seen by another node)
+    ex.ctx.rng = FixedRng([math.radians(a) for a in tries])  # type: ignore[assignment]
+    ex.tree.add(0.0, -2.0, BallRegion(0.0, -2.0, 0.6), 0)
+    assert ex._candidate(0) is None

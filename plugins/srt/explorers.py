@@ -248,11 +248,20 @@ class SRTStarExplorer(SRTExplorer):
 
     Candidates as in SRT-Ball (alpha RADIUS in a random direction, d_min, i_max); as cones differ
     in radius, VALIDATE also asks that the robot's disc stays inside the star on the straight way
-    there (the fundamental condition of thesis §4.1.1).
+    there (`ray_reach`: the fundamental condition of thesis §4.1.1, checked rather than implied).
+
+    d_min: the thesis derives d_min (1/alpha - 1) = r_robot (1 m on the P3-DX) for SRT-Ball only
+    (§4.1.1): it is what keeps the robot's disc inside a *disc* region when the candidate lies at
+    alpha R. Here the straight way is checked explicitly, so that bound protects nothing and
+    d_min keeps only its role of §3.2 (moves worth a node, away from obstacles); the default is
+    the value the thesis gives for dense places, 2 r_robot (0.5 m on the P3-DX: "the robot could
+    cross corridors as narrow as its diameter"). Any d_min > 0 is accepted (`d_min=1.0`: the
+    former default).
 
     Args:
-        alpha, d_min, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
+        alpha, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
             (each cone's radius is its reading less `margin`).
+        d_min: [m] shortest move (None: 2 r_robot, see above).
         ring_radius: [m] distance of the transducers from the robot centre, added to their
             readings (0: conservative).
         cone: [rad] opening of one transducer's cone (the P3-DX's: 15 deg).
@@ -292,7 +301,7 @@ class SRTStarExplorer(SRTExplorer):
             raise ConfigError("srt-star: needs a sonar ring, and the robot reports none; use a robot with "
                               "sonar (e.g. --robot p3dx)")
         super().reset(ctx)
-        self.d_min = _d_min(self.name, self.alpha, self.d_min_param, ctx.radius)
+        self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * ctx.radius
 
     def _begin_sense(self) -> None:
         self._axes: list[np.ndarray] = []
