@@ -155,3 +155,16 @@ def test_welch_needs_two_values_per_group() -> None:
         welch_t_test([], [1, 2])
     with pytest.raises(ValueError, match="NaN or infinite"):
         welch_t_test([1, math.nan], [1, 2])
+
+
+def test_santos_table_8_p_values() -> None:
+    # Santos 2016, Table 8 (visited cells, FA vs GA, five runs each) and the p-values he reports for
+    # Welch's test: 0.635 (environment 1) and 0.0136 (environment 2). His 0.0136 is the p at the
+    # Welch df rounded to a whole number (7.92 -> 8: 0.01370), cut to four decimals, as some statistics
+    # packages report it; ours keeps the fractional df (0.01387).
+    env1 = welch_t_test([1433, 1401, 1577, 1765, 1850], [928, 1730, 2094, 1675, 2207])
+    env2 = welch_t_test([1257, 1324, 1192, 1713, 1646], [1960, 1709, 2112, 1608, 2227])
+    assert env1.p == pytest.approx(0.635, abs=5e-4)
+    assert env2.df == pytest.approx(7.92, abs=5e-3)
+    assert env2.p == pytest.approx(0.0139, abs=5e-5)
+    assert 0.0136 <= t_two_sided_p(env2.t, round(env2.df)) < 0.0137
