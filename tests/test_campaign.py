@@ -133,3 +133,14 @@ def test_report_leaves_incomplete_runs_out_of_the_statistics() -> None:
     assert rows["mean"][1:] == ["15.0", "03:20"]
     assert rows["range"][1:] == ["10.0", "03:20"]
     assert rows["mean speed"][1] == "75 mm/s"        # 30 m / 400 s
+
+
+def test_report_has_a_row_per_seed_when_a_campaign_repeats_poses() -> None:
+    # Santos's layout: one pose, several seeds; every run is a row and counts in the statistics.
+    recs = [{"world": "w", "max_speed_m_s": 0.3, "method": "meta-ga", "pose": "1", "seed": s, "path_length_m": p,
+             "robot_time_s": 100.0 * (s + 1), "nodes": None, "completed": True, "reason": "done"}
+            for s, p in enumerate([10.0, 30.0, 20.0])]
+    (t,) = report_tables(recs)
+    assert [r[0] for r in t.rows][:3] == ["1 seed 0", "1 seed 1", "1 seed 2"]
+    assert [r[1] for r in t.rows][:3] == ["10.0", "30.0", "20.0"]
+    assert {r[0]: r for r in t.rows}["mean"][1:] == ["20.0", "03:20"]
