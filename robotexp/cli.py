@@ -205,7 +205,8 @@ class _CampaignGroup(click.Group):
 
 @main.group(cls=_CampaignGroup)
 def campaign() -> None:
-    """Run a campaign file (robotexp campaign FILE) or report its results (robotexp campaign report FILE)."""
+    """Run a campaign file (robotexp campaign FILE), print its tables (robotexp campaign report
+    RESULTS) or draw its box plots and trajectories (robotexp campaign plot RESULTS)."""
 
 
 @campaign.command("run")
