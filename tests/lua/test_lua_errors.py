@@ -79,8 +79,9 @@ def test_timeout_stops_a_stuck_script(lua, loop):
 
 def test_timeout_during_a_run_keeps_its_record(lua):
     with pytest.raises(ScriptError, match="stopped by --timeout after 2 s; the 1 run"):
-        lua('exploration.setWorld("dense"); exploration.start(); exploration.wait(); print("not reached")',
-            name="s.lua", timeout=2.0)
+        # at 40 mm/s the exploration takes about a minute of wall time: the timeout always falls inside it
+        lua('exploration.setWorld("dense"); robot.setMaxSpeed(40); exploration.start(); exploration.wait(); '
+            'print("not reached")', name="s.lua", timeout=2.0)
     (rec,) = [json.loads(x) for x in (lua.out / "results.jsonl").read_text().splitlines()]
     assert rec["completed"] is False and "--timeout of 2 s" in rec["reason"]
     assert lua.lines == []
@@ -117,8 +118,9 @@ def test_ctrl_c_stops_a_pure_lua_loop(tmp_path):
 
 def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
     done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
-                                              'exploration.setWorld("dense"); exploration.start(); exploration.wait()\n'
-                                              'print("not reached")', "f/frame_000003.png")
+                                              'exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
+                                              'exploration.start(); exploration.wait(); print("not reached")',
+                                    "f/frame_000003.png")
     assert done.returncode == 130, done.stderr
     assert "not reached" not in done.stdout and "Traceback" not in done.stderr
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
