@@ -15,20 +15,14 @@ odometry (so its odometry-error model applies), the gyro reads the true heading;
 conservative choice where the real firmware keeps going (kobuki.md 5), the base stops when no Base
 Control arrived for `command_timeout` s of robot time (1 s; the host driver re-sends at 50 Hz).
 The stream starts when a TCP client connects (one client at a time); on a pseudo-terminal it runs
-from start-up and frames nobody reads are dropped, as on a serial line.
+from start-up and frames nobody reads are dropped, as on a serial line. Serving, transports and
+fault injection are `robotexp_drivers.emulation.StreamEmulator`'s.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
-import select
-import socket
-import threading
-import time
-import tty
-from typing import Self
 
 from robotexp.errors import ConfigError, ConnectionLost
 from robotexp.robot import LaserScan, Pose, Twist, wrap_angle
@@ -59,6 +53,7 @@ from robotexp_drivers.kobuki.codec import (
     encode_messages,
     twist_from_base_control,
 )
+from robotexp_drivers.emulation import StreamEmulator
 
 __all__ = ["KobukiEmulator", "EmulatorLaser", "HARDWARE_VERSION", "FIRMWARE_VERSION"]
 
@@ -70,7 +65,7 @@ CLIFF_FLOOR_ADC = 2000        # cliff PSD reading over the floor (a plausible va
 GYRO_SAMPLES = 2              # raw gyro samples per frame (the robot sends 2-3)
 
 
-class KobukiEmulator:
+class KobukiEmulator(StreamEmulator):
     """Serve a simulated Kobuki of `world` over the Kobuki protocol (call `start()`, or use `with`).
 
     Args:
@@ -93,6 +88,8 @@ class KobukiEmulator:
         OSError: the port cannot be bound.
     """
 
+    label = "kobuki emulator"
+
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  pty: bool = False, speedup: float = 1.0, seed: int = 0, laser: LaserConfig | None = None,
                  odometry: OdometryError | None = None, command_timeout: float | None = 1.0,
@@ -101,10 +98,9 @@ class KobukiEmulator:
             raise ConfigError(f"kobuki emulator: speedup must be > 0, got {speedup}")
         if command_timeout is not None and not command_timeout > 0:
             raise ConfigError(f"kobuki emulator: command_timeout must be > 0 s or None, got {command_timeout}")
-        self.speedup = speedup
+        self._init_stream(speedup)
         self.command_timeout = command_timeout
         self.battery_dv = battery_dv
-        self.lock = threading.RLock()      # guards the simulator: the emulator thread and EmulatorLaser
         self.sim = SimRobot(world, robot="kobuki", pose=pose, seed=seed, laser=laser, odometry=odometry,
                             sonar=False, laser_in_state=False)
         self.last_base_control: BaseControl | None = None
@@ -116,81 +112,23 @@ class KobukiEmulator:
         self.frames_sent = 0
         self.bad_command_bytes = 0
         self.hazards = (0, 0, 0)           # (bumper, cliff, wheel_drop) masks forced by `set_hazards`
-        self._paused = False
-        self._raw: list[bytes] = []
-        self._corrupt = 0
-        self._drop = False
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._client: socket.socket | None = None
-        self._listener: socket.socket | None = None
-        self._master = self._slave = -1
         self._decoder = FrameDecoder("command")
         self._reset_stream()
         try:
             if pty:
-                self._master, self._slave = os.openpty()
-                tty.setraw(self._slave)        # binary bytes: no echo, no CR/LF translation
-                os.set_blocking(self._master, False)
-                self.address = os.ttyname(self._slave)
+                self.address = self._open_pty()
             else:
-                self._listener = socket.create_server((host, port))
-                self._listener.setblocking(False)
-                bound_host, bound_port = self._listener.getsockname()[:2]
+                bound_host, bound_port = self._listen(host, port)
                 self.address = f"socket://{bound_host}:{bound_port}"
         except BaseException:
             self._release()
             raise
 
-    # -- control -----------------------------------------------------------------------
-    def start(self) -> Self:
-        """Start serving in a background thread; returns self."""
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._serve, name=f"kobuki-emulator {self.address}",
-                                            daemon=True)
-            self._thread.start()
-        return self
-
-    def close(self) -> None:
-        """Stop serving, drop the client and close the simulator. Safe to call twice."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
-        self._release()
-
-    def __enter__(self) -> Self:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     @property
-    def closed(self) -> bool:
-        """True once `close()` ran."""
-        return self.sim.closed
-
-    @property
-    def connected(self) -> bool:
-        """A TCP client is connected (always True on a pseudo-terminal)."""
-        return self._client is not None or self._master >= 0
+    def _period(self) -> float:
+        return K.FEEDBACK_PERIOD / self.speedup
 
     # -- fault injection (tests, and trying out drivers) ---------------------------------
-    def pause_stream(self) -> None:
-        """Stop sending feedback (and advancing the robot) without closing: a stalled link."""
-        self._paused = True
-
-    def resume_stream(self) -> None:
-        """Undo `pause_stream`."""
-        self._paused = False
-
-    def send_raw(self, data: bytes) -> None:
-        """Send `data` as is before the next frame (e.g. a burst of garbage)."""
-        self._raw.append(bytes(data))
-
-    def corrupt_frames(self, n: int) -> None:
-        """Send the next `n` frames with a wrong checksum."""
-        self._corrupt += n
-
     def drop_client(self) -> None:
         """Close the current TCP connection (the robot 'vanishes'); the next client may connect."""
         self._drop = True
@@ -212,83 +150,10 @@ class KobukiEmulator:
             self.sim.command(Twist.ZERO)
         self._decoder = FrameDecoder("command")
 
-    def _serve(self) -> None:
-        cycle = K.FEEDBACK_PERIOD / self.speedup
-        next_frame = time.perf_counter()
-        while not self._stop.is_set():
-            try:
-                if self._listener is not None and self._client is None and not self._accept():
-                    next_frame = time.perf_counter()
-                    continue
-                if self._drop:
-                    self._drop = False
-                    self._disconnect()
-                    continue
-                now = time.perf_counter()
-                if now >= next_frame:
-                    if not self._paused:
-                        self._send(self._raw_bytes() + self._next_frame())
-                    next_frame = max(next_frame + cycle, now)   # late: no burst of frames
-                self._receive(max(0.0, next_frame - time.perf_counter()))
-            except OSError as exc:
-                log.info("kobuki emulator: client gone (%s)", exc)
-                self._disconnect()
-
-    def _accept(self) -> bool:
-        assert self._listener is not None
-        ready, _, _ = select.select([self._listener], [], [], 0.05)
-        if not ready:
-            return False
-        try:
-            client, peer = self._listener.accept()
-        except BlockingIOError:
-            return False
-        client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self._client = client
+    def _on_connect(self) -> None:
         self._reset_stream()
-        log.info("kobuki emulator: client %s connected", peer)
-        return True
 
-    def _disconnect(self) -> None:
-        with self.lock:
-            self.sim.command(Twist.ZERO)
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-
-    def _raw_bytes(self) -> bytes:
-        taken, self._raw = self._raw, []      # take the list first: a concurrent send_raw() is not lost
-        raw = b"".join(taken)
-        return raw
-
-    def _send(self, data: bytes) -> None:
-        if self._client is not None:
-            self._client.sendall(data)
-        elif self._master >= 0:
-            _, writable, _ = select.select([], [self._master], [], 0)
-            if writable:            # nobody reading the terminal: drop the frame, as a serial line does
-                try:
-                    os.write(self._master, data)
-                except BlockingIOError:
-                    pass
-
-    def _receive(self, wait: float) -> None:
-        """Wait up to `wait` s for command bytes and handle the frames they complete."""
-        fd: socket.socket | int = self._client if self._client is not None else self._master
-        ready, _, _ = select.select([fd], [], [], wait)
-        if not ready:
-            return
-        if isinstance(fd, socket.socket):
-            data = fd.recv(4096)
-            if not data:
-                log.info("kobuki emulator: client closed the connection")
-                self._disconnect()
-                return
-        else:
-            try:
-                data = os.read(fd, 4096)
-            except BlockingIOError:
-                return
+    def _on_bytes(self, data: bytes) -> None:
         before = self._decoder.dropped_bytes
         for frame in self._decoder.feed(data):
             for message in frame:
@@ -315,7 +180,7 @@ class KobukiEmulator:
         elif isinstance(m, GeneralPurposeOutput):
             self.gpo = m.flags
 
-    def _next_frame(self) -> bytes:
+    def _step(self) -> bytes:
         """Advance the robot by one cycle and encode the feedback frame of its new state."""
         b = K.WHEEL_BASE
         with self.lock:
@@ -366,27 +231,8 @@ class KobukiEmulator:
         if self._pending_gain:
             messages.append(self.gains)
         self._pending_extra, self._pending_gain = 0, False
-        frame = encode_messages(*messages)
         self.frames_sent += 1
-        if self._corrupt > 0:
-            self._corrupt -= 1
-            frame = frame[:-1] + bytes((frame[-1] ^ 0x5A,))
-        return frame
-
-    def _release(self) -> None:
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-        if self._listener is not None:
-            self._listener.close()
-            self._listener = None
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                os.close(fd)
-        self._master = self._slave = -1
-        with self.lock:
-            self.sim.close()
-
+        return self._maybe_corrupt(encode_messages(*messages))
 
 class EmulatorLaser:
     """The emulator's simulated scanner as a `laser` source of `KobukiRobot` (a Kobuki has no laser).

@@ -23,19 +23,20 @@ The Kobuki has no laser. For exploration the backend accepts an optional `laser`
 whose `read()` returns a `LaserScan` in the robot frame (a real scanner's driver, or, against the
 emulator, `robotexp_drivers.kobuki.emulator.EmulatorLaser`, which reads the emulator's simulated
 scanner: the Kobuki protocol itself stays pure).
+
+The reader loop, failure, watchdog, `wait_until` and `make_clock` are `robotexp_drivers.backend.StreamBackend`'s.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
 from typing import Protocol
 
-from robotexp.clock import Clock, PacedClock
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist, wrap_angle
+from robotexp.errors import ConnectionLost, ProtocolError, RobotError
+from robotexp.robot import LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.kobuki import constants as K
 from robotexp_drivers.kobuki.codec import (
     BaseControl,
@@ -76,7 +77,7 @@ class LaserSource(Protocol):
         ...
 
 
-class KobukiRobot(Robot):
+class KobukiRobot(StreamBackend):
     """A Kobuki base on a serial port (or `socket://` to the emulator), 115200 8N1.
 
     Connecting waits for the feedback stream, asks for the hardware and firmware versions, the
@@ -104,21 +105,18 @@ class KobukiRobot(Robot):
     capabilities = frozenset({"move_to", "bumpers", "cliffs", "battery", "paced_clock"})
     radius = KOBUKI_RADIUS
     cycle = K.FEEDBACK_PERIOD   # [s] one feedback frame: a 0.1 s control period ticks every 5 frames
+    _link: KobukiLink
 
     def __init__(self, address: str = K.DEFAULT_PORT, *, laser: LaserSource | None = None,
                  pose: Pose | None = None, timeout: float = 1.0, watchdog: float = 0.5,
                  connect_timeout: float = 2.0, version_timeout: float = 0.5, sound: bool = True,
                  baudrate: int = K.BAUD_RATE) -> None:
-        for what, value in (("timeout", timeout), ("watchdog", watchdog), ("connect_timeout", connect_timeout)):
-            if not (value > 0 and math.isfinite(value)):
-                raise ConfigError(f"kobuki: {what} must be > 0 s, got {value}")
+        require_positive("kobuki", timeout=timeout, watchdog=watchdog, connect_timeout=connect_timeout)
+        self._init_stream(timeout, watchdog)
         self.address = address
         self.limits = KOBUKI_LIMITS
-        self.timeout, self.watchdog = timeout, watchdog
         self._laser = laser
         start = pose or Pose(0.0, 0.0, 0.0)
-        self._cond = threading.Condition()
-        self._cmd_lock = threading.Lock()
         # odometry and sensors (guarded by _cond)
         self._x, self._y, self._theta0 = start.x, start.y, start.theta
         self._theta = start.theta
@@ -132,23 +130,15 @@ class KobukiRobot(Robot):
         self._basic: BasicSensorData | None = None
         self._collisions = 0
         self._sensor_frames = 0
-        self._error: RobotError | None = None
+        self._frames_since_request = 0
         self._hardware: HardwareVersion | None = None
         self._firmware: FirmwareVersion | None = None
         self._udid: UniqueDeviceID | None = None
         self._gains: ControllerInfo | None = None
-        # commands (guarded by _cmd_lock)
-        self._twist = Twist.ZERO
-        self._cmd_wall = time.perf_counter()
-        self.watchdog_stops = 0
         self.frame_time = 0.0      # [s] perf_counter() when the newest state frame was decoded
-        self.command_time = 0.0    # [s] perf_counter() when the newest Base Control was written
         self._decoder = FrameDecoder("feedback")
-        self._stop = threading.Event()
         self._link = KobukiLink(address, baudrate=baudrate, poll=POLL_TIMEOUT)
-        self._last_frame_wall = time.perf_counter()
-        self._thread = threading.Thread(target=self._reader, name=f"kobuki-reader {address}", daemon=True)
-        self._thread.start()
+        self._start_reader(f"kobuki-reader {address}")
         try:
             self._connect(connect_timeout, version_timeout, sound)
         except BaseException:
@@ -228,38 +218,21 @@ class KobukiRobot(Robot):
             self._x, self._y, self._theta, self._theta0 = pose.x, pose.y, pose.theta, pose.theta
             self._gyro_offset = self._gyro_angle
 
-    # -- reader thread ---------------------------------------------------------------
-    def _reader(self) -> None:
-        frames_since_request = 0
-        while not self._stop.is_set():
-            try:
-                data = self._link.read_some()
-            except ConnectionLost as exc:
-                if not self._stop.is_set():
-                    self._fail(exc)
-                return
-            now = time.perf_counter()
-            frames = self._decoder.feed(data) if data else []
-            got_state = False
-            for frame in frames:
-                got_state |= self._on_frame(frame, now)
-            try:
-                if got_state:
-                    frames_since_request += 1
-                    self._resend(now)
-                    if not self._info_complete() and frames_since_request >= _REQUEST_EVERY:
-                        frames_since_request = 0
-                        self._request_missing()
-                self._watch(now)
-            except ConnectionLost as exc:
-                self._fail(exc)
-                return
-            if now - self._last_frame_wall > self.timeout:
-                self._fail(self._silence_error(now))
-                return
+    # -- reader thread (StreamBackend hooks) ---------------------------------------------
+    def _on_data(self, data: bytes, now: float) -> None:
+        got_state = False
+        for frame in self._decoder.feed(data) if data else []:
+            got_state |= self._on_frame(frame, now)
+        if got_state:
+            self._frames_since_request += 1
+            self._resend(now)
+            if not self._info_complete() and self._frames_since_request >= _REQUEST_EVERY:
+                self._frames_since_request = 0
+                self._request_missing()
+        self._watch(now)
 
     def _silence_error(self, now: float) -> RobotError:
-        quiet = now - self._last_frame_wall
+        quiet = now - self._last_rx
         if self._decoder.bad_checksums or self._decoder.bad_lengths:
             return ProtocolError(f"kobuki: no valid frame from {self.address!r} for {quiet:.2f} s "
                                  f"({self._decoder.bad_checksums} bad checksums, {self._decoder.dropped_bytes} "
@@ -267,19 +240,8 @@ class KobukiRobot(Robot):
         return ConnectionLost(f"kobuki: no data from {self.address!r} for {quiet:.2f} s "
                               f"(timeout {self.timeout:g} s): the robot or emulator stopped sending")
 
-    def _fail(self, exc: RobotError) -> None:
-        """Record the error for read() and the clock, and try once to stop the robot."""
-        with self._cond:
-            if self._error is None:
-                self._error = exc
-            self._cond.notify_all()
-        log.error("%s", exc)
-        try:
-            with self._cmd_lock:
-                self._twist = Twist.ZERO
-                self._link.write(encode_messages(BaseControl(0, 0)))
-        except ConnectionLost:
-            pass
+    def _robot_time(self) -> float:
+        return self._time_ms / 1000.0
 
     def _on_frame(self, frame: Frame, now: float) -> bool:
         """Fold one frame into the state; True when it carried basic sensor data."""
@@ -301,7 +263,7 @@ class KobukiRobot(Robot):
                     self._gains = m
             if basic is not None:
                 self._odometry(basic, inertial)
-                self._last_frame_wall = self.frame_time = now
+                self._last_rx = self.frame_time = now
                 self._sensor_frames += 1
             self._cond.notify_all()
         return basic is not None
@@ -348,19 +310,11 @@ class KobukiRobot(Robot):
         if self._gains is None:
             self._link.write(encode_messages(GetControllerGain()))
 
-    def _watch(self, now: float) -> None:
-        """The watchdog: stop when the control loop has been quiet for `watchdog` s."""
-        with self._cmd_lock:
-            if self._twist != Twist.ZERO and now - self._cmd_wall > self.watchdog:
-                self._twist = Twist.ZERO
-                self.watchdog_stops += 1
-                log.warning("kobuki: no command for %.2f s: stopping the robot", now - self._cmd_wall)
-                self._send_locked()
-
     def _resend(self, now: float) -> None:
+        """Re-send the command in force with each feedback chunk (kobuki_driver does per frame)."""
         with self._cmd_lock:
             if now - self._cmd_wall <= self.watchdog or self._twist == Twist.ZERO:
-                self._send_locked()
+                self._send_twist(self._twist)
 
     def _safe_twist(self, twist: Twist) -> Twist:
         """`twist` with what the hazards forbid removed (see the module docstring)."""
@@ -373,22 +327,14 @@ class KobukiRobot(Robot):
             return Twist(0.0, twist.w)
         return twist
 
-    def _send_locked(self) -> None:
-        """Write the Base Control of the current command (caller holds _cmd_lock)."""
-        twist = self._safe_twist(self._twist)
+    def _send_twist(self, twist: Twist) -> None:
+        """Write the Base Control of `twist`, less what the hazards forbid (caller holds _cmd_lock)."""
+        twist = self._safe_twist(twist)
         speed, radius = base_control_from_twist(twist.v, twist.w)
         self._link.write(encode_messages(BaseControl(speed, radius)))
         self.command_time = time.perf_counter()
 
     # -- Robot hooks -----------------------------------------------------------------
-    def _check(self) -> None:
-        """Raise the reader's error, or a silence error when it has not noticed yet (caller holds _cond)."""
-        if self._error is not None:
-            raise type(self._error)(str(self._error)) from self._error
-        now = time.perf_counter()
-        if now - self._last_frame_wall > self.timeout:
-            raise self._silence_error(now)
-
     def _read(self) -> RobotState:
         with self._cond:
             self._check()
@@ -411,54 +357,3 @@ class KobukiRobot(Robot):
         return RobotState(time=state.time, pose=state.pose, velocity=state.velocity, laser=self._laser.read(),
                           stalled=state.stalled, bumpers=state.bumpers, battery=state.battery,
                           distance=state.distance, extra=state.extra)
-
-    def _command(self, twist: Twist) -> None:
-        if twist != Twist.ZERO:      # a stop is always tried: the link may still carry it
-            with self._cond:
-                self._check()
-        with self._cmd_lock:
-            self._twist = twist
-            self._cmd_wall = time.perf_counter()
-            self._send_locked()
-
-    def wait_until(self, robot_time: float) -> float:
-        """Block until the robot's time reaches `robot_time` [s]; return the robot time then [s].
-
-        Raises:
-            ConnectionLost, ProtocolError: the robot fell silent or the link closed meanwhile.
-        """
-        target_ms = round(robot_time * 1000.0)
-        with self._cond:
-            while self._time_ms < target_ms:
-                self._ensure_open()
-                self._check()
-                left = self._last_frame_wall + self.timeout - time.perf_counter()
-                self._cond.wait(max(left, 0.0) + 1e-3)
-            return self._time_ms / 1000.0
-
-    def make_clock(self, period: float) -> Clock:
-        """A clock paced by the feedback stream: a tick waits until the robot's time (20 ms per frame)
-        has advanced by `period` (a 0.1 s period ticks every 5 frames). So a control loop runs in real
-        time on a real Kobuki and as fast as the emulator's speed-up allows against the emulator."""
-        with self._cond:
-            start = self._time_ms / 1000.0
-        return PacedClock(period, self.wait_until, start)
-
-    def close(self) -> None:
-        """Stop the robot, then release the link. Safe to call twice; a link already lost is only
-        logged (the stop cannot reach the robot; its error was raised by `read()` already)."""
-        try:
-            super().close()
-        except ConnectionLost as exc:
-            log.warning("kobuki: could not send the final stop: %s", exc)
-
-    def _close(self) -> None:
-        self._shutdown()
-
-    def _shutdown(self) -> None:
-        self._stop.set()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(timeout=1.0)
-        self._link.close()
-        with self._cond:
-            self._cond.notify_all()

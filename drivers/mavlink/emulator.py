@@ -22,21 +22,16 @@ armed: velocity + yaw rate (speed |vx, vy| signed by vx, turn rate -yaw_rate), y
 in place), velocity only (straight; the heading-following of LOCAL frames is not emulated);
 position targets are ignored. The rover stops on entering GUIDED or HOLD, on disarming, and when no
 target came for `guid_timeout` s of robot time (GUID_TIMEOUT, 3 s). The last target received is
-`last_target` (and `last_twist`), for fault tests.
+`last_target` (and `last_twist`), for fault tests. Serving, TCP and pty transports and fault
+injection are `robotexp_drivers.emulation.StreamEmulator`'s.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
-import select
 import socket
-import threading
-import time
-import tty
 from dataclasses import replace
-from typing import Self
 
 from robotexp.errors import ConfigError
 from robotexp.robot import Pose, Twist, wrap_angle
@@ -44,6 +39,8 @@ from robotexp.sim import LaserConfig, SimRobot, preset
 from robotexp.world.model import World
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
+from robotexp_drivers.backend import require_positive
+from robotexp_drivers.emulation import StreamEmulator
 from robotexp_drivers.mavlink.robot import ROVER_LIMITS, ROVER_RADIUS
 
 __all__ = ["MavlinkEmulator", "STREAM_MESSAGES"]
@@ -55,7 +52,7 @@ STREAM_MESSAGES = {C.STREAM_EXTENDED_STATUS: (C.MSG_SYS_STATUS,), C.STREAM_POSIT
 _AUTO_MODES = {C.ROVER_GUIDED, 10, 11, 12}          # modes with the GUIDED_ENABLED flag (AUTO, RTL, SMART_RTL)
 
 
-class MavlinkEmulator:
+class MavlinkEmulator(StreamEmulator):
     """Serve a simulated rover of `world` over MAVLink (call `start()`, or use `with`).
 
     Args:
@@ -79,16 +76,16 @@ class MavlinkEmulator:
         OSError: the port cannot be bound.
     """
 
+    label = "mavlink emulator"
+
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  udp: str | None = None, tcp: bool = False, pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  tick: float = 0.05, scan_range: float = 3.0, guid_timeout: float = C.GUID_TIMEOUT,
                  battery_mv: int = 12600) -> None:
-        for what, value in (("speedup", speedup), ("tick", tick), ("scan_range", scan_range),
-                            ("guid_timeout", guid_timeout)):
-            if not (value > 0 and math.isfinite(value)):
-                raise ConfigError(f"mavlink emulator: {what} must be > 0, got {value}")
-        self.speedup, self.tick, self.guid_timeout, self.battery_mv = speedup, tick, guid_timeout, battery_mv
-        self.lock = threading.RLock()
+        require_positive("mavlink emulator", speedup=speedup, tick=tick, scan_range=scan_range,
+                         guid_timeout=guid_timeout)
+        self._init_stream(speedup)
+        self.tick, self.guid_timeout, self.battery_mv = tick, guid_timeout, battery_mv
         rover = replace(preset("p3dx"), name="rover", radius=ROVER_RADIUS, limits=ROVER_LIMITS, sonar=None,
                        laser=LaserConfig(beams=C.OBSTACLE_SECTORS, fov=2 * math.pi, range_max=scan_range))
         self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False)
@@ -105,26 +102,13 @@ class MavlinkEmulator:
         self.gcs_heartbeats = 0
         self.ignored_targets = 0
         self.packets_sent = 0
-        self._paused = False
-        self._raw: list[bytes] = []
-        self._corrupt = 0
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._udp: socket.socket | None = None
         self._peer: tuple[str, int] | None = None
-        self._listener: socket.socket | None = None
-        self._client: socket.socket | None = None
-        self._master = self._slave = -1
         try:
             if pty:
-                self._master, self._slave = os.openpty()
-                tty.setraw(self._slave)
-                os.set_blocking(self._master, False)
-                self.address = os.ttyname(self._slave)
+                self.address = self._open_pty()
             elif tcp:
-                self._listener = socket.create_server((host, port))
-                self._listener.setblocking(False)
-                self.address = f"tcp:{host}:{self._listener.getsockname()[1]}"
+                self.address = f"tcp:{host}:{self._listen(host, port)[1]}"
             else:
                 self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
                 if udp is not None:
@@ -141,31 +125,9 @@ class MavlinkEmulator:
             self._release()
             raise
 
-    # -- control ---------------------------------------------------------------------------
-    def start(self) -> Self:
-        """Start serving in a background thread; returns self."""
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._serve, name=f"mavlink-emulator {self.address}", daemon=True)
-            self._thread.start()
-        return self
-
-    def close(self) -> None:
-        """Stop serving and close the simulator (the vehicle 'vanishes'). Safe to call twice."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
-        self._release()
-
-    def __enter__(self) -> Self:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     @property
-    def closed(self) -> bool:
-        """True once `close()` ran."""
-        return self.sim.closed
+    def _period(self) -> float:
+        return self.tick / self.speedup
 
     @property
     def last_twist(self) -> Twist | None:
@@ -173,107 +135,33 @@ class MavlinkEmulator:
         m = self.last_target
         return None if m is None else Twist(math.copysign(math.hypot(m.vx, m.vy), m.vx) + 0.0, -m.yaw_rate + 0.0)
 
-    # -- fault injection -------------------------------------------------------------------
-    def pause_stream(self) -> None:
-        """Stop sending (and advancing the robot) without closing: a stalled link. Commands still arrive."""
-        self._paused = True
-
-    def resume_stream(self) -> None:
-        """Undo `pause_stream`."""
-        self._paused = False
-
-    def send_raw(self, data: bytes) -> None:
-        """Send `data` as is before the next packets (e.g. a burst of garbage)."""
-        self._raw.append(bytes(data))
-
-    def corrupt_frames(self, n: int) -> None:
-        """Send the next `n` frames with a wrong checksum."""
-        self._corrupt += n
-
-    # -- serving ---------------------------------------------------------------------------
+    # -- serving (UDP; the rest is StreamEmulator's) ---------------------------------------
     def _active(self) -> bool:
-        return self._peer is not None or self._client is not None or self._master >= 0
-
-    def _serve(self) -> None:
-        next_tick = time.perf_counter()
-        while not self._stop.is_set():
-            try:
-                if self._listener is not None and self._client is None:
-                    self._accept()
-                    next_tick = time.perf_counter()
-                    continue
-                now = time.perf_counter()
-                if now >= next_tick:
-                    if self._active() and not self._paused:
-                        # take the list before joining it: a send_raw() from another thread between the
-                        # join and a reset would be lost (it lands in the list we take, or the next one)
-                        raw, self._raw = self._raw, []
-                        self._transmit(b"".join(raw) + self._step())
-                    next_tick = max(next_tick + self.tick / self.speedup, now)
-                self._receive(max(0.0, next_tick - time.perf_counter()))
-            except OSError as exc:
-                log.info("mavlink emulator: client gone (%s)", exc)
-                self._disconnect()
-
-    def _accept(self) -> None:
-        assert self._listener is not None
-        ready, _, _ = select.select([self._listener], [], [], 0.05)
-        if ready:
-            try:
-                self._client, peer = self._listener.accept()
-            except BlockingIOError:
-                return
-            self._client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            log.info("mavlink emulator: client %s connected", peer)
-
-    def _disconnect(self) -> None:
-        with self.lock:
-            self.sim.command(Twist.ZERO)
-        if self._client is not None:
-            self._client.close()
-            self._client = None
+        return self._peer is not None or super()._active()
 
     def _transmit(self, data: bytes) -> None:
-        if not data:
-            return
-        if self._udp is not None and self._peer is not None:
+        if data and self._udp is not None and self._peer is not None:
             self._udp.sendto(data, self._peer)
-        elif self._client is not None:
-            self._client.sendall(data)
-        elif self._master >= 0:
-            _, writable, _ = select.select([], [self._master], [], 0)
-            if writable:         # nobody reading the terminal: drop, as a serial line does
-                try:
-                    os.write(self._master, data)
-                except BlockingIOError:
-                    pass
-
-    def _receive(self, wait: float) -> None:
-        fd: socket.socket | int | None = self._udp or self._client or (self._master if self._master >= 0 else None)
-        if fd is None:
-            time.sleep(wait)
-            return
-        ready, _, _ = select.select([fd], [], [], wait)
-        if not ready:
-            return
-        if isinstance(fd, socket.socket) and fd is self._udp:
-            try:
-                data, peer = fd.recvfrom(65536)
-            except ConnectionRefusedError:    # ICMP from a ground station not listening yet
-                return
-            if self._peer is None:
-                log.info("mavlink emulator: client %s", peer)
-                self._peer = peer
-        elif isinstance(fd, socket.socket):
-            data = fd.recv(65536)
-            if not data:
-                self._disconnect()
-                return
         else:
-            try:
-                data = os.read(fd, 65536)
-            except BlockingIOError:
-                return
+            super()._transmit(data)
+
+    def _input(self) -> socket.socket | int | None:
+        return self._udp or super()._input()
+
+    def _read_input(self, fd: socket.socket | int) -> bytes:
+        if fd is not self._udp:
+            return super()._read_input(fd)
+        assert self._udp is not None
+        try:
+            data, peer = self._udp.recvfrom(65536)
+        except ConnectionRefusedError:    # ICMP from a ground station not listening yet
+            return b""
+        if self._peer is None:
+            log.info("mavlink emulator: client %s", peer)
+            self._peer = peer
+        return data
+
+    def _on_bytes(self, data: bytes) -> None:
         for m in self.codec.feed(data):
             self._handle(m)
 
@@ -347,12 +235,8 @@ class MavlinkEmulator:
         self._last_cmd_time = self.sim.time
 
     def _pack(self, message: Message) -> bytes:
-        frame = self.codec.encode(message)
         self.packets_sent += 1
-        if self._corrupt > 0:
-            self._corrupt -= 1
-            frame = frame[:-1] + bytes((frame[-1] ^ 0x5A,))
-        return frame
+        return self._maybe_corrupt(self.codec.encode(message))
 
     def _step(self) -> bytes:
         """Advance the robot by one tick; the bytes of the messages then due."""
@@ -401,13 +285,7 @@ class MavlinkEmulator:
         return b"".join(out)
 
     def _release(self) -> None:
-        for s in (self._client, self._listener, self._udp):
-            if s is not None:
-                s.close()
-        self._client = self._listener = self._udp = None
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                os.close(fd)
-        self._master = self._slave = -1
-        with self.lock:
-            self.sim.close()
+        if self._udp is not None:
+            self._udp.close()
+            self._udp = None
+        super()._release()

@@ -23,6 +23,7 @@ No message from the vehicle for `timeout` s (1 s), or a lost link, makes the nex
 paced clock) raise `ConnectionLost` (`ProtocolError` when only bad frames arrived meanwhile); the
 reader then sends a stop once. `close()` sends a stop and switches the vehicle to HOLD.
 Robot time is the vehicle's `time_boot_ms` of LOCAL_POSITION_NED, counted from the first one.
+The shared parts (reader loop, failure, watchdog, paced clock) are `robotexp_drivers.backend.StreamBackend`'s.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ import time
 
 import numpy as np
 
-from robotexp.clock import Clock, PacedClock
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist, wrap_angle
+from robotexp.errors import ConnectionLost, ProtocolError, RobotError
+from robotexp.robot import LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
 from robotexp_drivers.mavlink.link import POLL_TIMEOUT, Link, open_link
@@ -76,7 +77,7 @@ def scan_from_obstacle_distance(msg: Message, yaw_ned: float) -> LaserScan:
     return LaserScan(angles=angles, ranges=ranges.astype(np.float64), range_max=msg.max_distance / 100.0)
 
 
-class MavlinkRobot(Robot):
+class MavlinkRobot(StreamBackend):
     """A MAVLink ground rover (ArduPilot Rover, GUIDED mode) over UDP, TCP or a serial port.
 
     Args:
@@ -111,16 +112,14 @@ class MavlinkRobot(Robot):
                  scan_rate: float = 10.0, resend: float = 0.25, arm: bool = True,
                  system: int = C.GCS_SYSTEM_ID, component: int = C.GCS_COMPONENT_ID,
                  baudrate: int = C.DEFAULT_BAUD) -> None:
-        for what, value in (("timeout", timeout), ("watchdog", watchdog), ("connect_timeout", connect_timeout),
-                            ("rate", rate), ("scan_rate", scan_rate), ("resend", resend)):
-            if not (value > 0 and math.isfinite(value)):
-                raise ConfigError(f"mavlink: {what} must be > 0, got {value}")
+        require_positive("mavlink", timeout=timeout, watchdog=watchdog, connect_timeout=connect_timeout, rate=rate,
+                         scan_rate=scan_rate, resend=resend)
+        self._init_stream(timeout, watchdog)
         self.address = address
         self.limits, self.radius = limits, radius
-        self.timeout, self.watchdog, self.resend = timeout, watchdog, resend
+        self.resend = resend
         self._codec = MavlinkCodec(system, component)
-        self._cond = threading.Condition()
-        self._tx_lock = threading.Lock()
+        self._tx_lock = threading.Lock()       # one message written at a time (inside _cmd_lock)
         self._target: tuple[int, int] | None = None
         self._heartbeat: Message | None = None
         self._position: Message | None = None
@@ -132,19 +131,12 @@ class MavlinkRobot(Robot):
         self._time_ms = 0
         self._distance = 0.0
         self._anchor = (0.0, 0.0, 0.0)         # (dx, dy, dtheta): our frame = R(dtheta) * vehicle ENU + d
-        self._error: RobotError | None = None
         self._bad_mark = (0, 0)
-        self._twist = Twist.ZERO
-        self._cmd_wall = self._sent_wall = self._hb_wall = 0.0
-        self.watchdog_stops = 0
+        self._sent_wall = self._hb_wall = 0.0
         self.state_time = 0.0                  # [s] perf_counter() of the newest LOCAL_POSITION_NED
-        self.command_time = 0.0                # [s] perf_counter() of the newest target sent
         self._boot = time.perf_counter()
-        self._last_rx = self._boot
-        self._stop = threading.Event()
         self._link: Link = open_link(address, baudrate=baudrate, poll=POLL_TIMEOUT)
-        self._thread = threading.Thread(target=self._reader, name=f"mavlink {address}", daemon=True)
-        self._thread.start()
+        self._start_reader(f"mavlink {address}")
         try:
             self._connect(connect_timeout, rate, scan_rate, arm)
             if pose is not None:
@@ -266,29 +258,21 @@ class MavlinkRobot(Robot):
         with self._tx_lock:
             self._link.write(self._codec.encode(message))
 
-    def _reader(self) -> None:
-        while not self._stop.is_set():
-            try:
-                data = self._link.read_some()
-            except ConnectionLost as exc:
-                if not self._stop.is_set():
-                    self._fail(exc)
-                return
-            now = time.perf_counter()
-            for m in self._codec.feed(data) if data else []:
-                self._on_message(m, now)
-            try:
-                if now - self._hb_wall >= C.HEARTBEAT_PERIOD:
-                    self._hb_wall = now
-                    self._send(self._codec.mav.heartbeat_encode(C.MAV_TYPE_GCS, C.MAV_AUTOPILOT_INVALID, 0, 0, 0,
-                                                                C.MAVLINK_VERSION))
-                self._watch(now)
-            except ConnectionLost as exc:
-                self._fail(exc)
-                return
-            if self._target is not None and now - self._last_rx > self.timeout:
-                self._fail(self._silence_error(now))
-                return
+    def _on_data(self, data: bytes, now: float) -> None:
+        for m in self._codec.feed(data) if data else []:
+            self._on_message(m, now)
+        if now - self._hb_wall >= C.HEARTBEAT_PERIOD:
+            self._hb_wall = now
+            self._send(self._codec.mav.heartbeat_encode(C.MAV_TYPE_GCS, C.MAV_AUTOPILOT_INVALID, 0, 0, 0,
+                                                        C.MAVLINK_VERSION))
+        if not self._watch(now):
+            self._keep_alive(now)
+
+    def _silent(self, now: float) -> bool:
+        return self._target is not None and super()._silent(now)
+
+    def _robot_time(self) -> float:
+        return self._time_ms / 1000.0
 
     def _silence_error(self, now: float) -> RobotError:
         quiet = now - self._last_rx
@@ -298,19 +282,6 @@ class MavlinkRobot(Robot):
                                  "in all): the link is noisy or the baud rate is wrong")
         return ConnectionLost(f"mavlink: no message from the vehicle at {self.address!r} for {quiet:.2f} s "
                               f"(timeout {self.timeout:g} s): the vehicle or emulator stopped sending")
-
-    def _fail(self, exc: RobotError) -> None:
-        """Record the error for read() and the clock, and try once to stop the vehicle."""
-        with self._cond:
-            if self._error is None:
-                self._error = exc
-            self._cond.notify_all()
-        log.error("%s", exc)
-        try:
-            self._twist = Twist.ZERO
-            self._send_target(Twist.ZERO)
-        except ConnectionLost:
-            pass
 
     def _on_message(self, m: Message, now: float) -> None:
         kind = m.get_type()
@@ -345,19 +316,13 @@ class MavlinkRobot(Robot):
                 self._acks[m.command] = m.result
             self._cond.notify_all()
 
-    def _watch(self, now: float) -> None:
-        """The watchdog and the keep-alive re-send of the current target."""
-        with self._tx_lock:
-            twist, cmd_wall, sent = self._twist, self._cmd_wall, self._sent_wall
-        if twist != Twist.ZERO and now - cmd_wall > self.watchdog:
-            self._twist = Twist.ZERO
-            self.watchdog_stops += 1
-            log.warning("mavlink: no command for %.2f s: stopping the vehicle", now - cmd_wall)
-            self._send_target(Twist.ZERO)
-        elif self._target is not None and now - sent > self.resend and self._in_guided_armed():
-            self._send_target(twist)
+    def _keep_alive(self, now: float) -> None:
+        """Re-send the target in force every `resend` s (the Rover stops after GUID_TIMEOUT without one)."""
+        with self._cmd_lock:
+            if self._target is not None and now - self._sent_wall > self.resend and self._in_guided_armed():
+                self._send_twist(self._twist)
 
-    def _send_target(self, twist: Twist) -> None:
+    def _send_twist(self, twist: Twist) -> None:
         ts, tc = self._targets()
         ms = round((time.perf_counter() - self._boot) * 1000) % (1 << 32)
         msg = self._codec.mav.set_position_target_local_ned_encode(
@@ -366,14 +331,6 @@ class MavlinkRobot(Robot):
         self._sent_wall = self.command_time = time.perf_counter()
 
     # -- Robot hooks -------------------------------------------------------------------------
-    def _check(self) -> None:
-        """Raise the reader's error, or a silence error it has not noticed yet (caller holds _cond)."""
-        if self._error is not None:
-            raise type(self._error)(str(self._error)) from self._error
-        now = time.perf_counter()
-        if now - self._last_rx > self.timeout:
-            raise self._silence_error(now)
-
     def _read(self) -> RobotState:
         with self._cond:
             self._check()
@@ -391,45 +348,6 @@ class MavlinkRobot(Robot):
                        "dropped_bytes": float(self._codec.dropped_bytes),
                        "watchdog_stops": float(self.watchdog_stops)})
 
-    def _command(self, twist: Twist) -> None:
-        if twist != Twist.ZERO:      # a stop is always tried: the link may still carry it
-            with self._cond:
-                self._check()
-        with self._tx_lock:
-            self._twist = twist
-            self._cmd_wall = time.perf_counter()
-        self._send_target(twist)
-
-    def wait_until(self, robot_time: float) -> float:
-        """Block until the robot's time reaches `robot_time` [s]; return the robot time then [s].
-
-        Raises:
-            ConnectionLost, ProtocolError: the vehicle fell silent or the link closed meanwhile.
-        """
-        target_ms = round(robot_time * 1000.0)
-        with self._cond:
-            while self._time_ms < target_ms:
-                self._ensure_open()
-                self._check()
-                left = self._last_rx + self.timeout - time.perf_counter()
-                self._cond.wait(max(left, 0.0) + 1e-3)
-            return self._time_ms / 1000.0
-
-    def make_clock(self, period: float) -> Clock:
-        """A clock paced by LOCAL_POSITION_NED: a tick waits until the vehicle's time has advanced by
-        `period` (real time on a vehicle, the emulator's speed-up against the emulator)."""
-        with self._cond:
-            start = self._time_ms / 1000.0
-        return PacedClock(period, self.wait_until, start)
-
-    def close(self) -> None:
-        """Stop the vehicle, switch it to HOLD and release the link. Safe to call twice; a link
-        already lost is only logged."""
-        try:
-            super().close()
-        except ConnectionLost as exc:
-            log.warning("mavlink: could not send the final stop: %s", exc)
-
     def _close(self) -> None:
         try:
             ts, tc = self._targets()
@@ -440,11 +358,3 @@ class MavlinkRobot(Robot):
             log.warning("mavlink: could not switch to HOLD: %s", exc)
         finally:
             self._shutdown()
-
-    def _shutdown(self) -> None:
-        self._stop.set()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(timeout=1.0)
-        self._link.close()
-        with self._cond:
-            self._cond.notify_all()

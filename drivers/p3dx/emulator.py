@@ -35,6 +35,7 @@ from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, wrap_angle
 from robotexp.sim.presets import LaserConfig
 from robotexp.world.model import World
+from robotexp_drivers.emulation import EmulatorBase
 
 from . import codec as k
 from . import constants as c
@@ -123,7 +124,7 @@ class _PtyConn:
                 pass    # closed already
 
 
-class P3DXEmulator:
+class P3DXEmulator(EmulatorBase):
     """Serve a simulated P3-DX over the ARIA protocol.
 
     Args:
@@ -152,6 +153,9 @@ class P3DXEmulator:
         ConfigError: a parameter out of range.
         OSError: the port is taken.
     """
+
+    label = "p3dx emulator"
+    join_timeout = 5.0
 
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
@@ -184,7 +188,7 @@ class P3DXEmulator:
         self.commanded = (0, 0)                         # last VEL [mm/s] and RVEL [deg/s] in force
         self.sessions = 0
         self.sips_sent = 0
-        self._stop = threading.Event()
+        self._init_serving()
         self._stall = threading.Event()
         self._vanish = threading.Event()
         self._inject: collections.deque[bytes] = collections.deque()
@@ -209,41 +213,15 @@ class P3DXEmulator:
         except BaseException:
             self.sim.close()
             raise
-        self._thread: threading.Thread | None = None
         self._sim_odom = self.start_pose             # the SimRobot's odometry starts at its pose
         self._reset_session()
 
-    # -- control -----------------------------------------------------------------------
-    def start(self) -> P3DXEmulator:
-        """Serve in a background thread; returns self."""
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._serve, name=f"p3dx-emulator {self.address}", daemon=True)
-            self._thread.start()
-        return self
-
-    def serve_forever(self) -> None:
-        """Serve in this thread until `close()` from another thread (or Ctrl-C)."""
-        try:
-            self._serve()
-        finally:
-            self.close()
-
-    def close(self) -> None:
-        """Stop serving and release the port, the terminal and the simulator. Safe to call twice."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
+    def _release(self) -> None:
         if self._server is not None:
             self._server.close()
         if self._pty is not None:
             self._pty.close()
         self.sim.close()
-
-    def __enter__(self) -> P3DXEmulator:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def inject(self, data: bytes) -> None:
         """Send raw bytes to the client before the next packet (garbage, bad checksums)."""

@@ -4,22 +4,22 @@ The only place where the protocol's units (mm, degrees, SIP units) become SI. Co
 ARIA's handshake (SYNC0/1/2, OPEN, CONFIG, ENABLE, SONAR and, on a simulator, the simulated
 laser); a reader thread then decodes the stream, keeps the newest state and acts as a watchdog:
 it stops the robot when the control loop has not commanded for `watchdog` seconds, sends PULSE
-when nothing else went out for 0.5 s, and fails the link after `silence` seconds without data.
+when nothing else went out for 0.5 s, and fails the link after `silence` seconds without data
+(the shared parts are `robotexp_drivers.backend.StreamBackend`'s; robot time is SIPs x cycle).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
 from dataclasses import replace
 
 import numpy as np
 
-from robotexp.clock import Clock, PacedClock
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.errors import ConnectionLost, ProtocolError, RobotError
+from robotexp.robot import LaserScan, Limits, Pose, RobotState, SonarScan, Twist, wrap_angle
+from robotexp_drivers.backend import StreamBackend, require_positive
 
 from . import codec as k
 from . import constants as c
@@ -52,7 +52,7 @@ def _int16(value: int) -> int:
 
 CLOSE_DRAIN = 0.5   # [s] input read and dropped after CLOSE before the link closes (see P3DXLink.drain)
 
-class P3DXRobot(Robot):
+class P3DXRobot(StreamBackend):
     """A Pioneer P3-DX (or any ARCOS robot, or MobileSim / our emulator) as a `Robot`.
 
     Args:
@@ -76,26 +76,23 @@ class P3DXRobot(Robot):
     name = "p3dx"
     capabilities = frozenset({"sonar", "laser", "move_to"})
     radius = c.ROBOT_RADIUS_MM / 1000.0
+    _join_timeout = 2.0
 
     def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, laser: bool = True,
                  laser_range: float = c.LASER_NO_HIT_MM / 1000.0, laser_offset: float = c.LASER_X_MM / 1000.0,
                  max_speed: float | None = None, watchdog: float = 0.5, silence: float = 1.0,
                  connect_timeout: float = 5.0) -> None:
-        if not (watchdog > 0 and silence > 0 and connect_timeout > 0 and laser_range > 0):
-            raise ConfigError(f"p3dx: watchdog, silence, connect_timeout and laser_range must be > 0, got "
-                              f"{watchdog}, {silence}, {connect_timeout}, {laser_range}")
+        require_positive("p3dx", watchdog=watchdog, silence=silence, connect_timeout=connect_timeout,
+                         laser_range=laser_range)
+        self._init_stream(silence, watchdog)
         self.address = address
-        self.watchdog, self.silence = watchdog, silence
+        self.silence = silence
         self.laser_range, self.laser_offset = laser_range, laser_offset
         self.decoder = k.PacketDecoder(max_count=255)
         self.config: k.ConfigPacket | None = None
         self.robot_name = self.robot_type = self.robot_subtype = ""
-        self._cond = threading.Condition()
         self._state: RobotState | None = None
         self._pending: RobotState | None = None
-        self._error: RobotError | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         # odometry [mm] and [rad] in the robot's own frame; the reported pose is anchored by move_to
         self._raw_xy: tuple[int, int] | None = None
         self._odom_mm = [0.0, 0.0]
@@ -110,17 +107,14 @@ class P3DXRobot(Robot):
         self._scan_buf: np.ndarray | None = None
         self._laser_active = False
         self._laser_cfg = (c.LASER_DEFAULT_START_DEG, c.LASER_DEFAULT_END_DEG)
-        self._moving = False
-        now = time.monotonic()
-        self._last_command = self._last_write = self._last_rx = now
+        self._last_write = time.perf_counter()
         self.link = SerialLink(address, baudrate=baudrate)
         try:
             self._connect(connect_timeout, laser)
             self.limits = self._limits_from_config()
             if max_speed is not None:
                 self.set_max_speed(max_speed)
-            self._thread = threading.Thread(target=self._reader, name=f"p3dx-reader {address}", daemon=True)
-            self._thread.start()
+            self._start_reader(f"p3dx-reader {address}")
             self._wait_state(lambda s: True, min(connect_timeout, 2.0 + silence))
             if laser and self.is_simulator:
                 try:    # the explorer learns the laser's range from the first state it reads
@@ -130,7 +124,7 @@ class P3DXRobot(Robot):
                         raise
                     log.warning("p3dx: %s sends no simulated laser packets", self.robot_name)
         except BaseException:
-            self._shutdown(send_close=True)
+            self._shutdown()
             raise
         super().__init__()
 
@@ -161,7 +155,7 @@ class P3DXRobot(Robot):
 
     def _write(self, data: bytes) -> None:
         self.link.write(data)
-        self._last_write = time.monotonic()
+        self._last_write = time.perf_counter()
 
     def _next_packet(self, deadline: float, kinds: tuple[type, ...]) -> k.Packet | None:
         """Read until a packet of one of `kinds` arrives (others are dropped) or `deadline` passes."""
@@ -206,7 +200,6 @@ class P3DXRobot(Robot):
         if laser and self.is_simulator:
             start, end = self._laser_cfg
             self._write(k.cmd_sim_laser(start, end, c.LASER_DEFAULT_RES_CDEG, c.LRF_EXTENDED))
-        self._last_rx = time.monotonic()
 
     def _limits_from_config(self) -> Limits:
         cfg = self.config
@@ -220,49 +213,38 @@ class P3DXRobot(Robot):
             alpha_max = math.radians(cfg.rot_accel) if cfg.rot_accel > 0 else alpha_max
         return Limits(v_max, w_max, a_max, alpha_max)
 
-    # -- reader thread ---------------------------------------------------------------
-    def _reader(self) -> None:
-        try:
-            while not self._stop.is_set():
-                data = self.link.read()
-                now = time.monotonic()
-                if data:
-                    self._last_rx = now
-                    packets = self.decoder.feed(data)
-                elif self.decoder.buffered and now - self._last_rx > c.BODY_GAP_S:
-                    packets = self.decoder.flush()     # §2.1: a gap > 100 ms drops a partial packet
-                else:
-                    packets = []
-                for pkt in packets:
-                    self._handle(pkt)
-                if now - self._last_rx > self.silence:
-                    raise ConnectionLost(f"p3dx: no data from {self.link.url!r} for {self.silence:g} s; the "
-                                         "robot or the link is down")
-                self._watchdog(now)
-        except RobotError as exc:
-            self._fail(exc)
-        except Exception as exc:     # a bug here must not leave read() waiting forever
-            log.exception("p3dx: reader thread failed")
-            self._fail(RobotError(f"p3dx: reader thread failed: {exc!r}"))
+    # -- reader thread (StreamBackend hooks) -----------------------------------------
+    def _receive(self) -> bytes:
+        return self.link.read()
 
-    def _fail(self, exc: RobotError) -> None:
-        with self._cond:
-            if self._error is None:
-                self._error = exc
-            self._cond.notify_all()
-        if not self._stop.is_set():
-            try:    # still try to stop a robot whose stream went silent or garbled
-                self.link.write(k.cmd_vel(0) + k.cmd_rvel(0))
-            except ConnectionLost:
-                pass
-
-    def _watchdog(self, now: float) -> None:
-        if self._moving and now - self._last_command > self.watchdog:
-            log.warning("p3dx: no command for %.1f s: stopping the robot", now - self._last_command)
-            self._moving = False
-            self._write(k.cmd_vel(0) + k.cmd_rvel(0))
-        elif now - self._last_write > c.REFRESH_S:
+    def _on_data(self, data: bytes, now: float) -> None:
+        if data:
+            self._last_rx = now
+            packets = self.decoder.feed(data)
+        elif self.decoder.buffered and now - self._last_rx > c.BODY_GAP_S:
+            packets = self.decoder.flush()     # §2.1: a gap > 100 ms drops a partial packet
+        else:
+            packets = []
+        for pkt in packets:
+            self._handle(pkt)
+        if not self._watch(now) and now - self._last_write > c.REFRESH_S:
             self._write(k.cmd_pulse())
+
+    def _silence_error(self, now: float) -> RobotError:
+        return ConnectionLost(f"p3dx: no data from {self.link.url!r} for {now - self._last_rx:.2f} s (silence "
+                              f"{self.silence:g} s); the robot or the link is down")
+
+    def _send_twist(self, twist: Twist) -> None:
+        v_mm = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(twist.v * 1000.0)))
+        w_deg = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(math.degrees(twist.w))))
+        self._write(k.cmd_vel(v_mm) + k.cmd_rvel(w_deg))
+        self.command_time = time.perf_counter()
+
+    def _robot_time(self) -> float:
+        return self._state.time if self._state is not None else 0.0
+
+    def _time_tolerance(self) -> float:
+        return self.cycle / 4
 
     def _handle(self, pkt: k.Packet) -> None:
         if isinstance(pkt, k.StandardSip):
@@ -356,31 +338,11 @@ class P3DXRobot(Robot):
                     raise ConnectionLost(f"p3dx: no state from {self.link.url!r} for {timeout:g} s")
                 self._cond.wait(left)
 
-    def _wait_until(self, robot_time: float) -> float:
-        eps = self.cycle / 4
-        return self._wait_state(lambda s: s.time >= robot_time - eps, self.silence + 0.5).time
-
-    def make_clock(self, period: float) -> Clock:
-        """A robot-paced clock: each tick waits for the state packets of one more `period`."""
-        state = self._wait_state(lambda s: True, self.silence + 0.5)
-        return PacedClock(period, self._wait_until, start=state.time)
-
     def _read(self) -> RobotState:
         with self._cond:
-            if self._error is not None:
-                raise self._error
+            self._check()
             assert self._state is not None
             return self._state
-
-    def _command(self, twist: Twist) -> None:
-        with self._cond:
-            if self._error is not None:
-                raise self._error
-        v_mm = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(twist.v * 1000.0)))
-        w_deg = max(c.INT_ARG_MIN, min(c.INT_ARG_MAX, round(math.degrees(twist.w))))
-        self._last_command = time.monotonic()
-        self._moving = bool(v_mm or w_deg)
-        self._write(k.cmd_vel(v_mm) + k.cmd_rvel(w_deg))
 
     def move_to(self, pose: Pose) -> None:
         """Move the robot to `pose` in MobileSim (SIM_SET_POSE) and report poses from there on.
@@ -404,21 +366,9 @@ class P3DXRobot(Robot):
                                                                           or not self._laser_active),
                          self.silence + 0.5)
 
-    def close(self) -> None:
-        """Stop the robot, send CLOSE and release the link; a lost link is released quietly."""
-        try:
-            super().close()
-        except ConnectionLost as exc:
-            log.warning("%s", exc)
-
-    def _close(self) -> None:
-        self._shutdown(send_close=True)
-
-    def _shutdown(self, send_close: bool) -> None:
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
-        if send_close and not self.link.closed:
+    def _release(self) -> None:
+        """Stop the robot, send CLOSE (and let the peer read it), then close the link."""
+        if not self.link.closed:
             try:
                 self.link.write(k.cmd_vel(0) + k.cmd_rvel(0) + k.cmd_enable(False) + k.cmd_close())
                 self.link.drain(CLOSE_DRAIN)      # so the peer reads them before the socket closes

@@ -10,58 +10,30 @@ import json
 import math
 import random
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from robotexp.errors import ConnectionLost
-from robotexp.experiment import RunSpec, resolve_pose, run_on_robot
+from robotexp.experiment import RunSpec, run_on_robot
 from robotexp.explorer import Done, ExplorationRun, Explorer
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import Pose, RobotState, Twist
-from robotexp.world.builtin import builtin_world
 from robotexp.world.model import World
 from robotexp_drivers.kobuki.codec import BaseControl
 from robotexp_drivers.kobuki.emulator import EmulatorLaser, KobukiEmulator
 from robotexp_drivers.kobuki.robot import KobukiRobot
 
+WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
+SpecFor = Callable[[str, float], RunSpec]     # the `run_spec` fixture (conftest.py)
+
 STOP = BaseControl(0, 0)
 SPEEDUP = 30.0
 
 
-@pytest.fixture(scope="module")
-def world() -> World:
-    return builtin_world("ufmg-static")
-
-
-@pytest.fixture
-def start(world: World) -> Pose:
-    return resolve_pose(world, "path1", 0.175)[0]
-
-
-@pytest.fixture
-def emulator(world: World, start: Pose) -> Iterator[KobukiEmulator]:
-    with KobukiEmulator(world, pose=start, speedup=SPEEDUP) as emu:
-        yield emu
-
-
-def wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
-
-
-def spec(max_time: float) -> RunSpec:
-    return RunSpec(world="ufmg-static", robot="kobuki", method="frontier", pose="path1", speed=0.3,
-                   max_time=max_time)
-
-
-def test_emulator_vanishing_mid_run(world: World, emulator: KobukiEmulator, tmp_path: Path) -> None:
+def test_emulator_vanishing_mid_run(world: World, emulator: KobukiEmulator, tmp_path: Path, run_spec: SpecFor) -> None:
     marks: dict[str, float] = {}
 
     def on_sample(t: float, cov: float | None) -> None:
@@ -71,7 +43,7 @@ def test_emulator_vanishing_mid_run(world: World, emulator: KobukiEmulator, tmp_
         marks["last"] = time.perf_counter()      # the run's final sample comes after the stop
 
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(spec(60.0), robot, tmp_path, world, on_sample=on_sample)
+        out = run_on_robot(run_spec("kobuki", 60.0), robot, tmp_path, world, on_sample=on_sample)
     assert "vanish" in marks
     assert marks["last"] - marks["vanish"] < 1.0      # ConnectionLost well within 1 s (EOF)
     assert not out.record["completed"] and "robot error" in out.record["reason"]
@@ -81,7 +53,8 @@ def test_emulator_vanishing_mid_run(world: World, emulator: KobukiEmulator, tmp_
     assert saved["completed"] is False and 1.9 <= saved["robot_time_s"] < 10.0
 
 
-def test_stalled_link_ends_the_run_and_the_robot_is_stopped(world: World, emulator: KobukiEmulator) -> None:
+def test_stalled_link_ends_the_run_and_the_robot_is_stopped(world: World, emulator: KobukiEmulator, wait_for: WaitFor,
+                                                            run_spec: SpecFor) -> None:
     marks: dict[str, float] = {}
 
     def on_sample(t: float, cov: float | None) -> None:
@@ -91,14 +64,15 @@ def test_stalled_link_ends_the_run_and_the_robot_is_stopped(world: World, emulat
         marks["last"] = time.perf_counter()
 
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(spec(60.0), robot, None, world, on_sample=on_sample)
+        out = run_on_robot(run_spec("kobuki", 60.0), robot, None, world, on_sample=on_sample)
     quiet = marks["last"] - marks["pause"]
     assert 0.95 <= quiet < 1.5                    # the 1 s silence timeout, plus one poll
     assert "no data" in out.record["reason"] and not out.record["completed"]
     assert wait_for(lambda: emulator.last_base_control == STOP)
 
 
-def test_garbage_burst_and_a_few_bad_checksums_are_survived(world: World, emulator: KobukiEmulator) -> None:
+def test_garbage_burst_and_a_few_bad_checksums_are_survived(world: World, emulator: KobukiEmulator, wait_for: WaitFor,
+                                                            run_spec: SpecFor) -> None:
     rng = random.Random(7)
     garbage = bytes(rng.randrange(256) for _ in range(3000)) + b"\xaa\x55\x10" + b"\xaa\x55" * 20
 
@@ -111,7 +85,7 @@ def test_garbage_burst_and_a_few_bad_checksums_are_survived(world: World, emulat
             sent.append(t)
 
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(spec(4.0), robot, None, world, on_sample=on_sample)
+        out = run_on_robot(run_spec("kobuki", 4.0), robot, None, world, on_sample=on_sample)
         extra = robot.read().extra
     assert sent and out.record["reason"].startswith("time limit"), out.record["reason"]
     assert extra["bad_checksums"] >= 3 and extra["dropped_bytes"] >= 3000
@@ -119,13 +93,14 @@ def test_garbage_burst_and_a_few_bad_checksums_are_survived(world: World, emulat
     assert wait_for(lambda: emulator.last_base_control == STOP)
 
 
-def test_every_checksum_wrong_is_a_protocol_error(world: World, emulator: KobukiEmulator) -> None:
+def test_every_checksum_wrong_is_a_protocol_error(world: World, emulator: KobukiEmulator, wait_for: WaitFor,
+                                                  run_spec: SpecFor) -> None:
     def on_sample(t: float, cov: float | None) -> None:
         if t >= 0.9:
             emulator.corrupt_frames(10**9)      # from the sample at ~1 s of robot time on
 
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(spec(60.0), robot, None, world, on_sample=on_sample)
+        out = run_on_robot(run_spec("kobuki", 60.0), robot, None, world, on_sample=on_sample)
     assert "no valid frame" in out.record["reason"] and "bad checksums" in out.record["reason"]
     assert out.record["robot_time_s"] < 1.5
     assert wait_for(lambda: emulator.last_base_control == STOP)
@@ -143,7 +118,7 @@ class _DriveThenCtrlC(Explorer):
         return Twist(0.2, 0.0)
 
 
-def test_ctrl_c_stops_the_robot(world: World, emulator: KobukiEmulator) -> None:
+def test_ctrl_c_stops_the_robot(world: World, emulator: KobukiEmulator, wait_for: WaitFor) -> None:
     geo = GridGeometry.covering(-6, -6, 6, 6, cell=0.1)
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
         run = ExplorationRun(robot, _DriveThenCtrlC(), OccupancyGrid(geo), max_time=30).run()

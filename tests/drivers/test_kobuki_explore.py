@@ -2,57 +2,33 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
 
-from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
-from robotexp.world.builtin import builtin_world
+from robotexp.experiment import RunSpec, run_experiment, run_on_robot
 from robotexp.world.model import World
 from robotexp_drivers.kobuki.codec import BaseControl, SoundSequence
 from robotexp_drivers.kobuki.emulator import EmulatorLaser, KobukiEmulator
 from robotexp_drivers.kobuki.robot import KobukiRobot
 
+WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
+SpecFor = Callable[[str, float], RunSpec]     # the `run_spec` fixture (conftest.py)
+
 STOP = BaseControl(0, 0)
 
 
-@pytest.fixture
-def world() -> World:
-    return builtin_world("ufmg-static")
-
-
-@pytest.fixture
-def emulator(world: World) -> Iterator[KobukiEmulator]:
-    start = resolve_pose(world, "path1", 0.175)[0]
-    with KobukiEmulator(world, pose=start, speedup=30.0) as emu:
-        yield emu
-
-
-def wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
-
-
-def spec(max_time: float) -> RunSpec:
-    return RunSpec(world="ufmg-static", robot="kobuki", method="frontier", pose="path1", speed=0.3,
-                   max_time=max_time)
-
-
-def test_frontier_exploration_matches_the_embedded_simulator(world: World, emulator: KobukiEmulator) -> None:
+def test_frontier_exploration_matches_the_embedded_simulator(world: World, emulator: KobukiEmulator, wait_for: WaitFor,
+                                                             run_spec: SpecFor) -> None:
     # Both runs explore ufmg-static from path1 at 0.3 m/s until no frontier is left (~150 s of robot
     # time). Mid-run coverage depends on the order in which frontiers are visited, which is chaotic:
     # through the protocol, speeds are whole mm/s, radii whole mm (int16), encoders count 0.085 mm
     # ticks and the gyro 0.01 deg, and the loop is paced by the stream (commands land a frame or two
     # later than on the stepped simulator). So the routes differ; the explored space must not: the
     # final coverage agrees within 2 percentage points (cells at the very edge of free space).
-    embedded = run_experiment(spec(300.0), None).record
+    embedded = run_experiment(run_spec("kobuki", 300.0), None).record
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(spec(300.0), robot, None, world)
+        out = run_on_robot(run_spec("kobuki", 300.0), robot, None, world)
     record = out.record
     assert embedded["completed"] and record["completed"], (embedded["reason"], record["reason"])
     assert embedded["coverage"] > 0.97

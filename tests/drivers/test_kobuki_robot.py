@@ -34,6 +34,8 @@ from robotexp_drivers.kobuki.codec import (
 from robotexp_drivers.kobuki.link import KobukiLink
 from robotexp_drivers.kobuki.robot import KobukiRobot
 
+WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
+
 TICK_MM = 0.085292090497737556558
 
 
@@ -125,15 +127,6 @@ def scripted() -> Iterator[Callable[..., ScriptedKobuki]]:
         p.close()
 
 
-def wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
-
-
 # ------------------------------------------------------------------------------------------ link
 def test_link_loop_round_trip_and_double_close() -> None:
     link = KobukiLink("loop://")
@@ -172,7 +165,8 @@ def test_link_eof_is_connection_lost() -> None:
 
 
 # ------------------------------------------------------------------------------------ odometry etc.
-def test_odometry_units_encoder_wrap_gyro_offset_and_info(scripted: Callable[..., ScriptedKobuki]) -> None:
+def test_odometry_units_encoder_wrap_gyro_offset_and_info(scripted: Callable[..., ScriptedKobuki],
+                                                          wait_for: WaitFor) -> None:
     # frames 0..9: references (encoders near the top of uint16, gyro at 10.00 deg, timestamp 65530 ms;
     # repeated so that the stale-input flush on connect cannot eat them all); then both wheels
     # +1000 ticks across the wrap (65000 -> 464), gyro still 10.00 deg, timestamp 65530 -> 14 (+20 ms),
@@ -203,7 +197,7 @@ def test_odometry_units_encoder_wrap_gyro_offset_and_info(scripted: Callable[...
     assert peer.base_controls()[-1] == BaseControl(0, 0)      # close() stops the robot
 
 
-def test_pure_turn_heading_from_gyro(scripted: Callable[..., ScriptedKobuki]) -> None:
+def test_pure_turn_heading_from_gyro(scripted: Callable[..., ScriptedKobuki], wait_for: WaitFor) -> None:
     def frames(i: int) -> list[Message]:
         if i < 10:
             return [basic(0, 100, 100), InertialSensor(-500, 0)]          # -5.00 deg: the offset
@@ -220,7 +214,7 @@ def test_pure_turn_heading_from_gyro(scripted: Callable[..., ScriptedKobuki]) ->
         assert s.distance == pytest.approx(0.0, abs=1e-12)
 
 
-def test_commands_and_hazard_filter(scripted: Callable[..., ScriptedKobuki]) -> None:
+def test_commands_and_hazard_filter(scripted: Callable[..., ScriptedKobuki], wait_for: WaitFor) -> None:
     hazard = {"bumper": 0, "cliff": 0, "wheel_drop": 0}
     peer = scripted(lambda i: [basic(20 * i % 65536, 0, 0, **hazard)])
     with KobukiRobot(peer.address, version_timeout=0.05, sound=False) as robot:
@@ -245,7 +239,7 @@ def test_commands_and_hazard_filter(scripted: Callable[..., ScriptedKobuki]) -> 
         assert robot.read().extra["collisions"] == 1.0       # one bumper press
 
 
-def test_watchdog_stops_a_silent_control_loop(scripted: Callable[..., ScriptedKobuki]) -> None:
+def test_watchdog_stops_a_silent_control_loop(scripted: Callable[..., ScriptedKobuki], wait_for: WaitFor) -> None:
     peer = scripted(lambda i: [basic(20 * i % 65536, 0, 0)])
     with KobukiRobot(peer.address, version_timeout=0.05, sound=False, watchdog=0.2) as robot:
         robot.command(Twist(0.1, 0.0))

@@ -2,32 +2,22 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import pytest
 
 from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
 from robotexp.robot import Twist
-from robotexp.world.builtin import builtin_world
+from robotexp.world.model import World
 from robotexp_drivers.mavlink.emulator import MavlinkEmulator
 from robotexp_drivers.mavlink.robot import MavlinkRobot
 
-
-def wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
+WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
+SpecFor = Callable[[str, float], RunSpec]     # the `run_spec` fixture (conftest.py)
 
 
-def spec(max_time: float) -> RunSpec:
-    return RunSpec(world="ufmg-static", robot="p3dx", method="frontier", pose="path1", speed=0.3, max_time=max_time)
-
-
-def test_frontier_exploration_matches_the_embedded_simulator() -> None:
+def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_for: WaitFor,
+                                                             run_spec: SpecFor) -> None:
     # Same world, pose and speed. Through MAVLink the scan is OBSTACLE_DISTANCE: 72 beams of 5 deg in
     # whole cm over a full circle, instead of the embedded 181 beams of 1 deg over the front half;
     # poses are float32 NED, and the loop is paced by 20 Hz LOCAL_POSITION_NED (commands land a
@@ -37,12 +27,11 @@ def test_frontier_exploration_matches_the_embedded_simulator() -> None:
     # 5-degree beams until the time limit): the final coverage agrees within 2 percentage points
     # (measured: 0.9998 embedded vs 0.9978-0.9997).
     # The map itself is coarser (map IoU ~0.84 vs ~0.99): 5-degree beams leave gaps at range.
-    world = builtin_world("ufmg-static")
-    embedded = run_experiment(spec(300.0), None).record
+    embedded = run_experiment(run_spec("p3dx", 300.0), None).record
     start = resolve_pose(world, "path1", 0.25)[0]
     with MavlinkEmulator(world, pose=start, speedup=30.0) as emu:
         with MavlinkRobot(emu.address) as robot:
-            record = run_on_robot(spec(300.0), robot, None, world).record
+            record = run_on_robot(run_spec("p3dx", 300.0), robot, None, world).record
         assert wait_for(lambda: emu.last_twist == Twist.ZERO)
         assert emu.sim.collisions == 0
     assert embedded["coverage"] > 0.9

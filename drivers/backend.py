@@ -1,0 +1,261 @@
+"""`StreamBackend`: what the driver backends share (a reader thread, a watchdog, a paced clock).
+
+Every backend here (kobuki, mavlink, p3dx) talks to a robot that streams its state. A background
+reader thread decodes the stream and folds it into the backend's state under `_cond` (a
+`threading.Condition`) on which readers of that state wait. The parts that are the same in every
+backend live here:
+
+- the reader loop (`_reader`): read what the link has, hand it to `_on_data`, and fail the link
+  when it ends, when nothing valid came for `timeout` s, or when the loop itself breaks (a bug
+  must not leave `read()` waiting forever);
+- failure: `_fail(exc)` records the first error for `read()` and the clock, wakes the waiters and
+  tries once to stop the robot; `_check()` raises it again (a fresh copy, chained), or a silence
+  error when the reader has not noticed the silence yet;
+- commands: `_command` refuses a motion while the link is broken but always tries a stop (the
+  link may still carry it); the command in force and when it came are `_twist` and `_cmd_wall`,
+  guarded by `_cmd_lock`, which is also held while a command is written;
+- the watchdog `_watch(now)`: no `command()` for `watchdog` s while moving -> a stop;
+- robot time: `wait_until(robot_time)` and `make_clock(period)` (a `PacedClock`), so a control
+  loop runs in real time on a robot and as fast as an emulator's speed-up allows against one;
+- `close()` only logs a final stop that cannot reach the robot any more; `_shutdown()` stops the
+  reader and releases the link.
+
+A backend calls `_init_stream()` first in its `__init__`, sets `address` and its link, starts the
+reader with `_start_reader()` and implements the hooks `_on_data`, `_send_twist`,
+`_silence_error`, `_robot_time` and `_read`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from abc import abstractmethod
+from typing import Protocol
+
+from robotexp.clock import Clock, PacedClock
+from robotexp.errors import ConfigError, ConnectionLost, RobotError
+from robotexp.robot import Robot, Twist
+
+__all__ = ["StreamBackend", "StreamLink", "require_positive"]
+
+log = logging.getLogger(__name__)
+
+
+class StreamLink(Protocol):
+    """The link a `StreamBackend` reads from: bytes in (b"" after a poll timeout), bytes out."""
+
+    def read_some(self) -> bytes:
+        """What arrived, b"" when nothing did within the poll timeout.
+
+        Raises:
+            ConnectionLost: the link closed.
+        """
+        ...
+
+    def write(self, data: bytes) -> None:
+        """Send `data`.
+
+        Raises:
+            ConnectionLost: the link closed.
+        """
+        ...
+
+    def close(self) -> None:
+        """Release the link; safe to call twice."""
+        ...
+
+
+def require_positive(who: str, **values: float) -> None:
+    """Check that every keyword value is finite and > 0.
+
+    Args:
+        who: what is configured (the backend's or emulator's name), for the message.
+        **values: the parameters by name.
+
+    Raises:
+        ConfigError: a value is not finite or not > 0 (the first such one, by name).
+    """
+    for what, value in values.items():
+        if not (value > 0 and math.isfinite(value)):
+            raise ConfigError(f"{who}: {what} must be > 0, got {value}")
+
+
+class StreamBackend(Robot):
+    """A `Robot` whose state arrives as a stream decoded by a reader thread (see the module docstring).
+
+    Attributes:
+        address: where the robot is (for messages).
+        timeout: silence after which the link counts as lost [s].
+        watchdog: stop the robot when `command()` was not called for this long [s].
+        watchdog_stops: how many times the watchdog stopped the robot.
+        command_time: `perf_counter()` when the newest command was written [s].
+    """
+
+    address: str
+    timeout: float
+    watchdog: float
+    _link: StreamLink
+    _join_timeout = 1.0     # [s] how long closing waits for the reader thread
+
+    def _init_stream(self, timeout: float, watchdog: float) -> None:
+        """Set up what the shared parts use (call first in `__init__`, before the reader starts)."""
+        self.timeout, self.watchdog = timeout, watchdog
+        self._cond = threading.Condition()
+        self._cmd_lock = threading.Lock()
+        self._error: RobotError | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._twist = Twist.ZERO
+        self._cmd_wall = self._last_rx = time.perf_counter()
+        self.watchdog_stops = 0
+        self.command_time = 0.0
+
+    def _start_reader(self, name: str) -> None:
+        self._last_rx = time.perf_counter()     # the silence timeout runs from here
+        self._thread = threading.Thread(target=self._reader, name=name, daemon=True)
+        self._thread.start()
+
+    # -- hooks ---------------------------------------------------------------------------
+    def _receive(self) -> bytes:
+        """What the link has now (b"" after its poll timeout); raises ConnectionLost at its end."""
+        return self._link.read_some()
+
+    @abstractmethod
+    def _on_data(self, data: bytes, now: float) -> None:
+        """Decode `data` (maybe b"") received at `now` [s, perf_counter] and do the periodic sends.
+
+        Updates `_last_rx` when something valid arrived. Raises ConnectionLost when a write fails.
+        """
+
+    @abstractmethod
+    def _send_twist(self, twist: Twist) -> None:
+        """Write `twist` as the robot's velocity command (the caller holds `_cmd_lock`)."""
+
+    @abstractmethod
+    def _silence_error(self, now: float) -> RobotError:
+        """The error for no valid data since `_last_rx` (ProtocolError when only garbage came)."""
+
+    @abstractmethod
+    def _robot_time(self) -> float:
+        """The robot's time [s] of the newest state (the caller holds `_cond`)."""
+
+    def _time_tolerance(self) -> float:
+        """How far [s] short of a target time `wait_until` still counts as there (half a ms)."""
+        return 5e-4
+
+    def _silent(self, now: float) -> bool:
+        """True when the reader should fail the link for silence."""
+        return now - self._last_rx > self.timeout
+
+    # -- reader thread -------------------------------------------------------------------
+    def _reader(self) -> None:
+        try:
+            while not self._stop.is_set():
+                try:
+                    data = self._receive()
+                except ConnectionLost:
+                    if self._stop.is_set():
+                        return      # closing: the link went away under us on purpose
+                    raise
+                now = time.perf_counter()
+                self._on_data(data, now)
+                if self._silent(now):
+                    raise self._silence_error(now)
+        except RobotError as exc:
+            self._fail(exc)
+        except Exception as exc:     # a bug here must not leave read() waiting forever
+            log.exception("%s: reader thread failed", self.name)
+            self._fail(RobotError(f"{self.name}: reader thread failed at {self.address!r}: {exc!r}"))
+
+    def _fail(self, exc: RobotError) -> None:
+        """Record the error for read() and the clock, and try once to stop the robot."""
+        with self._cond:
+            if self._error is None:
+                self._error = exc
+            self._cond.notify_all()
+        log.error("%s", exc)
+        try:
+            with self._cmd_lock:
+                self._twist = Twist.ZERO
+                self._send_twist(Twist.ZERO)
+        except ConnectionLost:
+            pass
+
+    def _watch(self, now: float) -> bool:
+        """The watchdog: stop when the control loop has been quiet for `watchdog` s; True when it did."""
+        with self._cmd_lock:
+            quiet = now - self._cmd_wall
+            if self._twist == Twist.ZERO or quiet <= self.watchdog:
+                return False
+            self._twist = Twist.ZERO
+            self.watchdog_stops += 1
+            log.warning("%s: no command for %.2f s: stopping the robot", self.name, quiet)
+            self._send_twist(Twist.ZERO)
+        return True
+
+    # -- Robot hooks ---------------------------------------------------------------------
+    def _check(self) -> None:
+        """Raise the reader's error, or a silence error it has not noticed yet (caller holds _cond)."""
+        if self._error is not None:
+            raise type(self._error)(str(self._error)) from self._error
+        now = time.perf_counter()
+        if now - self._last_rx > self.timeout:
+            raise self._silence_error(now)
+
+    def _command(self, twist: Twist) -> None:
+        if twist != Twist.ZERO:      # a stop is always tried: the link may still carry it
+            with self._cond:
+                self._check()
+        with self._cmd_lock:
+            self._twist = twist
+            self._cmd_wall = time.perf_counter()
+            self._send_twist(twist)
+
+    def wait_until(self, robot_time: float) -> float:
+        """Block until the robot's time reaches `robot_time` [s]; return the robot time then [s].
+
+        Raises:
+            RobotError: the robot is closed.
+            ConnectionLost, ProtocolError: the robot fell silent or the link closed meanwhile.
+        """
+        with self._cond:
+            while self._robot_time() < robot_time - self._time_tolerance():
+                self._ensure_open()
+                self._check()
+                left = self._last_rx + self.timeout - time.perf_counter()
+                self._cond.wait(max(left, 0.0) + 1e-3)
+            return self._robot_time()
+
+    def make_clock(self, period: float) -> Clock:
+        """A clock paced by the robot's stream: a tick waits until the robot's time has advanced by
+        `period` [s], so a control loop runs in real time on a robot and as fast as the speed-up
+        allows against an emulator."""
+        with self._cond:
+            start = self._robot_time()
+        return PacedClock(period, self.wait_until, start)
+
+    def close(self) -> None:
+        """Stop the robot, then release the link. Safe to call twice; a link already lost is only
+        logged (the stop cannot reach the robot; its error was raised by `read()` already)."""
+        try:
+            super().close()
+        except ConnectionLost as exc:
+            log.warning("%s: could not send the final stop: %s", self.name, exc)
+
+    def _close(self) -> None:
+        self._shutdown()
+
+    def _release(self) -> None:
+        """Release the link (after the reader stopped)."""
+        self._link.close()
+
+    def _shutdown(self) -> None:
+        self._stop.set()
+        thread = self._thread
+        if thread is not None and thread.is_alive() and thread is not threading.current_thread():
+            thread.join(timeout=self._join_timeout)
+        self._release()
+        with self._cond:
+            self._cond.notify_all()
