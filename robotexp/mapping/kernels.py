@@ -30,6 +30,7 @@ __all__ = [
     "LogOddsModel",
     "clearance_mask",
     "edt_sq",
+    "flood",
     "flood8",
     "frontier_mask",
     "integrate_scan_himm",
@@ -367,8 +368,9 @@ def label8(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.int32], int]:
 
 
 @kernel
-def flood8(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bool_]:
-    """Bool (rows, cols): the 8-connected component of `mask` holding cell (row, col) (empty if unset)."""
+def flood(mask: npt.NDArray[np.bool_], row: int, col: int, diagonal: bool) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): the connected component of `mask` holding cell (row, col), 8-connected when
+    `diagonal`, else 4-connected (empty when (row, col) is outside or unset)."""
     rows, cols = mask.shape
     out = np.zeros((rows, cols), np.bool_)
     if row < 0 or row >= rows or col < 0 or col >= cols or not mask[row, col]:
@@ -383,11 +385,19 @@ def flood8(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bo
         c = stack[top] % cols
         for rr in range(max(r - 1, 0), min(r + 2, rows)):
             for cc in range(max(c - 1, 0), min(c + 2, cols)):
+                if not diagonal and rr != r and cc != c:
+                    continue
                 if mask[rr, cc] and not out[rr, cc]:
                     out[rr, cc] = True
                     stack[top] = rr * cols + cc
                     top += 1
     return out
+
+
+@kernel
+def flood8(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): the 8-connected component of `mask` holding cell (row, col) (empty if unset)."""
+    return flood(mask, row, col, True)
 
 
 @kernel

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.mapping.kernels import kernel
+from robotexp.mapping.kernels import flood, kernel
 
 __all__ = [
     "descent",
@@ -236,26 +236,7 @@ def flood4(mask: npt.NDArray[np.bool_], row: int, col: int) -> npt.NDArray[np.bo
     4-connected, like the 5-point stencil of eq. 3.1: a region joined to a goal only through a
     diagonal gets no potential gradient towards it. Empty when (row, col) is outside or unset.
     """
-    rows, cols = mask.shape
-    out = np.zeros((rows, cols), np.bool_)
-    if row < 0 or row >= rows or col < 0 or col >= cols or not mask[row, col]:
-        return out
-    stack = np.empty(rows * cols, np.int64)
-    out[row, col] = True
-    stack[0] = row * cols + col
-    top = 1
-    while top > 0:
-        top -= 1
-        r = stack[top] // cols
-        c = stack[top] % cols
-        for k in range(4):
-            rr = r + (1 if k == 0 else -1 if k == 1 else 0)
-            cc = c + (1 if k == 2 else -1 if k == 3 else 0)
-            if 0 <= rr < rows and 0 <= cc < cols and mask[rr, cc] and not out[rr, cc]:
-                out[rr, cc] = True
-                stack[top] = rr * cols + cc
-                top += 1
-    return out
+    return flood(mask, row, col, False)
 
 
 def touches(region: npt.NDArray[np.bool_], target: npt.NDArray[np.bool_]) -> bool:
