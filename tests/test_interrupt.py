@@ -13,6 +13,12 @@ import sys
 import time
 from pathlib import Path
 
+
+def _default_sigint() -> None:
+    """In the child: SIGINT back to its default (see the test)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 MOVED_S = 20.0       # [s] robot time after which the robot has surely left its start
 DEADLINE_S = 60.0    # [s] wall time bound of the whole test
 
@@ -22,9 +28,12 @@ def test_sigint_writes_partial_result_and_exits_130(tmp_path: Path) -> None:
     # stderr on a pseudo-terminal turns on the progress line, which tells the robot time
     master, slave = pty.openpty()
     # 40 mm/s: about 20 s of wall time, so the signal always lands inside the run
+    # preexec_fn: a Ctrl-C from a terminal; when these tests run in the background (SIGINT ignored, which
+    # children inherit) Python would install no KeyboardInterrupt handler and the signal would do nothing
     proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "explore", "--world", "dense", "--speed", "40",
                              "--out", str(out)],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, text=True)
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, text=True,
+                            preexec_fn=_default_sigint)
     os.close(slave)
     deadline = time.monotonic() + DEADLINE_S
     shown = b""

@@ -92,8 +92,10 @@ def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str) -> tuple[subpr
     script = tmp_path / "s.lua"
     script.write_text(code)
     out = tmp_path / "out"
+    # a terminal's Ctrl-C: SIGINT back to its default in the child even when the tests run in the background
     proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout is not None
         assert proc.stdout.readline().strip() == "ready"
