@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotexpError, ScriptError
+from robotexp.lua.sandbox import lua_kind
 from robotexp.robot import Pose
 
 if TYPE_CHECKING:
@@ -94,19 +95,6 @@ def parse_address(address: str) -> tuple[str, str]:
     return "tcp", a
 
 
-def _lua_kind(value: object) -> str:
-    if value is None:
-        return "nil"
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, (int, float)):
-        return "a number"
-    if isinstance(value, str):
-        return "a string"
-    from lupa import lua_type  # type: ignore[import-untyped]
-    return f"a {lua_type(value) or 'value'}"
-
-
 def _args(fname: str, usage: str, args: tuple[Any, ...], kinds: str) -> list[Any]:
     """Check `args` against `kinds` (n number, i integer, s string, b boolean); return them.
 
@@ -123,7 +111,7 @@ def _args(fname: str, usage: str, args: tuple[Any, ...], kinds: str) -> list[Any
               "b": isinstance(value, bool)}[kind]
         if not ok:
             raise ScriptError(f"{fname}({usage}): argument {i} must be {_NAME[kind]}"
-                              f"{' (finite)' if kind == 'n' else ''}, got {_lua_kind(value)}")
+                              f"{' (finite)' if kind == 'n' else ''}, got {lua_kind(value)}")
     return list(args)
 
 
@@ -428,7 +416,7 @@ class Session:
         methods = self.methods()
         listing = ", ".join(f"ExplorationMethod.{k}" for k in methods)
         if len(args) != 1 or not isinstance(args[0], str):
-            got = "nothing" if not args else _lua_kind(args[0])
+            got = "nothing" if not args else lua_kind(args[0])
             raise ScriptError(f"exploration.setMethod(method): expected an installed method, got {got} "
                               f"(ExplorationMethod.X is nil when plugin x is not installed); available: {listing}")
         name = methods.get(args[0], args[0])
@@ -445,7 +433,7 @@ class Session:
         """An explorer keyword parameter (SI units, as `--param`); checked at start()."""
         if len(args) != 2 or not isinstance(args[0], str) or not (
                 isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
-            got = ", ".join(_lua_kind(a) for a in args) or "nothing"
+            got = ", ".join(lua_kind(a) for a in args) or "nothing"
             raise ScriptError("exploration.setParameter(name, value): expected a parameter name (string) and a "
                               f"number, boolean or string, got {got}")
         name, value = args

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from robotexp.errors import ScriptError
 
-__all__ = ["PathPolicy", "PRELUDE", "HOOK_EVERY", "ABORT"]
+__all__ = ["PathPolicy", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
 
 HOOK_EVERY = 10_000     # Lua instructions between two stop checks (~0.1 ms of Lua; ~1 % overhead)
 ABORT = "\x00robotexp: script stopped"   # the error value of a stop; never shown to the user
@@ -46,7 +46,7 @@ class PathPolicy:
         if isinstance(path, (int, float)) and not isinstance(path, bool):
             path = str(path)          # Lua coerces numbers to file names too
         if not isinstance(path, str) or not path:
-            raise ScriptError(f"{where}: expected a file name (a non-empty string), got {_kind(path)}")
+            raise ScriptError(f"{where}: expected a file name (a non-empty string), got {lua_kind(path)}")
         full = Path(path) if os.path.isabs(path) else self.out / path
         writing = isinstance(mode, str) and any(c in mode for c in _WRITE_MODES)
         if self.sandbox:
@@ -65,7 +65,8 @@ class PathPolicy:
                           "reach outside the output folder); run without --sandbox to allow it")
 
 
-def _kind(value: object) -> str:
+def lua_kind(value: object) -> str:
+    """What a value from Lua is, for error messages: "nil", "a number", "a table", ..."""
     if value is None:
         return "nil"
     if isinstance(value, bool):
