@@ -212,12 +212,7 @@ class FrontierExplorer(Explorer):
         into unknown space. Openings are cells with no occupied 8-neighbour.
         """
         min_cells = self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
-        occ = grid.occupied()
-        near_occ = occ.copy()
-        near_occ[1:, :] |= occ[:-1, :]
-        near_occ[:-1, :] |= occ[1:, :]
-        near_occ[:, 1:] |= near_occ[:, :-1].copy()
-        near_occ[:, :-1] |= near_occ[:, 1:].copy()
+        near_occ = grid.near_occupied()
         mask = np.zeros((grid.geo.rows, grid.geo.cols), dtype=bool)
         if self.blacklist.shape != mask.shape:
             self.blacklist = np.zeros_like(mask)

@@ -63,13 +63,7 @@ def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach
     Returns:
         (rows, cols) bool.
     """
-    occ = grid.occupied()
-    near = occ.copy()
-    near[1:, :] |= occ[:-1, :]
-    near[:-1, :] |= occ[1:, :]
-    near[:, 1:] |= near[:, :-1].copy()
-    near[:, :-1] |= near[:, 1:].copy()
-    front = grid.frontier() & ~near
+    front = grid.frontier() & ~grid.near_occupied()
     if blacklist is not None:
         front &= ~blacklist
     if not front.any() or not reachable.any():

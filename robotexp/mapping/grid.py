@@ -162,6 +162,17 @@ class OccupancyGrid:
             return self.values > 0
         return self.values > HIMM_OCCUPIED
 
+    def near_occupied(self) -> npt.NDArray[np.bool_]:
+        """Bool (rows, cols): occupied cells and their 8-neighbours (a frontier cell here is the face
+        of a wall, not an opening)."""
+        occ = self.occupied()
+        near = occ.copy()
+        near[1:, :] |= occ[:-1, :]
+        near[:-1, :] |= occ[1:, :]
+        near[:, 1:] |= near[:, :-1].copy()
+        near[:, :-1] |= near[:, 1:].copy()
+        return near
+
     def free(self) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): free cells (log-odds < 0; HIMM seen with certainty <= 2)."""
         if self.model == "logodds":

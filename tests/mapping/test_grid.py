@@ -172,3 +172,13 @@ def test_bad_inputs_raise_config_error():
         grid.mark_free(np.zeros((4, 5), bool))
     with pytest.raises(ConfigError, match="min_cells"):
         grid.frontier_groups(0)
+
+
+def test_near_occupied_is_the_occupied_cells_and_their_8_neighbours() -> None:
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 1.0, 5, 6))
+    grid.values[1, 1] = 1.0            # interior: a 3 x 3 block
+    grid.values[4, 5] = 2.0            # corner: clipped to 2 x 2
+    expected = np.zeros((5, 6), bool)
+    expected[0:3, 0:3] = True
+    expected[3:5, 4:6] = True
+    assert np.array_equal(grid.near_occupied(), expected)
