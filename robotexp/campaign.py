@@ -267,23 +267,20 @@ def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
     several) the path [m] and duration (mm:ss) of each method and the SRT nodes; then mean, standard
     deviation, range and mean speed of the runs that completed (a run cut short is marked * and left
     out of the statistics)."""
-    groups: dict[tuple[str, int], dict[str, dict[str, dict[str, Any]]]] = {}
+    groups: dict[tuple[str, int], dict[str, dict[tuple[str, int], dict[str, Any]]]] = {}
     for r in records:
         if str(r.get("reason", "")).startswith("interrupted"):
             continue
         key = (str(r.get("world")), round(float(r.get("max_speed_m_s") or 0) * 1000))
-        row_key = f"{r.get('pose')}\0{int(r.get('seed') or 0)}"
+        row_key = (str(r.get("pose")), int(r.get("seed") or 0))
         groups.setdefault(key, {}).setdefault(str(r.get("method")), {})[row_key] = r
     tables = []
     for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
         methods = sorted(by_method)
-        keys = sorted({p for m in by_method.values() for p in m},
-                      key=lambda k: (_natural(k.split("\0")[0]), int(k.split("\0")[1])))
+        poses = sorted({k for m in by_method.values() for k in m}, key=lambda k: (_natural(k[0]), k[1]))
         # one row per start pose, or per (pose, seed) when the campaign has several seeds
-        seeded = len({k.split("\0")[1] for k in keys}) > 1
-        labels = {k: (f"{k.split(chr(0))[0]} seed {k.split(chr(0))[1]}" if seeded else k.split("\0")[0])
-                  for k in keys}
-        poses = keys
+        seeded = len({seed for _, seed in poses}) > 1
+        labels = {k: f"{k[0]} seed {k[1]}" if seeded else k[0] for k in poses}
         header = ["pose"]
         for m in methods:
             header += [f"{m} path (m)", f"{m} time (mm:ss)"]
