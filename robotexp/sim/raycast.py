@@ -142,6 +142,29 @@ def _hit_shape(kind: float, cx: float, cy: float, a: float, b: float, c: float, 
 
 
 @kernel
+def _slab(o: float, d: float, lo: float, hi: float, t0: float, t1: float) -> tuple[float, float]:
+    """The part [t0, t1] of a ray (origin `o`, direction `d` along one axis) within lo..hi on that axis;
+    t1 < t0 when none."""
+    if d != 0.0:
+        a1, a2 = (lo - o) / d, (hi - o) / d
+        return max(t0, min(a1, a2)), min(t1, max(a1, a2))
+    if o < lo or o > hi:
+        return t0, -1.0
+    return t0, t1
+
+
+@kernel
+def _next_border(o: float, d: float, g: float, k: int, bucket: float) -> float:
+    """Ray parameter at which a ray (origin `o`, direction `d` along one axis) leaves bucket `k` of a grid
+    starting at `g` with buckets of `bucket` [m]; inf when it never does."""
+    if d > 0.0:
+        return (g + (k + 1) * bucket - o) / d
+    if d < 0.0:
+        return (g + k * bucket - o) / d
+    return math.inf
+
+
+@kernel
 def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64], reach: float,
               shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
               gx: float, gy: float, bucket: float, rows: int, cols: int, movers: npt.NDArray[np.float64],
@@ -158,18 +181,8 @@ def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64
                 best = t
         if shapes.shape[0] > 0:
             # Clip the ray to the bucket grid's rectangle.
-            t0, t1 = 0.0, best
-            x_lo, x_hi, y_lo, y_hi = gx, gx + cols * bucket, gy, gy + rows * bucket
-            if dx != 0.0:
-                a1, a2 = (x_lo - ox) / dx, (x_hi - ox) / dx
-                t0, t1 = max(t0, min(a1, a2)), min(t1, max(a1, a2))
-            elif ox < x_lo or ox > x_hi:
-                t1 = -1.0
-            if dy != 0.0:
-                a1, a2 = (y_lo - oy) / dy, (y_hi - oy) / dy
-                t0, t1 = max(t0, min(a1, a2)), min(t1, max(a1, a2))
-            elif oy < y_lo or oy > y_hi:
-                t1 = -1.0
+            t0, t1 = _slab(ox, dx, gx, gx + cols * bucket, 0.0, best)
+            t0, t1 = _slab(oy, dy, gy, gy + rows * bucket, t0, t1)
             if t0 <= t1:
                 fx, fy = (ox + t0 * dx - gx) / bucket, (oy + t0 * dy - gy) / bucket
                 c = min(max(int(math.floor(fx)), 0), cols - 1)
@@ -177,18 +190,8 @@ def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64
                 step_c = 1 if dx > 0.0 else -1
                 step_r = 1 if dy > 0.0 else -1
                 # Ray parameter at the next vertical / horizontal bucket border.
-                if dx > 0.0:
-                    next_x = (gx + (c + 1) * bucket - ox) / dx
-                elif dx < 0.0:
-                    next_x = (gx + c * bucket - ox) / dx
-                else:
-                    next_x = math.inf
-                if dy > 0.0:
-                    next_y = (gy + (r + 1) * bucket - oy) / dy
-                elif dy < 0.0:
-                    next_y = (gy + r * bucket - oy) / dy
-                else:
-                    next_y = math.inf
+                next_x = _next_border(ox, dx, gx, c, bucket)
+                next_y = _next_border(oy, dy, gy, r, bucket)
                 dt_x = bucket / abs(dx) if dx != 0.0 else math.inf
                 dt_y = bucket / abs(dy) if dy != 0.0 else math.inf
                 while True:
