@@ -96,11 +96,16 @@ class LaserScan:
 
 @dataclass(frozen=True)
 class SonarScan:
-    """Ranges [m] of a sonar ring; `angles` [rad] are the transducer headings in the robot frame."""
+    """Ranges [m] of a sonar ring; `angles` [rad] are the transducer headings in the robot frame.
+
+    Each range is measured from its transducer, at `positions` (k, 2) [m] in the robot frame (None:
+    not known; users then take the robot centre).
+    """
 
     angles: npt.NDArray[np.float64]
     ranges: npt.NDArray[np.float64]
     range_max: float
+    positions: npt.NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)

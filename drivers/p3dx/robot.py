@@ -31,6 +31,7 @@ log = logging.getLogger(__name__)
 
 _SONAR_ANGLES = np.radians(np.array([p[2] for p in c.SONAR_POSES], dtype=np.float64))
 _SONAR_RANGE_MAX = c.SONAR_NO_ECHO_MM / 1000.0
+_SONAR_POSITIONS = np.array([p[:2] for p in c.SONAR_POSES], dtype=np.float64) / 1000.0
 
 
 def compose_pose(a: Pose, b: Pose) -> Pose:
@@ -301,7 +302,7 @@ class P3DXRobot(StreamBackend):
         extra = {"collisions": float(self._collisions), "motors_enabled": float(sip.motors_enabled),
                  "estop": float(sip.estop)}
         return RobotState(time=self._sips * self.cycle, pose=pose, velocity=Twist(v, w), laser=self._scan,
-                          sonar=SonarScan(_SONAR_ANGLES, self._sonar.copy(), _SONAR_RANGE_MAX),
+                          sonar=SonarScan(_SONAR_ANGLES, self._sonar.copy(), _SONAR_RANGE_MAX, _SONAR_POSITIONS),
                           stalled=stalled, bumpers=front + rear, battery=battery, distance=self._distance,
                           extra=extra)
 

@@ -52,12 +52,17 @@ class LaserConfig:
 @dataclass(frozen=True)
 class SonarConfig:
     """A sonar ring: transducers at `angles` [deg] on a ring of `ring_radius` [m], each a cone of
-    `cone` [deg] sampled by `rays_per_cone` rays, reading the nearest echo up to `range_max` [m]."""
+    `cone` [deg] sampled by `rays_per_cone` rays, reading the nearest echo up to `range_max` [m].
+
+    A reading is the nearest echo anywhere in the cone, so the cone is sampled every degree (16
+    rays): with coarser sampling a door frame between two rays goes unheard, and a perception that
+    reads the cone as free (SRT-Star) claims the frame as free space.
+    """
 
     angles_deg: tuple[float, ...] = ()
     ring_radius: float = 0.2
     cone_deg: float = 15.0
-    rays_per_cone: int = 3
+    rays_per_cone: int = 16
     range_max: float = 5.0
 
     def angles(self) -> npt.NDArray[np.float64]:

@@ -284,7 +284,8 @@ class SimRobot(Robot):
         fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
         fraction = fraction.reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
-        return SonarScan(ring, ranges, cfg.range_max)
+        positions = cfg.ring_radius * np.column_stack([np.cos(ring), np.sin(ring)])
+        return SonarScan(ring, ranges, cfg.range_max, positions)
 
 def _approach(current: float, target: float, step: float) -> float:
     """Move `current` towards `target` by at most `step`."""
