@@ -14,7 +14,7 @@ from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, cost_grid, distance_transform, nearest_goal, simplify
 from robotexp.robot import Pose, RobotState, Twist
 
-__all__ = ["FrontierExplorer", "plan_costs"]
+__all__ = ["FrontierExplorer", "frontier_targets", "plan_costs"]
 
 MARGIN = 0.05   # [m] kept between the robot and the walls by every plan
 
@@ -43,6 +43,26 @@ def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach:
     cand += (r0, c0)
     best = int(np.argmin((cand[:, 0] - row) ** 2 + (cand[:, 1] - col) ** 2))
     return int(cand[best, 0]), int(cand[best, 1])
+
+
+def frontier_targets(grid: OccupancyGrid, min_cells: int,
+                     skip: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): the frontier cells of `grid` worth going to.
+
+    Frontier cells of the 8-connected groups of at least `min_cells` cells, leaving out wall faces
+    and the `skip` cells (same shape as the grid). A free cell beside an occupied one, with unknown
+    on its other side, is the face of a wall whose far half the sensor never sees (or a cell that
+    grazing beams cleared): not an opening into unknown space. Openings are cells with no occupied
+    8-neighbour.
+    """
+    mask = np.zeros(grid.shape, dtype=bool)
+    drop = grid.near_occupied()
+    if skip is not None:
+        drop |= skip
+    for cells in grid.frontier_groups(min_cells):
+        keep = cells[~drop[cells[:, 0], cells[:, 1]]]
+        mask[keep[:, 0], keep[:, 1]] = True
+    return mask
 
 
 class FrontierExplorer(Explorer):
@@ -205,22 +225,11 @@ class FrontierExplorer(Explorer):
         return True
 
     def _frontier_targets(self, grid: OccupancyGrid) -> npt.NDArray[np.bool_]:
-        """Frontier cells of the groups large enough to matter, wall faces left out.
-
-        A free cell beside an occupied one, with unknown on its other side, is the face of a wall
-        whose far half the laser never sees (or a cell that grazing beams cleared): not an opening
-        into unknown space. Openings are cells with no occupied 8-neighbour.
-        """
+        """`frontier_targets` of the groups large enough to matter, blacklisted cells left out."""
         min_cells = self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
-        near_occ = grid.near_occupied()
-        mask = np.zeros((grid.geo.rows, grid.geo.cols), dtype=bool)
-        if self.blacklist.shape != mask.shape:
-            self.blacklist = np.zeros_like(mask)
-        skip = near_occ | self.blacklist
-        for cells in grid.frontier_groups(min_cells):
-            keep = cells[~skip[cells[:, 0], cells[:, 1]]]
-            mask[keep[:, 0], keep[:, 1]] = True
-        return mask
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        return frontier_targets(grid, min_cells, self.blacklist)
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_]) -> tuple[int, int] | None:
         r, c = grid.geo.cell_of(pose.x, pose.y)
