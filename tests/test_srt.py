@@ -238,8 +238,7 @@ def room_world() -> World:
     return World("room", np.array(boxes), np.array([[2.0, 1.0, 0.3]]))
 
 
-# SRT-Star is left out: its cones do not see between the sonar axes and it can graze the pillar
-@pytest.mark.parametrize("method", [SRTLaserExplorer, SRTBallExplorer])
+@pytest.mark.parametrize("method", [SRTLaserExplorer, SRTBallExplorer, SRTStarExplorer])
 def test_explores_a_small_room_and_returns_to_the_start(method: type) -> None:
     from robotexp.mapping.groundtruth import coverage, ground_truth
 
@@ -277,27 +276,76 @@ def test_star_needs_a_sonar_ring_and_validates_the_straight_way() -> None:
 
 # -- task L: re-centring, detours, swept sonar stars ----------------------------------------------
 
-def test_star_sweep_is_the_union_of_the_reading_cones() -> None:
+def _in_sector(p: np.ndarray, apex: tuple[float, float], axis: float, half: float, r: float) -> np.ndarray:
+    """Brute force: which points (k, 2) lie in the sector (apex, axis, half opening, radius)."""
+    q = p - np.asarray(apex)
+    off = np.abs(np.mod(np.arctan2(q[:, 1], q[:, 0]) - axis + math.pi, 2 * math.pi) - math.pi)
+    return (np.hypot(q[:, 0], q[:, 1]) <= r) & (off <= half)
+
+
+def test_sector_intervals_by_hand_and_by_brute_force() -> None:
+    from robotexp_plugins.srt.regions import sector_intervals
+
+    # transducer 0.2 m out on axis 0, 15-deg cone, 2 m reading. Along the axis: [0.2, 2.2]. A ray from the
+    # centre 3 deg off the axis enters where its bearing from the apex drops to 7.5 deg:
+    # t = 0.2 sin 7.5 / sin 4.5 = 0.33273, and leaves at |t u - apex| = 2: t = 0.2 cos 3 + sqrt(4 - 0.04 sin^2 3)
+    # = 2.19970. 8 deg off the axis it never enters.
+    half = math.radians(7.5)
+    dirs = np.radians([0.0, 3.0, -3.0, 8.0])
+    lo, hi = sector_intervals(0.0, 0.0, dirs, np.array([[0.2, 0.0]]), np.array([0.0]), np.array([2.0]), 2 * half)
+    assert lo[:3, 0] == pytest.approx([0.2, 0.33273, 0.33273], abs=1e-5)
+    assert hi[:3, 0] == pytest.approx([2.2, 2.19970, 2.19970], abs=1e-5)
+    assert lo[3, 0] > hi[3, 0]
+    # random sectors and rays: the interval is exactly where sampled points are inside
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 6.0, 6001)
+    for _ in range(40):
+        apex = tuple(rng.uniform(-1.0, 1.0, 2))
+        axis, cone, r = rng.uniform(-math.pi, math.pi), rng.uniform(0.1, 2.5), rng.uniform(0.5, 4.0)
+        d = rng.uniform(-math.pi, math.pi)
+        lo, hi = sector_intervals(0.0, 0.0, np.array([d]), np.array([apex]), np.array([axis]), np.array([r]), cone)
+        inside = _in_sector(np.column_stack([t * math.cos(d), t * math.sin(d)]), apex, axis, cone / 2, r)
+        if inside.any():
+            assert lo[0, 0] == pytest.approx(t[inside][0], abs=2e-3)
+            assert hi[0, 0] == pytest.approx(t[inside][-1], abs=2e-3)
+        else:
+            assert not lo[0, 0] < hi[0, 0] - 2e-3
+
+
+def test_star_sweep_is_the_union_of_the_sectors_from_the_robot_disc() -> None:
     from robotexp_plugins.srt import largest_gap, star_from_sweep
 
-    # 8 bins of 45 deg (centres -157.5, -112.5, ..., 157.5); readings with 60-deg cones:
-    # axis 0 deg r=2 (cone -30..30) covers the centres -22.5 and 22.5; axis 30 deg r=1 (0..60) covers
-    # 22.5; axis 180 deg r=3 covers 157.5 and -157.5. Bins -112.5, -67.5, 67.5 and 112.5 are blind.
-    axes = np.radians([0.0, 30.0, 180.0])
-    ranges = np.array([2.0, 1.0, 3.0])
-    union = star_from_sweep(0.0, 0.0, axes, ranges, math.radians(60.0), bins=8)
-    assert union.edges == pytest.approx(np.radians(np.arange(-180.0, 180.0, 45.0)))
-    # centres: -157.5 -> 3; -112.5, -67.5 blind: neighbours -157.5 (3) and -22.5 (2) -> 2; -22.5 -> 2;
-    # 22.5 -> max(2, 1) = 2; 67.5, 112.5 blind: neighbours 22.5 (2) and 157.5 (3) -> 2; 157.5 -> 3
-    assert union.radii == pytest.approx([3.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 3.0])
-    bound = star_from_sweep(0.0, 0.0, axes, ranges, math.radians(60.0), bins=8, combine="min")
-    assert bound.radii[4] == pytest.approx(1.0)           # 22.5 deg: the smaller of 2 and 1
-    assert star_from_sweep(0.0, 0.0, axes[:0], ranges[:0], 0.5, bins=4).radii == pytest.approx(np.zeros(4))
+    # 16 bins of 22.5 deg; bin 8 spans [0, 22.5) deg. Sectors with 90-deg cones on the axis 11.25 deg:
+    # A: apex at the centre, 1 m; B: apex 0.5 m out on the axis, 2 m; D: apex 1.5 m out, 2 m.
+    # Along the bin's edge rays (11.25 deg off the axis) B starts at t = 0.6363 (bearing from its apex
+    # 45 deg) and ends at 0.4904 + sqrt(4 - 0.0975^2) = 2.48802; D starts at 1.47118 + 0.29264 / tan 33.75
+    # = 1.9091.
+    ax = math.radians(11.25)
+    u = np.array([math.cos(ax), math.sin(ax)])
+    apex = {"A": (0.0, 0.0), "B": tuple(0.5 * u), "D": tuple(1.5 * u)}
+    reach = {"A": 1.0, "B": 2.0, "D": 2.0}
+
+    def star(names: str, body: float = 0.1) -> np.ndarray:
+        return star_from_sweep(0.0, 0.0, np.array([apex[n] for n in names]), np.full(len(names), ax),
+                               np.array([reach[n] for n in names]), math.radians(90.0), bins=16, body=body).radii
+
+    assert star("A")[8] == pytest.approx(1.0)
+    assert star("AB")[8] == pytest.approx(2.48802, abs=1e-4)      # B starts inside A: the union grows
+    assert star("AD")[8] == pytest.approx(1.0)                    # D starts 0.9 m past A's end: a gap
+    assert star("B")[8] == pytest.approx(0.1)                     # B starts past the robot's disc
+    assert star("B", body=0.7)[8] == pytest.approx(2.48802, abs=1e-4)
+    # A then B then D (D starts at 1.9089 < 2.48802): D's end on the edge ray, 1.5 cos 11.25 +
+    # sqrt(4 - (1.5 sin 11.25)^2) = 1.47118 + 1.97847
+    assert star("ABD")[8] == pytest.approx(3.44965, abs=1e-4)
+    others = np.delete(star("A"), [7, 8, 9])      # bins 7 and 9 hold a part of A's 90-deg cone
+    assert others == pytest.approx(np.full(13, 0.1))
+    assert star_from_sweep(0.0, 0.0, np.zeros((0, 2)), np.zeros(0), np.zeros(0), 0.5, bins=4,
+                           body=0.2).radii == pytest.approx(np.full(4, 0.2))
     # the P3-DX ring: the widest gap between adjacent axes is 40 deg (50 -> 90 and its mirrors)
     from robotexp.sim.presets import P3DX_SONAR
     assert math.degrees(largest_gap(P3DX_SONAR.angles())) == pytest.approx(40.0)
-    with pytest.raises(ConfigError, match="combine"):
-        star_from_sweep(0.0, 0.0, axes, ranges, 0.5, combine="mean")
+    with pytest.raises(ConfigError, match="apexes"):
+        star_from_sweep(0.0, 0.0, np.zeros((2, 2)), np.zeros(1), np.zeros(1), 0.5)
 
 
 def test_star_sweep_closes_a_blind_gap_of_the_ring() -> None:
@@ -448,3 +496,38 @@ def test_star_validates_the_way_through_a_doorway() -> None:
     ex.ctx.rng = FixedRng([math.radians(a) for a in tries])  # type: ignore[assignment]
     ex.tree.add(0.0, -2.0, BallRegion(0.0, -2.0, 0.6), 0)
     assert ex._candidate(0) is None
+
+
+def two_rooms() -> World:
+    """Two 4 m x 4 m rooms side by side (inner faces x = -4, 4, y = -2, 2), joined by a door 1.1 m wide
+    (as the dense world's) in the wall x = 0, off the middle (y from 0.35 to 1.45 between the frames)."""
+    t = 0.1
+    boxes = [segment_box(-4.05, -2.05, 4.05, -2.05, t), segment_box(-4.05, 2.05, 4.05, 2.05, t),
+             segment_box(-4.05, -2.05, -4.05, 2.05, t), segment_box(4.05, -2.05, 4.05, 2.05, t),
+             segment_box(0.0, -2.05, 0.0, 0.3, t), segment_box(0.0, 1.5, 0.0, 2.05, t)]
+    return World("two rooms", np.array(boxes), np.zeros((0, 3)))
+
+
+@pytest.mark.parametrize("frontier", [False, True])
+def test_srt_star_goes_through_a_door_with_the_frontier_rescue(frontier: bool) -> None:
+    from robotexp.mapping.groundtruth import coverage, ground_truth
+
+    world = two_rooms()
+    start = Pose(-2.0, -1.0, 0.0)
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)  # type: ignore[misc]
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
+    explorer = SRTStarExplorer(frontier=frontier)
+    grid = OccupancyGrid(geo)
+    with SimRobot(world, pose=start, seed=1, max_speed=0.5, sonar=True) as robot:
+        run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=3000.0, seed=3).run()
+        end = robot.read().true_pose
+    assert run.completed, run.reason
+    assert run.metrics.collisions == 0
+    assert end is not None and math.hypot(end.x - start.x, end.y - start.y) < 0.1
+    right = truth.explorable.copy()
+    right[:, :geo.cell_of(0.3, 0.0)[1]] = False          # the far room
+    seen = coverage(grid.free(), truth)
+    if frontier:
+        assert seen >= 0.95 and explorer.result_fields()["rescues"] > 0
+    else:   # the thesis's VALIDATE alone: the door, 2 m away and off the straight ways, stops the tree
+        assert np.count_nonzero(grid.free() & right) < 0.5 * np.count_nonzero(right)

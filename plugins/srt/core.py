@@ -138,7 +138,8 @@ class SRTExplorer(Explorer):
     node it left and never tries a candidate within `failed_radius` of that one again from there.
     Before leaving a node the robot re-centres on it; a way back to the parent without progress
     for `detour_after` [s] is replaced by a detour through the union of the safe regions (see the
-    module docstring); only when no detour exists, or the detour itself stalls, does the run end.
+    module docstring); only when no detour exists, or the detour itself stalls, does the run end,
+    unless it stalled within `arrive_tolerance` of the node: then the node counts as reached.
 
     Args:
         max_nodes: K_max, the largest number of nodes (the run ends when it is reached).
@@ -162,6 +163,7 @@ class SRTExplorer(Explorer):
         self.settle_tolerance, self.detour_after = settle_tolerance, detour_after
 
     name = "srt"
+    arrive_tolerance = 0.3   # [m] a way back that stalls this close to its node counts as arrived
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run: an empty tree, perceiving at the start pose."""
@@ -330,6 +332,14 @@ class SRTExplorer(Explorer):
                 return Twist.ZERO
         if waited < self.stuck_timeout:
             return twist
+        if self.target_node is not None and remaining <= self.arrive_tolerance:
+            # the last few centimetres to a node the robot already stood on: the follower's laser
+            # guard (a corridor a little wider than the robot) can refuse them beside a wall; the
+            # node counts as reached and the next move leaves from here
+            self.follower.clear()
+            self._detoured = 0
+            self.current = self.target_node
+            return self._choose(pose, state)
         if self.target_node is not None or self.target is None:
             return Done(f"stuck on the way back to node {self.target_node} (no progress for "
                         f"{self.stuck_timeout:g} s; no detour through the safe regions)")

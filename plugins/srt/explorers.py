@@ -17,7 +17,8 @@ import numpy as np
 
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
-from robotexp.robot import RobotState, Twist, wrap_angle
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
 from .core import SRTExplorer
 from .regions import (
@@ -36,6 +37,7 @@ from .regions import (
 __all__ = ["SRTBallExplorer", "SRTStarExplorer", "SRTLaserExplorer", "displace", "largest_gap"]
 
 TAU = 2.0 * math.pi
+ESCAPE = 0.5     # srt-star: a way that starts near the star's edge must leave it at >= 0.5 m per m (ray_reach)
 
 
 def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, float]:
@@ -278,8 +280,9 @@ class SRTStarExplorer(SRTExplorer):
 
     def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
                  ring_radius: float = 0.0, cone: float = math.radians(15.0), sweep: bool = True,
-                 sweep_rate: float = 0.5, extra_turn: float = math.radians(10.0), bins: int = 360,
-                 combine: str = "max", max_nodes: int = 1000, stuck_timeout: float = 8.0,
+                 sweep_rate: float = 0.3, extra_turn: float = math.radians(10.0), bins: int = 360,
+                 frontier: bool = True, view: float = 4.0, node_gap: float = 0.3,
+                 tries: int = 20, max_nodes: int = 1000, stuck_timeout: float = 8.0,
                  failed_radius: float = 0.3) -> None:
         super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
         _check_alpha(self.name, alpha, d_min, i_max, margin)
@@ -290,10 +293,11 @@ class SRTStarExplorer(SRTExplorer):
             raise ConfigError(f"srt-star: cone must be in (0, pi) rad, sweep_rate > 0 rad/s, extra_turn in "
                               f"[0, pi) rad and bins >= 3, got {cone}, {sweep_rate}, {extra_turn}, {bins}")
         self.alpha, self.d_min_param, self.i_max, self.ring_radius = alpha, d_min, i_max, ring_radius
-        if combine not in ("max", "min"):
-            raise ConfigError(f"srt-star: combine must be 'max' or 'min', got {combine!r}")
         self.cone, self.sweep, self.sweep_rate, self.extra_turn, self.bins = cone, sweep, sweep_rate, extra_turn, bins
-        self.combine = combine
+        if not view > 0 or node_gap < 0 or tries < 1:
+            raise ConfigError(f"srt-star: view must be > 0 m, node_gap >= 0 m and tries >= 1, got {view}, "
+                              f"{node_gap} and {tries}")
+        self.frontier, self.view, self.node_gap, self.tries = frontier, view, node_gap, tries
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run. Raises ConfigError when the robot has no sonar ring."""
@@ -302,10 +306,19 @@ class SRTStarExplorer(SRTExplorer):
                               "sonar (e.g. --robot p3dx)")
         super().reset(ctx)
         self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * ctx.radius
+        self.rescues = 0
+        self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
+        self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
+
+    def result_fields(self) -> dict[str, object]:
+        """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
+        return {**super().result_fields(), "rescues": self.rescues}
 
     def _begin_sense(self) -> None:
+        self._apexes: list[np.ndarray] = []
         self._axes: list[np.ndarray] = []
         self._ranges: list[np.ndarray] = []
+        self._echo: list[np.ndarray] = []
         self._turned = 0.0
         self._last_heading: float | None = None
 
@@ -317,20 +330,36 @@ class SRTStarExplorer(SRTExplorer):
             star = star_from_sonar(p.x, p.y, p.theta, sonar.angles, sonar.ranges, sonar.range_max, self.ring_radius)
             return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0),
                                           star.obstacle_points())
-        self._axes.append(p.theta + np.asarray(sonar.angles, dtype=np.float64))
-        self._ranges.append(np.where(np.isfinite(sonar.ranges), sonar.ranges, sonar.range_max) + self.ring_radius)
+        heading = p.theta + np.asarray(sonar.angles, dtype=np.float64)
+        at = np.zeros((heading.size, 2)) if sonar.positions is None else np.asarray(sonar.positions, dtype=np.float64)
+        c, s = math.cos(p.theta), math.sin(p.theta)
+        self._apexes.append(np.column_stack([p.x + c * at[:, 0] - s * at[:, 1], p.y + s * at[:, 0] + c * at[:, 1]]))
+        self._axes.append(heading)
+        self._ranges.append(np.where(np.isfinite(sonar.ranges), sonar.ranges, sonar.range_max))
+        self._echo.append(np.isfinite(sonar.ranges) & (sonar.ranges < sonar.range_max))
         if self._last_heading is not None:
             self._turned += abs(wrap_angle(p.theta - self._last_heading))
         self._last_heading = p.theta
         if self._turned < largest_gap(sonar.angles) + self.extra_turn:
             return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
-        axes, ranges = np.concatenate(self._axes), np.concatenate(self._ranges)
-        star = star_from_sweep(p.x, p.y, axes, ranges, self.cone, self.bins, self.combine)
-        echo = ranges < sonar.range_max + self.ring_radius
-        echoes = np.column_stack([p.x + ranges[echo] * np.cos(axes[echo]), p.y + ranges[echo] * np.sin(axes[echo])])
-        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0), echoes)
+        apexes, axes = np.vstack(self._apexes), np.concatenate(self._axes)
+        ranges, echo = np.concatenate(self._ranges), np.concatenate(self._echo)
+        star = star_from_sweep(p.x, p.y, apexes, axes, ranges, self.cone, self.bins, body=self.ctx.radius)
+        echoes = apexes[echo] + ranges[echo, None] * np.column_stack([np.cos(axes[echo]), np.sin(axes[echo])])
+        # the margin comes off every cone, but none is cut into the robot's own disc (free: it stands there)
+        radii = np.maximum(star.radii - self.margin, self.ctx.radius)
+        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, radii, echoes)
 
     def _candidate(self, index: int) -> tuple[float, float] | None:
+        self._aim = np.zeros((0, 2), dtype=np.intp)
+        cand = self._random_candidate(index)
+        if cand is None and self.frontier:
+            cand = self._frontier_candidate(index)
+        return cand
+
+    def _random_candidate(self, index: int) -> tuple[float, float] | None:
+        """Fig. 3.5 lines 7-12: alpha RADIUS in up to i_max random directions, VALIDATE (a), (b) and
+        the straight way."""
         node = self.tree.nodes[index]
         region = node.region
         assert isinstance(region, StarRegion)
@@ -339,10 +368,82 @@ class SRTStarExplorer(SRTExplorer):
         pts = np.column_stack([node.x + dist * np.cos(theta), node.y + dist * np.sin(theta)])
         ok = (dist >= self.d_min) & ~self.tree.inside_other(pts, index) & ~self._near_failed(index, pts)
         for k in np.flatnonzero(ok):
-            reach = ray_reach(region, float(theta[k]), self.ctx.radius, length=float(dist[k]))
+            reach = ray_reach(region, float(theta[k]), self.ctx.radius + self.margin, length=float(dist[k]),
+                              escape=ESCAPE)
             if reach is not None and reach >= dist[k] - 0.021:
                 return float(pts[k, 0]), float(pts[k, 1])
         return None
+
+    def frontier_cells(self, index: int) -> np.ndarray:
+        """The map's frontier cells (int (k, 2) rows and columns) within `view` of node `index`'s star,
+        nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
+        less the cells a rescue already failed to resolve."""
+        grid = self._grid
+        if grid is None:
+            return np.zeros((0, 2), dtype=np.intp)
+        from robotexp_plugins.frontier import frontier_targets
+
+        if self._given_up.shape != grid.shape:
+            self._given_up = np.zeros(grid.shape, dtype=bool)
+        geo = grid.geo
+        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
+        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up))
+        node = self.tree.nodes[index]
+        d = np.hypot(geo.origin_x + (cells[:, 1] + 0.5) * geo.cell - node.x,
+                     geo.origin_y + (cells[:, 0] + 0.5) * geo.cell - node.y)
+        near = d <= node.region.reach + self.view
+        order = np.argsort(d[near], kind="stable")
+        return cells[near][order]
+
+    def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
+        """The rescue: a point of the star, reachable in a straight line with the robot's disc inside
+        it, from which a frontier cell of the map is in sight (through known-free cells) within `view`."""
+        grid = self._grid
+        cells = self.frontier_cells(index)
+        if grid is None or len(cells) == 0:
+            return None
+        from robotexp.planning.grid_planner import line_of_sight
+
+        node = self.tree.nodes[index]
+        geo = grid.geo
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        reach = reachable_points(node.region, directions, self.ctx.radius + self.margin, step=0.05, min_step=0.05,
+                                 escape=ESCAPE)
+        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
+        rc = np.column_stack([np.floor((reach[:, 1] - geo.origin_y) / geo.cell),
+                              np.floor((reach[:, 0] - geo.origin_x) / geo.cell)]).astype(np.intp)
+        inside = (rc[:, 0] >= 0) & (rc[:, 0] < geo.rows) & (rc[:, 1] >= 0) & (rc[:, 1] < geo.cols)
+        _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
+        reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
+        if len(reach) == 0:
+            return None
+        free = grid.free()
+        for r, c in cells:
+            f = geo.center_of(int(r), int(c))
+            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
+            for j in np.argsort(d, kind="stable")[:self.tries]:
+                if d[j] > self.view:
+                    break
+                if free[rc[j, 0], rc[j, 1]] and line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
+                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
+                    self._aim = cells[near]
+                    self.rescues += 1
+                    return float(reach[j, 0]), float(reach[j, 1])
+        return None
+
+    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
+        """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
+        given up (perceived from beside them, they stay next to unknown space the sonar cannot reach)."""
+        super()._add_node(pose, region, grid)
+        if len(self._aim) == 0:
+            return
+        from robotexp_plugins.frontier import frontier_targets
+
+        if self._given_up.shape != grid.shape:
+            self._given_up = np.zeros(grid.shape, dtype=bool)
+        still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
+        self._given_up[self._aim[still, 0], self._aim[still, 1]] = True
+        self._aim = np.zeros((0, 2), dtype=np.intp)
 
 
 def largest_gap(axes: np.ndarray) -> float:

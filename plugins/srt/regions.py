@@ -25,8 +25,8 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 
 __all__ = ["SafeRegion", "BallRegion", "StarRegion", "PolygonRegion", "SweepBuffer", "frontier_arcs",
-           "segment_clearance", "ray_reach", "reachable_points", "clearance_map", "in_sight", "star_from_sonar",
-           "star_from_sweep"]
+           "segment_clearance", "ray_reach", "reachable_points", "clearance_map", "in_sight", "sector_intervals",
+           "star_from_sonar", "star_from_sweep"]
 
 TAU = 2.0 * math.pi
 Array = npt.NDArray[np.float64]
@@ -257,24 +257,34 @@ def segment_clearance(points: Array, polygon: Array) -> Array:
     return np.asarray(np.sqrt(((p[:, None, :] - near) ** 2).sum(axis=2)).min(axis=1))
 
 
+def _floor(clear0: Array, s: Array, offset: float, escape: float | None) -> Array:
+    """The least clearance [m] allowed at distance `s` [m] along a way that starts with clearance
+    `clear0` [m] (see `ray_reach`)."""
+    if escape is None:
+        return np.minimum(offset, clear0) - 1e-9
+    return np.minimum(offset, clear0 + escape * s) - 1e-9
+
+
 def ray_reach(region: SafeRegion, theta: float, offset: float, *, length: float | None = None,
-              min_step: float = 0.0, step: float = 0.02) -> float | None:
+              min_step: float = 0.0, step: float = 0.02, escape: float | None = None) -> float | None:
     """The farthest distance [m] the robot can go from the region's centre along `theta` [rad]
     and stay `offset` [m] inside the region (the point mapped onto the region shrunk by `offset`).
 
-    Along the way the clearance to the boundary never drops below min(offset, clearance at the
-    centre) (a robot that starts closer to the boundary than `offset` must not get closer still),
-    and at the returned distance it is >= offset. The search runs up to `length` [m] (default
-    RADIUS(S, theta)) in steps of `step` [m]. Returns None when no distance >= `min_step`
-    qualifies: the region is narrower there than 2 `offset` (a passage too narrow).
+    A robot that starts closer to the boundary than `offset` must not get closer still: along
+    the way the clearance to the boundary never drops below min(offset, clearance at the centre)
+    (`escape` None), or, stricter, below min(offset, clearance at the centre + `escape` s) at
+    distance s (it must also move away from the boundary, at least `escape` m per m: a way along
+    a wall at the starting clearance is refused). At the returned distance the clearance is >=
+    offset. The search runs up to `length` [m] (default RADIUS(S, theta)) in steps of `step` [m].
+    Returns None when no distance >= `min_step` qualifies: the region is narrower there than
+    2 `offset` (a passage too narrow).
     """
     if length is None:
         length = float(region.radius(np.array(theta)))
     s = np.arange(0.0, max(length, 0.0) + 1e-12, step)
     pts = np.column_stack([region.x + s * math.cos(theta), region.y + s * math.sin(theta)])
     clear = segment_clearance(pts, region.boundary())
-    floor = min(offset, float(clear[0])) - 1e-9
-    prefix = np.logical_and.accumulate(clear >= floor)
+    prefix = np.logical_and.accumulate(clear >= _floor(clear[0], s, offset, escape))
     good = prefix & (clear >= offset - 1e-9) & (s >= min_step)
     if not good.any():
         return None
@@ -301,11 +311,12 @@ def clearance_map(region: SafeRegion, cell: float) -> tuple[Array, float, float]
 
 
 def reachable_points(region: SafeRegion, angles: Array, offset: float, *, step: float = 0.05,
-                     min_step: float = 0.0, cell: float = 0.025) -> Array:
+                     min_step: float = 0.0, cell: float = 0.025, escape: float | None = None) -> Array:
     """The points (k, 2) [m] the robot reaches from the region's centre in a straight line along the
-    world `angles` [rad] keeping `offset` [m] inside the region (the rule of `ray_reach`), sampled
-    every `step` [m] from `min_step` [m] to each ray's reach: the region shrunk by `offset` as seen
-    from its centre. Clearances come from `clearance_map` with `cell` [m] (conservative)."""
+    world `angles` [rad] keeping `offset` [m] inside the region (the rule of `ray_reach`, with
+    `escape`), sampled every `step` [m] from `min_step` [m] to each ray's reach: the region shrunk
+    by `offset` as seen from its centre. Clearances come from `clearance_map` with `cell` [m]
+    (conservative)."""
     clear_map, x0, y0 = clearance_map(region, cell)
     n = clear_map.shape[0]
     theta = np.asarray(angles, dtype=np.float64).ravel()
@@ -315,8 +326,8 @@ def reachable_points(region: SafeRegion, angles: Array, offset: float, *, step: 
     cols = np.clip(np.floor((px - x0) / cell).astype(np.intp), 0, n - 1)
     rows = np.clip(np.floor((py - y0) / cell).astype(np.intp), 0, n - 1)
     clear = clear_map[rows, cols]
-    floor = np.minimum(offset, clear[:, :1]) - 1e-9
-    ok = np.logical_and.accumulate(clear >= floor, axis=1) & (clear >= offset - 1e-9) & (s[None, :] >= min_step)
+    ok = np.logical_and.accumulate(clear >= _floor(clear[:, :1], s[None, :], offset, escape), axis=1)
+    ok &= (clear >= offset - 1e-9) & (s[None, :] >= min_step)
     return np.column_stack([px[ok], py[ok]])
 
 
@@ -424,42 +435,70 @@ def star_from_sonar(x: float, y: float, theta: float, axes: Array, ranges: Array
     return StarRegion(x, y, uniq, radii, echoes)
 
 
-def star_from_sweep(x: float, y: float, axes: Array, ranges: Array, cone: float, bins: int = 360,
-                    combine: str = "max") -> StarRegion:
+def sector_intervals(x: float, y: float, directions: Array, apexes: Array, axes: Array, ranges: Array,
+                     cone: float) -> tuple[Array, Array]:
+    """Where rays from (x, y) [m] run inside the sonar sectors: (lo, hi) [m], each (n, k).
+
+    Ray i leaves (x, y) along world angle `directions[i]` [rad]; sector j has its apex at
+    `apexes[j]` (world point [m], the transducer), its axis along world angle `axes[j]` [rad], half
+    opening `cone` / 2 (< pi / 2) and radius `ranges[j]` [m] from the apex. A sector is convex (a
+    disc cut by two half-planes through the apex), so a ray meets it in one interval of distances
+    from (x, y): [lo, hi], empty when lo > hi.
+    """
+    u = np.column_stack([np.cos(directions), np.sin(directions)])[:, None, :]        # (n, 1, 2)
+    d = np.column_stack([x - apexes[:, 0], y - apexes[:, 1]])[None, :, :]            # (1, k, 2): apex -> centre
+    du = (d * u).sum(axis=2)
+    disc = du ** 2 - (d ** 2).sum(axis=2) + ranges[None, :] ** 2
+    root = np.sqrt(np.maximum(disc, 0.0))
+    lo = np.maximum(-du - root, 0.0)
+    hi = np.where(disc >= 0.0, -du + root, -np.inf)
+    half = cone / 2.0
+    for edge, sign in ((axes - half, 1.0), (axes + half, -1.0)):
+        # inside the half-plane: sign * cross(edge direction, q) >= 0 with q = d + t u
+        ex, ey = np.cos(edge)[None, :], np.sin(edge)[None, :]
+        c0 = sign * (ex * d[..., 1] - ey * d[..., 0])
+        c1 = sign * (ex * u[..., 1] - ey * u[..., 0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -c0 / c1
+        lo = np.where(c1 > 0, np.maximum(lo, t), lo)
+        hi = np.where(c1 < 0, np.minimum(hi, t), hi)
+        hi = np.where((c1 == 0) & (c0 < 0), -np.inf, hi)
+    return lo, hi
+
+
+def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Array, cone: float, bins: int = 360,
+                    body: float = 0.0) -> StarRegion:
     """The SRT-Star region of sonar readings gathered while turning on the spot at (x, y) [m].
 
-    Reading k is the nearest echo in its transducer's cone, world angles `axes[k]` +- `cone` / 2
-    [rad]: nothing lies closer than `ranges[k]` [m] (from the robot centre) anywhere in that cone,
-    so the sector is free, and the region is the union of these sectors (thesis Fig. 3.7b: "a set
-    of cones centred on the robot"). Each of the `bins` equal world-angle cones of the region (the
-    first starting at -pi) takes the largest reading among those whose cone covers the bin's
-    centre (`combine="max"`, the union), or the smallest (`combine="min"`, every sensor taking
-    part bounds the cone: sound also for a sensor that may miss echoes off its axis, but a door
-    must then be a cone wider than it is to look open). A bin no reading covers (a blind gap of
-    the ring that the turn did not close) takes the smaller radius of its nearest covered
-    neighbours on either side, and radius 0 when nothing at all was read.
+    Reading j is the nearest echo in its transducer's sector: apex `apexes[j]` (world point [m]),
+    axis `axes[j]` (world angle [rad]), opening `cone` [rad], radius `ranges[j]` [m] measured from
+    the apex; nothing lies closer anywhere in that sector, so it is free, and the region is the
+    union of these sectors (thesis Fig. 3.7b: "a set of cones"), as seen from the robot centre
+    (x, y): each of the `bins` equal world-angle cones of the region (the first starting at -pi)
+    reaches as far as the union covers both its edge rays without a gap, starting from the
+    robot's own disc of radius `body` [m] (free: the robot stands there). A sector whose apex is off
+    the centre covers the rays from the centre only in part: near the robot a transducer 0.2 m out
+    with a 15-degree cone holds the rays within about +-1.5 degrees of its axis, farther out more;
+    the turn gives readings at many axes, and their union closes the star. Raises ConfigError on
+    inconsistent input.
     """
+    ap = np.asarray(apexes, dtype=np.float64).reshape(-1, 2)
     ax = np.asarray(axes, dtype=np.float64).ravel()
     r = np.asarray(ranges, dtype=np.float64).ravel()
-    if ax.shape != r.shape or bins < 3 or not cone > 0 or combine not in ("max", "min"):
-        raise ConfigError(f"srt star sweep: need as many axes as ranges, bins >= 3, cone > 0 rad and "
-                          f"combine max or min, got {ax.size} axes, {r.size} ranges, {bins} bins, cone {cone}, "
-                          f"combine {combine!r}")
+    if not (len(ap) == ax.size == r.size) or bins < 3 or not 0 < cone < math.pi or body < 0:
+        raise ConfigError(f"srt star sweep: need as many apexes, axes and ranges, bins >= 3, cone in (0, pi) rad "
+                          f"and body >= 0 m, got {len(ap)}, {ax.size}, {r.size}, {bins} bins, cone {cone}, "
+                          f"body {body}")
     edges = -math.pi + np.arange(bins) * TAU / bins
-    centres = edges + math.pi / bins
-    rel = np.abs(np.mod(centres[:, None] - ax[None, :] + math.pi, TAU) - math.pi)     # (bins, k)
-    covered = rel <= cone / 2 + 1e-12
-    if combine == "max":
-        radii = np.where(covered, r[None, :], -np.inf).max(axis=1) if r.size else np.full(bins, -np.inf)
-    else:
-        radii = np.where(covered, r[None, :], np.inf).min(axis=1) if r.size else np.full(bins, np.inf)
-    seen = covered.any(axis=1) if r.size else np.zeros(bins, dtype=bool)
-    if not seen.any():
-        return StarRegion(x, y, edges, np.zeros(bins))
-    if not seen.all():
-        idx = np.flatnonzero(seen)
-        for k in np.flatnonzero(~seen):
-            after = idx[np.searchsorted(idx, k) % idx.size]
-            before = idx[np.searchsorted(idx, k) - 1]
-            radii[k] = min(radii[before], radii[after])
-    return StarRegion(x, y, edges, radii)
+    reach = np.full(bins, float(body))
+    if r.size:
+        lo1, hi1 = sector_intervals(x, y, edges, ap, ax, r, cone)
+        lo2, hi2 = sector_intervals(x, y, edges + TAU / bins, ap, ax, r, cone)
+        lo, hi = np.maximum(lo1, lo2), np.minimum(hi1, hi2)         # the whole bin, both edge rays
+        for _ in range(r.size):                   # grow each bin through the intervals that touch it
+            grown = np.where((lo <= reach[:, None] + 1e-9) & (hi > reach[:, None]), hi, -np.inf).max(axis=1)
+            more = grown > reach
+            if not more.any():
+                break
+            reach = np.where(more, grown, reach)
+    return StarRegion(x, y, edges, reach)
