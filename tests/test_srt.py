@@ -531,3 +531,45 @@ def test_srt_star_goes_through_a_door_with_the_frontier_rescue(frontier: bool) -
         assert seen >= 0.95 and explorer.result_fields()["rescues"] > 0
     else:   # the thesis's VALIDATE alone: the door, 2 m away and off the straight ways, stops the tree
         assert np.count_nonzero(grid.free() & right) < 0.5 * np.count_nonzero(right)
+
+
+def test_star_sweep_flags_the_cones_that_end_at_an_echo() -> None:
+    from robotexp_plugins.srt import star_from_sweep
+
+    ax = math.radians(11.25)
+    u = np.array([math.cos(ax), math.sin(ax)])
+    apexes = np.array([[0.0, 0.0], 0.5 * u])             # A (1 m) then B (2 m) on the same axis
+    ranges = np.array([1.0, 2.0])
+
+    def walls(echo: list[bool], n: int = 2) -> np.ndarray:
+        return star_from_sweep(0.0, 0.0, apexes[:n], np.full(n, ax), ranges[:n], math.radians(90.0), bins=16,
+                               body=0.1, echo=np.array(echo)).walls
+
+    assert walls([True], 1)[8] and not walls([False], 1)[8]       # bin 8 ends on A's arc
+    assert walls([False, True])[8] and not walls([True, False])[8]   # ... or on B's, which reaches farther
+    # A's 90-deg cone also holds bins 7 and 9 (to 1 m, its arc); the robot's disc elsewhere is no wall
+    assert np.flatnonzero(walls([True, True])).tolist() == [7, 8, 9]
+    # a cone that ends at a sector's side is no wall, echo or not: apex (0, -0.3), axis 90 deg, 60-deg cone,
+    # 5 m. The ray at 0 deg leaves through the side at t = 0.3 tan 30 = 0.1732 (the 22.5-deg ray later)
+    side = star_from_sweep(0.0, 0.0, np.array([[0.0, -0.3]]), np.array([math.pi / 2]), np.array([5.0]),
+                           math.radians(60.0), bins=16, body=0.1, echo=np.array([True]))
+    assert side.radii[8] == pytest.approx(0.3 * math.tan(math.radians(30.0)), abs=1e-6)
+    assert not side.walls[8]
+    assert not star_from_sweep(0.0, 0.0, apexes, np.full(2, ax), ranges, math.radians(90.0), bins=16).walls.any()
+
+
+def test_frontier_cells_at_a_heard_wall_are_no_openings() -> None:
+    from robotexp_plugins.srt.core import SRTTree
+
+    # one node at the origin; cones 0..90 deg end at 2 m on an echo (a wall), 90..360 at 2 m on nothing
+    edges = np.radians(np.arange(-180.0, 180.0, 90.0))
+    region = StarRegion(0.0, 0.0, edges, np.full(4, 2.0), walls=np.array([False, False, True, False]))
+    ex = SRTStarExplorer(margin=0.05)
+    ex.tree = SRTTree()
+    ex.tree.add(0.0, 0.0, region, None)
+    geo = GridGeometry(-3.0, -3.0, 0.1, 60, 60)
+    cells = np.array([geo.cell_of(x, y) for x, y in
+                      [(1.45, 1.45), (2.0 * math.cos(0.3), 2.0 * math.sin(0.3)),    # on the wall arc
+                       (1.0, 1.0),                                                 # well inside
+                       (-1.45, -1.45), (0.0, -2.05)]])                             # at cones of nothing
+    assert ex.heard_wall(cells, geo).tolist() == [True, True, False, False, False]

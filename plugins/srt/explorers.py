@@ -17,6 +17,7 @@ import numpy as np
 
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
+from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
@@ -239,40 +240,67 @@ class SRTStarExplorer(SRTExplorer):
 
     Perception: the P3-DX ring has 16 transducers whose axes are 20-40 deg apart, each hearing a
     cone of about 15 deg, so one reading leaves blind gaps of up to 25 deg between the cones, and
-    a pillar standing in one (it subtends less than the gap beyond about 4.6 pillar radii) is not
-    heard at all; treating a gap as a cone of its smaller neighbour, as a single reading must, let
-    the robot graze a pillar. At every node the robot therefore turns on the spot through the
-    largest gap between adjacent axes (plus `extra_turn`), reading the ring at every control step,
-    so that every world direction lies in the cone of some reading; the region is the union of the
-    cones of these readings (`star_from_sweep`, `combine`), on `bins` world-angle cones.
-    `sweep=False` gives the thesis's single reading (`star_from_sonar`, cones between adjacent
-    axes with the smaller of their two readings), blind gaps and all.
+    a pillar standing in one is not heard at all. At every node the robot therefore turns on the
+    spot through the largest gap between adjacent axes (plus `extra_turn`), reading the ring at
+    every control step. Each reading frees the sector of its transducer: apex at the transducer
+    (`SonarScan.positions`; the robot centre when the robot does not say), axis its heading,
+    opening `cone`, radius the reading. The region is the union of these sectors as seen from the
+    robot centre (`star_from_sweep`): each of the `bins` world-angle cones reaches as far as the
+    union covers it without a gap, from the robot's own disc outwards, less `margin` (never into
+    the disc). A sector whose apex sits 0.2 m out holds the rays from the centre only within about
+    +-1.5 deg of its axis near the robot, so the turn is slow (`sweep_rate` 0.3 rad/s: a reading
+    every 1.7 deg at 10 Hz) for the union to close. `sweep=False` gives the thesis's single
+    reading (`star_from_sonar`, cones between adjacent axes with the smaller of their two
+    readings, from the centre), blind gaps and all.
 
     Candidates as in SRT-Ball (alpha RADIUS in a random direction, d_min, i_max); as cones differ
-    in radius, VALIDATE also asks that the robot's disc stays inside the star on the straight way
-    there (`ray_reach`: the fundamental condition of thesis §4.1.1, checked rather than implied).
+    in radius, VALIDATE also asks that the robot's disc, grown by `margin`, stays inside the star
+    on the straight way there (`ray_reach`: the fundamental condition of thesis §4.1.1, checked
+    rather than implied); a way that starts nearer the star's edge than that must move away from
+    it at ESCAPE = 0.5 m per m (not slide along a wall at the starting clearance).
 
     d_min: the thesis derives d_min (1/alpha - 1) = r_robot (1 m on the P3-DX) for SRT-Ball only
     (§4.1.1): it is what keeps the robot's disc inside a *disc* region when the candidate lies at
     alpha R. Here the straight way is checked explicitly, so that bound protects nothing and
     d_min keeps only its role of §3.2 (moves worth a node, away from obstacles); the default is
     the value the thesis gives for dense places, 2 r_robot (0.5 m on the P3-DX: "the robot could
-    cross corridors as narrow as its diameter"). Any d_min > 0 is accepted (`d_min=1.0`: the
-    former default).
+    cross corridors as narrow as its diameter"). Any d_min > 0 is accepted.
+
+    Frontier rescue (`frontier`, an extension in the spirit of Freda & Oriolo's frontiers, which
+    the thesis uses for SRT-Laser): a sonar cone reaches through a doorway only when the robot
+    stands close to the door and faces it, and a random candidate rarely puts it there; the fans
+    that the cones cast into the rooms beyond then make VALIDATE (b) call everything there
+    explored, and the tree closes with rooms unseen (see README for the coverage without it). So
+    when no random candidate is valid, before going back to the parent, the node looks at the
+    frontier of the run's map (`frontier_targets`: free cells next to unknown ones, openings only,
+    within `view` of the star), nearest first, and takes the point of its star nearest to a
+    frontier cell - reachable in a straight line by the rule above, at least `node_gap` from every
+    node - from which that cell is in sight through known-free cells, within `view`. There the
+    robot first turns to face the cell, then perceives as at any new node; the frontier cells the
+    rescue was for that are still frontier then are given up (seen from beside them, they stay
+    next to space the sensors cannot reach), so every rescue either opens new ground or retires
+    frontier cells, and the node gap bounds the number of nodes: the run ends.
+    Frontier cells at the end of a wall cone (`wall_faces`; `StarRegion.walls`: the cone ends on
+    the arc of a reading that heard an echo) are no openings: the sonar heard the obstacle there,
+    and the unknown beyond is the inside of a wall that neither sensor can see; chasing them
+    along the walls doubled the path in the sparse world. `frontier=False`: the thesis's
+    VALIDATE alone.
 
     Args:
         alpha, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
             (each cone's radius is its reading less `margin`).
         d_min: [m] shortest move (None: 2 r_robot, see above).
-        ring_radius: [m] distance of the transducers from the robot centre, added to their
-            readings (0: conservative).
+        ring_radius: [m] added to the readings of the single reading (`sweep=False`; 0: conservative).
         cone: [rad] opening of one transducer's cone (the P3-DX's: 15 deg).
         sweep: turn at each node to close the blind gaps (see above).
         sweep_rate: [rad/s] turn rate while perceiving.
         extra_turn: [rad] turned beyond the largest gap between adjacent axes.
         bins: world-angle cones of a swept region.
-        combine: "max" (the union of the readings' cones) or "min" (each cone bounded by every
-            reading whose cone covers it; see `star_from_sweep`).
+        frontier: look at the map's frontier before backtracking (see above).
+        view: [m] farthest a frontier cell may be from the rescue candidate (and from the star).
+        node_gap: [m] no rescue candidate this close to an existing node.
+        tries: nearest points of the star tried per frontier cell for the line of sight.
+        wall_faces: leave out frontier cells at the end of a wall cone (see above).
     """
 
     name = "srt-star"
@@ -281,7 +309,7 @@ class SRTStarExplorer(SRTExplorer):
     def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
                  ring_radius: float = 0.0, cone: float = math.radians(15.0), sweep: bool = True,
                  sweep_rate: float = 0.3, extra_turn: float = math.radians(10.0), bins: int = 360,
-                 frontier: bool = True, view: float = 4.0, node_gap: float = 0.3,
+                 frontier: bool = True, view: float = 4.0, node_gap: float = 0.3, wall_faces: bool = True,
                  tries: int = 20, max_nodes: int = 1000, stuck_timeout: float = 8.0,
                  failed_radius: float = 0.3) -> None:
         super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
@@ -298,6 +326,7 @@ class SRTStarExplorer(SRTExplorer):
             raise ConfigError(f"srt-star: view must be > 0 m, node_gap >= 0 m and tries >= 1, got {view}, "
                               f"{node_gap} and {tries}")
         self.frontier, self.view, self.node_gap, self.tries = frontier, view, node_gap, tries
+        self.wall_faces = wall_faces
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run. Raises ConfigError when the robot has no sonar ring."""
@@ -309,6 +338,7 @@ class SRTStarExplorer(SRTExplorer):
         self.rescues = 0
         self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
         self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
+        self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
 
     def result_fields(self) -> dict[str, object]:
         """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
@@ -326,6 +356,11 @@ class SRTStarExplorer(SRTExplorer):
         sonar, p = state.sonar, state.pose
         if sonar is None:
             raise ConfigError("srt-star: the robot state carries no sonar reading; use a robot with sonar")
+        if self._face is not None:        # a rescue: look at the frontier first (the laser maps it too)
+            twist, facing = self.follower.turn_to(p, math.atan2(self._face[1] - p.y, self._face[0] - p.x))
+            if not facing:
+                return twist, None
+            self._face = None
         if not self.sweep:
             star = star_from_sonar(p.x, p.y, p.theta, sonar.angles, sonar.ranges, sonar.range_max, self.ring_radius)
             return Twist.ZERO, StarRegion(p.x, p.y, star.edges, np.maximum(star.radii - self.margin, 0.0),
@@ -344,14 +379,15 @@ class SRTStarExplorer(SRTExplorer):
             return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
         apexes, axes = np.vstack(self._apexes), np.concatenate(self._axes)
         ranges, echo = np.concatenate(self._ranges), np.concatenate(self._echo)
-        star = star_from_sweep(p.x, p.y, apexes, axes, ranges, self.cone, self.bins, body=self.ctx.radius)
+        star = star_from_sweep(p.x, p.y, apexes, axes, ranges, self.cone, self.bins, body=self.ctx.radius, echo=echo)
         echoes = apexes[echo] + ranges[echo, None] * np.column_stack([np.cos(axes[echo]), np.sin(axes[echo])])
         # the margin comes off every cone, but none is cut into the robot's own disc (free: it stands there)
         radii = np.maximum(star.radii - self.margin, self.ctx.radius)
-        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, radii, echoes)
+        return Twist.ZERO, StarRegion(p.x, p.y, star.edges, radii, echoes, star.walls)
 
     def _candidate(self, index: int) -> tuple[float, float] | None:
         self._aim = np.zeros((0, 2), dtype=np.intp)
+        self._face = None
         cand = self._random_candidate(index)
         if cand is None and self.frontier:
             cand = self._frontier_candidate(index)
@@ -388,12 +424,36 @@ class SRTStarExplorer(SRTExplorer):
         geo = grid.geo
         min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
         cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up))
+        if self.wall_faces and len(cells):
+            cells = cells[~self.heard_wall(cells, geo)]
         node = self.tree.nodes[index]
         d = np.hypot(geo.origin_x + (cells[:, 1] + 0.5) * geo.cell - node.x,
                      geo.origin_y + (cells[:, 0] + 0.5) * geo.cell - node.y)
         near = d <= node.region.reach + self.view
         order = np.argsort(d[near], kind="stable")
         return cells[near][order]
+
+    def heard_wall(self, cells: np.ndarray, geo: GridGeometry) -> np.ndarray:
+        """Bool (k,): which of the grid cells (k, 2) lie at the end of a wall cone of some node's star
+        (between its radius less a cell and its radius plus `margin` and 1.5 cells): the sonar heard
+        an obstacle right there, so the unknown beyond is that obstacle, not an opening."""
+        pts = np.column_stack([geo.origin_x + (cells[:, 1] + 0.5) * geo.cell,
+                               geo.origin_y + (cells[:, 0] + 0.5) * geo.cell])
+        out = np.zeros(len(cells), dtype=bool)
+        for node in self.tree.nodes:
+            region = node.region
+            if not isinstance(region, StarRegion) or not region.walls.any():
+                continue
+            dx, dy = pts[:, 0] - node.x, pts[:, 1] - node.y
+            d = np.hypot(dx, dy)
+            near = d <= region.reach + self.margin + 2 * geo.cell
+            if not near.any():
+                continue
+            k = region.cone_of(np.arctan2(dy[near], dx[near]))
+            r = region.radii[k]
+            out[np.flatnonzero(near)] |= region.walls[k] & (d[near] >= r - geo.cell) & \
+                (d[near] <= r + self.margin + 1.5 * geo.cell)
+        return out
 
     def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
         """The rescue: a point of the star, reachable in a straight line with the robot's disc inside
@@ -426,7 +486,7 @@ class SRTStarExplorer(SRTExplorer):
                     break
                 if free[rc[j, 0], rc[j, 1]] and line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
                     near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
-                    self._aim = cells[near]
+                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
                     self.rescues += 1
                     return float(reach[j, 0]), float(reach[j, 1])
         return None

@@ -120,9 +120,13 @@ class StarRegion(SafeRegion):
             the last cone wraps from edges[-1] round to edges[0].
         radii: (k,) cone radii [m], >= 0.
         echoes: (j, 2) world points [m] where the sonar heard an obstacle.
+        walls: (k,) bool, True where the cone ends at the arc of a reading that heard an echo (an
+            obstacle lies about there), False where it ends at a sector's side, at the range
+            maximum or at the robot's disc (unknown space beyond). None: all False.
     """
 
-    def __init__(self, x: float, y: float, edges: Array, radii: Array, echoes: Array | None = None) -> None:
+    def __init__(self, x: float, y: float, edges: Array, radii: Array, echoes: Array | None = None,
+                 walls: npt.NDArray[np.bool_] | None = None) -> None:
         e = np.asarray(edges, dtype=np.float64).ravel()
         r = np.asarray(radii, dtype=np.float64).ravel()
         if e.shape != r.shape or e.size < 1 or np.any(np.diff(e) <= 0) or e[-1] - e[0] >= TAU or np.any(r < 0):
@@ -131,6 +135,9 @@ class StarRegion(SafeRegion):
         self.x, self.y = float(x), float(y)
         self.edges, self.radii = e, r
         self._echoes = np.zeros((0, 2)) if echoes is None else np.asarray(echoes, dtype=np.float64).reshape(-1, 2)
+        self.walls = np.zeros(e.size, dtype=bool) if walls is None else np.asarray(walls, dtype=bool).ravel()
+        if self.walls.shape != e.shape:
+            raise ConfigError(f"srt star region: need one wall flag per cone, got {self.walls.size} for {e.size}")
 
     def cone_of(self, theta: Array) -> npt.NDArray[np.intp]:
         """Index of the cone holding each world angle of `theta` [rad]."""
@@ -467,7 +474,7 @@ def sector_intervals(x: float, y: float, directions: Array, apexes: Array, axes:
 
 
 def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Array, cone: float, bins: int = 360,
-                    body: float = 0.0) -> StarRegion:
+                    body: float = 0.0, echo: npt.NDArray[np.bool_] | None = None) -> StarRegion:
     """The SRT-Star region of sonar readings gathered while turning on the spot at (x, y) [m].
 
     Reading j is the nearest echo in its transducer's sector: apex `apexes[j]` (world point [m]),
@@ -479,8 +486,9 @@ def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Arra
     robot's own disc of radius `body` [m] (free: the robot stands there). A sector whose apex is off
     the centre covers the rays from the centre only in part: near the robot a transducer 0.2 m out
     with a 15-degree cone holds the rays within about +-1.5 degrees of its axis, farther out more;
-    the turn gives readings at many axes, and their union closes the star. Raises ConfigError on
-    inconsistent input.
+    the turn gives readings at many axes, and their union closes the star. A cone whose reach ends
+    on the arc of a reading flagged in `echo` (bool per reading; None: none) is a wall cone
+    (`StarRegion.walls`). Raises ConfigError on inconsistent input.
     """
     ap = np.asarray(apexes, dtype=np.float64).reshape(-1, 2)
     ax = np.asarray(axes, dtype=np.float64).ravel()
@@ -501,4 +509,13 @@ def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Arra
             if not more.any():
                 break
             reach = np.where(more, grown, reach)
+        walls = np.zeros(bins, dtype=bool)
+        if echo is not None:
+            ends = (lo <= reach[:, None] + 1e-9) & (hi >= reach[:, None] - 1e-9) & (hi > -np.inf)
+            src = np.argmax(ends, axis=1)
+            mid = edges + math.pi / bins
+            px, py = x + reach * np.cos(mid), y + reach * np.sin(mid)
+            on_arc = np.hypot(px - ap[src, 0], py - ap[src, 1]) >= r[src] - 0.02
+            walls = ends.any(axis=1) & on_arc & np.asarray(echo, dtype=bool).ravel()[src] & (reach > body)
+        return StarRegion(x, y, edges, reach, walls=walls)
     return StarRegion(x, y, edges, reach)
