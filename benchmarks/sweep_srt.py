@@ -1,14 +1,15 @@
 """Sweep of the SRT explorers over the start poses of the built-in worlds (issue 3, task L).
 
-For each (world, pose, method) one run at 100 mm/s on the embedded simulator, seed 0: coverage,
+For each (world, pose, method) one run (default 100 mm/s, seed 0) on the embedded simulator: coverage,
 collisions, distance [m] of the robot's true end position from its start, path length [m], nodes,
 detours, robot time [s] and the reason the run ended. Prints a Markdown table; `--jobs 2` runs two
 processes at once (the machine is shared: keep it at 2 or fewer).
 
 Run: python benchmarks/sweep_srt.py [--worlds dense sparse] [--methods srt-laser srt-star] [--poses 1 2]
-[-p d_min=1.0 ...] [--jobs 1]
+[--speed 40] [--seed 1] [-p frontier=false ...] [--jobs 1]
 Default: dense poses 1-9 with srt-laser and srt-star, sparse poses 1-5 with all three; `-p` sets an
-explorer parameter of every run (e.g. `--methods srt-star -p d_min=1.0`: srt-star's former default).
+explorer parameter of every run (e.g. `--methods srt-star -p frontier=false`: the thesis's VALIDATE
+alone, without srt-star's frontier rescue).
 """
 
 from __future__ import annotations
