@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from robotexp.errors import ConfigError, PluginError, WorldError
-from robotexp.experiment import RunSpec
+from robotexp.experiment import RunSpec, make_explorer
 
 __all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
 
@@ -161,9 +161,13 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
     params = s.get("params", {})
     if not isinstance(params, dict) or not all(isinstance(v, dict) for v in params.values()):
         raise _fail(p, f"{where}.params", "expected tables [set.params.<method>]")
-    for m in params:
+    for m, values in params.items():
         if m not in methods:
             raise _fail(p, f"{where}.params.{m}", f"parameters for a method this set does not run ({methods})")
+        try:
+            make_explorer(m, dict(values))       # names, types and ranges, before any run starts
+        except ConfigError as exc:
+            raise _fail(p, f"{where}.params.{m}", str(exc)) from None
     laser = float(_get(s, "laser_range_mm", 3000, (int, float), p, where)) / 1000
     cell_mm = _get(s, "cell_mm", None, (int, float), p, where)
     max_time = float(_get(s, "max_time_s", 4 * 3600, (int, float), p, where))

@@ -6,6 +6,8 @@ This is what `robotexp explore`, the Lua `exploration.start()` and campaigns all
 from __future__ import annotations
 
 import math
+import types
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -148,10 +150,40 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     from robotexp.registry import EXPLORERS, load
 
     cls = load(EXPLORERS, method, Explorer)
+    params = {key: _typed(method, cls, key, value) for key, value in params.items()}
     try:
         return cls(**params)   # type: ignore[no-any-return]
     except TypeError as exc:
         raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
+
+
+_KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
+
+
+def _typed(method: str, cls: type, key: str, value: Any) -> Any:
+    """`value` for the keyword `key` of `cls`, checked against its annotation (bool, int, float, str,
+    or one of these or None); a whole float for an int and an int for a float are converted.
+    Parameters without such an annotation pass unchecked. Raises ConfigError."""
+    try:
+        hint = typing.get_type_hints(cls.__init__).get(key)   # type: ignore[misc]
+    except Exception:       # an annotation that does not resolve: leave the value to the plugin
+        return value
+    allowed = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+    if value is None and type(None) in allowed:
+        return None
+    kinds = [t for t in allowed if t in _KINDS]
+    if not kinds or len(kinds) < len([t for t in allowed if t is not type(None)]):
+        return value
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    for kind in kinds:
+        if kind is bool and isinstance(value, bool) or kind is str and isinstance(value, str):
+            return value
+        if kind is int and number and float(value).is_integer():
+            return int(value)
+        if kind is float and number:
+            return float(value)
+    raise ConfigError(f"method {method!r}: parameter {key!r} must be {' or '.join(_KINDS[k] for k in kinds)}, "
+                      f"got {value!r}")
 
 
 def run_experiment(spec: RunSpec, out: Path | None, *,

@@ -62,6 +62,11 @@ def test_thesis_campaign_has_66_runs_when_its_methods_are_installed() -> None:
     (MINI.replace("[300, 200]", "[300, -5]"), ConfigError, ["speeds_mm_s"]),
     (MINI + "\n[[set]]\nworld = 3\n", ConfigError, ["[[set]] #2", "world"]),
     ("[campaign\nname=1", ConfigError, ["not valid TOML"]),
+    # explorer parameters are checked (name, type, range) before any run starts
+    (MINI + "[set.params.frontier]\nreturn_home = \"maybe\"\n", ConfigError,
+     ["[[set]] #1.params.frontier", "return_home", "true or false"]),
+    (MINI + "[set.params.frontier]\nclearance = -1\n", ConfigError, ["params.frontier", "clearance"]),
+    (MINI + "[set.params.frontier]\nspeed = 3\n", ConfigError, ["params.frontier", "speed"]),
 ])
 def test_bad_files_name_the_file_and_key(tmp_path: Path, text: str, error: type, words: list[str]) -> None:
     path = _write(tmp_path, text)

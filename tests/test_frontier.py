@@ -142,6 +142,28 @@ def test_parameters_through_the_registry() -> None:
         make_explorer("frontier", {"clearance": -1.0})
 
 
+@pytest.mark.parametrize(("method", "params", "message"), [
+    ("frontier", {"return_home": "maybe"}, "'return_home' must be true or false, got 'maybe'"),
+    ("frontier", {"return_home": 1}, "'return_home' must be true or false, got 1"),
+    ("frontier", {"min_group_cells": 2.5}, "'min_group_cells' must be a whole number, got 2.5"),
+    ("frontier", {"clearance": "wide"}, "'clearance' must be a number, got 'wide'"),
+    ("frontier", {"clearance": True}, "'clearance' must be a number, got True"),
+    ("srt-star", {"d_min": "auto"}, "'d_min' must be a number, got 'auto'"),
+])
+def test_parameter_types_are_checked_against_the_plugin(method: str, params: dict[str, object], message: str) -> None:
+    with pytest.raises(ConfigError, match=f"method '{method}': parameter {message}"):
+        make_explorer(method, params)
+
+
+def test_parameter_values_are_converted_where_exact() -> None:
+    # a Lua or TOML number 3.0 for an int, 2 for a float; None where the plugin allows it
+    explorer = make_explorer("frontier", {"min_group_cells": 3.0, "clearance": 1, "replan_period": 2})
+    assert isinstance(explorer, FrontierExplorer)
+    assert explorer.min_group_cells == 3 and isinstance(explorer.min_group_cells, int)
+    assert explorer.clearance == 1.0 and isinstance(explorer.clearance, float)
+    assert make_explorer("frontier", {"min_group_cells": None}).min_group_cells is None  # type: ignore[attr-defined]
+
+
 # -- plan_costs ----------------------------------------------------------------------------
 
 def tiny_grid(cell: float, size: int) -> OccupancyGrid:
