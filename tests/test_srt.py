@@ -573,3 +573,45 @@ def test_frontier_cells_at_a_heard_wall_are_no_openings() -> None:
                        (1.0, 1.0),                                                 # well inside
                        (-1.45, -1.45), (0.0, -2.05)]])                             # at cones of nothing
     assert ex.heard_wall(cells, geo).tolist() == [True, True, False, False, False]
+
+
+def test_star_boundary_is_each_cone_arc_sampled_every_2_degrees() -> None:
+    # reference: per cone np.linspace(a0, a1, n) with n = max(2, ceil((a1 - a0) / 2 deg) + 1), bit for bit
+    rng = np.random.default_rng(1)
+    for k in (1, 3, 7, 16):
+        edges = np.unique(rng.uniform(-math.pi, math.pi, k))
+        star = StarRegion(0.3, -0.2, edges, rng.uniform(0.0, 5.0, edges.size))
+        ends = np.append(edges[1:], edges[0] + 2 * math.pi)
+        ref = []
+        for a0, a1, r in zip(edges, ends, star.radii, strict=True):
+            a = np.linspace(a0, a1, max(2, int(math.ceil((a1 - a0) / math.radians(2))) + 1))
+            ref.append(np.column_stack([0.3 + r * np.cos(a), -0.2 + r * np.sin(a)]))
+        assert np.array_equal(star.boundary(), np.vstack(ref))
+        assert star.boundary() is star.boundary() and not star.boundary().flags.writeable
+
+
+def test_ray_reach_decides_as_the_full_boundary_does() -> None:
+    # ray_reach looks only at boundary segments that may come within `offset` of the way; the answer
+    # must be the one the whole boundary gives
+    from robotexp_plugins.srt.regions import segment_clearance
+
+    def reference(region: StarRegion, theta: float, offset: float, escape: float | None) -> float | None:
+        s = np.arange(0.0, float(region.radius(np.array(theta))) + 1e-12, 0.02)
+        pts = np.column_stack([region.x + s * math.cos(theta), region.y + s * math.sin(theta)])
+        clear = segment_clearance(pts, region.boundary())
+        start = np.full_like(s, clear[0]) if escape is None else clear[0] + escape * s
+        floor = np.minimum(offset, start) - 1e-9
+        good = np.logical_and.accumulate(clear >= floor) & (clear >= offset - 1e-9)
+        return float(s[np.flatnonzero(good)[-1]]) if good.any() else None
+
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(60):
+        edges = -math.pi + np.arange(72) * 2 * math.pi / 72
+        star = StarRegion(0.0, 0.0, edges, rng.uniform(0.25, 4.0, 72))
+        theta, offset = float(rng.uniform(-math.pi, math.pi)), float(rng.uniform(0.1, 0.4))
+        for escape in (None, 0.5):
+            got = ray_reach(star, theta, offset, escape=escape)
+            assert got == reference(star, theta, offset, escape)
+            found += got is not None
+    assert found > 20            # the cases are not all "no way"

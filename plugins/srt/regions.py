@@ -135,6 +135,7 @@ class StarRegion(SafeRegion):
         self.x, self.y = float(x), float(y)
         self.edges, self.radii = e, r
         self._echoes = np.zeros((0, 2)) if echoes is None else np.asarray(echoes, dtype=np.float64).reshape(-1, 2)
+        self._boundary: Array | None = None
         self.walls = np.zeros(e.size, dtype=bool) if walls is None else np.asarray(walls, dtype=bool).ravel()
         if self.walls.shape != e.shape:
             raise ConfigError(f"srt star region: need one wall flag per cone, got {self.walls.size} for {e.size}")
@@ -149,14 +150,21 @@ class StarRegion(SafeRegion):
         return self.radii[self.cone_of(theta)]
 
     def boundary(self) -> Array:
-        """Arcs sampled every <= 2 deg, joined by the radial steps between cones (k, 2) [m]."""
-        pts = []
-        ends = np.append(self.edges[1:], self.edges[0] + TAU)
-        for a0, a1, r in zip(self.edges, ends, self.radii, strict=True):
-            n = max(2, int(math.ceil((a1 - a0) / math.radians(2))) + 1)
-            a = np.linspace(a0, a1, n)
-            pts.append(np.column_stack([self.x + r * np.cos(a), self.y + r * np.sin(a)]))
-        return np.vstack(pts)
+        """Arcs sampled every <= 2 deg, joined by the radial steps between cones (k, 2) [m]; computed
+        once (read-only: the way checks of a node ask for it at every try)."""
+        if self._boundary is None:
+            ends = np.append(self.edges[1:], self.edges[0] + TAU)
+            n = np.maximum(2, np.ceil((ends - self.edges) / math.radians(2)).astype(np.intp) + 1)
+            cone = np.repeat(np.arange(n.size), n)
+            last = np.cumsum(n) - 1
+            i = np.arange(int(n.sum())) - np.repeat(last - n + 1, n)
+            # np.linspace(a0, a1, n) of each cone: i * step + a0, the last point exactly a1
+            a = i * ((ends - self.edges) / (n - 1))[cone] + self.edges[cone]
+            a[last] = ends
+            r = self.radii[cone]
+            self._boundary = np.column_stack([self.x + r * np.cos(a), self.y + r * np.sin(a)])
+            self._boundary.flags.writeable = False
+        return self._boundary
 
     def obstacle_points(self) -> Array:
         """The sonar echoes (j, 2) [m]."""
@@ -253,9 +261,15 @@ def frontier_arcs(flags: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 def segment_clearance(points: Array, polygon: Array) -> Array:
     """Distance [m] from each of the (m, 2) points to the closed polygon (k, 2) boundary: (m,)."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     a = np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
-    b = np.roll(a, -1, axis=0)
+    return _to_segments(np.asarray(points, dtype=np.float64).reshape(-1, 2), a, np.roll(a, -1, axis=0))
+
+
+def _to_segments(p: Array, a: Array, b: Array) -> Array:
+    """Distance [m] from each of the (m, 2) points `p` to the nearest of the segments a[i]-b[i]: (m,)
+    (inf without segments)."""
+    if len(a) == 0:
+        return np.full(len(p), np.inf)
     ab = b - a
     len2 = np.maximum((ab ** 2).sum(axis=1), 1e-18)
     ap = p[:, None, :] - a[None, :, :]
@@ -290,7 +304,16 @@ def ray_reach(region: SafeRegion, theta: float, offset: float, *, length: float 
         length = float(region.radius(np.array(theta)))
     s = np.arange(0.0, max(length, 0.0) + 1e-12, step)
     pts = np.column_stack([region.x + s * math.cos(theta), region.y + s * math.sin(theta)])
-    clear = segment_clearance(pts, region.boundary())
+    # only the boundary segments that may come within `offset` of the way decide (the rule compares
+    # clearances with values <= offset): the others are left out, which changes no decision
+    a = region.boundary()
+    b = np.roll(a, -1, axis=0)
+    mid, half = (a + b) / 2, np.hypot(*(b - a).T) / 2
+    along = np.clip((mid[:, 0] - region.x) * math.cos(theta) + (mid[:, 1] - region.y) * math.sin(theta), 0.0,
+                    max(float(s[-1]), 0.0))
+    gap = np.hypot(mid[:, 0] - region.x - along * math.cos(theta), mid[:, 1] - region.y - along * math.sin(theta))
+    keep = gap <= offset + half + 1e-6
+    clear = _to_segments(pts, a[keep], b[keep])
     prefix = np.logical_and.accumulate(clear >= _floor(clear[0], s, offset, escape))
     good = prefix & (clear >= offset - 1e-9) & (s >= min_step)
     if not good.any():
