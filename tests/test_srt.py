@@ -572,7 +572,7 @@ def test_frontier_cells_at_a_heard_wall_are_no_openings() -> None:
                       [(1.45, 1.45), (2.0 * math.cos(0.3), 2.0 * math.sin(0.3)),    # on the wall arc
                        (1.0, 1.0),                                                 # well inside
                        (-1.45, -1.45), (0.0, -2.05)]])                             # at cones of nothing
-    assert ex.heard_wall(cells, geo).tolist() == [True, True, False, False, False]
+    assert ex.heard_wall(geo.centers_of(cells), geo.cell).tolist() == [True, True, False, False, False]
 
 
 def test_star_boundary_is_each_cone_arc_sampled_every_2_degrees() -> None:

@@ -263,10 +263,9 @@ class SRTExplorer(Explorer):
             d = obstacles - (region.x, region.y)
             n = np.hypot(d[:, 0], d[:, 1])[:, None]
             inner = obstacles + 1e-4 * d / np.maximum(n, 1e-12)
-            cols = np.floor((inner[:, 0] - geo.origin_x) / geo.cell).astype(np.intp)
-            rows = np.floor((inner[:, 1] - geo.origin_y) / geo.cell).astype(np.intp)
-            ok = (rows >= 0) & (rows < geo.rows) & (cols >= 0) & (cols < geo.cols)
-            occ[rows[ok], cols[ok]] = True
+            rc = geo.cells_of(inner)
+            rc = rc[geo.contains_cells(rc)]
+            occ[rc[:, 0], rc[:, 1]] = True
             grid.mark_occupied(occ)
 
     def _choose(self, pose: Pose, state: RobotState) -> Twist | Done:

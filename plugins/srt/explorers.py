@@ -17,8 +17,8 @@ import numpy as np
 
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
-from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.grid_planner import line_of_sight
 from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
 from .core import SRTExplorer
@@ -413,46 +413,44 @@ class SRTStarExplorer(SRTExplorer):
     def frontier_cells(self, index: int) -> np.ndarray:
         """The map's frontier cells (int (k, 2) rows and columns) within `view` of node `index`'s star,
         nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
-        less the cells a rescue already failed to resolve."""
+        less the cells a rescue already failed to resolve and (`wall_faces`) those at a heard wall."""
         grid = self._grid
         if grid is None:
             return np.zeros((0, 2), dtype=np.intp)
         from robotexp_plugins.frontier import frontier_targets
 
-        if self._given_up.shape != grid.shape:
-            self._given_up = np.zeros(grid.shape, dtype=bool)
         geo = grid.geo
         min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
-        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up))
-        if self.wall_faces and len(cells):
-            cells = cells[~self.heard_wall(cells, geo)]
+        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
         node = self.tree.nodes[index]
-        d = np.hypot(geo.origin_x + (cells[:, 1] + 0.5) * geo.cell - node.x,
-                     geo.origin_y + (cells[:, 0] + 0.5) * geo.cell - node.y)
+        centres = geo.centers_of(cells)
+        d = np.hypot(centres[:, 0] - node.x, centres[:, 1] - node.y)
         near = d <= node.region.reach + self.view
-        order = np.argsort(d[near], kind="stable")
-        return cells[near][order]
+        cells, centres, d = cells[near], centres[near], d[near]
+        if self.wall_faces and len(cells):
+            keep = ~self.heard_wall(centres, geo.cell)
+            cells, d = cells[keep], d[keep]
+        return cells[np.argsort(d, kind="stable")]
 
-    def heard_wall(self, cells: np.ndarray, geo: GridGeometry) -> np.ndarray:
-        """Bool (k,): which of the grid cells (k, 2) lie at the end of a wall cone of some node's star
-        (between its radius less a cell and its radius plus `margin` and 1.5 cells): the sonar heard
-        an obstacle right there, so the unknown beyond is that obstacle, not an opening."""
-        pts = np.column_stack([geo.origin_x + (cells[:, 1] + 0.5) * geo.cell,
-                               geo.origin_y + (cells[:, 0] + 0.5) * geo.cell])
-        out = np.zeros(len(cells), dtype=bool)
+    def heard_wall(self, points: np.ndarray, cell: float) -> np.ndarray:
+        """Bool (k,): which of the (k, 2) world points [m] (cell centres of a grid of `cell` [m]) lie at
+        the end of a wall cone of some node's star (between its radius less a cell and its radius plus
+        `margin` and 1.5 cells): the sonar heard an obstacle right there, so the unknown beyond is that
+        obstacle, not an opening."""
+        out = np.zeros(len(points), dtype=bool)
         for node in self.tree.nodes:
             region = node.region
             if not isinstance(region, StarRegion) or not region.walls.any():
                 continue
-            dx, dy = pts[:, 0] - node.x, pts[:, 1] - node.y
+            dx, dy = points[:, 0] - node.x, points[:, 1] - node.y
             d = np.hypot(dx, dy)
-            near = d <= region.reach + self.margin + 2 * geo.cell
+            near = d <= region.reach + self.margin + 2 * cell
             if not near.any():
                 continue
             k = region.cone_of(np.arctan2(dy[near], dx[near]))
             r = region.radii[k]
-            out[np.flatnonzero(near)] |= region.walls[k] & (d[near] >= r - geo.cell) & \
-                (d[near] <= r + self.margin + 1.5 * geo.cell)
+            out[np.flatnonzero(near)] |= region.walls[k] & (d[near] >= r - cell) & \
+                (d[near] <= r + self.margin + 1.5 * cell)
         return out
 
     def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
@@ -462,34 +460,37 @@ class SRTStarExplorer(SRTExplorer):
         cells = self.frontier_cells(index)
         if grid is None or len(cells) == 0:
             return None
-        from robotexp.planning.grid_planner import line_of_sight
-
         node = self.tree.nodes[index]
         geo = grid.geo
         directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
         reach = reachable_points(node.region, directions, self.ctx.radius + self.margin, step=0.05, min_step=0.05,
                                  escape=ESCAPE)
         reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
-        rc = np.column_stack([np.floor((reach[:, 1] - geo.origin_y) / geo.cell),
-                              np.floor((reach[:, 0] - geo.origin_x) / geo.cell)]).astype(np.intp)
-        inside = (rc[:, 0] >= 0) & (rc[:, 0] < geo.rows) & (rc[:, 1] >= 0) & (rc[:, 1] < geo.cols)
+        rc = geo.cells_of(reach)
+        inside = geo.contains_cells(rc)
         _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
         reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
         if len(reach) == 0:
             return None
         free = grid.free()
-        for r, c in cells:
-            f = geo.center_of(int(r), int(c))
+        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
             d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
             for j in np.argsort(d, kind="stable")[:self.tries]:
                 if d[j] > self.view:
                     break
-                if free[rc[j, 0], rc[j, 1]] and line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
+                # False also when either end is not free
+                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
                     near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
                     self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
                     self.rescues += 1
                     return float(reach[j, 0]), float(reach[j, 1])
         return None
+
+    def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
+        """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
+        if self._given_up.shape != grid.shape:
+            self._given_up = np.zeros(grid.shape, dtype=bool)
+        return self._given_up
 
     def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
         """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
@@ -499,10 +500,8 @@ class SRTStarExplorer(SRTExplorer):
             return
         from robotexp_plugins.frontier import frontier_targets
 
-        if self._given_up.shape != grid.shape:
-            self._given_up = np.zeros(grid.shape, dtype=bool)
         still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
-        self._given_up[self._aim[still, 0], self._aim[still, 1]] = True
+        self._given_up_on(grid)[self._aim[still, 0], self._aim[still, 1]] = True
         self._aim = np.zeros((0, 2), dtype=np.intp)
 
 

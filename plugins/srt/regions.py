@@ -522,6 +522,7 @@ def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Arra
                           f"body {body}")
     edges = -math.pi + np.arange(bins) * TAU / bins
     reach = np.full(bins, float(body))
+    walls = np.zeros(bins, dtype=bool)
     if r.size:
         lo1, hi1 = sector_intervals(x, y, edges, ap, ax, r, cone)
         lo2, hi2 = sector_intervals(x, y, edges + TAU / bins, ap, ax, r, cone)
@@ -532,7 +533,6 @@ def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Arra
             if not more.any():
                 break
             reach = np.where(more, grown, reach)
-        walls = np.zeros(bins, dtype=bool)
         if echo is not None:
             ends = (lo <= reach[:, None] + 1e-9) & (hi >= reach[:, None] - 1e-9) & (hi > -np.inf)
             src = np.argmax(ends, axis=1)
@@ -540,5 +540,4 @@ def star_from_sweep(x: float, y: float, apexes: Array, axes: Array, ranges: Arra
             px, py = x + reach * np.cos(mid), y + reach * np.sin(mid)
             on_arc = np.hypot(px - ap[src, 0], py - ap[src, 1]) >= r[src] - 0.02
             walls = ends.any(axis=1) & on_arc & np.asarray(echo, dtype=bool).ravel()[src] & (reach > body)
-        return StarRegion(x, y, edges, reach, walls=walls)
-    return StarRegion(x, y, edges, reach)
+    return StarRegion(x, y, edges, reach, walls=walls)

@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+import numpy.typing as npt
+
 __all__ = ["GridGeometry"]
 
 
@@ -40,9 +43,26 @@ class GridGeometry(NamedTuple):
         """World (x, y) [m] of the centre of cell (row, col)."""
         return (self.origin_x + (col + 0.5) * self.cell, self.origin_y + (row + 0.5) * self.cell)
 
+    def cells_of(self, points: npt.ArrayLike) -> npt.NDArray[np.intp]:
+        """(k, 2) int (row, col) of the cells holding the (k, 2) world points [m]; may lie outside."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        return np.column_stack([np.floor((p[:, 1] - self.origin_y) / self.cell),
+                                np.floor((p[:, 0] - self.origin_x) / self.cell)]).astype(np.intp)
+
+    def centers_of(self, cells: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """(k, 2) world (x, y) [m] of the centres of the (k, 2) (row, col) cells."""
+        rc = np.asarray(cells).reshape(-1, 2)
+        return np.column_stack([self.origin_x + (rc[:, 1] + 0.5) * self.cell,
+                                self.origin_y + (rc[:, 0] + 0.5) * self.cell])
+
     def contains(self, row: int, col: int) -> bool:
         """True when (row, col) is inside the grid."""
         return 0 <= row < self.rows and 0 <= col < self.cols
+
+    def contains_cells(self, cells: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+        """Bool (k,): which of the (k, 2) (row, col) cells are inside the grid."""
+        rc = np.asarray(cells).reshape(-1, 2)
+        return np.asarray((rc[:, 0] >= 0) & (rc[:, 0] < self.rows) & (rc[:, 1] >= 0) & (rc[:, 1] < self.cols))
 
     @property
     def width(self) -> float:

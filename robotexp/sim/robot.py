@@ -76,6 +76,10 @@ class SimRobot(Robot):
         self._mover_time = [0.0] * len(world.movers)
         self._angles = self.laser_config.angles()
         self._sonar_dirs = self._sonar_pattern()
+        ring, ring_radius = (np.zeros(0), 0.0) if self.preset.sonar is None else \
+            (self.preset.sonar.angles(), self.preset.sonar.ring_radius)
+        self._sonar_positions = ring_radius * np.column_stack([np.cos(ring), np.sin(ring)])
+        self._sonar_positions.flags.writeable = False     # handed out with every SonarScan
         self._scan_cache: tuple[float, LaserScan] | None = None
         self.engine = Engine(world, self.preset.radius, self.preset.height, rays)
         try:
@@ -284,8 +288,7 @@ class SimRobot(Robot):
         fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
         fraction = fraction.reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
-        positions = cfg.ring_radius * np.column_stack([np.cos(ring), np.sin(ring)])
-        return SonarScan(ring, ranges, cfg.range_max, positions)
+        return SonarScan(ring, ranges, cfg.range_max, self._sonar_positions)
 
 def _approach(current: float, target: float, step: float) -> float:
     """Move `current` towards `target` by at most `step`."""

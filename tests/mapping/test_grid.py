@@ -182,3 +182,15 @@ def test_near_occupied_is_the_occupied_cells_and_their_8_neighbours() -> None:
     expected[0:3, 0:3] = True
     expected[3:5, 4:6] = True
     assert np.array_equal(grid.near_occupied(), expected)
+
+
+def test_geometry_array_helpers_agree_with_the_scalar_ones() -> None:
+    geo = GridGeometry(-1.25, 2.0, 0.1, 30, 40)
+    pts = np.array([[-1.25, 2.0], [-1.2500001, 2.05], [2.74, 4.99], [2.75, 5.0], [0.0, 3.333], [-9.0, 9.0]])
+    cells = geo.cells_of(pts)
+    assert cells.tolist() == [list(geo.cell_of(x, y)) for x, y in pts]
+    assert cells.tolist()[:2] == [[0, 0], [0, -1]]
+    assert geo.contains_cells(cells).tolist() == [geo.contains(int(r), int(c)) for r, c in cells]
+    assert geo.contains_cells(cells).tolist() == [True, False, True, False, True, False]
+    assert geo.centers_of(cells[:3]).tolist() == [list(geo.center_of(int(r), int(c))) for r, c in cells[:3]]
+    assert geo.cells_of(np.zeros((0, 2))).shape == (0, 2) and geo.centers_of(np.zeros((0, 2))).shape == (0, 2)
