@@ -82,7 +82,7 @@ class EmulatorBase(ABC):
     @property
     def closed(self) -> bool:
         """True once `close()` ran."""
-        return self.sim.closed
+        return self._stop.is_set()
 
     @abstractmethod
     def _serve(self) -> None:
@@ -225,9 +225,18 @@ class StreamEmulator(EmulatorBase):
         log.info("%s: client %s connected", self.label, peer)
         return True
 
-    def _disconnect(self) -> None:
+    def _halt(self) -> None:
+        """The client went away: stop the robot (an emulator without one overrides this)."""
         with self.lock:
             self.sim.command(Twist.ZERO)
+
+    def _release_device(self) -> None:
+        """Release what the emulator simulates (after the transport): the simulator by default."""
+        with self.lock:
+            self.sim.close()
+
+    def _disconnect(self) -> None:
+        self._halt()
         if self._client is not None:
             self._client.close()
             self._client = None
@@ -285,5 +294,4 @@ class StreamEmulator(EmulatorBase):
             if fd >= 0:
                 os.close(fd)
         self._master = self._slave = -1
-        with self.lock:
-            self.sim.close()
+        self._release_device()

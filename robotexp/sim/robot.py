@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import math
+from contextlib import AbstractContextManager, nullcontext
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import WorldError
+from robotexp.laser import ScanSource
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
 from robotexp.sim.engine import Engine
 from robotexp.sim.presets import LaserConfig, OdometryError, RobotPreset, preset
 from robotexp.world.model import World
 
-__all__ = ["SimRobot"]
+__all__ = ["SimRobot", "mounted_source"]
 
 CONTACT_MARGIN = 0.02   # [m] clearance that ends a contact
 SONAR_HEIGHT = 0.2      # [m] height of the sonar ring
@@ -219,6 +223,11 @@ class SimRobot(Robot):
             x, y = mover.position(self._mover_time[i])
             self.engine.place_mover(i, x, y, mover.height)
 
+    @property
+    def true_pose(self) -> Pose:
+        """Where the robot really is (not what odometry believes)."""
+        return self._true
+
     def mover_positions(self) -> list[tuple[float, float]]:
         """Where each mover is now [m]."""
         return [m.position(t) for m, t in zip(self.world.movers, self._mover_time, strict=True)]
@@ -313,3 +322,21 @@ def _default_pose(world: World) -> Pose:
     if world.home is not None:
         return world.home
     raise WorldError(f"world {world.name!r} names no start pose: give one")
+
+
+def mounted_source(sim: SimRobot, mount: Pose | None = None, lock: AbstractContextManager[Any] | None = None,
+                   height: float | None = None) -> ScanSource:
+    """A `ScanSource` (robotexp.laser) for a laser emulator: rays from a sensor mounted at `mount`
+    (robot frame; default the robot centre, facing forward) on `sim`'s true pose, at `height` [m]
+    (default the preset laser's), taken under `lock` when given (an emulator's simulator lock)."""
+    m = mount or Pose(0.0, 0.0, 0.0)
+    z = sim.laser_config.height if height is None else height
+    guard: AbstractContextManager[Any] = lock if lock is not None else nullcontext()
+
+    def source(angles: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
+        with guard:
+            p = sim.true_pose
+            c, s = math.cos(p.theta), math.sin(p.theta)
+            x, y = p.x + c * m.x - s * m.y, p.y + s * m.x + c * m.y
+            return sim._cast_fan(x, y, z, p.theta + m.theta + np.asarray(angles, dtype=np.float64), reach)
+    return source

@@ -1,0 +1,279 @@
+"""What the laser drivers share: a byte link, a reader thread that publishes stamped scans, and the
+emulator base.
+
+- `LaserLink`: pyserial's `serial_for_url` (a device path, `socket://host:port`, "host:port") with
+  a poll timeout, baud-rate changes (SICK switches 9600 -> 38400 -> 500 k) and every failure of the
+  other side turned into `ConnectionLost`.
+- `StreamLaser`: a `Laser` whose device streams; a daemon reader thread hands received bytes to the
+  driver's `_on_data(data, now)`, which calls `_publish(scan, now)` for each complete scan. No valid
+  scan for `timeout` s, or the link ending, fails the laser: `latest()`/`wait_scan()` raise
+  `ConnectionLost` from then on.
+- `LaserEmulatorBase`: a `StreamEmulator` (drivers/emulation.py: TCP or pseudo-terminal, serving
+  thread, fault injection) that measures with a `ScanSource` instead of owning a simulator.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+import time
+from abc import abstractmethod
+
+import serial
+
+from robotexp.errors import ConfigError, ConnectionLost, RobotError
+from robotexp.laser import Laser, ScanSource, StampedScan
+from robotexp.robot import LaserScan
+from robotexp_drivers.emulation import StreamEmulator
+
+__all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "laser_url"]
+
+log = logging.getLogger(__name__)
+
+_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
+
+
+def laser_url(who: str, address: str) -> str:
+    """The `serial_for_url` URL of a laser address: "host:port" becomes `socket://host:port`;
+    a device path or a URL passes as is. Raises ConfigError on an empty address or a bad port."""
+    address = address.strip()
+    if not address:
+        raise ConfigError(f"{who}: empty laser address; give a device (/dev/ttyUSB0) or host:port")
+    m = _HOST_PORT.match(address)
+    if m and "://" not in address:
+        port = int(m.group(2))
+        if not 1 <= port <= 65535:
+            raise ConfigError(f"{who}: address {address!r}: TCP port must be 1..65535, got {port}")
+        return f"socket://{m.group(1)}:{port}"
+    return address
+
+
+class LaserLink:
+    """A byte stream to a laser, safe to write from two threads.
+
+    Args:
+        who: the driver's name, for messages.
+        address: see `laser_url`.
+        baudrate: initial line speed [bit/s] (ignored on TCP).
+        poll: longest wait of one `read_some` [s].
+
+    Raises:
+        ConnectionLost: the port or socket cannot be opened.
+    """
+
+    def __init__(self, who: str, address: str, *, baudrate: int, poll: float = 0.02) -> None:
+        self.who = who
+        self.address = address
+        self.url = laser_url(who, address)
+        self.poll = poll
+        self._write_lock = threading.Lock()
+        try:
+            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=poll, write_timeout=1.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise ConnectionLost(f"{who}: cannot open {self.url!r}: {exc}; check the address, that the "
+                                 "laser (or its emulator) is on and that the port is not in use") from exc
+        self.closed = False
+
+    @property
+    def is_serial(self) -> bool:
+        """True on a real (or pseudo-terminal) serial port, False on TCP and other URL handlers."""
+        return "://" not in self.url
+
+    def read_some(self) -> bytes:
+        """The bytes that arrived within the poll timeout (b"" when none).
+
+        Raises:
+            ConnectionLost: the other side closed the link or the port failed.
+        """
+        port = self._port
+        try:
+            first = port.read(1)
+            if not first:
+                return b""
+            # serial_for_url's read(n) waits for n bytes: take whatever else is there without waiting
+            port.timeout = 0
+            try:
+                rest = port.read(65536)
+            finally:
+                port.timeout = self.poll
+            return first + rest
+        except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+            raise ConnectionLost(f"{self.who}: link {self.url!r} lost while reading: {exc}") from exc
+
+    def write(self, data: bytes) -> None:
+        """Send `data` whole. Raises ConnectionLost when the link is closed or the write fails."""
+        with self._write_lock:
+            if self.closed:
+                raise ConnectionLost(f"{self.who}: link {self.url!r} is closed")
+            try:
+                self._port.write(data)
+                self._port.flush()
+            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+                raise ConnectionLost(f"{self.who}: link {self.url!r} lost while writing: {exc}") from exc
+
+    def set_baudrate(self, baudrate: int) -> None:
+        """Change the line speed (no effect on TCP). Raises ConnectionLost when the port refuses."""
+        if not self.is_serial:
+            return
+        try:
+            self._port.baudrate = baudrate
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise ConnectionLost(f"{self.who}: {self.url!r} cannot switch to {baudrate} baud: {exc}") from exc
+
+    def reset_input(self) -> None:
+        """Drop what was received and not read yet."""
+        try:
+            self._port.reset_input_buffer()
+        except (serial.SerialException, OSError, AttributeError):
+            pass
+
+    def close(self) -> None:
+        """Release the port; safe to call twice."""
+        with self._write_lock:
+            if self.closed:
+                return
+            self.closed = True
+        try:
+            self._port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+
+class StreamLaser(Laser):
+    """A `Laser` fed by a reader thread (see the module docstring).
+
+    A driver's `__init__` opens `self._link`, does its handshake synchronously (reading with
+    `self._link.read_some()`), sets `geometry`, then calls `_start_reader(timeout)`; it implements
+    `_on_data` (decode, `_publish` each complete scan) and `_stop_device` (ask the device to stop its
+    output; called once by `close()` while the link is still open, errors ignored).
+    """
+
+    _link: LaserLink
+    _join_timeout = 1.0     # [s] how long closing waits for the reader thread
+
+    def _start_reader(self, timeout: float) -> None:
+        """Start decoding in the background; `timeout` [s] of no valid scan fails the laser."""
+        if not timeout > 0:
+            raise ConfigError(f"{self.name}: timeout must be > 0 s, got {timeout}")
+        self.timeout = timeout
+        self._cond = threading.Condition()
+        self._latest: StampedScan | None = None
+        self._seq = -1
+        self._error: RobotError | None = None
+        self._stop = threading.Event()
+        self._last_scan = time.monotonic()
+        self._thread = threading.Thread(target=self._reader, name=f"{self.name} {self.address}", daemon=True)
+        self._thread.start()
+
+    # -- hooks ---------------------------------------------------------------------------
+    @abstractmethod
+    def _on_data(self, data: bytes, now: float) -> None:
+        """Decode `data` (maybe b"") received at `now` [s, time.monotonic()]; `_publish` each scan."""
+
+    @abstractmethod
+    def _stop_device(self) -> None:
+        """Ask the device to stop streaming (the link is still open; ConnectionLost is ignored)."""
+
+    # -- reader ----------------------------------------------------------------------------
+    def _publish(self, scan: LaserScan, stamp: float) -> None:
+        """Hand out a complete scan stamped `stamp` [s, time.monotonic()]."""
+        with self._cond:
+            self._seq += 1
+            self._latest = StampedScan(scan, stamp, self._seq)
+            self._last_scan = time.monotonic()
+            self._cond.notify_all()
+
+    def _reader(self) -> None:
+        try:
+            while not self._stop.is_set():
+                try:
+                    data = self._link.read_some()
+                except ConnectionLost:
+                    if self._stop.is_set():
+                        return
+                    raise
+                now = time.monotonic()
+                self._on_data(data, now)
+                if now - self._last_scan > self.timeout:
+                    raise ConnectionLost(f"{self.name}: no valid scan from {self.address!r} for "
+                                         f"{now - self._last_scan:.2f} s; check the cable and power")
+        except RobotError as exc:
+            self._fail(exc)
+        except Exception as exc:     # a bug here must not leave wait_scan() waiting forever
+            log.exception("%s: reader thread failed", self.name)
+            self._fail(RobotError(f"{self.name}: reader thread failed at {self.address!r}: {exc!r}"))
+
+    def _fail(self, exc: RobotError) -> None:
+        with self._cond:
+            if self._error is None:
+                self._error = exc
+            self._cond.notify_all()
+        if not self._stop.is_set():
+            log.error("%s", exc)
+
+    def _check(self) -> None:
+        """Raise the reader's error (a fresh copy, chained); the caller holds `_cond`."""
+        if self._error is not None:
+            raise type(self._error)(str(self._error)) from self._error
+
+    # -- Laser -----------------------------------------------------------------------------
+    def latest(self) -> StampedScan | None:
+        with self._cond:
+            self._check()
+            return self._latest
+
+    def wait_scan(self, after_seq: int = -1, timeout: float = 1.0) -> StampedScan:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                self._check()
+                if self._latest is not None and self._latest.seq > after_seq:
+                    return self._latest
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise ConnectionLost(f"{self.name}: no scan from {self.address!r} within {timeout:g} s")
+                self._cond.wait(left)
+
+    def close(self) -> None:
+        if getattr(self, "_closed_laser", False):
+            return
+        self._closed_laser = True
+        stop = getattr(self, "_stop", None)
+        if stop is not None:
+            stop.set()
+        try:
+            self._stop_device()
+        except (ConnectionLost, OSError):
+            pass
+        thread = getattr(self, "_thread", None)
+        if thread is not None and thread.is_alive() and thread is not threading.current_thread():
+            thread.join(timeout=self._join_timeout)
+        link = getattr(self, "_link", None)
+        if link is not None:
+            link.close()
+        cond = getattr(self, "_cond", None)
+        if cond is not None:
+            with cond:
+                if self._error is None:
+                    self._error = ConnectionLost(f"{self.name}: the laser at {self.address!r} is closed")
+                cond.notify_all()
+
+
+class LaserEmulatorBase(StreamEmulator):
+    """A laser emulator: a `StreamEmulator` without a simulator of its own, measuring with `source`.
+
+    A subclass calls `_init_laser(source, speedup)` first, opens its transport (`_open_pty()` or
+    `_listen()`), sets `address`, and implements `_period`, `_step` (the bytes to send now: a scan
+    when streaming, else b"") and `_on_bytes` (commands).
+    """
+
+    def _init_laser(self, source: ScanSource, speedup: float = 1.0) -> None:
+        self._init_stream(speedup)
+        self.source = source
+
+    def _halt(self) -> None:
+        """A laser has nothing to stop when its client leaves (a subclass may reset its state)."""
+
+    def _release_device(self) -> None:
+        """The source belongs to whoever made it."""
