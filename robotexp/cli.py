@@ -422,5 +422,11 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
     click.echo("robot stopped and disconnected")
 
 
+from robotexp.mapcmd import map_command  # noqa: E402  (a command of its own module, registered here)
+
+map_command.callback = handle_errors(map_command.callback)  # type: ignore[arg-type]
+main.add_command(map_command)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -1,14 +1,16 @@
 """Numba kernels of the scan matcher: likelihood field, correlative search, Gauss-Newton refinement.
 
-A likelihood field is a float64 (rows, cols) array over a `GridGeometry`, 1 on occupied cells and
-falling off as a Gaussian of the distance to the nearest one (`likelihood_field`). Scan points are
+A likelihood field is a float64 (rows, cols) array over a `GridGeometry`: at each cell centre, a
+Gaussian of the distance to the nearest laser hit of the map (`splat_field`). Scan points are
 given in the robot frame as two float64 arrays `px`, `py` [m]; a pose (x, y, theta) maps point i to
 (x + c px - s py, y + s px + c py). Points outside the field score 0.
 
 `search` is the correlative matcher (Olson 2009): it scores every pose of a window of x, y offsets
 (multiples of a step of whole cells) and headings by the sum of the field under the points, looked
-up in the cell that holds each point. Run on a max-pooled field (`pool_max`) the scores bound the
-fine ones from above, which is what makes coarse-to-fine search sound. `refine` is Gauss-Newton on
+up in the cell that holds each point, less a quadratic prior around the prediction (Olson's motion
+model: in a corridor or a symmetric room the nearest of the good poses wins). Run on a max-pooled
+field (`pool_max`) the scores bound the fine ones from above, which is what makes coarse-to-fine
+search sound. `refine` is Gauss-Newton on
 the bilinearly interpolated field (Kohlbrecher et al. 2011, Hector SLAM): it minimises
 sum_i (1 - M(S_i(pose)))^2 and returns the normal matrix, whose conditioning tells a corridor.
 
@@ -23,7 +25,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["kernel", "likelihood_field", "pool_max", "search", "refine", "bilinear"]
+__all__ = ["kernel", "splat_field", "pool_max", "search", "refine", "bilinear"]
 
 kernel = numba.njit(cache=True, nogil=True)
 
@@ -31,15 +33,30 @@ DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace
 
 
 @kernel
-def likelihood_field(dist_sq: npt.NDArray[np.float64], cell: float, sigma: float) -> npt.NDArray[np.float64]:
-    """exp(-d^2 / (2 sigma^2)) of the squared distances `dist_sq` [cells^2] (inf -> 0); sigma [m]."""
-    rows, cols = dist_sq.shape
-    out = np.empty((rows, cols), np.float64)
+def splat_field(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
+                cell: float, sigma: float, reach: int) -> npt.NDArray[np.float64]:
+    """The likelihood field of hit points: at each cell centre, the largest exp(-d^2 / (2 sigma^2)) over
+    the occupied cells within `reach` cells, d [m] the distance to that cell's mean hit point, which
+    lies (off_x, off_y) [cells] from its centre (0, 0 when only the cell is known).
+
+    Matching against cell centres would pull a scan by up to half a cell towards the walls it faces
+    (a forward-looking laser sees most walls ahead); the hit points do not."""
+    rows, cols = occ.shape
+    out = np.zeros((rows, cols), np.float64)
     k = -cell * cell / (2.0 * sigma * sigma)
     for r in range(rows):
         for c in range(cols):
-            d = dist_sq[r, c]
-            out[r, c] = 0.0 if d == math.inf else math.exp(k * d)
+            if not occ[r, c]:
+                continue
+            hx = c + off_x[r, c]
+            hy = r + off_y[r, c]
+            for rr in range(max(r - reach, 0), min(r + reach + 1, rows)):
+                dy = rr - hy
+                for cc in range(max(c - reach, 0), min(c + reach + 1, cols)):
+                    dx = cc - hx
+                    v = math.exp(k * (dx * dx + dy * dy))
+                    if v > out[rr, cc]:
+                        out[rr, cc] = v
     return out
 
 
@@ -62,8 +79,12 @@ def pool_max(field: npt.NDArray[np.float64], factor: int) -> npt.NDArray[np.floa
 def search(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
            px: npt.NDArray[np.float64], py: npt.NDArray[np.float64],
            x0: float, y0: float, th0: float, nxy: int, step: int, nth: int, dth: float,
+           cx: float, cy: float, cth: float, kxy: float, kth: float,
            ) -> tuple[float, float, float, float]:
     """Best pose of the window x0 + i*step*cell, y0 + j*step*cell (|i|, |j| <= nxy), th0 + k*dth (|k| <= nth).
+
+    A pose scores the sum of the field under the points minus a prior penalty
+    kxy ((x - cx)^2 + (y - cy)^2) + kth (theta - cth)^2 around the prediction (cx, cy, cth).
 
     Args:
         field: the (pooled) field; cell (r, c) covers [ox + c cell, ox + (c+1) cell) in x.
@@ -75,9 +96,12 @@ def search(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
         step: the x, y step in cells of this field.
         nth: half-width of the heading window in steps.
         dth: [rad] the heading step.
+        cx, cy, cth: the prediction the prior is centred on.
+        kxy: [1/m^2] weight of the prior on position.
+        kth: [1/rad^2] weight of the prior on heading.
 
     Returns:
-        (x, y, theta, score): the best pose and its score (sum of the field under the points). Ties
+        (x, y, theta, score): the best pose and its score (penalised sum of the field). Ties
         go to the pose nearest the centre (offsets in steps, squared), then the first in scan order.
     """
     n = px.shape[0]
@@ -90,13 +114,16 @@ def search(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
     span = nxy * step
     for k in range(-nth, nth + 1):
         th = th0 + k * dth
+        pen_th = kth * (th - cth) * (th - cth)
         c, s = math.cos(th), math.sin(th)
         for i in range(n):
             cc[i] = math.floor((x0 + c * px[i] - s * py[i] - ox) / cell)
             rr[i] = math.floor((y0 + s * px[i] + c * py[i] - oy) / cell)
         for j in range(-span, span + 1, step):
             for i2 in range(-span, span + 1, step):
-                total = 0.0
+                ex = x0 + i2 * cell - cx
+                ey = y0 + j * cell - cy
+                total = -pen_th - kxy * (ex * ex + ey * ey)
                 for i in range(n):
                     r = rr[i] + j
                     q = cc[i] + i2

@@ -11,7 +11,7 @@ translation block is ill-conditioned: the correction along the corridor is dropp
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -21,10 +21,9 @@ from robotexp.errors import ConfigError
 from robotexp.localization import kernels as K
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.kernels import edt_sq
 from robotexp.robot import LaserScan, Pose, wrap_angle
 
-__all__ = ["MatcherConfig", "Match", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
+__all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
 
 Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
 
@@ -46,6 +45,8 @@ class MatcherConfig:
             prediction ("poor").
         degenerate_ratio: smallest / largest eigenvalue of the translation block of the normal matrix
             below this: a corridor; the correction along the weak direction is dropped ("degenerate").
+        prior: weight of the prediction in the correlative search: a pose at the edge of the x, y
+            or heading window loses this much of the mean field value (0: no prior).
     """
 
     sigma: float = 0.05
@@ -57,12 +58,14 @@ class MatcherConfig:
     min_points: int = 20
     min_score: float = 0.2
     degenerate_ratio: float = 0.03
+    prior: float = 0.1
 
     def __post_init__(self) -> None:
         if not (self.sigma > 0 and self.window_xy >= 0 and self.window_theta >= 0 and self.range_max > 0):
             raise ConfigError(f"scan matcher: sigma and range_max must be > 0 m and the windows >= 0, got {self}")
-        if self.coarse < 1 or self.iterations < 0 or self.min_points < 1:
-            raise ConfigError(f"scan matcher: coarse >= 1, iterations >= 0 and min_points >= 1 expected, got {self}")
+        if self.coarse < 1 or self.iterations < 0 or self.min_points < 1 or self.prior < 0:
+            raise ConfigError(f"scan matcher: coarse >= 1, iterations >= 0, min_points >= 1 and prior >= 0 "
+                              f"expected, got {self}")
 
 
 @dataclass(frozen=True)
@@ -99,31 +102,79 @@ def scan_points(scan: LaserScan, range_max: float = math.inf
     return (np.ascontiguousarray(scan.offset_x + r * np.cos(a)), np.ascontiguousarray(r * np.sin(a)))
 
 
+class HitMap:
+    """Where in each cell the laser hits fell: running sums of the hit points' offsets from the cell
+    centre [cells] and their count, over a `GridGeometry`; float32 (12 bytes a cell)."""
+
+    def __init__(self, geo: GridGeometry) -> None:
+        self.geo = geo
+        self.sum_x = np.zeros((geo.rows, geo.cols), np.float32)
+        self.sum_y = np.zeros((geo.rows, geo.cols), np.float32)
+        self.count = np.zeros((geo.rows, geo.cols), np.float32)
+
+    def add(self, pose: Pose, scan: LaserScan, range_max: float = math.inf) -> None:
+        """Record the hits of `scan` taken at robot pose `pose` (ranges below `range_max` and the scan's)."""
+        px, py = scan_points(scan, range_max)
+        if len(px) == 0:
+            return
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        g = self.geo
+        gx = (pose.x + c * px - s * py - g.origin_x) / g.cell
+        gy = (pose.y + s * px + c * py - g.origin_y) / g.cell
+        col, row = np.floor(gx).astype(np.intp), np.floor(gy).astype(np.intp)
+        ok = (row >= 0) & (row < g.rows) & (col >= 0) & (col < g.cols)
+        row, col = row[ok], col[ok]
+        np.add.at(self.sum_x, (row, col), (gx[ok] - col - 0.5).astype(np.float32))
+        np.add.at(self.sum_y, (row, col), (gy[ok] - row - 0.5).astype(np.float32))
+        np.add.at(self.count, (row, col), np.float32(1.0))
+
+    def offsets(self, r0: int, r1: int, c0: int, c1: int) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """Mean hit offsets [cells] of the cells [r0, r1) x [c0, c1) (0 where no hit was recorded)."""
+        n = np.maximum(self.count[r0:r1, c0:c1], np.float32(1.0))
+        return (np.ascontiguousarray(self.sum_x[r0:r1, c0:c1] / n), np.ascontiguousarray(self.sum_y[r0:r1, c0:c1] / n))
+
+
 class ScanMatcher:
     """Aligns scans with occupancy maps (see the module docstring)."""
 
     def __init__(self, config: MatcherConfig | None = None) -> None:
         self.config = config or MatcherConfig()
 
-    def field(self, occupied: npt.NDArray[np.bool_], geo: GridGeometry, x: float, y: float, radius: float
-              ) -> tuple[npt.NDArray[np.float64], float, float] | None:
-        """The likelihood field of `occupied` over the cells within `radius` [m] of (x, y) (a square),
-        as (field, origin_x, origin_y); None when that square holds no occupied cell."""
+    def field(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, x: float, y: float, radius: float,
+              hits: HitMap | None = None) -> tuple[npt.NDArray[np.float64], float, float] | None:
+        """The likelihood field of `occupied` (bool, or numbers with > 0 occupied, e.g. log-odds) over
+        the cells within `radius` [m] of (x, y) (a square), as (field, origin_x, origin_y), centred on
+        the mean hit point of each occupied cell when `hits` knows it (else on its centre); None when
+        that square holds no occupied cell."""
         r0, c0 = geo.cell_of(x - radius, y - radius)
         r1, c1 = geo.cell_of(x + radius, y + radius)
         r0, c0 = max(r0, 0), max(c0, 0)
         r1, c1 = min(r1 + 1, geo.rows), min(c1 + 1, geo.cols)
         if r0 >= r1 or c0 >= c1:
             return None
-        sub = np.ascontiguousarray(occupied[r0:r1, c0:c1])
+        sub = occupied[r0:r1, c0:c1]
+        sub = np.ascontiguousarray(sub if sub.dtype == np.bool_ else sub > 0)
         if not sub.any():
             return None
-        f = K.likelihood_field(edt_sq(sub), geo.cell, self.config.sigma)
+        if hits is not None:
+            off_x, off_y = hits.offsets(r0, r1, c0, c1)
+        else:
+            off_x = off_y = np.zeros(sub.shape, np.float32)
+        reach = math.ceil(3.0 * self.config.sigma / geo.cell)
+        f = K.splat_field(sub, off_x, off_y, geo.cell, self.config.sigma, reach)
         return f, geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell
 
-    def match(self, occupied: npt.NDArray[np.bool_], geo: GridGeometry, px: npt.NDArray[np.float64],
-              py: npt.NDArray[np.float64], prediction: Pose) -> Match:
-        """Align the points (robot frame [m]) with the occupied cells, starting at `prediction`.
+    def match(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, px: npt.NDArray[np.float64],
+              py: npt.NDArray[np.float64], prediction: Pose, hits: HitMap | None = None,
+              known: npt.NDArray[np.generic] | None = None) -> Match:
+        """Align the points (robot frame [m]) with the occupied cells (bool, or > 0), starting at `prediction`
+        (with `hits`, the field is centred on the cells' mean hit points).
+
+        With `known` ((rows, cols), > 0 where the map has seen the cell, e.g. a grid's `stamp`), the
+        Gauss-Newton step leaves out the points that fall on cells the map has never seen, placed at the
+        prediction (when at least half of them, and min_points, remain): where a wall runs on beyond
+        the part mapped so far, the end of the mapped part pulls them back along it and turns the scan.
+        The correlative search still uses every point.
 
         Raises:
             ConfigError: `occupied` does not match `geo`, or px, py differ in shape.
@@ -133,11 +184,25 @@ class ScanMatcher:
             raise ConfigError(f"scan matcher: map shape {occupied.shape} does not match its geometry {geo}")
         if px.shape != py.shape:
             raise ConfigError(f"scan matcher: point arrays differ in shape: {px.shape} and {py.shape}")
+        if known is not None and len(px):
+            c, s_ = math.cos(prediction.theta), math.sin(prediction.theta)
+            col = np.floor((prediction.x + c * px - s_ * py - geo.origin_x) / geo.cell).astype(np.intp)
+            row = np.floor((prediction.y + s_ * px + c * py - geo.origin_y) / geo.cell).astype(np.intp)
+            inside = (row >= 0) & (row < geo.rows) & (col >= 0) & (col < geo.cols)
+            keep = np.zeros(len(px), np.bool_)
+            keep[inside] = known[row[inside], col[inside]] > 0
+            if np.count_nonzero(keep) >= max(cfg.min_points, len(px) // 2):
+                gx, gy = np.ascontiguousarray(px[keep]), np.ascontiguousarray(py[keep])
+            else:
+                gx, gy = px, py
+        else:
+            gx, gy = px, py
         n = len(px)
         if n < cfg.min_points:
             return Match(prediction, 0.0, n, "few-points")
         reach = float(np.sqrt(px * px + py * py).max())
-        made = self.field(occupied, geo, prediction.x, prediction.y, reach + cfg.window_xy + 4 * cfg.sigma + geo.cell)
+        made = self.field(occupied, geo, prediction.x, prediction.y, reach + cfg.window_xy + 4 * cfg.sigma + geo.cell,
+                          hits)
         if made is None:
             return Match(prediction, 0.0, n, "no-map")
         f, ox, oy = made
@@ -148,18 +213,22 @@ class ScanMatcher:
         # heading steps that move the farthest point by about one cell of each level
         dth_c = math.atan2(cell * fc, max(reach, cell))
         dth_f = math.atan2(cell, max(reach, cell))
-        x, y, th = prediction.x, prediction.y, prediction.theta
+        x0, y0, th0 = prediction.x, prediction.y, prediction.theta
+        kxy = cfg.prior * n / max(cfg.window_xy, cell) ** 2
+        kth = cfg.prior * n / max(cfg.window_theta, dth_f) ** 2
         if fc > 1:
             coarse = K.pool_max(f, fc)
-            x, y, th, _ = K.search(coarse, ox, oy, cell * fc, px, py, x, y, th,
+            x, y, th, _ = K.search(coarse, ox, oy, cell * fc, px, py, x0, y0, th0,
                                    math.ceil(cfg.window_xy / (cell * fc)), 1,
-                                   math.ceil(cfg.window_theta / dth_c), dth_c)
-            x, y, th, _ = K.search(f, ox, oy, cell, px, py, x, y, th, fc, 1, math.ceil(dth_c / dth_f), dth_f)
+                                   math.ceil(cfg.window_theta / dth_c), dth_c, x0, y0, th0, kxy, kth)
+            x, y, th, _ = K.search(f, ox, oy, cell, px, py, x, y, th, fc, 1, math.ceil(dth_c / dth_f), dth_f,
+                                   x0, y0, th0, kxy, kth)
         else:
-            x, y, th, _ = K.search(f, ox, oy, cell, px, py, x, y, th, math.ceil(cfg.window_xy / cell), 1,
-                                   math.ceil(cfg.window_theta / dth_f), dth_f)
+            x, y, th, _ = K.search(f, ox, oy, cell, px, py, x0, y0, th0, math.ceil(cfg.window_xy / cell), 1,
+                                   math.ceil(cfg.window_theta / dth_f), dth_f, x0, y0, th0, kxy, kth)
         # the correlative search looks up whole cells; Gauss-Newton takes it to the interpolated optimum
-        x, y, th, score, h = K.refine(f, ox, oy, cell, px, py, x, y, th, cfg.iterations)
+        x, y, th, score, h = K.refine(f, ox, oy, cell, np.ascontiguousarray(gx, np.float64),
+                                      np.ascontiguousarray(gy, np.float64), x, y, th, cfg.iterations)
         if score < cfg.min_score:
             return Match(prediction, score, n, "poor")
         pose = Pose(x, y, wrap_angle(th))
@@ -176,27 +245,57 @@ class ScanMatcher:
         return Match(pose, score, n, status)
 
 
-@dataclass
 class Localizer:
     """Corrects odometry with scan matching: each odometry increment is applied to the last corrected
-    pose, and the result matched against the map (the caller's grid, read, never written here).
+    pose, the scan is matched there against the localizer's own map, and then integrated into it at
+    the corrected pose.
+
+    The matching map is a log-odds grid with Hector SLAM's sensor model (p_occ 0.9, p_free 0.4: a
+    wall hit once survives a few grazing beams), separate from the explorer's map, whose model the
+    method chooses (HIMM for BVP, UFMG log-odds).
+
+    Args:
+        geo: the matching map's extent and cells.
+        matcher: the scan matcher (default settings when None).
+        p_occ: the matching map's occupancy after a hit.
+        p_free: the matching map's occupancy of a crossed cell.
+        range_max: [m] beams at or beyond this record no hit in the matching map (default the
+            scan's range_max).
+        use_hits: centre the likelihood field on the cells' mean hit points (`HitMap`), not their
+            centres (on the three CARMEN logs with loop closure: ATE 0.145 / 0.198 / 0.183 m against
+            0.149 / 0.267 / 0.175 m; see docs/localization).
+        skip_unseen: pass the grid's `stamp` as `known` to `ScanMatcher.match` (Gauss-Newton without the
+            points on never-seen cells). On a simulated log it halves the heading drift (ATE 0.26 ->
+            0.15 m without noise), on the CARMEN logs it did worse (ACES 0.307 m against 0.198 m with
+            loop closure), so it is off by default.
 
     Attributes:
-        grid: the map to match against (the mapper's grid, updated by the caller with the pose
-            `locate` returns).
-        matcher: the scan matcher.
-        counts: how many scans ended in each `Match.status`.
+        grid: the matching map.
+        hits: where the hits fell in its cells.
+        counts: how many scans ended in each `Match.status` (and "no-scan").
     """
 
-    grid: OccupancyGrid
-    matcher: ScanMatcher = field(default_factory=ScanMatcher)
-    counts: dict[str, int] = field(default_factory=dict)
-    _odom: Pose | None = None
-    _pose: Pose | None = None
+    def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,
+                 p_free: float = 0.4, range_max: float | None = None, use_hits: bool = True,
+                 skip_unseen: bool = False) -> None:
+        self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
+        self.hits = HitMap(geo)
+        self.use_hits = use_hits
+        self.skip_unseen = skip_unseen
+        self.matcher = matcher or ScanMatcher()
+        self.counts: dict[str, int] = {}
+        self._odom: Pose | None = None
+        self._pose: Pose | None = None
 
     def reset(self, odom: Pose, pose: Pose) -> None:
         """Restart from `pose` (the corrected pose) with odometry reading `odom` there."""
         self._odom, self._pose = odom, pose
+
+    def integrate(self, pose: Pose, scan: LaserScan) -> None:
+        """Put `scan`, taken at `pose`, into the matching map (`locate` does this itself)."""
+        self.grid.update(pose, scan)
+        rmax = self.grid.range_max if self.grid.range_max is not None else math.inf
+        self.hits.add(pose, scan, rmax)
 
     def predict(self, odom: Pose) -> Pose:
         """The last corrected pose moved by the odometry increment since then (odom itself at first)."""
@@ -205,14 +304,17 @@ class Localizer:
         return compose(self._pose, relative(self._odom, odom))
 
     def locate(self, odom: Pose, scan: LaserScan | None) -> Pose:
-        """The corrected pose for odometry `odom` and the scan taken there (None: prediction only)."""
+        """The corrected pose for odometry `odom` and the scan taken there (None: prediction only); the
+        scan then goes into the matching map at that pose."""
         prediction = self.predict(odom)
         if scan is None:
             status, pose = "no-scan", prediction
         else:
             px, py = scan_points(scan, self.matcher.config.range_max)
-            m = self.matcher.match(self.grid.occupied(), self.grid.geo, px, py, prediction)
+            m = self.matcher.match(self.grid.values, self.grid.geo, px, py, prediction,
+                                   self.hits if self.use_hits else None, self.grid.stamp if self.skip_unseen else None)
             status, pose = m.status, m.pose
+            self.integrate(pose, scan)
         self.counts[status] = self.counts.get(status, 0) + 1
         self._odom, self._pose = odom, pose
         return pose

@@ -10,14 +10,22 @@ import numpy.typing as npt
 
 from robotexp.localization.kernels import DAMPING
 
-__all__ = ["likelihood_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref"]
+__all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref"]
 
 
-def likelihood_field_ref(dist_sq: npt.NDArray[np.float64], cell: float, sigma: float) -> npt.NDArray[np.float64]:
-    """exp(-d^2 / (2 sigma^2)), d = sqrt(dist_sq) cell [m]; inf -> 0."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = np.exp(-dist_sq * cell * cell / (2.0 * sigma * sigma))
-    out[~np.isfinite(dist_sq)] = 0.0
+def splat_field_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
+                    cell: float, sigma: float, reach: int) -> npt.NDArray[np.float64]:
+    """Per offset (dr, dc) of the neighbourhood, the Gaussian of every occupied cell shifted there, max."""
+    rows, cols = occ.shape
+    out = np.zeros((rows, cols))
+    rr, cc = np.nonzero(occ)
+    hx, hy = cc + off_x[rr, cc].astype(np.float64), rr + off_y[rr, cc].astype(np.float64)
+    for dr in range(-reach, reach + 1):
+        for dc in range(-reach, reach + 1):
+            tr, tc = rr + dr, cc + dc
+            ok = (tr >= 0) & (tr < rows) & (tc >= 0) & (tc < cols)
+            v = np.exp(-((tc - hx) ** 2 + (tr - hy) ** 2) * cell * cell / (2.0 * sigma * sigma))
+            np.maximum.at(out, (tr[ok], tc[ok]), v[ok])
     return out
 
 
@@ -32,7 +40,8 @@ def pool_max_ref(field: npt.NDArray[np.float64], factor: int) -> npt.NDArray[np.
 
 def search_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
                px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x0: float, y0: float, th0: float,
-               nxy: int, step: int, nth: int, dth: float) -> tuple[float, float, float, float]:
+               nxy: int, step: int, nth: int, dth: float, cx: float, cy: float, cth: float, kxy: float,
+               kth: float) -> tuple[float, float, float, float]:
     """All window scores at once (heading, y, x), then the best with the kernel's tie rule."""
     rows, cols = field.shape
     ks = np.arange(-nth, nth + 1)
@@ -45,7 +54,9 @@ def search_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
     q = cc[:, None, None, :] + offs[None, None, :, None]
     inside = (r >= 0) & (r < rows) & (q >= 0) & (q < cols)
     vals = np.where(inside, field[np.clip(r, 0, rows - 1), np.clip(q, 0, cols - 1)], 0.0)
-    scores = vals.sum(axis=3)                                                    # (K, J, I)
+    ex = (x0 + offs * cell - cx)[None, None, :]
+    ey = (y0 + offs * cell - cy)[None, :, None]
+    scores = vals.sum(axis=3) - kth * ((th - cth) ** 2)[:, None, None] - kxy * (ex ** 2 + ey ** 2)   # (K, J, I)
     kk, jj, ii = np.meshgrid(ks, offs // step, offs // step, indexing="ij")
     dist = kk ** 2 + jj ** 2 + ii ** 2
     best = scores.max()

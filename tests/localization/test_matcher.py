@@ -7,19 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from robotexp.localization import Localizer, ScanMatcher, ate, compose, relative, scan_points
+from robotexp.localization import HitMap, Localizer, ScanMatcher, ate, compose, relative, scan_points
 from robotexp.localization import kernels as K
 from robotexp.localization.reference import (
     bilinear_ref,
-    likelihood_field_ref,
     pool_max_ref,
     refine_ref,
     search_ref,
+    splat_field_ref,
 )
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import occupancy
-from robotexp.mapping.kernels import edt_sq
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim.raycast import RayIndex
 from robotexp.world.model import World, segment_box
@@ -105,9 +103,8 @@ def test_degenerate_scans_fall_back_to_the_prediction() -> None:
 def test_localizer_applies_odometry_increments_to_the_corrected_pose() -> None:
     world = room()
     occ, geo = true_map(world)
-    grid = OccupancyGrid(geo)
-    grid.mark_occupied(occ)
-    loc = Localizer(grid)
+    loc = Localizer(geo)
+    loc.grid.mark_occupied(occ)
     path = [Pose(2.0, 2.0, 0.0), Pose(2.4, 2.1, 0.1), Pose(2.8, 2.3, 0.25), Pose(3.3, 2.4, 0.3)]
     # odometry: 5 % long and turning 4 deg per step too much, from a frame rotated and shifted
     frame = Pose(10.0, -3.0, 1.0)
@@ -140,7 +137,8 @@ def test_ate_with_and_without_alignment() -> None:
 def field_and_scan() -> tuple[np.ndarray, GridGeometry, np.ndarray, np.ndarray]:
     world = room()
     occ, geo = true_map(world)
-    f = K.likelihood_field(edt_sq(occ), geo.cell, 0.05)
+    zero = np.zeros(occ.shape, np.float32)
+    f = K.splat_field(occ, zero, zero, geo.cell, 0.05, 3)
     px, py = scan_points(cast(world, Pose(2.0, 2.0, 0.3)))
     return f, geo, px, py
 
@@ -148,8 +146,12 @@ def field_and_scan() -> tuple[np.ndarray, GridGeometry, np.ndarray, np.ndarray]:
 def test_field_and_pooling_match_numpy(field_and_scan) -> None:   # type: ignore[no-untyped-def]
     f, geo, _, _ = field_and_scan
     occ, _ = true_map(room())
-    d = edt_sq(occ)
-    assert np.allclose(K.likelihood_field(d, geo.cell, 0.07), likelihood_field_ref(d, geo.cell, 0.07), atol=1e-15)
+    rng = np.random.default_rng(2)
+    off_x = rng.uniform(-0.5, 0.5, occ.shape).astype(np.float32)
+    off_y = rng.uniform(-0.5, 0.5, occ.shape).astype(np.float32)
+    for sigma, reach in ((0.05, 3), (0.08, 5)):
+        assert np.allclose(K.splat_field(occ, off_x, off_y, geo.cell, sigma, reach),
+                           splat_field_ref(occ, off_x, off_y, geo.cell, sigma, reach), atol=1e-12)
     assert f[occ].min() == 1.0 and f.max() <= 1.0
     # one cell from a wall (and no nearer one): exp(-cell^2 / (2 sigma^2))
     assert np.any(np.isclose(f, math.exp(-0.5)))
@@ -157,14 +159,33 @@ def test_field_and_pooling_match_numpy(field_and_scan) -> None:   # type: ignore
         assert np.array_equal(K.pool_max(f, factor), pool_max_ref(f, factor))
 
 
+def test_field_is_centred_on_the_mean_hit_point() -> None:
+    geo = GridGeometry(0.0, 0.0, 0.1, 9, 9)
+    loc_hits = HitMap(geo)
+    # two hits in cell (4, 4), 0.1 and 0.3 of a cell right of its centre and 0.2 below: mean (0.2, -0.2)
+    scan = LaserScan(np.array([0.0, 0.0]), np.array([0.46, 0.48]), 5.0, 0.0)
+    loc_hits.add(Pose(0.0, 0.43, 0.0), scan)
+    assert loc_hits.count[4, 4] == 2.0
+    ox, oy = loc_hits.offsets(0, 9, 0, 9)
+    assert ox[4, 4] == pytest.approx(0.2, abs=1e-5) and oy[4, 4] == pytest.approx(-0.2, abs=1e-5)
+    occ = np.zeros((9, 9), np.bool_)
+    occ[4, 4] = True
+    f = K.splat_field(occ, ox, oy, geo.cell, 0.1, 3)
+    # at the centre of cell (4, 5), 0.8 cell right and 0.2 cell above the hit mean: d^2 = 0.68 cells^2
+    assert f[4, 5] == pytest.approx(math.exp(-0.68 * 0.01 / 0.02), rel=1e-6)
+    assert f[4, 5] > f[4, 3]            # the side the hits lean to is the stronger
+
+
 def test_search_matches_numpy(field_and_scan) -> None:   # type: ignore[no-untyped-def]
     f, geo, px, py = field_and_scan
     for level, (x0, y0, th0) in ((1, (2.1, 1.9, 0.25)), (4, (1.8, 2.2, 0.4))):
         g = K.pool_max(f, level) if level > 1 else f
-        args = (g, geo.origin_x, geo.origin_y, geo.cell * level, px, py, x0, y0, th0, 3, 1, 4, math.radians(1.0))
+        args = (g, geo.origin_x, geo.origin_y, geo.cell * level, px, py, x0, y0, th0, 3, 1, 4, math.radians(1.0),
+                x0 + 0.01, y0 - 0.02, th0 + 0.005, 50.0 * level, 300.0)
         got, ref = K.search(*args), search_ref(*args)
         assert got[:3] == pytest.approx(ref[:3], abs=1e-12) and got[3] == pytest.approx(ref[3], rel=1e-12)
-    args = (f, geo.origin_x, geo.origin_y, geo.cell, px, py, 2.05, 2.0, 0.3, 2, 2, 1, math.radians(0.5))
+    args = (f, geo.origin_x, geo.origin_y, geo.cell, px, py, 2.05, 2.0, 0.3, 2, 2, 1, math.radians(0.5),
+            2.05, 2.0, 0.3, 0.0, 0.0)
     assert K.search(*args)[:3] == pytest.approx(search_ref(*args)[:3], abs=1e-12)
 
 
