@@ -134,10 +134,15 @@ class LaserLink:
             if self.closed:
                 return
             self.closed = True
+        # pyserial's socket:// close() skips socket.close() when shutdown() fails (a peer already
+        # gone): close the socket ourselves so that it does not leak
+        sock = getattr(self._port, "_socket", None)
         try:
             self._port.close()
         except (serial.SerialException, OSError):
             pass
+        if sock is not None:
+            sock.close()
 
 
 class StreamLaser(Laser):
