@@ -121,6 +121,17 @@ class LaserLink:
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"{self.who}: {self.url!r} cannot switch to {baudrate} baud: {exc}") from exc
 
+    def set_dtr(self, level: bool) -> bool:
+        """Set the DTR line (an RPLidar's USB adapter spins the motor while it is low); False where
+        the link has none (TCP, a pseudo-terminal)."""
+        if not self.is_serial:
+            return False
+        try:
+            self._port.dtr = level
+        except (serial.SerialException, OSError):
+            return False
+        return True
+
     def reset_input(self) -> None:
         """Drop what was received and not read yet."""
         try:
