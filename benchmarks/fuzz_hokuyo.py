@@ -21,6 +21,8 @@ import traceback
 
 import numpy as np
 
+from fuzz_streams import feed_in_chunks, mutate
+
 from robotexp_drivers.lasers.hokuyo import codec as k
 from robotexp_drivers.lasers.hokuyo import constants as C
 
@@ -60,19 +62,6 @@ def _noise(rng: random.Random) -> bytes:
     return bytes(out)
 
 
-def _mutate(rng: random.Random, stream: bytearray) -> None:
-    for _ in range(rng.randrange(1, 6)):
-        if not stream:
-            return
-        pos, kind = rng.randrange(len(stream)), rng.randrange(3)
-        if kind == 0:
-            stream[pos] ^= rng.randrange(1, 256)
-        elif kind == 1:
-            stream[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9)))
-        else:
-            del stream[pos:pos + rng.randrange(1, 5)]
-
-
 def fuzz(streams: int, seed: int) -> int:
     """Run the fuzz loop; print the counts; return the number of problems found."""
     rng = random.Random(seed)
@@ -96,15 +85,10 @@ def fuzz(streams: int, seed: int) -> int:
             stream += frame
         stream += _noise(rng)
         if mutated:
-            _mutate(rng, stream)
+            mutate(rng, stream)
         dec = k.ScanDecoder(dmin_mm=20, dmax_mm=C.ENC3_MAX)
-        out: list[np.ndarray] = []
         try:
-            pos = 0
-            while pos < len(stream):
-                step = rng.randrange(1, 200)
-                out += dec.feed(bytes(stream[pos:pos + step]))
-                pos += step
+            out = feed_in_chunks(rng, dec, stream, 200)
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
             exceptions.append(f"stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
             continue

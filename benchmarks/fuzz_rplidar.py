@@ -24,6 +24,8 @@ import traceback
 
 import numpy as np
 
+from fuzz_streams import feed_in_chunks, mutate
+
 from robotexp_drivers.lasers.rplidar import codec as k
 from robotexp_drivers.lasers.rplidar import constants as C
 
@@ -54,29 +56,6 @@ def _noise(rng: random.Random, node_free: bool) -> bytes:
     return bytes(rng.randrange(256) for _ in range(n))
 
 
-def _mutate(rng: random.Random, stream: bytearray) -> None:
-    for _ in range(rng.randrange(1, 6)):
-        if not stream:
-            return
-        pos, kind = rng.randrange(len(stream)), rng.randrange(3)
-        if kind == 0:
-            stream[pos] ^= rng.randrange(1, 256)
-        elif kind == 1:
-            stream[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9)))
-        else:
-            del stream[pos:pos + rng.randrange(1, 5)]
-
-
-def _feed(rng: random.Random, dec: k.ScanDecoder | k.RequestDecoder, stream: bytearray) -> list:
-    out: list = []
-    pos = 0
-    while pos < len(stream):
-        step = rng.randrange(1, 120)
-        out += dec.feed(bytes(stream[pos:pos + step]))
-        pos += step
-    return out
-
-
 def fuzz(streams: int, seed: int) -> int:
     """Run the fuzz loop; print the counts; return the number of problems found."""
     rng = random.Random(seed)
@@ -97,18 +76,18 @@ def fuzz(streams: int, seed: int) -> int:
             expected.append(ranges)
         stream += _noise(rng, node_free=not mutated) + k.encode_node(True, 10, 0, 4000)
         if mutated:
-            _mutate(rng, stream)
+            mutate(rng, stream)
         dec = k.ScanDecoder(BEAMS)
         try:
-            out = _feed(rng, dec, stream)
+            out = feed_in_chunks(rng, dec, stream, 120)
             if n % 2:
                 reqs = bytearray()
                 for _ in range(rng.randrange(1, 6)):
                     reqs += _noise(rng, node_free=False) + rng.choice(requests)
                 if rng.random() < 0.8:
-                    _mutate(rng, reqs)
+                    mutate(rng, reqs)
                 rdec = k.RequestDecoder()
-                req_totals["requests"] += len(_feed(rng, rdec, reqs))
+                req_totals["requests"] += len(feed_in_chunks(rng, rdec, reqs, 120))
                 req_totals["dropped_bytes"] += rdec.dropped_bytes
                 req_totals["bad_checksums"] += rdec.bad_checksums
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all

@@ -279,14 +279,27 @@ class StreamLaser(Laser):
 class LaserEmulatorBase(StreamEmulator):
     """A laser emulator: a `StreamEmulator` without a simulator of its own, measuring with `source`.
 
-    A subclass calls `_init_laser(source, speedup)` first, opens its transport (`_open_pty()` or
-    `_listen()`), sets `address`, and implements `_period`, `_step` (the bytes to send now: a scan
+    A subclass calls `_init_laser(source, speedup)` first, opens its transport (`_open_transport`, or
+    `_open_pty()` / `_listen()` and sets `address`), and implements `_period`, `_step` (the bytes to send now: a scan
     when streaming, else b"") and `_on_bytes` (commands).
     """
 
     def _init_laser(self, source: ScanSource, speedup: float = 1.0) -> None:
         self._init_stream(speedup)
         self.source = source
+
+    def _open_transport(self, pty: bool, port: int | None, host: str) -> None:
+        """Serve on a pseudo-terminal (`address` its device path) or TCP `host`:`port` (None or 0: a
+        free port; `address` "host:port"); on failure release what was opened and re-raise."""
+        try:
+            if pty:
+                self.address = self._open_pty()
+            else:
+                bound_host, bound_port = self._listen(host, port or 0)
+                self.address = f"{bound_host}:{bound_port}"
+        except BaseException:
+            self._release()
+            raise
 
     def _halt(self) -> None:
         """A laser has nothing to stop when its client leaves (a subclass may reset its state)."""

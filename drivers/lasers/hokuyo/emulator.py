@@ -27,7 +27,6 @@ from robotexp_drivers.lasers.base import LaserEmulatorBase
 from robotexp_drivers.lasers.hokuyo import constants as C
 from robotexp_drivers.lasers.hokuyo.codec import (
     ScanParams,
-    beam_count,
     encode_reply,
     encode_scan,
     encode_values,
@@ -108,15 +107,7 @@ class HokuyoEmulator(LaserEmulatorBase):
         self.scans_sent = 0
         self._line = bytearray()
         self._reset()
-        try:
-            if pty:
-                self.address = self._open_pty()
-            else:
-                bound_host, bound_port = self._listen(host, port or 0)
-                self.address = f"{bound_host}:{bound_port}"
-        except BaseException:
-            self._release()
-            raise
+        self._open_transport(pty, port, host)
 
     @property
     def _period(self) -> float:
@@ -237,29 +228,28 @@ class HokuyoEmulator(LaserEmulatorBase):
             return C.STATUS_END_BEFORE_START
         return start, end, cluster
 
-    @staticmethod
-    def _split_string(rest: bytes, digits: int) -> tuple[bytes, str | None] | None:
+    def _scan_request(self, rest: bytes, digits: int) -> tuple[bytes, str | None, tuple[int, int, int]] | bytes:
+        """(parameters, ";string", steps) of an MD/MS/GD/GS request, or the status refusing it."""
         params, sep, string = rest.partition(b";")
         if len(params) != digits or len(string) > C.STRING_MAX:
-            return None
-        return params, string.decode("ascii", "replace") if sep else None
+            return b"0H" if len(params) < digits else b"0D"      # command too short / too long
+        steps = self._steps(params)
+        if isinstance(steps, bytes):
+            return steps
+        return params, string.decode("ascii", "replace") if sep else None, steps
 
     def _angles(self, start: int, end: int, cluster: int) -> np.ndarray:
         return geometry(self.model.params, start, end, cluster, self.model.rated).angles()
 
     def _multi(self, line: bytes, name: bytes, rest: bytes) -> bytes:
-        split = self._split_string(rest, C.MD_PARAM_DIGITS)
-        if split is None:
-            return encode_reply(line, b"0H" if len(rest.partition(b";")[0]) < C.MD_PARAM_DIGITS else b"0D")
-        params, string = split
-        steps = self._steps(params)
-        if isinstance(steps, bytes):
-            return encode_reply(line, steps)
+        req = self._scan_request(rest, C.MD_PARAM_DIGITS)
+        if isinstance(req, bytes):
+            return encode_reply(line, req)
+        params, string, (start, end, cluster) = req
         if not params[10:11].isdigit():
             return encode_reply(line, C.STATUS_BAD_INTERVAL)
         if not params[11:13].isdigit():
             return encode_reply(line, C.STATUS_BAD_SCANS)
-        start, end, cluster = steps
         scans = int(params[11:13])
         self.laser_on = True
         self._stream = _Stream(name, start, end, cluster, int(params[10:11]),
@@ -268,17 +258,12 @@ class HokuyoEmulator(LaserEmulatorBase):
         return encode_reply(line, C.STATUS_OK)
 
     def _single(self, line: bytes, name: bytes, rest: bytes) -> bytes:
-        split = self._split_string(rest, C.GD_PARAM_DIGITS)
-        if split is None:
-            return encode_reply(line, b"0H" if len(rest.partition(b";")[0]) < C.GD_PARAM_DIGITS else b"0D")
-        params, string = split
-        steps = self._steps(params)
-        if isinstance(steps, bytes):
-            return encode_reply(line, steps)
+        req = self._scan_request(rest, C.GD_PARAM_DIGITS)
+        if isinstance(req, bytes):
+            return encode_reply(line, req)
         if not self.laser_on:
             return encode_reply(line, C.STATUS_DENIED)
-        start, end, cluster = steps
+        _, string, (start, end, cluster) = req
         ranges = self.source(self._angles(start, end, cluster), self.model.rated)
-        assert ranges.size == beam_count(start, end, cluster)
         return encode_scan(ranges, start=start, end=end, cluster=cluster, encoding=name,
                            timestamp_ms=self._now_ms(), string=string)

@@ -111,15 +111,7 @@ class RPLidarEmulator(LaserEmulatorBase):
         # the laser-frame angle of each node of a turn, in sweep order
         g = geometry(samples, 0.0, self.model.range_max, 1.0)
         self._angles = g.angles()[beam_index(node_angles_cw(samples), samples)]
-        try:
-            if pty:
-                self.address = self._open_pty()
-            else:
-                bound_host, bound_port = self._listen(host, port or 0)
-                self.address = f"{bound_host}:{bound_port}"
-        except BaseException:
-            self._release()
-            raise
+        self._open_transport(pty, port, host)
 
     @property
     def period(self) -> float:
