@@ -1,11 +1,17 @@
-"""Scan sources with known answers for the laser tests: a box room around the sensor."""
+"""What the laser tests share: a scan source with known answers (a box room around the sensor) and
+timing a laser's failure."""
 
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
+
+from robotexp.errors import ConnectionLost
+from robotexp.laser import Laser
 
 
 class BoxSource:
@@ -30,3 +36,17 @@ class BoxSource:
     def __call__(self, angles: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
         self.calls += 1
         return self.ranges(np.asarray(angles, np.float64), reach)
+
+
+def seconds_until_lost(laser: Laser, fault: Callable[[], None], limit: float = 3.0) -> float:
+    """Take scans from `laser`, call `fault()` (e.g. close its emulator), and return how long [s] it
+    took `wait_scan` to raise ConnectionLost (AssertionError when it did not within `limit` s)."""
+    seq = laser.wait_scan(-1, 1.0).seq
+    t0 = time.monotonic()
+    fault()
+    while time.monotonic() - t0 < limit:
+        try:
+            seq = laser.wait_scan(seq, limit).seq
+        except ConnectionLost:
+            return time.monotonic() - t0
+    raise AssertionError(f"{laser.name}: no ConnectionLost within {limit} s of the fault")
