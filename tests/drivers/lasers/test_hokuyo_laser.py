@@ -129,3 +129,16 @@ def test_emulator_replies_as_scip_2_0() -> None:
             pp = k.parse_params(k.parse_reply(_talk(sock, b"PP\n")[0]))
             assert pp == {"MODL": "URG-04LX(Hokuyo Automatic Co.,Ltd.)", "DMIN": "20", "DMAX": "5600",
                           "ARES": "1024", "AMIN": "44", "AMAX": "725", "AFRT": "384", "SCAN": "600"}
+
+
+def test_driver_takes_over_a_sensor_left_streaming() -> None:
+    import serial
+    with HokuyoEmulator(BoxSource(), pty=True) as emu:
+        with serial.Serial(emu.address, timeout=0.2) as port:      # a previous program's unlimited MD
+            port.write(k.md_command(44, 725))
+            port.read(4000)
+        assert emu.streaming
+        time.sleep(0.25)                                            # scans pile up unread
+        with HokuyoLaser(emu.address) as laser:
+            assert laser.wait_scan(-1, 1.0).scan.ranges.shape == (682,)
+        assert emu.commands.count(b"QT") == 2

@@ -5,6 +5,7 @@ ScanSource, the A1's turn rate, STOP on close, health handling, and a laser lost
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -97,3 +98,17 @@ def test_garbage_in_the_stream_costs_at_most_the_turn_it_hits() -> None:
         assert laser._decoder.dropped_bytes > 0
         good = [np.all(np.isfinite(s.scan.ranges)) for s in scans]
         assert sum(good) >= 3
+
+
+def test_driver_takes_over_a_lidar_left_scanning() -> None:
+    import serial
+
+    from robotexp_drivers.lasers.rplidar.codec import request
+    with RPLidarEmulator(BoxSource(), pty=True) as emu:
+        with serial.Serial(emu.address, timeout=0.2) as port:      # a previous program's SCAN
+            port.write(request(C.CMD_SCAN))
+            port.read(2000)
+        assert emu.scanning
+        time.sleep(0.3)
+        with RPLidarLaser(emu.address) as laser:
+            assert laser.wait_scan(-1, 1.0).scan.ranges.shape == (360,)
