@@ -21,6 +21,8 @@ from robotexp.errors import ConfigError, ProtocolError
 from robotexp.laser import LaserGeometry
 from robotexp_drivers.lasers.rplidar import constants as C
 
+_RUN_MAX = 4096     # nodes checked at once
+
 __all__ = [
     "DeviceInfo", "Health", "Node", "Request", "RequestDecoder", "ScanDecoder", "beam_index", "checksum",
     "decode_node", "descriptor", "encode_node", "encode_scan", "geometry", "node_angles_cw", "parse_descriptor",
@@ -287,8 +289,8 @@ class ScanDecoder:
         self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
         self.range_min = range_min
         self._buffer = bytearray()
-        self._angles: list[int] = []
-        self._dist: list[int] = []
+        self._angles: list[npt.NDArray[np.int64]] = []     # the open turn's nodes, in runs
+        self._dist: list[npt.NDArray[np.int64]] = []
         self._in_turn = False
         self.scans = 0
         self.nodes = 0
@@ -296,40 +298,60 @@ class ScanDecoder:
         self.short_turns = 0
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[npt.NDArray[np.float64]]:
-        """Append `data` to the stream; return the ranges [m] of the turns it completed, in order."""
+        """Append `data` to the stream; return the ranges [m] of the turns it completed, in order.
+
+        Runs of valid nodes are checked and split at their start flags with numpy (`_run`); a bad
+        node is skipped byte by byte as `decode_node` finds it.
+        """
         buf = self._buffer
         buf += data
         out: list[npt.NDArray[np.float64]] = []
         n = len(buf)
         pos = 0
         while n - pos >= C.NODE_LEN:
-            node = decode_node(buf, pos)
-            if node is None:
+            if decode_node(buf, pos) is None:
                 pos += 1
                 self.dropped_bytes += 1
                 continue
-            pos += C.NODE_LEN
-            self.nodes += 1
-            if node.start:
-                if self._in_turn:
-                    done = self._finish()
-                    if done is not None:
-                        out.append(done)
-                self._in_turn = True
-            if self._in_turn:
-                self._angles.append(node.angle_q6)
-                self._dist.append(node.distance_q2)
+            pos += C.NODE_LEN * self._run(buf, pos, min((n - pos) // C.NODE_LEN, _RUN_MAX), out)
         del buf[:pos]
         return out
 
+    def _run(self, buf: bytearray, pos: int, count: int, out: list[npt.NDArray[np.float64]]) -> int:
+        """Take the valid nodes among the `count` at `pos` up to the first bad one (the first is
+        valid); return how many were taken."""
+        a = np.frombuffer(buf, np.uint8, count * C.NODE_LEN, pos).reshape(count, C.NODE_LEN).astype(np.int64)
+        b0, b1 = a[:, 0], a[:, 1]
+        angle = (b1 >> C.NODE_ANGLE_SHIFT) | (a[:, 2] << 7)
+        ok = (((b0 ^ (b0 >> 1)) & 1) == 1) & ((b1 & C.NODE_CHECKBIT) == 1) & (angle < C.ANGLE_Q6_TURN)
+        k = count if ok.all() else int(np.argmin(ok))
+        dist = a[:k, 3] | (a[:k, 4] << 8)
+        angle = angle[:k]
+        self.nodes += k
+        begin = 0
+        for s in np.flatnonzero(b0[:k] & C.NODE_SYNCBIT):
+            if self._in_turn:
+                self._angles.append(angle[begin:s])
+                self._dist.append(dist[begin:s])
+                done = self._finish()
+                if done is not None:
+                    out.append(done)
+            self._in_turn = True
+            begin = int(s)
+        if self._in_turn:
+            self._angles.append(angle[begin:k])
+            self._dist.append(dist[begin:k])
+        return k
+
     def _finish(self) -> npt.NDArray[np.float64] | None:
-        angles, dist = self._angles, self._dist
+        angles = np.concatenate(self._angles) if self._angles else np.zeros(0, np.int64)
+        dist_q2 = np.concatenate(self._dist) if self._dist else np.zeros(0, np.int64)
         self._angles, self._dist = [], []
-        if len(angles) < self.min_nodes:
+        if angles.size < self.min_nodes:
             self.short_turns += 1
             return None
-        idx = beam_index(np.array(angles, np.int64), self.beams)
-        d = np.array(dist, np.float64) / (1000.0 * C.DISTANCE_Q2_PER_MM)
+        idx = beam_index(angles, self.beams)
+        d = dist_q2 / (1000.0 * C.DISTANCE_Q2_PER_MM)
         d[d <= 0] = math.inf
         d[d < self.range_min] = math.inf
         ranges = np.full(self.beams, math.inf)
