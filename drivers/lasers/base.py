@@ -134,10 +134,15 @@ class LaserLink:
             if self.closed:
                 return
             self.closed = True
+        # pyserial's socket:// close() skips closing the socket when shutdown() fails (the peer is
+        # gone already), which leaks it: close it ourselves afterwards
+        sock = getattr(self._port, "_socket", None)
         try:
             self._port.close()
         except (serial.SerialException, OSError):
             pass
+        if sock is not None:
+            sock.close()
 
 
 class StreamLaser(Laser):
