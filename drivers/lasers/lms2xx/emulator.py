@@ -81,6 +81,7 @@ class LMS2xxEmulator(LaserEmulatorBase):
         self.config = k.LMSConfig.default()
         self.baud_log: list[int] = []          # every baud rate switched to, in order
         self.requests: list[int] = []          # command codes of the requests answered, in order
+        self.last_data: dict[int, bytes] = {}  # the data of the latest request of each command code
         self.scans_sent = 0
         self.naks_sent = 0
         self._serial = pty
@@ -165,6 +166,7 @@ class LMS2xxEmulator(LaserEmulatorBase):
             if t.address not in (c.ADDR_BROADCAST, self.lms_address):
                 continue
             self.requests.append(t.command)
+            self.last_data[t.command] = t.data
             out.append(c.ACK)
             out += self._answer(t, after)
         self._transmit(bytes(out))
