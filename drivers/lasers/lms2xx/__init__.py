@@ -117,7 +117,7 @@ class LMS2xxLaser(StreamLaser):
                     return t
                 if t.command == c.Reply.NOT_ACKNOWLEDGED:
                     raise ProtocolError(f"{self.name}: the LMS at {self.address!r} did not acknowledge "
-                                        f"command 0x{frame[4]:02X} (0x92) in mode 0x{self._mode_hint():02X}")
+                                        f"command 0x{frame[4]:02X} (0x92: not allowed in its current mode)")
             self._dec.others.clear()
             if self._dec.telegrams.naks > naks and not resent:
                 resent = True
@@ -125,9 +125,6 @@ class LMS2xxLaser(StreamLaser):
                 self._link.write(frame)
         raise ConnectionLost(f"{self.name}: no 0x{expect:02X} reply to command 0x{frame[4]:02X} from "
                              f"{self.address!r} within {wait:g} s; check the cable, power and baud rate")
-
-    def _mode_hint(self) -> int:
-        return getattr(self, "_mode", c.Mode.MONITOR_REQUEST)
 
     def _mode_ok(self, frame: bytes, what: str, timeout: float | None = None) -> None:
         result = k.parse_mode_reply(self._request(frame, c.Reply.MODE, timeout))
@@ -175,7 +172,6 @@ class LMS2xxLaser(StreamLaser):
         _, config = k.parse_config_reply(self._request(k.req_config(), c.Reply.CONFIG))
         if (config.measuring_mode, config.units) != (self.measuring_mode, self.units):
             self._mode_ok(k.req_installation(password), "installation mode", c.MODE_CHANGE_WITHIN)
-            self._mode = c.Mode.INSTALLATION
             wanted = config.with_(measuring_mode=self.measuring_mode, units=self.units)
             reply = self._request(k.req_configure(wanted), c.Reply.CONFIGURED, c.CONFIG_WITHIN + 1)
             ok, now = k.parse_config_reply(reply)
@@ -183,7 +179,6 @@ class LMS2xxLaser(StreamLaser):
                 raise ProtocolError(f"{self.name}: the LMS at {self.address!r} refused measuring mode "
                                     f"0x{self.measuring_mode:02X} in {self.units.name.lower()}")
         self._mode_ok(k.req_continuous(), "continuous output (mode 0x24)", c.MODE_CHANGE_WITHIN)
-        self._mode = c.Mode.CONTINUOUS_ALL
 
     # -- StreamLaser hooks ----------------------------------------------------------------------------------
     def _on_data(self, data: bytes, now: float) -> None:
