@@ -13,8 +13,9 @@ import serial
 
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
 from robotexp.robot import Pose
-from robotexp.sim import SimRobot, mounted_source
+from robotexp.sim import mounted_source
 from robotexp.world.builtin import builtin_world
+from robotexp_drivers.kobuki.emulator import KobukiEmulator
 from robotexp_drivers.lasers.lms2xx import LMS2xxLaser
 from robotexp_drivers.lasers.lms2xx import codec as k
 from robotexp_drivers.lasers.lms2xx import constants as c
@@ -203,20 +204,17 @@ def test_emulator_protocol_answers_on_a_raw_serial_port() -> None:
         assert (reset.command, power_on.command, power_on.data) == (0x91, 0x90, c.POWER_ON_TEXT)
 
 
-def test_emulator_on_a_simulated_robot() -> None:
-    """The emulator measures with `mounted_source` on a simulator's true pose (how a robot emulator
-    attaches it): the driver's scan equals the simulator's own ray cast within 0.5 mm."""
-    world = builtin_world("ufmg-static")
-    sim = SimRobot(world, robot="p3dx", sonar=False)
+def test_emulator_on_a_robot_emulators_simulator() -> None:
+    """The emulator measures with `mounted_source(sim, mount, lock)` on a Kobuki emulator's simulator and lock
+    (how a robot emulator attaches it): the driver's scan equals the simulator's own ray cast within 0.5 mm."""
     mount = Pose(0.1, 0.0, 0.0)
-    mounted_source(sim, mount)(np.zeros(1), 8.0)      # compile the ray caster before the 1 s scan timeout runs
-    try:
-        with LMS2xxEmulator(mounted_source(sim, mount), pty=True).start() as em, LMS2xxLaser(em.address) as laser:
+    with KobukiEmulator(builtin_world("ufmg-static"), port=0) as robot:
+        source = mounted_source(robot.sim, mount, robot.lock)
+        source(np.zeros(1), 8.0)            # compile the ray caster before the driver's 1 s scan timeout runs
+        with LMS2xxEmulator(source, pty=True).start() as em, LMS2xxLaser(em.address) as laser:
             s = laser.wait_scan(-1, 2.0)
-            truth = mounted_source(sim, mount)(laser.geometry.angles(), laser.geometry.range_max)
+            truth = source(laser.geometry.angles(), laser.geometry.range_max)
             finite = np.isfinite(truth)
             assert finite.sum() > 50
             assert np.array_equal(np.isfinite(s.scan.ranges), finite)
             assert np.max(np.abs(s.scan.ranges[finite] - truth[finite])) <= 0.0005 + 1e-9
-    finally:
-        sim.close()
