@@ -218,3 +218,18 @@ def test_emulator_on_a_robot_emulators_simulator() -> None:
             assert finite.sum() > 50
             assert np.array_equal(np.isfinite(s.scan.ranges), finite)
             assert np.max(np.abs(s.scan.ranges[finite] - truth[finite])) <= 0.0005 + 1e-9
+
+
+def test_scan_rate_follows_the_line_rate_on_a_pty() -> None:
+    """At 38400 baud a 181-value scan (372 bytes) takes 96.9 ms on the line: scans come no faster; at
+    500 k the 75 Hz mirror limits (13.3 ms)."""
+    with LMS2xxEmulator(room, pty=True).start() as em:
+        for baud, period in ((38400, 0.096875), (500000, 1 / 75)):
+            with LMS2xxLaser(em.address, baud=baud) as laser:
+                first = laser.wait_scan(-1, 2.0)
+                s = first
+                for _ in range(8):
+                    s = laser.wait_scan(s.seq, 2.0)
+                mean = (s.stamp - first.stamp) / (s.seq - first.seq)
+                assert laser.geometry.period == pytest.approx(period)
+                assert 0.9 * period <= mean <= 2.5 * period
