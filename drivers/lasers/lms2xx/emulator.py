@@ -84,6 +84,7 @@ class LMS2xxEmulator(LaserEmulatorBase):
         self.last_data: dict[int, bytes] = {}  # the data of the latest request of each command code
         self.scans_sent = 0
         self.naks_sent = 0
+        self._nak_next = 0
         self._serial = pty
         self._power_on()
         try:
@@ -95,6 +96,11 @@ class LMS2xxEmulator(LaserEmulatorBase):
         except BaseException:
             self._release()
             raise
+
+    # -- fault injection ----------------------------------------------------------------------------------
+    def nak_requests(self, n: int) -> None:
+        """Answer the next `n` good requests with NAK only (as if their CRC had been garbled on the line)."""
+        self._nak_next += n
 
     # -- state -------------------------------------------------------------------------------------------
     def _power_on(self) -> None:
@@ -164,6 +170,11 @@ class LMS2xxEmulator(LaserEmulatorBase):
         after: list[int] = []
         for t in telegrams:
             if t.address not in (c.ADDR_BROADCAST, self.lms_address):
+                continue
+            if self._nak_next > 0:
+                self._nak_next -= 1
+                self.naks_sent += 1
+                out.append(c.NAK)
                 continue
             self.requests.append(t.command)
             self.last_data[t.command] = t.data

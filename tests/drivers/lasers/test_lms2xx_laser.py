@@ -233,3 +233,11 @@ def test_scan_rate_follows_the_line_rate_on_a_pty() -> None:
                 mean = (s.stamp - first.stamp) / (s.seq - first.seq)
                 assert laser.geometry.period == pytest.approx(period)
                 assert 0.9 * period <= mean <= 2.5 * period
+
+
+def test_driver_resends_after_a_nak(emulator: LMS2xxEmulator) -> None:
+    emulator.nak_requests(1)
+    with LMS2xxLaser(emulator.address) as laser:
+        laser.wait_scan(-1, 2.0)
+    assert emulator.naks_sent == 1
+    assert emulator.requests[:2] == [0x20, 0x31]          # the NAKed stop was sent again and answered
