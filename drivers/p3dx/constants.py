@@ -221,6 +221,10 @@ LASER_DEFAULT_READINGS = 181
 # §8.2 said UNCONFIRMED; Notes §7: AMRISim reports 32767 mm when nothing is in range (also the
 # 32.767 m range of MobileSim's sicklms200 model).
 LASER_NO_HIT_MM = 32767
+# MobileSim / AMRISim PioneerRobotModels.world.inc `sicklms200`: range_max 32.767 m, samples 181,
+# fov 180, noise 0.005 (uniform in +-5 mm).
+SIM_LMS200_RANGE_MM = 32767
+SIM_LMS200_NOISE_MM = 5
 LASER_FLAG_ROBOT_MOVED = 0x01       # 0x61 flags byte
 SONAR_NO_ECHO_MM = 5000             # Notes §7: AMRISim's sonar value with nothing in range
 
