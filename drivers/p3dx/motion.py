@@ -9,7 +9,7 @@ ARCOS (and MobileSim) drive translation and rotation independently, each in one 
 A later command of the other mode of the same axis cancels the first (VEL cancels a MOVE, RVEL a
 HEAD); STOP is VEL 0 and RVEL 0. The position controllers drive a trapezoidal profile: at most the
 maximum speed set with SETV (SETRV for rotation), and never faster than the speed from which the
-deceleration stops the robot on the goal (sqrt(2 decel remaining)), nor faster than reaching it
+deceleration stops the robot on the goal (`stopping_speed`, about sqrt(2 decel remaining)), nor faster than reaching it
 within one control cycle. Every speed change is ramped with the acceleration (speeding up) or the
 deceleration (slowing down) set with SETA / SETRA (positive argument: acceleration, negative:
 deceleration); SETV and SETRV (and SETRVDIR per direction) also cap VEL and RVEL.
@@ -28,7 +28,7 @@ from enum import Enum
 
 from robotexp.errors import ConfigError
 
-__all__ = ["ArcosMotion", "TransMode", "RotMode", "approach"]
+__all__ = ["ArcosMotion", "TransMode", "RotMode", "approach", "stopping_speed"]
 
 MOVE_DONE_MM = 0.5            # a MOVE is done within this distance of its goal
 HEAD_DONE_DEG = 0.5           # a HEAD is held (no turning) within this angle of its goal
@@ -65,6 +65,22 @@ def approach(current: float, target: float, accel: float, decel: float, dt: floa
     if abs(target - current) <= step:
         return target
     return current + math.copysign(step, target - current)
+
+
+def stopping_speed(left: float, decel: float, dt: float) -> float:
+    """The highest speed from which steps of `dt`, each `decel * dt` slower, stop within `left`.
+
+    Held over a step and lowered by a dt at each (a control loop's steps), speed v covers
+    a dt^2 n (n + 1) / 2 with v = n a dt; so v (v + a dt) = 2 a left, and one step later the speed
+    is exactly a dt less (the continuous-time sqrt(2 a left) overshoots by about v dt / 2).
+
+    Args:
+        left: distance to go (>= 0, any unit u).
+        decel: [u/s^2] deceleration, > 0.
+        dt: [s] step.
+    """
+    ad = decel * dt
+    return (math.sqrt(ad * ad + 8.0 * decel * left) - ad) / 2.0
 
 
 def _wrap_deg(a: float) -> float:
@@ -178,13 +194,13 @@ class ArcosMotion:
             v = max(-self.trans_vel_max, min(self.trans_vel_max, self.vel))
         else:
             left = self.move_left
-            v = math.copysign(min(self.trans_vel_max, math.sqrt(2.0 * self.trans_decel * abs(left)), abs(left) / dt),
-                              left) if abs(left) > MOVE_DONE_MM else 0.0
+            v = math.copysign(min(self.trans_vel_max, stopping_speed(abs(left), self.trans_decel, dt),
+                                  abs(left) / dt), left) if abs(left) > MOVE_DONE_MM else 0.0
         if self.rot_mode is RotMode.VEL:
             w = self.rot_vel
         else:
             err = _wrap_deg(self.heading_goal - heading_now)
-            w = math.copysign(min(self.rot_vel_max, math.sqrt(2.0 * self.rot_decel * abs(err)), abs(err) / dt),
+            w = math.copysign(min(self.rot_vel_max, stopping_speed(abs(err), self.rot_decel, dt), abs(err) / dt),
                               err) if abs(err) > HEAD_DONE_DEG else 0.0
         w = max(-self.rot_vel_max_neg, min(self.rot_vel_max_pos, w))
         return v, w
