@@ -53,12 +53,12 @@ __all__ = ["P3DXEmulator", "reading_beams"]
 log = logging.getLogger(__name__)
 
 # commands after which a lockstep emulator may send the next SIP at once
-_VELOCITY_COMMANDS = frozenset({c.Cmd.VEL, c.Cmd.RVEL, c.Cmd.ROTATE, c.Cmd.VEL2, c.Cmd.STOP, c.Cmd.ESTOP,
-                                c.Cmd.QSTOP})
+_VELOCITY_COMMANDS = frozenset({c.CMD_VEL, c.CMD_RVEL, c.CMD_ROTATE, c.CMD_VEL2, c.CMD_STOP, c.CMD_ESTOP,
+                                c.CMD_QSTOP})
 # laser field-of-view commands -> which of (start, end, increment) they set
-_LRF_FOV: dict[int, int] = {c.Cmd.OLD_SIM_LRF_SET_FOV_START: 0, c.Cmd.SIM_LRF_SET_FOV_START: 0,
-                            c.Cmd.OLD_SIM_LRF_SET_FOV_END: 1, c.Cmd.SIM_LRF_SET_FOV_END: 1,
-                            c.Cmd.OLD_SIM_LRF_SET_RES: 2, c.Cmd.SIM_LRF_SET_RES: 2}
+_LRF_FOV: dict[int, int] = {c.CMD_OLD_SIM_LRF_SET_FOV_START: 0, c.CMD_SIM_LRF_SET_FOV_START: 0,
+                            c.CMD_OLD_SIM_LRF_SET_FOV_END: 1, c.CMD_SIM_LRF_SET_FOV_END: 1,
+                            c.CMD_OLD_SIM_LRF_SET_RES: 2, c.CMD_SIM_LRF_SET_RES: 2}
 
 
 class _Closed(Exception):
@@ -346,7 +346,7 @@ class P3DXEmulator(EmulatorBase):
         """Act on one command; True when the session ends (CLOSE)."""
         n = cmd.cmd
         self.commands.append(cmd)
-        if not (n == c.Cmd.PULSE and self._open):
+        if not (n == c.CMD_PULSE and self._open):
             self.last_command = cmd
         self._last_cmd_time = self.sim.time
         if not self._open and n in (0, 1, 2) and not (n == 1 and self._stage == 3):
@@ -355,12 +355,12 @@ class P3DXEmulator(EmulatorBase):
             self._send(conn, k.encode_packet(reply))
             self._stage = n + 1
             return False
-        if n == c.Cmd.OPEN and not self._open:
+        if n == c.CMD_OPEN and not self._open:
             self._open = True
             self.sessions += 1
             log.info("p3dx emulator: session %d opened", self.sessions)
             return False
-        if n == c.Cmd.CLOSE:
+        if n == c.CMD_CLOSE:
             self.motion.stop()
             self.commanded = (0, 0)
             return True
@@ -372,40 +372,40 @@ class P3DXEmulator(EmulatorBase):
         ival = cmd.arg if isinstance(cmd.arg, int) else 0
         handler(ival, cmd.arg, conn)
         if n in _VELOCITY_COMMANDS:
-            self._stepped = self.lockstep and n != c.Cmd.VEL    # our driver sends VEL, then RVEL
+            self._stepped = self.lockstep and n != c.CMD_VEL    # our driver sends VEL, then RVEL
         return False
 
     def _dispatch_table(self) -> dict[int, Callable[[int, object, _TcpConn | _PtyConn], None]]:
         """Command number -> handler(int argument, raw argument, connection) (§4, §4.1, §8.1)."""
         m = self.motion
         table: dict[int, Callable[[int, object, _TcpConn | _PtyConn], None]] = {
-            c.Cmd.PULSE: lambda i, a, conn: None,
-            c.Cmd.OPEN: lambda i, a, conn: None,
-            c.Cmd.VEL: self._drive(m.set_vel),
-            c.Cmd.RVEL: self._drive(m.set_rot_vel),
-            c.Cmd.ROTATE: self._drive(m.set_rot_vel),
-            c.Cmd.VEL2: self._drive(self._vel2),
-            c.Cmd.MOVE: self._drive(m.move),
-            c.Cmd.HEAD: self._drive(m.head),
-            c.Cmd.DHEAD: self._drive(lambda deg: m.delta_head(deg, self._heading_deg())),
-            c.Cmd.DCHEAD: self._drive(lambda deg: m.delta_setpoint(deg, self._heading_deg())),
-            c.Cmd.STOP: self._drive(lambda _: m.stop()),
-            c.Cmd.ESTOP: self._estop,
-            c.Cmd.QSTOP: self._estop,
-            c.Cmd.SETV: lambda i, a, conn: m.set_trans_max(i),
-            c.Cmd.SETRV: lambda i, a, conn: m.set_rot_max(i),
-            c.Cmd.SETRVDIR: lambda i, a, conn: m.set_rot_max_dir(i),
-            c.Cmd.SETA: lambda i, a, conn: m.set_trans_accel(i),
-            c.Cmd.SETRA: lambda i, a, conn: m.set_rot_accel(i),
-            c.Cmd.ENABLE: self._enable,
-            c.Cmd.SONAR: lambda i, a, conn: setattr(self, "_sonar_on", bool(i)),
-            c.Cmd.CONFIG: lambda i, a, conn: self._send(conn, k.encode_packet(self.config)),
-            c.Cmd.OLD_SIM_LRF_ENABLE: self._laser_enable,
-            c.Cmd.SIM_LRF_ENABLE: self._laser_enable,
-            c.Cmd.SIM_SET_POSE: self._sim_set_pose,
-            c.Cmd.SIM_RESET: lambda i, a, conn: self._move(self.start_pose, reset_odom=True),
-            c.Cmd.SETO: self._set_odometry,
-            c.Cmd.SIM_STAT: self._sim_stat,
+            c.CMD_PULSE: lambda i, a, conn: None,
+            c.CMD_OPEN: lambda i, a, conn: None,
+            c.CMD_VEL: self._drive(m.set_vel),
+            c.CMD_RVEL: self._drive(m.set_rot_vel),
+            c.CMD_ROTATE: self._drive(m.set_rot_vel),
+            c.CMD_VEL2: self._drive(self._vel2),
+            c.CMD_MOVE: self._drive(m.move),
+            c.CMD_HEAD: self._drive(m.head),
+            c.CMD_DHEAD: self._drive(lambda deg: m.delta_head(deg, self._heading_deg())),
+            c.CMD_DCHEAD: self._drive(lambda deg: m.delta_setpoint(deg, self._heading_deg())),
+            c.CMD_STOP: self._drive(lambda _: m.stop()),
+            c.CMD_ESTOP: self._estop,
+            c.CMD_QSTOP: self._estop,
+            c.CMD_SETV: lambda i, a, conn: m.set_trans_max(i),
+            c.CMD_SETRV: lambda i, a, conn: m.set_rot_max(i),
+            c.CMD_SETRVDIR: lambda i, a, conn: m.set_rot_max_dir(i),
+            c.CMD_SETA: lambda i, a, conn: m.set_trans_accel(i),
+            c.CMD_SETRA: lambda i, a, conn: m.set_rot_accel(i),
+            c.CMD_ENABLE: self._enable,
+            c.CMD_SONAR: lambda i, a, conn: setattr(self, "_sonar_on", bool(i)),
+            c.CMD_CONFIG: lambda i, a, conn: self._send(conn, k.encode_packet(self.config)),
+            c.CMD_OLD_SIM_LRF_ENABLE: self._laser_enable,
+            c.CMD_SIM_LRF_ENABLE: self._laser_enable,
+            c.CMD_SIM_SET_POSE: self._sim_set_pose,
+            c.CMD_SIM_RESET: lambda i, a, conn: self._move(self.start_pose, reset_odom=True),
+            c.CMD_SETO: self._set_odometry,
+            c.CMD_SIM_STAT: self._sim_stat,
         }
         for number, which in _LRF_FOV.items():
             table[number] = lambda i, a, conn, which=which: self._set_fov(which, i)
@@ -530,7 +530,7 @@ class P3DXEmulator(EmulatorBase):
             thpos=k.heading_to_raw(math.degrees(o.theta)), left_vel=_i16(v_mm - diff), right_vel=_i16(v_mm + diff),
             battery_dv=c.SIM_BATTERY_DV, stall_bumpers=(c.STALL_LEFT | c.STALL_RIGHT) if stalled else 0,
             flags=flags, sonar=sonar, grip_state=0, analog_port=0, analog=0, digin=c.SIM_DIGIN, digout=c.SIM_DIGOUT,
-            battery_x10=c.SIM_BATTERY_DV, charge_state=c.ChargeState.NOT_CHARGING, rot_vel_x10=_i16(w_dps * 10),
+            battery_x10=c.SIM_BATTERY_DV, charge_state=c.CHARGE_STATE_NOT_CHARGING, rot_vel_x10=_i16(w_dps * 10),
             fault_flags=0, lat_vel=0, temperature=c.TEMPERATURE_NONE, state_of_charge=0)
 
     def _simstat_packet(self) -> k.SimStat:

@@ -45,7 +45,7 @@ def test_byte_vectors_are_what_the_codec_frames() -> None:
     assert k.cmd_seta(500) == SETA_500 and k.cmd_seta(-200) == SETA_M200
     assert k.cmd_setv(200) == SETV_200 and k.cmd_setra(50) == SETRA_50 and k.cmd_setrv(30) == SETRV_30
     cmds = k.CommandDecoder().feed(MOVE_M300 + SETA_M200 + HEAD_M45)
-    assert [(x.cmd, x.arg) for x in cmds] == [(c.Cmd.MOVE, -300), (c.Cmd.SETA, -200), (c.Cmd.HEAD, -45)]
+    assert [(x.cmd, x.arg) for x in cmds] == [(c.CMD_MOVE, -300), (c.CMD_SETA, -200), (c.CMD_HEAD, -45)]
 
 
 def _run(m: ArcosMotion, seconds: float, head: float = 0.0,
