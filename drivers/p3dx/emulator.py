@@ -61,6 +61,10 @@ _LRF_FOV: dict[int, int] = {c.CMD_OLD_SIM_LRF_SET_FOV_START: 0, c.CMD_SIM_LRF_SE
                             c.CMD_OLD_SIM_LRF_SET_RES: 2, c.CMD_SIM_LRF_SET_RES: 2}
 
 
+EMULATED_NAME = "robotexp"      # SYNC2 / CONFIG name when not posing as a simulator
+EMULATED_SERIAL = "EMU"         # CONFIG serial number then (ARIA takes "SIM" for a simulator)
+
+
 class _Closed(Exception):
     """The client connection ended (EOF or error)."""
 
@@ -152,6 +156,9 @@ class P3DXEmulator(EmulatorBase):
             finer increment than the laser's repeats beams.
         robot: simulator preset name.
         robot_type, robot_subtype: what SYNC2 and CONFIG report.
+        simulator: identify as MobileSim (SYNC2 and CONFIG name "MobileSim", serial "SIM": ARIA then
+            uses its simulated laser, packets 0x60/0x61); False: as a real robot (name
+            `EMULATED_NAME`, serial `EMULATED_SERIAL`), so ARIA opens its own laser driver (-laserPort).
         watchdog: [s of robot time] stop the robot when no command came for this long (None:
             never, as MobileSim, which only warns).
         lockstep: send the next SIP as soon as a velocity command answers the last one (at the
@@ -170,7 +177,7 @@ class P3DXEmulator(EmulatorBase):
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
-                 robot_subtype: str = c.DEFAULT_SUBCLASS, watchdog: float | None = None,
+                 robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,
                  lockstep: bool = False) -> None:
         from robotexp.experiment import resolve_pose
         from robotexp.sim import SimRobot, preset
@@ -215,6 +222,8 @@ class P3DXEmulator(EmulatorBase):
                                   trans_accel=round(lim.a_max * 1000), trans_decel=round(lim.a_max * 1000),
                                   rot_accel=round(math.degrees(lim.alpha_max)),
                                   rot_decel=round(math.degrees(lim.alpha_max)))
+            if not simulator:
+                self.config = replace(self.config, name=EMULATED_NAME, serial_number=EMULATED_SERIAL)
             # the emulator ramps the speeds itself (SETA / SETRA, `ArcosMotion`): the simulator follows
             self.sim.limits = replace(lim, a_max=math.inf, alpha_max=math.inf)
             # cast once before serving: the first client must not wait for the first casts' set-up
@@ -351,7 +360,7 @@ class P3DXEmulator(EmulatorBase):
         self._last_cmd_time = self.sim.time
         if not self._open and n in (0, 1, 2) and not (n == 1 and self._stage == 3):
             # §3: answer SYNCn; an out-of-order number continues from there (as MobileSim)
-            reply = k.SyncReply(2, c.SIM_NAME, self.robot_type, self.robot_subtype) if n == 2 else k.SyncReply(n)
+            reply = k.SyncReply(2, self.config.name, self.robot_type, self.robot_subtype) if n == 2 else k.SyncReply(n)
             self._send(conn, k.encode_packet(reply))
             self._stage = n + 1
             return False

@@ -229,3 +229,24 @@ def test_first_session_is_as_quick_as_the_next() -> None:
             sock.close()
             time.sleep(0.1)
     assert waits[0] < 0.35 and waits[1] < 0.35, waits
+
+
+def test_identifies_as_a_real_robot_when_asked() -> None:
+    # ARIA uses its simulated laser when SYNC2 says "MobileSim" or CONFIG's serial is "SIM"; a laser
+    # emulator on its own port needs the robot to look real
+    with P3DXEmulator(_room(), pose=Pose(0.0, 0.0, 0.0), port=0, speedup=SPEEDUP, laser=LaserConfig(),
+                      simulator=False) as emu:
+        host, port = emu.address.split(":")
+        with socket.create_connection((host, int(port))) as sock:
+            dec = k.PacketDecoder(max_count=255)
+            got: list[k.Packet] = []
+            for seq in ("FAFB03000000", "FAFB03010001", "FAFB03020002"):
+                sock.sendall(bytes.fromhex(seq))
+                got += dec.feed(sock.recv(256))
+            sock.sendall(OPEN_CONFIG)
+            while not any(isinstance(p, k.ConfigPacket) for p in got):
+                got += dec.feed(sock.recv(65536))
+            sock.sendall(k.cmd_close())
+    sync2 = next(p for p in got if isinstance(p, k.SyncReply) and p.seq == 2)
+    cfg = next(p for p in got if isinstance(p, k.ConfigPacket))
+    assert sync2.name != "MobileSim" and cfg.serial_number not in ("SIM", "") and cfg.name == sync2.name
