@@ -46,6 +46,7 @@ commands are dispatched through tables (`_message_handlers`, `_command_handlers`
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import socket
@@ -164,6 +165,7 @@ class MavlinkEmulator(StreamEmulator):
         self.last_command: Message | None = None
         self.acks: list[Message] = []
         self.commands_received = 0
+        self.received: collections.Counter[str] = collections.Counter()   # messages by type
         self.gcs_heartbeats = 0
         self.ignored_targets = 0
         self.packets_sent = 0
@@ -255,6 +257,7 @@ class MavlinkEmulator(StreamEmulator):
 
     def _handle(self, m: Message) -> None:
         kind = m.get_type()
+        self.received[kind] += 1
         if kind == "HEARTBEAT":
             self.gcs_heartbeats += 1
             return

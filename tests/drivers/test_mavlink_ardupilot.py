@@ -223,9 +223,9 @@ def _heading_deg(rover: MavlinkEmulator) -> float:
 
 @pytest.mark.parametrize("mask", [C.MASK_VELOCITY_MAVPROXY, C.MASK_VELOCITY])
 def test_velocity_only_targets_turn_to_face_the_vector(world: World, wait_for: WaitFor, mask: int) -> None:
-    # facing east (NED yaw 90 deg), asked to go north at 0.4 m/s (MAVProxy `velocity 0.4 0 0`: LOCAL_NED,
-    # mask 4039): the rover used to drive sideways; it pivots north (error 90 > WP_PIVOT_ANGLE 60),
-    # then drives north
+    # facing east (NED yaw 90 deg), asked to go north at 0.4 m/s (LOCAL_NED, masks 4039 as MAVProxy's
+    # `velocity` and 3559 as the Rover wiki's): the rover used to drive sideways; it pivots north
+    # (error 90 > WP_PIVOT_ANGLE 60), then drives north
     p1 = resolve_pose(world, "path1", 0.25)[0]
     start = Pose(p1.x, p1.y, 0.0)
     with MavlinkEmulator(world, pose=start, speedup=10.0, origin=C.DEFAULT_ORIGIN) as rover:
