@@ -13,7 +13,7 @@ to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time
 Motion is ARCOS's (`ArcosMotion`): VEL / RVEL / VEL2 velocities, MOVE (distance) and HEAD / DHEAD /
 DCHEAD (heading) position control, each ramped by the SETA / SETRA accelerations and capped by
 SETV / SETRV / SETRVDIR; the session starts with the limits CONFIG reports. Sonar is cast from
-p3dx.p's transducer poses (the preset's), the laser is MobileSim's LMS200 model. Commands are
+p3dx.p's transducer poses (`P3DX_SONAR_ARIA`), the laser is MobileSim's LMS200 model. Commands are
 dispatched through a table (`_dispatch_table`).
 
 For fault tests it records the commands it received (`last_command`, `commanded`) and can
@@ -39,7 +39,7 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, wrap_angle
-from robotexp.sim.presets import LaserConfig
+from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase
 
@@ -189,6 +189,8 @@ class P3DXEmulator(EmulatorBase):
             raise ConfigError(f"p3dx emulator: watchdog must be > 0 s or None, got {watchdog}")
         self.world = load_world(world) if isinstance(world, str) else world
         robot_preset = preset(robot)
+        if robot_preset.sonar == P3DX_SONAR:       # cast from the transducers where ARIA (p3dx.p) puts them
+            robot_preset = replace(robot_preset, sonar=P3DX_SONAR_ARIA)
         if isinstance(pose, Pose):
             self.start_pose = pose
         else:

@@ -288,11 +288,15 @@ class SimRobot(Robot):
         p = self._true
         ring = cfg.angles()
         k = self._sonar_dirs.shape[1]
-        c, s = math.cos(p.theta), math.sin(p.theta)
-        at = self._sonar_positions
         origins = np.empty((len(ring) * k, 2))
-        origins[:, 0] = np.repeat(p.x + c * at[:, 0] - s * at[:, 1], k)
-        origins[:, 1] = np.repeat(p.y + s * at[:, 0] + c * at[:, 1], k)
+        if cfg.offsets:                 # transducers where the robot's parameter file puts them
+            c, s = math.cos(p.theta), math.sin(p.theta)
+            at = self._sonar_positions
+            origins[:, 0] = np.repeat(p.x + c * at[:, 0] - s * at[:, 1], k)
+            origins[:, 1] = np.repeat(p.y + s * at[:, 0] + c * at[:, 1], k)
+        else:
+            origins[:, 0] = np.repeat(p.x + cfg.ring_radius * np.cos(p.theta + ring), k)
+            origins[:, 1] = np.repeat(p.y + cfg.ring_radius * np.sin(p.theta + ring), k)
         headings = (p.theta + self._sonar_dirs).ravel()
         fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
         fraction = fraction.reshape(len(ring), k).min(axis=1)

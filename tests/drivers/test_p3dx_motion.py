@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from robotexp.robot import Pose
-from robotexp.sim import LaserConfig, preset
+from robotexp.sim import LaserConfig
+from robotexp.sim.presets import P3DX_SONAR_ARIA
 from robotexp.world.model import World, segment_box
 from robotexp_drivers.p3dx import codec as k
 from robotexp_drivers.p3dx import constants as c
@@ -186,10 +187,9 @@ def test_sonar_from_p3dx_p_poses_reads_a_known_wall() -> None:
     # reads 2000 - 136 = 1864 mm (its nearest ray 0.5 deg off axis: /cos(0.5 deg), still 1864); the
     # old 0.2 m ring read 1800 (64 mm short). Sonar 3 at (166, 27) facing 10 deg: (2000 - 166) /
     # cos(2.5 deg) = 1835.7 mm.
-    assert preset("p3dx").sonar is not None
-    assert tuple((round(x * 1000), round(y * 1000)) for x, y in preset("p3dx").sonar.origins().tolist()) == tuple(
+    assert tuple((round(x * 1000), round(y * 1000)) for x, y in P3DX_SONAR_ARIA.origins().tolist()) == tuple(
         p[:2] for p in c.SONAR_POSES)
-    assert preset("p3dx").sonar.angles_deg == tuple(p[2] for p in c.SONAR_POSES)
+    assert P3DX_SONAR_ARIA.angles_deg == tuple(p[2] for p in c.SONAR_POSES)
     with P3DXEmulator(_room(), pose=Pose(0.0, 0.0, 0.0), port=0, speedup=SPEEDUP, laser=LaserConfig()) as emu:
         sock = _session(emu)
         sip = _sips(sock, k.PacketDecoder(max_count=255), lambda s: len(s.sonar) == 16)

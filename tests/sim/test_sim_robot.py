@@ -293,10 +293,11 @@ def test_sonar_ring_sees_the_wall() -> None:
         sonar = robot.read().sonar
         assert sonar is not None and sonar.ranges.shape == (16,) and sonar.angles.shape == (16,)
         assert sonar.range_max == cfg.range_max
-        # each transducer at (x0, y0) (p3dx.p's SonarUnit) facing a casts rays at a - 7.5, a, a + 7.5 deg;
-        # it reads the nearest: (2 - x0) / cos(ray) for the rays that reach x = 2 in range
+        # each transducer at a on a ring of radius rr casts rays at a - 7.5, a, a + 7.5 deg;
+        # it reads the nearest: (2 - rr cos a) / cos(ray) for the rays that reach x = 2 in range
         expected = []
-        for a, (x0, _) in zip(cfg.angles_deg, cfg.origins().tolist(), strict=True):
+        for a in cfg.angles_deg:
+            x0 = cfg.ring_radius * math.cos(math.radians(a))
             best = math.inf
             for ray in (a - cfg.cone_deg / 2, a, a + cfg.cone_deg / 2):
                 c = math.cos(math.radians(ray))
@@ -305,8 +306,8 @@ def test_sonar_ring_sees_the_wall() -> None:
             expected.append(best)
         np.testing.assert_allclose(sonar.ranges, expected, atol=1e-6)
         front = cfg.angles_deg.index(10)
-        # sonar 3 sits at x = 166 mm (p3dx.p), its nearest ray 2.5 deg off its axis
-        assert sonar.ranges[front] == pytest.approx((WALL_X - 0.166) / math.cos(math.radians(2.5)), abs=1e-6)
+        assert sonar.ranges[front] == pytest.approx((WALL_X - cfg.ring_radius * math.cos(math.radians(10)))
+                                                    / math.cos(math.radians(2.5)), abs=1e-6)
         assert sum(np.isfinite(sonar.ranges)) == 6       # +-10, +-30, +-50 deg
         assert robot.capabilities >= {"sonar", "move_to", "ground_truth"}
 
