@@ -25,11 +25,12 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["kernel", "splat_field", "pool_max", "search", "refine", "bilinear"]
+__all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "search", "refine", "bilinear"]
 
 kernel = numba.njit(cache=True, nogil=True)
 
-DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace
+DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace (the least Levenberg-Marquardt damping)
+RETRIES = 4        # tries of a step with ten times more damping each before Gauss-Newton stops
 
 
 @kernel
@@ -168,19 +169,25 @@ def bilinear(field: npt.NDArray[np.float64], gx: float, gy: float) -> tuple[floa
 def refine(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
            px: npt.NDArray[np.float64], py: npt.NDArray[np.float64],
            x: float, y: float, th: float, iterations: int,
+           cx: float, cy: float, cth: float, wxy: float, wth: float,
            ) -> tuple[float, float, float, float, npt.NDArray[np.float64]]:
-    """Gauss-Newton on sum_i (1 - M(S_i))^2 from (x, y, th), at most `iterations` steps.
+    """Gauss-Newton on sum_i (1 - M(S_i))^2 + wxy ((x - cx)^2 + (y - cy)^2) + wth (th - cth)^2 from
+    (x, y, th), at most `iterations` steps: the scan's fit plus a motion prior around the prediction
+    (cx, cy, cth), which holds the directions the scan does not fix (along a corridor) near it.
 
-    Each step solves (H + DAMPING trace(H) I) step = J^T r. A step that does not lower the cost is not
-    taken and ends the iterations; so does a step below 1e-5 m and 1e-5 rad, or a zero normal matrix.
+    Levenberg-Marquardt: each step solves (H + lam trace(H) I) step = J^T r, lam starting at DAMPING; a
+    step that does not lower the cost is retried with lam ten times larger (RETRIES tries in all, then
+    the iterations end), an accepted one divides lam by ten (not below DAMPING). A step below 1e-5 m
+    and 1e-5 rad, or a zero normal matrix, ends them too.
 
     Returns:
         (x, y, th, mean, H): the refined pose, the mean field value under the points there, and the
-        3x3 normal matrix J^T J [x, y in m, theta in rad] at the last pose.
+        3x3 normal matrix J^T J of the scan alone [x, y in m, theta in rad] at the last pose.
     """
     n = px.shape[0]
     h = np.zeros((3, 3), np.float64)
-    cost = _cost(field, ox, oy, cell, px, py, x, y, th)
+    cost = _cost(field, ox, oy, cell, px, py, x, y, th) + _prior(x, y, th, cx, cy, cth, wxy, wth)
+    lam = DAMPING
     for _ in range(iterations):
         h[:, :] = 0.0
         g0 = 0.0
@@ -207,24 +214,55 @@ def refine(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
         h[1, 0] = h[0, 1]
         h[2, 0] = h[0, 2]
         h[2, 1] = h[1, 2]
-        # a little Levenberg-Marquardt damping keeps a corridor's flat direction from blowing the step up
-        damp = DAMPING * (h[0, 0] + h[1, 1] + h[2, 2])
-        hd = h.copy()
-        for d in range(3):
-            hd[d, d] += damp
-        det = _det3(hd)
-        if not abs(det) > 1e-300 or damp == 0.0:
+        g0 -= wxy * (x - cx)
+        g1 -= wxy * (y - cy)
+        g2 -= wth * (th - cth)
+        # Levenberg-Marquardt: a little damping keeps a corridor's flat direction from blowing the step
+        # up; a step that raises the cost is retried with ten times the damping, up to RETRIES times
+        trace = h[0, 0] + h[1, 1] + h[2, 2] + 2.0 * wxy + wth
+        if trace == 0.0:
             break
-        s0, s1, s2 = _solve3(hd, det, g0, g1, g2)
-        nx, ny, nt = x + s0, y + s1, th + s2
-        new_cost = _cost(field, ox, oy, cell, px, py, nx, ny, nt)
-        if not new_cost < cost:
+        hp = h.copy()
+        hp[0, 0] += wxy
+        hp[1, 1] += wxy
+        hp[2, 2] += wth
+        hd = hp.copy()
+        accepted = False
+        s0 = s1 = s2 = 0.0
+        for _retry in range(RETRIES):
+            for d in range(3):
+                hd[d, d] = hp[d, d] + lam * trace
+            det = _det3(hd)
+            if not abs(det) > 1e-300:
+                break
+            s0, s1, s2 = _solve3(hd, det, g0, g1, g2)
+            new_cost = (_cost(field, ox, oy, cell, px, py, x + s0, y + s1, th + s2)
+                        + _prior(x + s0, y + s1, th + s2, cx, cy, cth, wxy, wth))
+            if new_cost < cost:
+                accepted = True
+                break
+            lam *= 10.0
+        if not accepted:
             break
-        x, y, th, cost = nx, ny, nt, new_cost
+        x, y, th, cost = x + s0, y + s1, th + s2, new_cost
+        lam = max(lam / 10.0, DAMPING)
         if abs(s0) < 1e-5 and abs(s1) < 1e-5 and abs(s2) < 1e-5:
             break
-    mean = _mean(field, ox, oy, cell, px, py, x, y, th)
+    mean = mean_field(field, ox, oy, cell, px, py, x, y, th)
     return x, y, th, mean, h
+
+
+@kernel
+def objective(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float, px: npt.NDArray[np.float64],
+              py: npt.NDArray[np.float64], x: float, y: float, th: float, cx: float, cy: float, cth: float,
+              wxy: float, wth: float) -> float:
+    """What `refine` minimises: sum_i (1 - M(S_i))^2 plus the motion prior."""
+    return _cost(field, ox, oy, cell, px, py, x, y, th) + _prior(x, y, th, cx, cy, cth, wxy, wth)
+
+
+@kernel
+def _prior(x: float, y: float, th: float, cx: float, cy: float, cth: float, wxy: float, wth: float) -> float:
+    return wxy * ((x - cx) * (x - cx) + (y - cy) * (y - cy)) + wth * (th - cth) * (th - cth)
 
 
 @kernel
@@ -257,8 +295,9 @@ def _cost(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
 
 
 @kernel
-def _mean(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+def mean_field(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
           px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+    """The mean bilinear field value under the points placed at (x, y, th)."""
     c, s = math.cos(th), math.sin(th)
     total = 0.0
     for i in range(px.shape[0]):

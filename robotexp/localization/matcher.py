@@ -25,6 +25,8 @@ from robotexp.robot import LaserScan, Pose, wrap_angle
 
 __all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
 
+FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
+
 Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
 
 
@@ -47,6 +49,10 @@ class MatcherConfig:
             below this: a corridor; the correction along the weak direction is dropped ("degenerate").
         prior: weight of the prediction in the correlative search: a pose at the edge of the x, y
             or heading window loses this much of the mean field value (0: no prior).
+        motion_sigma_xy: [m] the motion prior of the Gauss-Newton step: a pose this far from the
+            prediction costs as much as one scan point entirely off the map; it holds what the scan
+            does not fix (along a corridor) near the prediction.
+        motion_sigma_theta: [rad] the same for heading.
     """
 
     sigma: float = 0.05
@@ -59,8 +65,12 @@ class MatcherConfig:
     min_score: float = 0.2
     degenerate_ratio: float = 0.03
     prior: float = 0.1
+    motion_sigma_xy: float = 0.1
+    motion_sigma_theta: float = math.radians(3.0)
 
     def __post_init__(self) -> None:
+        if not (self.motion_sigma_xy > 0 and self.motion_sigma_theta > 0):
+            raise ConfigError(f"scan matcher: the motion prior's sigmas must be > 0, got {self}")
         if not (self.sigma > 0 and self.window_xy >= 0 and self.window_theta >= 0 and self.range_max > 0):
             raise ConfigError(f"scan matcher: sigma and range_max must be > 0 m and the windows >= 0, got {self}")
         if self.coarse < 1 or self.iterations < 0 or self.min_points < 1 or self.prior < 0:
@@ -71,12 +81,14 @@ class MatcherConfig:
 @dataclass(frozen=True)
 class Match:
     """The outcome of one match: the pose, the mean field value under the points there, how many points
-    were matched, and what happened (`status`)."""
+    were matched, what happened (`status`), and how well the scan fixes the position (`conditioning`:
+    near 0 in a corridor, near 1 in a room)."""
 
     pose: Pose
     score: float
     points: int
     status: Status
+    conditioning: float = 0.0      # smallest / largest eigenvalue of the fit's translation information
 
 
 def compose(a: Pose, b: Pose) -> Pose:
@@ -140,14 +152,14 @@ class ScanMatcher:
     def __init__(self, config: MatcherConfig | None = None) -> None:
         self.config = config or MatcherConfig()
 
-    def field(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, x: float, y: float, radius: float,
+    def field(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, box: tuple[float, float, float, float],
               hits: HitMap | None = None) -> tuple[npt.NDArray[np.float64], float, float] | None:
         """The likelihood field of `occupied` (bool, or numbers with > 0 occupied, e.g. log-odds) over
-        the cells within `radius` [m] of (x, y) (a square), as (field, origin_x, origin_y), centred on
-        the mean hit point of each occupied cell when `hits` knows it (else on its centre); None when
-        that square holds no occupied cell."""
-        r0, c0 = geo.cell_of(x - radius, y - radius)
-        r1, c1 = geo.cell_of(x + radius, y + radius)
+        the cells of `box` (xmin, ymin, xmax, ymax) [m], as (field, origin_x, origin_y), centred on the
+        mean hit point of each occupied cell when `hits` knows it (else on its centre); None when that
+        box holds no occupied cell."""
+        r0, c0 = geo.cell_of(box[0], box[1])
+        r1, c1 = geo.cell_of(box[2], box[3])
         r0, c0 = max(r0, 0), max(c0, 0)
         r1, c1 = min(r1 + 1, geo.rows), min(c1 + 1, geo.cols)
         if r0 >= r1 or c0 >= c1:
@@ -201,8 +213,13 @@ class ScanMatcher:
         if n < cfg.min_points:
             return Match(prediction, 0.0, n, "few-points")
         reach = float(np.sqrt(px * px + py * py).max())
-        made = self.field(occupied, geo, prediction.x, prediction.y, reach + cfg.window_xy + 4 * cfg.sigma + geo.cell,
-                          hits)
+        # the field covers the points at the prediction, moved anywhere in the search window
+        c, s_ = math.cos(prediction.theta), math.sin(prediction.theta)
+        wx, wy = prediction.x + c * px - s_ * py, prediction.y + s_ * px + c * py
+        pad = cfg.window_xy + reach * math.sin(min(cfg.window_theta, math.pi / 2)) + 4 * cfg.sigma + geo.cell
+        box = (min(float(wx.min()), prediction.x) - pad, min(float(wy.min()), prediction.y) - pad,
+               max(float(wx.max()), prediction.x) + pad, max(float(wy.max()), prediction.y) + pad)
+        made = self.field(occupied, geo, box, hits)
         if made is None:
             return Match(prediction, 0.0, n, "no-map")
         f, ox, oy = made
@@ -227,8 +244,19 @@ class ScanMatcher:
             x, y, th, _ = K.search(f, ox, oy, cell, px, py, x0, y0, th0, math.ceil(cfg.window_xy / cell), 1,
                                    math.ceil(cfg.window_theta / dth_f), dth_f, x0, y0, th0, kxy, kth)
         # the correlative search looks up whole cells; Gauss-Newton takes it to the interpolated optimum
-        x, y, th, score, h = K.refine(f, ox, oy, cell, np.ascontiguousarray(gx, np.float64),
-                                      np.ascontiguousarray(gy, np.float64), x, y, th, cfg.iterations)
+        # (from the search's pose and from the prediction: the search's whole cells can step off a pose
+        # that was right, where the field is flat; the better end by fit and prior wins)
+        gx = np.ascontiguousarray(gx, np.float64)
+        gy = np.ascontiguousarray(gy, np.float64)
+        wxy, wth = cfg.motion_sigma_xy ** -2, cfg.motion_sigma_theta ** -2
+        best = None
+        for sx, sy, sth in ((x, y, th), (x0, y0, th0)):
+            r = K.refine(f, ox, oy, cell, gx, gy, sx, sy, sth, cfg.iterations, x0, y0, th0, wxy, wth)
+            total = K.objective(f, ox, oy, cell, gx, gy, r[0], r[1], r[2], x0, y0, th0, wxy, wth)
+            if best is None or total < best[0]:
+                best = (total, r)
+        assert best is not None
+        x, y, th, score, h = best[1]
         if score < cfg.min_score:
             return Match(prediction, score, n, "poor")
         pose = Pose(x, y, wrap_angle(th))
@@ -240,9 +268,12 @@ class ScanMatcher:
             weak = vec[:, 0]
             d = np.array([x - prediction.x, y - prediction.y])
             d -= weak * float(weak @ d)
-            pose = Pose(prediction.x + d[0], prediction.y + d[1], pose.theta)
-            status = "degenerate"
-        return Match(pose, score, n, status)
+            kept = Pose(prediction.x + d[0], prediction.y + d[1], pose.theta)
+            # only where the field really is flat along that direction: the fit must stay as good
+            if K.mean_field(f, ox, oy, cell, gx, gy, kept.x, kept.y, kept.theta) >= score - FLAT:
+                pose = kept
+                status = "degenerate"
+        return Match(pose, score, n, status, float(max(eig[0], 0.0) / eig[1]) if eig[1] > 0 else 0.0)
 
 
 class Localizer:
@@ -264,6 +295,9 @@ class Localizer:
         use_hits: centre the likelihood field on the cells' mean hit points (`HitMap`), not their
             centres (on the three CARMEN logs with loop closure: ATE 0.145 / 0.198 / 0.183 m against
             0.149 / 0.267 / 0.175 m; see docs/localization).
+        min_travel: [m] match (and update the map) only once odometry has moved this far since the
+            last match ...
+        min_turn: [rad] ... or turned this much.
         skip_unseen: pass the grid's `stamp` as `known` to `ScanMatcher.match` (Gauss-Newton without the
             points on never-seen cells). On a simulated log it halves the heading drift (ATE 0.26 ->
             0.15 m without noise), on the CARMEN logs it did worse (ACES 0.307 m against 0.198 m with
@@ -277,8 +311,12 @@ class Localizer:
 
     def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,
                  p_free: float = 0.4, range_max: float | None = None, use_hits: bool = True,
-                 skip_unseen: bool = False) -> None:
+                 skip_unseen: bool = False, min_travel: float = 0.0, min_turn: float = 0.0) -> None:
+        if min_travel < 0 or min_turn < 0:
+            raise ConfigError(f"localizer: min_travel and min_turn must be >= 0, got {min_travel} and {min_turn}")
         self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
+        self.min_travel, self.min_turn = min_travel, min_turn
+        self._matched: Pose | None = None
         self.hits = HitMap(geo)
         self.use_hits = use_hits
         self.skip_unseen = skip_unseen
@@ -289,7 +327,7 @@ class Localizer:
 
     def reset(self, odom: Pose, pose: Pose) -> None:
         """Restart from `pose` (the corrected pose) with odometry reading `odom` there."""
-        self._odom, self._pose = odom, pose
+        self._odom, self._pose, self._matched = odom, pose, odom
 
     def integrate(self, pose: Pose, scan: LaserScan) -> None:
         """Put `scan`, taken at `pose`, into the matching map (`locate` does this itself)."""
@@ -305,11 +343,19 @@ class Localizer:
 
     def locate(self, odom: Pose, scan: LaserScan | None) -> Pose:
         """The corrected pose for odometry `odom` and the scan taken there (None: prediction only); the
-        scan then goes into the matching map at that pose."""
+        scan then goes into the matching map at that pose. While odometry has moved less than
+        `min_travel` and turned less than `min_turn` since the last match, the prediction is the pose
+        ("odometry") and the map is left as it is (Hector SLAM's map update thresholds): the pose
+        follows odometry smoothly between matches and the scans cost nothing."""
         prediction = self.predict(odom)
+        moved = relative(self._matched, odom) if self._matched is not None else None
         if scan is None:
             status, pose = "no-scan", prediction
+        elif moved is not None and math.hypot(moved.x, moved.y) < self.min_travel and \
+                abs(moved.theta) < self.min_turn:
+            status, pose = "odometry", prediction
         else:
+            self._matched = odom
             px, py = scan_points(scan, self.matcher.config.range_max)
             m = self.matcher.match(self.grid.values, self.grid.geo, px, py, prediction,
                                    self.hits if self.use_hits else None, self.grid.stamp if self.skip_unseen else None)

@@ -48,6 +48,8 @@ class LoopConfig:
         window_xy: [m] half-width of the search window (the drift a loop can correct).
         window_theta: [rad] half-width of the heading window.
         min_score: mean field value a loop match must reach.
+        min_conditioning: smallest / largest eigenvalue of the loop match's translation information
+            it must reach: along a corridor a loop match can slide by metres and still fit.
         sigma_xy: [m] standard deviation of a matched increment's and a loop edge's position.
         sigma_theta: [rad] the same for heading.
         cauchy: [in standard deviations] scale of the Cauchy kernel on loop edges.
@@ -61,6 +63,7 @@ class LoopConfig:
     window_xy: float = 1.5
     window_theta: float = math.radians(10.0)
     min_score: float = 0.55
+    min_conditioning: float = 0.2
     sigma_xy: float = 0.05
     sigma_theta: float = math.radians(0.5)
     cauchy: float = 3.0
@@ -167,7 +170,8 @@ def find_loops(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], cell:
     mcfg = MatcherConfig(sigma=matcher.sigma, window_xy=cfg.window_xy, window_theta=cfg.window_theta,
                          coarse=matcher.coarse, iterations=matcher.iterations, range_max=matcher.range_max,
                          min_points=matcher.min_points, min_score=cfg.min_score,
-                         degenerate_ratio=matcher.degenerate_ratio, prior=0.0)
+                         degenerate_ratio=matcher.degenerate_ratio, prior=0.0,
+                         motion_sigma_xy=cfg.window_xy, motion_sigma_theta=cfg.window_theta)
     sm = ScanMatcher(mcfg)
     xy = poses[:, :2]
     for i in range(cfg.min_gap, len(poses), cfg.every):
@@ -179,7 +183,7 @@ def find_loops(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], cell:
         grid, hits = _submap(poses, scans, j, cfg.submap, cell, matcher.range_max + cfg.window_xy)
         px, py = scan_points(scans[i], matcher.range_max)
         m = sm.match(grid.values, grid.geo, px, py, Pose(*poses[i]), hits)
-        if m.status != "matched":
+        if m.status != "matched" or m.conditioning < cfg.min_conditioning:
             continue
         out.append(Edge(j, i, relative(Pose(*poses[j]), m.pose), _info(cfg), loop=True))
     return out

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.localization.kernels import DAMPING
+from robotexp.localization.kernels import DAMPING, RETRIES
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref"]
 
@@ -94,26 +94,43 @@ def _cost_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
 
 
 def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float, px: npt.NDArray[np.float64],
-               py: npt.NDArray[np.float64], x: float, y: float, th: float, iterations: int
+               py: npt.NDArray[np.float64], x: float, y: float, th: float, iterations: int, cx: float,
+               cy: float, cth: float, wxy: float, wth: float
                ) -> tuple[float, float, float, float, npt.NDArray[np.float64]]:
     """Gauss-Newton with the kernel's acceptance and stopping rules, Jacobians as arrays."""
-    cost, _ = _cost_ref(field, ox, oy, cell, px, py, x, y, th)
+    w = np.array([wxy, wxy, wth])
+    centre = np.array([cx, cy, cth])
+
+    def prior(v: npt.NDArray[np.float64]) -> float:
+        return float(np.sum(w * (v - centre) ** 2))
+
+    cost = _cost_ref(field, ox, oy, cell, px, py, x, y, th)[0] + prior(np.array([x, y, th]))
     h = np.zeros((3, 3))
+    lam = DAMPING
     for _ in range(iterations):
         c, s = math.cos(th), math.sin(th)
         m, dx, dy = bilinear_ref(field, (x + c * px - s * py - ox) / cell, (y + s * px + c * py - oy) / cell)
         jac = np.column_stack([dx / cell, dy / cell,
                                dx / cell * (-s * px - c * py) + dy / cell * (c * px - s * py)])
         h = jac.T @ jac
-        damp = DAMPING * np.trace(h)
-        if damp == 0.0:
+        hp = h + np.diag(w)
+        trace = np.trace(hp)
+        if trace == 0.0:
             break
-        step = np.linalg.solve(h + damp * np.eye(3), jac.T @ (1.0 - m))
-        nx, ny, nt = x + step[0], y + step[1], th + step[2]
-        new_cost, _ = _cost_ref(field, ox, oy, cell, px, py, nx, ny, nt)
-        if not new_cost < cost:
+        g = jac.T @ (1.0 - m) - w * (np.array([x, y, th]) - centre)
+        step = None
+        for _retry in range(RETRIES):
+            trial = np.linalg.solve(hp + lam * trace * np.eye(3), g)
+            v = np.array([x, y, th]) + trial
+            new_cost = _cost_ref(field, ox, oy, cell, px, py, *v)[0] + prior(v)
+            if new_cost < cost:
+                step = trial
+                break
+            lam *= 10.0
+        if step is None:
             break
-        x, y, th, cost = nx, ny, nt, new_cost
+        x, y, th, cost = x + step[0], y + step[1], th + step[2], new_cost
+        lam = max(lam / 10.0, DAMPING)
         if np.all(np.abs(step) < 1e-5):
             break
     _, mean = _cost_ref(field, ox, oy, cell, px, py, x, y, th)

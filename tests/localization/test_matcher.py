@@ -198,7 +198,7 @@ def test_bilinear_and_refine_match_numpy(field_and_scan) -> None:   # type: igno
     assert np.allclose(got, np.array(ref), atol=1e-12)
     # at a sample centre the value is the sample
     assert K.bilinear(f, 40.5, 30.5)[0] == f[30, 40]
-    args = (f, geo.origin_x, geo.origin_y, geo.cell, px, py, 2.04, 1.97, 0.31, 10)
+    args = (f, geo.origin_x, geo.origin_y, geo.cell, px, py, 2.04, 1.97, 0.31, 10, 2.04, 1.97, 0.31, 100.0, 365.0)
     got_r, ref_r = K.refine(*args), refine_ref(*args)
     assert got_r[:4] == pytest.approx(ref_r[:4], abs=1e-9)
     assert np.allclose(got_r[4], ref_r[4], rtol=1e-9, atol=1e-9)
