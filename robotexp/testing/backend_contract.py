@@ -236,7 +236,7 @@ def check_watchdog(make: HarnessFactory, *, watchdog: float = 0.3) -> None:
         robot.command(twist)
         _arrives(h, check, twist)
         before = getattr(robot, "watchdog_stops", None)
-        _stopped(h, check, f"with no command() for {watchdog} s + 2 s", timeout=watchdog + 2.0)
+        _stopped(h, check, f"with no command() for {watchdog} s + 1 s", timeout=watchdog + 1.0)
         after = getattr(robot, "watchdog_stops", None)
         if before is not None and after != before + 1:
             raise _fail(h, check, f"watchdog_stops went from {before} to {after}, not up by one")
@@ -259,7 +259,7 @@ def _until_lost(h: BackendHarness, check: str, robot: Robot, twist: Twist, bound
     raise _fail(h, check, f"no ConnectionLost within {bound + 5.0:.1f} s")
 
 
-def check_peer_vanishing(make: HarnessFactory, *, slack: float = 0.8) -> None:
+def check_peer_vanishing(make: HarnessFactory, *, slack: float = 0.6) -> None:
     """The emulator going away: ConnectionLost within `timeout + slack` [s], motion refused, quiet close.
 
     Raises:
@@ -330,7 +330,7 @@ def check_garbage(make: HarnessFactory, *, seed: int = 7, size: int = 2000) -> N
         _stopped(h, check, "after close()")
 
 
-def check_stall(make: HarnessFactory, *, slack: float = 0.8) -> None:
+def check_stall(make: HarnessFactory, *, slack: float = 0.6) -> None:
     """An emulator that stops sending: ConnectionLost within `timeout + slack` [s], then a stop is the
     last command it heard.
 
