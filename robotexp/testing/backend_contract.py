@@ -259,6 +259,22 @@ def _until_lost(h: BackendHarness, check: str, robot: Robot, twist: Twist, bound
     raise _fail(h, check, f"no ConnectionLost within {bound + 5.0:.1f} s")
 
 
+def _lose_link(h: BackendHarness, check: str, robot: Robot, fault: Callable[[], None], what: str,
+               slack: float) -> Twist:
+    """Drive, then inject `fault`: ConnectionLost must end the loop within the silence timeout plus
+    `slack` [s]. Returns the command the loop was sending."""
+    twist = Twist(round(robot.limits.v_max / 3, 2), 0.0)
+    _drive(robot, twist, 3)
+    _arrives(h, check, twist)
+    fault()
+    bound = h.timeout + slack
+    took = _until_lost(h, check, robot, twist, bound)
+    if took > bound:
+        raise _fail(h, check, f"ConnectionLost came {took:.2f} s after {what} (bound: {h.timeout} s silence "
+                              f"+ {slack} s)")
+    return twist
+
+
 def check_peer_vanishing(make: HarnessFactory, *, slack: float = 0.6) -> None:
     """The emulator going away: ConnectionLost within `timeout + slack` [s], motion refused, quiet close.
 
@@ -269,14 +285,7 @@ def check_peer_vanishing(make: HarnessFactory, *, slack: float = 0.6) -> None:
     with make() as h:
         robot = h.connect()
         try:
-            twist = Twist(round(robot.limits.v_max / 3, 2), 0.0)
-            _drive(robot, twist, 3)
-            _arrives(h, check, twist)
-            h.vanish()
-            took = _until_lost(h, check, robot, twist, h.timeout + slack)
-            if took > h.timeout + slack:
-                raise _fail(h, check, f"ConnectionLost came {took:.2f} s after the peer vanished (bound: "
-                                      f"{h.timeout} s silence + {slack} s)")
+            twist = _lose_link(h, check, robot, h.vanish, "the peer vanished", slack)
             try:
                 robot.command(twist)
             except RobotError:
@@ -341,14 +350,7 @@ def check_stall(make: HarnessFactory, *, slack: float = 0.6) -> None:
     with make() as h:
         robot = h.connect()
         try:
-            twist = Twist(round(robot.limits.v_max / 3, 2), 0.0)
-            _drive(robot, twist, 3)
-            _arrives(h, check, twist)
-            h.stall()
-            took = _until_lost(h, check, robot, twist, h.timeout + slack)
-            if took > h.timeout + slack:
-                raise _fail(h, check, f"ConnectionLost came {took:.2f} s after the stream stopped (bound: "
-                                      f"{h.timeout} s silence + {slack} s)")
+            _lose_link(h, check, robot, h.stall, "the stream stopped", slack)
             _stopped(h, check, "after the silence was detected")
         finally:
             robot.close()
