@@ -234,7 +234,7 @@ class ExplorationRun:
             self.robot_time = state.time - t0
             self._track(state, collisions0)
             updated = state.laser is not None
-            if updated:
+            if state.laser is not None:
                 self.grid.update(state.pose, state.laser)
             # half a period of slack: robot time summed from float periods reads 0.99999 s at
             # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
