@@ -37,12 +37,15 @@ def test_builtin_explorers_pass(name: str) -> None:
     assert report.done is not None or report.steps == 200
 
 
-def test_example_plugin_passes() -> None:
+def test_example_plugin_passes_through_the_public_export() -> None:
+    import robotexp
+
     spec = importlib.util.spec_from_file_location("robotexp_wallfollow_check", EXAMPLE)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    report = check_explorer(module.WallFollowExplorer, name="wall-follow")
+    assert robotexp.check_explorer is check_explorer          # what a plugin's own tests call
+    report = robotexp.check_explorer(module.WallFollowExplorer, name="wall-follow")
     assert report.parameters == {"duration": 120.0, "wall_distance": 0.6, "speed": None, "home_radius": 0.5}
     assert report.steps == 200 and report.done is None         # it drives for 120 s; the check stops at 20 s
 
