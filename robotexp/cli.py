@@ -136,12 +136,18 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
               help="Laser noise: uniform in +-MM (the UFMG study: 100).")
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
+@click.option("--odometry-error", default="none", show_default=True,
+              help="Simulated odometry error: none, p3dx, kobuki, or key=value,... (mismatch, slip, drift "
+                   "[deg/m], servo); a preset:key=value,... overrides its values.")
+@click.option("--localize", type=click.Choice(["auto", "none", "scan-match"]), default="auto", show_default=True,
+              help="Correct the pose by scan matching before the map and the explorer see it (auto: in the "
+                   "simulator when --odometry-error is on).")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path) -> None:
+            noise_uniform: float, noise_sigma: float, odometry_error: str, localize: str, out: Path) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.registry import connect_robot
@@ -156,7 +162,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
-                   laser_sigma=noise_sigma / 1000)
+                   laser_sigma=noise_sigma / 1000, odometry=odometry_error, localize=localize)
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:

@@ -19,7 +19,12 @@ from robotexp.localization.metrics import ate
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot, RobotState, Twist
 
-__all__ = ["LocalizedRobot"]
+__all__ = ["LocalizedRobot", "MOTION_NOISE"]
+
+# The motion prior between matches: 2 cm + 5 % of the distance, 0.5 deg + 2 deg/m + 5 % of the turn.
+# Wheel odometry over 0.1 m or 5 deg is better than that (the P3-DX preset: 0.17 deg/m of curve); a
+# loose prior let the matcher turn the map by 1 deg while the robot spun in place in a corridor.
+MOTION_NOISE = (0.02, 0.05, math.radians(0.5), math.radians(2.0), 0.05)
 
 
 class LocalizedRobot(Robot):
@@ -37,6 +42,7 @@ class LocalizedRobot(Robot):
             corridor of `dense` lost 0.4 deg and 0.2 m in 3 s).
         min_travel: [m] the `Localizer` option: match once the robot has moved this far ...
         min_turn: [rad] ... or turned this much (a 10 Hz loop otherwise matches every 3 cm).
+        motion_noise: the `Localizer` option (MOTION_NOISE by default).
 
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
@@ -45,14 +51,16 @@ class LocalizedRobot(Robot):
 
     def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
-                 min_travel: float = 0.1, min_turn: float = math.radians(5.0)) -> None:
+                 min_travel: float = 0.1, min_turn: float = math.radians(5.0),
+                 motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE) -> None:
         self.inner = inner
         self.name = f"{inner.name}+scan-match"         # type: ignore[misc]
         self.capabilities = inner.capabilities          # type: ignore[misc]
         self.limits = inner.limits
         self.radius = inner.radius
+        self.address = inner.address
         self.localizer = Localizer(geo, matcher, range_max=range_max, skip_unseen=skip_unseen,
-                                   min_travel=min_travel, min_turn=min_turn)
+                                   min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
@@ -75,6 +83,15 @@ class LocalizedRobot(Robot):
         self._last = (state.time, out)
         return out
 
+    @property
+    def model(self) -> str:
+        """The inner robot's model (run records name the robot, not the wrapper)."""
+        return self.inner.model
+
+    def describe(self) -> dict[str, str]:
+        """The inner robot's description, with the localization named."""
+        return {**self.inner.describe(), "localization": "scan-match"}
+
     def ate_m(self) -> float | None:
         """[m] RMSE of the corrected positions against the true ones (no alignment), None when unknown."""
         if not self.track:
@@ -83,11 +100,17 @@ class LocalizedRobot(Robot):
         truth = np.array([[t.x, t.y] for _, t in self.track])
         return ate(est, truth)
 
+    def detach(self) -> None:
+        """Done with this wrapper: mark it closed and leave the inner robot open."""
+        self._closed = True
+
     def _command(self, twist: Twist) -> None:
+        if self.inner.closed and twist == Twist.ZERO:
+            return                                      # closing after the inner robot: it stopped already
         self.inner.command(twist)
 
     def _close(self) -> None:
-        self.inner.close()
+        self.inner.close()                              # safe when the inner robot is closed already
 
     def make_clock(self, period: float) -> Clock:
         """The inner robot's clock."""
