@@ -36,15 +36,16 @@ RETRIES = 4        # tries of a step with ten times more damping each before Gau
 @kernel
 def splat_field(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
                 cell: float, sigma: float, reach: int) -> npt.NDArray[np.float64]:
-    """The likelihood field of hit points: at each cell centre, the largest exp(-d^2 / (2 sigma^2)) over
-    the occupied cells within `reach` cells, d [m] the distance to that cell's mean hit point, which
-    lies (off_x, off_y) [cells] from its centre (0, 0 when only the cell is known).
+    """The likelihood field of hit points: at each cell centre, exp(-d^2 / (2 sigma^2)) with d [m] the least
+    distance to the mean hit point of an occupied cell within `reach` cells (rows and columns) when
+    d <= reach + 0.5 cells, else 0; a cell's mean hit point lies (off_x, off_y) [cells] from its
+    centre (0, 0 when only the cell is known).
 
     Matching against cell centres would pull a scan by up to half a cell towards the walls it faces
     (a forward-looking laser sees most walls ahead); the hit points do not."""
     rows, cols = occ.shape
-    out = np.zeros((rows, cols), np.float64)
-    k = -cell * cell / (2.0 * sigma * sigma)
+    d2 = np.full((rows, cols), np.inf)          # the least squared distance [cells^2], then its Gaussian
+    r2 = (reach + 0.5) * (reach + 0.5)          # nothing beyond the reach (the Gaussian is ~0 there anyway)
     for r in range(rows):
         for c in range(cols):
             if not occ[r, c]:
@@ -55,9 +56,15 @@ def splat_field(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_
                 dy = rr - hy
                 for cc in range(max(c - reach, 0), min(c + reach + 1, cols)):
                     dx = cc - hx
-                    v = math.exp(k * (dx * dx + dy * dy))
-                    if v > out[rr, cc]:
-                        out[rr, cc] = v
+                    q = dx * dx + dy * dy
+                    if q < d2[rr, cc]:
+                        d2[rr, cc] = q
+    out = np.zeros((rows, cols), np.float64)
+    k = -cell * cell / (2.0 * sigma * sigma)
+    for r in range(rows):
+        for c in range(cols):
+            if d2[r, c] <= r2:
+                out[r, c] = math.exp(k * d2[r, c])
     return out
 
 

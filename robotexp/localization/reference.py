@@ -24,7 +24,8 @@ def splat_field_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], 
         for dc in range(-reach, reach + 1):
             tr, tc = rr + dr, cc + dc
             ok = (tr >= 0) & (tr < rows) & (tc >= 0) & (tc < cols)
-            v = np.exp(-((tc - hx) ** 2 + (tr - hy) ** 2) * cell * cell / (2.0 * sigma * sigma))
+            q = (tc - hx) ** 2 + (tr - hy) ** 2
+            v = np.where(q <= (reach + 0.5) ** 2, np.exp(-q * cell * cell / (2.0 * sigma * sigma)), 0.0)
             np.maximum.at(out, (tr[ok], tc[ok]), v[ok])
     return out
 

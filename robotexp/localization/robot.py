@@ -19,12 +19,13 @@ from robotexp.localization.metrics import ate
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot, RobotState, Twist
 
-__all__ = ["LocalizedRobot", "MOTION_NOISE"]
+__all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE"]
 
 # The motion prior between matches: 2 cm + 5 % of the distance, 0.5 deg + 2 deg/m + 5 % of the turn.
 # Wheel odometry over 0.1 m or 5 deg is better than that (the P3-DX preset: 0.17 deg/m of curve); a
 # loose prior let the matcher turn the map by 1 deg while the robot spun in place in a corridor.
 MOTION_NOISE = (0.02, 0.05, math.radians(0.5), math.radians(2.0), 0.05)
+GATE = 4.0      # a match farther than this many sigmas of the motion prior is refused
 
 
 class LocalizedRobot(Robot):
@@ -43,6 +44,7 @@ class LocalizedRobot(Robot):
         min_travel: [m] the `Localizer` option: match once the robot has moved this far ...
         min_turn: [rad] ... or turned this much (a 10 Hz loop otherwise matches every 3 cm).
         motion_noise: the `Localizer` option (MOTION_NOISE by default).
+        gate: the `Localizer` option (GATE by default).
 
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
@@ -52,7 +54,8 @@ class LocalizedRobot(Robot):
     def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
                  min_travel: float = 0.1, min_turn: float = math.radians(5.0),
-                 motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE) -> None:
+                 motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
+                 gate: float = GATE) -> None:
         self.inner = inner
         self.name = f"{inner.name}+scan-match"         # type: ignore[misc]
         self.capabilities = inner.capabilities          # type: ignore[misc]
@@ -60,7 +63,8 @@ class LocalizedRobot(Robot):
         self.radius = inner.radius
         self.address = inner.address
         self.localizer = Localizer(geo, matcher, range_max=range_max, skip_unseen=skip_unseen,
-                                   min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise)
+                                   min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise,
+                                   gate=gate)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None

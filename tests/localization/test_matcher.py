@@ -203,3 +203,20 @@ def test_bilinear_and_refine_match_numpy(field_and_scan) -> None:   # type: igno
     assert got_r[:4] == pytest.approx(ref_r[:4], abs=1e-9)
     assert np.allclose(got_r[4], ref_r[4], rtol=1e-9, atol=1e-9)
     assert math.hypot(got_r[0] - 2.0, got_r[1] - 2.0) < CELL and abs(got_r[2] - 0.3) < math.radians(0.5)
+
+
+def test_a_match_beyond_the_motion_gate_is_refused() -> None:
+    world = room()
+    occ, geo = true_map(world)
+    start, truth = Pose(2.0, 2.0, 0.0), Pose(2.3, 2.0, 0.0)
+    for gate, expected in ((4.0, "matched"), (1.0, "gated")):
+        # odometry says 0.2 m where the robot went 0.3 m: 0.1 m wrong, 2.5 sigmas of a 4 cm prior
+        loc = Localizer(geo, motion_noise=(0.02, 0.1, math.radians(0.5), 0.0, 0.0), gate=gate)
+        loc.grid.mark_occupied(occ)
+        loc.reset(start, start)
+        pose = loc.locate(Pose(2.2, 2.0, 0.0), cast(world, truth))
+        assert loc.counts == {expected: 1}
+        if expected == "matched":
+            assert math.hypot(pose.x - truth.x, pose.y - truth.y) < CELL
+        else:
+            assert pose == Pose(2.2, 2.0, 0.0)
