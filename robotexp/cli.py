@@ -192,10 +192,10 @@ def worlds() -> None:
 @main.command()
 @handle_errors
 def plugins() -> None:
-    """List the explorers and robot backends found through entry points."""
-    from robotexp.registry import EXPLORERS, ROBOTS, available, lua_name
+    """List the explorers, robot backends and their emulators found through entry points."""
+    from robotexp.registry import EMULATORS, EXPLORERS, ROBOTS, available, lua_name
 
-    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS)):
+    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS), ("emulators", EMULATORS)):
         click.echo(f"{title} ({group}):")
         for info in available(group).values():
             extra = f"  Lua: ExplorationMethod.{lua_name(info.name)}" if group == EXPLORERS else ""

@@ -256,7 +256,8 @@ class ExplorationRun:
                     self.completed = True
                 elif decision is not None:
                     robot.command(decision)
-            notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
+            if self.observers.listening("on_step"):
+                notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
             if not isinstance(decision, Twist):
                 return
             clock.tick()

@@ -95,7 +95,7 @@ class ResultsWriter(RunObserver):
 
         out, name = self.out, record.run
         out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record.as_dict())      # first: the record is never lost
+        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
@@ -150,11 +150,13 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
                       title=title)
 
 
-def append_jsonl(path: Path, record: dict[str, Any]) -> None:
-    """Append `record` as one line to `path` and force it to disk."""
+def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:
+    """Append `record` (a RunRecord is written as its `as_dict()`) as one line to `path` and force it
+    to disk."""
+    data = record.as_dict() if isinstance(record, RunRecord) else record
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a", encoding="utf-8") as f:
-        f.write(json.dumps(record, sort_keys=False) + "\n")
+        f.write(json.dumps(data, sort_keys=False) + "\n")
         f.flush()
         os.fsync(f.fileno())
 
