@@ -265,7 +265,53 @@ def encode_scan(ranges: npt.ArrayLike, *, quality: int = 47, first: int = 0, cou
     return out.tobytes()
 
 
-class ScanDecoder:
+class _Turns:
+    """What both stream decoders share: a turn's samples gathered in runs, split where a new turn
+    begins, and binned (`bin_turn`) when it ends."""
+
+    def _init_turns(self, who: str, beams: int, min_nodes: int | None, range_min: float) -> None:
+        if beams < 1:
+            raise ConfigError(f"rplidar {who}: beams must be >= 1, got {beams}")
+        self.beams = beams
+        self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
+        self.range_min = range_min
+        self._buffer = bytearray()
+        self._angles: list[npt.NDArray[np.generic]] = []     # the open turn's samples, in runs
+        self._dist: list[npt.NDArray[np.int64]] = []
+        self._in_turn = False
+        self.scans = 0
+        self.dropped_bytes = 0
+        self.short_turns = 0
+
+    def _add(self, angles_q6: npt.NDArray[np.generic], dist_q2: npt.NDArray[np.int64], starts: npt.NDArray[np.intp],
+             out: list[npt.NDArray[np.float64]]) -> None:
+        """Append a run of samples in which a new turn begins at each index of `starts`."""
+        begin = 0
+        for s in starts:
+            if self._in_turn:
+                self._angles.append(angles_q6[begin:s])
+                self._dist.append(dist_q2[begin:s])
+                done = self._finish()
+                if done is not None:
+                    out.append(done)
+            self._in_turn = True
+            begin = int(s)
+        if self._in_turn:
+            self._angles.append(angles_q6[begin:])
+            self._dist.append(dist_q2[begin:])
+
+    def _finish(self) -> npt.NDArray[np.float64] | None:
+        angles = np.concatenate(self._angles) if self._angles else np.zeros(0, np.int64)
+        dist_q2 = np.concatenate(self._dist) if self._dist else np.zeros(0, np.int64)
+        self._angles, self._dist = [], []
+        if angles.size < self.min_nodes:
+            self.short_turns += 1
+            return None
+        self.scans += 1
+        return bin_turn(angles, dist_q2, self.beams, self.range_min)
+
+
+class ScanDecoder(_Turns):
     """Incremental decoder of the SCAN node stream: feed it any bytes, get the ranges of every turn
     completed by them (a turn completes when the next turn's first node arrives).
 
@@ -284,19 +330,8 @@ class ScanDecoder:
     """
 
     def __init__(self, beams: int = 360, *, min_nodes: int | None = None, range_min: float = 0.0) -> None:
-        if beams < 1:
-            raise ConfigError(f"rplidar ScanDecoder: beams must be >= 1, got {beams}")
-        self.beams = beams
-        self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
-        self.range_min = range_min
-        self._buffer = bytearray()
-        self._angles: list[npt.NDArray[np.int64]] = []     # the open turn's nodes, in runs
-        self._dist: list[npt.NDArray[np.int64]] = []
-        self._in_turn = False
-        self.scans = 0
+        self._init_turns("ScanDecoder", beams, min_nodes, range_min)
         self.nodes = 0
-        self.dropped_bytes = 0
-        self.short_turns = 0
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[npt.NDArray[np.float64]]:
         """Append `data` to the stream; return the ranges [m] of the turns it completed, in order.
@@ -326,33 +361,9 @@ class ScanDecoder:
         angle = (b1 >> C.NODE_ANGLE_SHIFT) | (a[:, 2] << 7)
         ok = (((b0 ^ (b0 >> 1)) & 1) == 1) & ((b1 & C.NODE_CHECKBIT) == 1) & (angle < C.ANGLE_Q6_TURN)
         k = count if ok.all() else int(np.argmin(ok))
-        dist = a[:k, 3] | (a[:k, 4] << 8)
-        angle = angle[:k]
         self.nodes += k
-        begin = 0
-        for s in np.flatnonzero(b0[:k] & C.NODE_SYNCBIT):
-            if self._in_turn:
-                self._angles.append(angle[begin:s])
-                self._dist.append(dist[begin:s])
-                done = self._finish()
-                if done is not None:
-                    out.append(done)
-            self._in_turn = True
-            begin = int(s)
-        if self._in_turn:
-            self._angles.append(angle[begin:k])
-            self._dist.append(dist[begin:k])
+        self._add(angle[:k], a[:k, 3] | (a[:k, 4] << 8), np.flatnonzero(b0[:k] & C.NODE_SYNCBIT), out)
         return k
-
-    def _finish(self) -> npt.NDArray[np.float64] | None:
-        angles = np.concatenate(self._angles) if self._angles else np.zeros(0, np.int64)
-        dist_q2 = np.concatenate(self._dist) if self._dist else np.zeros(0, np.int64)
-        self._angles, self._dist = [], []
-        if angles.size < self.min_nodes:
-            self.short_turns += 1
-            return None
-        self.scans += 1
-        return bin_turn(angles, dist_q2, self.beams, self.range_min)
 
 
 def bin_turn(angles_q6: npt.ArrayLike, dist_q2: npt.ArrayLike, beams: int, range_min: float = 0.0
@@ -426,7 +437,7 @@ def decode_capsule(data: bytes | bytearray, pos: int = 0) -> Capsule | None:
                    tuple(int(x) for x in dtheta))
 
 
-class ExpressDecoder:
+class ExpressDecoder(_Turns):
     """Incremental decoder of the EXPRESS_SCAN capsule stream, with the same output as `ScanDecoder`.
 
     Sample k of capsule i lies at start_i + k * (start_{i+1} - start_i) / 32 - dθ_k (Slamtec's rule:
@@ -446,24 +457,13 @@ class ExpressDecoder:
 
     def __init__(self, beams: int = 720, *, min_nodes: int | None = None, range_min: float = 0.0,
                  max_step: float = 45.0) -> None:
-        if beams < 1:
-            raise ConfigError(f"rplidar ExpressDecoder: beams must be >= 1, got {beams}")
-        self.beams = beams
-        self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
-        self.range_min = range_min
+        self._init_turns("ExpressDecoder", beams, min_nodes, range_min)
         self.max_step_q6 = max_step * C.ANGLE_Q6_PER_DEG
-        self._buffer = bytearray()
         self._prev: Capsule | None = None
-        self._angles: list[npt.NDArray[np.float64]] = []
-        self._dist: list[npt.NDArray[np.int64]] = []
         self._last_raw = -1.0
         self._last_diff = 0
-        self._in_turn = False
-        self.scans = 0
         self.capsules = 0
-        self.dropped_bytes = 0
         self.gaps = 0
-        self.short_turns = 0
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[npt.NDArray[np.float64]]:
         """Append `data` to the stream; return the ranges [m] of the turns it completed, in order."""
@@ -500,26 +500,4 @@ class ExpressDecoder:
         # where the raw angle wraps past 360 deg a new turn begins
         wraps = np.flatnonzero(np.diff(np.concatenate(([self._last_raw], raw_mod))) < 0)
         self._last_raw = float(raw_mod[-1])
-        begin = 0
-        for w in wraps:
-            if self._in_turn:
-                self._angles.append(angles[begin:w])
-                self._dist.append(dist_q2[begin:w])
-                done = self._finish()
-                if done is not None:
-                    out.append(done)
-            self._in_turn = True
-            begin = int(w)
-        if self._in_turn:
-            self._angles.append(angles[begin:])
-            self._dist.append(dist_q2[begin:])
-
-    def _finish(self) -> npt.NDArray[np.float64] | None:
-        angles = np.concatenate(self._angles)
-        dist_q2 = np.concatenate(self._dist)
-        self._angles, self._dist = [], []
-        if angles.size < self.min_nodes:
-            self.short_turns += 1
-            return None
-        self.scans += 1
-        return bin_turn(angles, dist_q2, self.beams, self.range_min)
+        self._add(angles, dist_q2, wraps, out)
