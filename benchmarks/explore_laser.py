@@ -3,13 +3,13 @@ its own pseudo-terminal, against the embedded simulator.
 
 The laser emulator (any of `robotexp.laser_emulators`) measures from the Kobuki emulator's simulated
 robot (`robotexp.sim.mounted_source`, the sensor at the robot centre facing forward), its driver
-reads it through the pseudo-terminal, and the Kobuki backend takes the driver's newest scan as its
-laser (`KobukiRobot(laser=...)`; the scan is not yet paired with the pose at its stamp, which is
-issue 13's attachment work). Both runs explore `--world` from `--pose` at 0.3 m/s; the script
+reads it through the pseudo-terminal, and `robotexp.laser_mount.LaserMountedRobot` pairs each scan
+with the Kobuki's pose at the scan's stamp (`--unpaired`: the Kobuki backend takes the newest scan
+as it is, as if taken at the present pose). Both runs explore `--world` from `--pose` at 0.3 m/s; the script
 prints each run's coverage, completion, path and the coverage difference in points.
 
 Run: python benchmarks/explore_laser.py [--laser rplidar] [--world ufmg-static] [--pose path1]
-     [--speedup 10] [--laser-speedup S] [--max-time 300]
+     [--speedup 10] [--laser-speedup S] [--max-time 300] [--unpaired]
 (--laser-speedup above --speedup makes scans fresher in robot time: a way to see what the missing
 pose pairing costs.)
 Exit status 1 when the coverages differ by more than 2 points.
@@ -22,8 +22,9 @@ import time
 
 from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
 from robotexp.laser import LASER_EMULATORS, LASERS, Laser
+from robotexp.laser_mount import LaserMountedRobot
 from robotexp.registry import available, load
-from robotexp.robot import LaserScan
+from robotexp.robot import LaserScan, Robot
 from robotexp.sim import mounted_source
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.kobuki.emulator import KobukiEmulator
@@ -52,6 +53,7 @@ def main() -> int:
     parser.add_argument("--laser-speedup", type=float, default=None,
                         help="the laser's own speed-up (default --speedup; higher: fresher scans in robot time)")
     parser.add_argument("--max-time", type=float, default=300.0, help="[s of robot time]")
+    parser.add_argument("--unpaired", action="store_true", help="use the newest scan without pairing it")
     args = parser.parse_args()
     names = sorted(set(available(LASERS)) & set(available(LASER_EMULATORS)))
     if args.laser not in names:
@@ -75,11 +77,17 @@ def main() -> int:
     t0 = time.monotonic()
     with KobukiEmulator(world, pose=start, speedup=args.speedup, pty=True) as kobuki, \
             emulator_cls(mounted_source(kobuki.sim, lock=kobuki.lock), pty=True, speedup=laser_speedup) as lemu, \
-            driver(lemu.address) as laser, KobukiRobot(kobuki.address, laser=NewestScan(laser)) as robot:
-        record = run_on_robot(spec(), robot, None, world).record
-        scans = (laser.latest().seq + 1) if laser.latest() else 0
+            driver(lemu.address) as laser:
+        if args.unpaired:
+            robot: Robot = KobukiRobot(kobuki.address, laser=NewestScan(laser))
+        else:
+            robot = LaserMountedRobot(KobukiRobot(kobuki.address), laser)
+        with robot:
+            record = run_on_robot(spec(), robot, None, world).record
+            scans = (laser.latest().seq + 1) if laser.latest() else 0
     diff = 100 * (record["coverage"] - embedded["coverage"])
-    print(f"kobuki + {args.laser} emulators on pseudo-terminals (speed-up {args.speedup:g} / laser "
+    print(f"kobuki + {args.laser} emulators on pseudo-terminals, {'un' if args.unpaired else ''}paired "
+          f"(speed-up {args.speedup:g} / laser "
           f"{laser_speedup:g}): coverage {record['coverage']:.4f}, completed "
           f"{record['completed']} ({record['reason']}), path {record['path_length_m']:.1f} m, collisions "
           f"{record['collisions']}, {scans} scans, {time.monotonic() - t0:.0f} s wall; "

@@ -1,0 +1,196 @@
+"""A laser attached to a robot: scans paired with the robot pose at their stamp.
+
+A laser (`robotexp.laser.Laser`) is a device beside the robot: its scans arrive on their own
+clock, stamped with the host's `time.monotonic()` when complete. `LaserMountedRobot` wraps any
+`Robot` and gives its states the laser's newest scan, re-expressed in the robot frame of the state
+it returns: the robot's pose when the scan was complete is interpolated between the states read
+around its stamp (`PoseHistory`), the sensor sits at `mount` on the robot, and every echo is moved
+to where it lies as seen from the robot's present pose (`scan_in_robot_frame`). So a map built from
+`state.pose` and `state.laser` puts each echo where the laser saw it, however old the scan.
+
+Mount: `Pose(x, y, theta)` of the sensor in the robot frame [m, rad]; the CLI takes it in mm and
+degrees (`--laser-pose X,Y,THETA`, `parse_laser_pose`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import time
+from collections import deque
+from dataclasses import replace
+import numpy as np
+
+from robotexp.errors import ConfigError
+from robotexp.laser import Laser
+from robotexp.robot import Clock, LaserScan, Pose, Robot, RobotState, Twist, wrap_angle
+
+__all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec"]
+
+
+class PoseHistory:
+    """The robot's poses at host times, for the pose at any time between them.
+
+    Args:
+        maxlen: how many (time, pose) samples to keep.
+    """
+
+    def __init__(self, maxlen: int = 512) -> None:
+        self._t: deque[float] = deque(maxlen=maxlen)
+        self._p: deque[Pose] = deque(maxlen=maxlen)
+
+    def add(self, t: float, pose: Pose) -> None:
+        """Record `pose` at host time `t` [s]; a time not after the last one replaces nothing and is dropped."""
+        if self._t and t <= self._t[-1]:
+            return
+        self._t.append(t)
+        self._p.append(pose)
+
+    def oldest(self) -> Pose | None:
+        """The first pose kept (None when empty)."""
+        return self._p[0] if self._p else None
+
+    def at(self, t: float) -> Pose | None:
+        """The pose at host time `t`: linear between the samples around it (the heading along the
+        shorter arc), the newest pose after the last sample; None before the first or when empty."""
+        if not self._t or t < self._t[0]:
+            return None
+        i = bisect.bisect_right(self._t, t)
+        if i >= len(self._t):
+            return self._p[-1]
+        t0, t1 = self._t[i - 1], self._t[i]
+        p0, p1 = self._p[i - 1], self._p[i]
+        f = (t - t0) / (t1 - t0)
+        return Pose(p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y),
+                    wrap_angle(p0.theta + f * wrap_angle(p1.theta - p0.theta)))
+
+
+def _compose(a: Pose, b: Pose) -> Pose:
+    """`b` (in `a`'s frame) in the frame `a` is given in."""
+    c, s = math.cos(a.theta), math.sin(a.theta)
+    return Pose(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.theta + b.theta))
+
+
+def scan_in_robot_frame(scan: LaserScan, sensor: Pose, robot: Pose) -> LaserScan:
+    """A scan taken in the sensor frame with the sensor at world pose `sensor`, as the robot at world
+    pose `robot` sees it: `offset_x` is the sensor's position along the robot's heading, each echo
+    lands exactly where it was (angle and range from that point), beams without echo (inf, NaN, or
+    at `range_max` and beyond) keep their direction and range. The sensor's sideways offset from
+    the robot's axis is not representable in a `LaserScan`: echoes stay exact, the rays towards them
+    start up to that offset away (a few millimetres for a laser on the robot's axis).
+    """
+    c, s = math.cos(robot.theta), math.sin(robot.theta)
+    dx, dy = sensor.x - robot.x, sensor.y - robot.y
+    ox, oy = c * dx + s * dy, -s * dx + c * dy                  # the sensor in the robot frame
+    dth = wrap_angle(sensor.theta - robot.theta)
+    ranges = np.asarray(scan.ranges, np.float64)
+    angles = np.asarray(scan.angles, np.float64) + dth           # beam directions in the robot frame
+    hit = np.isfinite(ranges) & (ranges < scan.range_max)
+    out_r = np.where(hit, 0.0, ranges)
+    out_r = np.where(np.isfinite(ranges) & ~hit, math.inf, out_r)
+    out_a = angles.copy()
+    # an echo lies at (ox, oy) + r (cos a, sin a) in the robot frame; seen from (ox, 0):
+    ex = ranges[hit] * np.cos(angles[hit])
+    ey = oy + ranges[hit] * np.sin(angles[hit])
+    out_a[hit] = np.arctan2(ey, ex)
+    out_r[hit] = np.hypot(ex, ey)
+    out_a = (out_a + math.pi) % (2 * math.pi) - math.pi
+    return LaserScan(out_a, out_r, scan.range_max, offset_x=ox)
+
+
+class LaserMountedRobot(Robot):
+    """`robot` with `laser` mounted at `mount` (robot frame): `read()` returns the robot's state with
+    the laser's newest scan, paired with the robot pose at the scan's stamp (see the module
+    docstring). Commands, clock, limits and capabilities are the robot's; closing closes both
+    (the robot first: it stops).
+
+    Raises (from `read`):
+        ConnectionLost: the laser's link went away or it stayed silent (the run then ends and stops
+            the robot).
+    """
+
+    def __init__(self, robot: Robot, laser: Laser, mount: Pose | None = None) -> None:
+        self.robot = robot
+        self.laser = laser
+        self.mount = mount or Pose(0.0, 0.0, 0.0)
+        self.name = robot.name                                    # type: ignore[misc]  # the robot's, per instance
+        self.capabilities = robot.capabilities                    # type: ignore[misc]
+        self.address = robot.address
+        self.limits = robot.limits
+        self.radius = robot.radius
+        self.history = PoseHistory()
+        self.paired = 0                                           # scans given with an interpolated pose
+        super().__init__()
+
+    @property
+    def model(self) -> str:
+        return self.robot.model
+
+    def describe(self) -> dict[str, str]:
+        out = self.robot.describe()
+        m = self.mount
+        out["laser"] = self.laser.describe()
+        out["laser mount"] = f"{m.x * 1000:.0f}, {m.y * 1000:.0f} mm, {math.degrees(m.theta):.1f} deg"
+        return out
+
+    def make_clock(self, period: float) -> Clock:
+        return self.robot.make_clock(period)
+
+    def move_to(self, pose: Pose) -> None:
+        self.robot.move_to(pose)
+        self.history = PoseHistory()         # odometry jumped: older poses no longer pair with scans
+
+    def set_max_speed(self, v_max: float) -> None:
+        self.robot.set_max_speed(v_max)
+        self.limits = self.robot.limits
+
+    def _read(self) -> RobotState:
+        state = self.robot.read()
+        now = time.monotonic()
+        self.history.add(now, state.pose)
+        stamped = self.laser.latest()
+        if stamped is None:
+            return replace(state, laser=None)
+        at_scan = self.history.at(stamped.stamp)
+        if at_scan is None:                  # older than every state read: the oldest pose is the nearest
+            at_scan = self.history.oldest() or state.pose
+        else:
+            self.paired += 1
+        return replace(state, laser=scan_in_robot_frame(stamped.scan, _compose(at_scan, self.mount), state.pose))
+
+    def _command(self, twist: Twist) -> None:
+        self.robot.command(twist)
+
+    def _close(self) -> None:
+        try:
+            self.robot.close()
+        finally:
+            self.laser.close()
+
+
+def parse_laser_pose(text: str) -> Pose:
+    """"X,Y,THETA" [mm, mm, deg] of a laser on the robot as a `Pose` [m, rad].
+
+    Raises:
+        ConfigError: not three numbers.
+    """
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        x, y, th = (float(p) for p in parts)
+    except ValueError:
+        raise ConfigError(f"laser pose {text!r}: give X,Y,THETA in mm, mm, deg (e.g. 100,0,0)") from None
+    if not all(math.isfinite(v) for v in (x, y, th)):
+        raise ConfigError(f"laser pose {text!r}: the numbers must be finite")
+    return Pose(x / 1000.0, y / 1000.0, math.radians(th))
+
+
+def parse_laser_spec(text: str) -> tuple[str, str]:
+    """"NAME:ADDRESS" (e.g. rplidar:/dev/ttyUSB0, hokuyo:192.168.0.10:10940) as (name, address).
+
+    Raises:
+        ConfigError: no name or no address.
+    """
+    name, sep, address = text.partition(":")
+    if not sep or not name.strip() or not address.strip():
+        raise ConfigError(f"laser {text!r}: give NAME:ADDRESS, e.g. rplidar:/dev/ttyUSB0")
+    return name.strip(), address.strip()
