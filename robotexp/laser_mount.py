@@ -180,7 +180,7 @@ def parse_laser_pose(text: str) -> Pose:
     except ValueError:
         raise ConfigError(f"laser pose {text!r}: give X,Y,THETA in mm, mm, deg (e.g. 100,0,0)") from None
     if not all(math.isfinite(v) for v in (x, y, th)):
-        raise ConfigError(f"laser pose {text!r}: the numbers must be finite")
+        raise ConfigError(f"laser pose {text!r}: X,Y,THETA must be finite numbers")
     return Pose(x / 1000.0, y / 1000.0, math.radians(th))
 
 
