@@ -19,13 +19,15 @@ import math
 import time
 from collections import deque
 from dataclasses import replace
+from typing import Any
 import numpy as np
 
 from robotexp.errors import ConfigError
-from robotexp.laser import Laser
+from robotexp.laser import Laser, LaserEmulator, ScanSource
 from robotexp.robot import Clock, LaserScan, Pose, Robot, RobotState, Twist, wrap_angle
 
-__all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec"]
+__all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec",
+           "check_laser_options", "connect_laser", "attach_laser", "serve_laser", "emulate_devices"]
 
 
 class PoseHistory:
@@ -194,3 +196,127 @@ def parse_laser_spec(text: str) -> tuple[str, str]:
     if not sep or not name.strip() or not address.strip():
         raise ConfigError(f"laser {text!r}: give NAME:ADDRESS, e.g. rplidar:/dev/ttyUSB0")
     return name.strip(), address.strip()
+
+
+def connect_laser(spec: str) -> Laser:
+    """Connect the laser "NAME:ADDRESS" (NAME registered in `robotexp.lasers`).
+
+    Raises:
+        ConfigError: a malformed spec. PluginError: an unknown laser.
+        RobotError: the laser cannot be reached or refuses the handshake.
+    """
+    from robotexp.laser import LASERS
+    from robotexp.registry import load
+
+    name, address = parse_laser_spec(spec)
+    cls = load(LASERS, name, Laser)
+    return cls(address)  # type: ignore[no-any-return]
+
+
+def check_laser_options(spec: str | None, pose: str | None) -> None:
+    """Check `--laser NAME:ADDRESS` and `--laser-pose X,Y,THETA` before anything connects.
+
+    Raises:
+        ConfigError: a malformed spec or pose, or a pose without a laser.
+    """
+    if spec is None and pose is not None:
+        raise ConfigError("--laser-pose needs --laser NAME:ADDRESS")
+    if spec is not None:
+        parse_laser_spec(spec)
+    if pose is not None:
+        parse_laser_pose(pose)
+
+
+def attach_laser(robot: Robot, spec: str | None, pose: str | None) -> Robot:
+    """`robot` with the laser `spec` ("NAME:ADDRESS") mounted at `pose` ("X,Y,THETA" in mm, mm, deg;
+    default 0,0,0), or `robot` itself when `spec` is None. The robot is closed (stopped) when the
+    laser cannot be connected.
+
+    Raises:
+        ConfigError: a pose without a laser, or a malformed spec or pose (checked before connecting).
+        PluginError, RobotError: as `connect_laser`.
+    """
+    try:
+        check_laser_options(spec, pose)
+    except ConfigError:
+        robot.close()
+        raise
+    if spec is None:
+        return robot
+    try:
+        mount = parse_laser_pose(pose or "0,0,0")
+        laser = connect_laser(spec)
+    except BaseException:
+        robot.close()
+        raise
+    return LaserMountedRobot(robot, laser, mount)
+
+
+def serve_laser(name: str, source: ScanSource, *, pty: bool = False, port: int | None = None,
+                speedup: float = 1.0) -> LaserEmulator:
+    """The emulator of laser `name` (`robotexp.laser_emulators`) measuring with `source`, started.
+
+    Raises:
+        PluginError: no emulator of that name. ConfigError: a bad speedup. OSError: the port is taken.
+    """
+    from robotexp.laser import LASER_EMULATORS
+    from robotexp.registry import load
+
+    cls = load(LASER_EMULATORS, name, object)
+    emulator: LaserEmulator = cls(source, pty=pty, port=port, speedup=speedup)
+    return emulator.start()
+
+
+def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
+                    pty: bool = False, speedup: float = 1.0, laser: str | None = None,
+                    laser_pose: str | None = None, **options: Any) -> list[tuple[str, Any]]:
+    """What `robotexp emulate` serves, started, as (label, emulator) pairs: "robot" (a robot backend's
+    emulator, `robotexp.registry.make_emulator`) with, when `laser` names one, a "laser" emulator
+    measuring from that robot's simulator at `laser_pose`; or, when `backend` is a laser, that laser
+    alone on a still robot at `pose`. The laser serves on a pseudo-terminal when `pty`, else on a free
+    TCP port (or `port` when it serves alone). Each pair's emulator has `close()`; the caller closes
+    them all (in reverse order); on an error the ones already started are closed here.
+
+    Raises:
+        ConfigError, PluginError, WorldError: bad names, options, world or pose. OSError: a port taken.
+    """
+    from robotexp.laser import LASER_EMULATORS
+    from robotexp.registry import EMULATORS, available, make_emulator
+    from robotexp.sim import SimRobot, mounted_source, preset
+    from robotexp.world.loader import load_world
+    from robotexp.world.poses import resolve_pose
+
+    mount = parse_laser_pose(laser_pose) if laser_pose is not None else Pose(0.0, 0.0, 0.0)
+    lasers = available(LASER_EMULATORS)
+    started: list[tuple[str, Any]] = []
+    try:
+        if backend in lasers and backend not in available(EMULATORS):
+            if laser is not None:
+                raise ConfigError(f"{backend!r} is a laser: --laser adds a laser to a robot emulator")
+            if options.get("udp") is not None:
+                raise ConfigError(f"--udp is not an option of the {backend!r} laser emulator")
+            w = load_world(world)
+            robot = preset("kobuki")
+            start, _ = resolve_pose(w, pose, robot.radius)
+            sim = SimRobot(w, robot=robot, pose=start, sonar=False)
+            started.append(("simulator", sim))
+            started.append(("laser", serve_laser(backend, mounted_source(sim, mount), pty=pty, port=port,
+                                                 speedup=speedup)))
+            return started
+        if laser is not None and laser not in lasers:
+            raise ConfigError(f"--laser {laser!r}: no such laser emulator; available: {', '.join(lasers) or 'none'}")
+        if laser_pose is not None and laser is None:
+            raise ConfigError("--laser-pose needs --laser NAME")
+        emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, **options)
+        started.append(("robot", emulator.start()))
+        if laser is not None:
+            sim = getattr(emulator, "sim", None)
+            if sim is None:
+                raise ConfigError(f"the {backend!r} emulator has no simulator a laser could measure from")
+            source = mounted_source(sim, mount, getattr(emulator, "lock", None))
+            started.append(("laser", serve_laser(laser, source, pty=pty, speedup=speedup)))
+        return started
+    except BaseException:
+        for _, device in reversed(started):
+            device.close()
+        raise
