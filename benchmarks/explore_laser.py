@@ -1,14 +1,14 @@
-"""Frontier exploration with a real laser protocol: a Kobuki emulator plus a laser emulator, each on
+"""Frontier exploration with a real laser protocol: a robot emulator plus a laser emulator, each on
 its own pseudo-terminal, against the embedded simulator.
 
-The laser emulator (any of `robotexp.laser_emulators`) measures from the Kobuki emulator's simulated
+The laser emulator (any of `robotexp.laser_emulators`) measures from the robot emulator's simulated
 robot (`robotexp.sim.mounted_source`, the sensor at the robot centre facing forward), its driver
 reads it through the pseudo-terminal, and `robotexp.laser_mount.LaserMountedRobot` pairs each scan
-with the Kobuki's pose at the scan's stamp (`--unpaired`: the Kobuki backend takes the newest scan
-as it is, as if taken at the present pose). Both runs explore `--world` from `--pose` at 0.3 m/s; the script
+with the robot's pose at the scan's stamp (`--unpaired`, Kobuki only: the Kobuki backend takes the
+newest scan as it is, as if taken at the present pose). Both runs explore `--world` from `--pose` at 0.3 m/s; the script
 prints each run's coverage, completion, path and the coverage difference in points.
 
-Run: python benchmarks/explore_laser.py [--laser rplidar] [--world ufmg-static] [--pose path1]
+Run: python benchmarks/explore_laser.py [--robot kobuki] [--laser rplidar] [--world ufmg-static] [--pose path1]
      [--speedup 10] [--laser-speedup S] [--max-time 300] [--unpaired]
 (--laser-speedup above --speedup makes scans fresher in robot time: a way to see what the missing
 pose pairing costs.)
@@ -19,16 +19,16 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
-from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
+from robotexp.experiment import RunSpec, run_experiment, run_on_robot
 from robotexp.laser import LASER_EMULATORS, LASERS, Laser
 from robotexp.laser_mount import LaserMountedRobot
-from robotexp.registry import available, load
+from robotexp.registry import available, connect_robot, load, make_emulator
 from robotexp.robot import LaserScan, Robot
 from robotexp.sim import mounted_source
 from robotexp.world.builtin import builtin_world
-from robotexp_drivers.kobuki.emulator import KobukiEmulator
-from robotexp_drivers.kobuki.robot import KOBUKI_RADIUS, KobukiRobot
+from robotexp_drivers.kobuki.robot import KobukiRobot
 
 
 class NewestScan:
@@ -46,6 +46,7 @@ class NewestScan:
 def main() -> int:
     """Command-line entry point."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="kobuki", help="a robot backend with an emulator (kobuki, p3dx)")
     parser.add_argument("--laser", default="rplidar")
     parser.add_argument("--world", default="ufmg-static")
     parser.add_argument("--pose", default="path1")
@@ -63,11 +64,12 @@ def main() -> int:
         parser.error("--speedup, --laser-speedup and --max-time must be > 0")
     driver = load(LASERS, args.laser, Laser)
     emulator_cls = load(LASER_EMULATORS, args.laser, object)
+    if args.unpaired and args.robot != "kobuki":
+        parser.error("--unpaired needs --robot kobuki (its backend takes a laser source)")
     world = builtin_world(args.world)
-    start = resolve_pose(world, args.pose, KOBUKI_RADIUS)[0]
 
     def spec() -> RunSpec:
-        return RunSpec(world=args.world, robot="kobuki", method="frontier", pose=args.pose, speed=0.3,
+        return RunSpec(world=args.world, robot=args.robot, method="frontier", pose=args.pose, speed=0.3,
                        max_time=args.max_time)
 
     t0 = time.monotonic()
@@ -75,18 +77,19 @@ def main() -> int:
     print(f"embedded simulator: coverage {embedded['coverage']:.4f}, completed {embedded['completed']}, "
           f"path {embedded['path_length_m']:.1f} m, {time.monotonic() - t0:.0f} s wall", flush=True)
     t0 = time.monotonic()
-    with KobukiEmulator(world, pose=start, speedup=args.speedup, pty=True) as kobuki, \
-            emulator_cls(mounted_source(kobuki.sim, lock=kobuki.lock), pty=True, speedup=laser_speedup) as lemu, \
+    emu: Any = make_emulator(args.robot, args.world, pose=args.pose, pty=True, speedup=args.speedup)
+    with emu.start(), \
+            emulator_cls(mounted_source(emu.sim, lock=emu.lock), pty=True, speedup=laser_speedup) as lemu, \
             driver(lemu.address) as laser:
         if args.unpaired:
-            robot: Robot = KobukiRobot(kobuki.address, laser=NewestScan(laser))
+            robot: Robot = KobukiRobot(emu.address, laser=NewestScan(laser))
         else:
-            robot = LaserMountedRobot(KobukiRobot(kobuki.address), laser)
+            robot = LaserMountedRobot(connect_robot(args.robot, emu.address), laser)
         with robot:
             record = run_on_robot(spec(), robot, None, world).record
             scans = (laser.latest().seq + 1) if laser.latest() else 0
     diff = 100 * (record["coverage"] - embedded["coverage"])
-    print(f"kobuki + {args.laser} emulators on pseudo-terminals, {'un' if args.unpaired else ''}paired "
+    print(f"{args.robot} + {args.laser} emulators on pseudo-terminals, {'un' if args.unpaired else ''}paired "
           f"(speed-up {args.speedup:g} / laser "
           f"{laser_speedup:g}): coverage {record['coverage']:.4f}, completed "
           f"{record['completed']} ({record['reason']}), path {record['path_length_m']:.1f} m, collisions "
