@@ -78,8 +78,8 @@ def main() -> int:
           f"path {embedded['path_length_m']:.1f} m, {time.monotonic() - t0:.0f} s wall", flush=True)
     t0 = time.monotonic()
     emu: Any = make_emulator(args.robot, args.world, pose=args.pose, pty=True, speedup=args.speedup)
-    with emu.start(), \
-            emulator_cls(mounted_source(emu.sim, lock=emu.lock), pty=True, speedup=laser_speedup) as lemu, \
+    source = mounted_source(emu.sim, lock=getattr(emu, "lock", None))     # the P3-DX emulator has no lock
+    with emu.start(), emulator_cls(source, pty=True, speedup=laser_speedup) as lemu, \
             driver(lemu.address) as laser:
         if args.unpaired:
             robot: Robot = KobukiRobot(emu.address, laser=NewestScan(laser))
