@@ -6,7 +6,10 @@ clock, stamped with the host's `time.monotonic()` when complete. `LaserMountedRo
 it returns: the robot's pose when the scan was complete is interpolated between the states read
 around its stamp (`PoseHistory`), the sensor sits at `mount` on the robot, and every echo is moved
 to where it lies as seen from the robot's present pose (`scan_in_robot_frame`). So a map built from
-`state.pose` and `state.laser` puts each echo where the laser saw it, however old the scan.
+`state.pose` and `state.laser` puts each echo where the laser saw it, however old the scan. A laser
+that measures its beams one after the other (a turning RPLidar) says when, relative to the scan's
+stamp, through an optional `beam_offsets()` method; each echo is then placed from the pose at its
+own beam's time.
 
 Mount: `Pose(x, y, theta)` of the sensor in the robot frame [m, rad]; the CLI takes it in mm and
 degrees (`--laser-pose X,Y,THETA`, `parse_laser_pose`).
@@ -21,6 +24,7 @@ from collections import deque
 from dataclasses import replace
 from typing import Any
 import numpy as np
+import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.laser import Laser, LaserEmulator, ScanSource
@@ -67,33 +71,62 @@ class PoseHistory:
                     wrap_angle(p0.theta + f * wrap_angle(p1.theta - p0.theta)))
 
 
+def _poses_at(history: PoseHistory, ts: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], ...] | None:
+    """(x, y, theta) arrays of the poses at host times `ts` (clamped to the history's span: before the
+    first sample the first pose), interpolated as `PoseHistory.at`; None when the history is empty."""
+    if not history._t:
+        return None
+    t = np.fromiter(history._t, np.float64)
+    x = np.fromiter((p.x for p in history._p), np.float64)
+    y = np.fromiter((p.y for p in history._p), np.float64)
+    th = np.unwrap(np.fromiter((p.theta for p in history._p), np.float64))
+    if t.size == 1:
+        return np.full(ts.shape, x[0]), np.full(ts.shape, y[0]), np.full(ts.shape, th[0])
+    return np.interp(ts, t, x), np.interp(ts, t, y), np.interp(ts, t, th)
+
+
 def _compose(a: Pose, b: Pose) -> Pose:
     """`b` (in `a`'s frame) in the frame `a` is given in."""
     c, s = math.cos(a.theta), math.sin(a.theta)
     return Pose(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.theta + b.theta))
 
 
-def scan_in_robot_frame(scan: LaserScan, sensor: Pose, robot: Pose) -> LaserScan:
+def scan_in_robot_frame(scan: LaserScan, sensor: Pose, robot: Pose,
+                        beam_sensors: tuple[npt.NDArray[np.float64], ...] | None = None) -> LaserScan:
     """A scan taken in the sensor frame with the sensor at world pose `sensor`, as the robot at world
     pose `robot` sees it: `offset_x` is the sensor's position along the robot's heading, each echo
     lands exactly where it was (angle and range from that point), beams without echo (inf, NaN, or
     at `range_max` and beyond) keep their direction and range. The sensor's sideways offset from
     the robot's axis is not representable in a `LaserScan`: echoes stay exact, the rays towards them
     start up to that offset away (a few millimetres for a laser on the robot's axis).
+
+    `beam_sensors` = (x, y, theta) arrays, one per beam: where the sensor was when it measured each
+    beam (a turning laser measures its beams one after the other while the robot moves); the echoes
+    are placed from those, the rays start from `sensor`.
     """
     c, s = math.cos(robot.theta), math.sin(robot.theta)
-    dx, dy = sensor.x - robot.x, sensor.y - robot.y
-    ox, oy = c * dx + s * dy, -s * dx + c * dy                  # the sensor in the robot frame
-    dth = wrap_angle(sensor.theta - robot.theta)
+
+    def in_robot(x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        dx, dy = np.asarray(x, np.float64) - robot.x, np.asarray(y, np.float64) - robot.y
+        return c * dx + s * dy, -s * dx + c * dy
+
+    ox, _ = in_robot(sensor.x, sensor.y)                          # the rays' origin: (ox, 0)
+    ox = float(ox)
     ranges = np.asarray(scan.ranges, np.float64)
+    if beam_sensors is None:
+        bx, by = in_robot(np.full(ranges.shape, sensor.x), np.full(ranges.shape, sensor.y))
+        dth = np.full(ranges.shape, sensor.theta - robot.theta)
+    else:
+        bx, by = in_robot(beam_sensors[0], beam_sensors[1])
+        dth = np.asarray(beam_sensors[2], np.float64) - robot.theta
     angles = np.asarray(scan.angles, np.float64) + dth           # beam directions in the robot frame
     hit = np.isfinite(ranges) & (ranges < scan.range_max)
     out_r = np.where(hit, 0.0, ranges)
     out_r = np.where(np.isfinite(ranges) & ~hit, math.inf, out_r)
     out_a = angles.copy()
-    # an echo lies at (ox, oy) + r (cos a, sin a) in the robot frame; seen from (ox, 0):
-    ex = ranges[hit] * np.cos(angles[hit])
-    ey = oy + ranges[hit] * np.sin(angles[hit])
+    # an echo lies at (bx, by) + r (cos a, sin a) in the robot frame; seen from (ox, 0):
+    ex = bx[hit] - ox + ranges[hit] * np.cos(angles[hit])
+    ey = by[hit] + ranges[hit] * np.sin(angles[hit])
     out_a[hit] = np.arctan2(ey, ex)
     out_r[hit] = np.hypot(ex, ey)
     out_a = (out_a + math.pi) % (2 * math.pi) - math.pi
@@ -158,7 +191,17 @@ class LaserMountedRobot(Robot):
             at_scan = self.history.oldest() or state.pose
         else:
             self.paired += 1
-        return replace(state, laser=scan_in_robot_frame(stamped.scan, _compose(at_scan, self.mount), state.pose))
+        sensor = _compose(at_scan, self.mount)
+        beam_sensors = None
+        offsets = getattr(self.laser, "beam_offsets", None)
+        if offsets is not None:
+            poses = _poses_at(self.history, stamped.stamp + np.asarray(offsets(), np.float64))
+            if poses is not None:
+                m = self.mount
+                x, y, th = poses
+                beam_sensors = (x + np.cos(th) * m.x - np.sin(th) * m.y, y + np.sin(th) * m.x + np.cos(th) * m.y,
+                                th + m.theta)
+        return replace(state, laser=scan_in_robot_frame(stamped.scan, sensor, state.pose, beam_sensors))
 
     def _command(self, twist: Twist) -> None:
         self.robot.command(twist)

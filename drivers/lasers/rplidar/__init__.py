@@ -15,6 +15,9 @@ import struct
 import time
 from typing import ClassVar
 
+import numpy as np
+import numpy.typing as npt
+
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.rplidar import constants as C
@@ -158,6 +161,14 @@ class RPLidarLaser(StreamLaser):
     def _stop_device(self) -> None:
         self._link.write(request(C.CMD_STOP))
         self._link.set_dtr(True)                        # stop the motor
+
+    def beam_offsets(self) -> npt.NDArray[np.float64]:
+        """When each beam of a turn was measured [s], relative to the turn's stamp (<= 0): the turn
+        sweeps clockwise from the front and ends when the next one begins (`robotexp.laser_mount`
+        places each echo from the robot pose at its beam's time)."""
+        g = self.geometry
+        cw = (-g.angles()) % (2 * np.pi)
+        return -(1.0 - cw / (2 * np.pi)) * g.period
 
     def describe(self) -> str:
         g = self.geometry

@@ -25,6 +25,7 @@ from robotexp_drivers.kobuki.emulator import KobukiEmulator
 from robotexp_drivers.kobuki.robot import KobukiRobot
 from robotexp_drivers.lasers.rplidar import RPLidarLaser
 from robotexp_drivers.lasers.rplidar.emulator import RPLidarEmulator
+from scan_sources import BoxSource
 
 
 def test_pose_history_interpolates_across_the_heading_wrap() -> None:
@@ -102,3 +103,25 @@ def test_rplidar_on_a_kobuki_unplugged_mid_run(world: World, start: Pose, tmp_pa
         lines = (tmp_path / "results.jsonl").read_text().splitlines()
         assert len(lines) == 1 and json.loads(lines[0])["coverage"] == record["coverage"]
         assert kobuki.last_base_control == BaseControl(0, 0)
+
+
+def test_each_beam_placed_from_the_pose_at_its_own_time() -> None:
+    # two beams straight ahead of the sensor, measured while the robot turned from 0 to 90 deg in place
+    scan = LaserScan(np.array([0.0, 0.0]), np.array([2.0, 3.0]), 4.0)
+    beams = (np.array([0.0, 0.0]), np.array([0.0, 0.0]), np.array([0.0, math.pi / 2]))
+    out = scan_in_robot_frame(scan, Pose(0.0, 0.0, math.pi / 2), Pose(0.0, 0.0, math.pi / 2), beams)
+    # beam 0 (heading 0) hit world (2, 0): from the robot now facing +y that is 90 deg to its right
+    assert out.angles[0] == pytest.approx(-math.pi / 2) and out.ranges[0] == pytest.approx(2.0)
+    assert out.angles[1] == pytest.approx(0.0) and out.ranges[1] == pytest.approx(3.0)
+
+
+def test_rplidar_beam_offsets_follow_its_clockwise_turn() -> None:
+    with RPLidarEmulator(BoxSource(), pty=True) as lidar, RPLidarLaser(lidar.address) as laser:
+        offsets = laser.beam_offsets()
+        period = laser.geometry.period
+        angles = np.degrees(laser.geometry.angles())
+        # the front is measured first (a whole turn before the stamp), then the right, back, left
+        assert offsets[np.argmin(np.abs(angles))] == pytest.approx(-period)
+        assert offsets[np.argmin(np.abs(angles + 90))] == pytest.approx(-0.75 * period)
+        assert offsets[np.argmin(np.abs(angles - 90))] == pytest.approx(-0.25 * period)
+        assert np.all((offsets <= 0) & (offsets >= -period))
