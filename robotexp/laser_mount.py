@@ -144,6 +144,8 @@ class LaserMountedRobot(Robot):
             the robot).
     """
 
+    first_scan_timeout = 3.0    # [s] how long the first read waits for the laser's first scan
+
     def __init__(self, robot: Robot, laser: Laser, mount: Pose | None = None) -> None:
         self.robot = robot
         self.laser = laser
@@ -183,9 +185,8 @@ class LaserMountedRobot(Robot):
         state = self.robot.read()
         now = time.monotonic()
         self.history.add(now, state.pose)
-        stamped = self.laser.latest()
-        if stamped is None:
-            return replace(state, laser=None)
+        # no state without a scan: an explorer given an empty first view would call the world explored
+        stamped = self.laser.latest() or self.laser.wait_scan(-1, self.first_scan_timeout)
         at_scan = self.history.at(stamped.stamp)
         if at_scan is None:                  # older than every state read: the oldest pose is the nearest
             at_scan = self.history.oldest() or state.pose

@@ -94,8 +94,8 @@ def test_rplidar_on_a_kobuki_unplugged_mid_run(world: World, start: Pose, tmp_pa
             spec = RunSpec(world="ufmg-static", robot="kobuki", method="frontier", pose="path1", speed=0.3,
                            max_time=120.0)
             out = run_on_robot(spec, robot, tmp_path, world, observers=[unplug])
-            assert robot.paired > 20                     # scans went out with interpolated poses
         record = out.record
+        assert robot.paired > 20, record                 # scans went out with interpolated poses
         assert not record["completed"] and "rplidar" in record["reason"]
         assert unplug.unplugged is not None and unplug.ended is not None
         assert unplug.ended - unplug.unplugged < 1.0
