@@ -21,6 +21,7 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, PathPolicy
+from robotexp.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method"]
 
@@ -33,7 +34,7 @@ class ScriptResult:
     its runs (also in OUT/results.jsonl)."""
 
     exit_code: int = 0
-    records: list[dict[str, Any]] = field(default_factory=list)
+    records: list[RunRecord] = field(default_factory=list)
 
 
 def substitute_method(code: str, old: str, new: str) -> str:
