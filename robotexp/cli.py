@@ -130,6 +130,8 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--address", default=None,
               help="Run on a connected robot at this address (serial device, host[:port], pyserial URL); "
                    "--world, if given, is then only the ground truth for coverage.")
+@click.option("--laser", default=None, help="With --address: a laser of its own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
@@ -140,12 +142,18 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
               show_default=True, help="Output folder (results.jsonl, images).")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
-            seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path) -> None:
+            seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
+            param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
+            out: Path) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+    from robotexp.laser_mount import attach_laser, check_laser_options
     from robotexp.registry import connect_robot
 
+    if (laser is not None or laser_pose is not None) and address is None:
+        raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
+                          "simulator has its own")
+    check_laser_options(laser, laser_pose)
     overlays = tuple(s for s in show.split(",") if s)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
     if unknown:
@@ -164,7 +172,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with connect_robot(robot, address) as bot:
+            with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=[progress], show=overlays)
     finally:
         progress.close()
@@ -346,24 +354,35 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
 @click.option("--pty", is_flag=True, help="Serve on a pseudo-terminal (prints its device path) instead of TCP.")
 @click.option("--speedup", type=float, default=1.0, show_default=True, help="Robot time per wall time.")
 @click.option("--udp", default=None, help="mavlink: send to a ground station at HOST:PORT (e.g. 127.0.0.1:14550).")
+@click.option("--laser", default=None, help="Serve a laser on the simulated robot too (rplidar, hokuyo, lms2xx).")
+@click.option("--laser-pose", default=None, help="Where that laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @handle_errors
 def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
-            udp: str | None) -> None:
-    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
+            udp: str | None, laser: str | None, laser_pose: str | None) -> None:
+    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim), or
+    a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world."""
     import time
 
-    from robotexp.registry import make_emulator
+    from robotexp.laser_mount import emulate_devices
 
-    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp)
+    devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
+                              laser=laser, laser_pose=laser_pose)
     try:
-        emulator.start()
-        click.echo(f"{backend} emulator of world {world!r} at {emulator.address} (speedup {speedup:g}); Ctrl-C stops")
+        served = [(label, device) for label, device in devices if label != "simulator"]
+        if [label for label, _ in served] == ["robot"]:
+            click.echo(f"{backend} emulator of world {world!r} at {served[0][1].address} (speedup {speedup:g}); "
+                       "Ctrl-C stops")
+        else:
+            for label, device in served:
+                click.echo(f"{label}: {device.address}")
+            click.echo(f"world {world!r}, speedup {speedup:g}; Ctrl-C stops", err=True)
         while True:
             time.sleep(0.5)
     except KeyboardInterrupt:
         click.echo("emulator stopped", err=True)
     finally:
-        emulator.close()
+        for _, device in reversed(devices):
+            device.close()
 
 
 def _status_line(state: Any) -> str:
@@ -386,14 +405,19 @@ def _status_line(state: Any) -> str:
 @click.argument("address")
 @click.option("--drive", default=None, help="Drive at V,W (mm/s, deg/s) during --for; the robot stops after.")
 @click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
+@click.option("--laser", default=None, help="A laser of the robot's own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @handle_errors
-def connect(backend: str, address: str, drive: str | None, duration: float) -> None:
+def connect(backend: str, address: str, drive: str | None, duration: float, laser: str | None,
+            laser_pose: str | None) -> None:
     """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line."""
     import time
 
+    from robotexp.laser_mount import attach_laser, check_laser_options
     from robotexp.registry import connect_robot
     from robotexp.robot import Twist
 
+    check_laser_options(laser, laser_pose)
     twist = None
     if drive is not None:
         try:
@@ -404,7 +428,7 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
     if not (duration >= 0 and math.isfinite(duration)):
         raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
     tty = sys.stdout.isatty()
-    with connect_robot(backend, address) as robot:
+    with attach_laser(connect_robot(backend, address), laser, laser_pose) as robot:
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
         lim = robot.limits
