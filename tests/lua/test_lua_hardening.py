@@ -112,13 +112,22 @@ UNSTOPPABLE = {
 @pytest.mark.parametrize("name", sorted(UNSTOPPABLE))
 def test_constructs_the_hook_cannot_see_are_stopped_at_the_timeout(tmp_path, name):
     script, out = tmp_path / "s.lua", tmp_path / "out"
-    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); '
-                      f'exploration.wait(); print("run done")\n{UNSTOPPABLE[name]}\nprint("not reached")')
-    code, output, took = _cli("run", str(script), "--out", str(out), "--timeout", "3", "--sandbox")
+    script.write_text(f'print("start")\n{UNSTOPPABLE[name]}\nprint("not reached")')
+    code, output, took = _cli("run", str(script), "--out", str(out), "--timeout", "1.5", "--sandbox")
     assert code == 1, output
-    assert took < 3 + 2.0, took
+    assert took < 1.5 + 2.0, took
+    assert "start" in output and "not reached" not in output and "Traceback" not in output
+    assert "stopped by --timeout after 1.5 s" in output and "the 0 run(s) finished so far" in output
+
+
+def test_runs_written_before_a_stuck_construct_are_kept(tmp_path):
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); '
+                      f'exploration.wait(); print("run done")\n{UNSTOPPABLE["finalizer"]}\nprint("not reached")')
+    code, output, took = _cli("run", str(script), "--out", str(out), "--timeout", "10", "--sandbox")
+    assert code == 1 and took < 10 + 2.0, (took, output)
     assert "run done" in output and "not reached" not in output and "Traceback" not in output
-    assert "stopped by --timeout after 3 s" in output and "the 1 run(s) finished so far" in output
+    assert "stopped by --timeout after 10 s" in output and "the 1 run(s) finished so far" in output
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert rec["robot_time_s"] >= 1.9
 
