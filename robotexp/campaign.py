@@ -98,6 +98,9 @@ def load_campaign(path: str | Path) -> Campaign:
         raise ConfigError(f"{p}: cannot read the campaign file ({exc.strerror or exc})") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    except RecursionError:
+        raise ConfigError(f"{p}: not valid TOML: nested too deeply (arrays or tables within each other); a "
+                          "campaign file needs two levels") from None
     unknown = set(data) - {"campaign", "set"}
     if unknown:
         raise _fail(p, "top level", f"unknown key(s) {', '.join(sorted(unknown))} (use [campaign] and [[set]])")

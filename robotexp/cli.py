@@ -17,7 +17,7 @@ import click
 
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
+from robotexp.record import EndReason, RunRecord
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -101,6 +101,30 @@ def _mm(value: float | None, what: str) -> float | None:
     return value / 1000.0
 
 
+def writable_folder(out: Path, option: str = "--out") -> None:
+    """Check, before any run starts, that the output folder `out` can be made and written.
+
+    Raises:
+        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system).
+    """
+    import tempfile
+
+    made = [d for d in (out, *out.parents) if not d.exists()]     # removed again: nothing is left behind
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{option} {out}: cannot write there ({exc.strerror or exc}); give a folder you can "
+                          "create and write") from None
+    finally:
+        for d in made:
+            try:
+                d.rmdir()
+            except OSError:
+                break
+
+
 def _params(items: tuple[str, ...]) -> dict[str, Any]:
     """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
     import json
@@ -157,6 +181,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000)
+    spec.validate()
+    writable_folder(out)
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:
@@ -175,6 +201,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     if result.interrupted:
         sys.exit(130)
+    if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
+        _fail(f"{r.run}: {r.reason}", 1)
 
 
 @main.command()
@@ -233,6 +261,7 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
 
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
+    writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
@@ -350,6 +379,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                           "any address)")
     AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
     memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
+    writable_folder(out)
     if not child:
         from robotexp.lua.supervise import supervise
 

@@ -12,8 +12,11 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from click.testing import CliRunner
 
+from robotexp.cli import main
 from robotexp.errors import ProtocolError
+from robotexp.results import read_records
 from robotexp.experiment import make_emulator
 from robotexp_drivers.p3dx.robot import P3DXRobot
 
@@ -22,8 +25,9 @@ class GarbageProxy:
     """TCP proxy to `target`; once `garbage` is set, the robot's bytes are replaced by bytes that
     never form an ARCOS packet (no 0xFA header byte) at about 20 kB/s."""
 
-    def __init__(self, target: tuple[str, int]) -> None:
+    def __init__(self, target: tuple[str, int], garbage_after: float | None = None) -> None:
         self.target = target
+        self.garbage_after = garbage_after
         self.server = socket.create_server(("127.0.0.1", 0))
         self.port = self.server.getsockname()[1]
         self.garbage = threading.Event()
@@ -34,6 +38,8 @@ class GarbageProxy:
     def _run(self) -> None:
         client, _ = self.server.accept()
         robot = socket.create_connection(self.target)
+        if self.garbage_after is not None:
+            threading.Timer(self.garbage_after, self.garbage.set).start()
         threading.Thread(target=self._pump, args=(client, robot), daemon=True).start()
         robot.settimeout(0.01)
         filler = bytes(b for b in range(256) if b != 0xFA) * 4
@@ -146,3 +152,16 @@ def test_a_reader_starved_for_longer_than_silence_then_fed_nothing_is_still_lost
     finally:
         robot.close()
         proxy.close()
+
+
+def test_a_run_ended_by_a_robot_error_exits_1_with_its_record(emulator, tmp_path):
+    proxy = GarbageProxy(("127.0.0.1", _port(emulator)), garbage_after=2.0)
+    try:
+        result = CliRunner().invoke(main, ["explore", "--address", f"127.0.0.1:{proxy.port}", "--world", "dense",
+                                           "--max-time", "600", "--out", str(tmp_path)])
+    finally:
+        proxy.close()
+    assert result.exit_code == 1, result.output
+    assert "robotexp: error: " in result.output and "no valid SIP" in result.output
+    (rec,) = read_records(tmp_path / "results.jsonl")
+    assert rec.reason.startswith("robot error") and "no valid SIP" in rec.reason
