@@ -370,22 +370,19 @@ if dbg.getupvalue then
     if guarded[f1] or guarded[f2] then closed("debug.upvaluejoin") end
     return d_upvaluejoin(f1, n1, f2, n2)
   end
-  dbg.getlocal = function(a, b, ...)
-    frame("debug.getlocal", a, b)
-    if type(a) == "number" then
-      local r = pack(d_getlocal(a + 1, b, ...))
-      return unpack(r, 1, r.n)
+  -- getlocal / setlocal: refused on a frame of robotexp's own; a level counts from the caller
+  local function level_guarded(what, raw)
+    return function(a, b, ...)
+      frame(what, a, b)
+      if type(a) == "number" then
+        local r = pack(raw(a + 1, b, ...))
+        return unpack(r, 1, r.n)
+      end
+      return raw(a, b, ...)
     end
-    return d_getlocal(a, b, ...)
   end
-  dbg.setlocal = function(a, b, ...)
-    frame("debug.setlocal", a, b)
-    if type(a) == "number" then
-      local r = pack(d_setlocal(a + 1, b, ...))
-      return unpack(r, 1, r.n)
-    end
-    return d_setlocal(a, b, ...)
-  end
+  dbg.getlocal = level_guarded("debug.getlocal", d_getlocal)
+  dbg.setlocal = level_guarded("debug.setlocal", d_setlocal)
   dbg.getregistry = function()
     error("debug.getregistry is reserved by robotexp (the registry holds the hook that stops scripts)", 2)
   end
