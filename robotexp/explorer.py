@@ -2,7 +2,7 @@
 
 An explorer only decides: given the robot's state and the map it returns a `Twist`, or `Done`.
 It never sleeps, reads clocks, does I/O or holds a robot handle; its randomness comes from the
-generator in its `ExplorerContext`. `ExplorationRun` owns the loop of DESIGN.md:
+generator in its `ExplorerContext`. `ExplorationRun` owns the loop of docs/architecture.md ("One run"):
 
     clock tick -> robot.read() -> grid.update() -> explorer.step() -> robot.command() -> metrics
 

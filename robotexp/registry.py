@@ -124,7 +124,7 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
         raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
     params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
     try:
-        return cls(**params)   # type: ignore[no-any-return]
+        return cls(**params)
     except TypeError as exc:
         raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
 
@@ -190,7 +190,7 @@ def connect_robot(backend: str, address: str) -> Robot:
     if not getattr(cls, "by_address", True):
         raise ConfigError(f"robot {backend!r} has no address ({cls.__qualname__} runs in this process, "
                           "e.g. the embedded simulator); run without --address")
-    return cls(address)   # type: ignore[no-any-return]
+    return cls(address)
 
 
 def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
@@ -227,4 +227,4 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
     kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup, **given}
     if port is not None:
         kwargs["port"] = port
-    return cls(w, **kwargs)   # type: ignore[no-any-return]
+    return cls(w, **kwargs)

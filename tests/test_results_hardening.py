@@ -120,6 +120,14 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
+def _cpu_seconds(pid: int) -> float:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _alive(pid: int) -> bool:
     try:
         return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
@@ -155,15 +163,14 @@ def test_kill_9_of_the_campaign_kills_its_workers_and_resume_does_not_duplicate(
 
 def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path):
     camp, out = tmp_path / "c.toml", tmp_path / "out"
-    camp.write_text(MINI.replace("max_time_s = 6", "max_time_s = 600").replace("[300]", "[40]"))
+    camp.write_text(MINI.replace("max_time_s = 6", "max_time_s = 14400").replace("[300]", "[40]"))   # ~10 s of CPU each
     proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "campaign", str(camp), "--out", str(out),
                              "-j", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not _children(proc.pid):
-            time.sleep(0.05)
-        time.sleep(3.0)                     # the worker is inside its first (long) run
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline and not any(_cpu_seconds(k) > 5.0 for k in _children(proc.pid)):
+            time.sleep(0.1)                 # the worker is inside its first (long) run: past its imports
         t0 = time.monotonic()
         proc.send_signal(signal.SIGINT)     # to the campaign alone: it passes it on
         _, stderr = proc.communicate(timeout=60)

@@ -421,8 +421,12 @@ class P3DXEmulator(EmulatorBase):
             c.CMD_SIM_STAT: self._sim_stat,
         }
         for number, which in _LRF_FOV.items():
-            table[number] = lambda i, a, conn, which=which: self._set_fov(which, i)
+            table[number] = self._fov_handler(which)
         return table
+
+    def _fov_handler(self, which: int) -> Callable[[int, object, _TcpConn | _PtyConn], None]:
+        """The handler of the laser field-of-view command that sets bound `which`."""
+        return lambda i, a, conn: self._set_fov(which, i)
 
     def _drive(self, command: Callable[[int], None]) -> Callable[[int, object, _TcpConn | _PtyConn], None]:
         """A motion command's handler: ignored while the motors are disabled (as MobileSim)."""

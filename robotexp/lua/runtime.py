@@ -21,6 +21,7 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
+from robotexp.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB"]
 
@@ -36,7 +37,7 @@ class ScriptResult:
     its runs (also in OUT/results.jsonl)."""
 
     exit_code: int = 0
-    records: list[dict[str, Any]] = field(default_factory=list)
+    records: list[RunRecord] = field(default_factory=list)
 
 
 def substitute_method(code: str, old: str, new: str) -> str:
@@ -140,7 +141,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         ConfigError: an allowed address that is not a host[:port] or a device path; max_memory < 1 MB.
         KeyboardInterrupt: Ctrl-C, after the robot is stopped and the runs so far are written.
     """
-    from lupa import LuaError, LuaRuntime  # type: ignore[import-untyped]
+    from lupa import LuaError, LuaRuntime
 
     if timeout is not None and not timeout > 0:
         raise ScriptError(f"--timeout must be > 0 s, got {timeout:g}")

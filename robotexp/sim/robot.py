@@ -236,6 +236,11 @@ class SimRobot(Robot):
         """Where the robot really is (not what odometry believes)."""
         return self._true
 
+    @property
+    def commanded(self) -> Twist:
+        """The velocity command in force (clamped to `limits`; the robot accelerates towards it)."""
+        return self._cmd
+
     def mover_positions(self) -> list[tuple[float, float]]:
         """Where each mover is now [m]."""
         return [m.position(t) for m, t in zip(self.world.movers, self._mover_time, strict=True)]
