@@ -17,7 +17,7 @@ import click
 
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
+from robotexp.record import EndReason, RunRecord
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -101,6 +101,30 @@ def _mm(value: float | None, what: str) -> float | None:
     return value / 1000.0
 
 
+def writable_folder(out: Path, option: str = "--out") -> None:
+    """Check, before any run starts, that the output folder `out` can be made and written.
+
+    Raises:
+        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system).
+    """
+    import tempfile
+
+    made = [d for d in (out, *out.parents) if not d.exists()]     # removed again: nothing is left behind
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{option} {out}: cannot write there ({exc.strerror or exc}); give a folder you can "
+                          "create and write") from None
+    finally:
+        for d in made:
+            try:
+                d.rmdir()
+            except OSError:
+                break
+
+
 def _params(items: tuple[str, ...]) -> dict[str, Any]:
     """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
     import json
@@ -165,6 +189,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000)
+    spec.validate()
+    writable_folder(out)
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:
@@ -183,6 +209,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     if result.interrupted:
         sys.exit(130)
+    if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
+        _fail(f"{r.run}: {r.reason}", 1)
 
 
 @main.command()
@@ -241,6 +269,7 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
 
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
+    writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
@@ -331,15 +360,51 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder; the script's relative paths are relative to it.")
 @click.option("--sandbox", is_flag=True,
-              help="Refuse os.execute, io.popen, C modules and files outside the output folder.")
+              help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
+                   "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
+@click.option("--allow-address", multiple=True,
+              help="With --sandbox: a robot address (host[:port] or device path) the script may open (repeatable).")
+@click.option("--max-memory", type=float, default=None,
+              help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
+@click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
 @handle_errors
-def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None) -> None:
-    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView)."""
+def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
+            max_memory: float | None, timeout: float | None, child: bool) -> None:
+    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
+
+    The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
+    if it does not stop by itself; runs already written stay in results.jsonl."""
+    from robotexp.lua.runtime import SANDBOX_MAX_MEMORY_MB
+    from robotexp.lua.sandbox import AddressPolicy
+
+    if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
+        raise ConfigError(f"--timeout must be a number of seconds > 0, got {timeout:g}")
+    if max_memory is not None and not (1 <= max_memory <= 2**20):
+        raise ConfigError(f"--max-memory must be 1..1048576 MB, got {max_memory:g}")
+    if allow_address and not sandbox:
+        raise ConfigError("--allow-address only means something with --sandbox (without it a script may open "
+                          "any address)")
+    AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
+    memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
+    writable_folder(out)
+    if not child:
+        from robotexp.lua.supervise import supervise
+
+        args = [str(script), "--robot", robot, "--out", str(out)] + (["--world", world] if world else [])
+        args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
+        args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
+        args += [f"--timeout={timeout!r}"] if timeout is not None else []
+        if click.get_current_context().find_root().params.get("debug", False):
+            args.append("--debug")
+        sys.exit(supervise(args, script=script.name, out=out, timeout=timeout))
+
     from robotexp.lua import run_script
 
     result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
-                        emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True))
+                        emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                        max_memory=None if memory is None else int(memory * 2**20), allow_addresses=allow_address,
+                        retire=True)
     click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
     if result.exit_code:
         sys.exit(result.exit_code)

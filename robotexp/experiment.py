@@ -38,6 +38,9 @@ __all__ = ["RunSpec", "RunOutput", "RunPlan", "run_experiment", "run_on_robot", 
 
 DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
 MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
+MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
+MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
+MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
 
 
 @dataclass
@@ -61,10 +64,14 @@ class RunSpec:
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
-        if not (self.speed > 0 and math.isfinite(self.speed)):
-            raise ConfigError(f"speed must be > 0, got {self.speed * 1000:g} mm/s")
-        if not (self.laser_range > 0 and math.isfinite(self.laser_range)):
-            raise ConfigError(f"laser range must be > 0, got {self.laser_range * 1000:g} mm")
+        if not (0 < self.speed <= MAX_SPEED):
+            raise ConfigError(f"speed must be > 0 and at most {MAX_SPEED * 1000:g} mm/s, got "
+                              f"{self.speed * 1000:g} mm/s")
+        if not (0 < self.laser_range <= MAX_LASER_RANGE):
+            raise ConfigError(f"laser range must be > 0 and at most {MAX_LASER_RANGE * 1000:g} mm, got "
+                              f"{self.laser_range * 1000:g} mm")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise ConfigError(f"seed must be an integer 0..{MAX_SEED}, got {self.seed!r}")
         if self.cell is not None and not (0.005 <= self.cell <= 2.0):
             raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
         if not self.max_time > 0:

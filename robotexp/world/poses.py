@@ -15,11 +15,14 @@ from robotexp.world.model import World
 __all__ = ["parse_pose", "resolve_pose", "pose_name", "pose_text", "central_free_pose"]
 
 
+POSE_LIMIT_MM = 1e7     # [mm] |x|, |y| of a pose given as numbers (10 km: larger is a typo or an attack)
+
+
 def parse_pose(text: str) -> Pose:
     """Parse "x,y,theta" (mm, mm, degrees; theta optional) into a Pose in SI units.
 
     Raises:
-        ConfigError: not two or three finite numbers.
+        ConfigError: not two or three finite numbers, |x| or |y| over `POSE_LIMIT_MM`, or |theta| over 360 degrees.
     """
     parts = text.split(",")
     try:
@@ -32,6 +35,9 @@ def parse_pose(text: str) -> Pose:
     except ValueError:
         raise ConfigError(f"pose {text!r}: expected a pose name or x,y,theta in mm, mm, degrees "
                           "(e.g. -5000,7500,0)") from None
+    if max(abs(x), abs(y)) > POSE_LIMIT_MM or abs(th) > 360:
+        raise ConfigError(f"pose {text!r}: x and y must be within +-{POSE_LIMIT_MM:.0f} mm and theta within "
+                          "+-360 degrees")
     return Pose(x / 1000, y / 1000, math.radians(th))
 
 
