@@ -38,6 +38,8 @@ _KEY = re.compile(r"([A-Za-z_][\w.-]*)[ \t]*:(?:[ \t]+(.*))?$")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _PLAIN_NAME = re.compile(r"[\w./-]+", re.ASCII)
 _FREE, _UNKNOWN, _OCCUPIED = 254, 205, 0     # ROS 1 map_saver pixel values
+MIN_RESOLUTION = 1e-4       # [m/pixel] 0.1 mm: finer is a corrupted file
+MAX_COORD = 1e6             # [m] 1000 km: a map reaching farther is a corrupted file
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,8 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
 
     Raises:
         WorldError: the YAML or the image cannot be read, a required key is missing, a number
-            is malformed, `origin` is not 3 numbers or has a non-zero yaw, `resolution <= 0`,
+            is malformed, `origin` is not 3 numbers or has a non-zero yaw, `resolution` is outside
+            [MIN_RESOLUTION, MAX_COORD] or the map reaches beyond +-MAX_COORD,
             thresholds are outside [0, 1] or `free_thresh >= occupied_thresh`, `negate` or
             `mode` is unknown. The message names the file, the line and the key.
     """
@@ -73,10 +76,13 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
             raise WorldError(f"{src}: missing key {key!r}, expected the map_server keys "
                              f"{', '.join(_REQUIRED)} (and optionally mode)")
     resolution = _number(entries, "resolution", src)
-    if not resolution > 0:
-        raise WorldError(f"{src}:{entries['resolution'].line}: key 'resolution': {resolution} <= 0, "
-                         "expected a positive cell size [m/pixel]")
+    if not MIN_RESOLUTION <= resolution <= MAX_COORD:
+        raise WorldError(f"{src}:{entries['resolution'].line}: key 'resolution': {resolution:g} m/pixel is out of "
+                         f"range, expected a cell size from {MIN_RESOLUTION:g} m to {MAX_COORD:g} m")
     origin = _origin(entries, src)
+    if not all(abs(v) <= MAX_COORD for v in origin):
+        raise WorldError(f"{src}:{entries['origin'].line}: key 'origin': ({origin[0]:g}, {origin[1]:g}) m is beyond "
+                         f"+-{MAX_COORD:g} m, expected coordinates of a building")
     occupied = _number(entries, "occupied_thresh", src)
     free = _number(entries, "free_thresh", src)
     for key, value in (("occupied_thresh", occupied), ("free_thresh", free)):
@@ -106,6 +112,12 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
     if mode == "scale" and opaque is not None:
         values[~opaque] = -1
     values = np.ascontiguousarray(values[::-1])
+    extent = max(values.shape) * resolution
+    if not all(abs(v) + extent <= MAX_COORD for v in origin):
+        raise WorldError(f"{src}:{entries['resolution'].line}: the map reaches {extent:g} m from its origin "
+                         f"({values.shape[1]} x {values.shape[0]} pixels of {resolution:g} m), "
+                         f"beyond +-{MAX_COORD:g} m: "
+                         "expected the resolution of a building map [m/pixel]")
     geo = GridGeometry(origin[0], origin[1], resolution, values.shape[0], values.shape[1])
     return values, geo
 
@@ -141,7 +153,7 @@ def load_ros_world(yaml_path: str | os.PathLike[str]) -> World:
                    f"{int(np.count_nonzero(values >= 50))} occupied, "
                    f"{int(np.count_nonzero(values < 0))} unknown, {len(rects)} boxes")
     return World(name=Path(yaml_path).stem, boxes=boxes, bounds=bounds, source=str(yaml_path),
-                 description=description)
+                 description=description, declared=bounds, collision="index")
 
 
 def merge_cells(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
