@@ -169,16 +169,24 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         sys.exit(130)
 
 
-@main.command()
+@main.group(invoke_without_command=True)
+@click.pass_context
 @handle_errors
-def worlds() -> None:
-    """List the built-in worlds with their sizes and start poses."""
+def worlds(ctx: click.Context) -> None:
+    """List the built-in worlds with their sizes and start poses (`worlds generate`: make one)."""
     from robotexp.world.builtin import builtin_names, builtin_world
 
+    if ctx.invoked_subcommand is not None:
+        return
     for name in builtin_names():
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+
+
+from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
+
+worlds.add_command(generate)
 
 
 @main.command()

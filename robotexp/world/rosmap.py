@@ -28,7 +28,7 @@ from robotexp.errors import ConfigError, WorldError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.world.model import World
 
-__all__ = ["load_ros_grid", "load_ros_world", "merge_cells", "save_ros_map"]
+__all__ = ["load_ros_grid", "load_ros_world", "merge_cells", "save_ros_map", "world_from_grid"]
 
 log = logging.getLogger(__name__)
 
@@ -139,21 +139,33 @@ def load_ros_world(yaml_path: str | os.PathLike[str]) -> World:
         WorldError: as `load_ros_grid`, or the map has no occupied or unknown cell at all.
     """
     values, geo = load_ros_grid(yaml_path)
+    return world_from_grid(values, geo, name=Path(yaml_path).stem, source=str(yaml_path),
+                           what=f"ROS map {Path(yaml_path).name}")
+
+
+def world_from_grid(values: npt.NDArray[np.int8], geo: GridGeometry, *, name: str, source: str,
+                    what: str) -> World:
+    """The `World` of an occupancy grid (as `load_ros_world`): occupied (>= 50) and unknown (< 0)
+    cells merged into boxes, bounds and declared area the grid's extent, collision "index".
+
+    Raises:
+        WorldError: the grid has no occupied or unknown cell at all.
+    """
     blocked = (values < 0) | (values >= 50)
     rects = merge_cells(blocked)
     if len(rects) == 0:
-        raise WorldError(f"{yaml_path}: the map has no occupied or unknown cell, expected walls "
+        raise WorldError(f"{source}: the map has no occupied or unknown cell, expected walls "
                          "(the simulated robot would drive off the map)")
     r0, r1, c0, c1 = (rects[:, i].astype(np.float64) for i in range(4))
     cell = geo.cell
     boxes = np.column_stack([geo.origin_x + (c0 + c1) / 2 * cell, geo.origin_y + (r0 + r1) / 2 * cell,
                              (c1 - c0) / 2 * cell, (r1 - r0) / 2 * cell, np.zeros(len(rects))])
     bounds = (geo.origin_x, geo.origin_y, geo.origin_x + geo.width, geo.origin_y + geo.height)
-    description = (f"ROS map {Path(yaml_path).name}: {geo.cols} x {geo.rows} cells of {cell:g} m, "
+    description = (f"{what}: {geo.cols} x {geo.rows} cells of {cell:g} m, "
                    f"{int(np.count_nonzero(values >= 50))} occupied, "
                    f"{int(np.count_nonzero(values < 0))} unknown, {len(rects)} boxes")
-    return World(name=Path(yaml_path).stem, boxes=boxes, bounds=bounds, source=str(yaml_path),
-                 description=description, declared=bounds, collision="index")
+    return World(name=name, boxes=boxes, bounds=bounds, source=source, description=description,
+                 declared=bounds, collision="index")
 
 
 def merge_cells(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
