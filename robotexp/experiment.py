@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from robotexp.errors import ConfigError, WorldError
+from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorationRun, Explorer
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot
@@ -98,8 +98,8 @@ def parse_pose(text: str) -> Pose:
 def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, str]:
     """The start pose and its label: a named pose, "x,y,theta", or the default.
 
-    The default is the world's first named pose, a .map file's RobotHome cairn, or else the free
-    cell nearest the map's centre where the robot fits.
+    The default is the world's first named pose, a .map file's RobotHome cairn, or else a point
+    well inside the largest region where the robot fits (`robotexp.world.start.default_start`).
     """
     if pose is None:
         if world.home is not None:
@@ -124,20 +124,9 @@ def _pose_name(world: World, pose: str | None) -> str | None:
 
 
 def _central_free_pose(world: World, radius: float) -> Pose:
-    from robotexp.mapping.groundtruth import occupancy
-    from robotexp.planning.grid_planner import distance_transform
+    from robotexp.world.start import default_start
 
-    assert world.bounds is not None
-    geo = GridGeometry.covering(*world.bounds, cell=0.05)
-    occ = occupancy(world, geo)
-    clear = distance_transform(occ) * geo.cell > radius + geo.cell
-    cells = np.argwhere(clear)
-    if cells.size == 0:
-        raise WorldError(f"world {world.name!r}: no place where a robot of radius {radius} m fits")
-    cr, cc = geo.rows / 2, geo.cols / 2
-    r, c = cells[int(np.argmin((cells[:, 0] - cr) ** 2 + (cells[:, 1] - cc) ** 2))]
-    x, y = geo.center_of(int(r), int(c))
-    return Pose(x, y, 0.0)
+    return default_start(world, radius).pose
 
 
 def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
@@ -419,7 +408,9 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
         a = p.theta + sc.angles[ok]
         laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
     end = None if state is None else (state.true_pose or state.pose)
-    return render_map(run.grid.states(), run.grid.geo,
+    states = run.grid.states()
+    content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
+    return render_map(states, run.grid.geo, content=content,
                       truth=run.truth.occupied if run.truth is not None else None,
                       path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
                       scale=scale,
