@@ -187,6 +187,7 @@ def worlds(ctx: click.Context) -> None:
 from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
 
 worlds.add_command(generate)
+main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
 
 
 @main.command()
