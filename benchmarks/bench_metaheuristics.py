@@ -22,8 +22,7 @@ from robotexp.explorer import ExplorationRun
 from robotexp.planning.grid_planner import dijkstra
 from robotexp.planning.metaheuristics import exhaustive, firefly_search, genetic_search
 from robotexp.planning.objective import PRESETS, Objective
-from robotexp_plugins.frontier import plan_costs
-from robotexp_plugins.metaheuristic import usable_frontier
+from robotexp.planning.targets import plan_costs, usable_frontier
 
 RADIUS = 0.25       # [m] P3-DX
 

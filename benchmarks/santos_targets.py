@@ -65,12 +65,11 @@ from robotexp.planning.metaheuristics import (
     firefly_search,
     genetic_search,
 )
+from robotexp.planning.targets import nearest_passable, plan_costs, usable_frontier
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.plot import box_plot
 from robotexp.render import Marker, render_field, render_map, save_png
 from robotexp.robot import Pose
-from robotexp_plugins.frontier import nearest_passable, plan_costs
-from robotexp_plugins.metaheuristic import usable_frontier
 
 WORLDS = ("dense", "sparse")
 LEVELS = (0.2, 0.4, 0.6, 0.8)       # coverage at which the map states are taken

@@ -11,59 +11,11 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, cost_grid, distance_transform, nearest_goal, simplify
+from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
+from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
 from robotexp.robot import Pose, RobotState, Twist
 
-__all__ = ["FrontierExplorer", "frontier_targets", "plan_costs"]
-
-MARGIN = 0.05   # [m] kept between the robot and the walls by every plan
-
-
-def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
-    """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
-
-    A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
-    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger
-    zone whose cost rises towards the obstacle, so paths keep off walls where there is room.
-    """
-    cell = grid.geo.cell
-    dist = distance_transform(grid.occupied())
-    return cost_grid(dist, robot_radius_cells=(radius + MARGIN) / cell + 0.5, danger_radius_cells=clearance / cell,
-                     danger_cost=4.0, blocked=~grid.free())
-
-
-def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach: int) -> tuple[int, int] | None:
-    """The passable cell nearest (row, col) within `reach` cells, or None."""
-    rows, cols = passable.shape
-    r0, r1 = max(row - reach, 0), min(row + reach + 1, rows)
-    c0, c1 = max(col - reach, 0), min(col + reach + 1, cols)
-    cand = np.argwhere(passable[r0:r1, c0:c1])
-    if cand.size == 0:
-        return None
-    cand += (r0, c0)
-    best = int(np.argmin((cand[:, 0] - row) ** 2 + (cand[:, 1] - col) ** 2))
-    return int(cand[best, 0]), int(cand[best, 1])
-
-
-def frontier_targets(grid: OccupancyGrid, min_cells: int,
-                     skip: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
-    """Bool (rows, cols): the frontier cells of `grid` worth going to.
-
-    Frontier cells of the 8-connected groups of at least `min_cells` cells, leaving out wall faces
-    and the `skip` cells (same shape as the grid). A free cell beside an occupied one, with unknown
-    on its other side, is the face of a wall whose far half the sensor never sees (or a cell that
-    grazing beams cleared): not an opening into unknown space. Openings are cells with no occupied
-    8-neighbour.
-    """
-    mask = np.zeros(grid.shape, dtype=bool)
-    drop = grid.near_occupied()
-    if skip is not None:
-        drop |= skip
-    for cells in grid.frontier_groups(min_cells):
-        keep = cells[~drop[cells[:, 0], cells[:, 1]]]
-        mask[keep[:, 0], keep[:, 1]] = True
-    return mask
-
+__all__ = ["FrontierExplorer"]
 
 class FrontierExplorer(Explorer):
     """Drive to the nearest reachable frontier group (Yamauchi 1997); done when none is left.
@@ -232,12 +184,7 @@ class FrontierExplorer(Explorer):
         return frontier_targets(grid, min_cells, self.blacklist)
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_]) -> tuple[int, int] | None:
-        r, c = grid.geo.cell_of(pose.x, pose.y)
-        if not grid.geo.contains(r, c):
-            return None
-        if passable[r, c]:
-            return r, c
-        return nearest_passable(passable, r, c, int(math.ceil(0.5 / grid.geo.cell)))
+        return passable_cell(grid.geo, passable, pose.x, pose.y)
 
     def _aim(self, targets: npt.NDArray[np.bool_], goal_rc: tuple[int, int], grid: OccupancyGrid) -> None:
         """Remember the frontier cells this goal is for, and where to look on arrival: the centre of
@@ -264,10 +211,7 @@ class FrontierExplorer(Explorer):
 
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
                 grid: OccupancyGrid) -> None:
-        cells = simplify(path, passable) if len(path) > 2 else path
-        pts = np.array([grid.geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
-        pts[0] = (pose.x, pose.y)
-        self.follower.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
+        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y))
 
     def _finish(self, pose: Pose, grid: OccupancyGrid) -> Twist | Done:
         """No frontier left: done, or drive home first."""

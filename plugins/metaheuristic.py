@@ -5,7 +5,7 @@ centre passed, kept here from the state poses); they define Santos's objective s
 (`robotexp.planning.objective`), whose minimum is the next target. The GA or the firefly algorithm
 (`robotexp.planning.metaheuristics`) searches it, seeded from the run's generator; `meta-exhaustive`
 takes the exact optimum over every cell, the reference the thesis compares them with. A* on the
-grid with danger zones near obstacles (Santos 4.3.3; `plan_costs` of the frontier plugin) gives the
+grid with danger zones near obstacles (Santos 4.3.3; `robotexp.planning.targets.plan_costs`) gives the
 path and the shared `PathFollower` drives it. Exploration ends when fewer than `min_frontier`
 usable frontier cells remain (Santos's |FRONTIER| < c).
 
@@ -34,7 +34,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, dijkstra, distance_transform, simplify
+from robotexp.planning.grid_planner import astar, dijkstra, distance_transform
 from robotexp.planning.metaheuristics import (
     FireflyConfig,
     GAConfig,
@@ -44,31 +44,10 @@ from robotexp.planning.metaheuristics import (
     genetic_search,
 )
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
+from robotexp.planning.targets import passable_cell, plan_costs, usable_frontier
 from robotexp.robot import Pose, RobotState, Twist
-from robotexp_plugins.frontier import nearest_passable, plan_costs
 
-__all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer", "usable_frontier"]
-
-
-def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach_cells: float,
-                    blacklist: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
-    """FRONTIER: frontier cells with no occupied 8-neighbour, within `reach_cells` of a reachable cell.
-
-    Args:
-        grid: the map.
-        reachable: (rows, cols) bool cells the robot can reach and stand on.
-        reach_cells: [cells] how far a frontier cell may lie from the nearest reachable cell.
-        blacklist: (rows, cols) bool frontier cells given up on, or None.
-
-    Returns:
-        (rows, cols) bool.
-    """
-    front = grid.frontier() & ~grid.near_occupied()
-    if blacklist is not None:
-        front &= ~blacklist
-    if not front.any() or not reachable.any():
-        return np.zeros_like(front)
-    return front & (distance_transform(reachable) <= reach_cells)
+__all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer"]
 
 
 class MetaheuristicExplorer(Explorer):
@@ -192,9 +171,7 @@ class MetaheuristicExplorer(Explorer):
         geo = grid.geo
         cost = plan_costs(grid, self.ctx.radius, self.clearance)
         passable = np.isfinite(cost)
-        r, c = geo.cell_of(pose.x, pose.y)
-        start = (r, c) if geo.contains(r, c) and passable[r, c] else (
-            nearest_passable(passable, r, c, int(math.ceil(0.5 / geo.cell))) if geo.contains(r, c) else None)
+        start = passable_cell(geo, passable, pose.x, pose.y)
         if start is None:
             return False
         dist, _ = dijkstra(cost, start)
@@ -246,10 +223,7 @@ class MetaheuristicExplorer(Explorer):
 
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
                 grid: OccupancyGrid) -> None:
-        cells = simplify(path, passable) if len(path) > 2 else path
-        pts = np.array([grid.geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
-        pts[0] = (pose.x, pose.y)
-        self.follower.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
+        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y))
 
 
 def _cells_near(mask: npt.NDArray[np.bool_], cell: tuple[int, int], k: int) -> npt.NDArray[np.int64]:

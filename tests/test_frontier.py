@@ -19,10 +19,11 @@ from robotexp.explorer import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import GroundTruth, ground_truth
+from robotexp.planning.targets import plan_costs
 from robotexp.robot import Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
-from robotexp_plugins.frontier import FrontierExplorer, plan_costs
+from robotexp_plugins.frontier import FrontierExplorer
 
 T = 0.1             # [m] wall thickness
 RANGE = 2.0         # [m] laser range

@@ -20,6 +20,7 @@ from robotexp.mapping.groundtruth import ground_truth
 from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
 from robotexp.planning.metaheuristics import SearchResult
 from robotexp.planning.objective import INFEASIBLE
+from robotexp.planning.targets import usable_frontier
 from robotexp.robot import Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
@@ -28,7 +29,6 @@ from robotexp_plugins.metaheuristic import (
     FireflyExplorer,
     GAExplorer,
     MetaheuristicExplorer,
-    usable_frontier,
 )
 
 T = 0.1

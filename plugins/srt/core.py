@@ -16,7 +16,7 @@ Two safeguards keep the motion on the tree's edges (both beyond the thesis's ide
   back onto the node's position (within `settle_tolerance`), so it follows the recorded edge.
 - Detour (an extension of the thesis): when the way back to the parent still makes no progress for
   `detour_after` [s] (e.g. something moved into it), the robot plans a path to the parent with A*
-  on the run's occupancy grid (`plan_costs` of the frontier plugin: known-free cells, the robot
+  on the run's occupancy grid (`robotexp.planning.targets.plan_costs`: known-free cells, the robot
   inflated) restricted to the union of the safe regions, the space SRT has perceived as free; a
   detour that stalls in turn is planned again on the updated grid, up to 3 times.
 
@@ -38,8 +38,9 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, PathFollower
-from robotexp.planning.grid_planner import astar, simplify
+from robotexp.planning.follower import FollowerConfig, PathFollower, path_points
+from robotexp.planning.grid_planner import astar
+from robotexp.planning.targets import passable_cell, plan_costs
 from robotexp.robot import Pose, RobotState, Twist
 
 from .regions import SafeRegion
@@ -368,27 +369,18 @@ class SRTExplorer(Explorer):
         string-pulled; the ends are the exact pose and goal. An extension of the thesis, whose
         robot always retraces the tree edge.
         """
-        from robotexp_plugins.frontier import nearest_passable, plan_costs
-
         cost = plan_costs(grid, self.ctx.radius, 0.3)
         cost[~self.tree.union_mask(grid)] = np.inf
         passable = np.isfinite(cost)
         geo = grid.geo
-        reach = int(math.ceil(0.5 / geo.cell))
-        ends = []
-        for x, y in ((pose.x, pose.y), goal):
-            r, c = geo.cell_of(x, y)
-            if not geo.contains(r, c):
-                return None
-            ends.append(nearest_passable(passable, r, c, reach))
-        if ends[0] is None or ends[1] is None:
+        begin = passable_cell(geo, passable, pose.x, pose.y)
+        end = passable_cell(geo, passable, *goal)
+        if begin is None or end is None:
             return None
-        cells = astar(cost, ends[0], ends[1])
+        cells = astar(cost, begin, end)
         if cells is None:
             return None
-        cells = simplify(cells, passable) if len(cells) > 2 else cells
-        pts = np.array([geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
-        return np.vstack([[pose.x, pose.y], pts, [goal]])
+        return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo), [goal]])
 
     def _detour(self, pose: Pose) -> npt.NDArray[np.float64] | None:
         if self._grid is None or self.target is None:

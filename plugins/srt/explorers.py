@@ -19,6 +19,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import line_of_sight
+from robotexp.planning.targets import frontier_targets
 from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
 from .core import SRTExplorer
@@ -417,8 +418,6 @@ class SRTStarExplorer(SRTExplorer):
         grid = self._grid
         if grid is None:
             return np.zeros((0, 2), dtype=np.intp)
-        from robotexp_plugins.frontier import frontier_targets
-
         geo = grid.geo
         min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
         cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
@@ -498,8 +497,6 @@ class SRTStarExplorer(SRTExplorer):
         super()._add_node(pose, region, grid)
         if len(self._aim) == 0:
             return
-        from robotexp_plugins.frontier import frontier_targets
-
         still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
         self._given_up_on(grid)[self._aim[still, 0], self._aim[still, 1]] = True
         self._aim = np.zeros((0, 2), dtype=np.intp)

@@ -14,9 +14,11 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.planning.grid_planner import simplify
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead"]
+__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead", "path_points"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,22 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
     return bool(inside.any())
 
 
+def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
+                geo: GridGeometry) -> npt.NDArray[np.float64]:
+    """The world points [m] (k, 2) of a planner path: the cell centres of `cells` string-pulled on `passable`.
+
+    Args:
+        cells: (n, 2) int (row, col) cells of a path, consecutive ones 8-neighbours (as from `astar`).
+        passable: (rows, cols) bool the path was planned on.
+        geo: the grid's geometry.
+
+    Returns:
+        (k, 2) float64, k <= n.
+    """
+    kept = simplify(cells, passable) if len(cells) > 2 else cells
+    return geo.centers_of(kept)
+
+
 class PathFollower:
     """Follows one path at a time; `twist()` returns the command and `done` says when it arrived."""
 
@@ -70,6 +88,14 @@ class PathFollower:
         self.path = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         self._index = 0
         self.done = len(self.path) == 0
+
+    def follow_cells(self, cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_], geo: GridGeometry,
+                     start: tuple[float, float]) -> None:
+        """Follow a planner path of cells (`path_points`), its first point moved to `start` (x, y) [m],
+        the robot's exact position."""
+        pts = path_points(cells, passable, geo)
+        pts[0] = start
+        self.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
 
     def clear(self) -> None:
         """Forget the path."""

@@ -1,0 +1,142 @@
+"""Where goal-seeking explorers may go and at what cost: the planning helpers they share.
+
+Frontier cells worth driving to (`frontier_targets`, `usable_frontier`), the traversal costs every
+plan uses (`plan_costs`: known-free cells only, walls inflated by the robot radius and a margin, a
+costly danger zone beyond), and the passable cell to plan from when the robot's own cell is not
+passable (`nearest_passable`, `passable_cell`). The frontier, metaheuristic and SRT explorers all
+plan with these; they lived in the frontier plugin before, and plugins do not import each other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.grid_planner import cost_grid, distance_transform
+
+__all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
+           "usable_frontier"]
+
+MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
+START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
+
+
+def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
+    """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
+
+    A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
+    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger
+    zone whose cost rises towards the obstacle, so paths keep off walls where there is room.
+
+    Args:
+        grid: the map.
+        radius: [m] the robot's footprint radius.
+        clearance: [m] width of the danger zone beyond the inflated walls.
+
+    Returns:
+        (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
+    """
+    cell = grid.geo.cell
+    dist = distance_transform(grid.occupied())
+    return cost_grid(dist, robot_radius_cells=(radius + MARGIN) / cell + 0.5, danger_radius_cells=clearance / cell,
+                     danger_cost=4.0, blocked=~grid.free())
+
+
+def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach: int) -> tuple[int, int] | None:
+    """The passable cell nearest (row, col) within the square of half-side `reach` cells, or None.
+
+    Args:
+        passable: (rows, cols) bool.
+        row: row of the cell searched around.
+        col: column of the cell searched around.
+        reach: [cells] half-side of the square searched.
+
+    Returns:
+        (row, col) of the nearest passable cell (the first in row-major order on a tie; (row, col)
+        itself when it is passable), or None when there is none.
+    """
+    rows, cols = passable.shape
+    r0, r1 = max(row - reach, 0), min(row + reach + 1, rows)
+    c0, c1 = max(col - reach, 0), min(col + reach + 1, cols)
+    cand = np.argwhere(passable[r0:r1, c0:c1])
+    if cand.size == 0:
+        return None
+    cand += (r0, c0)
+    best = int(np.argmin((cand[:, 0] - row) ** 2 + (cand[:, 1] - col) ** 2))
+    return int(cand[best, 0]), int(cand[best, 1])
+
+
+def passable_cell(geo: GridGeometry, passable: npt.NDArray[np.bool_], x: float, y: float,
+                  reach: float = START_REACH) -> tuple[int, int] | None:
+    """The cell a plan from or to the world point (x, y) [m] uses: its own cell when passable, else the
+    nearest passable one within `reach` [m]; None when the point is off the grid or none is near.
+
+    Args:
+        geo: the grid's geometry.
+        passable: (rows, cols) bool, e.g. ``np.isfinite(plan_costs(...))``.
+        x: [m] world x.
+        y: [m] world y.
+        reach: [m] how far to look for a passable cell.
+
+    Returns:
+        (row, col) or None.
+    """
+    r, c = geo.cell_of(x, y)
+    if not geo.contains(r, c):
+        return None
+    if passable[r, c]:
+        return r, c
+    return nearest_passable(passable, r, c, int(math.ceil(reach / geo.cell)))
+
+
+def frontier_targets(grid: OccupancyGrid, min_cells: int,
+                     skip: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+    """Bool (rows, cols): the frontier cells of `grid` worth going to.
+
+    Frontier cells of the 8-connected groups of at least `min_cells` cells, leaving out wall faces
+    and the `skip` cells (same shape as the grid). A free cell beside an occupied one, with unknown
+    on its other side, is the face of a wall whose far half the sensor never sees (or a cell that
+    grazing beams cleared): not an opening into unknown space. Openings are cells with no occupied
+    8-neighbour.
+
+    Args:
+        grid: the map.
+        min_cells: smallest frontier group kept [cells].
+        skip: (rows, cols) bool cells left out (e.g. given up on), or None.
+
+    Returns:
+        (rows, cols) bool.
+    """
+    mask = np.zeros(grid.shape, dtype=bool)
+    drop = grid.near_occupied()
+    if skip is not None:
+        drop |= skip
+    for cells in grid.frontier_groups(min_cells):
+        keep = cells[~drop[cells[:, 0], cells[:, 1]]]
+        mask[keep[:, 0], keep[:, 1]] = True
+    return mask
+
+
+def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach_cells: float,
+                    blacklist: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+    """Frontier cells with no occupied 8-neighbour, within `reach_cells` of a reachable cell (Santos's FRONTIER).
+
+    Args:
+        grid: the map.
+        reachable: (rows, cols) bool cells the robot can reach and stand on.
+        reach_cells: [cells] how far a frontier cell may lie from the nearest reachable cell.
+        blacklist: (rows, cols) bool frontier cells given up on, or None.
+
+    Returns:
+        (rows, cols) bool.
+    """
+    front = grid.frontier() & ~grid.near_occupied()
+    if blacklist is not None:
+        front &= ~blacklist
+    if not front.any() or not reachable.any():
+        return np.zeros_like(front)
+    return front & (distance_transform(reachable) <= reach_cells)

@@ -1,0 +1,72 @@
+"""The planning helpers goal-seeking explorers share (robotexp.planning.targets, PathFollower.follow_cells),
+and the rule that keeps them shared: no explorer plugin imports another."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.planning.follower import PathFollower, path_points
+from robotexp.robot import Limits
+from robotexp.planning.targets import nearest_passable, passable_cell
+
+GEO = GridGeometry(origin_x=-1.0, origin_y=2.0, cell=0.1, rows=10, cols=8)
+PLUGINS = Path(__file__).resolve().parents[2] / "plugins"
+
+
+def test_nearest_passable_nearest_first_row_major_on_ties_and_bounded_by_reach() -> None:
+    passable = np.zeros((10, 8), dtype=bool)
+    passable[2, 5] = passable[5, 2] = True       # both at squared distance 9 from (2, 2)
+    assert nearest_passable(passable, 2, 2, 3) == (2, 5)        # the tie goes to the first in row-major order
+    assert nearest_passable(passable, 2, 2, 2) is None          # neither lies within the 5 x 5 square
+    passable[3, 3] = True
+    assert nearest_passable(passable, 2, 2, 3) == (3, 3)        # squared distance 2 beats 9
+    passable[2, 2] = True
+    assert nearest_passable(passable, 2, 2, 0) == (2, 2)        # a passable cell is its own nearest
+    assert nearest_passable(passable, 9, 7, 1) is None          # the square is clipped at the grid's corner
+
+
+def test_passable_cell_own_cell_nearest_within_reach_and_off_grid() -> None:
+    passable = np.zeros((10, 8), dtype=bool)
+    passable[4, 6] = True                        # centre (-1 + 6.5 * 0.1, 2 + 4.5 * 0.1) = (-0.35, 2.45)
+    assert passable_cell(GEO, passable, -0.35, 2.45) == (4, 6)
+    # from cell (4, 2) [x = -0.75] the passable cell is 4 cells away: found with a 0.5 m reach, not 0.3 m
+    assert passable_cell(GEO, passable, -0.75, 2.45) == (4, 6)
+    assert passable_cell(GEO, passable, -0.75, 2.45, reach=0.3) is None
+    assert passable_cell(GEO, passable, -1.05, 2.45) is None    # left of the grid: no cell at all
+    assert passable_cell(GEO, passable, 0.0, 3.0) is None       # col 10 > 7
+
+
+def test_path_points_string_pulls_and_follow_cells_starts_at_the_robot() -> None:
+    passable = np.ones((10, 8), dtype=bool)
+    cells = np.array([[1, 1], [2, 2], [3, 3], [4, 3], [5, 3]], dtype=np.int32)
+    pts = path_points(cells, passable, GEO)
+    # open space: only the ends survive, at their cell centres
+    np.testing.assert_allclose(pts, [[-1 + 1.5 * 0.1, 2 + 1.5 * 0.1], [-1 + 3.5 * 0.1, 2 + 5.5 * 0.1]])
+    follower = PathFollower(Limits(v_max=0.5, w_max=1.0, a_max=0.5, alpha_max=1.0), radius=0.2)
+    follower.follow_cells(cells, passable, GEO, (-0.87, 2.14))
+    np.testing.assert_allclose(follower.path, [[-0.87, 2.14], [-0.65, 2.55]])
+    assert not follower.done
+    follower.follow_cells(cells[:1], passable, GEO, (-0.87, 2.14))      # one cell: a two-point path to itself
+    np.testing.assert_allclose(follower.path, [[-0.87, 2.14], [-0.87, 2.14]])
+
+
+def test_no_plugin_imports_another_plugin() -> None:
+    """Plugins share code through robotexp (e.g. robotexp.planning), never through each other."""
+    offenders = []
+    for path in sorted(PLUGINS.rglob("*.py")):
+        own = path.relative_to(PLUGINS).parts[0].removesuffix(".py")     # "srt" for plugins/srt/core.py
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            for name in names:
+                parts = name.split(".")
+                if parts[0] == "robotexp_plugins" and len(parts) > 1 and parts[1] != own:
+                    offenders.append(f"{path.relative_to(PLUGINS)}:{node.lineno} imports {name}")
+    assert offenders == []
