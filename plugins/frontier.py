@@ -102,6 +102,20 @@ class FrontierExplorer(Explorer):
             self.next_plan = now + self.replan_period
         return self.follower.twist(pose, state.laser)
 
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run saw no progress for a while (its stall watch): blacklist the current goal's frontier
+        cells and plan anew. False when there is no goal to give up."""
+        if self.goal is None or len(self.goal_cells) == 0:
+            return False
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        self.blacklist[self.goal_cells[:, 0], self.goal_cells[:, 1]] = True
+        self.blacklist_events += 1
+        self.follower.clear()
+        self.goal = self.face = None
+        self.next_plan = -math.inf
+        return True
+
     def _goal_open(self, grid: OccupancyGrid) -> bool:
         """True while the robot is on its way to a goal whose frontier cells are not all resolved."""
         if self.goal is None or self.follower.done or len(self.goal_cells) == 0:

@@ -1,0 +1,115 @@
+"""Honest endings: the run loop's stall watch and the check of an explorer's "explored".
+
+`StallWatch` follows how many cells of the map are known. When a run gains less than `min_gain`
+[m^2] of newly known space for `window` seconds of robot time, that is a strike: the explorer is
+asked to give up its current target (`Explorer.give_up(grid)`, which blacklists it; an explorer
+without targets has nothing to give up) and the window starts again; a gain clears the strikes.
+After `strikes` strikes in a row the run ends as stalled (`completed` false). The window grows with
+the map, so that a long transit across a large building to a far frontier is not taken for a stall:
+by default the longer of `MIN_WINDOW` and the time to drive `TRANSIT_FACTOR` times round the map's
+half perimeter at the robot's top speed.
+
+`frontier_left` counts the frontier a robot could still reach on its own map (openings of groups
+at least a robot wide, wall faces left out, within reach of the known-free space the robot can
+drive through from where it stands): when an explorer says it is done while some is left, the run
+records that it stopped with reachable frontier left, not that the building was explored.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from robotexp.robot import Pose
+
+if TYPE_CHECKING:
+    from robotexp.mapping.grid import OccupancyGrid
+
+__all__ = ["MIN_WINDOW", "STRIKES", "StallWatch", "TRANSIT_FACTOR", "frontier_left"]
+
+MIN_WINDOW = 120.0          # [s] of robot time without a gain before a strike
+TRANSIT_FACTOR = 1.5        # the window covers this many half perimeters of the map at top speed
+STRIKES = 3                 # strikes in a row that end a run as stalled
+MIN_GAIN = 0.25             # [m^2] newly known space that counts as progress
+
+
+def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float) -> int:
+    """How many frontier cells worth going to (`frontier_targets`, groups at least a robot wide) lie
+    within a robot radius and a cell and a half of the known-free cells the robot can drive through
+    from `pose` (`plan_costs` passable, 8-connected to its cell)."""
+    from robotexp.mapping.kernels import flood8
+    from robotexp.planning.grid_planner import distance_transform
+    from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
+
+    geo = grid.geo
+    passable = np.isfinite(plan_costs(grid, radius, 0.0))
+    start = passable_cell(geo, passable, pose.x, pose.y)
+    if start is None:
+        return 0
+    targets = frontier_targets(grid, max(1, int(math.ceil(2 * radius / geo.cell))))
+    if not targets.any():
+        return 0
+    reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
+    near = distance_transform(reach) <= radius / geo.cell + 1.5
+    return int(np.count_nonzero(targets & near))
+
+
+class StallWatch:
+    """Watches a run for lack of progress (see the module). Call `start` once, then `sample` at each
+    coverage sample; `sample` returns the reason to end the run as stalled, else None.
+
+    Args:
+        window: [s] of robot time without a gain that makes a strike; None: from the map and the
+            robot's top speed (see the module).
+        strikes: strikes in a row that end the run.
+        min_gain: [m^2] newly known space that counts as progress.
+    """
+
+    def __init__(self, window: float | None = None, strikes: int = STRIKES, min_gain: float = MIN_GAIN) -> None:
+        if window is not None and not window > 0:
+            raise ValueError(f"stall watch: window must be > 0 s, got {window}")
+        if strikes < 1:
+            raise ValueError(f"stall watch: strikes must be >= 1, got {strikes}")
+        self.window_given = window
+        self.window = window or MIN_WINDOW
+        self.strikes_limit = strikes
+        self.min_gain = min_gain
+        self.strikes = 0
+        self.given_up = 0           # targets the explorer gave up at a strike
+        self.best = -1              # most known cells so far
+        self.since = 0.0            # [s] robot time of the last gain (or strike)
+        self._gain_cells = 1
+
+    def start(self, grid: OccupancyGrid, v_max: float) -> None:
+        """Size the window for `grid` and a robot of top speed `v_max` [m/s]; reset the counts."""
+        geo = grid.geo
+        if self.window_given is None:
+            transit = TRANSIT_FACTOR * (geo.width + geo.height) / v_max if v_max > 0 else 0.0
+            self.window = max(MIN_WINDOW, transit)
+        self._gain_cells = max(1, int(math.ceil(self.min_gain / geo.cell ** 2)))
+        self.strikes = self.given_up = 0
+        self.best, self.since = -1, 0.0
+
+    def sample(self, time: float, grid: OccupancyGrid, explorer: Any) -> str | None:
+        """Account the map at robot time `time` [s]; at a strike ask `explorer.give_up(grid)`.
+
+        Returns:
+            The reason to end the run (it starts with "stalled"), or None to go on.
+        """
+        known = int(grid.unknown().size - np.count_nonzero(grid.unknown()))
+        if known >= self.best + self._gain_cells or self.best < 0:
+            self.best, self.since, self.strikes = known, time, 0
+            return None
+        if time - self.since < self.window:
+            return None
+        self.strikes += 1
+        self.since = time
+        give_up = getattr(explorer, "give_up", None)
+        if callable(give_up) and give_up(grid):
+            self.given_up += 1
+        if self.strikes >= self.strikes_limit:
+            return (f"stalled: no newly known space for {self.strikes} x {self.window:.0f} s of robot time "
+                    f"({self.given_up} targets given up)")
+        return None
