@@ -50,7 +50,7 @@ def _command_frames(rng: random.Random) -> list[bytes]:
     """A pool of valid client commands."""
     pool = [k.cmd_sync0(), k.cmd_sync1(), k.cmd_sync2(), k.cmd_open(), k.cmd_close(), k.cmd_config(),
             k.cmd_enable(True), k.cmd_sim_laser(), k.cmd_sim_set_pose(1000, -2000, 90), k.cmd_estop(),
-            k.encode_command(c.Cmd.SIM_MESSAGE, "hello"), k.cmd_sim_lrf(c.Cmd.SIM_LRF_ENABLE, 2, 0)]
+            k.encode_command(c.CMD_SIM_MESSAGE, "hello"), k.cmd_sim_lrf(c.CMD_SIM_LRF_ENABLE, 2, 0)]
     pool += [k.cmd_vel(rng.randrange(-2000, 2000)) for _ in range(20)]
     pool += [k.cmd_rvel(rng.randrange(-300, 300)) for _ in range(20)]
     pool += [k.cmd_vel2(rng.randrange(-2000, 2000), rng.randrange(-2000, 2000)) for _ in range(20)]

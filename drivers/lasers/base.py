@@ -121,6 +121,17 @@ class LaserLink:
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"{self.who}: {self.url!r} cannot switch to {baudrate} baud: {exc}") from exc
 
+    def set_dtr(self, level: bool) -> bool:
+        """Set the DTR line (an RPLidar's USB adapter spins the motor while it is low); False where
+        the link has none (TCP, a pseudo-terminal)."""
+        if not self.is_serial:
+            return False
+        try:
+            self._port.dtr = level
+        except (serial.SerialException, OSError):
+            return False
+        return True
+
     def reset_input(self) -> None:
         """Drop what was received and not read yet."""
         try:
@@ -134,10 +145,15 @@ class LaserLink:
             if self.closed:
                 return
             self.closed = True
+        # pyserial's socket:// close() skips socket.close() when shutdown() fails (a peer already
+        # gone): close the socket ourselves so that it does not leak
+        sock = getattr(self._port, "_socket", None)
         try:
             self._port.close()
         except (serial.SerialException, OSError):
             pass
+        if sock is not None:
+            sock.close()
 
 
 class StreamLaser(Laser):
@@ -263,14 +279,27 @@ class StreamLaser(Laser):
 class LaserEmulatorBase(StreamEmulator):
     """A laser emulator: a `StreamEmulator` without a simulator of its own, measuring with `source`.
 
-    A subclass calls `_init_laser(source, speedup)` first, opens its transport (`_open_pty()` or
-    `_listen()`), sets `address`, and implements `_period`, `_step` (the bytes to send now: a scan
+    A subclass calls `_init_laser(source, speedup)` first, opens its transport (`_open_transport`, or
+    `_open_pty()` / `_listen()` and sets `address`), and implements `_period`, `_step` (the bytes to send now: a scan
     when streaming, else b"") and `_on_bytes` (commands).
     """
 
     def _init_laser(self, source: ScanSource, speedup: float = 1.0) -> None:
         self._init_stream(speedup)
         self.source = source
+
+    def _open_transport(self, pty: bool, port: int | None, host: str) -> None:
+        """Serve on a pseudo-terminal (`address` its device path) or TCP `host`:`port` (None or 0: a
+        free port; `address` "host:port"); on failure release what was opened and re-raise."""
+        try:
+            if pty:
+                self.address = self._open_pty()
+            else:
+                bound_host, bound_port = self._listen(host, port or 0)
+                self.address = f"{bound_host}:{bound_port}"
+        except BaseException:
+            self._release()
+            raise
 
     def _halt(self) -> None:
         """A laser has nothing to stop when its client leaves (a subclass may reset its state)."""

@@ -1,25 +1,39 @@
 """Every MAVLink number the rover driver uses, once, with its source.
 
 Sources (see shared/protocols/mavlink-rover.md): mavlink/mavlink message_definitions v1.0
-(`minimal.xml`, `common.xml`), ArduPilot Rover (`defines.h`, `mode.h`, `GCS_Mavlink.cpp`,
-`Parameters.cpp`) and pymavlink's `mavutil.py`. Message ids and CRC_EXTRA bytes live in pymavlink's
-generated dialect; the few repeated here are for tests and documentation.
+(`minimal.xml`, `common.xml`, `ardupilotmega.xml`), ArduPilot Rover (`defines.h`, `mode.h`,
+`GCS_Mavlink.cpp`, `Parameters.cpp`), ArduPilot `GCS_Common.cpp` and pymavlink's `mavutil.py`.
+Message ids and CRC_EXTRA bytes live in pymavlink's generated dialect; the few repeated here are for
+tests and documentation (tests check them against the dialect).
+
+Naming (all drivers, docs/protocols/README.md): a protocol number is a module constant named as its
+maker names it, its group's prefix first: the MAVLink XML entry names as they are (MAV_CMD_*,
+MAV_RESULT_*, MAVLINK_MSG_ID_* as the generated C headers and pymavlink spell them, ROVER_MODE_* from
+ardupilotmega.xml); our own figures (timeouts, ports) are plain UPPER_CASE names with their unit.
 """
 
 from __future__ import annotations
 
 # -- message ids (common.xml / minimal.xml) ---------------------------------------------
-MSG_HEARTBEAT = 0
-MSG_SYS_STATUS = 1
-MSG_SET_MODE = 11
-MSG_ATTITUDE = 30
-MSG_LOCAL_POSITION_NED = 32
-MSG_REQUEST_DATA_STREAM = 66
-MSG_COMMAND_LONG = 76
-MSG_COMMAND_ACK = 77
-MSG_SET_POSITION_TARGET_LOCAL_NED = 84
-MSG_OBSTACLE_DISTANCE = 330
-CRC_EXTRA_HEARTBEAT = 50          # minimal.xml HEARTBEAT, as computed by the MAVLink generator
+MAVLINK_MSG_ID_HEARTBEAT = 0
+MAVLINK_MSG_ID_SYS_STATUS = 1
+MAVLINK_MSG_ID_PARAM_REQUEST_READ = 20
+MAVLINK_MSG_ID_PARAM_REQUEST_LIST = 21
+MAVLINK_MSG_ID_PARAM_VALUE = 22
+MAVLINK_MSG_ID_PARAM_SET = 23
+MAVLINK_MSG_ID_SET_GPS_GLOBAL_ORIGIN = 48
+MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN = 49
+MAVLINK_MSG_ID_SET_MODE = 11
+MAVLINK_MSG_ID_ATTITUDE = 30
+MAVLINK_MSG_ID_LOCAL_POSITION_NED = 32
+MAVLINK_MSG_ID_REQUEST_DATA_STREAM = 66
+MAVLINK_MSG_ID_COMMAND_LONG = 76
+MAVLINK_MSG_ID_COMMAND_ACK = 77
+MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED = 84
+MAVLINK_MSG_ID_DISTANCE_SENSOR = 132
+MAVLINK_MSG_ID_HOME_POSITION = 242
+MAVLINK_MSG_ID_OBSTACLE_DISTANCE = 330
+MAVLINK_MSG_ID_HEARTBEAT_CRC = 50          # minimal.xml HEARTBEAT, as computed by the MAVLink generator
 
 # -- MAV_TYPE / MAV_AUTOPILOT / MAV_STATE / MAV_MODE_FLAG ------------------------------------
 MAV_TYPE_GCS = 6
@@ -38,10 +52,14 @@ MAV_MODE_FLAG_GUIDED_ENABLED = 0x08
 MAV_MODE_FLAG_SAFETY_ARMED = 0x80
 MAVLINK_VERSION = 3               # HEARTBEAT.mavlink_version
 
-# -- ArduPilot Rover custom modes (Rover mode.h) ---------------------------------------------
-ROVER_MANUAL = 0
-ROVER_HOLD = 4
-ROVER_GUIDED = 15
+# -- ArduPilot Rover custom modes (Rover mode.h; ardupilotmega.xml ROVER_MODE) ----------------
+ROVER_MODE_MANUAL = 0
+ROVER_MODE_HOLD = 4
+ROVER_MODE_AUTO = 10
+ROVER_MODE_RTL = 11
+ROVER_MODE_SMART_RTL = 12
+ROVER_MODE_GUIDED = 15
+ROVER_MODE_INITIALIZING = 16      # reported while booting; never settable
 ROVER_MODES = {0: "MANUAL", 1: "ACRO", 3: "STEERING", 4: "HOLD", 5: "LOITER", 6: "FOLLOW", 7: "SIMPLE",
                8: "DOCK", 9: "CIRCLE", 10: "AUTO", 11: "RTL", 12: "SMART_RTL", 15: "GUIDED", 16: "INITIALISING"}
 
@@ -49,17 +67,38 @@ ROVER_MODES = {0: "MANUAL", 1: "ACRO", 3: "STEERING", 4: "HOLD", 5: "LOITER", 6:
 MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_GET_HOME_POSITION = 410
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_RESULT_ACCEPTED = 0
 MAV_RESULT_DENIED = 2
 MAV_RESULT_UNSUPPORTED = 3
+MAV_RESULT_FAILED = 4
+
+# -- MAV_SYS_STATUS_SENSOR (SYS_STATUS onboard_control_sensors_present / enabled / health) -----
+MAV_SYS_STATUS_SENSOR_3D_GYRO = 0x01
+MAV_SYS_STATUS_SENSOR_3D_ACCEL = 0x02
+MAV_SYS_STATUS_SENSOR_3D_MAG = 0x04
+MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE = 0x08
+MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS = 0x8000
+MAV_SYS_STATUS_GEOFENCE = 0x100000    # not present: a ground station reads present-and-unhealthy as a breach
+MAV_SYS_STATUS_AHRS = 0x200000
+MAV_SYS_STATUS_SENSOR_BATTERY = 0x2000000
+MAV_SYS_STATUS_SENSOR_PROXIMITY = 0x4000000
+MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
+
+# -- MAV_PARAM_TYPE (PARAM_VALUE / PARAM_SET param_type; ArduPilot AP_Int8/16/32, AP_Float) ---
+MAV_PARAM_TYPE_INT8 = 2
+MAV_PARAM_TYPE_INT16 = 4
+MAV_PARAM_TYPE_INT32 = 6
+MAV_PARAM_TYPE_REAL32 = 9
+PARAM_ID_LEN = 16                 # param_id: char[16], NUL-padded (no NUL when 16 long)
 
 # -- MAV_DATA_STREAM groups (ArduPilot GCS_Mavlink.cpp) -------------------------------------
-STREAM_ALL = 0
-STREAM_EXTENDED_STATUS = 2        # SYS_STATUS
-STREAM_POSITION = 6               # LOCAL_POSITION_NED (and GLOBAL_POSITION_INT)
-STREAM_EXTRA1 = 10                # ATTITUDE
-STREAM_EXTRA3 = 12                # DISTANCE_SENSOR ...; the emulator adds OBSTACLE_DISTANCE here
+MAV_DATA_STREAM_ALL = 0
+MAV_DATA_STREAM_EXTENDED_STATUS = 2        # SYS_STATUS
+MAV_DATA_STREAM_POSITION = 6               # LOCAL_POSITION_NED (and GLOBAL_POSITION_INT)
+MAV_DATA_STREAM_EXTRA1 = 10                # ATTITUDE
+MAV_DATA_STREAM_EXTRA3 = 12                # DISTANCE_SENSOR ...; the emulator adds OBSTACLE_DISTANCE here
 DEFAULT_STREAM_RATE = 1.0         # [Hz] ArduPilot's default per-group rate (SRn_* parameters)
 
 # -- MAV_FRAME / POSITION_TARGET_TYPEMASK (common.xml; Rover wiki "Rover Commands in Guided Mode") --
@@ -68,17 +107,32 @@ MAV_FRAME_LOCAL_NED = 1
 MAV_FRAME_BODY_NED = 8
 MAV_FRAME_BODY_OFFSET_NED = 9
 MAV_FRAME_BODY_FRD = 12
-IGNORE_X, IGNORE_Y, IGNORE_Z = 1, 2, 4
-IGNORE_VX, IGNORE_VY, IGNORE_VZ = 8, 16, 32
-IGNORE_AX, IGNORE_AY, IGNORE_AZ = 64, 128, 256
-FORCE_SET = 512
-IGNORE_YAW, IGNORE_YAW_RATE = 1024, 2048
-MASK_VELOCITY = 0x0DE7            # 3559
+POSITION_TARGET_TYPEMASK_X_IGNORE = 1
+POSITION_TARGET_TYPEMASK_Y_IGNORE = 2
+POSITION_TARGET_TYPEMASK_Z_IGNORE = 4
+POSITION_TARGET_TYPEMASK_VX_IGNORE = 8
+POSITION_TARGET_TYPEMASK_VY_IGNORE = 16
+POSITION_TARGET_TYPEMASK_VZ_IGNORE = 32
+POSITION_TARGET_TYPEMASK_AX_IGNORE = 64
+POSITION_TARGET_TYPEMASK_AY_IGNORE = 128
+POSITION_TARGET_TYPEMASK_AZ_IGNORE = 256
+POSITION_TARGET_TYPEMASK_FORCE_SET = 512
+POSITION_TARGET_TYPEMASK_YAW_IGNORE = 1024
+POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE = 2048
+MASK_VELOCITY = 0x0DE7            # 3559 (the wiki's "velocity"; z ignored too)
+MASK_VELOCITY_MAVPROXY = 0x0FC7   # 4039: MAVProxy's `velocity x y z` (vz not ignored; Rover ignores z)
 MASK_YAW_RATE = 0x05FF            # 1535
 MASK_VELOCITY_YAW_RATE = 0x05E7   # 1511: "turn rate and speed"
 
 # -- MAV_DISTANCE_SENSOR / OBSTACLE_DISTANCE --------------------------------------------------
 MAV_DISTANCE_SENSOR_LASER = 0
+MAV_SENSOR_ROTATION_NONE = 0      # orientation 0..7: sectors every 45 deg (clockwise for ArduPilot)
+MAV_SENSOR_ROTATION_YAW_315 = 7
+PROXIMITY_SENSOR_ID_START = 10    # AP_Proximity.h: DISTANCE_SENSOR ids 10.. are proximity sectors
+PROXIMITY_SECTORS = 8             # ArduPilot's send_proximity: one DISTANCE_SENSOR per 45-deg sector
+PRX_TYPE_NONE = 0                 # PRX1_TYPE: 0 none, 2 MAVLink, 10 SITL
+PRX_TYPE_MAVLINK = 2
+PRX_TYPE_SITL = 10
 OBSTACLE_SECTORS = 72             # distances[72]
 OBSTACLE_UNKNOWN = 65535          # UINT16_MAX: unknown / unused element
 
@@ -92,3 +146,8 @@ GUID_TIMEOUT = 3.0                # [s] Rover stops when GUIDED velocity targets
 DEFAULT_UDP_PORT = 14550          # the GCS port vehicles / MAVProxy send to
 DEFAULT_TCP_PORT = 5760           # ArduPilot SITL SERIAL0
 DEFAULT_BAUD = 115200             # mavutil's default; telemetry radios are often 57600
+# EKF origin the backend sets on a vehicle that has none (indoors, no GPS): UFMG, Belo Horizonte
+# (where the built-in worlds come from); any valid latitude/longitude works.
+DEFAULT_ORIGIN = (-19.8697, -43.9637, 800.0)    # [deg, deg, m]
+ORIGIN_WAIT = 0.5                 # [s] how long the backend waits for GPS_GLOBAL_ORIGIN before setting one
+DEG_E7 = 10_000_000               # latitude/longitude scale of int32 fields

@@ -1,4 +1,4 @@
-"""A MAVLink rover emulator: the simulator's robot served as an ArduPilot-Rover-like vehicle.
+"""A MAVLink rover emulator: the simulator's robot served as ArduPilot Rover runs it.
 
 Transports (one client at a time):
 
@@ -11,45 +11,91 @@ Transports (one client at a time):
 Every `tick` (50 ms) of robot time, paced by wall time / `speedup`, it advances the `SimRobot` and
 sends what is due: HEARTBEAT at 1 Hz (type GROUND_ROVER, autopilot ARDUPILOTMEGA, custom_mode the
 Rover mode, 0x80 when armed), and per message the requested rate (REQUEST_DATA_STREAM groups
-EXTENDED_STATUS: SYS_STATUS, POSITION: LOCAL_POSITION_NED, EXTRA1: ATTITUDE, EXTRA3:
-OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at most 1 / `tick`).
-OBSTACLE_DISTANCE carries the sim laser, a full circle of 72 beams, one per 5-degree element (its
-centre direction, clockwise from the nose, BODY_FRD), in cm (max_distance + 1 = nothing hit).
+EXTENDED_STATUS: SYS_STATUS, POSITION: LOCAL_POSITION_NED, EXTRA1: ATTITUDE, EXTRA3: DISTANCE_SENSOR
+and OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at most 1 / `tick`).
 
-Commands: COMMAND_LONG DO_SET_MODE / ARM_DISARM / SET_MESSAGE_INTERVAL / REQUEST_MESSAGE (acked),
-SET_MODE, REQUEST_DATA_STREAM, and SET_POSITION_TARGET_LOCAL_NED as Rover reads it in GUIDED and
-armed: velocity + yaw rate (speed |vx, vy| signed by vx, turn rate -yaw_rate), yaw rate only (turn
-in place), velocity only (straight; the heading-following of LOCAL frames is not emulated);
-position targets are ignored. The rover stops on entering GUIDED or HOLD, on disarming, and when no
-target came for `guid_timeout` s of robot time (GUID_TIMEOUT, 3 s). The last target received is
-`last_target` (and `last_twist`), for fault tests. Serving, TCP and pty transports and fault
-injection are `robotexp_drivers.emulation.StreamEmulator`'s.
+As ArduPilot Rover (GCS_Common.cpp, Rover GCS_Mavlink.cpp, mode_guided.cpp):
+
+- the EKF has no origin indoors (`origin` None): no LOCAL_POSITION_NED and local position targets
+  ignored until a SET_GPS_GLOBAL_ORIGIN (answered with GPS_GLOBAL_ORIGIN); home is then set where
+  the rover stands (GET_HOME_POSITION / REQUEST_MESSAGE 242 -> HOME_POSITION; FAILED before);
+- parameters (`ROVER_PARAMS`, names and types of Rover's) over PARAM_REQUEST_LIST (all at once),
+  PARAM_REQUEST_READ (by name or index) and PARAM_SET (answered with the new PARAM_VALUE); GUID_TIMEOUT,
+  WP_PIVOT_ANGLE, ATC_STR_ANG_P, ATC_STR_RAT_MAX and PRX1_TYPE act on the emulated rover;
+- modes: DO_SET_MODE / SET_MODE need the CUSTOM_MODE_ENABLED base-mode flag (else DENIED), an
+  unknown or unsettable mode FAILS; SET_MODE is acked with command 11; every COMMAND_ACK carries
+  the sender's ids as target; messages for another system id are ignored;
+- SET_POSITION_TARGET_LOCAL_NED in GUIDED, armed, with an origin: velocity + yaw rate (mask 1511:
+  speed |vx, vy| signed by vx, turn rate -yaw_rate), yaw rate only (turn in place), velocity only
+  (masks 3559, 4039: turn to face the vector - atan2(vy, vx), from the heading in BODY frames - at
+  the speed |vx, vy|, pivoting in place while the heading error exceeds WP_PIVOT_ANGLE until within
+  10 deg, steering at ATC_STR_ANG_P x error up to ATC_STR_RAT_MAX); position targets are ignored
+  (not emulated). The rover stops on entering GUIDED or HOLD, on disarming, and when no target
+  came for GUID_TIMEOUT s of robot time;
+- SYS_STATUS reports its sensors present, enabled (motor outputs only when armed) and healthy;
+- range data only when configured: `proximity` (PRX1_TYPE 10, SITL) sends one DISTANCE_SENSOR per
+  45-degree sector (ids 10..17, orientation 0..7 clockwise from the nose, the nearest echo in the
+  sector in cm, max_distance + 1 when none), as ArduPilot reports a proximity sensor;
+  `obstacle_distance` sends OBSTACLE_DISTANCE (72 elements of 5 degrees clockwise from the nose,
+  BODY_FRD; a companion's or PX4's message, not ArduPilot's).
+
+The last target received is `last_target` (and `last_twist`), for fault tests. Serving, TCP and pty
+transports and fault injection are `robotexp_drivers.emulation.StreamEmulator`'s. Messages and
+commands are dispatched through tables (`_message_handlers`, `_command_handlers`).
 """
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import socket
+from collections.abc import Callable
 from dataclasses import replace
 
 from robotexp.errors import ConfigError
 from robotexp.robot import Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, SimRobot, preset
 from robotexp.world.model import World
-from robotexp_drivers.mavlink import constants as C
-from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
 from robotexp_drivers.backend import require_positive
 from robotexp_drivers.emulation import StreamEmulator
+from robotexp_drivers.mavlink import constants as C
+from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
 from robotexp_drivers.mavlink.robot import ROVER_LIMITS, ROVER_RADIUS
 
-__all__ = ["MavlinkEmulator", "STREAM_MESSAGES"]
+__all__ = ["MavlinkEmulator", "ROVER_PARAMS", "STREAM_MESSAGES"]
 
 log = logging.getLogger(__name__)
 
-STREAM_MESSAGES = {C.STREAM_EXTENDED_STATUS: (C.MSG_SYS_STATUS,), C.STREAM_POSITION: (C.MSG_LOCAL_POSITION_NED,),
-                   C.STREAM_EXTRA1: (C.MSG_ATTITUDE,), C.STREAM_EXTRA3: (C.MSG_OBSTACLE_DISTANCE,)}
-_AUTO_MODES = {C.ROVER_GUIDED, 10, 11, 12}          # modes with the GUIDED_ENABLED flag (AUTO, RTL, SMART_RTL)
+STREAM_MESSAGES = {C.MAV_DATA_STREAM_EXTENDED_STATUS: (C.MAVLINK_MSG_ID_SYS_STATUS,),
+                   C.MAV_DATA_STREAM_POSITION: (C.MAVLINK_MSG_ID_LOCAL_POSITION_NED,),
+                   C.MAV_DATA_STREAM_EXTRA1: (C.MAVLINK_MSG_ID_ATTITUDE,),
+                   C.MAV_DATA_STREAM_EXTRA3: (C.MAVLINK_MSG_ID_DISTANCE_SENSOR, C.MAVLINK_MSG_ID_OBSTACLE_DISTANCE)}
+# modes with the GUIDED_ENABLED flag
+_AUTO_MODES = {C.ROVER_MODE_GUIDED, C.ROVER_MODE_AUTO, C.ROVER_MODE_RTL, C.ROVER_MODE_SMART_RTL}
+_INT_TYPES = {C.MAV_PARAM_TYPE_INT8, C.MAV_PARAM_TYPE_INT16, C.MAV_PARAM_TYPE_INT32}
+_PIVOT_EXIT = math.radians(10.0)     # Rover leaves a pivot turn within 10 deg of the heading
+_EARTH_RADIUS = 6378137.0            # [m] WGS84 semi-major axis (ArduPilot's LATLON_TO_M scale)
+
+# A small realistic Rover parameter set: (name, MAV_PARAM_TYPE of Rover's AP_Int8/16/32 or AP_Float,
+# value). Values are the emulated rover's where it has one (speed, turn rate, acceleration).
+ROVER_PARAMS: tuple[tuple[str, int, float], ...] = (
+    ("SYSID_THISMAV", C.MAV_PARAM_TYPE_INT16, C.VEHICLE_SYSTEM_ID),
+    ("SYSID_MYGCS", C.MAV_PARAM_TYPE_INT16, C.GCS_SYSTEM_ID),
+    ("FRAME_CLASS", C.MAV_PARAM_TYPE_INT8, 1),                  # 1 = Rover
+    ("ARMING_CHECK", C.MAV_PARAM_TYPE_INT32, 1),
+    ("BATT_MONITOR", C.MAV_PARAM_TYPE_INT8, 4),                 # analog voltage and current
+    ("CRUISE_SPEED", C.MAV_PARAM_TYPE_REAL32, ROVER_LIMITS.v_max),
+    ("CRUISE_THROTTLE", C.MAV_PARAM_TYPE_INT8, 50),
+    ("WP_SPEED", C.MAV_PARAM_TYPE_REAL32, 0.0),                 # 0: CRUISE_SPEED
+    ("WP_RADIUS", C.MAV_PARAM_TYPE_REAL32, 2.0),
+    ("WP_PIVOT_ANGLE", C.MAV_PARAM_TYPE_INT16, 60),
+    ("ATC_STR_ANG_P", C.MAV_PARAM_TYPE_REAL32, 2.0),
+    ("ATC_STR_RAT_MAX", C.MAV_PARAM_TYPE_REAL32, math.degrees(ROVER_LIMITS.w_max)),
+    ("ATC_ACCEL_MAX", C.MAV_PARAM_TYPE_REAL32, ROVER_LIMITS.a_max),
+    ("GUID_TIMEOUT", C.MAV_PARAM_TYPE_REAL32, C.GUID_TIMEOUT),
+    ("PRX1_TYPE", C.MAV_PARAM_TYPE_INT8, C.PRX_TYPE_NONE),
+)
 
 
 class MavlinkEmulator(StreamEmulator):
@@ -66,9 +112,13 @@ class MavlinkEmulator(StreamEmulator):
         speedup: robot seconds per wall second.
         seed: seed of the simulator's noise.
         tick: simulation step and send period [s].
-        scan_range: range of the obstacle sensor [m].
-        guid_timeout: stop when no target came for this long [s of robot time].
+        scan_range: range of the range sensors [m].
+        guid_timeout: GUID_TIMEOUT, stop when no target came for this long [s of robot time].
         battery_mv: battery voltage reported [mV].
+        origin: the EKF origin (latitude, longitude [deg], altitude [m]) the vehicle starts with
+            (outdoors, with GPS); None (indoors): none until a ground station sets one.
+        proximity: a 360-degree proximity sensor reported as 8 DISTANCE_SENSOR sectors (PRX1_TYPE 10).
+        obstacle_distance: send OBSTACLE_DISTANCE (72 sectors) too.
 
     Raises:
         WorldError: the pose is outside the world or touches an obstacle.
@@ -81,27 +131,46 @@ class MavlinkEmulator(StreamEmulator):
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  udp: str | None = None, tcp: bool = False, pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  tick: float = 0.05, scan_range: float = 3.0, guid_timeout: float = C.GUID_TIMEOUT,
-                 battery_mv: int = 12600) -> None:
+                 battery_mv: int = 12600, origin: tuple[float, float, float] | None = None,
+                 proximity: bool = True, obstacle_distance: bool = False) -> None:
         require_positive("mavlink emulator", speedup=speedup, tick=tick, scan_range=scan_range,
                          guid_timeout=guid_timeout)
+        if origin is not None and not (-90 <= origin[0] <= 90 and -180 <= origin[1] <= 180):
+            raise ConfigError(f"mavlink emulator: origin {origin}: latitude must be in -90..90 and longitude "
+                              "in -180..180 deg")
         self._init_stream(speedup)
-        self.tick, self.guid_timeout, self.battery_mv = tick, guid_timeout, battery_mv
+        self.tick, self.battery_mv = tick, battery_mv
+        self.obstacle_distance = obstacle_distance
         rover = replace(preset("p3dx"), name="rover", radius=ROVER_RADIUS, limits=ROVER_LIMITS, sonar=None,
                        laser=LaserConfig(beams=C.OBSTACLE_SECTORS, fov=2 * math.pi, range_max=scan_range))
         self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False)
         self.codec = MavlinkCodec(C.VEHICLE_SYSTEM_ID, C.VEHICLE_COMPONENT_ID)
-        self.mode, self.armed = C.ROVER_HOLD, False
+        self.mode, self.armed = C.ROVER_MODE_HOLD, False
+        self.params: dict[str, list[float]] = {name: [float(value), float(kind)] for name, kind, value in ROVER_PARAMS}
+        self.params["GUID_TIMEOUT"][0] = float(guid_timeout)
+        self.params["PRX1_TYPE"][0] = float(C.PRX_TYPE_SITL if proximity else C.PRX_TYPE_NONE)
+        self._param_names = [name for name, _, _ in ROVER_PARAMS]
+        self.origin: tuple[float, float, float] | None = None
+        self.home: tuple[float, float, float, float, float] | None = None   # lat, lon, alt, x_ned, y_ned
+        if origin is not None:
+            self._set_origin(origin)
         self.rates: dict[int, float] = {m: C.DEFAULT_STREAM_RATE for ms in STREAM_MESSAGES.values() for m in ms}
         self._due: dict[int, float] = dict.fromkeys(self.rates, 0.0)
         self._once: set[int] = set()
         self._next_heartbeat = 0.0
         self._last_cmd_time = 0.0
+        self._heading_goal: tuple[float, float] | None = None   # (yaw NED [rad], speed [m/s]) of a velocity target
+        self._pivoting = False
         self.last_target: Message | None = None
         self.last_command: Message | None = None
+        self.acks: list[Message] = []
         self.commands_received = 0
+        self.received: collections.Counter[str] = collections.Counter()   # messages by type
         self.gcs_heartbeats = 0
         self.ignored_targets = 0
         self.packets_sent = 0
+        self._messages = self._message_handlers()
+        self._commands = self._command_handlers()
         self._udp: socket.socket | None = None
         self._peer: tuple[str, int] | None = None
         try:
@@ -135,6 +204,10 @@ class MavlinkEmulator(StreamEmulator):
         m = self.last_target
         return None if m is None else Twist(math.copysign(math.hypot(m.vx, m.vy), m.vx) + 0.0, -m.yaw_rate + 0.0)
 
+    def param(self, name: str) -> float:
+        """The value of parameter `name` (KeyError if the rover has none)."""
+        return self.params[name][0]
+
     # -- serving (UDP; the rest is StreamEmulator's) ---------------------------------------
     def _active(self) -> bool:
         return self._peer is not None or super()._active()
@@ -165,127 +238,293 @@ class MavlinkEmulator(StreamEmulator):
         for m in self.codec.feed(data):
             self._handle(m)
 
-    # -- the vehicle -----------------------------------------------------------------------
+    # -- the vehicle: dispatch -------------------------------------------------------------
+
+    def _message_handlers(self) -> dict[str, Callable[[Message], None]]:
+        """Message type -> handler (messages of other types are ignored, as by a vehicle)."""
+        return {"SET_POSITION_TARGET_LOCAL_NED": self._on_target, "SET_MODE": self._on_set_mode,
+                "REQUEST_DATA_STREAM": self._on_request_data_stream, "COMMAND_LONG": self._on_command_long,
+                "PARAM_REQUEST_LIST": self._on_param_request_list, "PARAM_REQUEST_READ": self._on_param_request_read,
+                "PARAM_SET": self._on_param_set, "SET_GPS_GLOBAL_ORIGIN": self._on_set_gps_global_origin}
+
+    def _command_handlers(self) -> dict[int, Callable[[Message], int]]:
+        """MAV_CMD -> handler returning the MAV_RESULT (others: UNSUPPORTED)."""
+        return {C.MAV_CMD_DO_SET_MODE: lambda m: self._set_mode(int(m.param1), int(m.param2)),
+                C.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
+                C.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
+                C.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
+                C.MAV_CMD_GET_HOME_POSITION: self._cmd_get_home_position}
+
     def _handle(self, m: Message) -> None:
         kind = m.get_type()
-        mav = self.codec.mav
+        self.received[kind] += 1
         if kind == "HEARTBEAT":
             self.gcs_heartbeats += 1
             return
+        target = getattr(m, "target_system", 0)
+        if target not in (0, C.VEHICLE_SYSTEM_ID):
+            return                               # for another vehicle
         self.commands_received += 1
         self.last_command = m
-        with self.lock:
-            if kind == "SET_POSITION_TARGET_LOCAL_NED":
-                self.last_target = m
-                self._target(m)
-            elif kind == "SET_MODE":
-                self._set_mode(m.custom_mode)
-            elif kind == "REQUEST_DATA_STREAM":
-                groups = list(STREAM_MESSAGES) if m.req_stream_id == C.STREAM_ALL else [m.req_stream_id]
-                for g in groups:
-                    for msg_id in STREAM_MESSAGES.get(g, ()):
-                        self._set_rate(msg_id, float(m.req_message_rate) if m.start_stop else 0.0)
-            elif kind == "COMMAND_LONG":
-                result = self._command_long(m)
-                self._raw.append(self._pack(mav.command_ack_encode(m.command, result)))
+        handler = self._messages.get(kind)
+        if handler is not None:
+            with self.lock:
+                handler(m)
 
-    def _command_long(self, m: Message) -> int:
-        if m.command == C.MAV_CMD_DO_SET_MODE:
-            return self._set_mode(int(m.param2))
-        if m.command == C.MAV_CMD_COMPONENT_ARM_DISARM:
-            self.armed = m.param1 == 1
-            if not self.armed:
-                self.sim.command(Twist.ZERO)
-            return C.MAV_RESULT_ACCEPTED
-        if m.command == C.MAV_CMD_SET_MESSAGE_INTERVAL and int(m.param1) in self.rates:
-            us = m.param2
-            self._set_rate(int(m.param1), 0.0 if us < 0 else C.DEFAULT_STREAM_RATE if us == 0 else 1e6 / us)
-            return C.MAV_RESULT_ACCEPTED
-        if m.command == C.MAV_CMD_REQUEST_MESSAGE and int(m.param1) in self.rates:
-            self._once.add(int(m.param1))
+    def _ack(self, m: Message, command: int, result: int) -> None:
+        """COMMAND_ACK as ArduPilot fills it: the sender's ids as target."""
+        ack = self.codec.mav.command_ack_encode(command, result, 0, 0, m.get_srcSystem(), m.get_srcComponent())
+        self.acks.append(ack)
+        self._raw.append(self._pack(ack))
+
+    # -- commands -----------------------------------------------------------------------------
+    def _on_command_long(self, m: Message) -> None:
+        handler = self._commands.get(m.command)
+        self._ack(m, m.command, C.MAV_RESULT_UNSUPPORTED if handler is None else handler(m))
+
+    def _on_set_mode(self, m: Message) -> None:
+        self._ack(m, C.MAVLINK_MSG_ID_SET_MODE, self._set_mode(m.base_mode, m.custom_mode))
+
+    def _set_mode(self, base_mode: int, mode: int) -> int:
+        """ArduPilot's _set_mode_common: custom modes only (DENIED otherwise); unknown ones FAIL."""
+        if not base_mode & C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return C.MAV_RESULT_DENIED
+        if mode not in C.ROVER_MODES or mode == C.ROVER_MODE_INITIALIZING:
+            return C.MAV_RESULT_FAILED
+        self.mode = mode
+        if mode in (C.ROVER_MODE_GUIDED, C.ROVER_MODE_HOLD):
+            self._halt_rover()
+        return C.MAV_RESULT_ACCEPTED
+
+    def _cmd_arm_disarm(self, m: Message) -> int:
+        if m.param1 == 1:
+            self.armed = True
+        elif m.param1 == 0:
+            self.armed = False
+            self._halt_rover()
+        else:
+            return C.MAV_RESULT_UNSUPPORTED
+        return C.MAV_RESULT_ACCEPTED
+
+    def _cmd_set_message_interval(self, m: Message) -> int:
+        msg_id, us = int(m.param1), m.param2
+        if msg_id not in self.rates:
+            return C.MAV_RESULT_FAILED
+        self._set_rate(msg_id, 0.0 if us < 0 else C.DEFAULT_STREAM_RATE if us == 0 else 1e6 / us)
+        return C.MAV_RESULT_ACCEPTED
+
+    def _cmd_request_message(self, m: Message) -> int:
+        msg_id = int(m.param1)
+        if msg_id in self.rates or msg_id in (C.MAVLINK_MSG_ID_HOME_POSITION, C.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN):
+            self._once.add(msg_id)           # sent with the next step (nothing while it is not set)
             return C.MAV_RESULT_ACCEPTED
         return C.MAV_RESULT_UNSUPPORTED
 
-    def _set_mode(self, mode: int) -> int:
-        if mode not in C.ROVER_MODES:
-            return C.MAV_RESULT_DENIED
-        self.mode = mode
-        if mode in (C.ROVER_GUIDED, C.ROVER_HOLD):
-            self.sim.command(Twist.ZERO)
+    def _cmd_get_home_position(self, m: Message) -> int:
+        if self.home is None:
+            return C.MAV_RESULT_FAILED       # ArduPilot: home not set
+        self._once.add(C.MAVLINK_MSG_ID_HOME_POSITION)
         return C.MAV_RESULT_ACCEPTED
+
+    def _on_request_data_stream(self, m: Message) -> None:
+        groups = list(STREAM_MESSAGES) if m.req_stream_id == C.MAV_DATA_STREAM_ALL else [m.req_stream_id]
+        for g in groups:
+            for msg_id in STREAM_MESSAGES.get(g, ()):
+                self._set_rate(msg_id, float(m.req_message_rate) if m.start_stop else 0.0)
 
     def _set_rate(self, msg_id: int, hz: float) -> None:
         self.rates[msg_id] = max(hz, 0.0)
         self._due[msg_id] = self.sim.time
 
-    def _target(self, m: Message) -> None:
-        if self.mode != C.ROVER_GUIDED or not self.armed:
+    # -- parameters ------------------------------------------------------------------------------
+    def _param_value(self, name: str) -> Message:
+        value, kind = self.params[name]
+        return self.codec.mav.param_value_encode(name.encode(), value, int(kind), len(self._param_names),
+                                                 self._param_names.index(name))
+
+    def _on_param_request_list(self, m: Message) -> None:
+        self._raw.extend(self._pack(self._param_value(name)) for name in self._param_names)
+
+    def _on_param_request_read(self, m: Message) -> None:
+        if m.param_index >= 0:
+            name = self._param_names[m.param_index] if m.param_index < len(self._param_names) else None
+        else:
+            name = _param_name(m.param_id)
+        if name in self.params:
+            self._raw.append(self._pack(self._param_value(name)))
+
+    def _on_param_set(self, m: Message) -> None:
+        name = _param_name(m.param_id)
+        if name not in self.params or not math.isfinite(m.param_value):
+            return                          # ArduPilot ignores unknown names
+        kind = self.params[name][1]
+        self.params[name][0] = float(round(m.param_value)) if kind in _INT_TYPES else float(m.param_value)
+        self._raw.append(self._pack(self._param_value(name)))
+
+    # -- EKF origin and home -----------------------------------------------------------------------
+    def _on_set_gps_global_origin(self, m: Message) -> None:
+        lat, lon = m.latitude / C.DEG_E7, m.longitude / C.DEG_E7
+        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            return
+        self._set_origin((lat, lon, m.altitude / 1000.0))
+        self._once.add(C.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
+
+    def _set_origin(self, origin: tuple[float, float, float]) -> None:
+        self.origin = origin
+        if self.home is None:                # home: where the rover stands once it knows where that is
+            p = self.sim.read().pose
+            lat, lon = self._latlon(p.y, p.x)
+            self.home = (lat, lon, origin[2], p.y, p.x)
+
+    def _latlon(self, x_ned: float, y_ned: float) -> tuple[float, float]:
+        assert self.origin is not None
+        lat0, lon0, _ = self.origin
+        return (lat0 + math.degrees(x_ned / _EARTH_RADIUS),
+                lon0 + math.degrees(y_ned / (_EARTH_RADIUS * math.cos(math.radians(lat0)))))
+
+    # -- guided targets ---------------------------------------------------------------------------
+    def _halt_rover(self) -> None:
+        self._heading_goal = None
+        self.sim.command(Twist.ZERO)
+
+    def _on_target(self, m: Message) -> None:
+        self.last_target = m
+        if self.mode != C.ROVER_MODE_GUIDED or not self.armed or self.origin is None:
             self.ignored_targets += 1
             return
         mask = m.type_mask
-        use_pos = not mask & (C.IGNORE_X | C.IGNORE_Y)
-        use_vel = not mask & (C.IGNORE_VX | C.IGNORE_VY) and mask & (C.IGNORE_AX | C.IGNORE_AY)
-        use_rate = not mask & C.IGNORE_YAW_RATE
-        if use_pos or not (use_vel or use_rate):
-            self.ignored_targets += 1
+        use_pos = not mask & (C.POSITION_TARGET_TYPEMASK_X_IGNORE | C.POSITION_TARGET_TYPEMASK_Y_IGNORE)
+        use_vel = (not mask & (C.POSITION_TARGET_TYPEMASK_VX_IGNORE | C.POSITION_TARGET_TYPEMASK_VY_IGNORE)
+                   and mask & (C.POSITION_TARGET_TYPEMASK_AX_IGNORE | C.POSITION_TARGET_TYPEMASK_AY_IGNORE))
+        use_yaw = not mask & C.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+        use_rate = not mask & C.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+        if use_pos or not (use_vel or use_rate) or (use_yaw and not use_rate):
+            self.ignored_targets += 1       # position and yaw targets: not emulated
             return
-        v = math.copysign(math.hypot(m.vx, m.vy), m.vx) if use_vel else 0.0
-        w = -m.yaw_rate if use_rate else 0.0
-        self.sim.command(Twist(v, w))
         self._last_cmd_time = self.sim.time
+        if use_vel and not use_rate:        # velocity only: turn to face the vector at its speed
+            yaw = math.atan2(m.vy, m.vx)
+            if m.coordinate_frame in (C.MAV_FRAME_BODY_NED, C.MAV_FRAME_BODY_OFFSET_NED):
+                yaw += math.pi / 2 - self.sim.read().pose.theta      # relative to the heading (NED yaw)
+            self._heading_goal = (wrap_angle(yaw), math.hypot(m.vx, m.vy))
+            return
+        self._heading_goal = None
+        v = math.copysign(math.hypot(m.vx, m.vy), m.vx) if use_vel else 0.0
+        self.sim.command(Twist(v, -m.yaw_rate))
 
+    def _steer(self) -> None:
+        """Heading-and-speed control of a velocity-only target (pivot turns as a skid-steer Rover)."""
+        assert self._heading_goal is not None
+        yaw_goal, speed = self._heading_goal
+        err = wrap_angle(yaw_goal - (math.pi / 2 - self.sim.read().pose.theta))   # NED: clockwise
+        pivot_deg = self.param("WP_PIVOT_ANGLE")
+        if pivot_deg > 0 and abs(err) > math.radians(pivot_deg):
+            self._pivoting = True
+        elif abs(err) < _PIVOT_EXIT or pivot_deg <= 0:
+            self._pivoting = False
+        rate_max = math.radians(self.param("ATC_STR_RAT_MAX"))
+        rate = max(-rate_max, min(rate_max, self.param("ATC_STR_ANG_P") * err))
+        self.sim.command(Twist(0.0 if self._pivoting else speed, -rate))
+
+    # -- one tick -------------------------------------------------------------------------------
     def _pack(self, message: Message) -> bytes:
         self.packets_sent += 1
         return self._maybe_corrupt(self.codec.encode(message))
+
+    def _sensors(self) -> tuple[int, int, int]:
+        """SYS_STATUS present, enabled, healthy bits."""
+        present = (C.MAV_SYS_STATUS_SENSOR_3D_GYRO | C.MAV_SYS_STATUS_SENSOR_3D_ACCEL | C.MAV_SYS_STATUS_SENSOR_3D_MAG
+                   | C.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | C.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+                   | C.MAV_SYS_STATUS_AHRS | C.MAV_SYS_STATUS_SENSOR_BATTERY | C.MAV_SYS_STATUS_PREARM_CHECK
+                   | (C.MAV_SYS_STATUS_SENSOR_PROXIMITY if self.param("PRX1_TYPE") else 0))
+        enabled = present if self.armed else present & ~C.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+        return present, enabled, present
 
     def _step(self) -> bytes:
         """Advance the robot by one tick; the bytes of the messages then due."""
         mav = self.codec.mav
         with self.lock:
-            if self.sim.time - self._last_cmd_time > self.guid_timeout - 1e-9:
-                self.sim.command(Twist.ZERO)
+            if self.sim.time - self._last_cmd_time > self.param("GUID_TIMEOUT") - 1e-9:
+                self._halt_rover()
+            elif self._heading_goal is not None:
+                self._steer()
             self.sim.advance(self.tick)
             t = self.sim.time
             state = self.sim.read()
             due = [i for i, hz in self.rates.items() if (hz > 0 and t >= self._due[i] - 1e-9) or i in self._once]
             for i in due:
-                if self.rates[i] > 0:
+                if self.rates.get(i, 0.0) > 0:
                     self._due[i] = max(self._due[i] + 1.0 / self.rates[i], t + 1e-9)
+            due += [i for i in self._once if i not in self.rates]
             self._once.clear()
-            scan = self.sim.scan() if C.MSG_OBSTACLE_DISTANCE in due else None
+            ranging = (C.MAVLINK_MSG_ID_OBSTACLE_DISTANCE in due and self.obstacle_distance) or (
+                C.MAVLINK_MSG_ID_DISTANCE_SENSOR in due and self.param("PRX1_TYPE"))
+            scan = self.sim.scan() if ranging else None
+            sensors = self._sensors()
         ms = round(t * 1000) % (1 << 32)
         out: list[bytes] = []
         if t >= self._next_heartbeat - 1e-9:
             self._next_heartbeat += C.HEARTBEAT_PERIOD
             base = (C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (C.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
                     | (C.MAV_MODE_FLAG_GUIDED_ENABLED if self.mode in _AUTO_MODES else 0))
-            status = C.MAV_STATE_STANDBY if self.mode == C.ROVER_HOLD else C.MAV_STATE_ACTIVE
+            status = C.MAV_STATE_STANDBY if self.mode == C.ROVER_MODE_HOLD else C.MAV_STATE_ACTIVE
             out.append(self._pack(mav.heartbeat_encode(C.MAV_TYPE_GROUND_ROVER, C.MAV_AUTOPILOT_ARDUPILOTMEGA, base,
                                                        self.mode, status, C.MAVLINK_VERSION)))
         p, vel = state.pose, state.velocity
         yaw_ned = wrap_angle(math.pi / 2 - p.theta)
         for i in sorted(due):
-            if i == C.MSG_SYS_STATUS:
-                msg = mav.sys_status_encode(0, 0, 0, 0, self.battery_mv, -1, -1, 0, 0, 0, 0, 0, 0)
-            elif i == C.MSG_LOCAL_POSITION_NED:
-                msg = mav.local_position_ned_encode(ms, p.y, p.x, 0.0, vel.v * math.sin(p.theta),
-                                                    vel.v * math.cos(p.theta), 0.0)
-            elif i == C.MSG_ATTITUDE:
-                msg = mav.attitude_encode(ms, 0.0, 0.0, yaw_ned, 0.0, 0.0, -vel.w)
-            else:
-                assert scan is not None
-                max_cm = round(scan.range_max * 100)
-                dist = [C.OBSTACLE_UNKNOWN] * C.OBSTACLE_SECTORS
-                for a, r in zip(scan.angles.tolist(), scan.ranges.tolist(), strict=True):
-                    k = round(-math.degrees(a) / 5.0) % C.OBSTACLE_SECTORS
-                    dist[k] = max_cm + 1 if not math.isfinite(r) else min(max(round(r * 100), 0), max_cm)
-                msg = mav.obstacle_distance_encode(round(t * 1e6), C.MAV_DISTANCE_SENSOR_LASER, dist, 5, 0, max_cm,
-                                                   5.0, 0.0, C.MAV_FRAME_BODY_FRD)
-            out.append(self._pack(msg))
+            msgs: list[Message] = []
+            if i == C.MAVLINK_MSG_ID_SYS_STATUS:
+                msgs = [mav.sys_status_encode(*sensors, 0, self.battery_mv, -1, -1, 0, 0, 0, 0, 0, 0)]
+            elif i == C.MAVLINK_MSG_ID_LOCAL_POSITION_NED and self.origin is not None:
+                msgs = [mav.local_position_ned_encode(ms, p.y, p.x, 0.0, vel.v * math.sin(p.theta),
+                                                      vel.v * math.cos(p.theta), 0.0)]
+            elif i == C.MAVLINK_MSG_ID_ATTITUDE:
+                msgs = [mav.attitude_encode(ms, 0.0, 0.0, yaw_ned, 0.0, 0.0, -vel.w)]
+            elif i == C.MAVLINK_MSG_ID_DISTANCE_SENSOR and scan is not None and self.param("PRX1_TYPE"):
+                msgs = self._distance_sensors(ms, scan)
+            elif i == C.MAVLINK_MSG_ID_OBSTACLE_DISTANCE and scan is not None and self.obstacle_distance:
+                msgs = [self._obstacle_distance(t, scan)]
+            elif i == C.MAVLINK_MSG_ID_HOME_POSITION and self.home is not None:
+                lat, lon, alt, hx, hy = self.home
+                msgs = [mav.home_position_encode(round(lat * C.DEG_E7), round(lon * C.DEG_E7), round(alt * 1000),
+                                                 hx, hy, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, round(t * 1e6))]
+            elif i == C.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN and self.origin is not None:
+                lat0, lon0, alt0 = self.origin
+                msgs = [mav.gps_global_origin_encode(round(lat0 * C.DEG_E7), round(lon0 * C.DEG_E7), round(alt0 * 1000),
+                                                     round(t * 1e6))]
+            out.extend(self._pack(msg) for msg in msgs)
         return b"".join(out)
+
+    def _distance_sensors(self, ms: int, scan: object) -> list[Message]:
+        """One DISTANCE_SENSOR per 45-degree sector (ArduPilot's send_proximity): the nearest echo [cm]."""
+        max_cm = round(scan.range_max * 100)                     # type: ignore[attr-defined]
+        nearest = [math.inf] * C.PROXIMITY_SECTORS
+        for a, r in zip(scan.angles.tolist(), scan.ranges.tolist(), strict=True):   # type: ignore[attr-defined]
+            k = round(-math.degrees(a) / 45.0) % C.PROXIMITY_SECTORS
+            nearest[k] = min(nearest[k], r)
+        return [self.codec.mav.distance_sensor_encode(
+                    ms, 0, max_cm, max_cm + 1 if not math.isfinite(r) else min(max(round(r * 100), 0), max_cm),
+                    C.MAV_DISTANCE_SENSOR_LASER, C.PROXIMITY_SENSOR_ID_START + k, k, 0)
+                for k, r in enumerate(nearest)]
+
+    def _obstacle_distance(self, t: float, scan: object) -> Message:
+        max_cm = round(scan.range_max * 100)                     # type: ignore[attr-defined]
+        dist = [C.OBSTACLE_UNKNOWN] * C.OBSTACLE_SECTORS
+        for a, r in zip(scan.angles.tolist(), scan.ranges.tolist(), strict=True):   # type: ignore[attr-defined]
+            k = round(-math.degrees(a) / 5.0) % C.OBSTACLE_SECTORS
+            dist[k] = max_cm + 1 if not math.isfinite(r) else min(max(round(r * 100), 0), max_cm)
+        return self.codec.mav.obstacle_distance_encode(round(t * 1e6), C.MAV_DISTANCE_SENSOR_LASER, dist, 5, 0, max_cm,
+                                                       5.0, 0.0, C.MAV_FRAME_BODY_FRD)
 
     def _release(self) -> None:
         if self._udp is not None:
             self._udp.close()
             self._udp = None
         super()._release()
+
+
+def _param_name(param_id: str | bytes) -> str:
+    """A PARAM_* message's param_id as a name (pymavlink may give bytes; NUL padding dropped)."""
+    raw = param_id.decode("ascii", "replace") if isinstance(param_id, bytes) else str(param_id)
+    return raw.split("\x00", 1)[0]

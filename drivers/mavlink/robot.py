@@ -2,7 +2,10 @@
 
 The only place where MAVLink units and frames become ours. Connecting waits for the vehicle's
 HEARTBEAT (its ids become the targets), requests the streams (REQUEST_DATA_STREAM for ArduPilot and
-SET_MESSAGE_INTERVAL for PX4-style autopilots), sets mode GUIDED (MAV_CMD_DO_SET_MODE) and arms
+SET_MESSAGE_INTERVAL for PX4-style autopilots), asks for the EKF origin (REQUEST_MESSAGE
+GPS_GLOBAL_ORIGIN) and, when the vehicle has none within `ORIGIN_WAIT` and sends no local position
+(indoors, no GPS: ArduPilot then ignores local position targets), sets one with
+SET_GPS_GLOBAL_ORIGIN (`origin`), sets mode GUIDED (MAV_CMD_DO_SET_MODE) and arms
 (MAV_CMD_COMPONENT_ARM_DISARM), then waits for the first pose.
 
 Frames (mavlink-rover.md 3): the vehicle reports NED (x north, y east, yaw clockwise from north);
@@ -14,7 +17,10 @@ SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_BODY_NED with type mask 1511 (velocit
 "turn rate and speed"): ``vx = v``, ``yaw_rate = -w``. OBSTACLE_DISTANCE (cm, clockwise sectors from
 the nose in BODY_FRD, or from north in GLOBAL / LOCAL_NED frames) becomes a `LaserScan`: one beam per
 element at the sector's direction; UINT16_MAX and readings below `min_distance` are left out,
-readings above `max_distance` are "nothing hit" (inf).
+readings above `max_distance` are "nothing hit" (inf). Without OBSTACLE_DISTANCE, the horizontal
+DISTANCE_SENSOR readings (orientation 0..7: 45-degree sectors clockwise from the nose, as ArduPilot
+reports its proximity sectors and rangefinders) heard within the last second make the scan, one
+beam per sensor; with neither, the state has no laser (a laser driver can be paired with the robot).
 
 A background reader thread decodes the stream, keeps the newest state, sends our HEARTBEAT at 1 Hz,
 re-sends the current target every `resend` s (the Rover stops after GUID_TIMEOUT = 3 s without
@@ -42,7 +48,10 @@ from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
 from robotexp_drivers.mavlink.link import POLL_TIMEOUT, Link, open_link
 
-__all__ = ["MavlinkRobot", "ROVER_LIMITS", "ROVER_RADIUS", "scan_from_obstacle_distance", "ned_to_enu"]
+__all__ = ["MavlinkRobot", "ROVER_LIMITS", "ROVER_RADIUS", "scan_from_obstacle_distance", "scan_from_distance_sensors",
+           "ned_to_enu"]
+
+DISTANCE_SENSOR_FRESH = 1.0   # [s] DISTANCE_SENSOR readings older than this are left out of the scan
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +86,28 @@ def scan_from_obstacle_distance(msg: Message, yaw_ned: float) -> LaserScan:
     return LaserScan(angles=angles, ranges=ranges.astype(np.float64), range_max=msg.max_distance / 100.0)
 
 
+def scan_from_distance_sensors(msgs: list[Message]) -> LaserScan | None:
+    """Horizontal DISTANCE_SENSOR readings as a scan in the robot frame (one beam per sensor).
+
+    Orientation n = 0..7 is a direction n x 45 deg clockwise from the nose (ArduPilot's reading of
+    MAV_SENSOR_ORIENTATION for proximity sectors and rangefinders; mavlink-rover.md 7.1); other
+    orientations (up, down, custom) are left out, and so are readings below `min_distance`;
+    readings above `max_distance` are "nothing hit" (inf). Distances are in cm.
+
+    Returns:
+        The scan, beams sorted by angle; None when no horizontal reading is left.
+    """
+    beams = sorted((wrap_angle(-math.radians(45.0 * m.orientation)), m) for m in msgs
+                   if C.MAV_SENSOR_ROTATION_NONE <= m.orientation <= C.MAV_SENSOR_ROTATION_YAW_315
+                   and m.current_distance >= m.min_distance)
+    if not beams:
+        return None
+    angles = np.array([a for a, _ in beams], dtype=np.float64)
+    ranges = np.array([math.inf if m.current_distance > m.max_distance else m.current_distance / 100.0
+                       for _, m in beams], dtype=np.float64)
+    return LaserScan(angles=angles, ranges=ranges, range_max=max(m.max_distance for _, m in beams) / 100.0)
+
+
 class MavlinkRobot(StreamBackend):
     """A MAVLink ground rover (ArduPilot Rover, GUIDED mode) over UDP, TCP or a serial port.
 
@@ -93,6 +124,8 @@ class MavlinkRobot(StreamBackend):
         scan_rate: requested rate of OBSTACLE_DISTANCE [Hz].
         resend: re-send the current target this often [s].
         arm: set GUIDED and arm when connecting.
+        origin: the EKF origin (latitude, longitude [deg], altitude [m]) to set on a vehicle that has
+            none (None: never set one).
         system, component: our MAVLink ids (255 = ground station).
         baudrate: serial line speed [bit/s].
 
@@ -110,6 +143,7 @@ class MavlinkRobot(StreamBackend):
                  limits: Limits = ROVER_LIMITS, radius: float = ROVER_RADIUS, timeout: float = 1.0,
                  watchdog: float = 0.5, connect_timeout: float = 5.0, rate: float = 20.0,
                  scan_rate: float = 10.0, resend: float = 0.25, arm: bool = True,
+                 origin: tuple[float, float, float] | None = C.DEFAULT_ORIGIN,
                  system: int = C.GCS_SYSTEM_ID, component: int = C.GCS_COMPONENT_ID,
                  baudrate: int = C.DEFAULT_BAUD) -> None:
         require_positive("mavlink", timeout=timeout, watchdog=watchdog, connect_timeout=connect_timeout, rate=rate,
@@ -125,6 +159,10 @@ class MavlinkRobot(StreamBackend):
         self._position: Message | None = None
         self._attitude: Message | None = None
         self._scan_msg: Message | None = None
+        self._ranges: dict[int, tuple[float, Message]] = {}   # DISTANCE_SENSOR id -> (perf_counter, message)
+        self._origin: Message | None = None    # the vehicle's GPS_GLOBAL_ORIGIN
+        self.origin_set = False                # we set the EKF origin
+        self.origin = origin
         self._battery: float | None = None
         self._acks: dict[int, int] = {}
         self._t0_ms: int | None = None
@@ -171,10 +209,28 @@ class MavlinkRobot(StreamBackend):
 
     def _in_guided_armed(self) -> bool:
         hb = self._heartbeat
-        return hb is not None and hb.custom_mode == C.ROVER_GUIDED and bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)
+        return (hb is not None and hb.custom_mode == C.ROVER_MODE_GUIDED
+                and bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED))
 
     def _has_pose(self) -> bool:
         return self._position is not None and self._attitude is not None
+
+    def _has_origin(self) -> bool:
+        return self._origin is not None or self._position is not None
+
+    def _ensure_origin(self, deadline: float) -> None:
+        """Ask for the EKF origin; set `origin` when the vehicle has none (no answer, no local position)."""
+        ts, tc = self._targets()
+        mav = self._codec.mav
+        self._send(mav.command_long_encode(ts, tc, C.MAV_CMD_REQUEST_MESSAGE, 0, C.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN,
+                                           0, 0, 0, 0, 0, 0))
+        if self.origin is None or self._wait("_has_origin", min(deadline, time.perf_counter() + C.ORIGIN_WAIT)):
+            return
+        lat, lon, alt = self.origin
+        log.info("mavlink: the vehicle has no EKF origin: setting %.7f, %.7f, %.1f m", lat, lon, alt)
+        self._send(mav.set_gps_global_origin_encode(ts, round(lat * C.DEG_E7), round(lon * C.DEG_E7),
+                                                    round(alt * 1000), 0))
+        self.origin_set = True
 
     def _connect(self, connect_timeout: float, rate: float, scan_rate: float, arm: bool) -> None:
         deadline = time.perf_counter() + connect_timeout
@@ -187,19 +243,21 @@ class MavlinkRobot(StreamBackend):
                                  "is the vehicle (or `robotexp emulate mavlink`) running and sending there?")
         mav = self._codec.mav
         ts, tc = self._targets()
-        requests = [mav.request_data_stream_encode(ts, tc, C.STREAM_POSITION, round(rate), 1),
-                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTRA1, round(rate), 1),
-                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTRA3, round(scan_rate), 1),
-                    mav.request_data_stream_encode(ts, tc, C.STREAM_EXTENDED_STATUS, 1, 1)]
-        intervals = ((C.MSG_LOCAL_POSITION_NED, rate), (C.MSG_ATTITUDE, rate), (C.MSG_OBSTACLE_DISTANCE, scan_rate))
+        requests = [mav.request_data_stream_encode(ts, tc, C.MAV_DATA_STREAM_POSITION, round(rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.MAV_DATA_STREAM_EXTRA1, round(rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.MAV_DATA_STREAM_EXTRA3, round(scan_rate), 1),
+                    mav.request_data_stream_encode(ts, tc, C.MAV_DATA_STREAM_EXTENDED_STATUS, 1, 1)]
+        intervals = ((C.MAVLINK_MSG_ID_LOCAL_POSITION_NED, rate), (C.MAVLINK_MSG_ID_ATTITUDE, rate),
+                     (C.MAVLINK_MSG_ID_OBSTACLE_DISTANCE, scan_rate), (C.MAVLINK_MSG_ID_DISTANCE_SENSOR, scan_rate))
         for msg_id, hz in intervals:
             requests.append(mav.command_long_encode(ts, tc, C.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id,
                                                     1e6 / hz, 0, 0, 0, 0, 0))
         for m in requests:
             self._send(m)
+        self._ensure_origin(deadline)
         if arm:
             setup = [mav.command_long_encode(ts, tc, C.MAV_CMD_DO_SET_MODE, 0, C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                                             C.ROVER_GUIDED, 0, 0, 0, 0, 0),
+                                             C.ROVER_MODE_GUIDED, 0, 0, 0, 0, 0),
                      mav.command_long_encode(ts, tc, C.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)]
             if not self._wait("_in_guided_armed", deadline, resend=setup):
                 hb = self._heartbeat
@@ -221,7 +279,8 @@ class MavlinkRobot(StreamBackend):
         if hb is not None and self._target is not None:
             out.update(system=str(self._target[0]), component=str(self._target[1]), type=str(hb.type),
                        autopilot=str(hb.autopilot), mode=C.ROVER_MODES.get(hb.custom_mode, str(hb.custom_mode)),
-                       armed=str(bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)))
+                       armed=str(bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)),
+                       ekf_origin="set by robotexp" if self.origin_set else "the vehicle's")
         return out
 
     # -- frames ---------------------------------------------------------------------------
@@ -310,6 +369,10 @@ class MavlinkRobot(StreamBackend):
                 self._attitude = m
             elif kind == "OBSTACLE_DISTANCE":
                 self._scan_msg = m
+            elif kind == "DISTANCE_SENSOR":
+                self._ranges[m.id] = (now, m)
+            elif kind == "GPS_GLOBAL_ORIGIN":
+                self._origin = m
             elif kind == "SYS_STATUS" and m.voltage_battery != 0xFFFF:
                 self._battery = m.voltage_battery / 1000.0
             elif kind == "COMMAND_ACK":
@@ -339,7 +402,11 @@ class MavlinkRobot(StreamBackend):
             pose = self._anchored(self._raw_pose())
             v = p.vx * math.cos(a.yaw) + p.vy * math.sin(a.yaw)
             scan = self._scan_msg
-            laser = scan_from_obstacle_distance(scan, a.yaw) if scan is not None else None
+            if scan is not None:
+                laser: LaserScan | None = scan_from_obstacle_distance(scan, a.yaw)
+            else:
+                fresh = time.perf_counter() - DISTANCE_SENSOR_FRESH
+                laser = scan_from_distance_sensors([m for t, m in self._ranges.values() if t >= fresh])
             return RobotState(
                 time=self._time_ms / 1000.0, pose=pose, velocity=Twist(v, -a.yawspeed), laser=laser,
                 battery=self._battery, distance=self._distance,
@@ -352,7 +419,7 @@ class MavlinkRobot(StreamBackend):
         try:
             ts, tc = self._targets()
             self._send(self._codec.mav.command_long_encode(ts, tc, C.MAV_CMD_DO_SET_MODE, 0,
-                                                           C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, C.ROVER_HOLD,
+                                                           C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, C.ROVER_MODE_HOLD,
                                                            0, 0, 0, 0, 0))
         except ConnectionLost as exc:
             log.warning("mavlink: could not switch to HOLD: %s", exc)

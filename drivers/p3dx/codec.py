@@ -140,7 +140,7 @@ def encode_command(cmd: int, arg: int | str | bytes | tuple[int, int, int] | Non
     """Encode one client command (§2.2).
 
     Args:
-        cmd: command number 0..255 (`constants.Cmd`).
+        cmd: command number 0..255 (`constants.CMD_*`).
         arg: None (no argument); an int (INTARG/NINTARG, -32768..32767); a str (STRARG: length byte,
             latin-1 characters and a NUL as ARIA's comStr sends); bytes (raw DATA, as comDataN);
             or a tuple (x, y, th): int32 mm, mm, deg for SIM_SET_POSE after its ignored 0 byte,
@@ -166,9 +166,9 @@ def encode_command(cmd: int, arg: int | str | bytes | tuple[int, int, int] | Non
     elif isinstance(arg, (bytes, bytearray, memoryview)):
         data = bytes(arg)
     elif isinstance(arg, tuple):
-        if cmd == c.Cmd.SIM_SET_POSE:
+        if cmd == c.CMD_SIM_SET_POSE:
             data = b"\0" + _pack("<iii", *arg, what="SIM_SET_POSE x, y, th")
-        elif cmd == c.Cmd.SETO:
+        elif cmd == c.CMD_SETO:
             data = bytes((c.ARG_INT,)) + _pack("<hhh", *arg, what="SETO x, y, th")
         else:
             raise ConfigError(f"{_WHERE}: a (x, y, th) argument is only for SIM_SET_POSE (224) or "
@@ -183,7 +183,7 @@ class Command:
     """One decoded client command.
 
     Attributes:
-        cmd: command number (`constants.Cmd`).
+        cmd: command number (`constants.CMD_*`).
         arg: None, a signed int (INTARG/NINTARG), a str (STRARG, latin-1), the (x, y, th) of
             SIM_SET_POSE (int32 mm, mm, deg) or extended SETO (int16), or the raw DATA bytes when
             they are none of these (SIM_CTRL map names, malformed arguments, ...).
@@ -208,11 +208,11 @@ def decode_command(cmd: int, data: bytes) -> Command:
     data = bytes(data)
     if not data:
         return Command(cmd)
-    if cmd == c.Cmd.SIM_SET_POSE and len(data) == 13:
+    if cmd == c.CMD_SIM_SET_POSE and len(data) == 13:
         x, y, th = struct.unpack_from("<iii", data, 1)
         return Command(cmd, (x, y, th))
     kind = data[0]
-    if cmd == c.Cmd.SETO and len(data) == 7 and kind in (c.ARG_INT, c.ARG_NINT):
+    if cmd == c.CMD_SETO and len(data) == 7 and kind in (c.ARG_INT, c.ARG_NINT):
         x, y, th = struct.unpack_from("<hhh", data, 1)
         return Command(cmd, (x, y, th))
     if kind in (c.ARG_INT, c.ARG_NINT) and len(data) >= 3:
@@ -251,47 +251,47 @@ def unpack_2bytes(value: int) -> tuple[int, int]:
 
 def cmd_sync0() -> bytes:
     """SYNC0 (0), first handshake packet: `FA FB 03 00 00 00`."""
-    return frame(c.Cmd.SYNC0)
+    return frame(c.CMD_SYNC0)
 
 
 def cmd_sync1() -> bytes:
     """SYNC1 (1), second handshake packet."""
-    return frame(c.Cmd.SYNC1)
+    return frame(c.CMD_SYNC1)
 
 
 def cmd_sync2() -> bytes:
     """SYNC2 (2), third handshake packet; the robot answers with name, class and subclass."""
-    return frame(c.Cmd.SYNC2)
+    return frame(c.CMD_SYNC2)
 
 
 def cmd_pulse() -> bytes:
     """PULSE (0), the keep-alive that resets the watchdog (§7)."""
-    return frame(c.Cmd.PULSE)
+    return frame(c.CMD_PULSE)
 
 
 def cmd_open() -> bytes:
     """OPEN with int 1, as ARIA sends it: the robot starts sending SIPs."""
-    return encode_command(c.Cmd.OPEN, 1)
+    return encode_command(c.CMD_OPEN, 1)
 
 
 def cmd_close() -> bytes:
     """CLOSE with int 1, as ARIA sends it: the robot stops and ends the session."""
-    return encode_command(c.Cmd.CLOSE, 1)
+    return encode_command(c.CMD_CLOSE, 1)
 
 
 def cmd_enable(on: bool) -> bytes:
     """ENABLE 1 / 0: enable or disable the motors."""
-    return encode_command(c.Cmd.ENABLE, int(on))
+    return encode_command(c.CMD_ENABLE, int(on))
 
 
 def cmd_vel(speed_mm_s: int) -> bytes:
     """VEL: translational velocity [mm/s], signed."""
-    return encode_command(c.Cmd.VEL, speed_mm_s)
+    return encode_command(c.CMD_VEL, speed_mm_s)
 
 
 def cmd_rvel(rate_deg_s: int) -> bytes:
     """RVEL: rotational velocity [deg/s], positive counter-clockwise."""
-    return encode_command(c.Cmd.RVEL, rate_deg_s)
+    return encode_command(c.CMD_RVEL, rate_deg_s)
 
 
 def cmd_vel2(left_mm_s: float, right_mm_s: float, divisor: int = c.VEL2_DIVISOR) -> bytes:
@@ -301,82 +301,82 @@ def cmd_vel2(left_mm_s: float, right_mm_s: float, divisor: int = c.VEL2_DIVISOR)
     helper clamps to +127.
     """
     left, right = (max(-128, min(127, round(v / divisor))) for v in (left_mm_s, right_mm_s))
-    return encode_command(c.Cmd.VEL2, pack_2bytes(left, right))
+    return encode_command(c.CMD_VEL2, pack_2bytes(left, right))
 
 
 def cmd_head(heading_deg: int) -> bytes:
     """HEAD: turn to an absolute heading of the robot's odometry frame [deg]."""
-    return encode_command(c.Cmd.HEAD, heading_deg)
+    return encode_command(c.CMD_HEAD, heading_deg)
 
 
 def cmd_dhead(delta_deg: int) -> bytes:
     """DHEAD: turn relative to the current heading [deg]."""
-    return encode_command(c.Cmd.DHEAD, delta_deg)
+    return encode_command(c.CMD_DHEAD, delta_deg)
 
 
 def cmd_move(distance_mm: int) -> bytes:
     """MOVE: translate a distance [mm]."""
-    return encode_command(c.Cmd.MOVE, distance_mm)
+    return encode_command(c.CMD_MOVE, distance_mm)
 
 
 def cmd_setv(speed_mm_s: int) -> bytes:
     """SETV: maximum translational velocity [mm/s]."""
-    return encode_command(c.Cmd.SETV, speed_mm_s)
+    return encode_command(c.CMD_SETV, speed_mm_s)
 
 
 def cmd_setrv(rate_deg_s: int) -> bytes:
     """SETRV: maximum rotational velocity [deg/s]."""
-    return encode_command(c.Cmd.SETRV, rate_deg_s)
+    return encode_command(c.CMD_SETRV, rate_deg_s)
 
 
 def cmd_seta(accel_mm_s2: int) -> bytes:
     """SETA: translational acceleration (positive) or deceleration (negative) [mm/s^2]."""
-    return encode_command(c.Cmd.SETA, accel_mm_s2)
+    return encode_command(c.CMD_SETA, accel_mm_s2)
 
 
 def cmd_setra(accel_deg_s2: int) -> bytes:
     """SETRA: rotational acceleration (positive) or deceleration (negative) [deg/s^2]."""
-    return encode_command(c.Cmd.SETRA, accel_deg_s2)
+    return encode_command(c.CMD_SETRA, accel_deg_s2)
 
 
 def cmd_stop() -> bytes:
     """STOP without argument."""
-    return frame(c.Cmd.STOP)
+    return frame(c.CMD_STOP)
 
 
 def cmd_estop() -> bytes:
     """ESTOP: emergency stop, overrides the deceleration."""
-    return frame(c.Cmd.ESTOP)
+    return frame(c.CMD_ESTOP)
 
 
 def cmd_sonar(on: bool) -> bytes:
     """SONAR 1 / 0: enable or disable the sonar."""
-    return encode_command(c.Cmd.SONAR, int(on))
+    return encode_command(c.CMD_SONAR, int(on))
 
 
 def cmd_config() -> bytes:
     """CONFIG 1: request one CONFIG packet (0x20)."""
-    return encode_command(c.Cmd.CONFIG, 1)
+    return encode_command(c.CMD_CONFIG, 1)
 
 
 def cmd_battery_info(mode: int) -> bytes:
     """BATTERYINFO: 0 stop, 1 one packet, 2 continuous (ARIA sends 1 after CONFIG)."""
-    return encode_command(c.Cmd.BATTERYINFO, mode)
+    return encode_command(c.CMD_BATTERYINFO, mode)
 
 
 def cmd_sim_set_pose(x_mm: int, y_mm: int, th_deg: int) -> bytes:
     """SIM_SET_POSE (224): move the simulated robot to a true pose; odometry is unchanged."""
-    return encode_command(c.Cmd.SIM_SET_POSE, (x_mm, y_mm, th_deg))
+    return encode_command(c.CMD_SIM_SET_POSE, (x_mm, y_mm, th_deg))
 
 
 def cmd_sim_reset() -> bytes:
     """SIM_RESET (225): back to the start pose, odometry reset to 0, 0, 0."""
-    return frame(c.Cmd.SIM_RESET)
+    return frame(c.CMD_SIM_RESET)
 
 
 def cmd_sim_stat(mode: int) -> bytes:
     """SIM_STAT (237): 0 stop, 1 one SIMSTAT packet, 2 one before every SIP."""
-    return encode_command(c.Cmd.SIM_STAT, mode)
+    return encode_command(c.CMD_SIM_STAT, mode)
 
 
 def cmd_sim_laser(start_deg: int = c.LASER_DEFAULT_START_DEG, end_deg: int = c.LASER_DEFAULT_END_DEG,
@@ -392,15 +392,15 @@ def cmd_sim_laser(start_deg: int = c.LASER_DEFAULT_START_DEG, end_deg: int = c.L
     Returns:
         The four packets, concatenated.
     """
-    return (encode_command(c.Cmd.OLD_SIM_LRF_SET_FOV_START, start_deg)
-            + encode_command(c.Cmd.OLD_SIM_LRF_SET_FOV_END, end_deg)
-            + encode_command(c.Cmd.OLD_SIM_LRF_SET_RES, res_cdeg)
-            + encode_command(c.Cmd.OLD_SIM_LRF_ENABLE, mode))
+    return (encode_command(c.CMD_OLD_SIM_LRF_SET_FOV_START, start_deg)
+            + encode_command(c.CMD_OLD_SIM_LRF_SET_FOV_END, end_deg)
+            + encode_command(c.CMD_OLD_SIM_LRF_SET_RES, res_cdeg)
+            + encode_command(c.CMD_OLD_SIM_LRF_ENABLE, mode))
 
 
 def cmd_sim_lrf(cmd: int, value: int, laser_index: int = 0) -> bytes:
     """One of the new laser commands 230..233 (§4.1): an int, then the laser index byte."""
-    if not c.Cmd.SIM_LRF_ENABLE <= cmd <= c.Cmd.SIM_LRF_SET_RES:
+    if not c.CMD_SIM_LRF_ENABLE <= cmd <= c.CMD_SIM_LRF_SET_RES:
         raise ConfigError(f"{_WHERE}: cmd_sim_lrf takes commands 230..233, got {cmd}")
     return encode_command(cmd, value, _pack(_U8, laser_index, what="laser index"))
 
@@ -445,7 +445,7 @@ class StandardSip:
         sonar: (sonar number, range [RangeConvFactor mm]) pairs in this SIP.
         grip_state, analog_port, analog, digin, digout: the uint8 group of fields 13..17.
         battery_x10: battery voltage [0.1 V], uint16.
-        charge_state: `constants.ChargeState`, uint8.
+        charge_state: `constants.CHARGE_STATE_*`, uint8.
         rot_vel_x10: rotational velocity [0.1 deg/s], int16.
         fault_flags: uint16.
         lat_vel: lateral velocity [mm/s], int16.
@@ -554,7 +554,7 @@ def _decode_sip(ptype: int, data: bytes) -> StandardSip:
             break
         kw.update(zip(names, st.unpack_from(data, pos), strict=True))
         pos += st.size
-    return StandardSip(moving=ptype == c.Ptype.SIP_MOVING, extra=data[pos:], **kw)  # type: ignore[arg-type]
+    return StandardSip(moving=ptype == c.PTYPE_SIP_MOVING, extra=data[pos:], **kw)  # type: ignore[arg-type]
 
 
 def _encode_sip(sip: StandardSip) -> tuple[int, bytes]:
@@ -576,7 +576,7 @@ def _encode_sip(sip: StandardSip) -> tuple[int, bytes]:
     if missing is not None and len(sip.extra) >= missing:
         raise ConfigError(f"{_WHERE}: SIP extra of {len(sip.extra)} bytes would read back as the next "
                           "optional field; set that field instead")
-    return (c.Ptype.SIP_MOVING if sip.moving else c.Ptype.SIP_STOPPED), b"".join(out) + sip.extra
+    return (c.PTYPE_SIP_MOVING if sip.moving else c.PTYPE_SIP_STOPPED), b"".join(out) + sip.extra
 
 
 @dataclass(frozen=True, slots=True)
@@ -685,7 +685,7 @@ def _encode_config(cfg: ConfigPacket) -> tuple[int, bytes]:
         if b"\0" in cfg.extra if st is None else len(cfg.extra) >= st.size:
             raise ConfigError(f"{_WHERE}: CONFIG extra would read back as field "
                               f"{_CONFIG_FIELDS[cfg.present][0]}; raise `present` instead")
-    return c.Ptype.CONFIG, b"".join(out) + cfg.extra
+    return c.PTYPE_CONFIG, b"".join(out) + cfg.extra
 
 
 def mobilesim_config(robot_type: str = c.DEFAULT_CLASS,
@@ -758,13 +758,13 @@ def _encode_laser(p: SimLaserPacket) -> tuple[int, bytes]:
         if p.pose is None or p.reflectance or p.laser_index or p.flags:
             raise ConfigError(f"{_WHERE}: a basic 0x60 laser packet needs `pose` and has no reflectance, "
                               "laser_index or flags")
-        return c.Ptype.SIM_LASER, (_pack(_POSE16, *p.pose, what="laser pose") + head
+        return c.PTYPE_SIM_LASER, (_pack(_POSE16, *p.pose, what="laser pose") + head
                                    + _pack(f"<{n}H", *p.ranges, what="laser ranges") + p.extra)
     if p.pose is not None or len(p.reflectance) != n:
         raise ConfigError(f"{_WHERE}: an extended 0x61 laser packet has no pose and one reflectance "
                           f"per range; got {len(p.reflectance)} for {n} ranges")
     body = [v for pair in zip(p.ranges, p.reflectance, strict=True) for v in pair]
-    return c.Ptype.SIM_LASER_EXT, (head + _pack("<" + "HBxx" * n, *body, what="laser readings")
+    return c.PTYPE_SIM_LASER_EXT, (head + _pack("<" + "HBxx" * n, *body, what="laser readings")
                                    + _pack("<BB", p.laser_index, p.flags, what="laser index, flags")
                                    + p.extra)
 
@@ -913,33 +913,33 @@ def decode_packet(ptype: int, data: bytes) -> Packet:
         ProtocolError: the payload is too short or inconsistent for its type.
     """
     data = bytes(data)
-    if ptype in (c.Ptype.SIP_STOPPED, c.Ptype.SIP_MOVING):
+    if ptype in (c.PTYPE_SIP_STOPPED, c.PTYPE_SIP_MOVING):
         return _decode_sip(ptype, data)
-    if ptype in (c.Ptype.SYNC0, c.Ptype.SYNC1):
+    if ptype in (c.PTYPE_SYNC0, c.PTYPE_SYNC1):
         if data:
             raise ProtocolError(f"{_WHERE}: SYNC{ptype} reply must be empty, got {len(data)} data bytes")
         return SyncReply(ptype)
-    if ptype == c.Ptype.SYNC2:
+    if ptype == c.PTYPE_SYNC2:
         r = _Reader(data, "SYNC2 reply")
         reply = SyncReply(2, r.cstr(), r.cstr(), r.cstr())
         if r.left():
             raise ProtocolError(f"{_WHERE}: SYNC2 reply has {r.left()} bytes after its three strings")
         return reply
-    if ptype == c.Ptype.CONFIG:
+    if ptype == c.PTYPE_CONFIG:
         return _decode_config(data)
-    if ptype in (c.Ptype.SIM_LASER, c.Ptype.SIM_LASER_EXT):
-        return _decode_laser(data, ptype == c.Ptype.SIM_LASER_EXT)
-    if ptype == c.Ptype.SIMSTAT:
+    if ptype in (c.PTYPE_SIM_LASER, c.PTYPE_SIM_LASER_EXT):
+        return _decode_laser(data, ptype == c.PTYPE_SIM_LASER_EXT)
+    if ptype == c.PTYPE_SIMSTAT:
         r = _Reader(data, "SIMSTAT")
         names = [f.name for f in fields(SimStat)[:-1]]
         return SimStat(**dict(zip(names, r.unpack(_SIMSTAT), strict=True)), extra=r.rest())
-    if ptype == c.Ptype.SIMINFO:
+    if ptype == c.PTYPE_SIMINFO:
         return _decode_siminfo(data)
-    if ptype == c.Ptype.SIM_MAP_CHANGED:
+    if ptype == c.PTYPE_SIM_MAP_CHANGED:
         r = _Reader(data, "SIM_MAP_CHANGED")
         user, loaded = r.unpack(_U8)[0], r.unpack(_U8)[0]
         return SimMapChanged(user, loaded, r.cstr(), r.rest())
-    if ptype == c.Ptype.ENCODER:
+    if ptype == c.PTYPE_ENCODER:
         r = _Reader(data, "ENCODER")
         left, right = r.unpack(struct.Struct("<ii"))
         return EncoderPacket(left, right, r.rest())
@@ -967,22 +967,22 @@ def encode_packet(packet: Packet) -> bytes:
     elif isinstance(packet, SimLaserPacket):
         ptype, data = _encode_laser(packet)
     elif isinstance(packet, SimStat):
-        ptype = c.Ptype.SIMSTAT
+        ptype = c.PTYPE_SIMSTAT
         data = _pack(_SIMSTAT, *(getattr(packet, f.name) for f in fields(SimStat)[:-1]),
                      what="SIMSTAT fields") + packet.extra
     elif isinstance(packet, SimInfo):
-        ptype = c.Ptype.SIMINFO
+        ptype = c.PTYPE_SIMINFO
         data = (_cstr(packet.app_name, "SIMINFO name") + _cstr(packet.app_version, "SIMINFO version")
                 + _pack("<II", packet.flags, len(packet.devices), what="SIMINFO flags, count")
                 + b"".join(_cstr(d.name, "device name") + _cstr(d.type, "device type")
                            + _pack("<BI", d.number, d.status, what="device number, status")
                            for d in packet.devices) + packet.extra)
     elif isinstance(packet, SimMapChanged):
-        ptype = c.Ptype.SIM_MAP_CHANGED
+        ptype = c.PTYPE_SIM_MAP_CHANGED
         data = (_pack("<BB", packet.user, packet.loaded, what="SIM_MAP_CHANGED user, loaded")
                 + _cstr(packet.filename, "map file name") + packet.extra)
     elif isinstance(packet, EncoderPacket):
-        ptype, data = c.Ptype.ENCODER, _pack("<ii", packet.left, packet.right, what="encoder") + packet.extra
+        ptype, data = c.PTYPE_ENCODER, _pack("<ii", packet.left, packet.right, what="encoder") + packet.extra
     else:
         ptype, data = packet.ptype, packet.payload
     return frame(ptype, data)

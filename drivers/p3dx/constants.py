@@ -8,8 +8,6 @@ degrees, deg/s, decivolts, and the raw "units" of the SIP that need a conversion
 
 from __future__ import annotations
 
-from enum import IntEnum
-
 # --- §1 Transport ------------------------------------------------------------------------------
 SIM_TCP_PORT = 8101                 # MobileSim/AMRISim first robot; more robots take 8102, 8103, ...
 SERIAL_BAUD = 9600                  # ARIA -robotBaud default; 8 data bits, no parity, 1 stop bit
@@ -40,70 +38,68 @@ INT_ARG_MAX = 32767
 MAX_STR_ARG = 199                   # ARIA comStr refuses more than 199 characters
 
 
-class Cmd(IntEnum):
-    """Client-to-robot command numbers (§4, §4.1, §8.1; AriaCoda ArCommands.h)."""
-
-    SYNC0 = 0
-    PULSE = 0                       # same number as SYNC0 (alias)
-    SYNC1 = 1
-    OPEN = 1                        # alias of SYNC1
-    SYNC2 = 2
-    CLOSE = 2                       # alias of SYNC2
-    POLLING = 3
-    ENABLE = 4
-    SETA = 5
-    SETV = 6
-    SETO = 7
-    MOVE = 8
-    ROTATE = 9
-    SETRV = 10
-    VEL = 11
-    HEAD = 12
-    DHEAD = 13
-    SAY = 15
-    JOYINFO = 17
-    CONFIG = 18
-    ENCODER = 19
-    SETRVDIR = 20
-    RVEL = 21
-    DCHEAD = 22
-    SETRA = 23
-    IMUREQUEST = 26
-    SONAR = 28
-    STOP = 29
-    DIGOUT = 30
-    LASER_POWER = 31                # Notes §2: ARIA sends 2 bytes (11, 1) before laser setup; ignore
-    VEL2 = 32
-    GRIPPER = 33
-    ADSEL = 35
-    OLD_SIM_LRF_ENABLE = 35         # §8.1 SRISim number, alias of ADSEL
-    OLD_SIM_LRF_SET_FOV_START = 36
-    OLD_SIM_LRF_SET_FOV_END = 37
-    OLD_SIM_LRF_SET_RES = 38
-    IOREQUEST = 40
-    BUMPSTALL = 44
-    JOYDRIVE = 47
-    HOSTBAUD = 50
-    ESTOP = 55
-    QSTOP = 57                      # §4: MobileSim also treats 57 as a quick stop
-    GYRO = 58
-    BATTERYINFO = 62                # Notes §1: ARIA sends it (int 1) after CONFIG; never "exit"
-    LATVEL = 110
-    LATACCEL = 113
-    SIM_SET_POSE = 224
-    SIM_RESET = 225
-    SIM_MODEL_CONFIG = 226
-    SIM_LRF_ENABLE = 230
-    SIM_LRF_SET_FOV_START = 231
-    SIM_LRF_SET_FOV_END = 232
-    SIM_LRF_SET_RES = 233
-    SIM_CTRL = 236
-    SIM_STAT = 237
-    SIM_MESSAGE = 238
-    SIM_EXIT = 239
-    BATTEST = 250
-    RESET = 253
-    MAINTENANCE = 255
+# Client-to-robot command numbers (§4, §4.1, §8.1; AriaCoda ArCommands.h).
+CMD_SYNC0 = 0
+CMD_PULSE = 0                       # same number as SYNC0 (alias)
+CMD_SYNC1 = 1
+CMD_OPEN = 1                        # alias of SYNC1
+CMD_SYNC2 = 2
+CMD_CLOSE = 2                       # alias of SYNC2
+CMD_POLLING = 3
+CMD_ENABLE = 4
+CMD_SETA = 5
+CMD_SETV = 6
+CMD_SETO = 7
+CMD_MOVE = 8
+CMD_ROTATE = 9
+CMD_SETRV = 10
+CMD_VEL = 11
+CMD_HEAD = 12
+CMD_DHEAD = 13
+CMD_SAY = 15
+CMD_JOYINFO = 17
+CMD_CONFIG = 18
+CMD_ENCODER = 19
+CMD_SETRVDIR = 20
+CMD_RVEL = 21
+CMD_DCHEAD = 22
+CMD_SETRA = 23
+CMD_IMUREQUEST = 26
+CMD_SONAR = 28
+CMD_STOP = 29
+CMD_DIGOUT = 30
+CMD_LASER_POWER = 31                # Notes §2: ARIA sends 2 bytes (11, 1) before laser setup; ignore
+CMD_VEL2 = 32
+CMD_GRIPPER = 33
+CMD_ADSEL = 35
+CMD_OLD_SIM_LRF_ENABLE = 35         # §8.1 SRISim number, alias of ADSEL
+CMD_OLD_SIM_LRF_SET_FOV_START = 36
+CMD_OLD_SIM_LRF_SET_FOV_END = 37
+CMD_OLD_SIM_LRF_SET_RES = 38
+CMD_IOREQUEST = 40
+CMD_BUMPSTALL = 44
+CMD_JOYDRIVE = 47
+CMD_HOSTBAUD = 50
+CMD_ESTOP = 55
+CMD_QSTOP = 57                      # §4: MobileSim also treats 57 as a quick stop
+CMD_GYRO = 58
+CMD_BATTERYINFO = 62                # Notes §1: ARIA sends it (int 1) after CONFIG; never "exit"
+CMD_LATVEL = 110
+CMD_LATACCEL = 113
+CMD_SIM_SET_POSE = 224
+CMD_SIM_RESET = 225
+CMD_SIM_MODEL_CONFIG = 226
+CMD_SIM_LRF_ENABLE = 230
+CMD_SIM_LRF_SET_FOV_START = 231
+CMD_SIM_LRF_SET_FOV_END = 232
+CMD_SIM_LRF_SET_RES = 233
+CMD_SIM_CTRL = 236
+CMD_SIM_STAT = 237
+CMD_SIM_MESSAGE = 238
+CMD_SIM_EXIT = 239
+CMD_BATTEST = 250
+CMD_RESET = 253
+CMD_MAINTENANCE = 255
 
 
 # §4 deprecated SRISim numbers accepted by MobileSim with a warning (66-68 only in --srisim-compat).
@@ -135,22 +131,20 @@ SIM_STAT_ONCE = 1
 SIM_STAT_EVERY_SIP = 2
 
 
-class Ptype(IntEnum):
-    """Robot-to-client packet types (§3, §5, §5.2, §8)."""
-
-    SYNC0 = 0x00
-    SYNC1 = 0x01
-    SYNC2 = 0x02                    # data: name, class, subclass, each NUL-terminated
-    CONFIG = 0x20
-    SIP_STOPPED = 0x32              # standard SIP, motors stopped (MobileSim always sends this)
-    SIP_MOVING = 0x33               # standard SIP, moving
-    SIM_LASER = 0x60
-    SIM_LASER_EXT = 0x61
-    SIMSTAT = 0x62
-    SIMINFO = 0x63
-    SIM_MAP_CHANGED = 0x66
-    ENCODER = 0x90
-    IO = 0xF0                       # layout not documented in aria-sip.md: decoded as unknown
+# Robot-to-client packet types (§3, §5, §5.2, §8).
+PTYPE_SYNC0 = 0x00
+PTYPE_SYNC1 = 0x01
+PTYPE_SYNC2 = 0x02                    # data: name, class, subclass, each NUL-terminated
+PTYPE_CONFIG = 0x20
+PTYPE_SIP_STOPPED = 0x32              # standard SIP, motors stopped (MobileSim always sends this)
+PTYPE_SIP_MOVING = 0x33               # standard SIP, moving
+PTYPE_SIM_LASER = 0x60
+PTYPE_SIM_LASER_EXT = 0x61
+PTYPE_SIMSTAT = 0x62
+PTYPE_SIMINFO = 0x63
+PTYPE_SIM_MAP_CHANGED = 0x66
+PTYPE_ENCODER = 0x90
+PTYPE_IO = 0xF0                       # layout not documented in aria-sip.md: decoded as unknown
 
 
 # --- §3 Handshake and §7 watchdog timing -----------------------------------------------------------
@@ -201,15 +195,13 @@ FLAG_ESTOP = 0x0020
 FAULT_HIGH_TEMPERATURE = 0x0002     # §5 field 21, as MobileSim sets it
 
 
-class ChargeState(IntEnum):
-    """CHARGESTATE byte (§5 field 19; AriaCoda ArRobot::ChargeState)."""
-
-    NOT_CHARGING = 0
-    BULK = 1
-    OVERCHARGE = 2
-    FLOAT = 3
-    BALANCE = 4
-    UNKNOWN = 255                   # what ARIA shows as -1 when the field is absent
+# CHARGESTATE byte (§5 field 19; AriaCoda ArRobot::ChargeState).
+CHARGE_STATE_NOT_CHARGING = 0
+CHARGE_STATE_BULK = 1
+CHARGE_STATE_OVERCHARGE = 2
+CHARGE_STATE_FLOAT = 3
+CHARGE_STATE_BALANCE = 4
+CHARGE_STATE_UNKNOWN = 255                   # what ARIA shows as -1 when the field is absent
 
 
 # --- §8 Simulated laser -----------------------------------------------------------------------------
@@ -221,6 +213,10 @@ LASER_DEFAULT_READINGS = 181
 # §8.2 said UNCONFIRMED; Notes §7: AMRISim reports 32767 mm when nothing is in range (also the
 # 32.767 m range of MobileSim's sicklms200 model).
 LASER_NO_HIT_MM = 32767
+# MobileSim / AMRISim PioneerRobotModels.world.inc `sicklms200`: range_max 32.767 m, samples 181,
+# fov 180, noise 0.005 (uniform in +-5 mm).
+SIM_LMS200_RANGE_MM = 32767
+SIM_LMS200_NOISE_MM = 5
 LASER_FLAG_ROBOT_MOVED = 0x01       # 0x61 flags byte
 SONAR_NO_ECHO_MM = 5000             # Notes §7: AMRISim's sonar value with nothing in range
 

@@ -10,6 +10,11 @@ view and increment that 36..38 (or 231..233) asked for, as MobileSim does (ARIA 
 with each client, as in MobileSim's new session.
 SIM_SET_POSE moves the robot without changing odometry (`SimRobot.move_to`), SIM_RESET goes back
 to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time / `speedup`.
+Motion is ARCOS's (`ArcosMotion`): VEL / RVEL / VEL2 velocities, MOVE (distance) and HEAD / DHEAD /
+DCHEAD (heading) position control, each ramped by the SETA / SETRA accelerations and capped by
+SETV / SETRV / SETRVDIR; the session starts with the limits CONFIG reports. Sonar is cast from
+p3dx.p's transducer poses (`P3DX_SONAR_ARIA`), the laser is MobileSim's LMS200 model. Commands are
+dispatched through a table (`_dispatch_table`).
 
 For fault tests it records the commands it received (`last_command`, `commanded`) and can
 `inject` raw bytes, `stall` (stop sending without closing) or `vanish` (drop the connection).
@@ -26,6 +31,7 @@ import socket
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -33,23 +39,30 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, wrap_angle
-from robotexp.sim.presets import LaserConfig
+from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase
 
 from . import codec as k
 from . import constants as c
+from .motion import ArcosMotion, RotMode
 from .robot import compose_pose, relative_pose
 
 __all__ = ["P3DXEmulator", "reading_beams"]
 
 log = logging.getLogger(__name__)
 
-_STOPS = frozenset({c.Cmd.STOP, c.Cmd.ESTOP, c.Cmd.QSTOP})
+# commands after which a lockstep emulator may send the next SIP at once
+_VELOCITY_COMMANDS = frozenset({c.CMD_VEL, c.CMD_RVEL, c.CMD_ROTATE, c.CMD_VEL2, c.CMD_STOP, c.CMD_ESTOP,
+                                c.CMD_QSTOP})
 # laser field-of-view commands -> which of (start, end, increment) they set
-_LRF_FOV: dict[int, int] = {c.Cmd.OLD_SIM_LRF_SET_FOV_START: 0, c.Cmd.SIM_LRF_SET_FOV_START: 0,
-                            c.Cmd.OLD_SIM_LRF_SET_FOV_END: 1, c.Cmd.SIM_LRF_SET_FOV_END: 1,
-                            c.Cmd.OLD_SIM_LRF_SET_RES: 2, c.Cmd.SIM_LRF_SET_RES: 2}
+_LRF_FOV: dict[int, int] = {c.CMD_OLD_SIM_LRF_SET_FOV_START: 0, c.CMD_SIM_LRF_SET_FOV_START: 0,
+                            c.CMD_OLD_SIM_LRF_SET_FOV_END: 1, c.CMD_SIM_LRF_SET_FOV_END: 1,
+                            c.CMD_OLD_SIM_LRF_SET_RES: 2, c.CMD_SIM_LRF_SET_RES: 2}
+
+
+EMULATED_NAME = "robotexp"      # SYNC2 / CONFIG name when not posing as a simulator
+EMULATED_SERIAL = "EMU"         # CONFIG serial number then (ARIA takes "SIM" for a simulator)
 
 
 class _Closed(Exception):
@@ -136,12 +149,16 @@ class P3DXEmulator(EmulatorBase):
         pty: serve on a pseudo-terminal instead of TCP (`address` is its device path).
         speedup: robot time per wall time (1.0 = real time).
         seed: seed of the simulator's noise.
-        laser: the simulated laser (default: the preset's, 181 beams over 180 deg, mounted where
-            ARIA's parameter file and `P3DXRobot` put it: 18 mm ahead, 21 mm on p3dx-sh). A
+        laser: the simulated laser (default: MobileSim's LMS200 model, 181 beams over 180 deg up to
+            32.767 m with +-5 mm uniform noise, mounted where ARIA's parameter file and `P3DXRobot`
+            put it: 18 mm ahead, 21 mm on p3dx-sh). A
             client's field of view and increment are picked from its beams (nearest beam), so a
             finer increment than the laser's repeats beams.
         robot: simulator preset name.
         robot_type, robot_subtype: what SYNC2 and CONFIG report.
+        simulator: identify as MobileSim (SYNC2 and CONFIG name "MobileSim", serial "SIM": ARIA then
+            uses its simulated laser, packets 0x60/0x61); False: as a real robot (name
+            `EMULATED_NAME`, serial `EMULATED_SERIAL`), so ARIA opens its own laser driver (-laserPort).
         watchdog: [s of robot time] stop the robot when no command came for this long (None:
             never, as MobileSim, which only warns).
         lockstep: send the next SIP as soon as a velocity command answers the last one (at the
@@ -160,7 +177,7 @@ class P3DXEmulator(EmulatorBase):
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
-                 robot_subtype: str = c.DEFAULT_SUBCLASS, watchdog: float | None = None,
+                 robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,
                  lockstep: bool = False) -> None:
         from robotexp.experiment import resolve_pose
         from robotexp.sim import SimRobot, preset
@@ -172,6 +189,8 @@ class P3DXEmulator(EmulatorBase):
             raise ConfigError(f"p3dx emulator: watchdog must be > 0 s or None, got {watchdog}")
         self.world = load_world(world) if isinstance(world, str) else world
         robot_preset = preset(robot)
+        if robot_preset.sonar == P3DX_SONAR:       # cast from the transducers where ARIA (p3dx.p) puts them
+            robot_preset = replace(robot_preset, sonar=P3DX_SONAR_ARIA)
         if isinstance(pose, Pose):
             self.start_pose = pose
         else:
@@ -181,8 +200,10 @@ class P3DXEmulator(EmulatorBase):
         self.robot_type, self.robot_subtype = robot_type, robot_subtype
         sh = robot_subtype.lower() == "p3dx-sh"
         self.dist_conv = c.DIST_CONV_FACTOR_SH if sh else c.DIST_CONV_FACTOR
-        if laser is None:       # ARIA places the readings at p3dx.p's LaserX, so cast from there
-            laser = replace(robot_preset.laser, offset_x=(c.LASER_X_MM_SH if sh else c.LASER_X_MM) / 1000.0)
+        if laser is None:       # MobileSim's LMS200 model, cast from p3dx.p's LaserX (where ARIA puts it)
+            laser = replace(robot_preset.laser, range_max=c.SIM_LMS200_RANGE_MM / 1000.0,
+                            uniform=c.SIM_LMS200_NOISE_MM / 1000.0,
+                            offset_x=(c.LASER_X_MM_SH if sh else c.LASER_X_MM) / 1000.0)
         self.commands: collections.deque[k.Command] = collections.deque(maxlen=10000)
         self.last_command: k.Command | None = None      # the last command other than PULSE
         self.commanded = (0, 0)                         # last VEL [mm/s] and RVEL [deg/s] in force
@@ -203,6 +224,13 @@ class P3DXEmulator(EmulatorBase):
                                   trans_accel=round(lim.a_max * 1000), trans_decel=round(lim.a_max * 1000),
                                   rot_accel=round(math.degrees(lim.alpha_max)),
                                   rot_decel=round(math.degrees(lim.alpha_max)))
+            if not simulator:
+                self.config = replace(self.config, name=EMULATED_NAME, serial_number=EMULATED_SERIAL)
+            # the emulator ramps the speeds itself (SETA / SETRA, `ArcosMotion`): the simulator follows
+            self.sim.limits = replace(lim, a_max=math.inf, alpha_max=math.inf)
+            # cast once before serving: the first client must not wait for the first casts' set-up
+            self.sim.scan()
+            self.sim.sonar()
             if pty:
                 self._pty = _PtyConn()
                 self.address = self._pty.path
@@ -273,8 +301,12 @@ class P3DXEmulator(EmulatorBase):
     def _reset_session(self) -> None:
         self._stage = 0                      # next expected SYNC number; 3 = synced
         self._open = False
-        self._v_mm, self._w_deg = 0, 0
-        self._max_v, self._max_w = 10**9, 10**9
+        cfg = self.config                    # the session starts with the limits CONFIG reports
+        self.motion = ArcosMotion(cfg.trans_vel_max, cfg.rot_vel_max, cfg.trans_accel, cfg.trans_decel,
+                                  cfg.rot_accel, cfg.rot_decel)
+        self._handlers = self._dispatch_table()
+        self._estopped = False
+        self._velocity = Twist.ZERO          # the robot's speeds after the last cycle
         self._enabled = True                 # MobileSim: motors enabled at session start
         self._sonar_on = True                # ARIA assumes sonar on
         self._laser_mode = c.LRF_OFF
@@ -323,68 +355,117 @@ class P3DXEmulator(EmulatorBase):
 
     def _handle(self, cmd: k.Command, conn: _TcpConn | _PtyConn) -> bool:
         """Act on one command; True when the session ends (CLOSE)."""
-        n, arg = cmd.cmd, cmd.arg
+        n = cmd.cmd
         self.commands.append(cmd)
-        if not (n == c.Cmd.PULSE and self._open):
+        if not (n == c.CMD_PULSE and self._open):
             self.last_command = cmd
         self._last_cmd_time = self.sim.time
-        ival = arg if isinstance(arg, int) else 0
         if not self._open and n in (0, 1, 2) and not (n == 1 and self._stage == 3):
             # §3: answer SYNCn; an out-of-order number continues from there (as MobileSim)
-            reply = k.SyncReply(2, c.SIM_NAME, self.robot_type, self.robot_subtype) if n == 2 else k.SyncReply(n)
+            reply = k.SyncReply(2, self.config.name, self.robot_type, self.robot_subtype) if n == 2 else k.SyncReply(n)
             self._send(conn, k.encode_packet(reply))
             self._stage = n + 1
-        elif n == c.Cmd.OPEN and not self._open:
+            return False
+        if n == c.CMD_OPEN and not self._open:
             self._open = True
             self.sessions += 1
             log.info("p3dx emulator: session %d opened", self.sessions)
-        elif n == c.Cmd.CLOSE:
+            return False
+        if n == c.CMD_CLOSE:
+            self.motion.stop()
             self.commanded = (0, 0)
             return True
-        elif n in (c.Cmd.PULSE, c.Cmd.OPEN):
-            pass
-        elif n == c.Cmd.VEL:
-            self._v_mm = ival
-        elif n in (c.Cmd.RVEL, c.Cmd.ROTATE):
-            self._w_deg = ival
-        elif n == c.Cmd.VEL2:
-            left, right = (b * c.VEL2_DIVISOR for b in k.unpack_2bytes(ival))
-            self._v_mm = round((left + right) / 2)
-            self._w_deg = round(math.degrees((right - left) * c.DIFF_CONV_FACTOR / 2))
-        elif n in _STOPS:
-            self._v_mm = self._w_deg = 0
-        elif n == c.Cmd.ENABLE:
-            self._enabled = bool(ival)
-        elif n == c.Cmd.SETV:
-            self._max_v = abs(ival)
-        elif n == c.Cmd.SETRV:
-            self._max_w = abs(ival)
-        elif n == c.Cmd.SONAR:
-            self._sonar_on = bool(ival)
-        elif n == c.Cmd.CONFIG:
-            self._send(conn, k.encode_packet(self.config))
-        elif n in (c.Cmd.OLD_SIM_LRF_ENABLE, c.Cmd.SIM_LRF_ENABLE):
-            self._laser_mode = ival if ival in (c.LRF_OFF, c.LRF_BASIC, c.LRF_EXTENDED) else c.LRF_OFF
-        elif n in _LRF_FOV:
-            self._set_fov(_LRF_FOV[n], ival)
-        elif n == c.Cmd.SIM_SET_POSE and isinstance(arg, tuple):
-            self._move(Pose(arg[0] / 1000.0, arg[1] / 1000.0, wrap_angle(math.radians(arg[2]))), reset_odom=False)
-        elif n == c.Cmd.SIM_RESET:
-            self._move(self.start_pose, reset_odom=True)
-        elif n == c.Cmd.SETO:
-            self._odom = Pose(0.0, 0.0) if not isinstance(arg, tuple) else Pose(
-                arg[0] / 1000.0, arg[1] / 1000.0, math.radians(arg[2]))
-        elif n == c.Cmd.SIM_STAT:
-            self._simstat = ival
-            if ival == c.SIM_STAT_ONCE:
-                self._send(conn, k.encode_packet(self._simstat_packet()))
-        else:
-            # HEAD, DHEAD, MOVE, SETA, BATTERYINFO (62), laser power (31), ...: accepted, not emulated
+        handler = self._handlers.get(n)
+        if handler is None:
+            # BATTERYINFO (62), laser power (31), ...: accepted, not emulated
             log.debug("p3dx emulator: command %d ignored", n)
-        if n in (c.Cmd.VEL, c.Cmd.RVEL, c.Cmd.ROTATE, c.Cmd.VEL2, *_STOPS):
-            self.commanded = (self._v_mm, self._w_deg)
-            self._stepped = self.lockstep and n != c.Cmd.VEL    # our driver sends VEL, then RVEL
+            return False
+        ival = cmd.arg if isinstance(cmd.arg, int) else 0
+        handler(ival, cmd.arg, conn)
+        if n in _VELOCITY_COMMANDS:
+            self._stepped = self.lockstep and n != c.CMD_VEL    # our driver sends VEL, then RVEL
         return False
+
+    def _dispatch_table(self) -> dict[int, Callable[[int, object, _TcpConn | _PtyConn], None]]:
+        """Command number -> handler(int argument, raw argument, connection) (§4, §4.1, §8.1)."""
+        m = self.motion
+        table: dict[int, Callable[[int, object, _TcpConn | _PtyConn], None]] = {
+            c.CMD_PULSE: lambda i, a, conn: None,
+            c.CMD_OPEN: lambda i, a, conn: None,
+            c.CMD_VEL: self._drive(m.set_vel),
+            c.CMD_RVEL: self._drive(m.set_rot_vel),
+            c.CMD_ROTATE: self._drive(m.set_rot_vel),
+            c.CMD_VEL2: self._drive(self._vel2),
+            c.CMD_MOVE: self._drive(m.move),
+            c.CMD_HEAD: self._drive(m.head),
+            c.CMD_DHEAD: self._drive(lambda deg: m.delta_head(deg, self._heading_deg())),
+            c.CMD_DCHEAD: self._drive(lambda deg: m.delta_setpoint(deg, self._heading_deg())),
+            c.CMD_STOP: self._drive(lambda _: m.stop()),
+            c.CMD_ESTOP: self._estop,
+            c.CMD_QSTOP: self._estop,
+            c.CMD_SETV: lambda i, a, conn: m.set_trans_max(i),
+            c.CMD_SETRV: lambda i, a, conn: m.set_rot_max(i),
+            c.CMD_SETRVDIR: lambda i, a, conn: m.set_rot_max_dir(i),
+            c.CMD_SETA: lambda i, a, conn: m.set_trans_accel(i),
+            c.CMD_SETRA: lambda i, a, conn: m.set_rot_accel(i),
+            c.CMD_ENABLE: self._enable,
+            c.CMD_SONAR: lambda i, a, conn: setattr(self, "_sonar_on", bool(i)),
+            c.CMD_CONFIG: lambda i, a, conn: self._send(conn, k.encode_packet(self.config)),
+            c.CMD_OLD_SIM_LRF_ENABLE: self._laser_enable,
+            c.CMD_SIM_LRF_ENABLE: self._laser_enable,
+            c.CMD_SIM_SET_POSE: self._sim_set_pose,
+            c.CMD_SIM_RESET: lambda i, a, conn: self._move(self.start_pose, reset_odom=True),
+            c.CMD_SETO: self._set_odometry,
+            c.CMD_SIM_STAT: self._sim_stat,
+        }
+        for number, which in _LRF_FOV.items():
+            table[number] = lambda i, a, conn, which=which: self._set_fov(which, i)
+        return table
+
+    def _drive(self, command: Callable[[int], None]) -> Callable[[int, object, _TcpConn | _PtyConn], None]:
+        """A motion command's handler: ignored while the motors are disabled (as MobileSim)."""
+        def handle(value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+            if self._enabled:
+                command(value)
+                self.commanded = (round(self.motion.vel), round(self.motion.rot_vel))
+        return handle
+
+    def _vel2(self, value: int) -> None:
+        left, right = (b * c.VEL2_DIVISOR for b in k.unpack_2bytes(value))
+        self.motion.set_vel(round((left + right) / 2))
+        self.motion.set_rot_vel(round(math.degrees((right - left) * c.DIFF_CONV_FACTOR / 2)))
+
+    def _estop(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        self.motion.stop()
+        self.commanded = (0, 0)
+        self._estopped = True                # stopped at once, not decelerating (MobileSim)
+
+    def _enable(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        self._enabled = bool(value)
+        if not self._enabled:
+            self.motion.stop()
+            self.commanded = (0, 0)
+
+    def _laser_enable(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        self._laser_mode = value if value in (c.LRF_OFF, c.LRF_BASIC, c.LRF_EXTENDED) else c.LRF_OFF
+
+    def _sim_set_pose(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        if isinstance(arg, tuple):
+            self._move(Pose(arg[0] / 1000.0, arg[1] / 1000.0, wrap_angle(math.radians(arg[2]))), reset_odom=False)
+
+    def _set_odometry(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        self._odom = Pose(0.0, 0.0) if not isinstance(arg, tuple) else Pose(
+            arg[0] / 1000.0, arg[1] / 1000.0, math.radians(arg[2]))
+        if self.motion.rot_mode is RotMode.HEAD:
+            self.motion.stop()              # a heading goal of the old frame means nothing now
+
+    def _sim_stat(self, value: int, arg: object, conn: _TcpConn | _PtyConn) -> None:
+        self._simstat = value
+        if value == c.SIM_STAT_ONCE:
+            self._send(conn, k.encode_packet(self._simstat_packet()))
+
+    def _heading_deg(self) -> float:
+        return math.degrees(self._odom.theta)
 
     def _set_fov(self, which: int, value: int) -> None:
         fov = list(self._lrf_fov or (c.LASER_DEFAULT_START_DEG, c.LASER_DEFAULT_END_DEG, c.LASER_DEFAULT_RES_CDEG))
@@ -402,21 +483,30 @@ class P3DXEmulator(EmulatorBase):
             log.warning("p3dx emulator: cannot move the robot: %s", exc)
             return
         self._sim_odom = pose
-        self._v_mm = self._w_deg = 0
+        self.motion.stop()
+        self.commanded = (0, 0)
         if reset_odom:
             self._odom = Pose(0.0, 0.0)
 
     # -- one SIP cycle ---------------------------------------------------------------
     def _cycle(self, conn: _TcpConn | _PtyConn) -> None:
         if self.watchdog is not None and self.sim.time - self._last_cmd_time > self.watchdog:
-            self._v_mm = self._w_deg = 0
-        v = max(-self._max_v, min(self._max_v, self._v_mm)) if self._enabled else 0
-        w = max(-self._max_w, min(self._max_w, self._w_deg)) if self._enabled else 0
+            self.motion.stop()
+            self.commanded = (0, 0)
+        if self._estopped:
+            v = w = 0.0
+            self._estopped = False
+        else:
+            now = self._velocity
+            v, w = self.motion.step(now.v * 1000.0, math.degrees(now.w), self._heading_deg(), c.SIP_PERIOD_S)
         self.sim.command(Twist(v / 1000.0, math.radians(w)))
         self.sim.advance(c.SIP_PERIOD_S)
         state = self.sim.read()
+        self._velocity = state.velocity
         # odometry of our own: the sim's odometry jumps on move_to, MobileSim's does not
-        self._odom = compose_pose(self._odom, relative_pose(self._sim_odom, state.pose))
+        step = relative_pose(self._sim_odom, state.pose)
+        self.motion.travelled(step.x * 1000.0)
+        self._odom = compose_pose(self._odom, step)
         self._sim_odom = state.pose
         if self._simstat == c.SIM_STAT_EVERY_SIP:
             self._send(conn, k.encode_packet(self._simstat_packet()))
@@ -451,7 +541,7 @@ class P3DXEmulator(EmulatorBase):
             thpos=k.heading_to_raw(math.degrees(o.theta)), left_vel=_i16(v_mm - diff), right_vel=_i16(v_mm + diff),
             battery_dv=c.SIM_BATTERY_DV, stall_bumpers=(c.STALL_LEFT | c.STALL_RIGHT) if stalled else 0,
             flags=flags, sonar=sonar, grip_state=0, analog_port=0, analog=0, digin=c.SIM_DIGIN, digout=c.SIM_DIGOUT,
-            battery_x10=c.SIM_BATTERY_DV, charge_state=c.ChargeState.NOT_CHARGING, rot_vel_x10=_i16(w_dps * 10),
+            battery_x10=c.SIM_BATTERY_DV, charge_state=c.CHARGE_STATE_NOT_CHARGING, rot_vel_x10=_i16(w_dps * 10),
             fault_flags=0, lat_vel=0, temperature=c.TEMPERATURE_NONE, state_of_charge=0)
 
     def _simstat_packet(self) -> k.SimStat:

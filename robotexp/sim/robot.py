@@ -80,9 +80,7 @@ class SimRobot(Robot):
         self._mover_time = [0.0] * len(world.movers)
         self._angles = self.laser_config.angles()
         self._sonar_dirs = self._sonar_pattern()
-        ring, ring_radius = (np.zeros(0), 0.0) if self.preset.sonar is None else \
-            (self.preset.sonar.angles(), self.preset.sonar.ring_radius)
-        self._sonar_positions = ring_radius * np.column_stack([np.cos(ring), np.sin(ring)])
+        self._sonar_positions = np.zeros((0, 2)) if self.preset.sonar is None else self.preset.sonar.origins()
         self._sonar_positions.flags.writeable = False     # handed out with every SonarScan
         self._scan_cache: tuple[float, LaserScan] | None = None
         self.engine = Engine(world, self.preset.radius, self.preset.height, rays)
@@ -291,8 +289,14 @@ class SimRobot(Robot):
         ring = cfg.angles()
         k = self._sonar_dirs.shape[1]
         origins = np.empty((len(ring) * k, 2))
-        origins[:, 0] = np.repeat(p.x + cfg.ring_radius * np.cos(p.theta + ring), k)
-        origins[:, 1] = np.repeat(p.y + cfg.ring_radius * np.sin(p.theta + ring), k)
+        if cfg.offsets:                 # transducers where the robot's parameter file puts them
+            c, s = math.cos(p.theta), math.sin(p.theta)
+            at = self._sonar_positions
+            origins[:, 0] = np.repeat(p.x + c * at[:, 0] - s * at[:, 1], k)
+            origins[:, 1] = np.repeat(p.y + s * at[:, 0] + c * at[:, 1], k)
+        else:
+            origins[:, 0] = np.repeat(p.x + cfg.ring_radius * np.cos(p.theta + ring), k)
+            origins[:, 1] = np.repeat(p.y + cfg.ring_radius * np.sin(p.theta + ring), k)
         headings = (p.theta + self._sonar_dirs).ravel()
         fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
         fraction = fraction.reshape(len(ring), k).min(axis=1)

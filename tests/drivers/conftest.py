@@ -63,6 +63,7 @@ def emulator(world: World, start: Pose) -> Iterator[KobukiEmulator]:
 
 @pytest.fixture
 def emu(world: World) -> Iterator[MavlinkEmulator]:
-    """A MAVLink rover emulator of ufmg-static at path1, 10x real time, serving on UDP."""
-    with MavlinkEmulator(world, pose=resolve_pose(world, "path1", ROVER_RADIUS)[0], speedup=10.0) as e:
+    """A MAVLink rover emulator of ufmg-static at path1, 10x real time, serving on UDP, with OBSTACLE_DISTANCE."""
+    with MavlinkEmulator(world, pose=resolve_pose(world, "path1", ROVER_RADIUS)[0], speedup=10.0,
+                         obstacle_distance=True) as e:
         yield e

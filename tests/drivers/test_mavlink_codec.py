@@ -44,8 +44,8 @@ def frame(header: bytes, payload: bytes, crc_extra: int) -> bytes:
 def test_spec_heartbeat_v2_and_v1_decode() -> None:
     for header in (HB_V2_HEADER, HB_V1_HEADER):
         codec = MavlinkCodec(255, 190)
-        (m,) = codec.feed(frame(header, HB_PAYLOAD, C.CRC_EXTRA_HEARTBEAT))
-        assert m.get_type() == "HEARTBEAT" and m.get_msgId() == C.MSG_HEARTBEAT
+        (m,) = codec.feed(frame(header, HB_PAYLOAD, C.MAVLINK_MSG_ID_HEARTBEAT_CRC))
+        assert m.get_type() == "HEARTBEAT" and m.get_msgId() == C.MAVLINK_MSG_ID_HEARTBEAT
         assert (m.type, m.autopilot, m.base_mode, m.custom_mode, m.system_status, m.mavlink_version) == (
             10, 3, 0x81, 15, 4, 3)
         assert (m.get_srcSystem(), m.get_srcComponent(), m.get_seq()) == (1, 1, 7)
@@ -55,13 +55,13 @@ def test_our_encoder_writes_the_spec_bytes() -> None:
     codec = MavlinkCodec(1, 1)
     codec.mav.seq = 7
     out = codec.encode(codec.mav.heartbeat_encode(10, 3, 0x81, 15, 4, 3))
-    assert out == frame(HB_V2_HEADER, HB_PAYLOAD, C.CRC_EXTRA_HEARTBEAT)
+    assert out == frame(HB_V2_HEADER, HB_PAYLOAD, C.MAVLINK_MSG_ID_HEARTBEAT_CRC)
     assert codec.mav.seq == 8
 
 
 def test_wrong_checksum_and_wrong_crc_extra_are_counted_not_raised() -> None:
     codec = MavlinkCodec(255, 190)
-    good = frame(HB_V2_HEADER, HB_PAYLOAD, C.CRC_EXTRA_HEARTBEAT)
+    good = frame(HB_V2_HEADER, HB_PAYLOAD, C.MAVLINK_MSG_ID_HEARTBEAT_CRC)
     bad = good[:-1] + bytes([good[-1] ^ 0xFF])
     assert codec.feed(bad) == []
     assert codec.feed(frame(HB_V2_HEADER, HB_PAYLOAD, 0)) == []     # CRC without the CRC_EXTRA byte

@@ -29,7 +29,7 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_
     # The map itself is coarser (map IoU ~0.84 vs ~0.99): 5-degree beams leave gaps at range.
     embedded = run_experiment(run_spec("p3dx", 300.0), None).record
     start = resolve_pose(world, "path1", 0.25)[0]
-    with MavlinkEmulator(world, pose=start, speedup=30.0) as emu:
+    with MavlinkEmulator(world, pose=start, speedup=30.0, obstacle_distance=True) as emu:
         with MavlinkRobot(emu.address) as robot:
             record = run_on_robot(run_spec("p3dx", 300.0), robot, None, world).record
         assert wait_for(lambda: emu.last_twist == Twist.ZERO)

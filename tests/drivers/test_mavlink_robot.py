@@ -23,7 +23,7 @@ WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.
 
 def test_connect_guided_armed_pose_and_commands(emu: MavlinkEmulator, wait_for: WaitFor) -> None:
     with MavlinkRobot(emu.address) as robot:
-        assert emu.mode == C.ROVER_GUIDED and emu.armed
+        assert emu.mode == C.ROVER_MODE_GUIDED and emu.armed
         assert robot.describe()["mode"] == "GUIDED"
         s = robot.read()
         true = emu.sim.read().pose
@@ -37,7 +37,7 @@ def test_connect_guided_armed_pose_and_commands(emu: MavlinkEmulator, wait_for: 
         s = robot.read()
         assert math.isclose(s.velocity.w, 0.5, rel_tol=1e-3) and math.isclose(s.velocity.v, 0.3, rel_tol=1e-3)
         assert s.battery == 12.6
-    assert wait_for(lambda: emu.mode == C.ROVER_HOLD)
+    assert wait_for(lambda: emu.mode == C.ROVER_MODE_HOLD)
     assert emu.last_twist == Twist.ZERO
 
 
@@ -58,7 +58,7 @@ def test_watchdog_stops_the_vehicle(emu: MavlinkEmulator, wait_for: WaitFor) -> 
 
 def test_vehicle_vanishing_mid_run_raises_within_a_second_and_writes_partial_result(tmp_path: os.PathLike[str],
                                                                                     world: World) -> None:
-    e = MavlinkEmulator(world, pose=resolve_pose(world, "path1", 0.25)[0], speedup=10.0).start()
+    e = MavlinkEmulator(world, pose=resolve_pose(world, "path1", 0.25)[0], speedup=10.0, obstacle_distance=True).start()
     spec = RunSpec(world="ufmg-static", method="frontier", pose="path1", speed=0.3, max_time=300)
     with MavlinkRobot(e.address) as robot:
         t_gone: list[float] = []

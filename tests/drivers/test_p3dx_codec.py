@@ -109,7 +109,7 @@ def test_vel2_hand_vector_and_clamp():
     assert k.cmd_vel2(3000, 0) == k.encode_command(32, 0x7F00)        # clamped to +127, never 128
     assert k.cmd_vel2(-3000, -10) == k.encode_command(32, -0x8000)    # -128 and round(-0.5) = 0
     (cmd,) = k.CommandDecoder().feed(k.cmd_vel2(-40, 60))
-    assert cmd.cmd == c.Cmd.VEL2 and k.unpack_2bytes(cmd.arg) == (-2, 3)
+    assert cmd.cmd == c.CMD_VEL2 and k.unpack_2bytes(cmd.arg) == (-2, 3)
 
 
 def test_2bytes_match_aria_formula_exhaustively():
@@ -125,17 +125,17 @@ def test_2bytes_match_aria_formula_exhaustively():
 
 def test_string_and_special_arguments():
     # SIM_MESSAGE "hi": 2B, length 2, 'h' 'i', NUL (comStr).
-    raw = k.encode_command(c.Cmd.SIM_MESSAGE, "hi")
+    raw = k.encode_command(c.CMD_SIM_MESSAGE, "hi")
     assert raw == hand_frame(h("EE 2B 02 68 69 00"))
     assert k.CommandDecoder().feed(raw) == [k.Command(238, "hi")]
     # comStrN: no NUL; same decoded string.
     assert k.decode_command(238, h("2B 02 68 69")) == k.Command(238, "hi")
     # new laser commands carry an index byte after the int: SIM_LRF_ENABLE 2 for laser 1.
-    raw = k.cmd_sim_lrf(c.Cmd.SIM_LRF_ENABLE, 2, 1)
+    raw = k.cmd_sim_lrf(c.CMD_SIM_LRF_ENABLE, 2, 1)
     assert raw == hand_frame(h("E6 3B 02 00 01"))
     assert k.CommandDecoder().feed(raw) == [k.Command(230, 2, b"\x01")]
     # extended SETO: INTARG type byte, then int16 x, y, th.
-    raw = k.encode_command(c.Cmd.SETO, (-1, 2, -3))
+    raw = k.encode_command(c.CMD_SETO, (-1, 2, -3))
     assert raw == hand_frame(h("07 3B FF FF 02 00 FD FF"))
     assert k.decode_command(7, raw[4:-2]) == k.Command(7, (-1, 2, -3))
     # command 31 with bytes 11 and 1 (ARIA's laser power-on) is the int 0x0B01
@@ -161,7 +161,7 @@ def test_int_argument_out_of_range(bad):
 
 def test_encoder_limits():
     with pytest.raises(ConfigError, match="at most 199"):
-        k.encode_command(c.Cmd.SIM_MESSAGE, "x" * 200)
+        k.encode_command(c.CMD_SIM_MESSAGE, "x" * 200)
     with pytest.raises(ConfigError, match="COUNT"):
         k.frame(0x32, bytes(198))
     assert len(k.frame(0x32, bytes(197))) == 3 + 200

@@ -58,7 +58,7 @@ class ScriptedRobot:
                         conn.sendall(SYNC2_REPLY)
                     elif cmd.cmd == 1 and cmd.arg == 1:
                         opened = True
-                    elif cmd.cmd == k.c.Cmd.CONFIG and self.config:
+                    elif cmd.cmd == k.c.CMD_CONFIG and self.config:
                         conn.sendall(k.encode_packet(k.mobilesim_config()))
                 if opened and time.monotonic() >= next_sip and (queue or not self.silent_after):
                     if queue:

@@ -34,9 +34,9 @@ def records(runner):
 def stopped_then_closed(emu):
     """The driver's last words: VEL 0 and RVEL 0 (the stop), then CLOSE; nothing moves the robot."""
     cmds = list(emu.commands)
-    assert cmds[-1].cmd == c.Cmd.CLOSE and emu.last_command.cmd == c.Cmd.CLOSE
-    last_vel = next(k for k in reversed(cmds) if k.cmd == c.Cmd.VEL)
-    last_rvel = next(k for k in reversed(cmds) if k.cmd == c.Cmd.RVEL)
+    assert cmds[-1].cmd == c.CMD_CLOSE and emu.last_command.cmd == c.CMD_CLOSE
+    last_vel = next(k for k in reversed(cmds) if k.cmd == c.CMD_VEL)
+    last_rvel = next(k for k in reversed(cmds) if k.cmd == c.CMD_RVEL)
     assert last_vel.arg == 0 and last_rvel.arg == 0 and emu.commanded == (0, 0)
     assert emu.sessions == 1                      # one connection for the whole script
 
@@ -73,7 +73,7 @@ print(robot.getPose())
     # the pose the driver reports at the end (odometry from that pose) is where the SimRobot really
     # is (not moved, they would differ by the 11.9 m and 180 deg from path1); the tolerance is the
     # few cycles the robot still turns and slows after the run's last state (0.10 rad measured)
-    assert any(k.cmd == c.Cmd.SIM_SET_POSE and k.arg == (4200, 4200, -135) for k in emu.commands)
+    assert any(k.cmd == c.CMD_SIM_SET_POSE and k.arg == (4200, 4200, -135) for k in emu.commands)
     x, y, th = (float(v) for v in lua.lines[0].split("\t"))
     x2, y2, th2 = (float(v) for v in lua.lines[2].split("\t"))
     truth = emu.sim.read().true_pose
