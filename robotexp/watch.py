@@ -9,10 +9,11 @@ the map, so that a long transit across a large building to a far frontier is not
 by default the longer of `MIN_WINDOW` and the time to drive `TRANSIT_FACTOR` times round the map's
 half perimeter at the robot's top speed.
 
-`frontier_left` counts the frontier a robot could still reach on its own map (openings of groups
-at least a robot wide, wall faces left out, within reach of the known-free space the robot can
-drive through from where it stands): when an explorer says it is done while some is left, the run
-records that it stopped with reachable frontier left, not that the building was explored.
+`frontier_left` counts the frontier a robot could still reach on its own map and never went near
+(openings of groups at least a robot wide, wall faces left out, within reach of the known-free
+space the robot can drive through from where it stands, farther than `APPROACHED` from its path):
+when an explorer says it is done while some is left, the run records that it stopped with
+reachable frontier left, not that the building was explored.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robotexp.robot import Pose
 
@@ -33,12 +35,16 @@ MIN_WINDOW = 120.0          # [s] of robot time without a gain before a strike
 TRANSIT_FACTOR = 1.5        # the window covers this many half perimeters of the map at top speed
 STRIKES = 3                 # strikes in a row that end a run as stalled
 MIN_GAIN = 0.25             # [m^2] newly known space that counts as progress
+APPROACHED = 1.5            # [m] frontier this near the robot's path was looked at from close by
 
 
-def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float) -> int:
+def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
+                  path: npt.NDArray[np.float64] | None = None) -> int:
     """How many frontier cells worth going to (`frontier_targets`, groups at least a robot wide) lie
     within a robot radius and a cell and a half of the known-free cells the robot can drive through
-    from `pose` (`plan_costs` passable, 8-connected to its cell)."""
+    from `pose` (`plan_costs` passable, 8-connected to its cell), leaving out those within
+    `APPROACHED` of the robot's `path` (k, 2) [m]: the robot went there and looked, they stay
+    frontier because no laser can see behind them from anywhere near (inside a shelf, a thin slit)."""
     from robotexp.mapping.kernels import flood8
     from robotexp.planning.grid_planner import distance_transform
     from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
@@ -52,8 +58,15 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float) -> int:
     if not targets.any():
         return 0
     reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
-    near = distance_transform(reach) <= radius / geo.cell + 1.5
-    return int(np.count_nonzero(targets & near))
+    left = targets & (distance_transform(reach) <= radius / geo.cell + 1.5)
+    if path is not None and len(path) and left.any():
+        cells = geo.cells_of(path)
+        cells = cells[geo.contains_cells(cells)]
+        been = np.zeros(grid.shape, dtype=bool)
+        been[cells[:, 0], cells[:, 1]] = True
+        if been.any():
+            left &= distance_transform(been) > APPROACHED / geo.cell
+    return int(np.count_nonzero(left))
 
 
 class StallWatch:
@@ -113,3 +126,62 @@ class StallWatch:
             return (f"stalled: no newly known space for {self.strikes} x {self.window:.0f} s of robot time "
                     f"({self.given_up} targets given up)")
         return None
+
+
+LEAVE_TOL = 0.3             # [m] how far the robot's centre may stray past the exploration area
+
+
+class RunWatch:
+    """The run observer of honest endings (see the module): the stall watch at every coverage sample,
+    the exploration area at every step (a robot centre more than LEAVE_TOL outside it ends the run),
+    and the frontier left when the explorer says it is done (the run is then not completed: its
+    reason says the explorer stopped with reachable frontier left).
+
+    Args:
+        stall: the stall watch, or None for none.
+        area: [m] the exploration area, or None.
+        check_done: check an explorer's Done against the frontier left.
+    """
+
+    critical = False
+
+    def __init__(self, stall: StallWatch | None = None, area: tuple[float, float, float, float] | None = None,
+                 check_done: bool = True) -> None:
+        self.stall, self.area, self.check_done = stall, area, check_done
+
+    def on_start(self, run: Any) -> None:
+        """Size the stall window for the run's grid and robot."""
+        if self.stall is not None:
+            self.stall.start(run.grid, run.robot.limits.v_max)
+
+    def on_step(self, run: Any, step: Any) -> None:
+        """Bounds and Done checks."""
+        from robotexp.explorer import Done
+        from robotexp.record import EndReason
+        from robotexp.world.bounds import inside
+
+        p = step.state.true_pose or step.state.pose
+        if self.area is not None and not inside(self.area, p.x, p.y, LEAVE_TOL):
+            x0, y0, x1, y1 = self.area
+            run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
+                             f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
+        if self.check_done and isinstance(step.decision, Done):
+            left = frontier_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
+            if left:
+                run.completed = False
+                run.end = EndReason.STOPPED
+                run.reason = (f"stopped: the explorer ended ({step.decision.reason}) with {left} frontier cells "
+                              "left that the robot can reach")
+
+    def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
+        """The stall watch."""
+        if self.stall is None:
+            return
+        from robotexp.record import EndReason
+
+        reason = self.stall.sample(time, run.grid, run.explorer)
+        if reason is not None:
+            run.request_stop(reason, EndReason.STALLED)
+
+    def on_end(self, run: Any, record: Any) -> None:
+        """Nothing to do at the end."""

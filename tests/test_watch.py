@@ -94,6 +94,11 @@ def test_frontier_left_counts_a_reachable_opening_and_nothing_in_a_closed_room()
     assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25) >= 5
     # the same opening seen from outside the known space: nothing the robot can drive to
     assert frontier_left(room_grid(True), Pose(8.5, 5.5, 0.0), 0.25) == 0
+    # a robot that went up to the opening and looked: what stays frontier there is not counted
+    far = np.array([[1.0 + 0.1 * k, 3.0] for k in range(20)])          # x 1..2.9 m: 3 m from the gap
+    near = np.array([[2.0 + 0.1 * k, 3.0] for k in range(30)])         # up to x = 4.9 m, by the gap
+    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, far) >= 5
+    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, near) == 0
 
 
 def test_scans_are_clipped_where_they_leave_the_area():
