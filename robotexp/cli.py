@@ -131,12 +131,16 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
+@click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
+              help="Exploration area [mm] (default: what the map declares, else the world's box).")
+@click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path) -> None:
+            noise_uniform: float, noise_sigma: float, out: Path, bounds: str | None, bounds_wall: bool) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, connect_robot, run_experiment, run_on_robot
+    from robotexp.world.bounds import parse_bounds
 
     overlays = tuple(s for s in show.split(",") if s)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
@@ -148,7 +152,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
-                   laser_sigma=noise_sigma / 1000)
+                   laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
+                   map_bounds=None if bounds is None else parse_bounds(bounds))
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:

@@ -19,6 +19,8 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorationRun, Explorer
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot
+from robotexp.watch import RunWatch, StallWatch
+from robotexp.world.bounds import exploration_area, with_boundary_walls
 from robotexp.world.model import World
 
 __all__ = ["RunSpec", "RunOutput", "run_experiment", "run_on_robot", "connect_robot", "make_emulator",
@@ -46,7 +48,8 @@ class RunSpec:
     laser_sigma: float = 0.0            # [m] gaussian laser noise
     laser_uniform: float = 0.0          # [m] uniform laser noise half-width
     map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
-    #                                   (None: the world's bounds plus MAP_MARGIN)
+    #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
+    bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
@@ -201,7 +204,14 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
     start, pose_label = resolve_pose(world, spec.pose, robot_preset.radius)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     assert world.bounds is not None
-    if spec.map_bounds is None:
+    area = exploration_area(world, spec.map_bounds)
+    if spec.map_bounds is None and area is not None:
+        # the map's declared area, grown to hold the start (a home placed in its margin)
+        r = robot_preset.radius + MAP_MARGIN
+        area = (min(area[0], start.x - r), min(area[1], start.y - r), max(area[2], start.x + r),
+                max(area[3], start.y + r))
+        geo = GridGeometry.covering(*area, cell=cell)
+    elif spec.map_bounds is None:
         geo = GridGeometry.covering(*world.bounds, cell=cell, margin=MAP_MARGIN)
     else:
         geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
@@ -209,6 +219,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
         if not (x0 <= start.x <= x1 and y0 <= start.y <= y1):
             raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
                               f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
+    if spec.bounds_wall and area is not None:
+        world = with_boundary_walls(world, area)
     truth = ground_truth(world, geo, robot_radius=robot_preset.radius, laser_range=spec.laser_range,
                          start=start)
     laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
@@ -223,7 +235,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
                 on_run(run)
         sample_cb = on_sample if on_run is None else chained
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                             on_sample=sample_cb, goals=world.goals, start_name=_pose_name(world, spec.pose))
+                             on_sample=sample_cb, goals=world.goals, start_name=_pose_name(world, spec.pose),
+                             watch=RunWatch(StallWatch(), area), area=area)
         run.run()
     return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image, record_extra=record_extra)
 
@@ -320,7 +333,9 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
                                     margin=0.0 if spec.map_bounds else MAP_MARGIN)
         truth = ground_truth(w, geo, robot_radius=robot.radius, laser_range=spec.laser_range, start=start)
         goals, start_name = w.goals, _pose_name(w, spec.pose)
+        area = spec.map_bounds
     else:
+        area = spec.map_bounds
         world_name, pose_label = robot.name, "robot"
         p = robot.read().pose
         half = map_size / 2
@@ -335,7 +350,8 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         if on_run is not None:
             on_run(run)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                         on_sample=on_sample if on_run is None else chained, goals=goals, start_name=start_name)
+                         on_sample=on_sample if on_run is None else chained, goals=goals, start_name=start_name,
+                         watch=RunWatch(StallWatch(), area), area=area)
     run.run()
     extra: dict[str, Any] = {"robot": robot.name}
     if hasattr(robot, "address"):

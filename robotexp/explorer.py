@@ -13,14 +13,16 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar, Literal
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, RobotError
 from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
+from robotexp.world.bounds import clip_scan
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
@@ -106,6 +108,8 @@ class ExplorationRun:
         max_time: robot time [s] after which the run ends incomplete.
         sample_period: robot time [s] between coverage samples.
         on_sample: called after each coverage sample with (robot time, coverage or None).
+        watch: the honest-endings observer (`robotexp.watch.RunWatch`: stall watch, area guard, Done check).
+        area: [m] the exploration area: the explorer's scans end at its edge (`clip_scan`).
         goals: the world's named waypoint lists [m], for goal-following explorers (ExplorerContext.goals).
         start_name: the name of the start pose in the world, if any (ExplorerContext.start_name).
     """
@@ -114,7 +118,8 @@ class ExplorationRun:
                  truth: GroundTruth | None = None, period: float = 0.1, max_time: float = 4 * 3600,
                  sample_period: float = 1.0, seed: int = 0,
                  on_sample: Callable[[float, float | None], None] | None = None,
-                 goals: dict[str, list[tuple[float, float]]] | None = None, start_name: str | None = None) -> None:
+                 goals: dict[str, list[tuple[float, float]]] | None = None, start_name: str | None = None,
+                 watch: Any = None, area: tuple[float, float, float, float] | None = None) -> None:
         if not period > 0 or not max_time > 0 or not sample_period > 0:
             raise ConfigError(f"run: period, max_time and sample_period must be > 0 s, got "
                               f"{period}, {max_time}, {sample_period}")
@@ -132,8 +137,9 @@ class ExplorationRun:
         self.robot_time = 0.0
         self.wall_time = 0.0
         self._stop_reason: str | None = None
+        self.watch, self.area = watch, area
 
-    def request_stop(self, reason: str) -> None:
+    def request_stop(self, reason: str, end: Any = None) -> None:
         """End the run at its next step with `reason` (`completed` stays False; the robot is stopped).
 
         Meant for observers such as `on_sample` (a script's --timeout, a supervisor).
@@ -165,6 +171,8 @@ class ExplorationRun:
                 rng=np.random.default_rng(self.seed), sonar=state.sonar is not None,
                 goals=self.goals, start_name=self.start_name))
             collisions0 = int(state.extra.get("collisions", 0))
+            if self.watch is not None:
+                self.watch.on_start(self)
             while True:
                 self.state = state
                 self.robot_time = state.time - t0
@@ -183,10 +191,16 @@ class ExplorationRun:
                 if self.robot_time >= self.max_time - slack:
                     self.reason = f"time limit of {self.max_time:.0f} s reached"
                     break
-                decision = self.explorer.step(state, self.grid)
+                # the explorer sees the exploration area's edge as a wall (the map takes the real scan)
+                view = state if self.area is None or state.laser is None else \
+                    replace(state, laser=clip_scan(state.laser, state.pose, self.area))
+                decision = self.explorer.step(view, self.grid)
                 if isinstance(decision, Done):
                     self.reason = decision.reason
                     self.completed = True
+                if self.watch is not None:
+                    self.watch.on_step(self, SimpleNamespace(state=state, decision=decision))
+                if isinstance(decision, Done):
                     break
                 robot.command(decision)
                 clock.tick()
@@ -224,6 +238,8 @@ class ExplorationRun:
                     m.milestones[level] = (self.robot_time, m.path_length)
         if self.on_sample is not None:
             self.on_sample(self.robot_time, cov)
+        if self.watch is not None:
+            self.watch.on_sample(self, self.robot_time, cov)
 
     def _safe_stop(self) -> None:
         """Stop the robot; a robot that cannot be reached any more cannot be stopped either."""

@@ -6,8 +6,8 @@ asked to give up its current target (`Explorer.give_up(grid)`, which blacklists 
 without targets has nothing to give up) and the window starts again; a gain clears the strikes.
 After `strikes` strikes in a row the run ends as stalled (`completed` false). The window grows with
 the map, so that a long transit across a large building to a far frontier is not taken for a stall:
-by default the longer of `MIN_WINDOW` and the time to drive `TRANSIT_FACTOR` times round the map's
-half perimeter at the robot's top speed.
+by default the time to drive `TRANSIT_FACTOR` times round the map's half perimeter at the robot's
+top speed, within `MIN_WINDOW`..`MAX_WINDOW`.
 
 `frontier_left` counts the frontier a robot could still reach on its own map and never went near
 (openings of groups at least a robot wide, wall faces left out, within reach of the known-free
@@ -32,9 +32,10 @@ if TYPE_CHECKING:
 __all__ = ["MIN_WINDOW", "STRIKES", "StallWatch", "TRANSIT_FACTOR", "frontier_left"]
 
 MIN_WINDOW = 120.0          # [s] of robot time without a gain before a strike
+MAX_WINDOW = 240.0          # [s] the longest window, however large the map
 TRANSIT_FACTOR = 1.5        # the window covers this many half perimeters of the map at top speed
 STRIKES = 3                 # strikes in a row that end a run as stalled
-MIN_GAIN = 0.25             # [m^2] newly known space that counts as progress
+MIN_GAIN = 0.5              # [m^2] newly known space that counts as progress
 APPROACHED = 1.5            # [m] frontier this near the robot's path was looked at from close by
 
 
@@ -100,7 +101,7 @@ class StallWatch:
         geo = grid.geo
         if self.window_given is None:
             transit = TRANSIT_FACTOR * (geo.width + geo.height) / v_max if v_max > 0 else 0.0
-            self.window = max(MIN_WINDOW, transit)
+            self.window = min(max(MIN_WINDOW, transit), MAX_WINDOW)
         self._gain_cells = max(1, int(math.ceil(self.min_gain / geo.cell ** 2)))
         self.strikes = self.given_up = 0
         self.best, self.since = -1, 0.0
@@ -157,19 +158,20 @@ class RunWatch:
     def on_step(self, run: Any, step: Any) -> None:
         """Bounds and Done checks."""
         from robotexp.explorer import Done
-        from robotexp.record import EndReason
         from robotexp.world.bounds import inside
+        EndReason = _end_reasons()
 
         p = step.state.true_pose or step.state.pose
         if self.area is not None and not inside(self.area, p.x, p.y, LEAVE_TOL):
             x0, y0, x1, y1 = self.area
-            run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
-                             f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
+            run.request_stop(f"stopped: the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
+                             f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason and EndReason.STOPPED)
         if self.check_done and isinstance(step.decision, Done):
             left = frontier_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
             if left:
                 run.completed = False
-                run.end = EndReason.STOPPED
+                if EndReason is not None:
+                    run.end = EndReason.STOPPED
                 run.reason = (f"stopped: the explorer ended ({step.decision.reason}) with {left} frontier cells "
                               "left that the robot can reach")
 
@@ -177,11 +179,19 @@ class RunWatch:
         """The stall watch."""
         if self.stall is None:
             return
-        from robotexp.record import EndReason
-
+        EndReason = _end_reasons()
         reason = self.stall.sample(time, run.grid, run.explorer)
         if reason is not None:
-            run.request_stop(reason, EndReason.STALLED)
+            run.request_stop(reason, EndReason and EndReason.STALLED)
 
     def on_end(self, run: Any, record: Any) -> None:
         """Nothing to do at the end."""
+
+
+def _end_reasons() -> Any:
+    """`robotexp.record.EndReason` where the run loop has it (None before)."""
+    try:
+        from robotexp.record import EndReason
+    except ImportError:
+        return None
+    return EndReason

@@ -12,7 +12,7 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import LaserScan, Pose
-from robotexp.watch import MIN_WINDOW, StallWatch, frontier_left
+from robotexp.watch import MAX_WINDOW, MIN_WINDOW, StallWatch, frontier_left
 from robotexp.world.bounds import clip_scan, exploration_area, inside, parse_bounds, with_boundary_walls
 from robotexp.world.model import World
 
@@ -53,8 +53,10 @@ def test_the_window_grows_with_the_map_and_the_speed():
     watch.start(OccupancyGrid(GEO), 0.3)
     assert watch.window == MIN_WINDOW                     # 1.5 x 16 m / 0.3 m/s = 80 s < 120 s
     big = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 600, 800))   # 80 x 60 m
+    watch.start(big, 1.0)
+    assert watch.window == pytest.approx(1.5 * 140 / 1.0)
     watch.start(big, 0.3)
-    assert watch.window == pytest.approx(1.5 * 140 / 0.3)
+    assert watch.window == MAX_WINDOW
 
 
 def test_three_strikes_without_new_cells_end_the_run_and_each_gives_up_a_target():
