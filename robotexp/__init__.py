@@ -1,7 +1,78 @@
 """robotexp: mobile-robot exploration experiments, the same on a simulator and on real robots.
 
-Importing this package is cheap: pybullet, numba, lupa and pymavlink load only in the modules
-that need them.
+Importing this package is cheap: the names below are imported on first use (PEP 562), and pybullet,
+numba, lupa and pymavlink load only in the modules that need them. What plugin and script authors
+need is here:
+
+- explorers: `Explorer`, `ExplorerContext`, `Done`, `Twist`, `RobotState`, `LaserScan`, `SonarScan`,
+  `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`;
+- robot backends: `Robot`, `Capability`, `RobotEmulator`, `Laser`;
+- runs: `RunSpec`, `run_experiment`, `run_on_robot`, `RunOutput`, `ExplorationRun`, `RunInfo`,
+  `RunObserver`, `StepEvent`, `RunRecord`, `EndReason`, `load_world`, `World`;
+- errors: `RobotexpError`, `RobotError`, `ConnectionLost`, `ProtocolError`, `WorldError`,
+  `ScriptError`, `PluginError`, `ConfigError`.
 """
 
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+# public name -> the module that defines it
+_EXPORTS = {
+    "Explorer": "robotexp.explorer", "ExplorerContext": "robotexp.explorer", "Done": "robotexp.explorer",
+    "ExplorationRun": "robotexp.explorer", "RunInfo": "robotexp.explorer",
+    "Twist": "robotexp.robot", "Pose": "robotexp.robot", "RobotState": "robotexp.robot",
+    "LaserScan": "robotexp.robot", "SonarScan": "robotexp.robot", "Limits": "robotexp.robot",
+    "Robot": "robotexp.robot", "Capability": "robotexp.robot", "RobotEmulator": "robotexp.robot",
+    "Laser": "robotexp.laser",
+    "OccupancyGrid": "robotexp.mapping.grid", "GridGeometry": "robotexp.mapping.geometry",
+    "RunSpec": "robotexp.experiment", "RunOutput": "robotexp.experiment",
+    "run_experiment": "robotexp.experiment", "run_on_robot": "robotexp.experiment",
+    "RunObserver": "robotexp.observers", "StepEvent": "robotexp.observers",
+    "RunRecord": "robotexp.record", "EndReason": "robotexp.record",
+    "load_world": "robotexp.world.loader", "World": "robotexp.world.model",
+    "RobotexpError": "robotexp.errors", "RobotError": "robotexp.errors", "ConnectionLost": "robotexp.errors",
+    "ProtocolError": "robotexp.errors", "WorldError": "robotexp.errors", "ScriptError": "robotexp.errors",
+    "PluginError": "robotexp.errors", "ConfigError": "robotexp.errors",
+}
+
+__all__ = [
+    "__version__",
+    "Explorer", "ExplorerContext", "Done", "ExplorationRun", "RunInfo",
+    "Twist", "Pose", "RobotState", "LaserScan", "SonarScan", "Limits", "Robot", "Capability", "RobotEmulator",
+    "Laser", "OccupancyGrid", "GridGeometry",
+    "RunSpec", "RunOutput", "run_experiment", "run_on_robot", "RunObserver", "StepEvent", "RunRecord", "EndReason",
+    "load_world", "World",
+    "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError", "WorldError", "ScriptError", "PluginError",
+    "ConfigError",
+]
+
+if TYPE_CHECKING:
+    from robotexp.errors import (ConfigError, ConnectionLost, PluginError, ProtocolError, RobotError, RobotexpError,
+                                 ScriptError, WorldError)
+    from robotexp.experiment import RunOutput, RunSpec, run_experiment, run_on_robot
+    from robotexp.explorer import Done, ExplorationRun, Explorer, ExplorerContext, RunInfo
+    from robotexp.laser import Laser
+    from robotexp.mapping.geometry import GridGeometry
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.observers import RunObserver, StepEvent
+    from robotexp.record import EndReason, RunRecord
+    from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState, SonarScan, Twist
+    from robotexp.world.loader import load_world
+    from robotexp.world.model import World
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'robotexp' has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value             # imported once
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import statistics
 import tomllib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -33,7 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from robotexp.errors import ConfigError, PluginError, WorldError
-from robotexp.experiment import RunSpec, make_explorer
+from robotexp.experiment import RunSpec
+from robotexp.record import EndReason, RunRecord
+from robotexp.registry import make_explorer
 from robotexp.world.bounds import parse_bounds
 
 __all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
@@ -57,11 +59,11 @@ def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
     return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed)
 
 
-def record_key(record: dict[str, Any]) -> tuple[str, str, str, int, int]:
+def record_key(record: RunRecord | Mapping[str, Any]) -> tuple[str, str, str, int, int]:
     """`run_key` of a results.jsonl record."""
-    return (str(record.get("world_spec", record.get("world"))), str(record.get("method")),
-            str(record.get("pose_spec", record.get("pose"))),
-            round(float(record.get("max_speed_m_s") or 0) * 1000), int(record.get("seed") or 0))
+    r = RunRecord.from_dict(record)
+    return (str(r.extra.get("world_spec", r.world)), r.method, str(r.extra.get("pose_spec", r.pose)),
+            round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0))
 
 
 def _fail(path: Path, where: str, message: str, kind: type[Exception] = ConfigError) -> Exception:
@@ -226,7 +228,7 @@ def _pose_label(spec: RunSpec) -> str:
     return spec.pose or "default"
 
 
-def _run_one(spec: RunSpec, out: str) -> dict[str, Any]:
+def _run_one(spec: RunSpec, out: str) -> RunRecord:
     """Worker: one run, written to `out` (record first, then images). Returns the record."""
     from robotexp.experiment import run_experiment
 
@@ -235,20 +237,20 @@ def _run_one(spec: RunSpec, out: str) -> dict[str, Any]:
 
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
-                 progress: Callable[[int, int, dict[str, Any] | None], None] | None = None) -> list[dict[str, Any]]:
+                 progress: Callable[[int, int, RunRecord | None], None] | None = None) -> list[RunRecord]:
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes.
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
     writes its partial run) and re-raises KeyboardInterrupt.
     """
-    from robotexp.results import read_jsonl
+    from robotexp.results import read_records
 
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
     results = out / "results.jsonl"
     done: set[tuple[str, str, str, int, int]] = set()
     if resume and results.exists():
-        done = {record_key(r) for r in read_jsonl(results) if not str(r.get("reason", "")).startswith("interrupted")}
+        done = {record_key(r) for r in read_records(results) if r.end is not EndReason.INTERRUPTED}
     todo = [s for s in campaign.runs if run_key(s, _pose_label(s)) not in done]
     # Likely-longest first, so that no process is left alone with a long run at the end: a run's robot
     # time grows with its time limit and falls with its speed (the order of the records does not matter).
@@ -259,9 +261,9 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     if not todo:
         return []
     out.mkdir(parents=True, exist_ok=True)
-    records: list[dict[str, Any]] = []
+    records: list[RunRecord] = []
     with ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn")) as pool:
-        pending: set[Future[dict[str, Any]]] = {pool.submit(_run_one, spec, str(out)) for spec in todo}
+        pending: set[Future[RunRecord]] = {pool.submit(_run_one, spec, str(out)) for spec in todo}
         try:
             while pending:
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -296,18 +298,18 @@ def _mmss(seconds: float) -> str:
     return f"{h}:{m:02d}:{sec:02d}" if h else f"{m:02d}:{sec:02d}"
 
 
-def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
+def report_tables(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[Table]:
     """Tables in the layout of the thesis's Tables 4.1-4.4: per start pose (and seed, when there are
     several) the path [m] and duration (mm:ss) of each method and the SRT nodes; then mean, standard
     deviation, range and mean speed of the runs that completed (a run cut short is marked * and left
     out of the statistics)."""
-    groups: dict[tuple[str, int], dict[str, dict[tuple[str, int], dict[str, Any]]]] = {}
-    for r in records:
-        if str(r.get("reason", "")).startswith("interrupted"):
+    groups: dict[tuple[str, int], dict[str, dict[tuple[str, int], RunRecord]]] = {}
+    for r in map(RunRecord.from_dict, records):
+        if r.end is EndReason.INTERRUPTED:
             continue
-        key = (str(r.get("world")), round(float(r.get("max_speed_m_s") or 0) * 1000))
-        row_key = (str(r.get("pose")), int(r.get("seed") or 0))
-        groups.setdefault(key, {}).setdefault(str(r.get("method")), {})[row_key] = r
+        key = (r.world, round(float(r.max_speed_m_s or 0) * 1000))
+        row_key = (str(r.pose), int(r.seed or 0))
+        groups.setdefault(key, {}).setdefault(r.method, {})[row_key] = r
     tables = []
     for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
         methods = sorted(by_method)
@@ -315,52 +317,51 @@ def report_tables(records: Iterable[dict[str, Any]]) -> list[Table]:
         # one row per start pose, or per (pose, seed) when the campaign has several seeds
         seeded = len({seed for _, seed in poses}) > 1
         labels = {k: f"{k[0]} seed {k[1]}" if seeded else k[0] for k in poses}
+        # a method whose runs count tree nodes (the SRT explorers) gets a nodes column
+        has_nodes = {m: any(r.nodes is not None for r in by_method[m].values()) for m in methods}
         header = ["pose"]
         for m in methods:
-            header += [f"{m} path (m)", f"{m} time (mm:ss)"]
-            if any(by_method[m][p].get("nodes") is not None for p in by_method[m]):
-                header.append(f"{m} nodes")
+            header += [f"{m} path (m)", f"{m} time (mm:ss)"] + ([f"{m} nodes"] if has_nodes[m] else [])
         rows = []
         for pose in poses:
             row = [labels[pose]]
             for m in methods:
                 rec = by_method[m].get(pose)
-                has_nodes = f"{m} nodes" in header
                 if rec is None:
-                    row += ["-", "-"] + (["-"] if has_nodes else [])
+                    row += ["-", "-"] + (["-"] if has_nodes[m] else [])
                     continue
-                flag = "" if rec.get("completed") else "*"
-                row += [f"{rec['path_length_m']:.1f}{flag}", _mmss(rec["robot_time_s"])]
-                if has_nodes:
-                    row.append("-" if rec.get("nodes") is None else str(rec["nodes"]))
+                flag = "" if rec.completed else "*"
+                row += [f"{rec.path_length_m:.1f}{flag}", _mmss(rec.robot_time_s)]
+                if has_nodes[m]:
+                    row.append("-" if rec.nodes is None else str(rec.nodes))
             rows.append(row)
         for label, fn in (("mean", statistics.fmean), ("std dev", _stdev), ("range", _range)):
             row = [label]
             for m in methods:
                 recs = _completed(by_method[m].values())
                 if not recs:
-                    row += ["-", "-"] + (["-"] if f"{m} nodes" in header else [])
+                    row += ["-", "-"] + (["-"] if has_nodes[m] else [])
                     continue
-                paths = [r["path_length_m"] for r in recs]
-                times = [r["robot_time_s"] for r in recs]
+                paths = [r.path_length_m for r in recs]
+                times = [r.robot_time_s for r in recs]
                 row += [f"{fn(paths):.1f}", _mmss(fn(times))]
-                if f"{m} nodes" in header:
-                    nodes = [r["nodes"] for r in recs if r.get("nodes") is not None]
+                if has_nodes[m]:
+                    nodes = [float(r.nodes) for r in recs if r.nodes is not None]
                     row.append(f"{fn(nodes):.0f}" if nodes else "-")
             rows.append(row)
         row = ["mean speed"]
         for m in methods:
             recs = _completed(by_method[m].values()) or list(by_method[m].values())
-            v = sum(r["path_length_m"] for r in recs) / max(sum(r["robot_time_s"] for r in recs), 1e-9)
-            row += [f"{v * 1000:.0f} mm/s", ""] + ([""] if f"{m} nodes" in header else [])
+            v = sum(r.path_length_m for r in recs) / max(sum(r.robot_time_s for r in recs), 1e-9)
+            row += [f"{v * 1000:.0f} mm/s", ""] + ([""] if has_nodes[m] else [])
         rows.append(row)
         tables.append(Table(f"{world}, max speed {speed} mm/s", methods, header, rows))
     return tables
 
 
-def _completed(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+def _completed(records: Iterable[RunRecord]) -> list[RunRecord]:
     """The runs that completed: the statistics leave out runs cut short (marked * in the rows)."""
-    return [r for r in records if r.get("completed")]
+    return [r for r in records if r.completed]
 
 
 def _stdev(values: list[float]) -> float:

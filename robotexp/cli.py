@@ -16,6 +16,8 @@ from typing import Any, TypeVar
 import click
 
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
+from robotexp.observers import RunObserver
+from robotexp.record import RunRecord
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -58,13 +60,18 @@ def main(debug: bool) -> None:
     """Mobile-robot exploration experiments, on the embedded simulator or a real robot."""
 
 
-class Progress:
-    """A one-line progress display on stderr (only when stderr is a terminal)."""
+class Progress(RunObserver):
+    """A one-line progress display on stderr (only when stderr is a terminal); a run observer
+    (`on_sample`), or called as `progress(t, coverage)`."""
 
     def __init__(self, label: str, enabled: bool | None = None) -> None:
         self.label = label
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
+
+    def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
+        """Show the sample."""
+        self(time, coverage)
 
     def __call__(self, t: float, coverage: float | None) -> None:
         if not self.enabled:
@@ -139,7 +146,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
             noise_uniform: float, noise_sigma: float, out: Path, bounds: str | None, bounds_wall: bool) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
-    from robotexp.experiment import RunSpec, connect_robot, run_experiment, run_on_robot
+    from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+    from robotexp.registry import connect_robot
     from robotexp.world.bounds import parse_bounds
 
     overlays = tuple(s for s in show.split(",") if s)
@@ -157,18 +165,18 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     progress = Progress(f"{Path(world).stem} {method}")
     try:
         if address is None:
-            result = run_experiment(spec, out, on_sample=progress, show=overlays)
+            result = run_experiment(spec, out, observers=[progress], show=overlays)
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
             with connect_robot(robot, address) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, on_sample=progress, show=overlays)
+                result = run_on_robot(spec, bot, out, truth_world, observers=[progress], show=overlays)
     finally:
         progress.close()
     r = result.record
-    cov = "n/a" if r["coverage"] is None else f"{r['coverage'] * 100:.1f}%"
-    click.echo(f"{r['run']}: {r['reason']}; path {r['path_length_m']:.1f} m, robot time {r['robot_time_s']:.0f} s "
-               f"(wall {r['wall_time_s']:.1f} s), coverage {cov}, collisions {r['collisions']}")
+    cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
+    click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
+               f"(wall {r.wall_time_s:.1f} s), coverage {cov}, collisions {r.collisions}")
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     if result.interrupted:
         sys.exit(130)
@@ -244,17 +252,17 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
     tty = sys.stderr.isatty()
     failed: list[str] = []
 
-    def progress(done: int, total: int, record: dict[str, Any] | None) -> None:
-        if record is not None and not record.get("completed"):
-            failed.append(f"{record['run']}: {record['reason']}")
+    def progress(done: int, total: int, record: RunRecord | None) -> None:
+        if record is not None and not record.completed:
+            failed.append(f"{record.run}: {record.reason}")
         elapsed = time.monotonic() - t0
         if tty:
             width = 30
             bar = "#" * int(width * done / max(total, 1))
             click.echo(f"\r{camp.name} [{bar:<{width}}] {done}/{total} runs  {elapsed:6.0f} s", nl=False, err=True)
         elif record is not None:
-            click.echo(f"{done}/{total} {record['run']}: path {record['path_length_m']:.1f} m, coverage "
-                       f"{record['coverage']}, {record['reason']}", err=True)
+            click.echo(f"{done}/{total} {record.run}: path {record.path_length_m:.1f} m, coverage "
+                       f"{record.coverage}, {record.reason}", err=True)
 
     click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {n_jobs} jobs, results in {out}", err=True)
     try:
@@ -358,7 +366,7 @@ def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: b
     """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
     import time
 
-    from robotexp.experiment import make_emulator
+    from robotexp.registry import make_emulator
 
     emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp)
     try:
@@ -397,7 +405,7 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
     """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line."""
     import time
 
-    from robotexp.experiment import connect_robot
+    from robotexp.registry import connect_robot
     from robotexp.robot import Twist
 
     twist = None
@@ -411,7 +419,7 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
         raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
     tty = sys.stdout.isatty()
     with connect_robot(backend, address) as robot:
-        info = robot.describe() if hasattr(robot, "describe") else {"name": robot.name}
+        info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
         lim = robot.limits
         click.echo(f"limits: {lim.v_max * 1000:.0f} mm/s, {math.degrees(lim.w_max):.0f} deg/s; "

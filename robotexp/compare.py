@@ -19,12 +19,13 @@ import json
 import logging
 import re
 import statistics
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from robotexp.campaign import Table
 from robotexp.errors import ConfigError, WorldError
+from robotexp.record import EndReason, RunRecord
 from robotexp.stats import welch_t_test
 
 __all__ = ["REQUIRED_KEYS", "campaign_plots", "comparison_tables", "load_results", "path_file"]
@@ -34,8 +35,8 @@ log = logging.getLogger(__name__)
 REQUIRED_KEYS = ("run", "world", "method", "visited_cells")
 
 
-def load_results(path: Path) -> list[dict[str, Any]]:
-    """The records of a results.jsonl, checked to be robotexp run records.
+def load_results(path: Path) -> list[RunRecord]:
+    """The records of a results.jsonl, checked to be robotexp run records (any robotexp wrote).
 
     A torn last line (a run killed while writing) is skipped, as by `results.read_jsonl`.
 
@@ -50,7 +51,7 @@ def load_results(path: Path) -> list[dict[str, Any]]:
     except UnicodeDecodeError:
         raise ConfigError(f"{path}: not a results file (not UTF-8 text); give a results.jsonl") from None
     numbered = [(i, line.strip()) for i, line in enumerate(lines, start=1) if line.strip()]
-    records: list[dict[str, Any]] = []
+    records: list[RunRecord] = []
     for k, (i, line) in enumerate(numbered):
         try:
             rec = json.loads(line)
@@ -65,19 +66,23 @@ def load_results(path: Path) -> list[dict[str, Any]]:
         missing = [key for key in REQUIRED_KEYS if key not in rec]
         if missing:
             raise ConfigError(f"{path}:{i}: record lacks {', '.join(missing)}; is this a robotexp results.jsonl?")
-        records.append(rec)
+        records.append(RunRecord.from_dict(rec))
     if not records:
         raise ConfigError(f"{path}: no runs recorded (the file is empty)")
     return records
 
 
-def _selected(records: Iterable[dict[str, Any]], include_incomplete: bool) -> list[dict[str, Any]]:
-    return [r for r in records if not str(r.get("reason", "")).startswith("interrupted")
-            and (include_incomplete or r.get("completed"))]
+def _finished(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[RunRecord]:
+    """The records (as `RunRecord`s) of the runs that were not interrupted."""
+    return [r for r in map(RunRecord.from_dict, records) if r.end is not EndReason.INTERRUPTED]
 
 
-def _speed(record: dict[str, Any]) -> int:
-    return round(float(record.get("max_speed_m_s") or 0) * 1000)
+def _selected(records: Iterable[RunRecord], include_incomplete: bool) -> list[RunRecord]:
+    return [r for r in _finished(records) if include_incomplete or r.completed]
+
+
+def _speed(record: RunRecord) -> int:
+    return round(float(record.max_speed_m_s or 0) * 1000)
 
 
 def _mean_sd(values: list[float], decimals: int) -> str:
@@ -94,7 +99,8 @@ def _mean(values: list[float | None], decimals: int) -> str:
     return f"{statistics.fmean(known):.{decimals}f}" if known else "-"
 
 
-def comparison_tables(records: Iterable[dict[str, Any]], *, include_incomplete: bool = False) -> list[Table]:
+def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
+                      include_incomplete: bool = False) -> list[Table]:
     """Santos 2016 Table 8 per world (and maximum speed) that has runs of two or more methods.
 
     Rows: per method (sorted) the runs used (n; "+k*" counts the runs cut short and left out),
@@ -103,18 +109,18 @@ def comparison_tables(records: Iterable[dict[str, Any]], *, include_incomplete: 
     cells, its t (A minus B) and df, or "-" when a method has fewer than 2 runs.
 
     Args:
-        records: results.jsonl records.
+        records: results.jsonl records (`RunRecord`s, or their JSON objects).
         include_incomplete: also use the runs cut short (time limit, stuck); interrupted runs are
             always left out.
 
     Returns:
         The tables, sorted by world then decreasing speed.
     """
-    all_runs = [r for r in records if not str(r.get("reason", "")).startswith("interrupted")]
+    all_runs = _finished(records)
     used = {id(r) for r in _selected(all_runs, include_incomplete)}
-    groups: dict[tuple[str, int], dict[str, list[dict[str, Any]]]] = {}
+    groups: dict[tuple[str, int], dict[str, list[RunRecord]]] = {}
     for r in all_runs:
-        groups.setdefault((str(r.get("world")), _speed(r)), {}).setdefault(str(r.get("method")), []).append(r)
+        groups.setdefault((r.world, _speed(r)), {}).setdefault(r.method, []).append(r)
     tables = []
     for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
         if len(by_method) < 2:
@@ -126,10 +132,10 @@ def comparison_tables(records: Iterable[dict[str, Any]], *, include_incomplete: 
         for m in methods:
             recs = [r for r in by_method[m] if id(r) in used]
             left_out = len(by_method[m]) - len(recs)
-            cells[m] = [float(r["visited_cells"]) for r in recs]
+            cells[m] = [float(r.visited_cells) for r in recs]
             n = f"{len(recs)}" + (f" +{left_out}*" if left_out else "")
-            rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.get("coverage") for r in recs], 3),
-                         _mean([r.get("path_length_m") for r in recs], 1)])
+            rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.coverage for r in recs], 3),
+                         _mean([r.path_length_m for r in recs], 1)])
         for a, b in itertools.combinations(methods, 2):
             if len(cells[a]) < 2 or len(cells[b]) < 2:
                 p = "- (fewer than 2 runs)"
@@ -141,7 +147,7 @@ def comparison_tables(records: Iterable[dict[str, Any]], *, include_incomplete: 
     return tables
 
 
-def path_file(results_dir: Path, record: dict[str, Any]) -> Path:
+def path_file(results_dir: Path, record: RunRecord | Mapping[str, Any]) -> Path:
     """The path file `NAME.path.csv` of a run record, in the folder of its results.jsonl."""
     return results_dir / f"{record['run']}.path.csv"
 
@@ -150,15 +156,15 @@ def _safe(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "x"
 
 
-def _run_label(record: dict[str, Any], with_speed: bool) -> str:
-    label = f"pose {record.get('pose', record.get('start_pose'))}, seed {record.get('seed')}"
+def _run_label(record: RunRecord, with_speed: bool) -> str:
+    label = f"pose {record.pose if record.pose is not None else record.start_pose}, seed {record.seed}"
     if with_speed:
         label += f", {_speed(record)} mm/s"
-    label += f": {record['visited_cells']} cells"
-    return label + ("" if record.get("completed") else " *")
+    label += f": {record.visited_cells} cells"
+    return label + ("" if record.completed else " *")
 
 
-def campaign_plots(records: Iterable[dict[str, Any]], results_dir: Path, out: Path, *,
+def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir: Path, out: Path, *,
                    include_incomplete: bool = False,
                    note: Callable[[str], None] | None = None) -> list[Path]:
     """Write `visited_cells.png` and one `paths_<world>_<method>.png` per world and method into `out`.
@@ -188,16 +194,16 @@ def campaign_plots(records: Iterable[dict[str, Any]], results_dir: Path, out: Pa
     from robotexp.world.loader import load_world
 
     say = note or (lambda text: log.info("%s", text))
-    runs = [r for r in records if not str(r.get("reason", "")).startswith("interrupted")]
+    runs = _finished(records)
     if not runs:
         raise ConfigError("no finished runs to plot (every run was interrupted)")
     out.mkdir(parents=True, exist_ok=True)
-    by_group: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    by_group: dict[tuple[str, str], list[RunRecord]] = {}
     for r in runs:
-        by_group.setdefault((str(r["world"]), str(r["method"])), []).append(r)
+        by_group.setdefault((r.world, r.method), []).append(r)
     keys = sorted(by_group)
     used = {id(r) for r in _selected(runs, include_incomplete)}
-    groups = [(f"{w} {m}", [float(r["visited_cells"]) for r in by_group[(w, m)] if id(r) in used])
+    groups = [(f"{w} {m}", [float(r.visited_cells) for r in by_group[(w, m)] if id(r) in used])
               for w, m in keys]
     what = "all finished runs" if include_incomplete else "completed runs"
     written = [save_png(box_plot(groups, ylabel="visited cells",
@@ -205,8 +211,8 @@ def campaign_plots(records: Iterable[dict[str, Any]], results_dir: Path, out: Pa
                                  size=(max(900, 130 * len(groups)), 540)), out / "visited_cells.png")]
     worlds: dict[str, Any] = {}
     for world, method in keys:
-        recs = sorted(by_group[(world, method)], key=lambda r: (str(r.get("pose")), _speed(r), r.get("seed") or 0))
-        spec = str(recs[0].get("world_spec") or world)
+        recs = sorted(by_group[(world, method)], key=lambda r: (str(r.pose), _speed(r), r.seed))
+        spec = str(recs[0].extra.get("world_spec") or world)
         if spec not in worlds:
             try:
                 worlds[spec] = load_world(spec)
@@ -218,13 +224,13 @@ def campaign_plots(records: Iterable[dict[str, Any]], results_dir: Path, out: Pa
         for r in recs:
             f = path_file(results_dir, r)
             if not f.is_file():
-                say(f"{r['run']}: no path file {f.name}; run skipped")
+                say(f"{r.run}: no path file {f.name}; run skipped")
                 continue
             lines.append((_run_label(r, with_speed), read_path_csv(f)))
         if not lines:
             continue
         title = f"{world} - {method}: {len(lines)} run(s)"
-        notes = ["dot: start of a path"] + (["*: run cut short"] if any(not r.get("completed") for r in recs) else [])
+        notes = ["dot: start of a path"] + (["*: run cut short"] if any(not r.completed for r in recs) else [])
         image = paths_image(worlds[spec], lines, title=title, notes=notes)
         written.append(save_png(image, out / f"paths_{_safe(world)}_{_safe(method)}.png"))
     return written

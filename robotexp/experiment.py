@@ -1,31 +1,42 @@
-"""One exploration experiment on the embedded simulator, from a `RunSpec` to written results.
+"""One exploration run, from a `RunSpec` to written results: the one run path of every robot.
 
-This is what `robotexp explore`, the Lua `exploration.start()` and campaigns all call.
+`run_on_robot` runs a spec's explorer on an open robot, any backend; `run_experiment` builds the
+embedded simulator's `SimRobot` for the spec and hands it to `run_on_robot`. This is what
+`robotexp explore`, the Lua `exploration.start()` and campaigns all call. The parts live in their
+own modules: start poses in `robotexp.world.poses`, plugin construction in `robotexp.registry`,
+the loop in `robotexp.explorer`, observers in `robotexp.observers`, records in `robotexp.record`
+and output files in `robotexp.results`.
 """
 
 from __future__ import annotations
 
 import math
-import types
-import typing
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from robotexp.errors import ConfigError
-from robotexp.explorer import ExplorationRun, Explorer
+from robotexp.errors import ConfigError, PluginError
+from robotexp.explorer import ExplorationRun, Explorer, RunInfo
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.robot import Pose, Robot
+from robotexp.observers import RunObserver, SampleCallback
+from robotexp.record import EndReason, RunRecord
+from robotexp.registry import connect_robot, make_emulator, make_explorer
+from robotexp.results import ResultsWriter, map_image, run_id
+from robotexp.robot import Capability, Pose, Robot
 from robotexp.watch import RunWatch, StallWatch
 from robotexp.world.bounds import exploration_area, with_boundary_walls
 from robotexp.world.model import World
+from robotexp.world.poses import parse_pose, pose_name, resolve_pose
 
-__all__ = ["RunSpec", "RunOutput", "run_experiment", "run_on_robot", "connect_robot", "make_emulator",
-           "parse_pose", "resolve_pose", "make_explorer",
-           "DEFAULT_CELL", "MAP_MARGIN"]
+if TYPE_CHECKING:
+    from robotexp.mapping.groundtruth import GroundTruth
+    from robotexp.sim import SimRobot
+
+__all__ = ["RunSpec", "RunOutput", "RunPlan", "run_experiment", "run_on_robot", "plan_run", "sim_robot",
+           "DEFAULT_CELL", "MAP_MARGIN",
+           # where they were before the restructure (they live in world.poses, registry and results now)
+           "connect_robot", "make_emulator", "parse_pose", "resolve_pose", "make_explorer", "map_image"]
 
 DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
 MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
@@ -75,144 +86,80 @@ class RunSpec:
 class RunOutput:
     """What a run leaves behind: its record and the files written."""
 
-    record: dict[str, Any]
+    record: RunRecord
     run: ExplorationRun
     image: Path | None
     plot: Path | None
-    interrupted: bool
+
+    @property
+    def end(self) -> EndReason:
+        """Why the run ended."""
+        return self.record.end
+
+    @property
+    def interrupted(self) -> bool:
+        """The run was interrupted by Ctrl-C (the caller should exit 130)."""
+        return self.record.end is EndReason.INTERRUPTED
 
 
-def parse_pose(text: str) -> Pose:
-    """Parse "x,y,theta" (mm, mm, degrees) into a Pose in SI units. Raises ConfigError."""
-    parts = text.split(",")
-    try:
-        if len(parts) not in (2, 3):
-            raise ValueError
-        x, y = float(parts[0]), float(parts[1])
-        th = float(parts[2]) if len(parts) == 3 else 0.0
-        if not all(math.isfinite(v) for v in (x, y, th)):
-            raise ValueError
-    except ValueError:
-        raise ConfigError(f"pose {text!r}: expected a pose name or x,y,theta in mm, mm, degrees "
-                          "(e.g. -5000,7500,0)") from None
-    return Pose(x / 1000, y / 1000, math.radians(th))
-
-
-def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, str]:
-    """The start pose and its label: a named pose, "x,y,theta", or the default.
-
-    The default is the world's first named pose, a .map file's RobotHome cairn, or else a point
-    well inside the largest region where the robot fits (`robotexp.world.start.default_start`).
-    """
-    if pose is None:
-        if world.home is not None:
-            return world.home, "home"
-        if world.poses:
-            name = next(iter(world.poses))
-            return world.poses[name], name
-        return _central_free_pose(world, radius), "centre"
-    if pose in world.poses:
-        return world.poses[pose], pose
-    if "," not in pose:
-        world.pose(pose)                    # raises: lists the names the world has
-    p = parse_pose(pose)
-    return p, f"{p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f}"
-
-
-def _pose_name(world: World, pose: str | None) -> str | None:
-    """The world's name for the start pose `pose` (a name, or None for the default), else None."""
-    if pose is None:
-        return None if world.home is not None or not world.poses else next(iter(world.poses))
-    return pose if pose in world.poses else None
-
-
-def _central_free_pose(world: World, radius: float) -> Pose:
-    from robotexp.world.start import default_start
-
-    return default_start(world, radius).pose
-
-
-def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
-    """Instantiate the explorer plugin `method` with keyword `params`.
+def sim_robot(spec: RunSpec, world: World, start: Pose, *, sonar: bool = True) -> SimRobot:
+    """The embedded simulator's robot for `spec`: its preset, seed, laser (range and noise) and speed,
+    standing at `start` in `world` (`sonar`: read the sonar ring in every state).
 
     Raises:
-        PluginError: unknown method.
-        ConfigError: an unknown or invalid parameter.
+        WorldError: the start pose is outside the world or touches an obstacle.
+        ConfigError: an unknown robot preset.
     """
-    from robotexp.registry import EXPLORERS, load
-
-    cls = load(EXPLORERS, method, Explorer)
-    params = {key: _typed(method, cls, key, value) for key, value in params.items()}
-    try:
-        return cls(**params)   # type: ignore[no-any-return]
-    except TypeError as exc:
-        raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
-
-
-_KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
-
-
-def _typed(method: str, cls: type, key: str, value: Any) -> Any:
-    """`value` for the keyword `key` of `cls`, checked against its annotation (bool, int, float, str,
-    or one of these or None); a whole float for an int and an int for a float are converted.
-    Parameters without such an annotation pass unchecked. Raises ConfigError."""
-    try:
-        hint = typing.get_type_hints(cls.__init__).get(key)   # type: ignore[misc]
-    except Exception:       # an annotation that does not resolve: leave the value to the plugin
-        return value
-    allowed = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
-    if value is None and type(None) in allowed:
-        return None
-    kinds = [t for t in allowed if t in _KINDS]
-    if not kinds or len(kinds) < len([t for t in allowed if t is not type(None)]):
-        return value
-    number = isinstance(value, (int, float)) and not isinstance(value, bool)
-    for kind in kinds:
-        if kind is bool and isinstance(value, bool) or kind is str and isinstance(value, str):
-            return value
-        if kind is int and number and float(value).is_integer():
-            return int(value)
-        if kind is float and number:
-            return float(value)
-    raise ConfigError(f"method {method!r}: parameter {key!r} must be {' or '.join(_KINDS[k] for k in kinds)}, "
-                      f"got {value!r}")
-
-
-def run_experiment(spec: RunSpec, out: Path | None, *,
-                   on_sample: Callable[[float, float | None], None] | None = None,
-                   show: tuple[str, ...] = (), image: bool = True,
-                   record_extra: dict[str, Any] | None = None,
-                   on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
-    """Run `spec` on the embedded simulator; append the record to `out/results.jsonl` and save the
-    map image, coverage curve and plot there (nothing is written when `out` is None).
-
-    `on_run`, when given, is called with the running `ExplorationRun` after each coverage sample
-    (after `on_sample`): it may render frames or call `request_stop`.
-
-    Raises:
-        WorldError, PluginError, ConfigError: bad input, before the robot moves.
-    """
-    from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.mapping.groundtruth import ground_truth
     from robotexp.sim import LaserConfig, SimRobot, preset
+
+    robot_preset = preset(spec.robot)
+    laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
+                        sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
+    return SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser, max_speed=spec.speed,
+                    sonar=sonar)
+
+
+@dataclass
+class RunPlan:
+    """A spec resolved against its world before any robot moves: the explorer, the start, the map
+    geometry and the ground truth (`plan_run`)."""
+
+    explorer: Explorer
+    world: World
+    start: Pose
+    pose_label: str
+    geo: GridGeometry
+    truth: GroundTruth
+    area: tuple[float, float, float, float] | None = None    # [m] the exploration area (None: the grid)
+
+
+def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explorer | None = None) -> RunPlan:
+    """Resolve `spec` in `world` for a robot of `radius` [m]: the explorer (made unless given), the
+    start pose, the map and the ground truth. Every check of the input happens here.
+
+    Raises:
+        WorldError, PluginError, ConfigError: bad input (unknown world, method or pose, a start in an
+            obstacle or outside the map limits).
+    """
+    from robotexp.mapping.groundtruth import ground_truth
     from robotexp.world.loader import load_world
 
     spec.validate()
-    world = load_world(spec.world)
-    explorer = make_explorer(spec.method, spec.params)
-    robot_preset = preset(spec.robot)
-    start, pose_label = resolve_pose(world, spec.pose, robot_preset.radius)
+    w = load_world(world) if isinstance(world, str) else world
+    if explorer is None:
+        explorer = make_explorer(spec.method, spec.params)
+    start, pose_label = resolve_pose(w, spec.pose, radius)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
-    assert world.bounds is not None
-    area = exploration_area(world, spec.map_bounds)
+    assert w.bounds is not None
+    area = exploration_area(w, spec.map_bounds)
     if spec.map_bounds is None and area is not None:
-        # the map's declared area, grown to hold the start (a home placed in its margin)
-        r = robot_preset.radius + MAP_MARGIN
+        # the area the map declares, grown to hold the start (a home placed in its margin)
+        r = radius + MAP_MARGIN
         area = (min(area[0], start.x - r), min(area[1], start.y - r), max(area[2], start.x + r),
                 max(area[3], start.y + r))
         geo = GridGeometry.covering(*area, cell=cell)
     elif spec.map_bounds is None:
-        geo = GridGeometry.covering(*world.bounds, cell=cell, margin=MAP_MARGIN)
+        geo = GridGeometry.covering(*w.bounds, cell=cell, margin=MAP_MARGIN)
     else:
         geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
         x0, y0, x1, y1 = spec.map_bounds
@@ -220,122 +167,89 @@ def run_experiment(spec: RunSpec, out: Path | None, *,
             raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
                               f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
     if spec.bounds_wall and area is not None:
-        world = with_boundary_walls(world, area)
-    truth = ground_truth(world, geo, robot_radius=robot_preset.radius, laser_range=spec.laser_range,
-                         start=start)
-    laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
-                        sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
-    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
-    with SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser,
-                  max_speed=spec.speed, sonar=explorer.uses_sonar) as robot:
-        def chained(t: float, cov: float | None) -> None:
-            if on_sample is not None:
-                on_sample(t, cov)
-            if on_run is not None:
-                on_run(run)
-        sample_cb = on_sample if on_run is None else chained
-        run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                             on_sample=sample_cb, goals=world.goals, start_name=_pose_name(world, spec.pose),
-                             watch=RunWatch(StallWatch(), area), area=area)
-        run.run()
-    return write_outputs(run, spec, world.name, pose_label, out, show=show, image=image, record_extra=record_extra)
+        w = with_boundary_walls(w, area)
+    truth = ground_truth(w, geo, robot_radius=radius, laser_range=spec.laser_range, start=start)
+    return RunPlan(explorer, w, start, pose_label, geo, truth, area)
 
 
-EMULATORS = "robotexp.emulators"     # entry-point group: robot backend name -> its emulator class
+def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
+                   on_sample: Callable[[float, float | None], None] | None = None,
+                   show: tuple[str, ...] = (), image: bool = True,
+                   record_extra: dict[str, Any] | None = None,
+                   on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
+    """Run `spec` on the embedded simulator: the spec is planned (`plan_run`), then a `SimRobot`
+    (`sim_robot`) at its start is handed to `run_on_robot`, which writes the results under `out`
+    (nothing when `out` is None).
 
-
-def connect_robot(backend: str, address: str) -> Robot:
-    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`.
+    `on_sample(t, coverage)` and `on_run(run)` are called after each coverage sample (an observer's
+    `on_sample` does the same; `on_run` may render frames or call `request_stop`).
 
     Raises:
-        PluginError: unknown backend.
-        RobotError: the robot cannot be reached or the handshake fails.
+        WorldError, PluginError, ConfigError: bad input, before the robot moves.
+        PluginError: the explorer failed during the run (its record is written first).
+        OSError: the results could not be written.
     """
-    from robotexp.registry import ROBOTS, load
-
-    cls = load(ROBOTS, backend, Robot)
-    if backend == "sim":
-        raise ConfigError("robot 'sim' is the embedded simulator: it has no address; run without --address")
-    return cls(address)   # type: ignore[no-any-return]
-
-
-def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
-                  pty: bool = False, speedup: float = 1.0, udp: str | None = None) -> Any:
-    """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world`.
-
-    The emulator is not started: call its `start()` (and `close()`); `address` tells where it is.
-    `udp` ("HOST:PORT", mavlink only) makes it send to a ground station there instead of listening.
-
-    Raises:
-        PluginError: no emulator for `backend`.
-        WorldError: unknown world or a start pose in an obstacle.
-        ConfigError: a parameter out of range.
-    """
-    from robotexp.registry import load
     from robotexp.sim import preset
-    from robotexp.world.loader import load_world
 
-    if not (speedup > 0 and math.isfinite(speedup)):
-        raise ConfigError(f"speedup must be > 0, got {speedup}")
-    cls = load(EMULATORS, backend, object)
-    w = load_world(world)
-    radius = preset(backend).radius if backend in ("p3dx", "kobuki") else preset("p3dx").radius
-    start, _ = resolve_pose(w, pose, radius)
-    kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup}
-    if port is not None:
-        kwargs["port"] = port
-    if udp is not None:                 # MAVLink: send to a ground station at HOST:PORT
-        if backend != "mavlink":
-            raise ConfigError(f"--udp is for the mavlink emulator, not {backend!r}")
-        kwargs["udp"] = udp
-    return cls(w, **kwargs)
+    spec.validate()
+    plan = plan_run(spec, spec.world, preset(spec.robot).radius)
+    with sim_robot(spec, plan.world, plan.start, sonar=plan.explorer.uses_sonar) as robot:
+        return run_on_robot(spec, robot, out, plan.world, observers=observers, on_sample=on_sample, show=show,
+                            image=image, record_extra=record_extra, on_run=on_run, plan=plan)
 
 
 def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
+                 observers: Iterable[RunObserver] = (),
                  on_sample: Callable[[float, float | None], None] | None = None,
                  show: tuple[str, ...] = (), image: bool = True, map_size: float = 20.0,
                  record_extra: dict[str, Any] | None = None,
-                 on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
-    """Run `spec`'s explorer on a connected robot (a real one, MobileSim or an emulator).
+                 on_run: Callable[[ExplorationRun], None] | None = None,
+                 plan: RunPlan | None = None) -> RunOutput:
+    """Run `spec`'s explorer on an open robot (the embedded simulator, MobileSim, an emulator or a
+    real one) and write the results under `out` (nothing when `out` is None).
 
-    With a `world` the run starts from `spec.pose` in it: a robot with the "move_to" capability is
-    moved there (MobileSim, emulators; a real robot is told it stands there), and the world is
-    ground truth for coverage. Without one the map is a square of `map_size` [m] centred on the
-    robot's first pose and coverage is unknown. `spec.world`, `spec.robot` and the laser settings
-    of `spec` other than `laser_range` are not used: the robot brings its own sensors. The robot is
-    stopped at the end, not closed. Results are written as by `run_experiment`; `record_extra` and
-    `on_run` as there.
+    With a `world` the run starts from `spec.pose` in it (`plan_run`): a robot with
+    `Capability.MOVE_TO` is moved there (a simulator teleports; a real robot is told it stands there),
+    and the world is ground truth for coverage. Without one the map is a square of `map_size` [m]
+    centred on the robot's first pose and coverage is unknown. `spec.world`, `spec.robot` and the
+    laser settings of `spec` other than `laser_range` are not used: the robot brings its own
+    sensors. The robot is stopped at the end, not closed.
+
+    The loop's observers are, in order: the results writer (with `out`), the `on_sample`/`on_run`
+    callbacks, the honest-endings watch (`robotexp.watch.RunWatch`: stall watch, exploration area,
+    an explorer's Done checked against the frontier left), then `observers`. The exploration area is
+    `spec.map_bounds`, else the map's declared area (`robotexp.world.bounds`). The record names the
+    robot by `robot.model` and, when it has one, its `address`; `record_extra` adds keys.
+
+    Args:
+        plan: the spec already planned in `world` for this robot (`plan_run`; default: planned here).
 
     Raises:
         WorldError, PluginError, ConfigError: bad input, before the robot moves.
         RobotError: the robot fails before the run starts (during the run it ends the run).
+        PluginError: the explorer failed during the run (its record is written first).
+        OSError: the results could not be written (an error of a `critical` observer).
     """
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.mapping.groundtruth import ground_truth
-    from robotexp.world.loader import load_world
 
     spec.validate()
     if not map_size > 0:
         raise ConfigError(f"map size must be > 0, got {map_size * 1000:g} mm")
-    explorer = make_explorer(spec.method, spec.params)
-    cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     truth = None
     goals: dict[str, list[tuple[float, float]]] = {}
     start_name = None
+    area = spec.map_bounds
     if world is not None:
-        w = load_world(world) if isinstance(world, str) else world
-        world_name = w.name
-        start, pose_label = resolve_pose(w, spec.pose, robot.radius)
-        if "move_to" in robot.capabilities:
-            robot.move_to(start)
-        assert w.bounds is not None
-        geo = GridGeometry.covering(*(spec.map_bounds or w.bounds), cell=cell,
-                                    margin=0.0 if spec.map_bounds else MAP_MARGIN)
-        truth = ground_truth(w, geo, robot_radius=robot.radius, laser_range=spec.laser_range, start=start)
-        goals, start_name = w.goals, _pose_name(w, spec.pose)
-        area = spec.map_bounds
+        if plan is None:
+            plan = plan_run(spec, world, robot.radius)
+        explorer, geo, truth, area = plan.explorer, plan.geo, plan.truth, plan.area
+        world_name, pose_label = plan.world.name, plan.pose_label
+        goals, start_name = plan.world.goals, pose_name(plan.world, spec.pose)
+        if Capability.MOVE_TO in robot.capabilities:
+            robot.move_to(plan.start)
     else:
-        area = spec.map_bounds
+        explorer = make_explorer(spec.method, spec.params)
+        cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
         world_name, pose_label = robot.name, "robot"
         p = robot.read().pose
         half = map_size / 2
@@ -344,93 +258,31 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     robot.set_max_speed(spec.speed)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
 
-    def chained(t: float, cov: float | None) -> None:
-        if on_sample is not None:
-            on_sample(t, cov)
-        if on_run is not None:
-            on_run(run)
-    run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed,
-                         on_sample=on_sample if on_run is None else chained, goals=goals, start_name=start_name,
-                         watch=RunWatch(StallWatch(), area), area=area)
-    run.run()
-    extra: dict[str, Any] = {"robot": robot.name}
-    if hasattr(robot, "address"):
+    extra: dict[str, Any] = {}
+    if robot.address is not None:
         extra["address"] = str(robot.address)
     extra.update(record_extra or {})
-    return write_outputs(run, spec, world_name, pose_label, out, show=show, image=image, record_extra=extra)
-
-
-def write_outputs(run: ExplorationRun, spec: RunSpec, world_name: str, pose_label: str, out: Path | None, *,
-                  show: tuple[str, ...] = (), image: bool = True,
-                  record_extra: dict[str, Any] | None = None) -> RunOutput:
-    """Append the run's record and save its image, curve and plot under `out`."""
-    from robotexp.results import append_jsonl, make_record, run_id, write_curve_csv
-
-    interrupted = run.reason.startswith("interrupted")
     if out is None:
         name = f"{world_name}_{spec.method}_{pose_label}"
-        return RunOutput(make_record(run, name=name, method=spec.method, world=world_name, seed=spec.seed,
-                                     max_speed=spec.speed), run, None, None, interrupted)
-    out.mkdir(parents=True, exist_ok=True)
-    name = run_id(world_name, spec.method, pose_label, spec.speed, spec.seed, out)
-    record = make_record(run, name=name, method=spec.method, world=world_name, seed=spec.seed,
-                         max_speed=spec.speed, extra={"pose": pose_label, "laser_range_m": spec.laser_range,
-                                                      "robot": spec.robot, **(record_extra or {})})
-    append_jsonl(out / "results.jsonl", record)       # first: the record is never lost
-    write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
-    from robotexp.trajectory import write_path_csv
-    write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
-    from robotexp.world.rosmap import save_ros_map
-    save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
-    img_path = plot_path = None
-    if image:
-        img_path, plot_path = save_run_images(run, out, name, world_name, spec, show)
-    return RunOutput(record, run, img_path, plot_path, interrupted)
-
-
-def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, spec: RunSpec,
-                    show: tuple[str, ...]) -> tuple[Path, Path]:
-    """The map image (grid, walls, path, start, end and the `show` overlays) and the coverage plot."""
-    from robotexp.plot import line_plot
-    from robotexp.render import save_png
-
-    img_path = out / f"{name}.png"
-    save_png(map_image(run, f"{world_name} - {spec.method} - {run.metrics.path_length:.1f} m", show), img_path)
-    curve = run.metrics.curve
-    plot_path = out / f"{name}.coverage.png"
-    if curve and curve[-1][2] >= 0:
-        ts = [c[0] / 60 for c in curve]
-        plot = line_plot([("coverage", ts, [c[2] for c in curve])], xlabel="robot time [min]",
-                         ylabel="coverage", title=f"{name}: coverage of the explorable free space",
-                         hlines=(0.9, 0.95, 0.99), ylim=(0.0, 1.0))
-        save_png(plot, plot_path)
-    return img_path, plot_path
-
-
-def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, scale: int | None = None,
-              path: bool = True) -> Any:
-    """The PIL image of a run's map with its path and the overlays named in `show`
-    (grid, laser, vectors, potential, truth); `scale` in pixels per cell (None: fit), `path` False
-    leaves the path out."""
-    from robotexp.render import render_map
-
-    m = run.metrics
-    overlays = run.explorer.overlays()
-    state = run.state
-    laser = None
-    if "laser" in show and state is not None and state.laser is not None:
-        p, sc = state.pose, state.laser
-        ok = np.isfinite(sc.ranges)
-        a = p.theta + sc.angles[ok]
-        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
-    end = None if state is None else (state.true_pose or state.pose)
-    states = run.grid.states()
-    content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
-    return render_map(states, run.grid.geo, content=content,
-                      truth=run.truth.occupied if run.truth is not None else None,
-                      path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
-                      scale=scale,
-                      show_grid="grid" in show, laser=laser,
-                      vectors=overlays.get("vectors") if "vectors" in show else None,
-                      potential=overlays.get("potential") if "potential" in show else None,
-                      title=title)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        name = run_id(world_name, spec.method, pose_label, spec.speed, spec.seed, out)
+    info = RunInfo(name=name, method=spec.method, world=world_name, pose=pose_label, robot=robot.model,
+                   max_speed=spec.speed, laser_range=spec.laser_range, extra=extra)
+    writer = None if out is None else ResultsWriter(out, image=image, show=show)
+    chain: list[RunObserver] = [] if writer is None else [writer]
+    if on_sample is not None or on_run is not None:
+        chain.append(SampleCallback(on_sample, on_run))
+    chain.append(RunWatch(StallWatch(), area))         # honest endings: stalls, the area, "done" checked
+    chain.extend(observers)
+    run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed, goals=goals,
+                         start_name=start_name, info=info, observers=chain, area=area)
+    run.run()
+    for observer, exc in run.observer_errors:
+        if observer.critical:
+            raise exc
+    if run.end is EndReason.PLUGIN_ERROR:
+        raise PluginError(run.reason) from run.error
+    assert run.record is not None
+    return RunOutput(run.record, run, None if writer is None else writer.image_path,
+                     None if writer is None else writer.plot_path)

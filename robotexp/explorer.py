@@ -5,22 +5,26 @@ It never sleeps, reads clocks, does I/O or holds a robot handle; its randomness 
 generator in its `ExplorerContext`. `ExplorationRun` owns the loop of DESIGN.md:
 
     clock tick -> robot.read() -> grid.update() -> explorer.step() -> robot.command() -> metrics
+
+and tells its observers (`robotexp.observers`) about each step, each coverage sample and the end.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, RobotError
+from robotexp.observers import Observers, RunObserver, SampleCallback, StepEvent
+from robotexp.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
 from robotexp.world.bounds import clip_scan
 
@@ -28,9 +32,10 @@ if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
     from robotexp.mapping.groundtruth import GroundTruth
 
-__all__ = ["Done", "ExplorerContext", "Explorer", "ExplorationRun", "RunMetrics", "COVERAGE_MILESTONES"]
+__all__ = ["Done", "ExplorerContext", "Explorer", "ExplorationRun", "RunInfo", "RunMetrics",
+           "COVERAGE_MILESTONES"]
 
-COVERAGE_MILESTONES = (0.90, 0.95, 0.99)
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -96,8 +101,22 @@ class RunMetrics:
     collisions: int = 0
 
 
+@dataclass
+class RunInfo:
+    """What names a run in its record (the settings the loop itself does not know)."""
+
+    name: str = "run"                       # the record's `run` (names its files)
+    method: str = ""                        # the explorer's plugin name ("": its class name)
+    world: str = ""
+    pose: str | None = None                 # the start pose's label ("1", "home", "x,y,theta", "robot")
+    robot: str | None = None                # the robot model (`Robot.model`)
+    max_speed: float = 0.0                  # [m/s]
+    laser_range: float | None = None        # [m]
+    extra: dict[str, Any] = field(default_factory=dict)   # more record keys (`address`, `script`, ...)
+
+
 class ExplorationRun:
-    """Runs one explorer on one robot until it is done, times out, fails or is interrupted.
+    """Runs one explorer on one robot until it is done, times out, fails, is stopped or interrupted.
 
     Args:
         robot: an open robot (the run does not close it; it stops it when the run ends).
@@ -107,11 +126,18 @@ class ExplorationRun:
         period: control period [s] (10 Hz by default).
         max_time: robot time [s] after which the run ends incomplete.
         sample_period: robot time [s] between coverage samples.
-        on_sample: called after each coverage sample with (robot time, coverage or None).
-        watch: the honest-endings observer (`robotexp.watch.RunWatch`: stall watch, area guard, Done check).
-        area: [m] the exploration area: the explorer's scans end at its edge (`clip_scan`).
+        on_sample: called after each coverage sample with (robot time, coverage or None); the same as
+            an observer overriding `on_sample`, called before the `observers`.
         goals: the world's named waypoint lists [m], for goal-following explorers (ExplorerContext.goals).
         start_name: the name of the start pose in the world, if any (ExplorerContext.start_name).
+        info: what names the run in its record (default: `RunInfo()` with the explorer's class name).
+        observers: told about each step, sample and the end (`robotexp.observers.RunObserver`).
+        area: [m] the exploration area (xmin, ymin, xmax, ymax): the explorer's scans end at its edge, as
+            at a wall (`robotexp.world.bounds.clip_scan`); the map integrates the real scans.
+
+    After `run()`: `end` (an `EndReason`), `reason` (its text), `completed`, `metrics`, `record`
+    (the `RunRecord`), `error` (the explorer's exception of a PLUGIN_ERROR end, else None) and
+    `observer_errors` (the observers that raised, detached).
     """
 
     def __init__(self, robot: Robot, explorer: Explorer, grid: OccupancyGrid, *,
@@ -119,32 +145,47 @@ class ExplorationRun:
                  sample_period: float = 1.0, seed: int = 0,
                  on_sample: Callable[[float, float | None], None] | None = None,
                  goals: dict[str, list[tuple[float, float]]] | None = None, start_name: str | None = None,
-                 watch: Any = None, area: tuple[float, float, float, float] | None = None) -> None:
+                 info: RunInfo | None = None, observers: Iterable[RunObserver] = (),
+                 area: tuple[float, float, float, float] | None = None) -> None:
         if not period > 0 or not max_time > 0 or not sample_period > 0:
             raise ConfigError(f"run: period, max_time and sample_period must be > 0 s, got "
                               f"{period}, {max_time}, {sample_period}")
         self.robot, self.explorer, self.grid, self.truth = robot, explorer, grid, truth
         self.period, self.max_time, self.sample_period = period, max_time, sample_period
         self.seed = seed
-        self.on_sample = on_sample
         self.goals = dict(goals or {})
         self.start_name = start_name
+        self.info = info or RunInfo(method=type(explorer).__name__)
+        self.observers = Observers([SampleCallback(on_sample)] if on_sample is not None else [])
+        for observer in observers:
+            self.observers.add(observer)
         self.metrics = RunMetrics()
         self.state: RobotState | None = None
         self.start_pose: Pose | None = None
+        self.end = EndReason.UNKNOWN
         self.reason = "not started"
         self.completed = False
         self.robot_time = 0.0
         self.wall_time = 0.0
-        self._stop_reason: str | None = None
-        self.watch, self.area = watch, area
+        self.record: RunRecord | None = None
+        self.error: Exception | None = None
+        self._stop: tuple[str, EndReason] | None = None
+        self.area = area
 
-    def request_stop(self, reason: str, end: Any = None) -> None:
-        """End the run at its next step with `reason` (`completed` stays False; the robot is stopped).
+    @property
+    def observer_errors(self) -> list[tuple[RunObserver, Exception]]:
+        """The observers that raised during this run (each detached), with their errors."""
+        return self.observers.errors
 
-        Meant for observers such as `on_sample` (a script's --timeout, a supervisor).
+    def request_stop(self, reason: str, end: EndReason = EndReason.STOPPED) -> None:
+        """End the run at its next step (`completed` stays False; the robot is stopped).
+
+        Meant for observers (a script's --timeout, a view's stop button, a stall watch). The record's
+        `reason` is `reason`, prefixed with `end`'s value ("stopped: ...") unless it starts with it.
         """
-        self._stop_reason = reason
+        if end is EndReason.EXPLORED or end is EndReason.UNKNOWN:
+            raise ConfigError(f"request_stop: end reason {end.value!r} is not one an observer can give")
+        self._stop = (reason if reason.startswith(end.value) else f"{end.value}: {reason}", end)
 
     def coverage(self) -> float | None:
         """Share of the explorable free space the map marks free now (None without ground truth)."""
@@ -154,66 +195,102 @@ class ExplorationRun:
         return coverage(self.grid.free(), self.truth)
 
     def run(self) -> ExplorationRun:
-        """Run to the end. Ctrl-C and robot errors end the run with `completed` False; the robot is
-        stopped in every case. Returns self (read `metrics`, `reason`, `completed`)."""
-        robot = self.robot
-        clock = robot.make_clock(self.period)
+        """Run to the end. Ctrl-C, robot errors, explorer errors and stop requests end the run with
+        `completed` False; the robot is stopped in every case, then the observers get `on_end` with
+        the record. Returns self (read `record`, `end`, `reason`, `metrics`)."""
         wall0 = time.perf_counter()
-        next_sample = 0.0
-        slack = self.period / 2
         try:
-            state = robot.read()
-            self.start_pose = state.true_pose or state.pose
-            t0 = state.time
-            self.explorer.reset(ExplorerContext(
-                radius=robot.radius, limits=robot.limits, period=self.period, start=state.pose,
-                laser_range=state.laser.range_max if state.laser else 0.0,
-                rng=np.random.default_rng(self.seed), sonar=state.sonar is not None,
-                goals=self.goals, start_name=self.start_name))
-            collisions0 = int(state.extra.get("collisions", 0))
-            if self.watch is not None:
-                self.watch.on_start(self)
-            while True:
-                self.state = state
-                self.robot_time = state.time - t0
-                self._track(state, collisions0)
-                if state.laser is not None:
-                    self.grid.update(state.pose, state.laser)
-                # half a period of slack: robot time summed from float periods reads 0.99999 s at
-                # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
-                if self.robot_time >= next_sample - slack:
-                    self._sample()
-                    while next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
-                        next_sample += self.sample_period
-                if self._stop_reason is not None:
-                    self.reason = self._stop_reason
-                    break
-                if self.robot_time >= self.max_time - slack:
-                    self.reason = f"time limit of {self.max_time:.0f} s reached"
-                    break
-                # the explorer sees the exploration area's edge as a wall (the map takes the real scan)
-                view = state if self.area is None or state.laser is None else \
-                    replace(state, laser=clip_scan(state.laser, state.pose, self.area))
-                decision = self.explorer.step(view, self.grid)
-                if isinstance(decision, Done):
-                    self.reason = decision.reason
-                    self.completed = True
-                if self.watch is not None:
-                    self.watch.on_step(self, SimpleNamespace(state=state, decision=decision))
-                if isinstance(decision, Done):
-                    break
-                robot.command(decision)
-                clock.tick()
-                state = robot.read()
+            self._loop()
         except KeyboardInterrupt:
-            self.reason = "interrupted (Ctrl-C)"
+            self.reason, self.end = "interrupted (Ctrl-C)", EndReason.INTERRUPTED
         except RobotError as exc:
-            self.reason = f"robot error: {exc}"
+            self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR
         finally:
             self._safe_stop()
             self.wall_time = time.perf_counter() - wall0
         self._sample()
+        from robotexp.results import make_record
+        self.record = make_record(self)
+        self.observers.end(self, self.record)
         return self
+
+    def _loop(self) -> None:
+        """The control loop, up to the end of the run (the caller stops the robot)."""
+        robot = self.robot
+        clock = robot.make_clock(self.period)
+        next_sample = 0.0
+        slack = self.period / 2
+        notify = self.observers.notify
+        state = robot.read()
+        self.start_pose = state.true_pose or state.pose
+        t0 = state.time
+        self.state = state
+        ctx = ExplorerContext(
+            radius=robot.radius, limits=robot.limits, period=self.period, start=state.pose,
+            laser_range=state.laser.range_max if state.laser else 0.0,
+            rng=np.random.default_rng(self.seed), sonar=state.sonar is not None,
+            goals=self.goals, start_name=self.start_name)
+        if self._explorer_call(self.explorer.reset, ctx) is _FAILED:
+            return
+        notify("on_start", self)
+        collisions0 = int(state.extra.get("collisions", 0))
+        while True:
+            self.state = state
+            self.robot_time = state.time - t0
+            self._track(state, collisions0)
+            updated = state.laser is not None
+            if state.laser is not None:
+                self.grid.update(state.pose, state.laser)
+            # half a period of slack: robot time summed from float periods reads 0.99999 s at
+            # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
+            if self.robot_time >= next_sample - slack:
+                self._sample()
+                while next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
+                    next_sample += self.sample_period
+            decision: Twist | Done | None = None
+            if self._stop is not None:
+                self.reason, self.end = self._stop
+            elif self.robot_time >= self.max_time - slack:
+                self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
+            else:
+                view = state if self.area is None or state.laser is None else \
+                    replace(state, laser=clip_scan(state.laser, state.pose, self.area))
+                result = self._explorer_call(self.explorer.step, view, self.grid)
+                if result is not _FAILED:
+                    decision = result
+                if isinstance(decision, Done):
+                    self.reason, self.end = decision.reason, EndReason.EXPLORED
+                    self.completed = True
+                elif decision is not None:
+                    robot.command(decision)
+            notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
+            if not isinstance(decision, Twist):
+                return
+            clock.tick()
+            state = robot.read()
+
+    def _explorer_call(self, method: Callable[..., Any], *args: Any) -> Any:
+        """`method(*args)` of the explorer; its exception (a RobotError aside: that ends the run as a
+        robot error), or a `step` return that is neither a Twist nor Done, ends the run with
+        PLUGIN_ERROR (one line naming the plugin) and gives `_FAILED`."""
+        name = self.info.method or type(self.explorer).__name__
+        where = f"explorer {name!r} ({type(self.explorer).__module__}.{type(self.explorer).__qualname__})"
+        try:
+            result = method(*args)
+        except RobotError:          # the robot's fault, met by the explorer (an emergency stop seen in a state)
+            raise
+        except Exception as exc:
+            self.error = exc
+            self.reason = f"plugin error: {where}: {method.__name__} raised {type(exc).__name__}: {exc}"
+            self.end = EndReason.PLUGIN_ERROR
+            log.error("%s", self.reason, exc_info=True)
+            return _FAILED
+        if method.__name__ == "step" and not isinstance(result, (Twist, Done)):
+            self.reason = (f"plugin error: {where}: step returned {_short(result)}; it must return a "
+                           "robotexp.Twist or robotexp.Done")
+            self.end = EndReason.PLUGIN_ERROR
+            return _FAILED
+        return result
 
     def _track(self, state: RobotState, collisions0: int) -> None:
         m = self.metrics
@@ -236,10 +313,7 @@ class ExplorationRun:
             for level, hit in m.milestones.items():
                 if hit is None and cov >= level:
                     m.milestones[level] = (self.robot_time, m.path_length)
-        if self.on_sample is not None:
-            self.on_sample(self.robot_time, cov)
-        if self.watch is not None:
-            self.watch.on_sample(self, self.robot_time, cov)
+        self.observers.notify("on_sample", self, self.robot_time, cov)
 
     def _safe_stop(self) -> None:
         """Stop the robot; a robot that cannot be reached any more cannot be stopped either."""
@@ -248,3 +322,12 @@ class ExplorationRun:
                 self.robot.command(Twist.ZERO)
         except (RobotError, OSError):
             pass
+
+
+_FAILED = object()      # an explorer call that ended the run
+
+
+def _short(value: object) -> str:
+    """`value` for an error line: its repr cut to 60 characters, and its type."""
+    text = repr(value)
+    return f"{text[:57]}... ({type(value).__name__})" if len(text) > 60 else f"{text} ({type(value).__name__})"

@@ -1,23 +1,36 @@
-"""Entry-point discovery of robot backends (`robotexp.robots`) and explorers (`robotexp.explorers`).
+"""Entry-point discovery and construction of explorers (`robotexp.explorers`), robot backends
+(`robotexp.robots`) and their emulators (`robotexp.emulators`).
 
 Listing reads distribution metadata only; a target is imported when its name is chosen, then
-checked to subclass the right ABC. A third-party plugin is exactly as first-class as a built-in.
+checked to subclass the right ABC. A third-party plugin is exactly as first-class as a built-in:
+nothing here knows a plugin by name; what differs between backends is declared on their classes
+(`Robot.by_address`, `RobotEmulator.radius` and `.options`).
 """
 
 from __future__ import annotations
 
 import difflib
+import math
 import re
+import types
+import typing
 from dataclasses import dataclass
 from importlib import import_module
 from importlib.metadata import distributions
+from typing import TYPE_CHECKING, Any
 
-from robotexp.errors import PluginError
+from robotexp.errors import ConfigError, PluginError
 
-__all__ = ["PluginInfo", "ROBOTS", "EXPLORERS", "available", "load", "lua_name"]
+if TYPE_CHECKING:
+    from robotexp.explorer import Explorer
+    from robotexp.robot import Robot, RobotEmulator
+
+__all__ = ["PluginInfo", "ROBOTS", "EXPLORERS", "EMULATORS", "available", "load", "lua_name",
+           "make_explorer", "connect_robot", "make_emulator"]
 
 ROBOTS = "robotexp.robots"
 EXPLORERS = "robotexp.explorers"
+EMULATORS = "robotexp.emulators"     # robot backend name -> its emulator class (`robotexp.robot.RobotEmulator`)
 _NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 
 
@@ -67,7 +80,7 @@ def load(group: str, name: str, base: type) -> type:
     plugins = available(group)
     info = plugins.get(name)
     if info is None:
-        kind = "method" if group == EXPLORERS else "robot backend"
+        kind = {EXPLORERS: "method", EMULATORS: "emulator"}.get(group, "robot backend")
         close = difflib.get_close_matches(name, list(plugins), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise PluginError(f"unknown {kind} {name!r}{hint}; available: {', '.join(plugins) or 'none'}. "
@@ -89,3 +102,107 @@ def load(group: str, name: str, base: type) -> type:
 def lua_name(name: str) -> str:
     """IfTEA's spelling of a plugin name in Lua: `srt-laser` -> `SRT_LASER`."""
     return name.upper().replace("-", "_")
+
+
+# -- construction ---------------------------------------------------------------------------------
+
+def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
+    """Instantiate the explorer plugin `method` with keyword `params` (each checked against its
+    annotation, see `typed_parameter`).
+
+    Raises:
+        PluginError: unknown method.
+        ConfigError: an unknown or invalid parameter.
+    """
+    from robotexp.explorer import Explorer
+
+    cls = load(EXPLORERS, method, Explorer)
+    params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
+    try:
+        return cls(**params)   # type: ignore[no-any-return]
+    except TypeError as exc:
+        raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
+
+
+_KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
+
+
+def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
+    """`value` for the keyword `key` of `cls`, checked against its annotation (bool, int, float, str,
+    or one of these or None); a whole float for an int and an int for a float are converted.
+    Parameters without such an annotation pass unchecked. Raises ConfigError."""
+    try:
+        hint = typing.get_type_hints(cls.__init__).get(key)   # type: ignore[misc]
+    except Exception:       # an annotation that does not resolve: leave the value to the plugin
+        return value
+    allowed = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+    if value is None and type(None) in allowed:
+        return None
+    kinds = [t for t in allowed if t in _KINDS]
+    if not kinds or len(kinds) < len([t for t in allowed if t is not type(None)]):
+        return value
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    for kind in kinds:
+        if kind is bool and isinstance(value, bool) or kind is str and isinstance(value, str):
+            return value
+        if kind is int and number and float(value).is_integer():
+            return int(value)
+        if kind is float and number:
+            return float(value)
+    raise ConfigError(f"method {method!r}: parameter {key!r} must be {' or '.join(_KINDS[k] for k in kinds)}, "
+                      f"got {value!r}")
+
+
+def connect_robot(backend: str, address: str) -> Robot:
+    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`.
+
+    Raises:
+        PluginError: unknown backend.
+        ConfigError: a backend that is not reached at an address (`Robot.by_address` false: the
+            embedded simulator).
+        RobotError: the robot cannot be reached or the handshake fails.
+    """
+    from robotexp.robot import Robot
+
+    cls = load(ROBOTS, backend, Robot)
+    if not getattr(cls, "by_address", True):
+        raise ConfigError(f"robot {backend!r} has no address ({cls.__qualname__} runs in this process, "
+                          "e.g. the embedded simulator); run without --address")
+    return cls(address)   # type: ignore[no-any-return]
+
+
+def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
+                  pty: bool = False, speedup: float = 1.0, **options: Any) -> RobotEmulator:
+    """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world`.
+
+    The emulator is not started: call its `start()` (and `close()`); `address` tells where it is.
+    `options` (given, not None) must be named in the emulator class's `options` (mavlink: `udp`,
+    "HOST:PORT" of a ground station to send to instead of listening).
+
+    Raises:
+        PluginError: no emulator for `backend`, or an emulator class that does not declare `radius`.
+        WorldError: unknown world or a start pose in an obstacle.
+        ConfigError: a parameter out of range, or an option the emulator does not take.
+    """
+    from robotexp.world.loader import load_world
+    from robotexp.world.poses import resolve_pose
+
+    if not (speedup > 0 and math.isfinite(speedup)):
+        raise ConfigError(f"speedup must be > 0, got {speedup}")
+    cls = load(EMULATORS, backend, object)
+    radius = getattr(cls, "radius", None)
+    if not isinstance(radius, (int, float)):
+        raise PluginError(f"emulator {backend!r} ({cls.__module__}.{cls.__qualname__}) declares no `radius` "
+                          "(see robotexp.robot.RobotEmulator)")
+    accepted: frozenset[str] = getattr(cls, "options", frozenset())
+    given = {key: value for key, value in options.items() if value is not None}
+    for key in given:
+        if key not in accepted:
+            raise ConfigError(f"--{key.replace('_', '-')} is not an option of the {backend!r} emulator "
+                              f"(its options: {', '.join(sorted(accepted)) or 'none'})")
+    w = load_world(world)
+    start, _ = resolve_pose(w, pose, float(radius))
+    kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup, **given}
+    if port is not None:
+        kwargs["port"] = port
+    return cls(w, **kwargs)   # type: ignore[no-any-return]

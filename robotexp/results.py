@@ -1,4 +1,5 @@
-"""Run results: the record of one run, the JSONL file runs are appended to, and the curve files.
+"""Run results: the record of one run, the JSONL file runs are appended to, the curve, path, map
+and image files, and `ResultsWriter`, the run observer that writes them all.
 
 Each finished (or interrupted) run is appended to `OUT/results.jsonl` as one JSON object and
 flushed to disk at once, so an interrupted campaign keeps every run already written.
@@ -13,16 +14,16 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robotexp.explorer import COVERAGE_MILESTONES
+import numpy as np
+
+from robotexp.observers import RunObserver
+from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunRecord, milestone_keys
 
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
 
-__all__ = ["make_record", "append_jsonl", "read_jsonl", "run_id", "write_curve_csv", "RESULT_KEYS"]
-
-RESULT_KEYS = ("run", "method", "world", "start_pose", "max_speed_m_s", "path_length_m", "robot_time_s",
-               "wall_time_s", "coverage", "collisions", "nodes", "visited_cells", "seed", "completed",
-               "reason", "map_iou")
+__all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
+           "ResultsWriter", "save_run_images", "map_image", "RESULT_KEYS", "RunRecord", "EndReason"]
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
@@ -35,41 +36,120 @@ def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Pat
     return name
 
 
-def make_record(run: ExplorationRun, *, name: str, method: str, world: str, seed: int,
-                max_speed: float, extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The JSON record of a run (SI units; see README "Results" for every key)."""
+def make_record(run: ExplorationRun) -> RunRecord:
+    """The record of a run that ended (SI units; see README "Results" for every key), named by
+    `run.info`."""
     from robotexp.mapping.groundtruth import map_iou
 
     m = run.metrics
+    info = run.info
     cov = run.coverage()
-    record: dict[str, Any] = {
-        "run": name,
-        "method": method,
-        "world": world,
-        "start_pose": run.start_pose.as_list() if run.start_pose else None,
-        "max_speed_m_s": max_speed,
-        "path_length_m": round(m.path_length, 4),
-        "robot_time_s": round(run.robot_time, 3),
-        "wall_time_s": round(run.wall_time, 3),
-        "coverage": None if cov is None else round(cov, 5),
-        "collisions": m.collisions,
-        "nodes": None,
-        "visited_cells": len(m.visited),
-        "seed": seed,
-        "completed": run.completed,
-        "reason": run.reason,
-        "map_iou": None if run.truth is None else round(map_iou(run.grid.states(), run.truth), 5),
-        "cell_m": run.grid.geo.cell,
-    }
+    milestones: dict[str, Any] = {}
     for level in COVERAGE_MILESTONES:
         hit = m.milestones.get(level)
-        key = f"{round(level * 100)}"
-        record[f"time_to_coverage_{key}_s"] = None if hit is None else round(hit[0], 3)
-        record[f"path_to_coverage_{key}_m"] = None if hit is None else round(hit[1], 4)
-    record.update(run.explorer.result_fields())
-    if extra:
-        record.update(extra)
-    return record
+        t_key, p_key = milestone_keys(level)
+        milestones[t_key] = None if hit is None else round(hit[0], 3)
+        milestones[p_key] = None if hit is None else round(hit[1], 4)
+    method_fields = dict(run.explorer.result_fields())
+    nodes = method_fields.pop("nodes", None)
+    return RunRecord(
+        run=info.name, method=info.method, world=info.world,
+        start_pose=run.start_pose.as_list() if run.start_pose else None,
+        max_speed_m_s=info.max_speed,
+        path_length_m=round(m.path_length, 4),
+        robot_time_s=round(run.robot_time, 3),
+        wall_time_s=round(run.wall_time, 3),
+        coverage=None if cov is None else round(cov, 5),
+        collisions=m.collisions,
+        nodes=nodes,  # type: ignore[arg-type]
+        visited_cells=len(m.visited),
+        seed=run.seed,
+        completed=run.completed,
+        reason=run.reason,
+        map_iou=None if run.truth is None else round(map_iou(run.grid.states(), run.truth), 5),
+        cell_m=run.grid.geo.cell,
+        **milestones,
+        pose=info.pose, laser_range_m=info.laser_range, robot=info.robot,
+        method_fields=method_fields, extra=dict(info.extra), end=run.end)
+
+
+class ResultsWriter(RunObserver):
+    """The observer that writes a run's files under `out` at its end: the record appended to
+    `results.jsonl` first (so it is never lost), then `<run>.coverage.csv`, `<run>.path.csv`,
+    `<run>.map.yaml` + `.pgm` and, with `image`, `<run>.png` and `<run>.coverage.png`.
+
+    It is `critical`: when writing fails the caller of the run raises the error after the run.
+    """
+
+    critical = True
+
+    def __init__(self, out: Path, *, image: bool = True, show: tuple[str, ...] = ()) -> None:
+        self.out, self.image, self.show = out, image, show
+        self.image_path: Path | None = None
+        self.plot_path: Path | None = None
+
+    def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
+        """Write the record and the run's files."""
+        from robotexp.trajectory import write_path_csv
+        from robotexp.world.rosmap import save_ros_map
+
+        out, name = self.out, record.run
+        out.mkdir(parents=True, exist_ok=True)
+        append_jsonl(out / "results.jsonl", record.as_dict())      # first: the record is never lost
+        write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
+        write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
+        save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
+        if self.image:
+            self.image_path, self.plot_path = save_run_images(run, out, name, record.world, record.method,
+                                                              self.show)
+
+
+def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, method: str,
+                    show: tuple[str, ...]) -> tuple[Path, Path]:
+    """The map image (grid, walls, path, start, end and the `show` overlays) and the coverage plot."""
+    from robotexp.plot import line_plot
+    from robotexp.render import save_png
+
+    img_path = out / f"{name}.png"
+    save_png(map_image(run, f"{world_name} - {method} - {run.metrics.path_length:.1f} m", show), img_path)
+    curve = run.metrics.curve
+    plot_path = out / f"{name}.coverage.png"
+    if curve and curve[-1][2] >= 0:
+        ts = [c[0] / 60 for c in curve]
+        plot = line_plot([("coverage", ts, [c[2] for c in curve])], xlabel="robot time [min]",
+                         ylabel="coverage", title=f"{name}: coverage of the explorable free space",
+                         hlines=(0.9, 0.95, 0.99), ylim=(0.0, 1.0))
+        save_png(plot, plot_path)
+    return img_path, plot_path
+
+
+def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, scale: int | None = None,
+              path: bool = True) -> Any:
+    """The PIL image of a run's map with its path and the overlays named in `show`
+    (grid, laser, vectors, potential, truth); `scale` in pixels per cell (None: fit), `path` False
+    leaves the path out."""
+    from robotexp.render import render_map
+
+    m = run.metrics
+    overlays = run.explorer.overlays()
+    state = run.state
+    laser = None
+    if "laser" in show and state is not None and state.laser is not None:
+        p, sc = state.pose, state.laser
+        ok = np.isfinite(sc.ranges)
+        a = p.theta + sc.angles[ok]
+        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
+    end = None if state is None else (state.true_pose or state.pose)
+    states = run.grid.states()
+    content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
+    return render_map(states, run.grid.geo, content=content,
+                      truth=run.truth.occupied if run.truth is not None else None,
+                      path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
+                      scale=scale,
+                      show_grid="grid" in show, laser=laser,
+                      vectors=overlays.get("vectors") if "vectors" in show else None,
+                      potential=overlays.get("potential") if "potential" in show else None,
+                      title=title)
 
 
 def append_jsonl(path: Path, record: dict[str, Any]) -> None:
@@ -94,6 +174,11 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
             except json.JSONDecodeError:
                 continue
     return records
+
+
+def read_records(path: Path) -> list[RunRecord]:
+    """Every record of a results file as a `RunRecord` (a torn last line is skipped)."""
+    return [RunRecord.from_dict(r) for r in read_jsonl(path) if isinstance(r, dict)]
 
 
 def write_curve_csv(path: Path, curve: list[tuple[float, float, float]]) -> None:

@@ -6,10 +6,11 @@ open, clamp commands to the backend's `Limits` and guarantee that `close()` stop
 
 from __future__ import annotations
 
+import enum
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import ClassVar, Self
+from typing import TYPE_CHECKING, ClassVar, Protocol, Self
 
 import numpy as np
 import numpy.typing as npt
@@ -17,8 +18,12 @@ import numpy.typing as npt
 from robotexp.clock import Clock, WallClock
 from robotexp.errors import ConfigError, RobotError
 
+if TYPE_CHECKING:
+    from robotexp.world.model import World
+
 __all__ = [
-    "Pose", "Twist", "Limits", "LaserScan", "SonarScan", "RobotState", "Robot", "wrap_angle",
+    "Pose", "Twist", "Limits", "LaserScan", "SonarScan", "RobotState", "Robot", "Capability", "RobotEmulator",
+    "wrap_angle",
 ]
 
 
@@ -129,21 +134,64 @@ class RobotState:
     extra: dict[str, float] = field(default_factory=dict)
 
 
+class Capability(enum.StrEnum):
+    """What a robot backend can do beyond `read`/`command`, declared in `Robot.capabilities`.
+
+    Members are strings ("move_to" == Capability.MOVE_TO), so a set of them answers `"move_to" in`.
+    """
+
+    MOVE_TO = "move_to"             # `move_to(pose)` teleports (simulators) or re-anchors odometry
+    SONAR = "sonar"                 # states carry a SonarScan
+    LASER = "laser"                 # states carry a LaserScan (of the robot's own laser)
+    GROUND_TRUTH = "ground_truth"   # states carry `true_pose`
+    BATTERY = "battery"             # states carry `battery`
+    BUMPERS = "bumpers"             # states carry `bumpers`
+    CLIFFS = "cliffs"               # the base reports cliff sensors (in `extra`)
+    PACED_CLOCK = "paced_clock"     # the robot's own data paces the control loop (`make_clock`)
+
+
 class Robot(ABC):
     """A mobile base driven by a Twist and sensed as a RobotState. SI units throughout.
 
     Use it as a context manager: the robot is stopped and its link released on exit, on an
     exception and on Ctrl-C.
+
+    A backend declares what it can do in `capabilities` (`Capability` members; a string that is not
+    one is refused when the class is defined), says where it is in `address` (None: in this process)
+    and what it is in `describe()`; `model` names it in run records.
     """
 
     name: ClassVar[str] = "robot"
-    capabilities: ClassVar[frozenset[str]] = frozenset()   # e.g. {"sonar", "move_to", "ground_truth"}
+    capabilities: ClassVar[frozenset[Capability]] = frozenset()
+    address: str | None = None                             # where the robot is reached (None: in-process)
+    by_address: ClassVar[bool] = True                      # constructed as cls(address, **options) to connect
     limits: Limits
     radius: float = 0.25                                   # [m] footprint for planning
     _closed: bool = True                                   # close() skips half-built robots
 
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        try:
+            cls.capabilities = frozenset(Capability(c) for c in cls.capabilities)
+        except ValueError as exc:
+            raise TypeError(f"{cls.__module__}.{cls.__qualname__}.capabilities: {exc}; use members of "
+                            f"robotexp.robot.Capability ({', '.join(c.value for c in Capability)})") from None
+
     def __init__(self) -> None:
         self._closed = False            # backends call this last, once their link is up
+
+    @property
+    def model(self) -> str:
+        """What robot this is, as run records name it (`robot`): the backend name unless the backend
+        knows better (a simulator: the simulated model)."""
+        return self.name
+
+    def describe(self) -> dict[str, str]:
+        """What the robot says about itself, as key/value text (`robotexp connect` prints it)."""
+        out = {"robot": self.name}
+        if self.address is not None:
+            out["address"] = str(self.address)
+        return out
 
     # -- public, checked -------------------------------------------------------------
     def read(self) -> RobotState:
@@ -208,3 +256,29 @@ class Robot(ABC):
 
     @abstractmethod
     def _close(self) -> None: ...
+
+
+class RobotEmulator(Protocol):
+    """A robot backend's protocol served by a simulated robot, for tests and `robotexp emulate`
+    (entry-point group `robotexp.emulators`, under the backend's name).
+
+    Emulator classes are constructed as
+    `cls(world, *, pose=None, port=..., pty=False, speedup=1.0, **options)`: `pose` the start pose
+    (None: the world's default), `port` a TCP port (0: any free one; the class's default if not
+    given), `pty` serve on a pseudo-terminal instead, `speedup` robot time per wall time, and
+    keyword `options` named in the class's `options` (e.g. mavlink's "udp"). They serve after
+    `start()` (which returns the emulator) until `close()` (safe twice) and tell where in `address`
+    (what the backend's `Robot` class accepts as its address). `radius` [m] is the simulated
+    robot's footprint: the start pose must leave it room.
+    """
+
+    radius: ClassVar[float]
+    options: ClassVar[frozenset[str]]
+    address: str
+
+    def __init__(self, world: World, *, pose: Pose | None = None, pty: bool = False, speedup: float = 1.0,
+                 **options: object) -> None: ...
+
+    def start(self) -> Self: ...
+
+    def close(self) -> None: ...

@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from robotexp.observers import RunObserver
+from robotexp.record import EndReason
 from robotexp.robot import Pose
 
 if TYPE_CHECKING:
@@ -132,7 +134,7 @@ class StallWatch:
 LEAVE_TOL = 0.3             # [m] how far the robot's centre may stray past the exploration area
 
 
-class RunWatch:
+class RunWatch(RunObserver):
     """The run observer of honest endings (see the module): the stall watch at every coverage sample,
     the exploration area at every step (a robot centre more than LEAVE_TOL outside it ends the run),
     and the frontier left when the explorer says it is done (the run is then not completed: its
@@ -143,8 +145,6 @@ class RunWatch:
         area: [m] the exploration area, or None.
         check_done: check an explorer's Done against the frontier left.
     """
-
-    critical = False
 
     def __init__(self, stall: StallWatch | None = None, area: tuple[float, float, float, float] | None = None,
                  check_done: bool = True) -> None:
@@ -159,19 +159,18 @@ class RunWatch:
         """Bounds and Done checks."""
         from robotexp.explorer import Done
         from robotexp.world.bounds import inside
-        EndReason = _end_reasons()
+
 
         p = step.state.true_pose or step.state.pose
         if self.area is not None and not inside(self.area, p.x, p.y, LEAVE_TOL):
             x0, y0, x1, y1 = self.area
-            run.request_stop(f"stopped: the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
-                             f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason and EndReason.STOPPED)
+            run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
+                             f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
         if self.check_done and isinstance(step.decision, Done):
             left = frontier_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
             if left:
                 run.completed = False
-                if EndReason is not None:
-                    run.end = EndReason.STOPPED
+                run.end = EndReason.STOPPED
                 run.reason = (f"stopped: the explorer ended ({step.decision.reason}) with {left} frontier cells "
                               "left that the robot can reach")
 
@@ -179,19 +178,7 @@ class RunWatch:
         """The stall watch."""
         if self.stall is None:
             return
-        EndReason = _end_reasons()
         reason = self.stall.sample(time, run.grid, run.explorer)
         if reason is not None:
-            run.request_stop(reason, EndReason and EndReason.STALLED)
+            run.request_stop(reason, EndReason.STALLED)
 
-    def on_end(self, run: Any, record: Any) -> None:
-        """Nothing to do at the end."""
-
-
-def _end_reasons() -> Any:
-    """`robotexp.record.EndReason` where the run loop has it (None before)."""
-    try:
-        from robotexp.record import EndReason
-    except ImportError:
-        return None
-    return EndReason

@@ -57,7 +57,7 @@ def run(explorer: Explorer, watch: RunWatch, start: Pose, *, area=None, max_time
         world: World = HALL, geo: GridGeometry = GEO) -> ExplorationRun:
     with SimRobot(world, pose=start, laser=LASER, max_speed=0.3, sonar=False) as robot:
         truth = ground_truth(world, geo, robot_radius=robot.radius, laser_range=3.0, start=start)
-        r = ExplorationRun(robot, explorer, OccupancyGrid(geo), truth=truth, max_time=max_time, watch=watch,
+        r = ExplorationRun(robot, explorer, OccupancyGrid(geo), truth=truth, max_time=max_time, observers=[watch],
                            area=area)
         return r.run()
 

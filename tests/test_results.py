@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robotexp.explorer import Done, ExplorationRun, Explorer
+from robotexp.explorer import Done, ExplorationRun, Explorer, RunInfo
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import ground_truth
+from robotexp.record import EndReason
 from robotexp.results import RESULT_KEYS, append_jsonl, make_record, read_jsonl, run_id, write_curve_csv
 from robotexp.robot import Pose, RobotState, Twist
 from robotexp.sim import LaserConfig, SimRobot
@@ -125,8 +126,11 @@ def test_make_record_of_a_short_run() -> None:
     grid = OccupancyGrid(geo, range_max=2.0)
     laser = LaserConfig(beams=360, fov=2 * math.pi, range_max=2.0)
     with SimRobot(world, pose=start, laser=laser, max_speed=0.5, sonar=False) as robot:
-        run = ExplorationRun(robot, _Forward(3.0), grid, truth=truth).run()
-    rec = make_record(run, name="r1", method="fwd", world="box", seed=4, max_speed=0.5, extra={"robot": "p3dx"})
+        info = RunInfo(name="r1", method="fwd", world="box", max_speed=0.5, robot="p3dx")
+        run = ExplorationRun(robot, _Forward(3.0), grid, truth=truth, seed=4, info=info).run()
+    rec = run.record
+    assert rec is not None and make_record(run) == rec
+    assert rec.end is EndReason.EXPLORED
     assert set(RESULT_KEYS) <= set(rec)
     assert rec["run"] == "r1" and rec["method"] == "fwd" and rec["world"] == "box" and rec["seed"] == 4
     assert rec["robot"] == "p3dx" and rec["cell_m"] == 0.1 and rec["nodes"] is None
@@ -141,4 +145,4 @@ def test_make_record_of_a_short_run() -> None:
         assert hit is not None
         assert rec[f"time_to_coverage_{level}_s"] == round(hit[0], 3)
         assert rec[f"path_to_coverage_{level}_m"] == round(hit[1], 4)
-    json.dumps(rec)                                            # plain JSON types only
+    json.dumps(rec.as_dict())                                  # plain JSON types only

@@ -54,6 +54,7 @@ from robotexp_drivers.kobuki.codec import (
     twist_from_base_control,
 )
 from robotexp_drivers.emulation import StreamEmulator
+from robotexp_drivers.kobuki.robot import KOBUKI_RADIUS
 
 __all__ = ["KobukiEmulator", "EmulatorLaser", "HARDWARE_VERSION", "FIRMWARE_VERSION"]
 
@@ -89,6 +90,8 @@ class KobukiEmulator(StreamEmulator):
     """
 
     label = "kobuki emulator"
+    radius = KOBUKI_RADIUS                       # robotexp.robot.RobotEmulator: the simulated footprint [m]
+    options: frozenset[str] = frozenset()        # no keyword options beyond the protocol's
 
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  pty: bool = False, speedup: float = 1.0, seed: int = 0, laser: LaserConfig | None = None,

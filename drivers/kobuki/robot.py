@@ -35,7 +35,7 @@ import time
 from typing import Protocol
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.kobuki import constants as K
 from robotexp_drivers.kobuki.codec import (
@@ -102,7 +102,8 @@ class KobukiRobot(StreamBackend):
     """
 
     name = "kobuki"
-    capabilities = frozenset({"move_to", "bumpers", "cliffs", "battery", "paced_clock"})
+    capabilities = frozenset({Capability.MOVE_TO, Capability.BUMPERS, Capability.CLIFFS, Capability.BATTERY,
+                              Capability.PACED_CLOCK})
     radius = KOBUKI_RADIUS
     cycle = K.FEEDBACK_PERIOD   # [s] one feedback frame: a 0.1 s control period ticks every 5 frames
     _link: KobukiLink

@@ -127,6 +127,8 @@ class MavlinkEmulator(StreamEmulator):
     """
 
     label = "mavlink emulator"
+    radius = ROVER_RADIUS                        # robotexp.robot.RobotEmulator: the simulated footprint [m]
+    options = frozenset({"udp"})                 # `robotexp emulate mavlink --udp HOST:PORT`
 
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  udp: str | None = None, tcp: bool = False, pty: bool = False, speedup: float = 1.0, seed: int = 0,

@@ -42,7 +42,7 @@ import time
 import numpy as np
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
@@ -137,7 +137,7 @@ class MavlinkRobot(StreamBackend):
     """
 
     name = "mavlink"
-    capabilities = frozenset({"move_to", "battery", "paced_clock"})
+    capabilities = frozenset({Capability.MOVE_TO, Capability.BATTERY, Capability.PACED_CLOCK})
 
     def __init__(self, address: str = f"udp:0.0.0.0:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,
                  limits: Limits = ROVER_LIMITS, radius: float = ROVER_RADIUS, timeout: float = 1.0,

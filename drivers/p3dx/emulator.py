@@ -173,13 +173,15 @@ class P3DXEmulator(EmulatorBase):
 
     label = "p3dx emulator"
     join_timeout = 5.0
+    radius = c.ROBOT_RADIUS_MM / 1000.0          # robotexp.robot.RobotEmulator: the simulated footprint [m]
+    options: frozenset[str] = frozenset()        # no keyword options beyond the protocol's
 
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
                  robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,
                  lockstep: bool = False) -> None:
-        from robotexp.experiment import resolve_pose
+        from robotexp.world.poses import resolve_pose
         from robotexp.sim import SimRobot, preset
         from robotexp.world.loader import load_world
 

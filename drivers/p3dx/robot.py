@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import LaserScan, Limits, Pose, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, wrap_angle
 from robotexp_drivers.backend import StreamBackend, require_positive
 
 from . import codec as k
@@ -75,7 +75,7 @@ class P3DXRobot(StreamBackend):
     """
 
     name = "p3dx"
-    capabilities = frozenset({"sonar", "laser", "move_to"})
+    capabilities = frozenset({Capability.SONAR, Capability.LASER, Capability.MOVE_TO})
     radius = c.ROBOT_RADIUS_MM / 1000.0
     _join_timeout = 2.0
 

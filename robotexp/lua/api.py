@@ -32,12 +32,14 @@ from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotexpError, ScriptError
 from robotexp.lua.sandbox import lua_kind
-from robotexp.robot import Pose
+from robotexp.observers import RunObserver
+from robotexp.robot import Capability, Pose
 
 if TYPE_CHECKING:
     from robotexp.experiment import RunOutput, RunSpec
-    from robotexp.robot import Robot
     from robotexp.explorer import ExplorationRun
+    from robotexp.record import RunRecord
+    from robotexp.robot import Robot
     from robotexp.lua.sandbox import PathPolicy
     from robotexp.world.model import World
 
@@ -115,6 +117,18 @@ def _args(fname: str, usage: str, args: tuple[Any, ...], kinds: str) -> list[Any
     return list(args)
 
 
+
+class _ScriptWatch(RunObserver):
+    """The run observer of a script's runs: a map frame every redraw interval (`mapView.setFrameFolder`)
+    and the script's --timeout, checked at each coverage sample."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+
+    def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
+        """Save a frame when one is due; stop the run when the script's time is up."""
+        self.session._on_run(run)
+
 def _pose_text(p: Pose) -> str:
     """`p` as a RunSpec pose: "x,y,theta" in mm, mm, degrees."""
     return f"{p.x * 1000!r},{p.y * 1000!r},{math.degrees(p.theta)!r}"
@@ -164,7 +178,7 @@ class Session:
         self.frames = 0
         self.armed: RunSpec | None = None
         self.last: RunOutput | None = None
-        self.records: list[dict[str, Any]] = []
+        self.records: list[RunRecord] = []
         self._told_forced = False
         self._worlds: dict[str, World] = {}
 
@@ -212,8 +226,8 @@ class Session:
             return self._robot().read().pose
         if self.pose is not None:
             return self.pose
-        from robotexp.experiment import resolve_pose
         from robotexp.sim import preset
+        from robotexp.world.poses import resolve_pose
         return resolve_pose(self.world(), None, preset(self.spec.robot).radius)[0]
 
     def finish(self) -> None:
@@ -229,6 +243,7 @@ class Session:
 
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
+        observers = [_ScriptWatch(self)] if watch else []
         if self.on_robot:
             robot = self._robot()
             if hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
@@ -238,11 +253,10 @@ class Session:
                 # the last run's final state was (it went on turning and slowing after it)
                 spec.pose = _pose_text(robot.read().pose)
             output = run_on_robot(spec, robot, self.out, self.world() if self.truth_world else None,
-                                  image=False, record_extra={"script": self.script},
-                                  on_run=self._on_run if watch else None)
+                                  image=False, record_extra={"script": self.script}, observers=observers)
         else:
             output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
-                                    on_run=self._on_run if watch else None)
+                                    observers=observers)
         self.last, self._moved = output, False
         self.records.append(output.record)
         state = output.run.state
@@ -263,7 +277,7 @@ class Session:
             ScriptError: the robot cannot be reached (naming robot.setAddress and the address).
         """
         if self.connected is None:
-            from robotexp.experiment import connect_robot
+            from robotexp.registry import connect_robot
             kind, where = self.target
             try:
                 self.connected = connect_robot(ROBOT_BACKEND, where)
@@ -278,7 +292,7 @@ class Session:
         return self.connected
 
     def _place(self, robot: Robot, pose: Pose) -> None:
-        if "move_to" not in robot.capabilities:
+        if Capability.MOVE_TO not in robot.capabilities:
             raise ScriptError(f"robot.moveMobileSim: the robot at {self.address!r} ({robot.name}) cannot be "
                               "moved or told its pose")
         robot.move_to(pose)
@@ -302,7 +316,7 @@ class Session:
             run.request_stop(f"stopped: the script's --timeout of {self.control.timeout:g} s was reached")
 
     def _image(self, run: ExplorationRun) -> Any:
-        from robotexp.experiment import map_image
+        from robotexp.results import map_image
         from robotexp.render import map_layout
 
         show = tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
@@ -527,7 +541,7 @@ class Session:
         return str(self.out)
 
     def _spec(self) -> RunSpec:
-        from robotexp.experiment import make_explorer
+        from robotexp.registry import make_explorer
         from robotexp.sim import preset
 
         spec = replace(self.spec, params=dict(self.spec.params))

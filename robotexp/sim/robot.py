@@ -12,7 +12,7 @@ import numpy.typing as npt
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import WorldError
 from robotexp.laser import ScanSource
-from robotexp.robot import LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.robot import Capability, LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
 from robotexp.sim.engine import Engine
 from robotexp.sim.presets import LaserConfig, OdometryError, RobotPreset, preset
 from robotexp.world.model import World
@@ -53,7 +53,8 @@ class SimRobot(Robot):
     """
 
     name = "sim"
-    capabilities = frozenset({"sonar", "move_to", "ground_truth"})
+    capabilities = frozenset({Capability.SONAR, Capability.MOVE_TO, Capability.GROUND_TRUTH})
+    by_address = False
 
     def __init__(self, world: World, *, robot: str | RobotPreset = "p3dx", pose: Pose | None = None,
                  seed: int = 0, laser: LaserConfig | None = None, odometry: OdometryError | None = None,
@@ -95,6 +96,15 @@ class SimRobot(Robot):
             self.engine.close()
             raise
         super().__init__()
+
+    @property
+    def model(self) -> str:
+        """The simulated robot's preset name ("p3dx", "kobuki"), as run records name it."""
+        return self.preset.name
+
+    def describe(self) -> dict[str, str]:
+        """The simulator, the simulated model and the world."""
+        return {"robot": self.name, "model": self.preset.name, "world": self.world.name}
 
     # -- Robot hooks -----------------------------------------------------------------
     def make_clock(self, period: float) -> Clock:

@@ -1,0 +1,161 @@
+"""The typed record of one run (`RunRecord`) and why a run ended (`EndReason`).
+
+A record has exactly the keys of README "Results" as fields, plus `extra` for what an explorer or a
+caller adds (`targets`, `script`, `address`, ...). `as_dict()` gives the JSON object appended to
+`results.jsonl`, with the same keys and order as ever, and `RunRecord.from_dict` reads any such
+object back, also one written before records were typed (their end reason is read from
+`completed` and the `reason` text, see `EndReason.classify`). A record is also a read-only mapping
+of its JSON keys (`record["coverage"]`), so code written for the dict records keeps working.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+__all__ = ["EndReason", "RunRecord", "RESULT_KEYS", "COVERAGE_MILESTONES", "milestone_keys"]
+
+COVERAGE_MILESTONES = (0.90, 0.95, 0.99)
+
+
+class EndReason(enum.Enum):
+    """Why a run ended. The record's `reason` text says more (the explorer's words, the robot's
+    error); the enum is what code decides on."""
+
+    EXPLORED = "explored"               # the explorer returned Done (`completed` is true)
+    TIME_LIMIT = "time limit"           # the run's robot-time limit was reached
+    INTERRUPTED = "interrupted"         # Ctrl-C (or a signal turned into KeyboardInterrupt)
+    ROBOT_ERROR = "robot error"         # the robot failed (link lost, emergency stop, protocol error)
+    STALLED = "stalled"                 # the robot made no progress (detected by the loop's stall watch)
+    STOPPED = "stopped"                 # an observer asked the run to stop (a user, a view, a script's timeout)
+    PLUGIN_ERROR = "plugin error"       # the explorer raised or returned something other than Twist / Done
+    UNKNOWN = "unknown"                 # a record whose reason cannot be read (hand-written files)
+
+    @classmethod
+    def classify(cls, completed: bool, reason: str) -> EndReason:
+        """The end reason of a record that has only `completed` and the `reason` text (every record
+        written before the enum existed, and the JSON of every record since: the text of each
+        reason below starts with its enum value, which is what this reads)."""
+        if completed:
+            return cls.EXPLORED
+        for member in (cls.INTERRUPTED, cls.TIME_LIMIT, cls.ROBOT_ERROR, cls.STALLED, cls.STOPPED,
+                       cls.PLUGIN_ERROR):
+            if reason.startswith(member.value):
+                return member
+        return cls.UNKNOWN
+
+
+def milestone_keys(level: float) -> tuple[str, str]:
+    """The record keys of a coverage milestone: (`time_to_coverage_90_s`, `path_to_coverage_90_m`)."""
+    key = f"{round(level * 100)}"
+    return f"time_to_coverage_{key}_s", f"path_to_coverage_{key}_m"
+
+
+# the JSON keys in the order records have always been written; milestone keys follow `cell_m`, then
+# `extra` (an explorer's result fields, then the caller's), then the settings written with `out`
+_HEAD = ("run", "method", "world", "start_pose", "max_speed_m_s", "path_length_m", "robot_time_s",
+         "wall_time_s", "coverage", "collisions", "nodes", "visited_cells", "seed", "completed", "reason",
+         "map_iou", "cell_m")
+_TAIL = ("pose", "laser_range_m", "robot")
+RESULT_KEYS = _HEAD[:-1]     # the keys every record has, README "Results"
+
+
+@dataclass(eq=True)
+class RunRecord(Mapping[str, Any]):
+    """One run's results (SI units; README "Results" describes each field).
+
+    `end` is not a JSON key: it is derived from `completed` and `reason` when a record is read.
+    `pose`, `laser_range_m` and `robot` are None in records written without an output folder
+    before this class existed; they are always set now.
+    """
+
+    run: str
+    method: str
+    world: str
+    start_pose: list[float] | None
+    max_speed_m_s: float
+    path_length_m: float
+    robot_time_s: float
+    wall_time_s: float
+    coverage: float | None
+    collisions: int
+    nodes: int | None
+    visited_cells: int
+    seed: int
+    completed: bool
+    reason: str
+    map_iou: float | None
+    cell_m: float | None
+    time_to_coverage_90_s: float | None = None
+    path_to_coverage_90_m: float | None = None
+    time_to_coverage_95_s: float | None = None
+    path_to_coverage_95_m: float | None = None
+    time_to_coverage_99_s: float | None = None
+    path_to_coverage_99_m: float | None = None
+    pose: str | None = None
+    laser_range_m: float | None = None
+    robot: str | None = None
+    method_fields: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+    end: EndReason = EndReason.UNKNOWN
+
+    def __post_init__(self) -> None:
+        if self.end is EndReason.UNKNOWN:
+            self.end = EndReason.classify(bool(self.completed), str(self.reason))
+
+    # -- JSON ----------------------------------------------------------------------------------
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON object of README "Results", keys in the order they have always been written:
+        the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`."""
+        out: dict[str, Any] = {key: getattr(self, key) for key in _HEAD}
+        for level in COVERAGE_MILESTONES:
+            t_key, p_key = milestone_keys(level)
+            out[t_key], out[p_key] = getattr(self, t_key), getattr(self, p_key)
+        out.update(self.method_fields)
+        for key in _TAIL:
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = value
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunRecord:
+        """A record from its JSON object (any results.jsonl line robotexp wrote). Keys the record has
+        no field for go to `method_fields` when they come before `pose`, `laser_range_m` and `robot`, else to
+        `extra`, so that `as_dict()` gives the object back, keys in order; missing keys read as None
+        (0 / "" for the identifying ones)."""
+        if isinstance(data, RunRecord):
+            return data
+        known = {f.name for f in fields(cls)} - {"method_fields", "extra", "end"}
+        kwargs: dict[str, Any] = {key: data.get(key) for key in known}
+        for key, default in (("run", ""), ("method", ""), ("world", ""), ("max_speed_m_s", 0.0),
+                             ("path_length_m", 0.0), ("robot_time_s", 0.0), ("wall_time_s", 0.0),
+                             ("collisions", 0), ("visited_cells", 0), ("seed", 0), ("completed", False),
+                             ("reason", "")):
+            if kwargs[key] is None:
+                kwargs[key] = default
+        # the explorer's keys come before `pose`/`laser_range_m`/`robot`, the caller's after them
+        method_fields: dict[str, Any] = {}
+        extra: dict[str, Any] = {}
+        seen_tail = False
+        for key, value in data.items():
+            seen_tail = seen_tail or key in _TAIL
+            if key not in known:
+                (extra if seen_tail else method_fields)[key] = value
+        return cls(**kwargs, method_fields=method_fields, extra=extra)
+
+    # -- read-only mapping of the JSON keys ----------------------------------------------------
+    def __getitem__(self, key: str) -> Any:
+        return self.as_dict()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.as_dict())
+
+    def __len__(self) -> int:
+        return len(self.as_dict())
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.as_dict()
