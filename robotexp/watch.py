@@ -11,8 +11,9 @@ top speed, within `MIN_WINDOW`..`MAX_WINDOW`.
 
 `frontier_left` counts the frontier a robot could still reach on its own map and never went near
 (openings of groups at least a robot wide, wall faces left out, within reach of the known-free
-space the robot can drive through from where it stands, farther than `APPROACHED` from its path):
-when an explorer says it is done while some is left, the run records that it stopped with
+space the robot can drive through from where it stands, farther than `APPROACHED` from its path)
+and the unknown space behind it: when an explorer says it is done while some is left and what lies
+behind it is more than shadows (`LEFT_AREA`, `LEFT_SHARE`), the run records that it stopped with
 reachable frontier left, not that the building was explored.
 """
 
@@ -31,7 +32,7 @@ from robotexp.robot import Pose
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
 
-__all__ = ["MIN_WINDOW", "STRIKES", "StallWatch", "TRANSIT_FACTOR", "frontier_left"]
+__all__ = ["MIN_WINDOW", "RunWatch", "STRIKES", "StallWatch", "TRANSIT_FACTOR", "frontier_left", "unexplored_left"]
 
 MIN_WINDOW = 120.0          # [s] of robot time without a gain before a strike
 MAX_WINDOW = 240.0          # [s] the longest window, however large the map
@@ -39,16 +40,27 @@ TRANSIT_FACTOR = 1.5        # the window covers this many half perimeters of the
 STRIKES = 3                 # strikes in a row that end a run as stalled
 MIN_GAIN = 0.5              # [m^2] newly known space that counts as progress
 APPROACHED = 1.5            # [m] frontier this near the robot's path was looked at from close by
+LEFT_AREA = 2.0             # [m^2] unknown space behind the frontier left that makes a "done" premature
+LEFT_SHARE = 0.05           # ... and as a share of the known free area
+LEFT_REACH = 2.0            # [m] how far behind the frontier left the unknown space is counted
 
 
 def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
-                  path: npt.NDArray[np.float64] | None = None) -> int:
-    """How many frontier cells worth going to (`frontier_targets`, groups at least a robot wide) lie
-    within a robot radius and a cell and a half of the known-free cells the robot can drive through
-    from `pose` (`plan_costs` passable, 8-connected to its cell), leaving out those within
-    `APPROACHED` of the robot's `path` (k, 2) [m]: the robot went there and looked, they stay
-    frontier because no laser can see behind them from anywhere near (inside a shelf, a thin slit)."""
-    from robotexp.mapping.kernels import flood8
+                  path: npt.NDArray[np.float64] | None = None) -> tuple[int, float]:
+    """The frontier a robot at `pose` could still go to and never went near, and the unknown space
+    behind it.
+
+    Frontier cells worth going to (`frontier_targets`, groups at least a robot wide) within a robot
+    radius and a cell and a half of the known-free cells the robot can drive through from `pose`
+    (`plan_costs` passable, 8-connected to its cell), leaving out those within `APPROACHED` of the
+    robot's `path` (k, 2) [m] (the robot went there and looked: they stay frontier because no laser
+    sees behind them from anywhere near, as inside a shelf).
+
+    Returns:
+        (cells, area): how many such frontier cells, and the area [m^2] of the unknown space
+        within `LEFT_REACH` of them that they border (8-connected): what a laser would map from there.
+    """
+    from robotexp.mapping.kernels import flood8, label8
     from robotexp.planning.grid_planner import distance_transform
     from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
 
@@ -56,10 +68,10 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     passable = np.isfinite(plan_costs(grid, radius, 0.0))
     start = passable_cell(geo, passable, pose.x, pose.y)
     if start is None:
-        return 0
+        return 0, 0.0
     targets = frontier_targets(grid, max(1, int(math.ceil(2 * radius / geo.cell))))
     if not targets.any():
-        return 0
+        return 0, 0.0
     reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
     left = targets & (distance_transform(reach) <= radius / geo.cell + 1.5)
     if path is not None and len(path) and left.any():
@@ -69,7 +81,28 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
         been[cells[:, 0], cells[:, 1]] = True
         if been.any():
             left &= distance_transform(been) > APPROACHED / geo.cell
-    return int(np.count_nonzero(left))
+    n = int(np.count_nonzero(left))
+    if n == 0:
+        return 0, 0.0
+    near = distance_transform(left) <= LEFT_REACH / geo.cell
+    labels, _ = label8(np.ascontiguousarray(grid.unknown() & near))
+    padded = np.pad(labels, 1)
+    touched: set[int] = set()
+    for r, c in np.argwhere(left):
+        touched.update(int(v) for v in padded[r:r + 3, c:c + 3].ravel() if v)
+    sizes = np.bincount(labels.ravel())
+    return n, float(sum(int(sizes[k]) for k in touched)) * geo.cell ** 2
+
+
+def unexplored_left(grid: OccupancyGrid, pose: Pose, radius: float, path: npt.NDArray[np.float64] | None = None
+                    ) -> tuple[int, float] | None:
+    """`frontier_left` when what lies behind that frontier matters: at least `LEFT_AREA` [m^2] and
+    `LEFT_SHARE` of the known free area (shadows behind furniture do not); else None."""
+    n, area = frontier_left(grid, pose, radius, path)
+    free = float(np.count_nonzero(grid.free())) * grid.geo.cell ** 2
+    if n and area >= max(LEFT_AREA, LEFT_SHARE * free):
+        return n, area
+    return None
 
 
 class StallWatch:
@@ -167,12 +200,12 @@ class RunWatch(RunObserver):
             run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
                              f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
         if self.check_done and isinstance(step.decision, Done):
-            left = frontier_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
-            if left:
+            left = unexplored_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
+            if left is not None:
                 run.completed = False
                 run.end = EndReason.STOPPED
-                run.reason = (f"stopped: the explorer ended ({step.decision.reason}) with {left} frontier cells "
-                              "left that the robot can reach")
+                run.reason = (f"stopped: the explorer ended ({step.decision.reason}) with {left[0]} frontier cells "
+                              f"left that the robot can reach, {left[1]:.1f} m2 of unknown space behind them")
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """The stall watch."""

@@ -92,15 +92,36 @@ def test_a_gain_clears_the_strikes_and_a_tiny_one_does_not_count():
 
 
 def test_frontier_left_counts_a_reachable_opening_and_nothing_in_a_closed_room():
-    assert frontier_left(room_grid(False), Pose(2.5, 3.0, 0.0), 0.25) == 0
-    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25) >= 5
+    assert frontier_left(room_grid(False), Pose(2.5, 3.0, 0.0), 0.25) == (0, 0.0)
+    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25)[0] >= 5
     # the same opening seen from outside the known space: nothing the robot can drive to
-    assert frontier_left(room_grid(True), Pose(8.5, 5.5, 0.0), 0.25) == 0
+    assert frontier_left(room_grid(True), Pose(8.5, 5.5, 0.0), 0.25)[0] == 0
     # a robot that went up to the opening and looked: what stays frontier there is not counted
     far = np.array([[1.0 + 0.1 * k, 3.0] for k in range(20)])          # x 1..2.9 m: 3 m from the gap
     near = np.array([[2.0 + 0.1 * k, 3.0] for k in range(30)])         # up to x = 4.9 m, by the gap
-    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, far) >= 5
-    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, near) == 0
+    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, far)[0] >= 5
+    assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, near)[0] == 0
+
+
+def test_the_unknown_behind_the_frontier_left_decides_whether_it_matters():
+    from robotexp.watch import LEFT_REACH, unexplored_left
+
+    # the opening leads into unknown space: what lies within LEFT_REACH of its frontier counts
+    n, area = frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25)
+    assert n >= 5 and 0.5 * math.pi * LEFT_REACH ** 2 * 0.8 < area < 1.2 * (LEFT_REACH + 1.0) * 2 * LEFT_REACH
+    assert unexplored_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25) == (n, area)   # > 2 m2 and > 5 % of 18 m2
+    # a shadow: the unknown behind the opening is a 0.5 x 1 m pocket walled in
+    grid = room_grid(True)
+    wall = np.zeros((GEO.rows, GEO.cols), dtype=bool)
+    wall[23:37, 59:66] = True
+    wall[25:35, 59:65] = False
+    grid.mark_occupied(wall)
+    rest = grid.unknown()
+    rest[25:35, 60:65] = False
+    grid.mark_free(rest)
+    n, area = frontier_left(grid, Pose(2.5, 3.0, 0.0), 0.25)
+    assert n >= 5 and area == pytest.approx(0.5, abs=0.01)          # the 10 x 5 cells of the pocket
+    assert unexplored_left(grid, Pose(2.5, 3.0, 0.0), 0.25) is None
 
 
 def test_scans_are_clipped_where_they_leave_the_area():
