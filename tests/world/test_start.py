@@ -66,7 +66,11 @@ def test_the_start_is_deterministic_and_free_on_generated_maps():
     world = generated_world("office", 1, scanned=True)
     a, b = default_start(world, 0.25), default_start(world, 0.25)
     assert a == b
-    geo = GridGeometry.covering(*world.bounds, cell=0.05)
-    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=a.pose)
-    # the region holds the building's floor: most of the 30 x 20 m
-    assert np.count_nonzero(truth.reachable) * geo.cell ** 2 > 0.4 * 30 * 20
+    from robotexp.mapping.kernels import clearance_mask, flood8
+
+    geo = GridGeometry.covering(*world.bounds, cell=0.1)
+    from robotexp.mapping.groundtruth import occupancy
+    fits = clearance_mask(occupancy(world, geo), 0.25 / geo.cell)
+    reach = flood8(fits, *geo.cell_of(a.pose.x, a.pose.y))
+    # the region holds the building's floor: much of the 30 x 20 m
+    assert np.count_nonzero(reach) * geo.cell ** 2 > 0.4 * 30 * 20
