@@ -3,8 +3,11 @@
 Every map is run from its default start pose with every method (through the campaign runner:
 parallel processes, `--resume`), then a row per run (coverage, path, robot time, end reason,
 success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
-A run succeeds when it ended on its own (`completed`), reached `SUCCESS_COVERAGE` of the
-explorable space, and had no collision.
+A run succeeds (issue 12's "Done when") when it reached `SUCCESS_COVERAGE` of the explorable space
+with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
+leaving the exploration area. A `stalled` end (the loop's stall watch) is on its own and counts
+when its coverage does; the table shows every end reason, and the summary counts the runs whose
+explorer said it was done (`completed`) apart.
 """
 
 from __future__ import annotations
@@ -77,10 +80,14 @@ def bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, lase
 
 
 def success(record: dict[str, Any]) -> bool:
-    """True when the run ended on its own, covered SUCCESS_COVERAGE and never collided."""
+    """True when the run covered SUCCESS_COVERAGE, never collided and ended on its own (see the module)."""
+    from robotexp.record import EndReason
+
     cov = record.get("coverage")
-    return bool(record.get("completed")) and cov is not None and cov >= SUCCESS_COVERAGE \
-        and record.get("collisions", 1) == 0
+    end = EndReason.classify(bool(record.get("completed")), str(record.get("reason", "")))
+    own = end in (EndReason.EXPLORED, EndReason.STALLED) or (
+        end is EndReason.STOPPED and "left the exploration area" not in str(record.get("reason", "")))
+    return own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
 
 
 def _map_name(record: dict[str, Any]) -> str:
@@ -111,12 +118,14 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
         lines.append(f"{t['map']:<{width}}  {t['method']:<12} {t['coverage']:>8} {t['path_m']:>8} "
                      f"{t['robot_time_s']:>7} {t['collisions']:>4} {t['success']:>3}  {t['reason']}")
     lines.append("")
-    lines.append(f"success (ended on its own, coverage >= {SUCCESS_COVERAGE}, no collision) per method:")
-    by_method: dict[str, list[bool]] = {}
+    lines.append(f"per method: success (coverage >= {SUCCESS_COVERAGE}, no collision, ended on its own: not by the "
+                 "time limit or an error), and runs the explorer itself completed")
+    by_method: dict[str, list[tuple[bool, bool]]] = {}
     for r in rows:
-        by_method.setdefault(str(r.get("method")), []).append(success(r))
-    for method, oks in sorted(by_method.items()):
-        lines.append(f"  {method:<12} {sum(oks)}/{len(oks)} = {sum(oks) / len(oks):.0%}")
+        by_method.setdefault(str(r.get("method")), []).append((success(r), bool(r.get("completed"))))
+    for method, res in sorted(by_method.items()):
+        ok, done = sum(a for a, _ in res), sum(b for _, b in res)
+        lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
     return "\n".join(lines) + "\n", buf.getvalue()
 
 

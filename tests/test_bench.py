@@ -35,19 +35,26 @@ def record(method: str, cov: float | None, completed: bool, collisions: int = 0,
 def test_success_needs_its_own_ending_the_coverage_and_no_collision():
     assert success(record("a", SUCCESS_COVERAGE, True))
     assert not success(record("a", SUCCESS_COVERAGE - 1e-9, True))
-    assert not success(record("a", 1.0, False))
     assert not success(record("a", 1.0, True, collisions=1))
     assert not success(record("a", None, True))
+    assert success(record("a", 1.0, False, reason="stalled: no newly known space for 3 x 120 s"))
+    assert not success(record("a", 1.0, False, reason="time limit of 3600 s reached"))
+    assert not success(record("a", 1.0, False, reason="robot error: link lost"))
+    assert not success(record("a", 1.0, False, reason="stopped: the robot left the exploration area at (1, 2) m"))
+    assert success(record("a", 0.99, False, reason="stopped: the explorer ended (x) with 5 frontier cells left"))
 
 
 def test_the_table_has_a_row_per_run_and_a_rate_per_method():
-    text, table = bench_table([record("frontier", 0.99, True, reason="done"), record("bvp", 0.9, False, reason="time"),
+    text, table = bench_table([record("frontier", 0.99, True, reason="done"),
+                               record("bvp", 0.99, False, reason="time limit of 9 s reached"),
                                record("frontier", 0.5, True, reason="early")])
     rows = list(csv.DictReader(io.StringIO(table)))
     assert [(r["method"], r["coverage"], r["success"]) for r in rows] == [
-        ("bvp", "0.9000", "no"), ("frontier", "0.9900", "yes"), ("frontier", "0.5000", "no")]
-    assert rows[0]["path_m"] == "12.3" and rows[0]["reason"] == "time" and rows[0]["map"] == "generated:office:1"
-    assert "  bvp          0/1 = 0%" in text and "  frontier     1/2 = 50%" in text
+        ("bvp", "0.9900", "no"), ("frontier", "0.9900", "yes"), ("frontier", "0.5000", "no")]
+    assert rows[0]["path_m"] == "12.3" and rows[0]["reason"] == "time limit of 9 s reached"
+    assert rows[0]["map"] == "generated:office:1"
+    assert "  bvp          success 0/1 = 0%   completed 0/1" in text
+    assert "  frontier     success 1/2 = 50%   completed 2/2" in text
 
 
 def test_bench_runs_a_generated_world_end_to_end_and_writes_its_table(tmp_path):
