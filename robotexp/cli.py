@@ -164,15 +164,19 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
+@click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
+              help="Exploration area [mm] (default: what the map declares, else the world's box).")
+@click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
-            out: Path) -> None:
+            out: Path, bounds: str | None, bounds_wall: bool) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import attach_laser, check_laser_options
     from robotexp.registry import connect_robot
+    from robotexp.world.bounds import parse_bounds
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
@@ -188,7 +192,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
-                   laser_sigma=noise_sigma / 1000)
+                   laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
+                   map_bounds=None if bounds is None else parse_bounds(bounds))
     spec.validate()
     writable_folder(out)
     progress = Progress(f"{Path(world).stem} {method}")
@@ -213,16 +218,25 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         _fail(f"{r.run}: {r.reason}", 1)
 
 
-@main.command()
+@main.group(invoke_without_command=True)
+@click.pass_context
 @handle_errors
-def worlds() -> None:
-    """List the built-in worlds with their sizes and start poses."""
+def worlds(ctx: click.Context) -> None:
+    """List the built-in worlds with their sizes and start poses (`worlds generate`: make one)."""
     from robotexp.world.builtin import builtin_names, builtin_world
 
+    if ctx.invoked_subcommand is not None:
+        return
     for name in builtin_names():
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+
+
+from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
+
+worlds.add_command(generate)
+main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
 
 
 @main.command()

@@ -138,7 +138,9 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
         a = p.theta + sc.angles[ok]
         laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
     end = None if state is None else (state.true_pose or state.pose)
-    return render_map(run.grid.states(), run.grid.geo,
+    states = run.grid.states()
+    content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
+    return render_map(states, run.grid.geo, content=content,
                       truth=run.truth.occupied if run.truth is not None else None,
                       path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
                       scale=scale,
