@@ -162,6 +162,12 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
               help="Laser noise: uniform in +-MM (the UFMG study: 100).")
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
+@click.option("--odometry-error", default="none", show_default=True,
+              help="Simulated odometry error: none, p3dx, kobuki, or key=value,... (mismatch, slip, drift "
+                   "[deg/m], servo); a preset:key=value,... overrides its values.")
+@click.option("--localize", type=click.Choice(["auto", "none", "scan-match"]), default="auto", show_default=True,
+              help="Correct the pose by scan matching before the map and the explorer see it (auto: in the "
+                   "simulator when --odometry-error is on).")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
@@ -171,7 +177,7 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
-            out: Path, bounds: str | None, bounds_wall: bool) -> None:
+            odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import attach_laser, check_laser_options
@@ -193,7 +199,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
-                   map_bounds=None if bounds is None else parse_bounds(bounds))
+                   map_bounds=None if bounds is None else parse_bounds(bounds),
+                   odometry=odometry_error, localize=localize)
     spec.validate()
     writable_folder(out)
     progress = Progress(f"{Path(world).stem} {method}")
@@ -531,6 +538,12 @@ def connect(backend: str, address: str, drive: str | None, duration: float, lase
             if tty:
                 click.echo("")
     click.echo("robot stopped and disconnected")
+
+
+from robotexp.mapcmd import map_command  # noqa: E402  (a command of its own module, registered here)
+
+map_command.callback = handle_errors(map_command.callback)  # type: ignore[arg-type]
+main.add_command(map_command)
 
 
 if __name__ == "__main__":  # pragma: no cover
