@@ -18,6 +18,7 @@ import click
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
 from robotexp.record import RunRecord
+from robotexp.view.live import end_view, start_view, view_options
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -138,10 +139,12 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
+@view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path) -> None:
+            noise_uniform: float, noise_sigma: float, out: Path, view: bool, view_port: int, view_host: str,
+            view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.registry import connect_robot
@@ -157,15 +160,20 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000)
+    live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}")
+    watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
     try:
         if address is None:
-            result = run_experiment(spec, out, observers=[progress], show=overlays)
+            result = run_experiment(spec, out, observers=watchers, show=overlays)
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
             with connect_robot(robot, address) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, observers=[progress], show=overlays)
+                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     finally:
         progress.close()
     r = result.record
@@ -173,6 +181,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
                f"(wall {r.wall_time_s:.1f} s), coverage {cov}, collisions {r.collisions}")
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
+    end_view(live, result.interrupted)
     if result.interrupted:
         sys.exit(130)
 
