@@ -31,6 +31,7 @@ from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, laser_points, \
     vector_arrows
+from robotexp.view.live import DEFAULT_SPEED
 
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
@@ -39,7 +40,6 @@ if TYPE_CHECKING:
 __all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays"]
 
 STOP_REASON = "stopped from the live view"
-from robotexp.view.live import DEFAULT_SPEED
 
 
 class Pacer:
@@ -94,11 +94,11 @@ class Pacer:
             self.stopped, self.paused = True, False
             self._cond.notify_all()
 
-    def wait(self, robot_time: float, halt: Callable[[], None] | None = None,
+    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,
              on_hold: Callable[[bool], None] | None = None) -> bool:
-        """The loop's side, at each tick with robot time [s]: hold while paused (calling `halt()` at once
-        and every `halt_period`; `on_hold(True)` when holding starts, `on_hold(False)` when it ends), then
-        sleep as pacing wants. Returns whether the loop was held."""
+        """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
+        paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
+        `on_hold(False)` when it ends), then sleep as pacing wants. Returns whether the loop was held."""
         held = False
         with self._cond:
             while self.paused and not self.stopped:
@@ -118,6 +118,8 @@ class Pacer:
                     on_hold(False)
             speed = None if self.stopped else self.speed
             now = self.clock()
+            if robot_time is None:
+                return held
             if speed is None or self._ref is None:
                 self._ref = (robot_time, now)
                 return held
@@ -188,7 +190,7 @@ class ViewObserver(RunObserver):
         elif cmd == "speed" and self.simulated:
             value = msg.get("value")
             try:
-                speed = None if value in (None, "max") else float(value)   # type: ignore[arg-type]
+                speed = None if value in (None, "max") else float(value)
                 self.pacer.set_speed(speed)
             except (TypeError, ValueError):
                 return
@@ -226,11 +228,11 @@ class ViewObserver(RunObserver):
             self._send(run, step.time)
         if self._stop_requested:
             return
+        # a simulated robot stands still while the loop waits; a real one is told to stop (and again
+        # every halt_period) while paused
         halt = None if self.simulated else run.robot.stop
-        if self.simulated:
-            self.pacer.wait(step.time, None, lambda holding: self._hold(run, step.time, holding))
-        else:
-            self.pacer.wait(step.time, halt, lambda holding: self._hold(run, step.time, holding))
+        self.pacer.wait(step.time if self.simulated else None, halt,
+                        lambda holding: self._hold(run, step.time, holding))
 
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:
