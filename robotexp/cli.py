@@ -334,14 +334,23 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @click.option("--sandbox", is_flag=True,
               help="Refuse os.execute, io.popen, C modules and files outside the output folder.")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
+@view_options
 @handle_errors
-def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None) -> None:
+def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None,
+            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView)."""
     from robotexp.lua import run_script
 
-    result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
-                        emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True))
+    live = start_view(view, view_host, view_port, view_speed)
+    try:
+        result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
+                            emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                            observers=() if live is None else (live.observer,))
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
+    end_view(live, interrupted=False)
     if result.exit_code:
         sys.exit(result.exit_code)
 
@@ -395,12 +404,12 @@ def _status_line(state: Any) -> str:
 @click.argument("address")
 @click.option("--drive", default=None, help="Drive at V,W (mm/s, deg/s) during --for; the robot stops after.")
 @click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
+@view_options
 @handle_errors
-def connect(backend: str, address: str, drive: str | None, duration: float) -> None:
-    """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line."""
-    import time
-
-    from robotexp.registry import connect_robot
+def connect(backend: str, address: str, drive: str | None, duration: float, view: bool, view_port: int,
+            view_host: str, view_speed: str | None) -> None:
+    """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line
+    (with --view: its pose, laser, path and a map built from its scans in the browser)."""
     from robotexp.robot import Twist
 
     twist = None
@@ -413,7 +422,24 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
     if not (duration >= 0 and math.isfinite(duration)):
         raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
     tty = sys.stdout.isatty()
+    live = start_view(view, view_host, view_port, view_speed)
+    try:
+        _connect_watch(backend, address, twist, duration, tty, live)
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
+    end_view(live, interrupted=False)
+
+
+def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty: bool, live: Any) -> None:
+    """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`."""
+    import time
+
+    from robotexp.registry import connect_robot
+    from robotexp.view.watch import StateFeed
+
     with connect_robot(backend, address) as robot:
+        feed = None if live is None else StateFeed(live.hub, f"{backend} at {address}", robot.radius)
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
         lim = robot.limits
@@ -425,17 +451,23 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
                 now = time.monotonic()
                 if twist is not None:
                     robot.command(twist)
-                if now >= next_line or now >= end:
-                    line = _status_line(robot.read())
+                due = now >= next_line or now >= end
+                state = robot.read() if due or feed is not None else None
+                if feed is not None and state is not None:
+                    feed.publish(state)
+                if due:
+                    line = _status_line(state)
                     click.echo(f"\r{line}" if tty else line, nl=not tty)
                     next_line = now + 0.5
-                if now >= end:
+                if now >= end or (feed is not None and feed.stop_requested):
                     break
                 time.sleep(0.1)
         finally:
             robot.stop()
             if tty:
                 click.echo("")
+            if feed is not None:
+                feed.finish("stopped from the live view" if feed.stop_requested else "watch over; robot stopped")
     click.echo("robot stopped and disconnected")
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -151,13 +151,16 @@ class Session:
         robot: simulated robot preset (p3dx, kobuki).
         notice: prints a one-line notice for the user (stderr).
         script: the script's name, recorded with each run.
+        observers: told about each of the script's runs (`robotexp run --view`).
     """
 
     def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
-                 robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "") -> None:
+                 robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
+                 observers: Sequence[RunObserver] = ()) -> None:
         from robotexp.experiment import RunSpec
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
+        self.observers = list(observers)               # told about every run (a live view)
         self.forced_world = world is not None
         self.spec = RunSpec(world=world or "dense", robot=robot)
         self.address = ""
@@ -243,7 +246,7 @@ class Session:
 
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
-        observers = [_ScriptWatch(self)] if watch else []
+        observers = ([_ScriptWatch(self)] if watch else []) + self.observers
         if self.on_robot:
             robot = self._robot()
             if hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)

@@ -11,7 +11,7 @@ import logging
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +21,7 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, PathPolicy
+from robotexp.observers import RunObserver
 from robotexp.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method"]
@@ -91,7 +92,8 @@ def _sigint_sets(control: Control) -> Iterator[None]:
 
 def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,
                timeout: float | None = None, code: str | None = None,
-               emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning) -> ScriptResult:
+               emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
+               observers: Sequence[RunObserver] = ()) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -108,6 +110,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         code: the script text (default: read from `path`).
         emit: receives each line the script prints.
         notice: receives notices for the user (e.g. the simulator replaces the address).
+        observers: told about each of the script's runs (a live view).
 
     Returns:
         The exit status and the records of the script's runs.
@@ -129,7 +132,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     control = Control(timeout, time.monotonic)
     paths = PathPolicy(out, sandbox)
     session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
-                      script=name)
+                      script=name, observers=observers)
     lua = LuaRuntime(register_eval=False, register_builtins=False, unpack_returned_tuples=True,
                      attribute_filter=_refuse_attribute)
     g = lua.globals()

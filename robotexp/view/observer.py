@@ -204,6 +204,8 @@ class ViewObserver(RunObserver):
         self.run = run
         self.simulated = isinstance(run.robot, SimRobot)
         self._reset()
+        self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
+        self.pacer.stopped = False
         geo = run.grid.geo
         info = run.info
         start = run.start_pose
