@@ -156,3 +156,44 @@ def test_observer_paces_a_simulated_run(tmp_path: Path) -> None:
     assert rec.end is EndReason.TIME_LIMIT
     assert wall >= 10.0 / 20.0 * 0.95                # not faster than asked
     assert hub.status["state"] == "ended"
+
+
+def test_pause_stops_a_real_robot_until_resumed(tmp_path: Path) -> None:
+    """On a robot behind a protocol (the Kobuki emulator over TCP, 30x real time) a pause commands a stop
+    and the robot stands still while paused; the speed control is off (a real robot runs in real time)."""
+    from robotexp.experiment import run_on_robot
+    from robotexp.world.builtin import builtin_world
+    from robotexp.world.poses import resolve_pose
+    from robotexp_drivers.kobuki.codec import BaseControl
+    from robotexp_drivers.kobuki.emulator import EmulatorLaser, KobukiEmulator
+    from robotexp_drivers.kobuki.robot import KobukiRobot
+
+    world = builtin_world("ufmg-static")
+    hub = ViewHub()
+    observer = ViewObserver(hub, speed=1.0)      # would crawl, were pacing applied to a real robot
+    spec = RunSpec(world="ufmg-static", robot="kobuki", method="frontier", pose="path1", max_time=600.0)
+    result: list[RunOutput] = []
+    # the driver's watchdog at 60 s: the pause must stop the robot, not the watchdog
+    with KobukiEmulator(world, pose=resolve_pose(world, "path1", 0.18)[0], speedup=30.0) as emu, \
+            KobukiRobot(emu.address, laser=EmulatorLaser(emu), watchdog=60.0) as robot:
+        thread = threading.Thread(target=lambda: result.append(run_on_robot(spec, robot, None, world,
+                                                                            observers=[observer])))
+        thread.start()
+        try:
+            _wait(lambda: hub.time > 5.0)         # 5 s robot time: well under 5 s wall at 30x
+            assert hub.controls == ("pause", "step", "stop")
+            _wait(lambda: emu.last_base_control not in (None, BaseControl(0, 0)))     # driving
+            observer.command({"cmd": "pause"})
+            _wait(lambda: emu.last_base_control == BaseControl(0, 0), 2.0)
+            time.sleep(0.3)                       # decelerating (9 s of robot time at 30x)
+            p0 = emu.sim.true_pose
+            time.sleep(0.3)
+            p1 = emu.sim.true_pose
+            assert (p0.x, p0.y, p0.theta) == pytest.approx((p1.x, p1.y, p1.theta), abs=1e-4)
+            assert emu.last_base_control == BaseControl(0, 0)
+            observer.command({"cmd": "resume"})
+            _wait(lambda: emu.last_base_control != BaseControl(0, 0), 10.0)
+        finally:
+            observer.command({"cmd": "stop"})
+            thread.join(30)
+    assert result[0].record.end is EndReason.STOPPED
