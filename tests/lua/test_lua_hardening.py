@@ -200,3 +200,11 @@ def test_sandbox_minor_leaks(lua, tmp_path):
         'print(package.searchpath("mod", package.path) ~= nil)', sandbox=True)
     assert lua.lines == ["2\t3\tnil\tnil", "true\tnil\tno file '/etc/exists'", "true"]
     assert os.environ.get("HOME")
+
+
+def test_map_limits_that_do_not_fit_are_refused_before_the_run(lua):
+    # the Lua memory cap does not see numpy: the size is checked before any array is made
+    with pytest.raises(ScriptError, match=r"exploration.start: map limits .* make 1.6e\+17 cells of 5 mm, more than"):
+        lua("exploration.setMapLimits(-1e9, -1e9, 1e9, 1e9); exploration.setCellSize(5); exploration.start()",
+            sandbox=True)
+    assert not (lua.out / "results.jsonl").exists()
