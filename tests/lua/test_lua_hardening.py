@@ -208,3 +208,11 @@ def test_map_limits_that_do_not_fit_are_refused_before_the_run(lua):
         lua("exploration.setMapLimits(-1e9, -1e9, 1e9, 1e9); exploration.setCellSize(5); exploration.start()",
             sandbox=True)
     assert not (lua.out / "results.jsonl").exists()
+
+
+@pytest.mark.parametrize("view", ["mapView.setMapScaling(1000)", "for i = 1, 2000 do mapView.zoomIn() end"])
+def test_a_map_image_too_large_is_refused_before_it_is_drawn(lua, view):
+    with pytest.raises(ScriptError, match=r"mapView: the map image would be .* px, more than 1e\+08 pixels"):
+        lua('exploration.setWorld("dense"); exploration.setMaxTime(1000); exploration.start(); exploration.wait()\n'
+            f'{view}; mapView.saveMapImage("x.png")', sandbox=True)
+    assert not (lua.out / "x.png").exists() and (lua.out / "results.jsonl").exists()
