@@ -40,12 +40,13 @@ from robotexp.errors import ConfigError, PluginError, WorldError
 from robotexp.experiment import RunSpec
 from robotexp.record import EndReason, RunRecord
 from robotexp.registry import make_explorer
+from robotexp.world.bounds import parse_bounds
 
 __all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
-                  "laser_sigma_mm", "laser_uniform_mm"}
-_SET_KEYS = {"world", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description"}
+                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall"}
+_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description"}
 
 
 @dataclass
@@ -119,7 +120,8 @@ def load_campaign(path: str | Path) -> Campaign:
             raise _fail(p, where, "must be a table")
         _check_keys(raw, _SET_KEYS, p, where)
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
-        runs.extend(_expand(merged, p, where, methods_installed, load_world))
+        for world in _worlds(merged, p, where):
+            runs.extend(_expand({**merged, "world": world}, p, where, methods_installed, load_world))
     name = head.get("name", p.stem)
     if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", name)):
         raise _fail(p, "campaign.name", f"{str(name)[:60]!r} is not a folder name (letters, digits, '_', '.', "
@@ -133,6 +135,26 @@ def load_campaign(path: str | Path) -> Campaign:
                         f"{spec.speed * 1000:g} mm/s; a seed or speed given twice?); give each run once")
         keys[key] = spec
     return Campaign(name, p, runs)
+
+
+def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
+    """The worlds of a set: `world` (one) or `worlds` (one or a list), each `generated:KIND:A-B` range
+    expanded to its seeds (`robotexp.world.generate.expand_generated`)."""
+    from robotexp.world.generate import expand_generated
+
+    if "worlds" in merged and "world" in merged:
+        raise _fail(p, where, "give either world or worlds, not both")
+    given = merged.pop("worlds", merged.get("world"))
+    items = given if isinstance(given, list) else [given]
+    if not items or not all(isinstance(w, str) or w is None for w in items):
+        raise _fail(p, f"{where}.worlds", f"expected a world name or a list of them, got {given!r}")
+    out: list[str | None] = []
+    for w in items:
+        try:
+            out += expand_generated(w) if isinstance(w, str) else [w]
+        except WorldError as exc:
+            raise _fail(p, f"{where}.worlds", str(exc), WorldError) from None
+    return out
 
 
 def _check_keys(table: dict[str, Any], allowed: set[str], path: Path, where: str) -> None:
@@ -195,6 +217,13 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
     robot = _get(s, "robot", "p3dx", str, p, where)
     sigma = float(_get(s, "laser_sigma_mm", 0, (int, float), p, where)) / 1000
     uniform = float(_get(s, "laser_uniform_mm", 0, (int, float), p, where)) / 1000
+    bounds = s.get("bounds_mm")
+    if bounds is not None:
+        if not (isinstance(bounds, list) and len(bounds) == 4 and all(isinstance(v, (int, float))
+                                                                     and not isinstance(v, bool) for v in bounds)):
+            raise _fail(p, f"{where}.bounds_mm", f"expected [xmin, ymin, xmax, ymax] in mm, got {bounds!r}")
+        bounds = parse_bounds(",".join(str(v) for v in bounds), f"{where}.bounds_mm")
+    bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
     runs = []
     for method in methods:
         for pose in pose_names:
@@ -204,7 +233,8 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
                                    speed=speed / 1000, laser_range=laser,
                                    cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
                                    params=dict(params.get(method, {})), max_time=max_time,
-                                   laser_sigma=sigma, laser_uniform=uniform)
+                                   laser_sigma=sigma, laser_uniform=uniform, map_bounds=bounds,
+                                   bounds_wall=bounds_wall)
                     try:
                         spec.validate()
                     except ConfigError as exc:

@@ -24,6 +24,8 @@ from robotexp.record import EndReason, RunRecord
 from robotexp.registry import connect_robot, make_emulator, make_explorer
 from robotexp.results import ResultsWriter, map_image, run_id
 from robotexp.robot import Capability, Pose, Robot
+from robotexp.watch import RunWatch, StallWatch
+from robotexp.world.bounds import exploration_area, with_boundary_walls
 from robotexp.world.model import World
 from robotexp.world.poses import parse_pose, pose_name, resolve_pose
 
@@ -61,7 +63,10 @@ class RunSpec:
     laser_sigma: float = 0.0            # [m] gaussian laser noise
     laser_uniform: float = 0.0          # [m] uniform laser noise half-width
     map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
-    #                                   (None: the world's bounds plus MAP_MARGIN)
+    #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
+    bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
+    odometry: str = "none"              # simulator odometry error (robotexp.sim.odometry_error spec)
+    localize: str = "auto"              # "none", "scan-match", "auto" (robotexp.localization.run: wrap)
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
@@ -80,6 +85,11 @@ class RunSpec:
         if self.laser_sigma < 0 or self.laser_uniform < 0:
             raise ConfigError(f"laser noise must be >= 0 mm, got uniform {self.laser_uniform * 1000:g}, "
                               f"sigma {self.laser_sigma * 1000:g}")
+        from robotexp.localization.run import check_localize
+        from robotexp.sim.presets import odometry_error
+
+        odometry_error(self.odometry)
+        check_localize(self.localize)
         if self.map_bounds is not None:
             x0, y0, x1, y1 = self.map_bounds
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
@@ -121,13 +131,13 @@ def sim_robot(spec: RunSpec, world: World, start: Pose, *, sonar: bool = True) -
         WorldError: the start pose is outside the world or touches an obstacle.
         ConfigError: an unknown robot preset.
     """
-    from robotexp.sim import LaserConfig, SimRobot, preset
+    from robotexp.sim import LaserConfig, SimRobot, odometry_error, preset
 
     robot_preset = preset(spec.robot)
     laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
                         sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
     return SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser, max_speed=spec.speed,
-                    sonar=sonar)
+                    sonar=sonar, odometry=odometry_error(spec.odometry))
 
 
 @dataclass
@@ -141,6 +151,7 @@ class RunPlan:
     pose_label: str
     geo: GridGeometry
     truth: GroundTruth
+    area: tuple[float, float, float, float] | None = None    # [m] the exploration area (None: the grid)
 
 
 def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explorer | None = None) -> RunPlan:
@@ -161,7 +172,14 @@ def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explore
     start, pose_label = resolve_pose(w, spec.pose, radius)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     assert w.bounds is not None
-    if spec.map_bounds is None:
+    area = exploration_area(w, spec.map_bounds)
+    if spec.map_bounds is None and area is not None:
+        # the area the map declares, grown to hold the start (a home placed in its margin)
+        r = radius + MAP_MARGIN
+        area = (min(area[0], start.x - r), min(area[1], start.y - r), max(area[2], start.x + r),
+                max(area[3], start.y + r))
+        geo = GridGeometry.covering(*area, cell=cell)
+    elif spec.map_bounds is None:
         geo = GridGeometry.covering(*w.bounds, cell=cell, margin=MAP_MARGIN)
     else:
         geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
@@ -169,8 +187,10 @@ def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explore
         if not (x0 <= start.x <= x1 and y0 <= start.y <= y1):
             raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
                               f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
+    if spec.bounds_wall and area is not None:
+        w = with_boundary_walls(w, area)
     truth = ground_truth(w, geo, robot_radius=radius, laser_range=spec.laser_range, start=start)
-    return RunPlan(explorer, w, start, pose_label, geo, truth)
+    return RunPlan(explorer, w, start, pose_label, geo, truth, area)
 
 
 def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
@@ -217,8 +237,10 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     sensors. The robot is stopped at the end, not closed.
 
     The loop's observers are, in order: the results writer (with `out`), the `on_sample`/`on_run`
-    callbacks, then `observers`. The record names the robot by `robot.model` and, when it has one,
-    its `address`; `record_extra` adds keys.
+    callbacks, the honest-endings watch (`robotexp.watch.RunWatch`: stall watch, exploration area,
+    an explorer's Done checked against the frontier left), then `observers`. The exploration area is
+    `spec.map_bounds`, else the map's declared area (`robotexp.world.bounds`). The record names the
+    robot by `robot.model` and, when it has one, its `address`; `record_extra` adds keys.
 
     Args:
         plan: the spec already planned in `world` for this robot (`plan_run`; default: planned here).
@@ -229,6 +251,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         PluginError: the explorer failed during the run (its record is written first).
         OSError: the results could not be written (an error of a `critical` observer).
     """
+    from robotexp.localization.run import localized, release
     from robotexp.mapping.grid import OccupancyGrid
 
     spec.validate()
@@ -237,10 +260,11 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     truth = None
     goals: dict[str, list[tuple[float, float]]] = {}
     start_name = None
+    area = spec.map_bounds
     if world is not None:
         if plan is None:
             plan = plan_run(spec, world, robot.radius)
-        explorer, geo, truth = plan.explorer, plan.geo, plan.truth
+        explorer, geo, truth, area = plan.explorer, plan.geo, plan.truth, plan.area
         world_name, pose_label = plan.world.name, plan.pose_label
         goals, start_name = plan.world.goals, pose_name(plan.world, spec.pose)
         if Capability.MOVE_TO in robot.capabilities:
@@ -255,6 +279,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
                                     cell=cell)
     robot.set_max_speed(spec.speed)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
+    robot, tracker = localized(spec, robot, geo)    # robotexp.localization.run: the explorer's pose
 
     extra: dict[str, Any] = {}
     if robot.address is not None:
@@ -271,10 +296,15 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     chain: list[RunObserver] = [] if writer is None else [writer]
     if on_sample is not None or on_run is not None:
         chain.append(SampleCallback(on_sample, on_run))
+    chain.insert(0, tracker)                          # first: ate_m is in the record the writer writes
+    chain.append(RunWatch(StallWatch(), area))         # honest endings: stalls, the area, "done" checked
     chain.extend(observers)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed, goals=goals,
-                         start_name=start_name, info=info, observers=chain)
-    run.run()
+                         start_name=start_name, info=info, observers=chain, area=area)
+    try:
+        run.run()
+    finally:
+        release(robot)
     for observer, exc in run.observer_errors:
         if observer.critical:
             raise exc

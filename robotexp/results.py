@@ -93,7 +93,7 @@ class ResultsWriter(RunObserver):
 
         out, name = self.out, record.run
         out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record.as_dict())      # first: the record is never lost
+        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
@@ -138,7 +138,9 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
         a = p.theta + sc.angles[ok]
         laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
     end = None if state is None else (state.true_pose or state.pose)
-    return render_map(run.grid.states(), run.grid.geo,
+    states = run.grid.states()
+    content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
+    return render_map(states, run.grid.geo, content=content,
                       truth=run.truth.occupied if run.truth is not None else None,
                       path=np.array(m.path) if m.path and path else None, start=run.start_pose, end=end,
                       scale=scale,
@@ -148,12 +150,12 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
                       title=title)
 
 
-def append_jsonl(path: Path, record: dict[str, Any]) -> None:
-    """Append `record` as one line to `path` and force it to disk; a torn last line left by an
-    earlier fault is repaired first (and reported), and a failed write leaves no half line
-    (`robotexp.safefile.append_line`)."""
+def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:
+    """Append `record` (a RunRecord is written as its `as_dict()`) as one line to `path` and force it
+    to disk; a torn last line left by an earlier fault is repaired first (and reported), and a failed
+    write leaves no half line (`robotexp.safefile.append_line`)."""
     from robotexp.safefile import append_line
-    append_line(path, record)
+    append_line(path, record.as_dict() if isinstance(record, RunRecord) else record)
 
 
 def read_jsonl(path: Path) -> list[dict[str, Any]]:

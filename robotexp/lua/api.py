@@ -26,7 +26,7 @@ import logging
 import math
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -154,16 +154,18 @@ class Session:
         notice: prints a one-line notice for the user (stderr).
         script: the script's name, recorded with each run.
         addresses: which robot addresses the script may open (default: any).
+        observers: told about each of the script's runs (`robotexp run --view`).
     """
 
     def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
                  robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
-                 addresses: AddressPolicy | None = None) -> None:
+                 addresses: AddressPolicy | None = None, observers: Sequence[RunObserver] = ()) -> None:
         from robotexp.experiment import RunSpec
         from robotexp.lua.sandbox import AddressPolicy
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
         self.addresses = addresses if addresses is not None else AddressPolicy(False)
+        self.observers = list(observers)               # told about every run (a live view)
         self.forced_world = world is not None
         self.spec = RunSpec(world=world or "dense", robot=robot)
         self.address = ""
@@ -249,7 +251,7 @@ class Session:
 
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
-        observers = [_ScriptWatch(self)] if watch else []
+        observers = ([_ScriptWatch(self)] if watch else []) + self.observers
         if self.on_robot:
             robot = self._robot()
             if hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)

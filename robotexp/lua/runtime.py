@@ -11,7 +11,7 @@ import logging
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +21,7 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
+from robotexp.observers import RunObserver
 from robotexp.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB"]
@@ -109,7 +110,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                timeout: float | None = None, code: str | None = None,
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
-               retire: bool = False) -> ScriptResult:
+               retire: bool = False, observers: Sequence[RunObserver] = ()) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -131,6 +132,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         allow_addresses: with `sandbox`, the robot addresses the script may open besides the simulator.
         retire: never close the Lua state (closing runs the script's __gc finalizers, which could
             loop); for a process that exits right after.
+        observers: told about each of the script's runs (a live view).
 
     Returns:
         The exit status and the records of the script's runs.
@@ -157,7 +159,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     control = Control(timeout, time.monotonic)
     paths = PathPolicy(out, sandbox)
     session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
-                      script=name, addresses=addresses)
+                      script=name, addresses=addresses, observers=observers)
     lua = LuaRuntime(register_eval=False, register_builtins=False, unpack_returned_tuples=True,
                      attribute_filter=_refuse_attribute, max_memory=max_memory)
     if retire:
