@@ -66,7 +66,8 @@ def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
 def record_key(record: RunRecord | Mapping[str, Any]) -> tuple[str, str, str, int, int]:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
-    return (str(r.extra.get("world_spec", r.world)), r.method, str(r.extra.get("pose_spec", r.pose)),
+    # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
+    return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0))
 
 
