@@ -17,6 +17,8 @@ from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["FrontierExplorer"]
 
+GIVE_UP_REACH = 2.0     # [m] frontier given up around the goal and the robot when the run's stall watch strikes
+
 class FrontierExplorer(Explorer):
     """Drive to the nearest reachable frontier group (Yamauchi 1997); done when none is left.
 
@@ -73,12 +75,14 @@ class FrontierExplorer(Explorer):
         self.plans = 0
         self.reach = 0.0            # [cells] from the goal to the frontier cells it serves
         self._now = 0.0
+        self._pose_xy = (ctx.start.x, ctx.start.y)
 
     # -- the decision ----------------------------------------------------------------
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """Follow the current plan, re-planning when due; Done when no reachable frontier is left."""
         pose, now = state.pose, state.time
         self._now = now
+        self._pose_xy = (pose.x, pose.y)
         if self.homing:
             if self.follower.done:
                 return Done("explored; back at the start")
@@ -101,6 +105,27 @@ class FrontierExplorer(Explorer):
                 return self._finish(pose, grid)
             self.next_plan = now + self.replan_period
         return self.follower.twist(pose, state.laser)
+
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run saw no progress for a while (its stall watch): blacklist the current goal's frontier
+        cells and plan anew. False when there is no goal to give up."""
+        if self.goal is None or len(self.goal_cells) == 0:
+            return False
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        self.blacklist[self.goal_cells[:, 0], self.goal_cells[:, 1]] = True
+        # the goals it switched between are around it: give up the frontier within GIVE_UP_REACH too
+        targets = np.argwhere(self._frontier_targets(grid))
+        if len(targets):
+            xy = grid.geo.centers_of(targets)
+            for px, py in (self.goal, self._pose_xy):
+                near = np.hypot(xy[:, 0] - px, xy[:, 1] - py) <= GIVE_UP_REACH
+                self.blacklist[targets[near, 0], targets[near, 1]] = True
+        self.blacklist_events += 1
+        self.follower.clear()
+        self.goal = self.face = None
+        self.next_plan = -math.inf
+        return True
 
     def _goal_open(self, grid: OccupancyGrid) -> bool:
         """True while the robot is on its way to a goal whose frontier cells are not all resolved."""

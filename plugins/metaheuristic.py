@@ -162,6 +162,19 @@ class MetaheuristicExplorer(Explorer):
             return cells
         return cells[frontier[cells[:, 0], cells[:, 1]]]
 
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run saw no progress for a while (its stall watch): blacklist the target's frontier cells
+        (all of them, open or not) and choose anew. False when there is no target to give up."""
+        if self.target is None or len(self.target_cells) == 0:
+            return False
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        self.blacklist[self.target_cells[:, 0], self.target_cells[:, 1]] = True
+        self.follower.clear()
+        self.target = self.face = None
+        self.next_plan = -math.inf
+        return True
+
     def _give_up_open(self, grid: OccupancyGrid) -> None:
         cells = self._open_cells(grid.frontier())
         self.blacklist[cells[:, 0], cells[:, 1]] = True

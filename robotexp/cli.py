@@ -17,8 +17,8 @@ import click
 
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
-from robotexp.view.live import end_view, start_view, view_options
+from robotexp.record import EndReason, RunRecord
+from robotexp.view.live import end_view, parse_speed, start_view, view_options
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -102,6 +102,30 @@ def _mm(value: float | None, what: str) -> float | None:
     return value / 1000.0
 
 
+def writable_folder(out: Path, option: str = "--out") -> None:
+    """Check, before any run starts, that the output folder `out` can be made and written.
+
+    Raises:
+        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system).
+    """
+    import tempfile
+
+    made = [d for d in (out, *out.parents) if not d.exists()]     # removed again: nothing is left behind
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{option} {out}: cannot write there ({exc.strerror or exc}); give a folder you can "
+                          "create and write") from None
+    finally:
+        for d in made:
+            try:
+                d.rmdir()
+            except OSError:
+                break
+
+
 def _params(items: tuple[str, ...]) -> dict[str, Any]:
     """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
     import json
@@ -131,6 +155,8 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--address", default=None,
               help="Run on a connected robot at this address (serial device, host[:port], pyserial URL); "
                    "--world, if given, is then only the ground truth for coverage.")
+@click.option("--laser", default=None, help="With --address: a laser of its own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
@@ -139,16 +165,26 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
+@click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
+              help="Exploration area [mm] (default: what the map declares, else the world's box).")
+@click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
 @view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
-            seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path, view: bool, view_port: int, view_host: str,
+            seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
+            param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
+            out: Path, bounds: str | None, bounds_wall: bool, view: bool, view_port: int, view_host: str,
             view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+    from robotexp.laser_mount import attach_laser, check_laser_options
     from robotexp.registry import connect_robot
+    from robotexp.world.bounds import parse_bounds
 
+    if (laser is not None or laser_pose is not None) and address is None:
+        raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
+                          "simulator has its own")
+    check_laser_options(laser, laser_pose)
     overlays = tuple(s for s in show.split(",") if s)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
     if unknown:
@@ -159,7 +195,10 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec = RunSpec(world=world, method=method, pose=pose, speed=speed / 1000, seed=seed, robot=robot,
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
-                   laser_sigma=noise_sigma / 1000)
+                   laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
+                   map_bounds=None if bounds is None else parse_bounds(bounds))
+    spec.validate()
+    writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}")
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
@@ -169,7 +208,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with connect_robot(robot, address) as bot:
+            with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
     except BaseException:
         end_view(live, interrupted=True)
@@ -184,27 +223,38 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     end_view(live, result.interrupted)
     if result.interrupted:
         sys.exit(130)
+    if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
+        _fail(f"{r.run}: {r.reason}", 1)
 
 
-@main.command()
+@main.group(invoke_without_command=True)
+@click.pass_context
 @handle_errors
-def worlds() -> None:
-    """List the built-in worlds with their sizes and start poses."""
+def worlds(ctx: click.Context) -> None:
+    """List the built-in worlds with their sizes and start poses (`worlds generate`: make one)."""
     from robotexp.world.builtin import builtin_names, builtin_world
 
+    if ctx.invoked_subcommand is not None:
+        return
     for name in builtin_names():
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
 
 
+from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
+
+worlds.add_command(generate)
+main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
+
+
 @main.command()
 @handle_errors
 def plugins() -> None:
-    """List the explorers and robot backends found through entry points."""
-    from robotexp.registry import EXPLORERS, ROBOTS, available, lua_name
+    """List the explorers, robot backends and their emulators found through entry points."""
+    from robotexp.registry import EMULATORS, EXPLORERS, ROBOTS, available, lua_name
 
-    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS)):
+    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS), ("emulators", EMULATORS)):
         click.echo(f"{title} ({group}):")
         for info in available(group).values():
             extra = f"  Lua: ExplorationMethod.{lua_name(info.name)}" if group == EXPLORERS else ""
@@ -242,6 +292,7 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
 
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
+    writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
@@ -332,19 +383,59 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder; the script's relative paths are relative to it.")
 @click.option("--sandbox", is_flag=True,
-              help="Refuse os.execute, io.popen, C modules and files outside the output folder.")
+              help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
+                   "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
+@click.option("--allow-address", multiple=True,
+              help="With --sandbox: a robot address (host[:port] or device path) the script may open (repeatable).")
+@click.option("--max-memory", type=float, default=None,
+              help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
+@click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
 @view_options
 @handle_errors
-def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None,
-            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
-    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView)."""
+def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
+            max_memory: float | None, timeout: float | None, child: bool, view: bool, view_port: int,
+            view_host: str, view_speed: str | None) -> None:
+    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
+
+    The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
+    if it does not stop by itself; runs already written stay in results.jsonl."""
+    from robotexp.lua.runtime import SANDBOX_MAX_MEMORY_MB
+    from robotexp.lua.sandbox import AddressPolicy
+
+    if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
+        raise ConfigError(f"--timeout must be a number of seconds > 0, got {timeout:g}")
+    if max_memory is not None and not (1 <= max_memory <= 2**20):
+        raise ConfigError(f"--max-memory must be 1..1048576 MB, got {max_memory:g}")
+    if allow_address and not sandbox:
+        raise ConfigError("--allow-address only means something with --sandbox (without it a script may open "
+                          "any address)")
+    AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
+    memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
+    writable_folder(out)
+    parse_speed(view_speed)                     # a bad --view-speed: one line, before anything runs
+    if not child:
+        from robotexp.lua.supervise import supervise
+
+        args = [str(script), "--robot", robot, "--out", str(out)] + (["--world", world] if world else [])
+        args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
+        args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
+        args += [f"--timeout={timeout!r}"] if timeout is not None else []
+        if view:        # the child serves the view (its runs are there); the page stays up until Ctrl-C
+            args += ["--view", f"--view-port={view_port}", f"--view-host={view_host}"]
+            args += [f"--view-speed={view_speed}"] if view_speed is not None else []
+        if click.get_current_context().find_root().params.get("debug", False):
+            args.append("--debug")
+        sys.exit(supervise(args, script=script.name, out=out, timeout=timeout))
+
     from robotexp.lua import run_script
 
     live = start_view(view, view_host, view_port, view_speed)
     try:
         result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
                             emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                            max_memory=None if memory is None else int(memory * 2**20),
+                            allow_addresses=allow_address, retire=True,
                             observers=() if live is None else (live.observer,))
     except BaseException:
         end_view(live, interrupted=True)
@@ -364,24 +455,35 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
 @click.option("--pty", is_flag=True, help="Serve on a pseudo-terminal (prints its device path) instead of TCP.")
 @click.option("--speedup", type=float, default=1.0, show_default=True, help="Robot time per wall time.")
 @click.option("--udp", default=None, help="mavlink: send to a ground station at HOST:PORT (e.g. 127.0.0.1:14550).")
+@click.option("--laser", default=None, help="Serve a laser on the simulated robot too (rplidar, hokuyo, lms2xx).")
+@click.option("--laser-pose", default=None, help="Where that laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @handle_errors
 def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
-            udp: str | None) -> None:
-    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
+            udp: str | None, laser: str | None, laser_pose: str | None) -> None:
+    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim), or
+    a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world."""
     import time
 
-    from robotexp.registry import make_emulator
+    from robotexp.laser_mount import emulate_devices
 
-    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp)
+    devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
+                              laser=laser, laser_pose=laser_pose)
     try:
-        emulator.start()
-        click.echo(f"{backend} emulator of world {world!r} at {emulator.address} (speedup {speedup:g}); Ctrl-C stops")
+        served = [(label, device) for label, device in devices if label != "simulator"]
+        if [label for label, _ in served] == ["robot"]:
+            click.echo(f"{backend} emulator of world {world!r} at {served[0][1].address} (speedup {speedup:g}); "
+                       "Ctrl-C stops")
+        else:
+            for label, device in served:
+                click.echo(f"{label}: {device.address}")
+            click.echo(f"world {world!r}, speedup {speedup:g}; Ctrl-C stops", err=True)
         while True:
             time.sleep(0.5)
     except KeyboardInterrupt:
         click.echo("emulator stopped", err=True)
     finally:
-        emulator.close()
+        for _, device in reversed(devices):
+            device.close()
 
 
 def _status_line(state: Any) -> str:
@@ -404,14 +506,18 @@ def _status_line(state: Any) -> str:
 @click.argument("address")
 @click.option("--drive", default=None, help="Drive at V,W (mm/s, deg/s) during --for; the robot stops after.")
 @click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
+@click.option("--laser", default=None, help="A laser of the robot's own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @view_options
 @handle_errors
-def connect(backend: str, address: str, drive: str | None, duration: float, view: bool, view_port: int,
-            view_host: str, view_speed: str | None) -> None:
+def connect(backend: str, address: str, drive: str | None, duration: float, laser: str | None,
+            laser_pose: str | None, view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line
     (with --view: its pose, laser, path and a map built from its scans in the browser)."""
+    from robotexp.laser_mount import check_laser_options
     from robotexp.robot import Twist
 
+    check_laser_options(laser, laser_pose)
     twist = None
     if drive is not None:
         try:
@@ -424,21 +530,23 @@ def connect(backend: str, address: str, drive: str | None, duration: float, view
     tty = sys.stdout.isatty()
     live = start_view(view, view_host, view_port, view_speed)
     try:
-        _connect_watch(backend, address, twist, duration, tty, live)
+        _connect_watch(backend, address, laser, laser_pose, twist, duration, tty, live)
     except BaseException:
         end_view(live, interrupted=True)
         raise
     end_view(live, interrupted=False)
 
 
-def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty: bool, live: Any) -> None:
+def _connect_watch(backend: str, address: str, laser: str | None, laser_pose: str | None, twist: Any,
+                   duration: float, tty: bool, live: Any) -> None:
     """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`."""
     import time
 
+    from robotexp.laser_mount import attach_laser
     from robotexp.registry import connect_robot
     from robotexp.view.watch import StateFeed
 
-    with connect_robot(backend, address) as robot:
+    with attach_laser(connect_robot(backend, address), laser, laser_pose) as robot:
         feed = None if live is None else StateFeed(live.hub, f"{backend} at {address}", robot.radius)
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))

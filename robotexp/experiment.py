@@ -24,6 +24,8 @@ from robotexp.record import EndReason, RunRecord
 from robotexp.registry import connect_robot, make_emulator, make_explorer
 from robotexp.results import ResultsWriter, map_image, run_id
 from robotexp.robot import Capability, Pose, Robot
+from robotexp.watch import RunWatch, StallWatch
+from robotexp.world.bounds import exploration_area, with_boundary_walls
 from robotexp.world.model import World
 from robotexp.world.poses import parse_pose, pose_name, resolve_pose
 
@@ -38,6 +40,9 @@ __all__ = ["RunSpec", "RunOutput", "RunPlan", "run_experiment", "run_on_robot", 
 
 DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
 MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
+MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
+MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
+MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
 
 
 @dataclass
@@ -57,14 +62,19 @@ class RunSpec:
     laser_sigma: float = 0.0            # [m] gaussian laser noise
     laser_uniform: float = 0.0          # [m] uniform laser noise half-width
     map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
-    #                                   (None: the world's bounds plus MAP_MARGIN)
+    #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
+    bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
-        if not (self.speed > 0 and math.isfinite(self.speed)):
-            raise ConfigError(f"speed must be > 0, got {self.speed * 1000:g} mm/s")
-        if not (self.laser_range > 0 and math.isfinite(self.laser_range)):
-            raise ConfigError(f"laser range must be > 0, got {self.laser_range * 1000:g} mm")
+        if not (0 < self.speed <= MAX_SPEED):
+            raise ConfigError(f"speed must be > 0 and at most {MAX_SPEED * 1000:g} mm/s, got "
+                              f"{self.speed * 1000:g} mm/s")
+        if not (0 < self.laser_range <= MAX_LASER_RANGE):
+            raise ConfigError(f"laser range must be > 0 and at most {MAX_LASER_RANGE * 1000:g} mm, got "
+                              f"{self.laser_range * 1000:g} mm")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise ConfigError(f"seed must be an integer 0..{MAX_SEED}, got {self.seed!r}")
         if self.cell is not None and not (0.005 <= self.cell <= 2.0):
             raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
         if not self.max_time > 0:
@@ -127,6 +137,7 @@ class RunPlan:
     pose_label: str
     geo: GridGeometry
     truth: GroundTruth
+    area: tuple[float, float, float, float] | None = None    # [m] the exploration area (None: the grid)
 
 
 def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explorer | None = None) -> RunPlan:
@@ -147,7 +158,14 @@ def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explore
     start, pose_label = resolve_pose(w, spec.pose, radius)
     cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
     assert w.bounds is not None
-    if spec.map_bounds is None:
+    area = exploration_area(w, spec.map_bounds)
+    if spec.map_bounds is None and area is not None:
+        # the area the map declares, grown to hold the start (a home placed in its margin)
+        r = radius + MAP_MARGIN
+        area = (min(area[0], start.x - r), min(area[1], start.y - r), max(area[2], start.x + r),
+                max(area[3], start.y + r))
+        geo = GridGeometry.covering(*area, cell=cell)
+    elif spec.map_bounds is None:
         geo = GridGeometry.covering(*w.bounds, cell=cell, margin=MAP_MARGIN)
     else:
         geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
@@ -155,8 +173,10 @@ def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explore
         if not (x0 <= start.x <= x1 and y0 <= start.y <= y1):
             raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
                               f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
+    if spec.bounds_wall and area is not None:
+        w = with_boundary_walls(w, area)
     truth = ground_truth(w, geo, robot_radius=radius, laser_range=spec.laser_range, start=start)
-    return RunPlan(explorer, w, start, pose_label, geo, truth)
+    return RunPlan(explorer, w, start, pose_label, geo, truth, area)
 
 
 def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
@@ -203,8 +223,10 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     sensors. The robot is stopped at the end, not closed.
 
     The loop's observers are, in order: the results writer (with `out`), the `on_sample`/`on_run`
-    callbacks, then `observers`. The record names the robot by `robot.model` and, when it has one,
-    its `address`; `record_extra` adds keys.
+    callbacks, the honest-endings watch (`robotexp.watch.RunWatch`: stall watch, exploration area,
+    an explorer's Done checked against the frontier left), then `observers`. The exploration area is
+    `spec.map_bounds`, else the map's declared area (`robotexp.world.bounds`). The record names the
+    robot by `robot.model` and, when it has one, its `address`; `record_extra` adds keys.
 
     Args:
         plan: the spec already planned in `world` for this robot (`plan_run`; default: planned here).
@@ -223,10 +245,11 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     truth = None
     goals: dict[str, list[tuple[float, float]]] = {}
     start_name = None
+    area = spec.map_bounds
     if world is not None:
         if plan is None:
             plan = plan_run(spec, world, robot.radius)
-        explorer, geo, truth = plan.explorer, plan.geo, plan.truth
+        explorer, geo, truth, area = plan.explorer, plan.geo, plan.truth, plan.area
         world_name, pose_label = plan.world.name, plan.pose_label
         goals, start_name = plan.world.goals, pose_name(plan.world, spec.pose)
         if Capability.MOVE_TO in robot.capabilities:
@@ -257,9 +280,10 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     chain: list[RunObserver] = [] if writer is None else [writer]
     if on_sample is not None or on_run is not None:
         chain.append(SampleCallback(on_sample, on_run))
+    chain.append(RunWatch(StallWatch(), area))         # honest endings: stalls, the area, "done" checked
     chain.extend(observers)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed, goals=goals,
-                         start_name=start_name, info=info, observers=chain)
+                         start_name=start_name, info=info, observers=chain, area=area)
     run.run()
     for observer, exc in run.observer_errors:
         if observer.critical:

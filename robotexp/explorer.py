@@ -16,7 +16,7 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
@@ -26,6 +26,7 @@ from robotexp.errors import ConfigError, RobotError
 from robotexp.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
+from robotexp.world.bounds import clip_scan
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
@@ -131,6 +132,8 @@ class ExplorationRun:
         start_name: the name of the start pose in the world, if any (ExplorerContext.start_name).
         info: what names the run in its record (default: `RunInfo()` with the explorer's class name).
         observers: told about each step, sample and the end (`robotexp.observers.RunObserver`).
+        area: [m] the exploration area (xmin, ymin, xmax, ymax): the explorer's scans end at its edge, as
+            at a wall (`robotexp.world.bounds.clip_scan`); the map integrates the real scans.
 
     After `run()`: `end` (an `EndReason`), `reason` (its text), `completed`, `metrics`, `record`
     (the `RunRecord`), `error` (the explorer's exception of a PLUGIN_ERROR end, else None) and
@@ -142,7 +145,8 @@ class ExplorationRun:
                  sample_period: float = 1.0, seed: int = 0,
                  on_sample: Callable[[float, float | None], None] | None = None,
                  goals: dict[str, list[tuple[float, float]]] | None = None, start_name: str | None = None,
-                 info: RunInfo | None = None, observers: Iterable[RunObserver] = ()) -> None:
+                 info: RunInfo | None = None, observers: Iterable[RunObserver] = (),
+                 area: tuple[float, float, float, float] | None = None) -> None:
         if not period > 0 or not max_time > 0 or not sample_period > 0:
             raise ConfigError(f"run: period, max_time and sample_period must be > 0 s, got "
                               f"{period}, {max_time}, {sample_period}")
@@ -166,6 +170,7 @@ class ExplorationRun:
         self.record: RunRecord | None = None
         self.error: Exception | None = None
         self._stop: tuple[str, EndReason] | None = None
+        self.area = area
 
     @property
     def observer_errors(self) -> list[tuple[RunObserver, Exception]]:
@@ -248,7 +253,9 @@ class ExplorationRun:
             elif self.robot_time >= self.max_time - slack:
                 self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
             else:
-                result = self._explorer_call(self.explorer.step, state, self.grid)
+                view = state if self.area is None or state.laser is None else \
+                    replace(state, laser=clip_scan(state.laser, state.pose, self.area))
+                result = self._explorer_call(self.explorer.step, view, self.grid)
                 if result is not _FAILED:
                     decision = result
                 if isinstance(decision, Done):
@@ -256,7 +263,8 @@ class ExplorationRun:
                     self.completed = True
                 elif decision is not None:
                     robot.command(decision)
-            notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
+            if self.observers.listening("on_step"):
+                notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
             if not isinstance(decision, Twist):
                 return
             clock.tick()

@@ -89,10 +89,20 @@ class Observers:
     def __init__(self, observers: Iterable[RunObserver] = ()) -> None:
         self.active: list[RunObserver] = list(observers)
         self.errors: list[tuple[RunObserver, Exception]] = []
+        self._listening: dict[str, bool] = {}
 
     def add(self, observer: RunObserver) -> None:
         """Append `observer`."""
         self.active.append(observer)
+        self._listening.clear()
+
+    def listening(self, hook: str) -> bool:
+        """True when an attached observer overrides `hook` (the loop skips building what nobody reads)."""
+        known = self._listening.get(hook)
+        if known is None:
+            base = getattr(RunObserver, hook)
+            known = self._listening[hook] = any(getattr(type(o), hook, base) is not base for o in self.active)
+        return known
 
     def notify(self, hook: str, *args: Any) -> None:
         """Call `hook` of every attached observer with `args`."""
@@ -104,6 +114,7 @@ class Observers:
                           type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
+                self._listening.clear()
 
     def end(self, run: ExplorationRun, record: RunRecord) -> None:
         """`on_end` of every observer still attached."""

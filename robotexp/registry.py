@@ -117,6 +117,11 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     from robotexp.explorer import Explorer
 
     cls = load(EXPLORERS, method, Explorer)
+    accepted = _parameter_names(cls)
+    unknown = [key for key in params if accepted is not None and key not in accepted]
+    if unknown:
+        listing = ", ".join(accepted) if accepted else "none"
+        raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
     params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
     try:
         return cls(**params)
@@ -125,6 +130,23 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
 
 
 _KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
+
+
+def _parameter_names(cls: type) -> list[str] | None:
+    """The keyword parameters of `cls` by name (None: it takes **kwargs, or has no signature to read)."""
+    import inspect
+
+    try:
+        sig = inspect.signature(cls)
+    except (TypeError, ValueError):
+        return None
+    names = []
+    for p in sig.parameters.values():
+        if p.kind is inspect.Parameter.VAR_KEYWORD:
+            return None
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY):
+            names.append(p.name)
+    return names
 
 
 def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:

@@ -16,7 +16,7 @@ import math
 import unicodedata
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -312,12 +312,53 @@ def _draw_title(draw: ImageDraw.ImageDraw, lay: MapLayout, title: str) -> None:
     draw.text((8, TITLE_HEIGHT // 2), text, fill=COLORS["text"], font=fnt, anchor="lm")
 
 
+CROP_MARGIN = 1.0       # [m] around the content of a cropped map image
+CROP_SLACK = 0.1        # a crop that changes no side by more than this share of it is not made
+
+
+def content_window(content: npt.NDArray[np.bool_], geo: GridGeometry, points: npt.NDArray[np.float64]
+                   ) -> GridGeometry:
+    """The grid window (same cells, maybe beyond `geo`) around the `content` cells and the finite
+    (k, 2) `points` [m], CROP_MARGIN wider; `geo` itself when that changes no side by more than
+    CROP_SLACK of it, or when there is no content at all."""
+    rc = np.argwhere(content)
+    pts = points[np.all(np.isfinite(points), axis=1)] if len(points) else points
+    if len(pts):
+        rc = np.vstack([rc, geo.cells_of(pts)])
+    if len(rc) == 0:
+        return geo
+    pad = int(math.ceil(CROP_MARGIN / geo.cell))
+    r0, c0 = rc.min(axis=0) - pad
+    r1, c1 = rc.max(axis=0) + pad + 1
+    # never more than 4 grids' worth of cells: a path to infinity is clipped, not drawn
+    r0, c0 = max(int(r0), -geo.rows), max(int(c0), -geo.cols)
+    r1, c1 = min(int(r1), 2 * geo.rows), min(int(c1), 2 * geo.cols)
+    if (max(abs(r0), abs(r1 - geo.rows)) <= CROP_SLACK * geo.rows
+            and max(abs(c0), abs(c1 - geo.cols)) <= CROP_SLACK * geo.cols):
+        return geo
+    return GridGeometry(geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell, geo.cell, r1 - r0, c1 - c0)
+
+
+def _reframe(values: npt.NDArray[np.generic], geo: GridGeometry, window: GridGeometry, fill: Any
+             ) -> npt.NDArray[np.generic]:
+    """`values` on `geo` copied into the cells of `window` (same cell size and lattice), `fill` elsewhere."""
+    out = np.full((window.rows, window.cols), fill, dtype=values.dtype)
+    dr = int(round((window.origin_y - geo.origin_y) / geo.cell))
+    dc = int(round((window.origin_x - geo.origin_x) / geo.cell))
+    r0, r1 = max(dr, 0), min(dr + window.rows, geo.rows)
+    c0, c1 = max(dc, 0), min(dc + window.cols, geo.cols)
+    if r0 < r1 and c0 < c1:
+        out[r0 - dr:r1 - dr, c0 - dc:c1 - dc] = values[r0:r1, c0:c1]
+    return out
+
+
 def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
                truth: npt.ArrayLike | None = None, path: npt.ArrayLike | None = None,
                start: Pose | None = None, end: Pose | None = None, scale: int | None = None,
                show_grid: bool = False, laser: npt.ArrayLike | None = None,
                vectors: npt.ArrayLike | None = None, potential: npt.ArrayLike | None = None,
-               title: str | None = None, max_size: int = 1400) -> Image.Image:
+               title: str | None = None, max_size: int = 1400,
+               content: npt.ArrayLike | None = None) -> Image.Image:
     """Draw an occupancy grid north-up with optional overlays, as an RGB image.
 
     Layers, bottom to top: states (unknown (205, 205, 205), free white, occupied black, values
@@ -341,10 +382,16 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
         potential: (rows, cols) float in [0, 1] drawn as a viridis-like colour map on free cells.
         title: a line of text above the map.
         max_size: [px] bound on the image size when `scale` is None.
+        content: bool (rows, cols) cells that matter (say, the known and the explorable ones): the
+            image shows the box around them, the path and the poses, `CROP_MARGIN` wider, when
+            that box differs from the grid by more than `CROP_SLACK` of a side (a foreign map with
+            unknown space around the building; a path leaving the grid: the box grows beyond it,
+            unknown there). Only without `vectors` and `potential`.
 
     Returns:
         An RGB `PIL.Image.Image`; `map_layout` with the same geo, scale, title and max_size gives
-        the placement of the map in it.
+        the placement of the map in it (with `content`, for the geo of the window drawn: see
+        `content_window`).
 
     Raises:
         ConfigError: an array of the wrong shape, a bad scale or max_size.
@@ -355,6 +402,16 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
                           f"{geo.cols} cols; render with the grid's own GridGeometry")
     if not np.issubdtype(grid.dtype, np.integer):
         raise ConfigError(f"render_map: states must be integers (-1/0/100), got dtype {grid.dtype}")
+    if content is not None and vectors is None and potential is None:
+        poses = [(p.x, p.y) for p in (start, end) if p is not None]
+        extra = np.vstack([_as_points("path", path) if path is not None else np.zeros((0, 2)),
+                           np.array(poses, dtype=np.float64).reshape(-1, 2)])
+        window = content_window(_check_field("content", content, geo) != 0, geo, extra)
+        if window != geo:
+            grid = _reframe(grid, geo, window, -1)
+            if truth is not None:
+                truth = _reframe(_check_field("truth", truth, geo) != 0, geo, window, False)
+            geo = window
     lay = map_layout(geo, scale=scale, title=title, max_size=max_size)
     grid = grid.astype(np.int16)
     free = (grid >= 0) & (grid < 50)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
     from robotexp.robot import Robot
-    from robotexp.lua.sandbox import PathPolicy
+    from robotexp.lua.sandbox import AddressPolicy, PathPolicy
     from robotexp.world.model import World
 
 __all__ = ["Session", "Control", "P3DX_PORT", "parse_address"]
@@ -151,15 +152,18 @@ class Session:
         robot: simulated robot preset (p3dx, kobuki).
         notice: prints a one-line notice for the user (stderr).
         script: the script's name, recorded with each run.
+        addresses: which robot addresses the script may open (default: any).
         observers: told about each of the script's runs (`robotexp run --view`).
     """
 
     def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
                  robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
-                 observers: Sequence[RunObserver] = ()) -> None:
+                 addresses: AddressPolicy | None = None, observers: Sequence[RunObserver] = ()) -> None:
         from robotexp.experiment import RunSpec
+        from robotexp.lua.sandbox import AddressPolicy
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
+        self.addresses = addresses if addresses is not None else AddressPolicy(False)
         self.observers = list(observers)               # told about every run (a live view)
         self.forced_world = world is not None
         self.spec = RunSpec(world=world or "dense", robot=robot)
@@ -359,6 +363,7 @@ class Session:
         Ignored (said once) when `robotexp run --world` was given: the script stays on the simulator.
         """
         (address,) = _args("robot.setAddress", "address", args, "s")
+        self.addresses.check(address, "robot.setAddress")
         target = parse_address(address)
         if target[0] != "sim" and self.forced_world and not self._told_forced:
             self.notice(f"robot.setAddress({address!r}): --world {self.spec.world} given, so the script "
@@ -466,8 +471,14 @@ class Session:
     def lua_exploration__setWorld(self, *args: Any) -> None:
         """A built-in world name, or a .map / .yaml file (relative to the output folder)."""
         (name,) = _args("exploration.setWorld", "name_or_file", args, "s")
-        if Path(name).suffix.lower() in (".map", ".yaml", ".yml"):
+        suffix = Path(name).suffix.lower()
+        if suffix in (".map", ".yaml", ".yml"):
             name = self.paths.resolve(name, "r", "exploration.setWorld")
+            if suffix != ".map" and self.paths.sandbox and Path(name).is_file():
+                from robotexp.world.rosmap import ros_image_path
+                # the image the YAML names must be inside the output folder too (checked before it is read)
+                image = os.path.abspath(ros_image_path(name))
+                self.paths.resolve(image, "r", f"exploration.setWorld({args[0]!r}): the map's image")
         self.finish()
         old = self.spec.world
         self.spec.world = name

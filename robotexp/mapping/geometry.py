@@ -3,12 +3,60 @@
 from __future__ import annotations
 
 import math
+import os
 from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["GridGeometry"]
+from robotexp.errors import ConfigError
+
+__all__ = ["BYTES_PER_CELL", "MAX_CELLS", "GridGeometry", "check_grid_size", "memory_limit"]
+
+# [bytes] what a run holds per map cell, about: the occupancy grid (values, stamps, states), the
+# ground truth (occupied, clearance, reachable, explorable, viewpoints) and a planner's float64
+# cost and distance grids with their temporaries
+BYTES_PER_CELL = 64
+MAX_CELLS = 25_000_000      # 50 x 50 m at 1 cm: beyond, the ground truth alone takes many minutes
+
+
+def memory_limit() -> int:
+    """[bytes] the most a run's grids may take: half of this machine's physical memory."""
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")) // 2
+    except (ValueError, OSError, AttributeError):
+        return 4 << 30
+
+
+def _human(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"    # pragma: no cover
+
+
+def check_grid_size(width: float, height: float, cell: float, what: str = "map") -> None:
+    """Refuse, before anything is allocated, a grid of `cell` [m] over `width` x `height` [m] of more
+    than `MAX_CELLS` cells or that cannot fit in `memory_limit()` at `BYTES_PER_CELL`.
+
+    Raises:
+        ConfigError: one line with the cell count and the memory it would need.
+    """
+    if not (math.isfinite(width) and math.isfinite(height) and width >= 0 and height >= 0):
+        raise ConfigError(f"{what}: extent {width:g} x {height:g} m is not finite, expected a map of "
+                          "finite size (check the map's coordinates, origin and resolution)")
+    if not (math.isfinite(cell) and cell > 0):
+        raise ConfigError(f"{what}: cell size {cell:g} m, expected a positive size")
+    cells = max(math.ceil(width / cell), 1.0) * max(math.ceil(height / cell), 1.0) if width / cell < 1e150 \
+        and height / cell < 1e150 else math.inf
+    need, memory = cells * BYTES_PER_CELL, memory_limit()
+    if need > memory or cells > MAX_CELLS:
+        limit = (f"limit {MAX_CELLS:.3g} cells" if need <= memory else
+                 f"limit {_human(memory)}, half of this machine's")
+        raise ConfigError(f"{what}: {width:.6g} x {height:.6g} m at cells of {cell * 1000:g} mm is {cells:.3g} "
+                          f"cells, which would need about {_human(need)} of memory ({limit}): use a larger "
+                          "cell or smaller bounds")
 
 
 class GridGeometry(NamedTuple):
@@ -27,7 +75,15 @@ class GridGeometry(NamedTuple):
     @classmethod
     def covering(cls, xmin: float, ymin: float, xmax: float, ymax: float, cell: float,
                  margin: float = 0.0) -> GridGeometry:
-        """The smallest grid of `cell`-sized cells, aligned on multiples of `cell`, over the box."""
+        """The smallest grid of `cell`-sized cells, aligned on multiples of `cell`, over the box.
+
+        Raises:
+            ConfigError: the box is not finite or the grid cannot fit in memory (`check_grid_size`).
+        """
+        check_grid_size(xmax - xmin + 2 * margin, ymax - ymin + 2 * margin, cell)
+        if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax, margin)):
+            raise ConfigError(f"map: bounds ({xmin:g}, {ymin:g}, {xmax:g}, {ymax:g}) m are not finite, "
+                              "expected finite coordinates")
         ox = math.floor((xmin - margin) / cell) * cell
         oy = math.floor((ymin - margin) / cell) * cell
         cols = int(math.ceil((xmax + margin - ox) / cell - 1e-9))

@@ -1,8 +1,11 @@
 """The pybullet side of the simulator: one DIRECT-mode physics client holding a world's obstacles.
 
-Static obstacles become static bodies (boxes and cylinders), movers are kinematic
-cylinders, and the robot a cylinder that is placed, never pushed: the robot's motion is integrated
-by `SimRobot` and pybullet answers the contact questions. Rays (laser, sonar) are cast against the
+Static obstacles become static bodies (boxes and cylinders) when the world asks for bodies (the
+built-in worlds); a world with `collision="index"` (map files: tens of thousands of boxes) gets no
+static body, and the robot is tested against its shapes exactly by `RayIndex.near` (distance from
+the robot's centre to each box or disc in the buckets around it). Movers are kinematic cylinders,
+and the robot a cylinder that is placed, never pushed: the robot's motion is integrated by
+`SimRobot` and pybullet answers the contact questions. Rays (laser, sonar) are cast against the
 same shapes by the exact kernel of `robotexp.sim.raycast`, which agrees with pybullet's ray test
 (checked by the tests) at a fraction of its cost; `rays="pybullet"` casts them with pybullet.
 """
@@ -76,6 +79,10 @@ class Engine:
         if rays not in ("exact", "pybullet"):
             raise ConfigError(f"sim: rays must be 'exact' or 'pybullet', got {rays!r}")
         self.rays = rays
+        self._bodies = world.collision == "bodies"
+        if not self._bodies and rays != "exact":
+            raise ConfigError(f"sim: world {world.name!r} has no pybullet bodies for its obstacles "
+                              "(collision 'index'): rays must be 'exact'")
         self._index = RayIndex(world.boxes, world.discs, WALL_HEIGHT) if rays == "exact" else None
         self._movers = np.array([[*m.position(0.0), m.radius, m.height] for m in world.movers],
                                 dtype=np.float64).reshape(-1, 4)
@@ -86,7 +93,9 @@ class Engine:
         self._robot_xy = (0.0, 0.0)
         self.statics: list[int] = []
         try:
-            self._add_statics(world)
+            if self._bodies:
+                self._add_statics(world)
+            self._static_set = frozenset(self.statics)
             shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=robot_radius, height=robot_height,
                                             physicsClientId=self.client)
             self.robot = pb.createMultiBody(0, shape, basePosition=[0, 0, self._robot_z],
@@ -123,7 +132,6 @@ class Engine:
                                             physicsClientId=self.client)
             self.statics.append(pb.createMultiBody(0, shape, basePosition=[cx, cy, WALL_HEIGHT / 2],
                                                    physicsClientId=self.client))
-        self._static_set = frozenset(self.statics)
 
     def place_robot(self, x: float, y: float) -> None:
         """Put the robot cylinder at (x, y) [m] (it is round: heading does not matter)."""
@@ -144,6 +152,12 @@ class Engine:
     def robot_near_obstacle(self, margin: float, include_movers: bool = True) -> bool:
         """True when an obstacle is within `margin` [m] of the robot cylinder."""
         x, y = self._robot_xy
+        if not self._bodies:
+            assert self._index is not None
+            if self._index.near(x, y, self._robot_radius + margin):
+                return True
+            return include_movers and any(pb.getClosestPoints(self.robot, body, margin, physicsClientId=self.client)
+                                          for body in self.movers)
         reach = self._robot_radius + margin + 1e-3
         near = pb.getOverlappingObjects([x - reach, y - reach, 0.0], [x + reach, y + reach, WALL_HEIGHT],
                                         physicsClientId=self.client) or ()

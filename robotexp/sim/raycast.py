@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from robotexp.mapping.kernels import kernel
 
-__all__ = ["RayIndex", "cast_rays"]
+__all__ = ["RayIndex", "cast_rays", "shapes_near"]
 
 MAX_BUCKETS = 1 << 20       # a bucket grid never exceeds this many cells
 
@@ -78,17 +78,24 @@ class RayIndex:
         c1 = np.clip(((hi[:, 0] - x0) // bucket).astype(np.int64), 0, cols - 1)
         r0 = np.clip(((lo[:, 1] - y0) // bucket).astype(np.int64), 0, rows - 1)
         r1 = np.clip(((hi[:, 1] - y0) // bucket).astype(np.int64), 0, rows - 1)
-        cells: list[np.ndarray] = []
-        owners: list[np.ndarray] = []
-        for k in range(len(shapes)):
-            rr, cc = np.meshgrid(np.arange(r0[k], r1[k] + 1), np.arange(c0[k], c1[k] + 1), indexing="ij")
-            cells.append((rr * cols + cc).ravel())
-            owners.append(np.full(rr.size, k, dtype=np.int64))
-        cell = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
-        owner = np.concatenate(owners) if owners else np.zeros(0, dtype=np.int64)
+        # one (bucket, shape) pair per bucket a shape's bounds overlap, shape by shape (vectorised:
+        # maps of 10^5 boxes)
+        n = len(shapes)          # lo and hi have one dummy row when there is no shape
+        r0, r1, c0, c1 = r0[:n], r1[:n], c0[:n], c1[:n]
+        n_r, n_c = r1 - r0 + 1, c1 - c0 + 1
+        count = n_r * n_c
+        owner = np.repeat(np.arange(len(shapes), dtype=np.int64), count)
+        local = np.arange(int(count.sum()), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
+        cell = (np.repeat(r0, count) + local // np.repeat(n_c, count)) * cols \
+            + np.repeat(c0, count) + local % np.repeat(n_c, count)
         order = np.argsort(cell, kind="stable")
         self.items = owner[order]
         self.starts = np.searchsorted(cell[order], np.arange(rows * cols + 1)).astype(np.int64)
+
+    def near(self, x: float, y: float, reach: float) -> bool:
+        """True when a shape lies within `reach` [m] of the point (x, y) [m] (touching counts)."""
+        return bool(shapes_near(self.shapes, self.starts, self.items, self.origin[0], self.origin[1], self.bucket,
+                                self.rows, self.cols, float(x), float(y), float(reach)))
 
     def cast(self, origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64], reach: float, z: float,
              movers: npt.NDArray[np.float64] | None = None) -> npt.NDArray[np.float64]:
@@ -216,3 +223,33 @@ def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64
                         if r < 0 or r >= rows:
                             break
         out[i] = best / reach if best < reach else 1.0
+
+
+@kernel
+def _shape_distance(kind: float, cx: float, cy: float, a: float, b: float, c: float, s: float,
+                    x: float, y: float) -> float:
+    """Distance [m] from the point (x, y) to the shape (0 inside it)."""
+    px, py = x - cx, y - cy
+    if kind == 0.0:
+        lx, ly = abs(c * px + s * py), abs(-s * px + c * py)
+        return math.hypot(max(lx - a, 0.0), max(ly - b, 0.0))
+    return max(math.hypot(px, py) - a, 0.0)
+
+
+@kernel
+def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
+                gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float, reach: float) -> bool:
+    """True when a shape of the bucket grid (see `cast_rays`) lies within `reach` [m] of (x, y) [m]."""
+    c0 = max(int(math.floor((x - reach - gx) / bucket)), 0)
+    c1 = min(int(math.floor((x + reach - gx) / bucket)), cols - 1)
+    r0 = max(int(math.floor((y - reach - gy) / bucket)), 0)
+    r1 = min(int(math.floor((y + reach - gy) / bucket)), rows - 1)
+    for r in range(r0, r1 + 1):
+        for cc in range(c0, c1 + 1):
+            cell = r * cols + cc
+            for j in range(starts[cell], starts[cell + 1]):
+                k = items[j]
+                if _shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
+                                   shapes[k, 5], shapes[k, 6], x, y) <= reach:
+                    return True
+    return False

@@ -65,6 +65,11 @@ class World:
     `boxes` is (n, 5) float64 [cx, cy, half_x, half_y, yaw]; `discs` is (m, 3) [cx, cy, r];
     `bounds` is (xmin, ymin, xmax, ymax) [m] and encloses every obstacle; `poses` are named start
     poses in insertion order; `goals` are named waypoint lists for goal-following explorers.
+    `declared` is the area a map file declares (a `.map`'s MinPos..MaxPos and LineMinPos..LineMaxPos,
+    a ROS map's image extent), None when it declares none. `collision` says how the simulator tests
+    the robot against the static obstacles: "bodies" (one pybullet body per obstacle, the built-in
+    worlds) or "index" (an exact disc-to-shape test over the ray caster's buckets, no pybullet
+    body: maps of tens of thousands of boxes load in seconds).
     """
 
     name: str
@@ -77,10 +82,14 @@ class World:
     source: str = "builtin"
     description: str = ""
     home: Pose | None = None             # a .map file's RobotHome cairn
+    declared: tuple[float, float, float, float] | None = None
+    collision: str = "bodies"
 
     def __post_init__(self) -> None:
         self.boxes = np.asarray(self.boxes, dtype=np.float64).reshape(-1, 5)
         self.discs = np.asarray(self.discs, dtype=np.float64).reshape(-1, 3)
+        if self.collision not in ("bodies", "index"):
+            raise WorldError(f"world {self.name!r}: collision must be 'bodies' or 'index', got {self.collision!r}")
         if self.bounds is None:
             self.bounds = self.obstacle_bounds()
 

@@ -5,21 +5,22 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 
-from robotexp.errors import ConfigError, WorldError
-from robotexp.mapping.geometry import GridGeometry
+from robotexp.errors import ConfigError
 from robotexp.robot import Pose
 from robotexp.world.model import World
 
 __all__ = ["parse_pose", "resolve_pose", "pose_name", "pose_text", "central_free_pose"]
 
 
+POSE_LIMIT_MM = 1e7     # [mm] |x|, |y| of a pose given as numbers (10 km: larger is a typo or an attack)
+
+
 def parse_pose(text: str) -> Pose:
     """Parse "x,y,theta" (mm, mm, degrees; theta optional) into a Pose in SI units.
 
     Raises:
-        ConfigError: not two or three finite numbers.
+        ConfigError: not two or three finite numbers, |x| or |y| over `POSE_LIMIT_MM`, or |theta| over 360 degrees.
     """
     parts = text.split(",")
     try:
@@ -32,6 +33,9 @@ def parse_pose(text: str) -> Pose:
     except ValueError:
         raise ConfigError(f"pose {text!r}: expected a pose name or x,y,theta in mm, mm, degrees "
                           "(e.g. -5000,7500,0)") from None
+    if max(abs(x), abs(y)) > POSE_LIMIT_MM or abs(th) > 360:
+        raise ConfigError(f"pose {text!r}: x and y must be within +-{POSE_LIMIT_MM:.0f} mm and theta within "
+                          "+-360 degrees")
     return Pose(x / 1000, y / 1000, math.radians(th))
 
 
@@ -44,7 +48,7 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
     """The start pose and its label: a named pose, "x,y,theta", or the default.
 
     The default is the world's `home` (a .map file's RobotHome cairn), else its first named pose,
-    else the free cell nearest the map's centre where a robot of `radius` [m] fits.
+    else a point well inside the largest region where a robot of `radius` [m] fits.
 
     Raises:
         WorldError: an unknown pose name (the message lists the world's), or no place for the robot.
@@ -73,22 +77,13 @@ def pose_name(world: World, pose: str | None) -> str | None:
 
 
 def central_free_pose(world: World, radius: float) -> Pose:
-    """The free cell (5 cm grid) nearest the centre of `world` where a robot of `radius` [m] fits.
+    """The default start of a world that names none: a point well inside the largest region where a
+    robot of `radius` [m] fits (`robotexp.world.start.default_start`; the name is from the time it
+    was the free cell nearest the map's centre).
 
     Raises:
         WorldError: the robot fits nowhere.
     """
-    from robotexp.mapping.groundtruth import occupancy
-    from robotexp.planning.grid_planner import distance_transform
+    from robotexp.world.start import default_start
 
-    assert world.bounds is not None
-    geo = GridGeometry.covering(*world.bounds, cell=0.05)
-    occ = occupancy(world, geo)
-    clear = distance_transform(occ) * geo.cell > radius + geo.cell
-    cells = np.argwhere(clear)
-    if cells.size == 0:
-        raise WorldError(f"world {world.name!r}: no place where a robot of radius {radius} m fits")
-    cr, cc = geo.rows / 2, geo.cols / 2
-    r, c = cells[int(np.argmin((cells[:, 0] - cr) ** 2 + (cells[:, 1] - cc) ** 2))]
-    x, y = geo.center_of(int(r), int(c))
-    return Pose(x, y, 0.0)
+    return default_start(world, radius).pose

@@ -28,7 +28,7 @@ from robotexp.errors import ConfigError, WorldError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.world.model import World
 
-__all__ = ["load_ros_grid", "load_ros_world", "merge_cells", "save_ros_map"]
+__all__ = ["load_ros_grid", "load_ros_world", "merge_cells", "save_ros_map", "world_from_grid"]
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +38,8 @@ _KEY = re.compile(r"([A-Za-z_][\w.-]*)[ \t]*:(?:[ \t]+(.*))?$")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _PLAIN_NAME = re.compile(r"[\w./-]+", re.ASCII)
 _FREE, _UNKNOWN, _OCCUPIED = 254, 205, 0     # ROS 1 map_saver pixel values
+MIN_RESOLUTION = 1e-4       # [m/pixel] 0.1 mm: finer is a corrupted file
+MAX_COORD = 1e6             # [m] 1000 km: a map reaching farther is a corrupted file
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,8 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
 
     Raises:
         WorldError: the YAML or the image cannot be read, a required key is missing, a number
-            is malformed, `origin` is not 3 numbers or has a non-zero yaw, `resolution <= 0`,
+            is malformed, `origin` is not 3 numbers or has a non-zero yaw, `resolution` is outside
+            [MIN_RESOLUTION, MAX_COORD] or the map reaches beyond +-MAX_COORD,
             thresholds are outside [0, 1] or `free_thresh >= occupied_thresh`, `negate` or
             `mode` is unknown. The message names the file, the line and the key.
     """
@@ -73,10 +76,13 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
             raise WorldError(f"{src}: missing key {key!r}, expected the map_server keys "
                              f"{', '.join(_REQUIRED)} (and optionally mode)")
     resolution = _number(entries, "resolution", src)
-    if not resolution > 0:
-        raise WorldError(f"{src}:{entries['resolution'].line}: key 'resolution': {resolution} <= 0, "
-                         "expected a positive cell size [m/pixel]")
+    if not MIN_RESOLUTION <= resolution <= MAX_COORD:
+        raise WorldError(f"{src}:{entries['resolution'].line}: key 'resolution': {resolution:g} m/pixel is out of "
+                         f"range, expected a cell size from {MIN_RESOLUTION:g} m to {MAX_COORD:g} m")
     origin = _origin(entries, src)
+    if not all(abs(v) <= MAX_COORD for v in origin):
+        raise WorldError(f"{src}:{entries['origin'].line}: key 'origin': ({origin[0]:g}, {origin[1]:g}) m is beyond "
+                         f"+-{MAX_COORD:g} m, expected coordinates of a building")
     occupied = _number(entries, "occupied_thresh", src)
     free = _number(entries, "free_thresh", src)
     for key, value in (("occupied_thresh", occupied), ("free_thresh", free)):
@@ -106,6 +112,12 @@ def load_ros_grid(yaml_path: str | os.PathLike[str]
     if mode == "scale" and opaque is not None:
         values[~opaque] = -1
     values = np.ascontiguousarray(values[::-1])
+    extent = max(values.shape) * resolution
+    if not all(abs(v) + extent <= MAX_COORD for v in origin):
+        raise WorldError(f"{src}:{entries['resolution'].line}: the map reaches {extent:g} m from its origin "
+                         f"({values.shape[1]} x {values.shape[0]} pixels of {resolution:g} m), "
+                         f"beyond +-{MAX_COORD:g} m: "
+                         "expected the resolution of a building map [m/pixel]")
     geo = GridGeometry(origin[0], origin[1], resolution, values.shape[0], values.shape[1])
     return values, geo
 
@@ -127,21 +139,33 @@ def load_ros_world(yaml_path: str | os.PathLike[str]) -> World:
         WorldError: as `load_ros_grid`, or the map has no occupied or unknown cell at all.
     """
     values, geo = load_ros_grid(yaml_path)
+    return world_from_grid(values, geo, name=Path(yaml_path).stem, source=str(yaml_path),
+                           what=f"ROS map {Path(yaml_path).name}")
+
+
+def world_from_grid(values: npt.NDArray[np.int8], geo: GridGeometry, *, name: str, source: str,
+                    what: str) -> World:
+    """The `World` of an occupancy grid (as `load_ros_world`): occupied (>= 50) and unknown (< 0)
+    cells merged into boxes, bounds and declared area the grid's extent, collision "index".
+
+    Raises:
+        WorldError: the grid has no occupied or unknown cell at all.
+    """
     blocked = (values < 0) | (values >= 50)
     rects = merge_cells(blocked)
     if len(rects) == 0:
-        raise WorldError(f"{yaml_path}: the map has no occupied or unknown cell, expected walls "
+        raise WorldError(f"{source}: the map has no occupied or unknown cell, expected walls "
                          "(the simulated robot would drive off the map)")
     r0, r1, c0, c1 = (rects[:, i].astype(np.float64) for i in range(4))
     cell = geo.cell
     boxes = np.column_stack([geo.origin_x + (c0 + c1) / 2 * cell, geo.origin_y + (r0 + r1) / 2 * cell,
                              (c1 - c0) / 2 * cell, (r1 - r0) / 2 * cell, np.zeros(len(rects))])
     bounds = (geo.origin_x, geo.origin_y, geo.origin_x + geo.width, geo.origin_y + geo.height)
-    description = (f"ROS map {Path(yaml_path).name}: {geo.cols} x {geo.rows} cells of {cell:g} m, "
+    description = (f"{what}: {geo.cols} x {geo.rows} cells of {cell:g} m, "
                    f"{int(np.count_nonzero(values >= 50))} occupied, "
                    f"{int(np.count_nonzero(values < 0))} unknown, {len(rects)} boxes")
-    return World(name=Path(yaml_path).stem, boxes=boxes, bounds=bounds, source=str(yaml_path),
-                 description=description)
+    return World(name=name, boxes=boxes, bounds=bounds, source=source, description=description,
+                 declared=bounds, collision="index")
 
 
 def merge_cells(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
@@ -427,3 +451,21 @@ def _classify(shade: npt.NDArray[np.float64], mode: str, negate: bool, free: flo
     values[p > occupied] = 100
     values[p < free] = 0
     return values
+
+
+def ros_image_path(yaml_path: str | os.PathLike[str]) -> Path:
+    """The image file a map YAML names (its `image` key, relative to the YAML's folder), unread.
+
+    Lets a caller check where the image is before `load_ros_grid` reads it (the Lua sandbox).
+
+    Raises:
+        WorldError: the YAML cannot be read or parsed, or has no non-empty `image` key.
+    """
+    src = str(yaml_path)
+    entries = _parse_yaml(_read_text(Path(yaml_path), src), src)
+    if "image" not in entries:
+        raise WorldError(f"{src}: missing key 'image', expected the map_server keys {', '.join(_REQUIRED)}")
+    image = _scalar(entries["image"], "image", src)
+    if not image:
+        raise WorldError(f"{src}:{entries['image'].line}: key 'image' is empty, expected an image file name")
+    return Path(yaml_path).parent / image

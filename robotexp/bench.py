@@ -1,0 +1,147 @@
+"""`robotexp bench`: explorers over many maps (files, folders, generated worlds), one table.
+
+Every map is run from its default start pose with every method (through the campaign runner:
+parallel processes, `--resume`), then a row per run (coverage, path, robot time, end reason,
+success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
+A run succeeds (issue 12's "Done when") when it reached `SUCCESS_COVERAGE` of the explorable space
+with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
+leaving the exploration area. A `stalled` end (the loop's stall watch) is on its own and counts
+when its coverage does; the table shows every end reason, and the summary counts the runs whose
+explorer said it was done (`completed`) apart.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+from robotexp.errors import ConfigError, WorldError
+from robotexp.experiment import RunSpec
+
+__all__ = ["SUCCESS_COVERAGE", "bench_specs", "bench_table", "expand_maps", "success"]
+
+SUCCESS_COVERAGE = 0.95
+_MAP_SUFFIXES = (".map", ".yaml", ".yml")
+COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
+
+
+def expand_maps(items: Iterable[str]) -> list[str]:
+    """World specs of `items`: a folder gives its `.map` / `.yaml` files (sorted), `generated:KIND:A-B`
+    one spec per seed, anything else itself (a file or a built-in name, checked when loaded).
+
+    Raises:
+        WorldError: a folder without maps, a missing path, a malformed generated spec.
+    """
+    from robotexp.world.generate import expand_generated
+
+    out: list[str] = []
+    for item in items:
+        path = Path(item)
+        if item.startswith("generated:"):
+            out += expand_generated(item)
+        elif path.is_dir():
+            found = sorted(str(p) for p in path.iterdir() if p.suffix.lower() in _MAP_SUFFIXES and p.is_file())
+            if not found:
+                raise WorldError(f"{item}: no .map or .yaml map in this folder, expected map files")
+            out += found
+        elif path.suffix.lower() in _MAP_SUFFIXES and not path.is_file():
+            raise WorldError(f"{item}: no such map file")
+        else:
+            out.append(str(path.resolve()) if path.suffix.lower() in _MAP_SUFFIXES else item)
+    return out
+
+
+def bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
+                max_time: float = 4 * 3600.0, seed: int = 0,
+                load: Callable[[str], Any] | None = None) -> list[RunSpec]:
+    """One `RunSpec` per map and method (default start pose), every map loaded once first so that a
+    bad one is reported before any run starts.
+
+    Raises:
+        WorldError, PluginError, ConfigError: a map that does not load, an unknown method.
+    """
+    from robotexp.experiment import make_explorer
+    from robotexp.world.loader import load_world
+
+    if not maps or not methods:
+        raise ConfigError("bench: give at least one map and one method")
+    for method in methods:
+        make_explorer(method, {})
+    for spec in maps:
+        (load or load_world)(spec)
+    specs = [RunSpec(world=m, method=method, pose=None, speed=speed, laser_range=laser_range, seed=seed,
+                     max_time=max_time) for m in maps for method in methods]
+    for s in specs:
+        s.validate()
+    return specs
+
+
+def success(record: dict[str, Any]) -> bool:
+    """True when the run covered SUCCESS_COVERAGE, never collided and ended on its own (see the module)."""
+    from robotexp.record import EndReason
+
+    cov = record.get("coverage")
+    end = EndReason.classify(bool(record.get("completed")), str(record.get("reason", "")))
+    own = end in (EndReason.EXPLORED, EndReason.STALLED) or (
+        end is EndReason.STOPPED and "left the exploration area" not in str(record.get("reason", "")))
+    return own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
+
+
+def _map_name(record: dict[str, Any]) -> str:
+    spec = str(record.get("world_spec") or record.get("world"))
+    return spec if spec.startswith("generated:") else Path(spec).name
+
+
+def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
+    """(text, csv) of the runs (sorted by map and method) and the success rate per method."""
+    rows = sorted(records, key=lambda r: (_map_name(r), str(r.get("method"))))
+    table = []
+    for r in rows:
+        cov = r.get("coverage")
+        table.append({"map": _map_name(r), "method": r.get("method"),
+                      "coverage": "" if cov is None else f"{cov:.4f}",
+                      "path_m": f"{r.get('path_length_m', 0.0):.1f}",
+                      "robot_time_s": f"{r.get('robot_time_s', 0.0):.0f}",
+                      "collisions": str(r.get("collisions")), "completed": str(bool(r.get("completed"))).lower(),
+                      "reason": str(r.get("reason", "")), "success": "yes" if success(r) else "no"})
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(table)
+    width = max([len(t["map"]) for t in table] + [3])
+    lines = [f"{'map':<{width}}  {'method':<12} {'coverage':>8} {'path m':>8} {'time s':>7} {'coll':>4} "
+             f"{'ok':>3}  end reason"]
+    for t in table:
+        lines.append(f"{t['map']:<{width}}  {t['method']:<12} {t['coverage']:>8} {t['path_m']:>8} "
+                     f"{t['robot_time_s']:>7} {t['collisions']:>4} {t['success']:>3}  {t['reason']}")
+    lines.append("")
+    lines.append(f"per method: success (coverage >= {SUCCESS_COVERAGE}, no collision, ended on its own: not by the "
+                 "time limit or an error), and runs the explorer itself completed")
+    by_method: dict[str, list[tuple[bool, bool]]] = {}
+    for r in rows:
+        by_method.setdefault(str(r.get("method")), []).append((success(r), bool(r.get("completed"))))
+    for method, res in sorted(by_method.items()):
+        ok, done = sum(a for a, _ in res), sum(b for _, b in res)
+        lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
+    return "\n".join(lines) + "\n", buf.getvalue()
+
+
+def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
+              max_time: float = 4 * 3600.0,
+              progress: Callable[[int, int, dict[str, Any] | None], None] | None = None) -> tuple[str, str]:
+    """Run every map x method (see `bench_specs`) through the campaign runner into `out`, write
+    `bench.txt` and `bench.csv` there from every record in `out/results.jsonl`, return (text, csv)."""
+    from robotexp.campaign import Campaign, run_campaign
+    from robotexp.results import read_jsonl
+
+    specs = bench_specs(expand_maps(maps), methods, max_time=max_time)
+    run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
+    wanted = {(s.world, s.method) for s in specs}
+    records = [r for r in read_jsonl(out / "results.jsonl") if (r.get("world_spec"), r.get("method")) in wanted]
+    text, table = bench_table(records)
+    (out / "bench.txt").write_text(text, encoding="utf-8")
+    (out / "bench.csv").write_text(table, encoding="utf-8")
+    return text, table

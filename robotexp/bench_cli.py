@@ -1,0 +1,45 @@
+"""`robotexp bench MAPS... --methods ...`: the map benchmark's command (see `robotexp.bench`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from robotexp.errors import ConfigError, PluginError, WorldError
+
+__all__ = ["bench"]
+
+
+@click.command()
+@click.argument("maps", nargs=-1, required=True)
+@click.option("--methods", "-m", default="frontier,bvp", show_default=True, help="Comma-separated explorers.")
+@click.option("--jobs", "-j", type=click.IntRange(min=1), default=None, help="Parallel runs (default: all cores).")
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out/bench"),
+              show_default=True, help="Output folder (results.jsonl, bench.txt, bench.csv, images).")
+@click.option("--max-time", type=click.FloatRange(min=1.0), default=4 * 3600.0, show_default=True,
+              help="Robot-time limit per run [s] (a run stopped by it is no success).")
+@click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+def bench(maps: tuple[str, ...], methods: str, jobs: int | None, out: Path, max_time: float, resume: bool) -> None:
+    """Run explorers over MAPS (map files, folders of them, built-in names, generated:KIND:A-B) from each
+    map's default start; print per map and method coverage, path, robot time, end reason and success,
+    then the success rate per method (also bench.txt and bench.csv in --out)."""
+    from robotexp.bench import run_bench
+
+    def progress(done: int, total: int, record: dict[str, Any] | None) -> None:
+        if record is not None:
+            click.echo(f"{done}/{total} {record['run']}: coverage {record['coverage']}, {record['reason']}", err=True)
+
+    try:
+        text, _ = run_bench(list(maps), [m.strip() for m in methods.split(",") if m.strip()], out,
+                            jobs=jobs or os.cpu_count() or 1, resume=resume, max_time=max_time, progress=progress)
+    except (ConfigError, WorldError, PluginError) as exc:
+        from robotexp.cli import _fail     # here, not at import: robotexp.cli imports this module
+        _fail(str(exc), 2)
+    except KeyboardInterrupt:
+        click.echo("robotexp: interrupted", err=True)
+        sys.exit(130)
+    click.echo(text, nl=False)

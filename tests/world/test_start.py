@@ -1,0 +1,76 @@
+"""The default start pose: in the largest region the robot fits, well inside it, never a closet."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robotexp.errors import WorldError
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.groundtruth import ground_truth
+from robotexp.world.model import World, segment_box
+from robotexp.world.start import WELL_INSIDE, default_start
+
+
+def walls(*segments: tuple[float, float, float, float], t: float = 0.1) -> list[tuple[float, ...]]:
+    return [segment_box(*s, t) for s in segments]
+
+
+ROOM = [(0, 0, 10, 0), (10, 0, 10, 8), (10, 8, 0, 8), (0, 8, 0, 0)]
+# a closed 1.6 x 1.6 m closet around the map's centre (5, 4)
+CLOSET = [(4.2, 3.2, 5.8, 3.2), (5.8, 3.2, 5.8, 4.8), (5.8, 4.8, 4.2, 4.8), (4.2, 4.8, 4.2, 3.2)]
+
+
+def test_the_start_is_in_the_big_room_not_in_the_closet_at_the_centre():
+    world = World("closet", walls(*ROOM, *CLOSET))
+    choice = default_start(world, 0.25)
+    p = choice.pose
+    assert not (4.2 < p.x < 5.8 and 3.2 < p.y < 4.8)
+    assert choice.regions == 2 and not choice.edge
+    # the big room: 9.9 x 7.9 m minus the closet's 1.7 x 1.7, shrunk by 0.3 m on every face
+    assert choice.area == pytest.approx(9.3 * 7.3 - 2.3 * 2.3, rel=0.03)
+    # well inside: at least WELL_INSIDE from every wall
+    boxes = world.boxes
+    d = min(abs(p.x - 0.05), abs(9.95 - p.x), abs(p.y - 0.05), abs(7.95 - p.y))
+    assert d >= WELL_INSIDE - 0.05
+    assert not (4.2 - WELL_INSIDE < p.x < 5.8 + WELL_INSIDE and 3.2 - WELL_INSIDE < p.y < 4.8 + WELL_INSIDE)
+    assert len(boxes) == 8
+    # coverage counts what the robot reaches from there: the room around the closet, not the closet
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.2)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=p)
+    r, c = geo.cell_of(5.0, 4.0)
+    assert not truth.explorable[r, c] and truth.reachable[geo.cell_of(1.0, 1.0)]
+    assert "largest of 2 regions" in choice.describe()
+
+
+def test_regions_that_reach_the_map_edge_are_left_out_when_a_closed_one_exists():
+    # a closed 3 x 3 m room and, beside it, a larger U open to the map's edge
+    world = World("open", walls((0, 0, 3, 0), (3, 0, 3, 3), (3, 3, 0, 3), (0, 3, 0, 0),
+                                (4, 0, 12, 0), (12, 0, 12, 6), (4, 0, 4, 6)))
+    choice = default_start(world, 0.25)
+    assert 0 < choice.pose.x < 3 and 0 < choice.pose.y < 3 and not choice.edge
+    only_open = World("u", walls((4, 0, 12, 0), (12, 0, 12, 6), (4, 0, 4, 6)))
+    choice = default_start(only_open, 0.25)
+    assert choice.edge and "outline not closed" in choice.describe()
+
+
+def test_nowhere_to_fit_is_one_clear_error():
+    world = World("tight", walls((0, 0, 0.4, 0), (0.4, 0, 0.4, 0.4), (0.4, 0.4, 0, 0.4), (0, 0.4, 0, 0)))
+    with pytest.raises(WorldError, match="no place where a robot of radius 0.25 m fits"):
+        default_start(world, 0.25)
+
+
+def test_the_start_is_deterministic_and_free_on_generated_maps():
+    from robotexp.world.generate import generated_world
+
+    world = generated_world("office", 1, scanned=True)
+    a, b = default_start(world, 0.25), default_start(world, 0.25)
+    assert a == b
+    from robotexp.mapping.kernels import clearance_mask, flood8
+
+    geo = GridGeometry.covering(*world.bounds, cell=0.1)
+    from robotexp.mapping.groundtruth import occupancy
+    fits = clearance_mask(occupancy(world, geo), 0.25 / geo.cell)
+    reach = flood8(fits, *geo.cell_of(a.pose.x, a.pose.y))
+    # the region holds the building's floor: much of the 30 x 20 m
+    assert np.count_nonzero(reach) * geo.cell ** 2 > 0.4 * 30 * 20
