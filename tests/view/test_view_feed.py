@@ -96,3 +96,13 @@ def test_hub_commands_follow_controls() -> None:
     for cmd in ("pause", "resume", "step", "speed", "stop", "rm -rf"):
         hub.command({"cmd": cmd})
     assert [g["cmd"] for g in got] == ["pause", "resume", "stop"]
+
+
+def test_potential_levels_log_scale_on_free_cells() -> None:
+    from robotexp.view.observer import potential_levels
+
+    # 1 - p = 1e-1, 1e-3, 1e-5 on three free cells: equal steps on the log scale; the rest not drawn
+    p = np.array([[1 - 1e-1, 1 - 1e-3, 1 - 1e-5, 0.5, 1.0]])
+    free = np.array([[True, True, True, False, True]])
+    assert potential_levels(p, free).tolist() == [[0, 127, 254, 255, 254]]
+    assert potential_levels(p, np.zeros_like(free)).tolist() == [[255] * 5]

@@ -68,7 +68,7 @@
     const T = transform();
     ctx.imageSmoothingEnabled = false;
     if (S.mapCanvas) ctx.drawImage(S.mapCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
-    if (S.potCanvas) { ctx.globalAlpha = 0.55; ctx.drawImage(S.potCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
+    if (S.potCanvas) { ctx.globalAlpha = 0.7; ctx.drawImage(S.potCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
                        ctx.globalAlpha = 1; }
     const lw = Math.max(1, canvas.width / 700);
     const ov = S.overlays || {};
@@ -206,7 +206,7 @@
           (v) => (v === 255 ? [0, 0, 0, 0] : [...viridis(v / 254), 255]));
       } else S.potCanvas = null;
       const extra = [];
-      if (pot) extra.push("potential: viridis, 0 (goal) → 1 (obstacle)");
+      if (pot) extra.push("potential (log scale): goal purple → far yellow");
       if (msg.overlays.points) extra.push(...Object.keys(msg.overlays.points));
       if (msg.overlays.circles) extra.push(...Object.keys(msg.overlays.circles));
       $("legend-extra").textContent = extra.join(" · ");
