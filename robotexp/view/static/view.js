@@ -83,6 +83,15 @@
       }
       ctx.stroke();
     }
+    if (ov.polygons) for (const polys of Object.values(ov.polygons)) {
+      ctx.strokeStyle = "rgba(10,138,90,0.6)"; ctx.fillStyle = "rgba(10,138,90,0.10)"; ctx.lineWidth = lw;
+      for (const p of polys) {
+        if (p.length < 6) continue;
+        ctx.beginPath(); ctx.moveTo(T.px(p[0]), T.py(p[1]));
+        for (let i = 2; i < p.length; i += 2) ctx.lineTo(T.px(p[i]), T.py(p[i + 1]));
+        ctx.closePath(); ctx.fill(); ctx.stroke();
+      }
+    }
     if (ov.circles) for (const [name, c] of Object.entries(ov.circles)) {
       ctx.strokeStyle = name.includes("region") ? "rgba(10,138,90,0.55)" : "#0a8a5a";
       ctx.fillStyle = "rgba(10,138,90,0.08)"; ctx.lineWidth = lw;
@@ -97,9 +106,10 @@
     }
     if (ov.points) for (const [name, p] of Object.entries(ov.points)) {
       ctx.fillStyle = name.includes("node") ? "#0a8a5a" : "#b000b0";
+      ctx.strokeStyle = "#fff"; ctx.lineWidth = lw;
       const r = Math.max(3, 0.12 * T.k);
       for (let i = 0; i < p.length; i += 2) {
-        ctx.beginPath(); ctx.arc(T.px(p[i]), T.py(p[i + 1]), r, 0, 2 * Math.PI); ctx.fill();
+        ctx.beginPath(); ctx.arc(T.px(p[i]), T.py(p[i + 1]), r, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
       }
     }
     drawPath(T);
@@ -209,6 +219,8 @@
       if (pot) extra.push("potential (log scale): goal purple → far yellow");
       if (msg.overlays.points) extra.push(...Object.keys(msg.overlays.points));
       if (msg.overlays.circles) extra.push(...Object.keys(msg.overlays.circles));
+      if (msg.overlays.polygons) extra.push(...Object.keys(msg.overlays.polygons));
+      if (msg.overlays.lines) extra.push(...Object.keys(msg.overlays.lines));
       $("legend-extra").textContent = extra.join(" · ");
     }
     if (msg.speedup != null) $("speedup").textContent = `${msg.speedup.toFixed(1)}×`;
