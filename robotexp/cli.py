@@ -163,6 +163,12 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
               help="Laser noise: uniform in +-MM (the UFMG study: 100).")
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
+@click.option("--odometry-error", default="none", show_default=True,
+              help="Simulated odometry error: none, p3dx, kobuki, or key=value,... (mismatch, slip, drift "
+                   "[deg/m], servo); a preset:key=value,... overrides its values.")
+@click.option("--localize", type=click.Choice(["auto", "none", "scan-match"]), default="auto", show_default=True,
+              help="Correct the pose by scan matching before the map and the explorer see it (auto: in the "
+                   "simulator when --odometry-error is on).")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
@@ -173,8 +179,8 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
-            out: Path, bounds: str | None, bounds_wall: bool, view: bool, view_port: int, view_host: str,
-            view_speed: str | None) -> None:
+            odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
+            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import attach_laser, check_laser_options
@@ -196,7 +202,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
-                   map_bounds=None if bounds is None else parse_bounds(bounds))
+                   map_bounds=None if bounds is None else parse_bounds(bounds),
+                   odometry=odometry_error, localize=localize)
     spec.validate()
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
@@ -421,7 +428,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
         args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
         args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
         args += [f"--timeout={timeout!r}"] if timeout is not None else []
-        if view:        # the child serves the view (its runs are there); the page stays up until Ctrl-C
+        if view:            # the child runs the script, so it serves the view
             args += ["--view", f"--view-port={view_port}", f"--view-host={view_host}"]
             args += [f"--view-speed={view_speed}"] if view_speed is not None else []
         if click.get_current_context().find_root().params.get("debug", False):
@@ -530,16 +537,17 @@ def connect(backend: str, address: str, drive: str | None, duration: float, lase
     tty = sys.stdout.isatty()
     live = start_view(view, view_host, view_port, view_speed)
     try:
-        _connect_watch(backend, address, laser, laser_pose, twist, duration, tty, live)
+        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose)
     except BaseException:
         end_view(live, interrupted=True)
         raise
     end_view(live, interrupted=False)
 
 
-def _connect_watch(backend: str, address: str, laser: str | None, laser_pose: str | None, twist: Any,
-                   duration: float, tty: bool, live: Any) -> None:
-    """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`."""
+def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty: bool, live: Any,
+                   laser: str | None = None, laser_pose: str | None = None) -> None:
+    """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`,
+    with `laser` (NAME:ADDRESS) attached at `laser_pose` when given."""
     import time
 
     from robotexp.laser_mount import attach_laser
@@ -577,6 +585,12 @@ def _connect_watch(backend: str, address: str, laser: str | None, laser_pose: st
             if feed is not None:
                 feed.finish("stopped from the live view" if feed.stop_requested else "watch over; robot stopped")
     click.echo("robot stopped and disconnected")
+
+
+from robotexp.mapcmd import map_command  # noqa: E402  (a command of its own module, registered here)
+
+map_command.callback = handle_errors(map_command.callback)  # type: ignore[type-var]
+main.add_command(map_command)
 
 
 if __name__ == "__main__":  # pragma: no cover
