@@ -157,7 +157,8 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
                    "--world, if given, is then only the ground truth for coverage.")
 @click.option("--laser", default=None, help="With --address: a laser of its own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
 @click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
-@click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
+@click.option("--param", "-p", multiple=True,
+              help="Explorer parameter key=value (repeatable); -p help lists the method's parameters.")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
@@ -186,6 +187,11 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     from robotexp.laser_mount import attach_laser, check_laser_options
     from robotexp.registry import connect_robot
     from robotexp.world.bounds import parse_bounds
+
+    if "help" in param:         # -p help: the method's parameters, nothing run
+        from robotexp.paramhelp import parameters_text
+        click.echo(parameters_text(method))
+        return
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
