@@ -253,6 +253,9 @@ def worlds(ctx: click.Context) -> None:
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+        # the poses --pose takes by name, with where they are (x, y in mm, heading in degrees, as --pose reads them)
+        click.echo("  poses: " + ", ".join(f"{key} ({p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f})"
+                                           for key, p in w.poses.items()))
 
 
 from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
