@@ -192,6 +192,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         from robotexp.paramhelp import parameters_text
         click.echo(parameters_text(method))
         return
+    if pose is not None and "," in pose:
+        _pose_notice(pose)
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
@@ -238,6 +240,19 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         sys.exit(130)
     if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
         _fail(f"{r.run}: {r.reason}", 1)
+
+
+def _pose_notice(text: str) -> None:
+    """Tell how an x,y[,theta] --pose is read when it looks like metres or has no heading (one line on stderr)."""
+    from robotexp.world.poses import parse_pose
+
+    p = parse_pose(text)
+    parts = text.split(",")
+    if max(abs(p.x), abs(p.y)) < 0.1 or len(parts) == 2:
+        click.echo(f"robotexp: --pose {text} is read as x {p.x * 1000:g} mm, y {p.y * 1000:g} mm, heading "
+                   f"{math.degrees(p.theta):g} deg" + ("" if len(parts) == 3 else " (none given)")
+                   + (f"; in metres write {float(parts[0]) * 1000:g},{float(parts[1]) * 1000:g}"
+                      if max(abs(p.x), abs(p.y)) < 0.1 else ""), err=True)
 
 
 @main.group(invoke_without_command=True)

@@ -1,5 +1,6 @@
-"""`robotexp explore -m METHOD -p help` (issue 16, item 5): an explorer's parameters with types, defaults and
-units, from its signature and docstring, without running anything."""
+"""What a newcomer trips on (issue 16, item 5): `explore -p help` lists an explorer's parameters with types,
+defaults and units (from its signature and docstring, nothing run); a --pose in x,y without heading or
+with metre-sized numbers is said how it is read; pose names match whatever their case."""
 
 from __future__ import annotations
 
@@ -29,3 +30,21 @@ def test_parameters_passed_on_through_kwargs_are_listed() -> None:
 def test_unknown_method_is_one_line_exit_2() -> None:
     result = CliRunner().invoke(main, ["explore", "-m", "nope", "-p", "help"])
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
+
+
+def test_pose_notice_for_metre_sized_or_headless_poses() -> None:
+    runner = CliRunner()
+    result = runner.invoke(main, ["explore", "--pose", "3,0", "--max-time", "1", "--out", "/nonexistent/x"])
+    assert ("--pose 3,0 is read as x 3 mm, y 0 mm, heading 0 deg (none given); in metres write 3000,0"
+            in result.output)
+    result = runner.invoke(main, ["explore", "--pose", "-5000,7500,90", "-m", "frontier", "-p", "help"])
+    assert "is read as" not in result.output          # a full pose in mm: nothing to say
+
+
+def test_pose_names_match_whatever_their_case() -> None:
+    from robotexp.world.builtin import builtin_world
+    from robotexp.world.poses import pose_name, resolve_pose
+
+    world = builtin_world("ufmg-static")
+    assert resolve_pose(world, "PATH1", 0.25) == resolve_pose(world, "path1", 0.25)
+    assert resolve_pose(world, "Path2", 0.25)[1] == "path2" and pose_name(world, "Path2") == "path2"
