@@ -62,31 +62,71 @@ def main(debug: bool) -> None:
 
 
 class Progress(RunObserver):
-    """A one-line progress display on stderr (only when stderr is a terminal); a run observer
-    (`on_sample`), or called as `progress(t, coverage)`."""
+    """Progress of a run on stderr: on a terminal one line redrawn at each coverage sample (coverage,
+    robot time, wall time and, at the run's speed so far, the wall time left until its time limit at
+    most; "no gain for N s" once coverage stopped growing); without a terminal one line a minute (logs).
+    A run observer (`on_sample`), or called as `progress(t, coverage)`.
 
-    def __init__(self, label: str, enabled: bool | None = None) -> None:
+    Args:
+        label: what the line starts with.
+        enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
+        every: [s] wall time between lines without a terminal.
+        clock: wall clock [s].
+    """
+
+    STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
+    GAIN = 0.001        # coverage
+
+    def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
+                 clock: Callable[[], float] | None = None) -> None:
+        import time
+
         self.label = label
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
+        self.every = every
+        self.clock = clock or time.monotonic
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + every
+        self.max_time: float | None = None
+        self.best = (-1.0, 0.0)         # (coverage, robot time it was reached)
+
+    def on_start(self, run: Any) -> None:
+        """Note the run's time limit and start the wall clock."""
+        self.max_time = run.max_time
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + self.every
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """Show the sample."""
         self(time, coverage)
 
-    def __call__(self, t: float, coverage: float | None) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        if coverage is None:
-            bar = "?" * 0
-            text = f"\r{self.label}  robot time {t:7.0f} s"
-        else:
+    def line(self, t: float, coverage: float | None) -> str:
+        """The progress text at robot time `t` [s] with `coverage` (None: unknown)."""
+        wall = self.clock() - self.wall0
+        parts = [self.label]
+        if coverage is not None:
+            width = 30
             done = int(round(coverage * width))
-            bar = "#" * done + "-" * (width - done)
-            text = f"\r{self.label}  [{bar}] {coverage * 100:5.1f}%  robot time {t:7.0f} s"
-        click.echo(text, nl=False, err=True)
-        self.shown = True
+            parts.append(f"[{'#' * done}{'-' * (width - done)}] {coverage * 100:5.1f}%")
+            if coverage > self.best[0] + self.GAIN:
+                self.best = (coverage, t)
+            elif t - self.best[1] >= self.STALL:
+                parts.append(f"no gain for {t - self.best[1]:.0f} s")
+        parts.append(f"robot time {t:7.0f} s, wall {wall:5.0f} s")
+        if self.max_time is not None and t > 0 and wall > 1.0:
+            left = (self.max_time - t) * wall / t
+            parts.append(f"<= {left:.0f} s left (time limit)")
+        return "  ".join(parts)
+
+    def __call__(self, t: float, coverage: float | None) -> None:
+        text = self.line(t, coverage)
+        if self.enabled:
+            click.echo(f"\r{text}\033[K", nl=False, err=True)
+            self.shown = True
+        elif self.clock() >= self.next_line:
+            self.next_line = self.clock() + self.every
+            click.echo(text, err=True)
 
     def close(self) -> None:
         """End the progress line."""
@@ -194,6 +234,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         return
     if pose is not None and "," in pose:
         _pose_notice(pose)
+    _compile_notice()
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
@@ -240,6 +281,20 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         sys.exit(130)
     if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
         _fail(f"{r.run}: {r.reason}", 1)
+
+
+def _compile_notice() -> None:
+    """Say why the first run after an install is slower: numba compiles the kernels once and caches them."""
+    import os
+
+    import robotexp.mapping as mapping
+
+    where = os.environ.get("NUMBA_CACHE_DIR")       # numba's cache: there, else beside the module
+    cached = (any(Path(where).glob("**/kernels.*.nbi")) if where
+              else any((Path(mapping.__file__).parent / "__pycache__").glob("kernels.*.nbi")))
+    if not cached:
+        click.echo("robotexp: first run after an install: numba compiles the map and planning kernels "
+                   "(a few seconds more, cached for the next runs)", err=True)
 
 
 def _pose_notice(text: str) -> None:

@@ -48,3 +48,39 @@ def test_pose_names_match_whatever_their_case() -> None:
     world = builtin_world("ufmg-static")
     assert resolve_pose(world, "PATH1", 0.25) == resolve_pose(world, "path1", 0.25)
     assert resolve_pose(world, "Path2", 0.25)[1] == "path2" and pose_name(world, "Path2") == "path2"
+
+
+def test_progress_without_terminal_a_line_a_minute_with_estimate_and_stall(capsys: object) -> None:
+    from robotexp.cli import Progress
+
+    now = [1000.0]
+    prog = Progress("dense frontier", enabled=False, every=60.0, clock=lambda: now[0])
+
+    class Run:
+        max_time = 1000.0
+
+    prog.on_start(Run())
+    for k in range(1, 200):           # 1 s of wall per sample, 5 s of robot time: 5x real time
+        now[0] += 1.0
+        cov = min(0.5, 0.01 * k)      # gains until t = 250 s, then nothing
+        prog(5.0 * k, cov)
+    err = capsys.readouterr().err.splitlines()  # type: ignore[attr-defined]
+    assert len(err) == 3                          # at 60, 120 and 180 s of wall time
+    assert err[0] == ("dense frontier  [###############---------------]  50.0%  robot time     300 s, "
+                      "wall    60 s  <= 140 s left (time limit)")
+    assert "no gain" not in err[0]                # gained up to t = 250 s
+    assert "no gain for 350 s" in err[1]          # t = 600 s, last gain at 250 s
+
+
+def test_first_run_says_numba_compiles(tmp_path: object) -> None:
+    from pathlib import Path
+
+    empty = Path(str(tmp_path)) / "numba-cache"
+    empty.mkdir()
+    args = ["explore", "--out", "/proc/robotexp-no"]     # a bad --out stops the command right after the notice
+    first = CliRunner().invoke(main, args, env={"NUMBA_CACHE_DIR": str(empty)})
+    assert "numba compiles the map and planning kernels" in first.output
+    (empty / "sub").mkdir()
+    (empty / "sub" / "kernels.x-1.py311.nbi").write_bytes(b"")
+    later = CliRunner().invoke(main, args, env={"NUMBA_CACHE_DIR": str(empty)})
+    assert "numba compiles" not in later.output
