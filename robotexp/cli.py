@@ -72,16 +72,18 @@ class Progress(RunObserver):
         enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
         every: [s] wall time between lines without a terminal.
         clock: wall clock [s].
+        notice: a line said on stderr when the run starts.
     """
 
     STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
     GAIN = 0.001        # coverage
 
     def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
         import time
 
         self.label = label
+        self.notice = notice
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
         self.every = every
@@ -92,7 +94,9 @@ class Progress(RunObserver):
         self.best = (-1.0, 0.0)         # (coverage, robot time it was reached)
 
     def on_start(self, run: Any) -> None:
-        """Note the run's time limit and start the wall clock."""
+        """Say the notice, note the run's time limit and start the wall clock."""
+        if self.notice:
+            click.echo(self.notice, err=True)
         self.max_time = run.max_time
         self.wall0 = self.clock()
         self.next_line = self.wall0 + self.every
@@ -232,8 +236,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         from robotexp.paramhelp import parameters_text
         click.echo(parameters_text(method))
         return
-    if pose is not None and "," in pose:
-        _pose_notice(pose)
+    hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
     _compile_notice()
 
     if (laser is not None or laser_pose is not None) and address is None:
@@ -256,7 +259,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec.validate()
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
-    progress = Progress(f"{Path(world).stem} {method}")
+    progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}")
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
     try:
         if address is None:
@@ -266,6 +269,11 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
             with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
+    except (WorldError, ConfigError) as exc:
+        end_view(live, interrupted=True)
+        if hint is not None:            # one line: the refusal and how the pose was read
+            raise type(exc)(f"{exc} ({hint})") from None
+        raise
     except BaseException:
         end_view(live, interrupted=True)
         raise
@@ -297,17 +305,21 @@ def _compile_notice() -> None:
                    "(a few seconds more, cached for the next runs)", err=True)
 
 
-def _pose_notice(text: str) -> None:
-    """Tell how an x,y[,theta] --pose is read when it looks like metres or has no heading (one line on stderr)."""
+def _pose_hint(text: str | None) -> str | None:
+    """How an x,y[,theta] --pose is read when it has no heading or looks like metres (0 < |x|, |y| < 100 mm),
+    else None."""
     from robotexp.world.poses import parse_pose
 
+    if text is None or "," not in text:
+        return None
     p = parse_pose(text)
     parts = text.split(",")
-    if max(abs(p.x), abs(p.y)) < 0.1 or len(parts) == 2:
-        click.echo(f"robotexp: --pose {text} is read as x {p.x * 1000:g} mm, y {p.y * 1000:g} mm, heading "
-                   f"{math.degrees(p.theta):g} deg" + ("" if len(parts) == 3 else " (none given)")
-                   + (f"; in metres write {float(parts[0]) * 1000:g},{float(parts[1]) * 1000:g}"
-                      if max(abs(p.x), abs(p.y)) < 0.1 else ""), err=True)
+    small = 0 < max(abs(p.x), abs(p.y)) < 0.1
+    if not small and len(parts) == 3:
+        return None
+    return (f"--pose {text} is read as x {p.x * 1000:g} mm, y {p.y * 1000:g} mm, heading {math.degrees(p.theta):g} deg"
+            + ("" if len(parts) == 3 else " (none given)")
+            + (f"; in metres write {float(parts[0]) * 1000:g},{float(parts[1]) * 1000:g}" if small else ""))
 
 
 @main.group(invoke_without_command=True)

@@ -32,13 +32,25 @@ def test_unknown_method_is_one_line_exit_2() -> None:
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
 
 
-def test_pose_notice_for_metre_sized_or_headless_poses() -> None:
+def test_pose_notice_for_metre_sized_or_headless_poses(tmp_path: object) -> None:
     runner = CliRunner()
-    result = runner.invoke(main, ["explore", "--pose", "3,0", "--max-time", "1", "--out", "/nonexistent/x"])
-    assert ("--pose 3,0 is read as x 3 mm, y 0 mm, heading 0 deg (none given); in metres write 3000,0"
-            in result.output)
-    result = runner.invoke(main, ["explore", "--pose", "-5000,7500,90", "-m", "frontier", "-p", "help"])
-    assert "is read as" not in result.output          # a full pose in mm: nothing to say
+    out = str(tmp_path)
+    # refused (in a wall): one line, the error and how the pose was read
+    result = runner.invoke(main, ["explore", "--pose", "3,0", "--max-time", "1", "--out", out])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("robotexp: error: ")
+    assert lines[0].endswith("(--pose 3,0 is read as x 3 mm, y 0 mm, heading 0 deg (none given); in metres "
+                             "write 3000,0)")
+    # accepted: said once as the run starts
+    result = runner.invoke(main, ["explore", "-w", "ufmg-static", "--pose", "-4200,-4200", "--max-time", "1",
+                                  "--out", out])
+    assert result.exit_code == 0, result.output
+    assert "robotexp: --pose -4200,-4200 is read as x -4200 mm, y -4200 mm, heading 0 deg (none given)\n" in \
+        result.output
+    result = runner.invoke(main, ["explore", "-w", "ufmg-static", "--pose", "-4200,-4200,45", "--max-time", "1",
+                                  "--out", out])
+    assert result.exit_code == 0 and "is read as" not in result.output    # a full pose in mm: nothing to say
 
 
 def test_pose_names_match_whatever_their_case() -> None:
