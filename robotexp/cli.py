@@ -18,7 +18,7 @@ import click
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
 from robotexp.record import EndReason, RunRecord
-from robotexp.view.live import end_view, start_view, view_options
+from robotexp.view.live import end_view, parse_speed, start_view, view_options
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -62,31 +62,75 @@ def main(debug: bool) -> None:
 
 
 class Progress(RunObserver):
-    """A one-line progress display on stderr (only when stderr is a terminal); a run observer
-    (`on_sample`), or called as `progress(t, coverage)`."""
+    """Progress of a run on stderr: on a terminal one line redrawn at each coverage sample (coverage,
+    robot time, wall time and, at the run's speed so far, the wall time left until its time limit at
+    most; "no gain for N s" once coverage stopped growing); without a terminal one line a minute (logs).
+    A run observer (`on_sample`), or called as `progress(t, coverage)`.
 
-    def __init__(self, label: str, enabled: bool | None = None) -> None:
+    Args:
+        label: what the line starts with.
+        enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
+        every: [s] wall time between lines without a terminal.
+        clock: wall clock [s].
+        notice: a line said on stderr when the run starts.
+    """
+
+    STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
+    GAIN = 0.001        # coverage
+
+    def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
+                 clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
+        import time
+
         self.label = label
+        self.notice = notice
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
+        self.every = every
+        self.clock = clock or time.monotonic
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + every
+        self.max_time: float | None = None
+        self.best = (-1.0, 0.0)         # (coverage, robot time it was reached)
+
+    def on_start(self, run: Any) -> None:
+        """Say the notice, note the run's time limit and start the wall clock."""
+        if self.notice:
+            click.echo(self.notice, err=True)
+        self.max_time = run.max_time
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + self.every
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """Show the sample."""
         self(time, coverage)
 
-    def __call__(self, t: float, coverage: float | None) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        if coverage is None:
-            bar = "?" * 0
-            text = f"\r{self.label}  robot time {t:7.0f} s"
-        else:
+    def line(self, t: float, coverage: float | None) -> str:
+        """The progress text at robot time `t` [s] with `coverage` (None: unknown)."""
+        wall = self.clock() - self.wall0
+        parts = [self.label]
+        if coverage is not None:
+            width = 30
             done = int(round(coverage * width))
-            bar = "#" * done + "-" * (width - done)
-            text = f"\r{self.label}  [{bar}] {coverage * 100:5.1f}%  robot time {t:7.0f} s"
-        click.echo(text, nl=False, err=True)
-        self.shown = True
+            parts.append(f"[{'#' * done}{'-' * (width - done)}] {coverage * 100:5.1f}%")
+            if coverage > self.best[0] + self.GAIN:
+                self.best = (coverage, t)
+            elif t - self.best[1] >= self.STALL:
+                parts.append(f"no gain for {t - self.best[1]:.0f} s")
+        parts.append(f"robot time {t:7.0f} s, wall {wall:5.0f} s")
+        if self.max_time is not None and t > 0 and wall > 1.0:
+            left = (self.max_time - t) * wall / t
+            parts.append(f"<= {left:.0f} s left (time limit)")
+        return "  ".join(parts)
+
+    def __call__(self, t: float, coverage: float | None) -> None:
+        text = self.line(t, coverage)
+        if self.enabled:
+            click.echo(f"\r{text}\033[K", nl=False, err=True)
+            self.shown = True
+        elif self.clock() >= self.next_line:
+            self.next_line = self.clock() + self.every
+            click.echo(text, err=True)
 
     def close(self) -> None:
         """End the progress line."""
@@ -157,7 +201,8 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
                    "--world, if given, is then only the ground truth for coverage.")
 @click.option("--laser", default=None, help="With --address: a laser of its own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
 @click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
-@click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
+@click.option("--param", "-p", multiple=True,
+              help="Explorer parameter key=value (repeatable); -p help lists the method's parameters.")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
@@ -187,6 +232,13 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     from robotexp.registry import connect_robot
     from robotexp.world.bounds import parse_bounds
 
+    if "help" in param:         # -p help: the method's parameters, nothing run
+        from robotexp.paramhelp import parameters_text
+        click.echo(parameters_text(method))
+        return
+    hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
+    _compile_notice()
+
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
                           "simulator has its own")
@@ -207,7 +259,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec.validate()
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
-    progress = Progress(f"{Path(world).stem} {method}")
+    progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}")
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
     try:
         if address is None:
@@ -217,6 +269,11 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
             with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
+    except (WorldError, ConfigError) as exc:
+        end_view(live, interrupted=True)
+        if hint is not None:            # one line: the refusal and how the pose was read
+            raise type(exc)(f"{exc} ({hint})") from None
+        raise
     except BaseException:
         end_view(live, interrupted=True)
         raise
@@ -234,6 +291,37 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         _fail(f"{r.run}: {r.reason}", 1)
 
 
+def _compile_notice() -> None:
+    """Say why the first run after an install is slower: numba compiles the kernels once and caches them."""
+    import os
+
+    import robotexp.mapping as mapping
+
+    where = os.environ.get("NUMBA_CACHE_DIR")       # numba's cache: there, else beside the module
+    cached = (any(Path(where).glob("**/kernels.*.nbi")) if where
+              else any((Path(mapping.__file__).parent / "__pycache__").glob("kernels.*.nbi")))
+    if not cached:
+        click.echo("robotexp: first run after an install: numba compiles the map and planning kernels "
+                   "(a few seconds more, cached for the next runs)", err=True)
+
+
+def _pose_hint(text: str | None) -> str | None:
+    """How an x,y[,theta] --pose is read when it has no heading or looks like metres (0 < |x|, |y| < 100 mm),
+    else None."""
+    from robotexp.world.poses import parse_pose
+
+    if text is None or "," not in text:
+        return None
+    p = parse_pose(text)
+    parts = text.split(",")
+    small = 0 < max(abs(p.x), abs(p.y)) < 0.1
+    if not small and len(parts) == 3:
+        return None
+    return (f"--pose {text} is read as x {p.x * 1000:g} mm, y {p.y * 1000:g} mm, heading {math.degrees(p.theta):g} deg"
+            + ("" if len(parts) == 3 else " (none given)")
+            + (f"; in metres write {float(parts[0]) * 1000:g},{float(parts[1]) * 1000:g}" if small else ""))
+
+
 @main.group(invoke_without_command=True)
 @click.pass_context
 @handle_errors
@@ -247,6 +335,9 @@ def worlds(ctx: click.Context) -> None:
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+        # the poses --pose takes by name, with where they are (x, y in mm, heading in degrees, as --pose reads them)
+        click.echo("  poses: " + ", ".join(f"{key} ({p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f})"
+                                           for key, p in w.poses.items()))
 
 
 from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
@@ -420,6 +511,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
     AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
     memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
     writable_folder(out)
+    parse_speed(view_speed)                     # a bad --view-speed: one line, before anything runs
     if not child:
         from robotexp.lua.supervise import supervise
 
