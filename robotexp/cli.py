@@ -174,13 +174,15 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
               help="Exploration area [mm] (default: what the map declares, else the world's box).")
 @click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
+@click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
+              help="Record the run as a ROS 2 bag in MCAP (robotexp replay / video read it; Foxglove opens it).")
 @view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
             odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
-            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
+            record: Path | None, view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import attach_laser, check_laser_options
@@ -209,6 +211,12 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}")
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
+    recorder = None
+    if record is not None:
+        from robotexp.bag.recorder import BagRecorder
+
+        recorder = BagRecorder(record, world=world)
+        watchers.append(recorder)
     try:
         if address is None:
             result = run_experiment(spec, out, observers=watchers, show=overlays)
@@ -222,6 +230,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         raise
     finally:
         progress.close()
+        if recorder is not None:
+            recorder.close()            # a run that never started leaves no file
     r = result.record
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
     click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
@@ -253,6 +263,7 @@ from robotexp.world.generate_cli import generate  # noqa: E402  (the command liv
 
 worlds.add_command(generate)
 main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
+main.add_command(__import__("robotexp.bag.cli", fromlist=["replay"]).replay)
 
 
 @main.command()

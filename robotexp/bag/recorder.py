@@ -1,0 +1,235 @@
+"""Record a run as a ROS 2 bag in MCAP (`BagRecorder`, a run observer).
+
+Topics (message time = the run's robot time since its start plus `EPOCH`, so that ROS 2 tools see
+plausible stamps; every tick of the run has one /odom and one /tf at the same stamp):
+
+    /odom              nav_msgs/Odometry        every tick: the pose the map used (odom -> base_link)
+    /tf                tf2_msgs/TFMessage       every tick: map -> odom (identity) and odom -> base_link
+    /tf_static         tf2_msgs/TFMessage       once: base_link -> laser (the scan's offset ahead)
+    /scan              sensor_msgs/LaserScan    the ticks whose scan the map integrated, in frame `laser`
+    /ground_truth      nav_msgs/Odometry        every tick with a true pose (simulators): map -> base_link
+    /map               nav_msgs/OccupancyGrid   every coverage sample (1 s of robot time) and at the end
+    /ground_truth/map  nav_msgs/OccupancyGrid   once, with ground truth: 100 occupied, 0 explorable, -1 other
+
+and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
+cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
+`robotexp.record` (the run's record, as written to results.jsonl) at the end.
+
+The recorder only exists when asked for (`--record`): a run without it does no work for it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+import numpy as np
+
+from robotexp.bag.schemas import LASER_SCAN, OCCUPANCY_GRID, ODOMETRY, TF_MESSAGE
+from robotexp.errors import ConfigError
+from robotexp.observers import RunObserver, StepEvent
+from robotexp.robot import LaserScan, Pose, Twist
+
+if TYPE_CHECKING:
+    from mcap.records import Schema
+
+    from robotexp.explorer import ExplorationRun
+    from robotexp.mapping.groundtruth import GroundTruth
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.record import RunRecord
+
+__all__ = ["BagRecorder", "EPOCH", "stamp_ns", "quaternion", "yaw_of", "check_record_path"]
+
+EPOCH = 1_700_000_000.0     # [s] added to robot time in message stamps (a plausible wall-clock time)
+FORMAT = 1                  # version of the `robotexp.run` metadata
+
+
+def stamp_ns(t: float) -> int:
+    """The message time [ns] of robot time `t` [s]."""
+    return int(round((EPOCH + t) * 1e9))
+
+
+def _stamp(ns: int) -> dict[str, int]:
+    return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def quaternion(theta: float) -> dict[str, float]:
+    """The quaternion of a rotation by `theta` [rad] about z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(theta / 2), "w": math.cos(theta / 2)}
+
+
+def yaw_of(q: Any) -> float:
+    """The heading [rad] of a quaternion (its rotation about z; x and y taken as a tilt-free pose)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def check_record_path(path: Path) -> None:
+    """Raise ConfigError unless `path` names an .mcap file in an existing folder.
+
+    Raises:
+        ConfigError: wrong suffix or missing folder.
+    """
+    if path.suffix.lower() != ".mcap":
+        raise ConfigError(f"--record {path}: a recording is an .mcap file; name it FILE.mcap")
+    if not path.parent.is_dir():
+        raise ConfigError(f"--record {path}: folder {path.parent} does not exist; create it first")
+
+
+def _odometry(ns: int, frame: str, child: str, pose: Pose, twist: Twist | None) -> dict[str, Any]:
+    return {
+        "header": {"stamp": _stamp(ns), "frame_id": frame}, "child_frame_id": child,
+        "pose": {"pose": {"position": {"x": pose.x, "y": pose.y, "z": 0.0}, "orientation": quaternion(pose.theta)},
+                 "covariance": [0.0] * 36},
+        "twist": {"twist": {"linear": {"x": 0.0 if twist is None else twist.v, "y": 0.0, "z": 0.0},
+                            "angular": {"x": 0.0, "y": 0.0, "z": 0.0 if twist is None else twist.w}},
+                  "covariance": [0.0] * 36},
+    }
+
+
+def _transform(ns: int, parent: str, child: str, x: float, y: float, theta: float) -> dict[str, Any]:
+    return {"header": {"stamp": _stamp(ns), "frame_id": parent}, "child_frame_id": child,
+            "transform": {"translation": {"x": x, "y": y, "z": 0.0}, "rotation": quaternion(theta)}}
+
+
+def laser_scan_message(ns: int, scan: LaserScan, period: float) -> dict[str, Any]:
+    """A sensor_msgs/LaserScan of `scan` (frame `laser`; beams evenly spread from the first angle to the last)."""
+    n = len(scan.angles)
+    a0, a1 = (float(scan.angles[0]), float(scan.angles[-1])) if n else (0.0, 0.0)
+    return {"header": {"stamp": _stamp(ns), "frame_id": "laser"}, "angle_min": a0, "angle_max": a1,
+            "angle_increment": (a1 - a0) / (n - 1) if n > 1 else 0.0, "time_increment": 0.0, "scan_time": period,
+            "range_min": 0.0, "range_max": float(scan.range_max),
+            "ranges": np.asarray(scan.ranges, np.float32).tolist(), "intensities": []}
+
+
+def grid_message(ns: int, origin_x: float, origin_y: float, cell: float, rows: int, cols: int,
+                 data: np.ndarray[Any, Any]) -> dict[str, Any]:
+    """A nav_msgs/OccupancyGrid in frame `map` (row 0 = the southmost row, as ROS has it)."""
+    return {"header": {"stamp": _stamp(ns), "frame_id": "map"},
+            "info": {"map_load_time": _stamp(ns), "resolution": cell, "width": cols, "height": rows,
+                     "origin": {"position": {"x": origin_x, "y": origin_y, "z": 0.0}, "orientation": quaternion(0.0)}},
+            "data": np.asarray(data, np.int8).ravel().tolist()}
+
+
+def truth_states(truth: GroundTruth) -> np.ndarray[Any, Any]:
+    """The ground truth as map states: 100 occupied, 0 explorable, -1 any other cell."""
+    out = np.full(truth.explorable.shape, -1, np.int8)
+    out[truth.explorable] = 0
+    out[truth.occupied] = 100
+    return out
+
+
+class BagRecorder(RunObserver):
+    """Writes a run to `path` as a ROS 2 bag in MCAP (see the module's docstring for what it holds).
+
+    Args:
+        path: the .mcap file (replaced if it exists).
+        world: what names the run's world for a replay that recomputes ground truth at another cell
+            size (a built-in name or a world file), None when unknown.
+        start: the start pose ground truth was computed from (None: the run's first true pose).
+
+    Raises:
+        ConfigError: `path` is not a writable .mcap file.
+    """
+
+    def __init__(self, path: Path, *, world: str | None = None, start: Pose | None = None) -> None:
+        from mcap_ros2.writer import Writer
+
+        check_record_path(path)
+        try:
+            self._file: IO[bytes] = open(path, "wb")
+        except OSError as exc:
+            raise ConfigError(f"--record {path}: cannot write it ({exc.strerror}); pick another file") from None
+        self.path = path
+        self.world = world if world is None or not Path(world).exists() else str(Path(world).resolve())
+        self.start = start
+        self._writer = Writer(self._file)
+        self._schemas: dict[str, Schema] = {}
+        self._seq: dict[str, int] = {}
+        self._static_done = False
+        self._last_ns = 0
+        self._period = 0.1
+        self._closed = False
+        self._started = False
+        self._map_ns = -1
+
+    def _write(self, topic: str, schema: tuple[str, str], message: dict[str, Any], ns: int) -> None:
+        name, text = schema
+        registered = self._schemas.get(name)
+        if registered is None:
+            registered = self._schemas[name] = self._writer.register_msgdef(name, text)
+        seq = self._seq.get(topic, 0)
+        self._seq[topic] = seq + 1
+        self._writer.write_message(topic=topic, schema=registered, message=message, log_time=ns,
+                                   publish_time=ns, sequence=seq)
+
+    def _write_grid(self, topic: str, grid: OccupancyGrid, ns: int) -> None:
+        g = grid.geo
+        self._write(topic, OCCUPANCY_GRID, grid_message(ns, g.origin_x, g.origin_y, g.cell, g.rows, g.cols,
+                                                         grid.states()), ns)
+
+    def on_start(self, run: ExplorationRun) -> None:
+        """Write the `robotexp.run` metadata and the ground truth map."""
+        self._started = True
+        g = run.grid.geo
+        self._period = run.period
+        start = self.start or run.start_pose
+        meta = {"format": FORMAT, "run": run.info.name, "method": run.info.method, "world": run.info.world,
+                "world_source": self.world, "pose": run.info.pose, "robot": run.info.robot,
+                "max_speed_m_s": run.info.max_speed, "laser_range_m": run.info.laser_range,
+                "radius_m": run.robot.radius, "period_s": run.period, "sample_period_s": run.sample_period,
+                "max_time_s": run.max_time, "seed": run.seed,
+                "start": None if start is None else start.as_list(),
+                "grid": {"origin_x": g.origin_x, "origin_y": g.origin_y, "cell": g.cell, "rows": g.rows,
+                         "cols": g.cols, "model": run.grid.model, "range_max": run.grid.range_max},
+                "epoch_s": EPOCH}
+        self._writer.add_metadata("robotexp.run", {"json": json.dumps(meta)})
+        if run.truth is not None:
+            t = run.truth.geo
+            ns = stamp_ns(0.0)
+            self._write("/ground_truth/map", OCCUPANCY_GRID,
+                        grid_message(ns, t.origin_x, t.origin_y, t.cell, t.rows, t.cols, truth_states(run.truth)), ns)
+
+    def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+        """Write the tick's odometry, transforms, true pose and (when the map took it) scan."""
+        ns = stamp_ns(step.time)
+        self._last_ns = ns
+        s = step.state
+        p = s.pose
+        self._write("/odom", ODOMETRY, _odometry(ns, "odom", "base_link", p, s.velocity), ns)
+        self._write("/tf", TF_MESSAGE, {"transforms": [_transform(ns, "map", "odom", 0.0, 0.0, 0.0),
+                                                       _transform(ns, "odom", "base_link", p.x, p.y, p.theta)]}, ns)
+        if s.true_pose is not None:
+            self._write("/ground_truth", ODOMETRY, _odometry(ns, "map", "base_link_true", s.true_pose, None), ns)
+        if step.map_updated and s.laser is not None:
+            if not self._static_done:
+                self._static_done = True
+                self._write("/tf_static", TF_MESSAGE,
+                            {"transforms": [_transform(ns, "base_link", "laser", s.laser.offset_x, 0.0, 0.0)]}, ns)
+            self._write("/scan", LASER_SCAN, laser_scan_message(ns, s.laser, run.period), ns)
+
+    def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
+        """Write the map (once per coverage sample: 1 Hz of robot time; the end's sample repeats the last
+        tick's, whose map is written already)."""
+        ns = stamp_ns(time)
+        if ns != self._map_ns:
+            self._map_ns = ns
+            self._write_grid("/map", run.grid, ns)
+
+    def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
+        """Write the record as metadata and close the file."""
+        self._writer.add_metadata("robotexp.record", {"json": json.dumps(record.as_dict())})
+        self.close()
+
+    def close(self) -> None:
+        """Finish the file (its summary and index); a run that never started leaves no file. Safe to
+        call twice."""
+        if not self._closed:
+            self._closed = True
+            try:
+                self._writer.finish()
+            finally:
+                self._file.close()
+                if not self._started:
+                    self.path.unlink(missing_ok=True)
