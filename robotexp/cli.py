@@ -176,13 +176,17 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
 @click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
               help="Record the run as a ROS 2 bag in MCAP (robotexp replay / video read it; Foxglove opens it).")
+@click.option("--frames", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
+              help="Save a PNG frame of the map every --frame-every seconds of robot time in DIR.")
+@click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
 @view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
             odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
-            record: Path | None, view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
+            record: Path | None, frames: Path | None, frame_every: float, view: bool, view_port: int,
+            view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import attach_laser, check_laser_options
@@ -211,6 +215,10 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}")
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
+    if frames is not None:
+        from robotexp.video import FrameObserver, PngFrames
+
+        watchers.append(FrameObserver(PngFrames(frames), frame_every))
     recorder = None
     if record is not None:
         from robotexp.bag.recorder import BagRecorder
@@ -264,6 +272,7 @@ from robotexp.world.generate_cli import generate  # noqa: E402  (the command liv
 worlds.add_command(generate)
 main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
 main.add_command(__import__("robotexp.bag.cli", fromlist=["replay"]).replay)
+main.add_command(__import__("robotexp.bag.cli", fromlist=["video"]).video)
 
 
 @main.command()

@@ -4,6 +4,7 @@ robotexp.cli registers them at its end, so its helpers are already defined when 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -11,7 +12,7 @@ import click
 from robotexp.cli import handle_errors, writable_folder
 from robotexp.errors import ConfigError
 
-__all__ = ["replay"]
+__all__ = ["replay", "video"]
 
 
 @click.command()
@@ -39,3 +40,29 @@ def replay(bag: Path, out: Path, cell: float | None) -> None:
     click.echo(f"results: {out / 'results.jsonl'}")
     if r.coverage is None:
         click.echo("coverage n/a: no ground truth for this recording at this cell size", err=True)
+
+
+@click.command()
+@click.argument("bag", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The video: run.mp4 (H.264) or run.gif.")
+@click.option("--every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
+@click.option("--fps", type=float, default=10.0, show_default=True, help="Frames per second of the video.")
+@click.option("--cell", type=float, default=None, help="Map cell size [mm] (default: the recorded one).")
+@handle_errors
+def video(bag: Path, output: Path, every: float, fps: float, cell: float | None) -> None:
+    """Render a recording (robotexp explore --record, or a ROS 2 robot's /scan + /odom bag) as a video:
+    the map as it grew, the path, the laser and the robot, a frame every --every seconds of robot time."""
+    from robotexp.bag.replay import read_bag, replay_bag
+    from robotexp.video import FrameObserver, VideoWriter, check_video_path
+
+    check_video_path(output)
+    if cell is not None and not cell > 0:
+        raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
+    if not (every > 0 and math.isfinite(every)):
+        raise ConfigError(f"--every must be > 0 s, got {every:g}")
+    data = read_bag(bag)
+    with VideoWriter(output, fps) as writer:
+        frames = FrameObserver(writer, every)
+        replay_bag(data, None, cell=None if cell is None else cell / 1000, observers=(frames,))
+    click.echo(f"video: {output} ({writer.count} frames, {writer.count / fps:.1f} s at {fps:g} fps)")

@@ -3,7 +3,6 @@ same metrics; a bag written by another tool (the mcap-ros2 writer, /scan + /odom
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -17,25 +16,15 @@ from mcap_ros2.writer import Writer
 from robotexp.bag.recorder import EPOCH
 from robotexp.bag.replay import read_bag, replay_bag
 from robotexp.cli import main
+from robotexp.results import read_jsonl
+
+
+def _last(path: Path) -> dict[str, object]:
+    return read_jsonl(path)[-1]
 
 TOPICS = {"/scan": "sensor_msgs/msg/LaserScan", "/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
           "/tf_static": "tf2_msgs/msg/TFMessage", "/map": "nav_msgs/msg/OccupancyGrid",
           "/ground_truth": "nav_msgs/msg/Odometry", "/ground_truth/map": "nav_msgs/msg/OccupancyGrid"}
-
-
-def _last(path: Path) -> dict[str, object]:
-    return json.loads(path.read_text().splitlines()[-1])
-
-
-@pytest.fixture(scope="module")
-def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object]]:
-    """A 25 s run on the small static room, recorded through `robotexp explore --record`."""
-    tmp = tmp_path_factory.mktemp("rec")
-    bag = tmp / "run.mcap"
-    res = CliRunner().invoke(main, ["explore", "-w", "ufmg-static", "--max-time", "25", "--noise-sigma", "10",
-                                    "-o", str(tmp / "out"), "--record", str(bag)])
-    assert res.exit_code == 0, res.output
-    return bag, _last(tmp / "out" / "results.jsonl")
 
 
 def test_recording_holds_ros2_topics(recorded: tuple[Path, dict[str, object]]) -> None:
