@@ -1,5 +1,6 @@
 """Video: `robotexp video` of a recording writes an MP4 and a GIF that play back (the wheel's ffmpeg
-decodes every MP4 frame, imageio every GIF frame, of the size the frames were drawn at); `explore --frames` saves PNG frames during a run."""
+decodes every MP4 frame, imageio every GIF frame, of the size the frames were drawn at);
+`explore --frames` saves PNG frames during a run."""
 
 from __future__ import annotations
 
