@@ -11,6 +11,8 @@ import click
 
 from robotexp.cli import handle_errors, writable_folder
 from robotexp.errors import ConfigError
+from robotexp.record import EndReason
+from robotexp.view.live import end_view, start_view, view_options
 
 __all__ = ["replay", "video"]
 
@@ -21,17 +23,26 @@ __all__ = ["replay", "video"]
               show_default=True, help="Output folder (results.jsonl, map, CSVs, as explore writes).")
 @click.option("--cell", type=float, default=None,
               help="Map cell size [mm] (default: the recorded one; a ROS 2 robot's bag: 100).")
+@view_options
 @handle_errors
-def replay(bag: Path, out: Path, cell: float | None) -> None:
+def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int, view_host: str,
+           view_speed: str | None) -> None:
     """Rebuild the map and metrics of a recording (robotexp explore --record, or a ROS 2 robot's bag with
-    /scan and /odom) and write them as explore does."""
+    /scan and /odom) and write them as explore does (--view: watch the replay in the browser, at
+    --view-speed times its robot time, with pause, step and stop)."""
     from robotexp.bag.replay import read_bag, replay_bag
 
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
     writable_folder(out)
     data = read_bag(bag)
-    run = replay_bag(data, out, cell=None if cell is None else cell / 1000)
+    live = start_view(view, view_host, view_port, view_speed)
+    try:
+        run = replay_bag(data, out, cell=None if cell is None else cell / 1000,
+                         observers=() if live is None else (live.observer,))
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     r = run.record
     assert r is not None
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
@@ -40,6 +51,7 @@ def replay(bag: Path, out: Path, cell: float | None) -> None:
     click.echo(f"results: {out / 'results.jsonl'}")
     if r.coverage is None:
         click.echo("coverage n/a: no ground truth for this recording at this cell size", err=True)
+    end_view(live, r.end is EndReason.INTERRUPTED)
 
 
 @click.command()

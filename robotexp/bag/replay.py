@@ -184,6 +184,7 @@ class ReplayRobot(Robot):
 
     name = "replay"
     capabilities = frozenset({Capability.PACED_CLOCK})
+    replayed = True         # the live view paces it by robot time, as a simulator (robotexp.view.observer)
 
     def __init__(self, ticks: list[Tick], *, radius: float = 0.25, model: str = "replay",
                  final_extra: dict[str, float] | None = None,

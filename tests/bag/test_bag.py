@@ -214,3 +214,27 @@ def test_replay_bad_input(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "not a readable MCAP recording" in res.output
     res = CliRunner().invoke(main, ["explore", "--record", str(tmp_path / "run.bag")])
     assert res.exit_code == 2 and "FILE.mcap" in res.output
+
+
+def test_replay_feeds_the_live_view(recorded: tuple[Path, dict[str, object]]) -> None:
+    """A replay drives the live view's observer as a run does, paced by the recording's robot time."""
+    from robotexp.view.feed import ViewHub
+    from robotexp.view.observer import ViewObserver
+
+    bag, record = recorded
+    hub = ViewHub()
+    clock = [0.0]
+    sleeps: list[float] = []
+
+    def sleep(dt: float) -> None:
+        sleeps.append(dt)
+        clock[0] += dt
+
+    observer = ViewObserver(hub, speed=50.0, clock=lambda: clock[0])
+    observer.pacer.sleep = sleep
+    run = replay_bag(read_bag(bag), None, observers=(observer,))
+    assert run.record is not None and run.record.coverage == record["coverage"]
+    assert hub.meta["world"] == "ufmg-static" and hub.meta["simulated"] is True
+    assert hub.map is not None and len(hub.path) >= 4
+    # paced at 50x: 25 s of robot time take 0.5 s of (fake) wall time
+    assert sum(sleeps) == pytest.approx(25.0 / 50.0, rel=0.05)
