@@ -7,6 +7,8 @@ plausible stamps; every tick of the run has one /odom and one /tf at the same st
     /tf                tf2_msgs/TFMessage       every tick: map -> odom (identity) and odom -> base_link
     /tf_static         tf2_msgs/TFMessage       once: base_link -> laser (the scan's offset ahead)
     /scan              sensor_msgs/LaserScan    the ticks whose scan the map integrated, in frame `laser`
+    /robotexp/scan     robotexp_msgs/ExactScan  the same scans in float64 (LaserScan's float32 rounds them), so
+                                                that a replay integrates exactly what the run did
     /ground_truth      nav_msgs/Odometry        every tick with a true pose (simulators): map -> base_link
     /map               nav_msgs/OccupancyGrid   every coverage sample (1 s of robot time) and at the end
     /ground_truth/map  nav_msgs/OccupancyGrid   once, with ground truth: 100 occupied, 0 explorable, -1 other
@@ -27,7 +29,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.bag.schemas import LASER_SCAN, OCCUPANCY_GRID, ODOMETRY, TF_MESSAGE
+from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, OCCUPANCY_GRID, ODOMETRY, TF_MESSAGE
 from robotexp.errors import ConfigError
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, Twist
@@ -103,6 +105,19 @@ def laser_scan_message(ns: int, scan: LaserScan, period: float) -> dict[str, Any
             "ranges": np.asarray(scan.ranges, np.float32).tolist(), "intensities": []}
 
 
+def exact_scan_message(ns: int, scan: LaserScan) -> dict[str, Any]:
+    """A robotexp_msgs/ExactScan of `scan`: `angles` left empty when angle_min + i * angle_increment
+    gives every beam's angle exactly."""
+    angles = np.asarray(scan.angles, np.float64)
+    n = len(angles)
+    a0 = float(angles[0]) if n else 0.0
+    inc = float((angles[-1] - angles[0]) / (n - 1)) if n > 1 else 0.0
+    regular = bool(np.array_equal(a0 + np.arange(n) * inc, angles))
+    return {"header": {"stamp": _stamp(ns), "frame_id": "laser"}, "angle_min": a0, "angle_increment": inc,
+            "angles": [] if regular else angles.tolist(), "ranges": np.asarray(scan.ranges, np.float64).tolist(),
+            "range_max": float(scan.range_max), "offset_x": float(scan.offset_x)}
+
+
 def grid_message(ns: int, origin_x: float, origin_y: float, cell: float, rows: int, cols: int,
                  data: np.ndarray[Any, Any]) -> dict[str, Any]:
     """A nav_msgs/OccupancyGrid in frame `map` (row 0 = the southmost row, as ROS has it)."""
@@ -124,7 +139,9 @@ class BagRecorder(RunObserver):
     """Writes a run to `path` as a ROS 2 bag in MCAP (see the module's docstring for what it holds).
 
     Args:
-        path: the .mcap file (replaced if it exists).
+        path: the .mcap file (replaced if it exists), opened at once.
+        folder: instead of `path`: the run is written to `folder/<run>.mcap`, opened when the run
+            starts (a script's or a campaign's runs, one file each).
         world: what names the run's world for a replay that recomputes ground truth at another cell
             size (a built-in name or a world file), None when unknown.
         start: the start pose ground truth was computed from (None: the run's first true pose).
@@ -133,18 +150,21 @@ class BagRecorder(RunObserver):
         ConfigError: `path` is not a writable .mcap file.
     """
 
-    def __init__(self, path: Path, *, world: str | None = None, start: Pose | None = None) -> None:
+    def __init__(self, path: Path | None = None, *, folder: Path | None = None, world: str | None = None,
+                 start: Pose | None = None) -> None:
         from mcap_ros2.writer import Writer
 
-        check_record_path(path)
-        try:
-            self._file: IO[bytes] = open(path, "wb")
-        except OSError as exc:
-            raise ConfigError(f"--record {path}: cannot write it ({exc.strerror}); pick another file") from None
-        self.path = path
+        if (path is None) == (folder is None):
+            raise ConfigError("BagRecorder: give a path or a folder")
+        self.folder = folder
+        self.path = path if path is not None else Path("unstarted.mcap")
         self.world = world if world is None or not Path(world).exists() else str(Path(world).resolve())
         self.start = start
-        self._writer = Writer(self._file)
+        self._file: IO[bytes] | None = None
+        self._writer: Writer | None = None
+        if path is not None:
+            check_record_path(path)
+            self._open(path)
         self._schemas: dict[str, Schema] = {}
         self._seq: dict[str, int] = {}
         self._static_done = False
@@ -154,8 +174,19 @@ class BagRecorder(RunObserver):
         self._started = False
         self._map_ns = -1
 
+    def _open(self, path: Path) -> None:
+        from mcap_ros2.writer import Writer
+
+        try:
+            self._file = open(path, "wb")
+        except OSError as exc:
+            raise ConfigError(f"recording {path}: cannot write it ({exc.strerror}); pick another file") from None
+        self.path = path
+        self._writer = Writer(self._file)
+
     def _write(self, topic: str, schema: tuple[str, str], message: dict[str, Any], ns: int) -> None:
         name, text = schema
+        assert self._writer is not None
         registered = self._schemas.get(name)
         if registered is None:
             registered = self._schemas[name] = self._writer.register_msgdef(name, text)
@@ -171,6 +202,10 @@ class BagRecorder(RunObserver):
 
     def on_start(self, run: ExplorationRun) -> None:
         """Write the `robotexp.run` metadata and the ground truth map."""
+        if self._writer is None:
+            assert self.folder is not None
+            self._open(self.folder / f"{run.info.name}.mcap")
+        assert self._writer is not None
         self._started = True
         g = run.grid.geo
         self._period = run.period
@@ -208,6 +243,7 @@ class BagRecorder(RunObserver):
                 self._write("/tf_static", TF_MESSAGE,
                             {"transforms": [_transform(ns, "base_link", "laser", s.laser.offset_x, 0.0, 0.0)]}, ns)
             self._write("/scan", LASER_SCAN, laser_scan_message(ns, s.laser, run.period), ns)
+            self._write("/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser), ns)
 
     def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
         """Write the map (once per coverage sample: 1 Hz of robot time; the end's sample repeats the last
@@ -219,13 +255,14 @@ class BagRecorder(RunObserver):
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record as metadata and close the file."""
+        assert self._writer is not None
         self._writer.add_metadata("robotexp.record", {"json": json.dumps(record.as_dict())})
         self.close()
 
     def close(self) -> None:
         """Finish the file (its summary and index); a run that never started leaves no file. Safe to
         call twice."""
-        if not self._closed:
+        if not self._closed and self._writer is not None and self._file is not None:
             self._closed = True
             try:
                 self._writer.finish()

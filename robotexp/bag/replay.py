@@ -2,7 +2,8 @@
 (`replay_bag`), so that the map and every metric come from the same code as a live run's.
 
 A recording made by `robotexp` (`robotexp.bag.recorder`) replays tick for tick: each /odom message is
-a tick, with the /scan and /ground_truth of the same stamp; the grid takes the recorded geometry,
+a tick, with the scan (/robotexp/scan, float64 as the run had it; else /scan) and /ground_truth of the
+same stamp; the grid takes the recorded geometry,
 model and range cap, and coverage is measured against the recorded ground truth (/ground_truth/map),
 or, at another cell size, against ground truth recomputed from the recorded world. A bag from a ROS 2
 robot (/scan and /odom, optionally /tf_static base_link -> laser) replays one tick per scan, with the
@@ -79,6 +80,14 @@ def _scan(msg: Any, offset_x: float, yaw: float) -> LaserScan:
     return LaserScan(angles[keep], ranges[keep], rmax, offset_x)
 
 
+def _exact_scan(msg: Any) -> LaserScan:
+    """The LaserScan of a robotexp_msgs/ExactScan, exactly as it was recorded."""
+    ranges = np.asarray(msg.ranges, np.float64)
+    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else \
+        msg.angle_min + np.arange(len(ranges)) * msg.angle_increment
+    return LaserScan(angles, ranges, float(msg.range_max), float(msg.offset_x))
+
+
 def _mount(transforms: list[Any], frame: str) -> tuple[float, float]:
     """The laser's offset ahead [m] and yaw [rad] on the robot from the static transform base_link (or
     base_footprint) -> `frame` (0, 0 when there is none; a sideways offset is not modelled: warned)."""
@@ -112,6 +121,7 @@ def read_bag(path: Path) -> Bag:
         raise ConfigError(f"{path}: no such recording; give an .mcap file (robotexp explore --record FILE.mcap)")
     odom: list[tuple[int, Pose, Twist]] = []
     scans: list[tuple[int, Any]] = []
+    exact: dict[int, LaserScan] = {}
     truths: dict[int, Pose] = {}
     statics: list[Any] = []
     truth_msg = None
@@ -127,7 +137,7 @@ def read_bag(path: Path) -> Bag:
                     record = json.loads(m.metadata["json"])
             f.seek(0)
             reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static"]
+            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static", "/robotexp/scan"]
             for schema, channel, message, msg in reader.iter_decoded_messages(topics=wanted, log_time_order=True):
                 topics[channel.topic] = schema.name if schema is not None else ""
                 t = message.log_time
@@ -136,6 +146,8 @@ def read_bag(path: Path) -> Bag:
                     odom.append((t, _pose(msg), Twist(float(v.linear.x), float(v.angular.z))))
                 elif channel.topic == "/scan":
                     scans.append((t, msg))
+                elif channel.topic == "/robotexp/scan":
+                    exact[t] = _exact_scan(msg)
                 elif channel.topic == "/ground_truth":
                     truths[t] = _pose(msg)
                 elif channel.topic == "/ground_truth/map":
@@ -160,8 +172,8 @@ def read_bag(path: Path) -> Bag:
         t0 = odom[0][0]
         for t, pose, vel in odom:
             msg = by_time.get(t)
-            ticks.append(Tick((t - t0) / 1e9, pose, vel, None if msg is None else _scan(msg, offset_x, yaw),
-                              truths.get(t)))
+            scan = exact.get(t) or (None if msg is None else _scan(msg, offset_x, yaw))
+            ticks.append(Tick((t - t0) / 1e9, pose, vel, scan, truths.get(t)))
     else:                       # a robot's: one tick per scan, at the newest odometry up to its stamp
         stamps = [t for t, _, _ in odom]
         t0 = None
@@ -244,8 +256,11 @@ class ReplayExplorer(Explorer):
 def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
     """Ground truth on `geo`: the recorded one when it has that geometry, else recomputed from the
     recorded world (None, with a warning, when that cannot be done)."""
-    if bag.truth is not None and bag.truth.geo == geo:
-        return bag.truth
+    t = bag.truth
+    if t is not None and (t.geo.rows, t.geo.cols) == (geo.rows, geo.cols) and \
+            max(abs(t.geo.origin_x - geo.origin_x), abs(t.geo.origin_y - geo.origin_y)) < 1e-6 * geo.cell + 1e-9 \
+            and abs(t.geo.cell - geo.cell) < 1e-6 * geo.cell:      # the message's resolution is a float32
+        return GroundTruth(geo, t.occupied, t.reachable, t.explorable)
     meta = bag.meta
     if meta is None or bag.truth is None or not meta.get("world_source") or meta.get("start") is None:
         return None

@@ -7,7 +7,7 @@ common_interfaces; `builtin_interfaces/Time` is a primitive to the MCAP ROS 2 co
 
 from __future__ import annotations
 
-__all__ = ["SCHEMAS", "LASER_SCAN", "ODOMETRY", "TF_MESSAGE", "OCCUPANCY_GRID"]
+__all__ = ["SCHEMAS", "LASER_SCAN", "ODOMETRY", "TF_MESSAGE", "OCCUPANCY_GRID", "EXACT_SCAN"]
 
 _SEP = "=" * 80
 
@@ -87,4 +87,15 @@ int8[] data""",
     ("std_msgs/Header", "nav_msgs/MapMetaData", "geometry_msgs/Pose", "geometry_msgs/Point",
      "geometry_msgs/Quaternion")))
 
-SCHEMAS = {name: text for name, text in (LASER_SCAN, ODOMETRY, TF_MESSAGE, OCCUPANCY_GRID)}
+# robotexp's own: the scan exactly as the map integrated it (LaserScan's float32 fields round the beam
+# angles and ranges: a replay from them may differ from the run in a few cells)
+EXACT_SCAN = ("robotexp_msgs/msg/ExactScan", _schema(
+    """std_msgs/Header header
+float64 angle_min
+float64 angle_increment
+float64[] angles
+float64[] ranges
+float64 range_max
+float64 offset_x""", ("std_msgs/Header",)))
+
+SCHEMAS = {name: text for name, text in (LASER_SCAN, ODOMETRY, TF_MESSAGE, OCCUPANCY_GRID, EXACT_SCAN)}

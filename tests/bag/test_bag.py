@@ -24,7 +24,8 @@ def _last(path: Path) -> dict[str, object]:
 
 TOPICS = {"/scan": "sensor_msgs/msg/LaserScan", "/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
           "/tf_static": "tf2_msgs/msg/TFMessage", "/map": "nav_msgs/msg/OccupancyGrid",
-          "/ground_truth": "nav_msgs/msg/Odometry", "/ground_truth/map": "nav_msgs/msg/OccupancyGrid"}
+          "/ground_truth": "nav_msgs/msg/Odometry", "/ground_truth/map": "nav_msgs/msg/OccupancyGrid",
+          "/robotexp/scan": "robotexp_msgs/msg/ExactScan"}
 
 
 def test_recording_holds_ros2_topics(recorded: tuple[Path, dict[str, object]]) -> None:
@@ -50,7 +51,8 @@ def test_recording_holds_ros2_topics(recorded: tuple[Path, dict[str, object]]) -
                 assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == message.log_time
     # one /odom and /tf per 0.1 s tick over 25 s (ticks 0 .. 25 s), a map per second and at the end
     assert counts["/odom"] == counts["/tf"] == counts["/ground_truth"] == 251
-    assert 1 <= counts["/scan"] <= 251 and counts["/tf_static"] == counts["/ground_truth/map"] == 1
+    assert 1 <= counts["/scan"] == counts["/robotexp/scan"] <= 251
+    assert counts["/tf_static"] == counts["/ground_truth/map"] == 1
     assert counts["/map"] == 26
     assert stamps[0] == round(EPOCH * 1e9) and stamps[-1] - stamps[0] == pytest.approx(25e9, abs=1e6)
     assert first_scan is not None and first_scan.header.frame_id == "laser"
@@ -238,3 +240,24 @@ def test_replay_feeds_the_live_view(recorded: tuple[Path, dict[str, object]]) ->
     assert hub.map is not None and len(hub.path) >= 4
     # paced at 50x: 25 s of robot time take 0.5 s of (fake) wall time
     assert sum(sleeps) == pytest.approx(25.0 / 50.0, rel=0.05)
+
+
+def test_exact_scan_round_trip() -> None:
+    """The float64 scan topic gives back every angle and range bit for bit, regular or not."""
+    from types import SimpleNamespace
+
+    from robotexp.bag.recorder import exact_scan_message
+    from robotexp.bag.replay import _exact_scan
+    from robotexp.robot import LaserScan
+
+    rng = np.random.default_rng(1)
+    regular = np.linspace(-2.0, 2.0, 181)
+    irregular = np.sort(rng.uniform(-3, 3, 50))
+    for angles in (regular, irregular):
+        ranges = rng.uniform(0.1, 3.0, len(angles))
+        ranges[::7] = np.inf
+        msg = exact_scan_message(5, LaserScan(angles, ranges, 3.0, 0.12))
+        assert (msg["angles"] == []) == (angles is regular)
+        back = _exact_scan(SimpleNamespace(**msg))
+        assert np.array_equal(back.angles, angles) and np.array_equal(back.ranges, ranges)
+        assert (back.range_max, back.offset_x) == (3.0, 0.12)
