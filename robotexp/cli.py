@@ -608,7 +608,7 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
 
 from robotexp.mapcmd import map_command  # noqa: E402  (a command of its own module, registered here)
 
-map_command.callback = handle_errors(map_command.callback)  # type: ignore[arg-type]
+map_command.callback = handle_errors(map_command.callback)  # type: ignore[type-var]
 main.add_command(map_command)
 
 

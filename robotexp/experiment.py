@@ -43,6 +43,7 @@ MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstac
 MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
 MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
 MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
+MAX_MAP_CELLS = 1e8     # cells of a map given by limits (1e8 cells: 10 km x 10 km at 1 m, 1 km x 1 km at 10 cm)
 
 
 @dataclass
@@ -94,6 +95,12 @@ class RunSpec:
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
                 raise ConfigError(f"map limits must be finite with min < max, got x {x0 * 1000:g}..{x1 * 1000:g}, "
                                   f"y {y0 * 1000:g}..{y1 * 1000:g} mm")
+            cell = self.cell or DEFAULT_CELL
+            cells = ((x1 - x0) / cell) * ((y1 - y0) / cell)
+            if cells > MAX_MAP_CELLS:
+                raise ConfigError(f"map limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm make "
+                                  f"{cells:.3g} cells of {cell * 1000:g} mm, more than {MAX_MAP_CELLS:.0e}; give "
+                                  "smaller limits or larger cells")
 
 
 @dataclass

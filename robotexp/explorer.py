@@ -40,9 +40,15 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class Done:
-    """What `Explorer.step` returns when exploration is over, with the reason."""
+    """What `Explorer.step` returns when exploration is over, with the reason.
+
+    `explored` False says the explorer stops for a reason of its own (a budget, a node limit), not
+    because it believes the place explored; the run loop checks a claim of exploration against the
+    frontier the robot could still reach (`robotexp.watch.RunWatch`), not a stop.
+    """
 
     reason: str = "explored"
+    explored: bool = True
 
 
 @dataclass

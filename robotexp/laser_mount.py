@@ -110,8 +110,8 @@ def scan_in_robot_frame(scan: LaserScan, sensor: Pose, robot: Pose,
         dx, dy = np.asarray(x, np.float64) - robot.x, np.asarray(y, np.float64) - robot.y
         return c * dx + s * dy, -s * dx + c * dy
 
-    ox, _ = in_robot(sensor.x, sensor.y)                          # the rays' origin: (ox, 0)
-    ox = float(ox)
+    origin_x, _ = in_robot(sensor.x, sensor.y)                    # the rays' origin: (ox, 0)
+    ox = float(origin_x)
     ranges = np.asarray(scan.ranges, np.float64)
     if beam_sensors is None:
         bx, by = in_robot(np.full(ranges.shape, sensor.x), np.full(ranges.shape, sensor.y))
@@ -254,7 +254,7 @@ def connect_laser(spec: str) -> Laser:
 
     name, address = parse_laser_spec(spec)
     cls = load(LASERS, name, Laser)
-    return cls(address)  # type: ignore[no-any-return]
+    return cls(address)
 
 
 def check_laser_options(spec: str | None, pose: str | None) -> None:
@@ -354,10 +354,10 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
         emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, **options)
         started.append(("robot", emulator.start()))
         if laser is not None:
-            sim = getattr(emulator, "sim", None)
-            if sim is None:
+            emulated = getattr(emulator, "sim", None)
+            if emulated is None:
                 raise ConfigError(f"the {backend!r} emulator has no simulator a laser could measure from")
-            source = mounted_source(sim, mount, getattr(emulator, "lock", None))
+            source = mounted_source(emulated, mount, getattr(emulator, "lock", None))
             started.append(("laser", serve_laser(laser, source, pty=pty, speedup=speedup)))
         return started
     except BaseException:

@@ -9,7 +9,8 @@
     on_sample(run, t, cov)   every coverage sample (1 s of robot time by default, and once at the end)
     on_end(run, record)      once, after the robot was stopped, with the run's `RunRecord`
 
-Subclass `RunObserver` and override the hooks you need (each is a no-op here). An observer may call
+Subclass `RunObserver` and override the hooks you need (each is a no-op here; the loop builds a
+`StepEvent` only when some observer overrides `on_step`). An observer may call
 `run.request_stop(reason, end)` to end the run at the next tick (a view's stop button, a stall
 watch, a script's timeout). Observers run in the loop's thread; a slow observer slows the run (a
 simulated run keeps its results: robot time does not pass while an observer works).

@@ -199,7 +199,7 @@ class RunWatch(RunObserver):
             x0, y0, x1, y1 = self.area
             run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
                              f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
-        if self.check_done and isinstance(step.decision, Done):
+        if self.check_done and isinstance(step.decision, Done) and step.decision.explored:
             left = unexplored_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
             if left is not None:
                 run.completed = False

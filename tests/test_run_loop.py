@@ -74,7 +74,7 @@ class Straight(Explorer):
             assert self.fail is not None
             raise self.fail
         if state.pose.x >= self.x_end:
-            return Done("scripted end")
+            return Done("scripted end", explored=False)     # a scripted stop, not a claim of exploration
         return Twist(SPEED, 0.0)
 
 

@@ -72,7 +72,7 @@ class WallFollowExplorer(Explorer):
         if self.t0 is None:
             self.t0 = state.time
         if state.time - self.t0 >= self.duration:
-            return Done(f"time budget of {self.duration:g} s used")
+            return Done(f"time budget of {self.duration:g} s used", explored=False)
         away = state.pose.distance_to(self.ctx.start)
         if away > 3 * self.home_radius:
             self.left_home = True

@@ -216,7 +216,7 @@ class SRTExplorer(Explorer):
                 return twist
             self._add_node(pose, region, grid)
             if len(self.tree) >= self.max_nodes:
-                return Done(f"node limit of {self.max_nodes} reached")
+                return Done(f"node limit of {self.max_nodes} reached", explored=False)
             return self._choose(pose, state)
         if self.phase is Phase.SETTLE:
             return self._settle(pose, state)

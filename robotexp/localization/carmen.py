@@ -163,7 +163,7 @@ def _line(log: CarmenLog, number: int, text: str) -> None:
             k = 10 + n + m
             lx, ly, lth, rx, ry, rth = _floats(fields, k, 6)
             (stamp,) = _floats(fields, k + 11, 1)
-            angles = start + res * np.arange(n)
+            angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
             log.scans.append(LogScan(stamp, angles, ranges, Pose(lx, ly, lth), Pose(rx, ry, rth), rmax, number))
         elif kind == "ODOM":
             x, y, th, _tv, _rv, _acc, stamp = _floats(fields, 1, 7)

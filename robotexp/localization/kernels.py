@@ -291,23 +291,28 @@ def _solve3(h: npt.NDArray[np.float64], det: float, b0: float, b1: float, b2: fl
 
 
 @kernel
-def _cost(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
-          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+def _sums(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float
+          ) -> tuple[float, float]:
+    """Sum of the bilinear field under the points placed at (x, y, th), and sum of (1 - field)^2."""
     c, s = math.cos(th), math.sin(th)
     total = 0.0
+    squares = 0.0
     for i in range(px.shape[0]):
         m, _, _ = bilinear(field, (x + c * px[i] - s * py[i] - ox) / cell, (y + s * px[i] + c * py[i] - oy) / cell)
-        total += (1.0 - m) * (1.0 - m)
-    return total
+        total += m
+        squares += (1.0 - m) * (1.0 - m)
+    return total, squares
+
+
+@kernel
+def _cost(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+    return _sums(field, ox, oy, cell, px, py, x, y, th)[1]
 
 
 @kernel
 def mean_field(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
-          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+               px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
     """The mean bilinear field value under the points placed at (x, y, th)."""
-    c, s = math.cos(th), math.sin(th)
-    total = 0.0
-    for i in range(px.shape[0]):
-        m, _, _ = bilinear(field, (x + c * px[i] - s * py[i] - ox) / cell, (y + s * px[i] + c * py[i] - oy) / cell)
-        total += m
-    return total / max(px.shape[0], 1)
+    return _sums(field, ox, oy, cell, px, py, x, y, th)[0] / max(px.shape[0], 1)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -152,7 +152,7 @@ class ScanMatcher:
     def __init__(self, config: MatcherConfig | None = None) -> None:
         self.config = config or MatcherConfig()
 
-    def field(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, box: tuple[float, float, float, float],
+    def field(self, occupied: npt.NDArray[Any], geo: GridGeometry, box: tuple[float, float, float, float],
               hits: HitMap | None = None) -> tuple[npt.NDArray[np.float64], float, float] | None:
         """The likelihood field of `occupied` (bool, or numbers with > 0 occupied, e.g. log-odds) over
         the cells of `box` (xmin, ymin, xmax, ymax) [m], as (field, origin_x, origin_y), centred on the
@@ -176,9 +176,9 @@ class ScanMatcher:
         f = K.splat_field(sub, off_x, off_y, geo.cell, self.config.sigma, reach)
         return f, geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell
 
-    def match(self, occupied: npt.NDArray[np.generic], geo: GridGeometry, px: npt.NDArray[np.float64],
+    def match(self, occupied: npt.NDArray[Any], geo: GridGeometry, px: npt.NDArray[np.float64],
               py: npt.NDArray[np.float64], prediction: Pose, hits: HitMap | None = None,
-              known: npt.NDArray[np.generic] | None = None, motion: tuple[float, float] | None = None) -> Match:
+              known: npt.NDArray[Any] | None = None, motion: tuple[float, float] | None = None) -> Match:
         """Align the points (robot frame [m]) with the occupied cells (bool, or > 0), starting at `prediction`
         (with `hits`, the field is centred on the cells' mean hit points).
 
@@ -378,8 +378,8 @@ class Localizer:
                                    motion)
             status, pose = m.status, m.pose
             if motion is not None and self.gate > 0:
-                d = relative(prediction, pose)
-                if math.hypot(d.x, d.y) > self.gate * motion[0] or abs(d.theta) > self.gate * motion[1]:
+                dev = relative(prediction, pose)
+                if math.hypot(dev.x, dev.y) > self.gate * motion[0] or abs(dev.theta) > self.gate * motion[1]:
                     status, pose = "gated", prediction      # farther than odometry can be wrong: a false match
             self.integrate(pose, scan)
         self.counts[status] = self.counts.get(status, 0) + 1

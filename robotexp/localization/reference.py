@@ -67,7 +67,7 @@ def search_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
     d = dist.ravel()[cand]
     pick = cand[np.argmin(d)]
     k, j, i = np.unravel_index(pick, scores.shape)
-    return (x0 + offs[i] * cell, y0 + offs[j] * cell, float(th[k]), float(scores[k, j, i]))
+    return (float(x0 + offs[i] * cell), float(y0 + offs[j] * cell), float(th[k]), float(scores[k, j, i]))
 
 
 def bilinear_ref(field: npt.NDArray[np.float64], gx: npt.NDArray[np.float64], gy: npt.NDArray[np.float64]

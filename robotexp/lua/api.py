@@ -51,6 +51,7 @@ log = logging.getLogger(__name__)
 P3DX_PORT = 8101        # MobileSim's and ARIA's default TCP port
 ROBOT_BACKEND = "p3dx"  # the `robotexp.robots` backend of a non-sim address (the P3-DX protocol)
 TRACK_WINDOW = (800, 600)       # [px] image size around the robot when tracking is on
+MAX_IMAGE_PIXELS = 1e8          # a map image larger than 10000 x 10000 px is refused (memory, not a picture)
 _UPDATE_PARAMS = ("update_period",)   # explorer parameter names of the potential update interval [s]
 _NAME = {"n": "a number", "s": "a string", "b": "a boolean", "i": "an integer"}
 
@@ -339,7 +340,11 @@ class Session:
             base = float(map_layout(geo, scale=None, title=title).scale)
         else:
             base = self.scaling * geo.cell * 1000.0       # px/mm -> px per cell
-        scale = max(1, round(base * self.zoom))
+        wanted = base * self.zoom
+        if not wanted * wanted * geo.rows * geo.cols <= MAX_IMAGE_PIXELS:     # inf and nan refused too
+            raise ScriptError(f"mapView: the map image would be {geo.cols * wanted:.3g} x {geo.rows * wanted:.3g} px, "
+                              f"more than {MAX_IMAGE_PIXELS:.0e} pixels; lower mapView.setMapScaling or zoomOut")
+        scale = max(1, round(wanted))
         image = map_image(run, title, show, scale=scale, path=self.show["path"])
         state = run.state
         if self.show["tracking"] and state is not None:

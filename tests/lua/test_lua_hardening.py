@@ -200,3 +200,19 @@ def test_sandbox_minor_leaks(lua, tmp_path):
         'print(package.searchpath("mod", package.path) ~= nil)', sandbox=True)
     assert lua.lines == ["2\t3\tnil\tnil", "true\tnil\tno file '/etc/exists'", "true"]
     assert os.environ.get("HOME")
+
+
+def test_map_limits_that_do_not_fit_are_refused_before_the_run(lua):
+    # the Lua memory cap does not see numpy: the size is checked before any array is made
+    with pytest.raises(ScriptError, match=r"exploration.start: map limits .* make 1.6e\+17 cells of 5 mm, more than"):
+        lua("exploration.setMapLimits(-1e9, -1e9, 1e9, 1e9); exploration.setCellSize(5); exploration.start()",
+            sandbox=True)
+    assert not (lua.out / "results.jsonl").exists()
+
+
+@pytest.mark.parametrize("view", ["mapView.setMapScaling(1000)", "for i = 1, 2000 do mapView.zoomIn() end"])
+def test_a_map_image_too_large_is_refused_before_it_is_drawn(lua, view):
+    with pytest.raises(ScriptError, match=r"mapView: the map image would be .* px, more than 1e\+08 pixels"):
+        lua('exploration.setWorld("dense"); exploration.setMaxTime(1000); exploration.start(); exploration.wait()\n'
+            f'{view}; mapView.saveMapImage("x.png")', sandbox=True)
+    assert not (lua.out / "x.png").exists() and (lua.out / "results.jsonl").exists()
