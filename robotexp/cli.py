@@ -273,6 +273,7 @@ worlds.add_command(generate)
 main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
 main.add_command(__import__("robotexp.bag.cli", fromlist=["replay"]).replay)
 main.add_command(__import__("robotexp.bag.cli", fromlist=["video"]).video)
+main.add_command(__import__("robotexp.bag.cli", fromlist=["figure"]).figure)
 
 
 @main.command()

@@ -14,7 +14,7 @@ from robotexp.errors import ConfigError
 from robotexp.record import EndReason
 from robotexp.view.live import end_view, start_view, view_options
 
-__all__ = ["replay", "video"]
+__all__ = ["replay", "video", "figure"]
 
 
 @click.command()
@@ -78,3 +78,38 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
         frames = FrameObserver(writer, every)
         replay_bag(data, None, cell=None if cell is None else cell / 1000, observers=(frames,))
     click.echo(f"video: {output} ({writer.count} frames, {writer.count / fps:.1f} s at {fps:g} fps)")
+
+
+@click.command()
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output folder (default: beside SOURCE).")
+@click.option("--format", "formats", default="png,svg,pdf", show_default=True, help="Comma-separated: png, svg, pdf.")
+@handle_errors
+def figure(source: Path, out: Path | None, formats: str) -> None:
+    """Figures for a thesis (matplotlib; PNG, SVG, PDF): a recording (.mcap) gives its map with a legend,
+    scale bar and axes in metres; a results.jsonl gives box plots of coverage, path length and robot
+    time per world and method."""
+    from robotexp.figures import FORMATS, campaign_figures, run_map_figure, save_figure
+
+    fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
+    bad = sorted(set(fmts) - set(FORMATS))
+    if bad or not fmts:
+        raise ConfigError(f"--format {formats!r}: use png, svg, pdf (comma-separated)")
+    if not source.is_file():
+        raise ConfigError(f"{source}: no such file; give a recording (.mcap) or a results.jsonl")
+    folder = out or source.parent
+    writable_folder(folder)
+    if source.suffix.lower() == ".mcap":
+        from robotexp.bag.replay import read_bag, replay_bag
+
+        run = replay_bag(read_bag(source), None)
+        written = save_figure(run_map_figure(run), folder / f"{run.info.name}.map", fmts)
+    elif source.suffix.lower() == ".jsonl":
+        from robotexp.results import read_records
+
+        written = campaign_figures(read_records(source), folder, fmts)
+    else:
+        raise ConfigError(f"{source}: give a recording (.mcap) or a results file (.jsonl)")
+    for path in written:
+        click.echo(f"written: {path}")

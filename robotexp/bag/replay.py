@@ -329,7 +329,7 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
     speed = meta.get("max_speed_m_s") or 0.0
     info_extra: dict[str, Any] = {"replay_of": str(bag.path)}
     if out is None:
-        name = f"{world}_{method}_{pose}"
+        name = meta.get("run") or f"{world}_{method}_{pose}"
     else:
         out.mkdir(parents=True, exist_ok=True)
         name = run_id(world, method, pose, speed, int(meta.get("seed", 0)), out)
