@@ -61,3 +61,17 @@ def test_box_figure_draws_boxes_only_for_enough_runs() -> None:
     medians = [ln for ln in ax.lines if ln.get_color() == (220 / 255, 40 / 255, 40 / 255)]
     points = sum(len(ln.get_xdata()) for ln in ax.lines if ln.get_marker() == "o")
     assert len(medians) == 1 and points == 8
+
+
+def test_potential_gets_a_colour_bar(tmp_path: Path) -> None:
+    from robotexp.figures import map_figure, save_figure
+    from robotexp.mapping.geometry import GridGeometry
+
+    geo = GridGeometry(0.0, 0.0, 0.1, 40, 60)
+    states = np.zeros((40, 60), np.int8)
+    states[0, :] = states[-1, :] = 100
+    pot = np.tile(np.linspace(0, 1, 60), (40, 1))
+    fig = map_figure(states, geo, potential=pot, title="t")
+    assert len(fig.axes) == 2 and fig.axes[1].get_ylabel() == "potential"
+    (svg,) = save_figure(fig, tmp_path / "pot", ("svg",))
+    assert "potential" in svg.read_text()
