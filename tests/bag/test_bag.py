@@ -243,21 +243,28 @@ def test_replay_feeds_the_live_view(recorded: tuple[Path, dict[str, object]]) ->
 
 
 def test_exact_scan_round_trip() -> None:
-    """The float64 scan topic gives back every angle and range bit for bit, regular or not."""
-    from types import SimpleNamespace
+    """The float64 scan topic, encoded by robotexp.bag.cdr and decoded by mcap-ros2, gives back every
+    angle and range bit for bit, regular or not."""
+    from mcap.records import Schema
 
     from robotexp.bag.recorder import exact_scan_message
     from robotexp.bag.replay import _exact_scan
+    from robotexp.bag.schemas import EXACT_SCAN
     from robotexp.robot import LaserScan
 
+    decode = DecoderFactory().decoder_for("cdr", Schema(id=1, name=EXACT_SCAN[0], encoding="ros2msg",
+                                                         data=EXACT_SCAN[1].encode()))
+    assert decode is not None
     rng = np.random.default_rng(1)
     regular = np.linspace(-2.0, 2.0, 181)
     irregular = np.sort(rng.uniform(-3, 3, 50))
     for angles in (regular, irregular):
         ranges = rng.uniform(0.1, 3.0, len(angles))
         ranges[::7] = np.inf
-        msg = exact_scan_message(5, LaserScan(angles, ranges, 3.0, 0.12))
-        assert (msg["angles"] == []) == (angles is regular)
-        back = _exact_scan(SimpleNamespace(**msg))
+        msg = decode(exact_scan_message(1_700_000_000_123_456_789, LaserScan(angles, ranges, 3.0, 0.12)))
+        assert (len(msg.angles) == 0) == (angles is regular)
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == \
+            (1_700_000_000, 123_456_789, "laser")
+        back = _exact_scan(msg)
         assert np.array_equal(back.angles, angles) and np.array_equal(back.ranges, ranges)
         assert (back.range_max, back.offset_x) == (3.0, 0.12)
