@@ -535,10 +535,13 @@ def _status_line(state: Any) -> str:
 @click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
 @click.option("--laser", default=None, help="A laser of the robot's own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
 @click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
+@click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
+              help="Record the states read (odometry, laser) as a ROS 2 bag in MCAP (robotexp replay maps it).")
 @view_options
 @handle_errors
 def connect(backend: str, address: str, drive: str | None, duration: float, laser: str | None,
-            laser_pose: str | None, view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
+            laser_pose: str | None, record: Path | None, view: bool, view_port: int, view_host: str,
+            view_speed: str | None) -> None:
     """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line
     (with --view: its pose, laser, path and a map built from its scans in the browser)."""
     from robotexp.laser_mount import check_laser_options
@@ -555,19 +558,28 @@ def connect(backend: str, address: str, drive: str | None, duration: float, lase
     if not (duration >= 0 and math.isfinite(duration)):
         raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
     tty = sys.stdout.isatty()
+    recorder = None
+    if record is not None:
+        from robotexp.bag.recorder import BagRecorder
+
+        recorder = BagRecorder(record)
     live = start_view(view, view_host, view_port, view_speed)
     try:
-        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose)
+        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
     except BaseException:
         end_view(live, interrupted=True)
         raise
+    finally:
+        if recorder is not None:
+            recorder.close()
     end_view(live, interrupted=False)
 
 
 def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty: bool, live: Any,
-                   laser: str | None = None, laser_pose: str | None = None) -> None:
+                   laser: str | None = None, laser_pose: str | None = None, recorder: Any = None) -> None:
     """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`,
-    with `laser` (NAME:ADDRESS) attached at `laser_pose` when given."""
+    with `laser` (NAME:ADDRESS) attached at `laser_pose` when given, each state read written to
+    `recorder` (a `robotexp.bag.recorder.BagRecorder`) when given."""
     import time
 
     from robotexp.laser_mount import attach_laser
@@ -582,15 +594,19 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
         click.echo(f"limits: {lim.v_max * 1000:.0f} mm/s, {math.degrees(lim.w_max):.0f} deg/s; "
                    f"capabilities: {', '.join(sorted(robot.capabilities)) or 'none'}")
         end, next_line = time.monotonic() + duration, 0.0
+        t0: float | None = None
         try:
             while True:
                 now = time.monotonic()
                 if twist is not None:
                     robot.command(twist)
                 due = now >= next_line or now >= end
-                state = robot.read() if due or feed is not None else None
+                state = robot.read() if due or feed is not None or recorder is not None else None
                 if feed is not None and state is not None:
                     feed.publish(state)
+                if recorder is not None and state is not None:
+                    t0 = state.time if t0 is None else t0
+                    recorder.write_state(state.time - t0, state)
                 if due:
                     line = _status_line(state)
                     click.echo(f"\r{line}" if tty else line, nl=not tty)

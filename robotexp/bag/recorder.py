@@ -36,7 +36,7 @@ from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, OCCUPANCY_GRID, ODOMETR
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.observers import RunObserver, StepEvent
-from robotexp.robot import LaserScan, Pose
+from robotexp.robot import LaserScan, Pose, RobotState
 
 if TYPE_CHECKING:
     from mcap.writer import Writer
@@ -192,9 +192,17 @@ class BagRecorder(RunObserver):
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
         """Write the tick's odometry, transforms, true pose and (when the map took it) scan."""
-        ns = stamp_ns(step.time)
+        self.write_state(step.time, step.state, step.map_updated, run.period)
+
+    def write_state(self, time: float, state: RobotState, scan: bool = True, period: float = 0.1) -> None:
+        """Write a state read at robot time `time` [s]: /odom, /tf, /ground_truth when known and, with
+        `scan`, its laser scan (/scan, /robotexp/scan; /tf_static once). `robotexp connect --record`
+        calls this for each state it reads (no run, no map: such a bag replays as a robot's)."""
+        if self._writer is None:
+            raise ConfigError("BagRecorder: a recorder given a folder opens its file when a run starts")
+        ns = stamp_ns(time)
         self._last_ns = ns
-        s = step.state
+        s = state
         p = s.pose
         v = s.velocity
         self._write("/odom", ODOMETRY, cdr.odometry(ns, "odom", "base_link", p.x, p.y, p.theta, v.v, v.w), ns)
@@ -204,13 +212,14 @@ class BagRecorder(RunObserver):
         if t is not None:
             self._write("/ground_truth", ODOMETRY, cdr.odometry(ns, "map", "base_link_true", t.x, t.y, t.theta,
                                                                 0.0, 0.0), ns)
-        if step.map_updated and s.laser is not None:
+        if scan and s.laser is not None:
             if not self._static_done:
                 self._static_done = True
                 self._write("/tf_static", TF_MESSAGE,
                             cdr.tf_message(ns, [("base_link", "laser", s.laser.offset_x, 0.0, 0.0)]), ns)
-            self._write("/scan", LASER_SCAN, laser_scan_message(ns, s.laser, run.period), ns)
+            self._write("/scan", LASER_SCAN, laser_scan_message(ns, s.laser, period), ns)
             self._write("/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser), ns)
+        self._started = True
 
     def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
         """Write the map (once per coverage sample: 1 Hz of robot time; the end's sample repeats the last
