@@ -177,7 +177,7 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
               help="Record the run as a ROS 2 bag in MCAP (robotexp replay / video read it; Foxglove opens it).")
 @click.option("--frames", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
-              help="Save a PNG frame of the map every --frame-every seconds of robot time in DIR.")
+              help="Save a PNG frame of the map (with the --show overlays) every --frame-every s of robot time in DIR.")
 @click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
 @view_options
 @handle_errors
@@ -218,7 +218,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     if frames is not None:
         from robotexp.video import FrameObserver, PngFrames
 
-        watchers.append(FrameObserver(PngFrames(frames), frame_every))
+        watchers.append(FrameObserver(PngFrames(frames), frame_every, overlays))
     recorder = None
     if record is not None:
         from robotexp.bag.recorder import BagRecorder

@@ -35,8 +35,10 @@ FRAME_SIZE = 800        # [px] frames fit this square unless the grid has more c
 BLOCK = 16              # [px] video frames are padded to multiples of this (H.264 macro blocks)
 
 
-def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None = None) -> Image.Image:
-    """The frame of `run` now (see the module's docstring); `scale` [px per cell] (None: fit FRAME_SIZE)."""
+def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None = None,
+                show: tuple[str, ...] = ()) -> Image.Image:
+    """The frame of `run` now (see the module's docstring); `scale` [px per cell] (None: fit FRAME_SIZE);
+    `show`: the explorer's overlays to draw too ("potential", "vectors", "grid", as `explore --show`)."""
     from robotexp.render import render_map
 
     state = run.state
@@ -52,24 +54,27 @@ def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None
         cov = run.coverage()
         title = (f"{run.info.world} - {run.info.method} - {run.robot_time:.0f} s, {run.metrics.path_length:.1f} m"
                  + ("" if cov is None else f", coverage {cov * 100:.1f}%"))
+    overlays = run.explorer.overlays() if ("potential" in show or "vectors" in show) else {}
     return render_map(run.grid.states(), run.grid.geo, truth=None if run.truth is None else run.truth.occupied,
                       path=path, start=run.start_pose,
                       end=None if state is None else (state.true_pose or state.pose),
-                      laser=laser, scale=scale, title=title, max_size=FRAME_SIZE)
+                      laser=laser, scale=scale, title=title, max_size=FRAME_SIZE, show_grid="grid" in show,
+                      potential=overlays.get("potential") if "potential" in show else None,
+                      vectors=overlays.get("vectors") if "vectors" in show else None)
 
 
 class FrameObserver(RunObserver):
     """Renders a frame every `every` seconds of robot time (the first at the start, the last at the
-    end) and hands it to `sink`.
+    end) and hands it to `sink`; `show`: the explorer's overlays drawn too (`frame_image`).
 
     Raises:
         ConfigError: `every` is not > 0.
     """
 
-    def __init__(self, sink: Callable[[Image.Image], None], every: float = 1.0) -> None:
+    def __init__(self, sink: Callable[[Image.Image], None], every: float = 1.0, show: tuple[str, ...] = ()) -> None:
         if not (every > 0 and math.isfinite(every)):
             raise ConfigError(f"frame period must be > 0 s, got {every:g}")
-        self.sink, self.every = sink, every
+        self.sink, self.every, self.show = sink, every, show
         self.frames = 0
         self._next = 0.0
         self._scale: int | None = None
@@ -80,7 +85,7 @@ class FrameObserver(RunObserver):
             from robotexp.render import map_layout
 
             self._scale = map_layout(run.grid.geo, title="t", max_size=FRAME_SIZE).scale
-        self.sink(frame_image(run, self._scale))
+        self.sink(frame_image(run, self._scale, show=self.show))
         self.frames += 1
         self._last_time = time
 

@@ -78,3 +78,23 @@ def test_explore_frames(recorded: tuple[Path, dict[str, object]]) -> None:
         with Image.open(f) as im:
             sizes.add(im.size)
     assert len(sizes) == 1
+
+
+def test_frames_draw_the_explorers_overlays() -> None:
+    """explore --frames with --show potential: the frames carry the BVP potential (viridis on free cells)."""
+    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.render import viridis
+    from robotexp.video import FrameObserver
+
+    shown: list[np.ndarray] = []
+    plain: list[np.ndarray] = []
+    spec = RunSpec(world="ufmg-static", method="bvp", max_time=4.0)
+    run_experiment(spec, None, observers=[FrameObserver(lambda im: shown.append(np.asarray(im)), 2.0, ("potential",)),
+                                          FrameObserver(lambda im: plain.append(np.asarray(im)), 2.0)])
+    assert len(shown) == len(plain) == 3
+    ends = {tuple(int(c) for c in viridis(np.array([v]))[0]) for v in (0.0, 1.0)}
+
+    def count(img: np.ndarray) -> int:
+        return sum(int(np.count_nonzero(np.all(img == np.array(c, np.uint8), axis=2))) for c in ends)
+
+    assert count(shown[-1]) > 100 and count(plain[-1]) == 0
