@@ -271,9 +271,10 @@ from robotexp.world.generate_cli import generate  # noqa: E402  (the command liv
 
 worlds.add_command(generate)
 main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
-main.add_command(__import__("robotexp.bag.cli", fromlist=["replay"]).replay)
-main.add_command(__import__("robotexp.bag.cli", fromlist=["video"]).video)
-main.add_command(__import__("robotexp.bag.cli", fromlist=["figure"]).figure)
+for _name in ("replay", "video", "figure"):      # recordings, video, figures (robotexp.bag.cli)
+    _command = getattr(__import__("robotexp.bag.cli", fromlist=[_name]), _name)
+    _command.callback = handle_errors(_command.callback)
+    main.add_command(_command)
 
 
 @main.command()

@@ -1,6 +1,6 @@
-"""The commands `robotexp replay` (rebuild a recording's map and metrics) and `robotexp video`.
-
-robotexp.cli registers them at its end, so its helpers are already defined when this module loads."""
+"""The commands `robotexp replay` (rebuild a recording's map and metrics), `robotexp video` and
+`robotexp figure`. robotexp.cli registers them (wrapping each in its `handle_errors`); this module
+imports robotexp.cli only inside the commands (`python -m robotexp.cli` runs it as __main__)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ from pathlib import Path
 
 import click
 
-from robotexp.cli import handle_errors, writable_folder
 from robotexp.errors import ConfigError
 from robotexp.record import EndReason
 from robotexp.view.live import end_view, start_view, view_options
@@ -24,13 +23,13 @@ __all__ = ["replay", "video", "figure"]
 @click.option("--cell", type=float, default=None,
               help="Map cell size [mm] (default: the recorded one; a ROS 2 robot's bag: 100).")
 @view_options
-@handle_errors
 def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int, view_host: str,
            view_speed: str | None) -> None:
     """Rebuild the map and metrics of a recording (robotexp explore --record, or a ROS 2 robot's bag with
     /scan and /odom) and write them as explore does (--view: watch the replay in the browser, at
     --view-speed times its robot time, with pause, step and stop)."""
     from robotexp.bag.replay import read_bag, replay_bag
+    from robotexp.cli import writable_folder
 
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
@@ -61,7 +60,6 @@ def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int,
 @click.option("--every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Frames per second of the video.")
 @click.option("--cell", type=float, default=None, help="Map cell size [mm] (default: the recorded one).")
-@handle_errors
 def video(bag: Path, output: Path, every: float, fps: float, cell: float | None) -> None:
     """Render a recording (robotexp explore --record, or a ROS 2 robot's /scan + /odom bag) as a video:
     the map as it grew, the path, the laser and the robot, a frame every --every seconds of robot time."""
@@ -85,11 +83,11 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder (default: beside SOURCE).")
 @click.option("--format", "formats", default="png,svg,pdf", show_default=True, help="Comma-separated: png, svg, pdf.")
-@handle_errors
 def figure(source: Path, out: Path | None, formats: str) -> None:
     """Figures for a thesis (matplotlib; PNG, SVG, PDF): a recording (.mcap) gives its map with a legend,
     scale bar and axes in metres; a results.jsonl gives box plots of coverage, path length and robot
     time per world and method."""
+    from robotexp.cli import writable_folder
     from robotexp.figures import FORMATS, campaign_figures, run_map_figure, save_figure
 
     fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
