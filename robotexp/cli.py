@@ -420,11 +420,13 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
 @click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
+@click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
+              help="Record each run of the script as a ROS 2 bag, DIR/<run>.mcap.")
 @view_options
 @handle_errors
 def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
-            max_memory: float | None, timeout: float | None, child: bool, view: bool, view_port: int,
-            view_host: str, view_speed: str | None) -> None:
+            max_memory: float | None, timeout: float | None, child: bool, record: Path | None, view: bool,
+            view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
 
     The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
@@ -442,6 +444,9 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
     AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
     memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
     writable_folder(out)
+    if record is not None:
+        writable_folder(record, "--record")
+        record = record.resolve()
     if not child:
         from robotexp.lua.supervise import supervise
 
@@ -449,6 +454,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
         args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
         args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
         args += [f"--timeout={timeout!r}"] if timeout is not None else []
+        args += [f"--record={record}"] if record is not None else []
         if view:            # the child runs the script, so it serves the view
             args += ["--view", f"--view-port={view_port}", f"--view-host={view_host}"]
             args += [f"--view-speed={view_speed}"] if view_speed is not None else []
@@ -464,7 +470,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                             emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
                             max_memory=None if memory is None else int(memory * 2**20),
                             allow_addresses=allow_address, retire=True,
-                            observers=() if live is None else (live.observer,))
+                            observers=() if live is None else (live.observer,), record=record)
     except BaseException:
         end_view(live, interrupted=True)
         raise

@@ -104,6 +104,9 @@ def truth_states(truth: GroundTruth) -> np.ndarray[Any, Any]:
 class BagRecorder(RunObserver):
     """Writes a run to `path` as a ROS 2 bag in MCAP (see the module's docstring for what it holds).
 
+    It is `critical`: a recording asked for that cannot be written is an error of the run's caller
+    (raised after the run, whose results are written first), never a silent gap.
+
     Args:
         path: the .mcap file (replaced if it exists), opened at once.
         folder: instead of `path`: the run is written to `folder/<run>.mcap`, opened when the run
@@ -115,6 +118,8 @@ class BagRecorder(RunObserver):
     Raises:
         ConfigError: `path` is not a writable .mcap file.
     """
+
+    critical = True
 
     def __init__(self, path: Path | None = None, *, folder: Path | None = None, world: str | None = None,
                  start: Pose | None = None) -> None:
@@ -171,6 +176,10 @@ class BagRecorder(RunObserver):
         """Write the `robotexp.run` metadata and the ground truth map."""
         if self._writer is None:
             assert self.folder is not None
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ConfigError(f"recording folder {self.folder}: cannot make it ({exc.strerror})") from None
             self._open(self.folder / f"{run.info.name}.mcap")
         assert self._writer is not None
         self._started = True

@@ -31,3 +31,20 @@ exploration.wait()
         assert again is not None
         assert (again.coverage, again.path_length_m, again.robot_time_s) == \
             (rec["coverage"], rec["path_length_m"], rec["robot_time_s"])
+
+
+def test_run_record_option(tmp_path):
+    """`robotexp run SCRIPT --record DIR`: the supervised child records each run of the script."""
+    from click.testing import CliRunner
+
+    from robotexp.cli import main
+
+    script = tmp_path / "s.lua"
+    script.write_text('exploration.setWorld("ufmg-static")\nexploration.setMaxTime(3000)\n'
+                      'exploration.start()\nexploration.wait()\n')
+    res = CliRunner().invoke(main, ["run", str(script), "--out", str(tmp_path / "out"), "--record",
+                                    str(tmp_path / "bags")])
+    assert res.exit_code == 0, res.output
+    (rec,) = [json.loads(line) for line in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    again = replay_bag(read_bag(tmp_path / "bags" / f"{rec['run']}.mcap"), None).record
+    assert again is not None and (again.coverage, again.path_length_m) == (rec["coverage"], rec["path_length_m"])
