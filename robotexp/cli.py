@@ -183,8 +183,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
-    from robotexp.laser_mount import attach_laser, check_laser_options
-    from robotexp.registry import connect_robot
+    from robotexp.laser_mount import check_laser_options, connect_with_laser
     from robotexp.world.bounds import parse_bounds
 
     if (laser is not None or laser_pose is not None) and address is None:
@@ -215,7 +214,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
+            with connect_with_laser(robot, address, laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
     except BaseException:
         end_view(live, interrupted=True)
@@ -549,11 +548,10 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
     with `laser` (NAME:ADDRESS) attached at `laser_pose` when given."""
     import time
 
-    from robotexp.laser_mount import attach_laser
-    from robotexp.registry import connect_robot
+    from robotexp.laser_mount import connect_with_laser
     from robotexp.view.watch import StateFeed
 
-    with attach_laser(connect_robot(backend, address), laser, laser_pose) as robot:
+    with connect_with_laser(backend, address, laser, laser_pose) as robot:
         feed = None if live is None else StateFeed(live.hub, f"{backend} at {address}", robot.radius)
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
