@@ -392,7 +392,8 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
                    "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
 @click.option("--allow-address", multiple=True,
-              help="With --sandbox: a robot address (host[:port] or device path) the script may open (repeatable).")
+              help="With --sandbox: a robot or laser address (host[:port] or device path) the script may open "
+                   "(repeatable).")
 @click.option("--max-memory", type=float, default=None,
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
