@@ -104,3 +104,14 @@ def test_sandbox_refuses_a_laser_address_not_allowed(devices, tmp_path: Path) ->
     mount(lidar.address, both)                                # allowed: the run goes through the laser
     record = json.loads((tmp_path / "out" / "results.jsonl").read_text().splitlines()[-1])
     assert record["robot"] == "kobuki" and record["path_length_m"] > 0.05
+
+
+def test_on_the_embedded_simulator_the_laser_is_not_used_and_said_once(tmp_path: Path) -> None:
+    path = tmp_path / "sim.lua"
+    path.write_text('robot.setLaser("rplidar:/dev/ttyUSB0", 100, 0, 0)\nexploration.setMaxTime(1000)\n'
+                    "exploration.start()\nexploration.start()\n")
+    notices: list[str] = []
+    run_script(path, out=tmp_path / "out", emit=lambda _: None, notice=notices.append)
+    assert len(notices) == 1 and "robot.setLaser('rplidar:/dev/ttyUSB0')" in notices[0]
+    records = (tmp_path / "out" / "results.jsonl").read_text().splitlines()
+    assert len(records) == 2 and all("address" not in json.loads(r) for r in records)
