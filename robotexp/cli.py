@@ -234,8 +234,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
-    from robotexp.laser_mount import attach_laser, check_laser_options
-    from robotexp.registry import connect_robot
+    from robotexp.laser_mount import check_laser_options, connect_with_laser
     from robotexp.world.bounds import parse_bounds
 
     if "help" in param:         # -p help: the method's parameters, nothing run
@@ -283,7 +282,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with attach_laser(connect_robot(robot, address), laser, laser_pose) as bot:
+            with connect_with_laser(robot, address, laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
     except (WorldError, ConfigError) as exc:
         end_view(live, interrupted=True)
@@ -506,7 +505,8 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
                    "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
 @click.option("--allow-address", multiple=True,
-              help="With --sandbox: a robot address (host[:port] or device path) the script may open (repeatable).")
+              help="With --sandbox: a robot or laser address (host[:port] or device path) the script may open "
+                   "(repeatable).")
 @click.option("--max-memory", type=float, default=None,
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
@@ -681,11 +681,10 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
     `recorder` (a `robotexp.bag.recorder.BagRecorder`) when given."""
     import time
 
-    from robotexp.laser_mount import attach_laser
-    from robotexp.registry import connect_robot
+    from robotexp.laser_mount import connect_with_laser
     from robotexp.view.watch import StateFeed
 
-    with attach_laser(connect_robot(backend, address), laser, laser_pose) as robot:
+    with connect_with_laser(backend, address, laser, laser_pose) as robot:
         feed = None if live is None else StateFeed(live.hub, f"{backend} at {address}", robot.radius)
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
