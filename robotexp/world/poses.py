@@ -58,8 +58,8 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
         if world.home is not None:
             return world.home, "home"
         if world.poses:
-            name = next(iter(world.poses))
-            return world.poses[name], name
+            first = next(iter(world.poses))
+            return world.poses[first], first
         return central_free_pose(world, radius), "centre"
     name = _named(world, pose)
     if name is not None:
