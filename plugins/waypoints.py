@@ -223,8 +223,9 @@ class WaypointsExplorer(Explorer):
         else:
             if self.skipped:
                 return Done(f"goals {', '.join(str(i + 1) for i in self.skipped)} of path {self.path_name!r} "
-                            "not reached")
-            return Done(f"all {len(self.goals)} goals of path {self.path_name!r} reached")
+                            "not reached", explored=False)
+            # following goals is no claim that the place is explored: the run loop does not check it
+            return Done(f"all {len(self.goals)} goals of path {self.path_name!r} reached", explored=False)
         target = self._target(pose, (gx, gy), dist, now, grid)
         reach = self.ctx.radius + self.influence + self.ctx.limits.v_max * self.memory
         self._seen = [(t, p) for t, p in self._seen if now - t < self.memory]

@@ -11,10 +11,11 @@ top speed, within `MIN_WINDOW`..`MAX_WINDOW`.
 
 `frontier_left` counts the frontier a robot could still reach on its own map and never went near
 (openings of groups at least a robot wide, wall faces left out, within reach of the known-free
-space the robot can drive through from where it stands, farther than `APPROACHED` from its path)
-and the unknown space behind it: when an explorer says it is done while some is left and what lies
-behind it is more than shadows (`LEFT_AREA`, `LEFT_SHARE`), the run records that it stopped with
-reachable frontier left, not that the building was explored.
+space the robot can drive through from where it stands, farther than `APPROACHED` from its path,
+bordering unknown space a robot's disc could enter if it were free) and that unknown space: when an
+explorer says it is done while some is left and what lies behind it is more than shadows
+(`LEFT_AREA`, `LEFT_SHARE`), the run records that it stopped with reachable frontier left, not that
+the building was explored.
 """
 
 from __future__ import annotations
@@ -74,6 +75,14 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
         return 0, 0.0
     reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
     left = targets & (distance_transform(reach) <= radius / geo.cell + 1.5)
+    # the unknown space a robot could drive into were it free: a disc of `radius` clear of every
+    # occupied cell, connected to the robot. A gap in a wall narrower than the robot (grazing beams
+    # that freed a wall cell) opens no way to the unknown space beyond it, nor does a shelf's inside.
+    open_space = np.ascontiguousarray(distance_transform(grid.occupied()) > radius / geo.cell)
+    beyond = grid.unknown() & flood8(open_space, start[0], start[1]) if open_space[start] else None
+    if beyond is None or not beyond.any():
+        return 0, 0.0
+    left &= distance_transform(beyond) <= 1.5
     if path is not None and len(path) and left.any():
         cells = geo.cells_of(path)
         cells = cells[geo.contains_cells(cells)]
@@ -85,7 +94,7 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     if n == 0:
         return 0, 0.0
     near = distance_transform(left) <= LEFT_REACH / geo.cell
-    labels, _ = label8(np.ascontiguousarray(grid.unknown() & near))
+    labels, _ = label8(np.ascontiguousarray(beyond & near))
     padded = np.pad(labels, 1)
     touched: set[int] = set()
     for r, c in np.argwhere(left):
