@@ -203,7 +203,8 @@ class ViewObserver(RunObserver):
         from robotexp.sim import SimRobot
 
         self.run = run
-        self.simulated = isinstance(run.robot, SimRobot)
+        # a replayed recording (robotexp replay --view) keeps robot time too: it is paced like a simulator
+        self.simulated = isinstance(run.robot, SimRobot) or getattr(run.robot, "replayed", False)
         self._reset()
         self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
         self.pacer.stopped = False
