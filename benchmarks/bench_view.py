@@ -4,7 +4,7 @@ view, with the view at --view-speed max and no browser, and with the view and he
 the page, measured in one process, the three settings interleaved `--repeats` times (the median of each).
 
 Run: python benchmarks/bench_view.py [--world dense] [--method frontier] [--max-time 300] [--repeats 3]
-         [--chromium /usr/bin/chromium]
+         [--chromium /usr/bin/chromium] [--page-rate HZ]
 Prints each setting's speed and the ratios to the run without the view; exit 1 when the watched run is
 more than 10 % slower, 2 on bad arguments.
 """
@@ -45,7 +45,8 @@ def chromium_cpu() -> float:
     return total / os.sysconf("SC_CLK_TCK")
 
 
-def one_run(spec: RunSpec, setting: str, browser: Any) -> tuple[float, float, float, float, int]:
+def one_run(spec: RunSpec, setting: str, browser: Any,
+            rate: float | None = None) -> tuple[float, float, float, float, int]:
     """(robot time, wall time, this process's CPU time, Chromium's CPU time, maps the page drew) of `spec`
     in `setting`: "none", "view" or "browser"."""
     observers = []
@@ -53,7 +54,7 @@ def one_run(spec: RunSpec, setting: str, browser: Any) -> tuple[float, float, fl
     if setting != "none":
         hub = ViewHub()
         observers.append(ViewObserver(hub, speed=None))
-        server = ViewServer(hub)
+        server = ViewServer(hub) if rate is None else ViewServer(hub, max_rate=rate)
         server.start()
         if setting == "browser":
             page = browser.new_page(viewport={"width": 1280, "height": 800})
@@ -80,6 +81,8 @@ def main() -> int:
     ap.add_argument("--max-time", type=float, default=300.0, help="Robot-time limit of each run [s].")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--chromium", default="/usr/bin/chromium")
+    ap.add_argument("--page-rate", type=float, default=None, help="Most messages a second to the page "
+                    "(default: the server's).")
     a = ap.parse_args()
     if a.repeats < 1 or not a.max_time > 0:
         print("bench_view: --repeats must be >= 1 and --max-time > 0", file=sys.stderr)
@@ -101,7 +104,7 @@ def main() -> int:
         try:
             for _ in range(a.repeats):
                 for setting in speeds:
-                    robot, wall, cpu, chrome_cpu, n = one_run(spec, setting, browser)
+                    robot, wall, cpu, chrome_cpu, n = one_run(spec, setting, browser, a.page_rate)
                     speeds[setting].append(robot / wall)
                     cpus[setting].append(cpu)
                     if setting == "browser":

@@ -401,8 +401,10 @@ def campaign() -> None:
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder (default: out/<campaign name>).")
 @click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+@view_options
 @handle_errors
-def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -> None:
+def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, view: bool, view_port: int,
+                 view_host: str, view_speed: str | None) -> None:
     """Run every run of a campaign FILE in parallel processes, appending each to results.jsonl."""
     import os
     import time
@@ -417,7 +419,15 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
     tty = sys.stderr.isatty()
     failed: list[str] = []
 
+    live = start_view(view, view_host, view_port, view_speed)
+    feed = None
+    if live is not None:
+        from robotexp.view.campaign import CampaignFeed
+        feed = CampaignFeed(live.hub, camp.name, len(camp.runs), n_jobs)
+
     def progress(done: int, total: int, record: RunRecord | None) -> None:
+        if feed is not None:
+            feed.progress(done, total, record)
         if record is not None and not record.completed:
             failed.append(f"{record.run}: {record.reason}")
         elapsed = time.monotonic() - t0
@@ -432,6 +442,9 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
     click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {n_jobs} jobs, results in {out}", err=True)
     try:
         records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress)
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     finally:
         if tty:
             click.echo("", err=True)
@@ -439,6 +452,9 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
     for line in failed:
         click.echo(f"  incomplete: {line}")
     click.echo(f"tables: robotexp campaign report {out / 'results.jsonl'}")
+    if feed is not None:
+        feed.finish(f"{len(records)} runs made; results: {out / 'results.jsonl'}")
+    end_view(live, interrupted=False)
 
 
 @campaign.command("report")

@@ -126,6 +126,7 @@ class Frame:
     overlays: dict[str, Any] | None = None
     speedup: float | None = None                    # robot time per wall time, recently
     coverage: float | None = None
+    rows: list[dict[str, Any]] = field(default_factory=list)   # a campaign's finished runs, appended
 
 
 @dataclass
@@ -136,6 +137,7 @@ class ViewClient:
     epoch: int = -1
     path: int = 0
     curve: int = 0
+    rows: int = 0
     map_version: int = 0
     overlay_version: int = 0
     seq: int = -1
@@ -174,6 +176,7 @@ class ViewHub:
         self.overlay_version = 0
         self.speedup: float | None = None
         self.coverage: float | None = None
+        self.rows: list[dict[str, Any]] = []
 
     def add_listener(self, wake: Callable[[], None]) -> None:
         """`wake()` is called (in the producer's thread: it must only schedule work) after each change."""
@@ -211,6 +214,7 @@ class ViewHub:
                 self.laser = frame.laser
             self.path.extend(frame.path)
             self.curve.extend(frame.curve)
+            self.rows.extend(frame.rows)
             if frame.map is not None:
                 self.map = frame.map
                 self.map_version += 1
@@ -241,7 +245,7 @@ class ViewHub:
             msg: dict[str, Any] = {"type": "frame", "seq": self.seq, "t": self.time, "status": dict(self.status),
                                    "controls": list(self.controls)}
             if client.epoch != self.epoch and self.meta:
-                client.epoch, client.path, client.curve = self.epoch, 0, 0
+                client.epoch, client.path, client.curve, client.rows = self.epoch, 0, 0, 0
                 client.map_version = client.overlay_version = 0
                 msg["meta"] = self.meta
             msg["pose"] = self.pose
@@ -249,6 +253,9 @@ class ViewHub:
             msg["path_from"], msg["path"] = client.path // 2, self.path[client.path:]
             msg["curve_from"], msg["curve"] = client.curve // 2, self.curve[client.curve:]
             client.path, client.curve = len(self.path), len(self.curve)
+            if len(self.rows) > client.rows:
+                msg["rows_from"], msg["rows"] = client.rows, self.rows[client.rows:]
+                client.rows = len(self.rows)
             if self.map is not None and client.map_version != self.map_version:
                 msg["map"] = {"data": self.map.data, "rows": self.map.rows, "cols": self.map.cols}
                 client.map_version = self.map_version

@@ -61,9 +61,9 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
             first = next(iter(world.poses))
             return world.poses[first], first
         return central_free_pose(world, radius), "centre"
-    name = _named(world, pose)
-    if name is not None:
-        return world.poses[name], name
+    named = _named(world, pose)
+    if named is not None:
+        return world.poses[named], named
     if "," not in pose:
         world.pose(pose)                    # raises: lists the names the world has
     p = parse_pose(pose)

@@ -109,3 +109,56 @@ def test_explore_view_in_chromium(tmp_path: Path) -> None:
     records = read_records(out / "results.jsonl")
     assert [(r.end, r.reason, r.completed) for r in records] == [(EndReason.STOPPED, STOP_REASON, False)]
     assert records[0].robot_time_s > held + 1
+
+
+CAMPAIGN = """[campaign]
+name = "tiny"
+max_time_s = 5
+seeds = [0]
+
+[[set]]
+world = "ufmg-static"
+poses = ["path1", "path2"]
+methods = ["frontier"]
+speeds_mm_s = [300]
+"""
+
+
+def test_campaign_view_in_chromium(tmp_path: Path) -> None:
+    """`robotexp campaign run FILE --view`: the page shows the runs done of all and a row per finished run."""
+    _need_browser()
+    from playwright.sync_api import sync_playwright
+
+    (tmp_path / "tiny.toml").write_text(CAMPAIGN)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "robotexp.cli", "campaign", "run", str(tmp_path / "tiny.toml"), "-j", "1",
+           "-o", str(out), "--view"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        url = None
+        while url is None:
+            line = proc.stdout.readline()
+            assert line, "the campaign ended without serving its view"
+            match = re.search(r"view: (http://127\.0\.0\.1:\d+/)", line)
+            url = match.group(1) if match else None
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page()
+                page.goto(url)
+                page.wait_for_function("document.body.dataset.state === 'ended'", timeout=60_000)
+                rows = page.eval_on_selector_all("#runs tbody tr", "rs => rs.map(r => r.cells[0].textContent)")
+                assert page.inner_text("#speedup") == "2 / 2"
+                assert page.is_hidden("#map") and page.is_hidden("#controls")
+            finally:
+                browser.close()
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=20)
+        assert proc.returncode == 0, rest
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert sorted(rows) == sorted(r.run for r in read_records(out / "results.jsonl"))
+    assert len(rows) == 2

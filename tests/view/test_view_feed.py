@@ -134,3 +134,19 @@ def test_explorer_overlays_reach_the_hub(method: str) -> None:
         goal = explorer.goal  # type: ignore[attr-defined]
         assert (goal is None and "points" not in ov) or ov["points"]["frontier target"] == \
             pytest.approx(list(goal), abs=1e-3)
+
+
+def test_hub_sends_campaign_rows_once() -> None:
+    hub = ViewHub()
+    client = ViewClient()
+    hub.start({"kind": "campaign", "title": "campaign x"})
+    hub.publish(Frame(time=1.0, rows=[{"run": "a"}]))
+    msg = hub.message_for(client)
+    assert msg is not None and msg["rows_from"] == 0 and msg["rows"] == [{"run": "a"}]
+    hub.publish(Frame(time=2.0, rows=[{"run": "b"}]))
+    hub.publish(Frame(time=3.0))
+    msg = hub.message_for(client)
+    assert msg is not None and msg["rows_from"] == 1 and msg["rows"] == [{"run": "b"}] and msg["t"] == 3.0
+    hub.publish(Frame(time=4.0))
+    msg = hub.message_for(client)
+    assert msg is not None and "rows" not in msg

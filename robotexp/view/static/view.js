@@ -188,6 +188,8 @@
 
   let pending = Promise.resolve();
   async function handle(msg) {
+    if (msg.meta && msg.meta.kind === "campaign") { S.meta = msg.meta; return campaign(msg, true); }
+    if (S.meta && S.meta.kind === "campaign") return campaign(msg, false);
     if (msg.meta && msg.meta.geo) {
       S.meta = msg.meta; S.path = []; S.curve = []; S.mapCanvas = S.potCanvas = null; S.overlays = {};
       $("title").textContent = msg.meta.title || "robotexp live view";
@@ -235,6 +237,40 @@
     if (!drawPending) { drawPending = true; requestAnimationFrame(() => { drawPending = false; draw(); drawCurve(); }); }
   }
   let drawPending = false;
+
+  // a campaign: runs done of total, the time so far, a row per finished run
+  function campaign(msg, fresh) {
+    if (fresh) {
+      $("title").textContent = msg.meta.title; $("run").textContent = msg.meta.run;
+      canvas.hidden = true; $("legend").hidden = true; $("campaign").hidden = false;
+      $("controls").hidden = true; $("poserow").hidden = true; $("curvebox").hidden = true;
+      $("runs").tBodies[0].innerHTML = "";
+      const th = document.querySelectorAll("#stats th");
+      th[0].textContent = "elapsed"; th[1].textContent = "runs done"; th[2].textContent = "mean coverage";
+      th[3].textContent = "jobs"; $("pathlen").textContent = String(msg.meta.jobs);
+    }
+    S.status = msg.status || {}; S.controls = msg.controls || [];
+    const body = $("runs").tBodies[0];
+    if (msg.rows && msg.rows.length) {
+      while (body.rows.length > msg.rows_from) body.deleteRow(-1);
+      for (const r of msg.rows) {
+        const tr = body.insertRow();
+        if (!r.completed) tr.className = "incomplete";
+        const cells = [r.run, r.world, r.method, r.pose ?? "",
+          r.coverage == null ? "n/a" : `${(r.coverage * 100).toFixed(1)} %`, `${r.path_m.toFixed(1)} m`,
+          `${r.robot_time_s.toFixed(0)} s`, r.reason];
+        cells.forEach((text, i) => { const td = tr.insertCell(); td.textContent = text; if (i >= 4 && i <= 6) td.className = "num"; });
+      }
+    }
+    const done = S.status.done || 0, total = S.status.total || 0;
+    $("cfill").style.width = total ? `${(100 * done / total).toFixed(1)}%` : "0";
+    $("t").textContent = fmtTime(msg.t);
+    $("speedup").textContent = `${done} / ${total}`;
+    $("coverage").textContent = msg.coverage == null ? "-" : `${(msg.coverage * 100).toFixed(1)} %`;
+    document.body.dataset.t = String(msg.t); document.body.dataset.done = String(done);
+    showStatus();
+    $("speedbox").style.display = "none";
+  }
 
   function showStatus() {
     const st = S.status.state || "waiting", ended = st === "ended";
