@@ -94,7 +94,7 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
-    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar  # type: ignore[import-untyped]
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     grid = np.asarray(states)
     if grid.shape != (geo.rows, geo.cols):
