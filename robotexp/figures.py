@@ -224,7 +224,7 @@ def save_figure(fig: Figure, stem: Path, formats: Sequence[str] = FORMATS, dpi: 
 
 
 METRICS = (("coverage", "coverage [%]", 100.0), ("path_length_m", "path length [m]", 1.0),
-           ("robot_time_s", "robot time [s]", 1.0))
+           ("robot_time_s", "robot time [s]", 1.0), ("visited_cells", "visited cells [cells]", 1.0))
 
 
 def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] = FORMATS) -> list[Path]:

@@ -98,6 +98,7 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
         raise ConfigError(f"{source}: no such file; give a recording (.mcap) or a results.jsonl")
     folder = out or source.parent
     writable_folder(folder)
+    folder.mkdir(parents=True, exist_ok=True)
     if source.suffix.lower() == ".mcap":
         from robotexp.bag.replay import read_bag, replay_bag
 

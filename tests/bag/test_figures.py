@@ -17,10 +17,10 @@ from robotexp.results import read_jsonl
 
 def test_map_figure_of_a_recording(recorded: tuple[Path, dict[str, object]], tmp_path: Path) -> None:
     bag, _ = recorded
-    res = CliRunner().invoke(main, ["figure", str(bag), "-o", str(tmp_path)])
+    res = CliRunner().invoke(main, ["figure", str(bag), "-o", str(tmp_path / "new" / "figs")])
     assert res.exit_code == 0, res.output
     run = read_jsonl(bag.parent / "out" / "results.jsonl")[-1]["run"]
-    png, svg, pdf = (tmp_path / f"{run}.map.{ext}" for ext in ("png", "svg", "pdf"))
+    png, svg, pdf = (tmp_path / "new" / "figs" / f"{run}.map.{ext}" for ext in ("png", "svg", "pdf"))
     with Image.open(png) as im:
         assert im.width == round(PAGE_WIDTH * 200)          # the page's width at 200 dpi
     text = svg.read_text()
