@@ -342,12 +342,16 @@ def campaign_report(results: Path, out: Path | None, include_incomplete: bool) -
     import csv
 
     from robotexp.campaign import report_tables, table_markdown, table_text
-    from robotexp.compare import comparison_tables, load_results
+    from robotexp.compare import comparison_tables, excluded_table, load_results
 
-    records = load_results(results)
+    duplicates: list[RunRecord] = []
+    records = load_results(results, duplicates=duplicates)
     tables = report_tables(records) + comparison_tables(records, include_incomplete=include_incomplete)
     if not tables:
         raise ConfigError(f"{results}: no finished runs to report")
+    left_out = excluded_table(records, duplicates=duplicates, include_incomplete=include_incomplete)
+    if left_out is not None:
+        tables.append(left_out)
     folder = out or results.parent
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "tables.csv", "w", newline="", encoding="utf-8") as f:
