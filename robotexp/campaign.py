@@ -268,6 +268,11 @@ def _worker_init() -> None:
     signal.signal(signal.SIGINT, interrupted)
 
 
+def _record_extra(spec: RunSpec) -> dict[str, Any]:
+    """The keys a campaign adds to a run's record: the world and pose as the campaign file gave them."""
+    return {"world_spec": spec.world, "pose_spec": _pose_label(spec)}
+
+
 def _run_one(spec: RunSpec, out: str) -> RunRecord | None:
     """Worker: one run, written to `out` (record first, then images). Returns the record (None: a run
     queued after Ctrl-C, not made)."""
@@ -278,16 +283,17 @@ def _run_one(spec: RunSpec, out: str) -> RunRecord | None:
         return None
     _worker_running = True
     try:
-        result = run_experiment(spec, Path(out),
-                                record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
+        result = run_experiment(spec, Path(out), record_extra=_record_extra(spec))
     finally:
         _worker_running = False
     return result.record
 
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
-                 progress: Callable[[int, int, RunRecord | None], None] | None = None) -> list[RunRecord]:
-    """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes.
+                 progress: Callable[[int, int, RunRecord | None], None] | None = None,
+                 cluster: str | None = None) -> list[RunRecord]:
+    """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
+    Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
     writes its partial run), cancels the queued runs at once and re-raises KeyboardInterrupt. The
@@ -295,18 +301,23 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     with this process.
 
     Raises:
-        ConfigError: --jobs < 1, or another campaign is writing into `out`.
+        ConfigError: --jobs < 1, a bad cluster address or no scheduler there, or another campaign is
+            writing into `out`.
     """
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
     from robotexp.safefile import folder_lock
 
+    if cluster is not None:
+        from robotexp.cluster import check_cluster_address
+        check_cluster_address(cluster)
     with folder_lock(out, f"campaign {campaign.name}"):
-        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress)
+        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster)
 
 
 def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
-                progress: Callable[[int, int, RunRecord | None], None] | None) -> list[RunRecord]:
+                progress: Callable[[int, int, RunRecord | None], None] | None,
+                cluster: str | None = None) -> list[RunRecord]:
     from robotexp.results import read_records
 
     results = out / "results.jsonl"
@@ -324,6 +335,16 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
         return []
     out.mkdir(parents=True, exist_ok=True)
     records: list[RunRecord] = []
+    if cluster is not None:
+        from robotexp.cluster import run_on_cluster
+
+        def written(record: RunRecord) -> None:
+            records.append(record)
+            if progress:
+                progress(len(records), total, record)
+
+        run_on_cluster(todo, out, cluster, _record_extra, written)
+        return records
     pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                initializer=_worker_init)
     try:

@@ -289,14 +289,20 @@ def campaign() -> None:
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder (default: out/<campaign name>).")
 @click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+@click.option("--cluster", default=None, metavar="ADDRESS",
+              help="Run on a Dask cluster: tcp://HOST:PORT (a running `dask scheduler`) or local:N (N worker "
+                   "processes here). Default: a local process pool of --jobs.")
 @handle_errors
-def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -> None:
+def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, cluster: str | None) -> None:
     """Run every run of a campaign FILE in parallel processes, appending each to results.jsonl."""
     import os
     import time
 
     from robotexp.campaign import load_campaign, run_campaign
 
+    if cluster is not None:
+        from robotexp.cluster import check_cluster_address
+        check_cluster_address(cluster)
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
     writable_folder(out)
@@ -317,9 +323,10 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
             click.echo(f"{done}/{total} {record.run}: path {record.path_length_m:.1f} m, coverage "
                        f"{record.coverage}, {record.reason}", err=True)
 
-    click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {n_jobs} jobs, results in {out}", err=True)
+    where = f"cluster {cluster}" if cluster else f"{n_jobs} jobs"
+    click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {where}, results in {out}", err=True)
     try:
-        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress)
+        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster)
     finally:
         if tty:
             click.echo("", err=True)
