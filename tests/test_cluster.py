@@ -12,6 +12,7 @@ import sys
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import pytest
 from click.testing import CliRunner
@@ -100,6 +101,30 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
         workers[0].send_signal(signal.SIGKILL)
         stdout, stderr = campaign.communicate(timeout=120)
         assert campaign.returncode == 0, stderr.decode()[-2000:]
+        # Ctrl-C on the client cancels every run on the scheduler and ends at once (exit 130)
+        out2 = tmp_path / "out2"
+        campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(camp_file),
+                                     "--out", str(out2), "--cluster", address],
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        procs.append(campaign)
+        end = time.monotonic() + 60
+        while not _lines(out2 / "results.jsonl") and time.monotonic() < end and campaign.poll() is None:
+            time.sleep(0.05)
+        campaign.send_signal(signal.SIGINT)
+        t0 = time.monotonic()
+        campaign.communicate(timeout=30)
+        assert campaign.returncode == 130 and time.monotonic() - t0 < 10
+        assert 1 <= len(_lines(out2 / "results.jsonl")) < len(camp.runs)
+        from distributed import Client
+
+        def _scheduler_tasks(dask_scheduler: Any) -> int:      # local: pickled by value for the scheduler
+            return len(dask_scheduler.tasks)
+
+        with Client(address, timeout="10s") as client:
+            end = time.monotonic() + 10
+            while client.run_on_scheduler(_scheduler_tasks) and time.monotonic() < end:
+                time.sleep(0.2)
+            assert client.run_on_scheduler(_scheduler_tasks) == 0     # nothing queued or kept
     finally:
         _stop(procs)
     records = _lines(out / "results.jsonl")
