@@ -83,22 +83,26 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
         _wait_port(port, 30)
         address = f"tcp://127.0.0.1:{port}"
         workers = [subprocess.Popen([DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                                     "--host", "127.0.0.1"], env=env, stdout=subprocess.DEVNULL,
-                                    stderr=subprocess.DEVNULL) for _ in range(2)]
+                                     "--host", "127.0.0.1", "--name", f"w{i}"], env=env, stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL) for i in range(2)]
         procs += workers
         out = tmp_path / "out"
         campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(camp_file),
                                      "--out", str(out), "--cluster", address],
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         procs.append(campaign)
-        # kill one worker (SIGKILL, no goodbye) as soon as the first run has streamed back: the other
-        # runs are then queued or running on it
+        # as soon as the first run has streamed back, kill (SIGKILL, no goodbye) a worker in the middle of a run
+        from distributed import Client
+
         end = time.monotonic() + 60
         while not _lines(out / "results.jsonl") and time.monotonic() < end and campaign.poll() is None:
             time.sleep(0.05)
         assert _lines(out / "results.jsonl"), "no run came back"
-        assert len(_lines(out / "results.jsonl")) < len(camp.runs), "the campaign ended before a worker was killed"
-        workers[0].send_signal(signal.SIGKILL)
+        with Client(address, timeout="10s") as client:
+            names = {addr: w["name"] for addr, w in client.scheduler_info()["workers"].items()}
+            busy = [names[addr] for addr, keys in client.processing().items() if keys]
+        assert busy and len(_lines(out / "results.jsonl")) < len(camp.runs), "no run left to cut"
+        workers[int(str(busy[0])[1:])].send_signal(signal.SIGKILL)
         stdout, stderr = campaign.communicate(timeout=120)
         assert campaign.returncode == 0, stderr.decode()[-2000:]
         # Ctrl-C on the client cancels every run on the scheduler and ends at once (exit 130)
@@ -115,7 +119,6 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
         campaign.communicate(timeout=30)
         assert campaign.returncode == 130 and time.monotonic() - t0 < 10
         assert 1 <= len(_lines(out2 / "results.jsonl")) < len(camp.runs)
-        from distributed import Client
 
         def _scheduler_tasks(dask_scheduler: Any) -> int:      # local: pickled by value for the scheduler
             return len(dask_scheduler.tasks)
