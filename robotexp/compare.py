@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from robotexp.campaign import Table
+from robotexp.campaign import Table, method_label
 from robotexp.safefile import warn
 from robotexp.errors import ConfigError, WorldError
 from robotexp.record import EndReason, RunRecord
@@ -198,7 +198,7 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
     used = {id(r) for r in _selected(all_runs, include_incomplete)}
     groups: dict[tuple[str, int], dict[float | None, dict[str, list[RunRecord]]]] = {}
     for r in all_runs:
-        groups.setdefault((r.world, _speed(r)), {}).setdefault(_cell(r), {}).setdefault(r.method, []).append(r)
+        groups.setdefault((r.world, _speed(r)), {}).setdefault(_cell(r), {}).setdefault(method_label(r), []).append(r)
     tables = []
     for (world, speed), by_cell in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
         if len({m for by_method in by_cell.values() for m in by_method}) < 2 and len(by_cell) == 1:
@@ -301,7 +301,7 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
     out.mkdir(parents=True, exist_ok=True)
     by_group: dict[tuple[str, str], list[RunRecord]] = {}
     for r in runs:
-        by_group.setdefault((r.world, r.method), []).append(r)
+        by_group.setdefault((r.world, method_label(r)), []).append(r)
     keys = sorted(by_group)
     used = {id(r) for r in _selected(runs, include_incomplete)}
     groups = [(f"{w} {m}", [float(r.visited_cells) for r in by_group[(w, m)] if id(r) in used])
