@@ -57,6 +57,20 @@ def _lines(results: Path) -> list[dict[str, object]]:
     return [json.loads(x) for x in results.read_text(encoding="utf-8").splitlines() if x.strip()]
 
 
+def _start_and_wait_first(camp_file: Path, out: Path, address: str,
+                          procs: list[subprocess.Popen[bytes]]) -> subprocess.Popen[bytes]:
+    """Start `robotexp campaign run --cluster` as a process; return once its first run is in results.jsonl."""
+    campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(camp_file),
+                                 "--out", str(out), "--cluster", address],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    procs.append(campaign)
+    end = time.monotonic() + 60
+    while not _lines(out / "results.jsonl") and time.monotonic() < end and campaign.poll() is None:
+        time.sleep(0.05)
+    assert _lines(out / "results.jsonl"), "no run came back"
+    return campaign
+
+
 def _stop(procs: list[subprocess.Popen[bytes]]) -> None:
     for p in procs:
         if p.poll() is None:
@@ -87,17 +101,10 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
                                     stderr=subprocess.DEVNULL) for i in range(2)]
         procs += workers
         out = tmp_path / "out"
-        campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(camp_file),
-                                     "--out", str(out), "--cluster", address],
-                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        procs.append(campaign)
         # as soon as the first run has streamed back, kill (SIGKILL, no goodbye) a worker in the middle of a run
         from distributed import Client
 
-        end = time.monotonic() + 60
-        while not _lines(out / "results.jsonl") and time.monotonic() < end and campaign.poll() is None:
-            time.sleep(0.05)
-        assert _lines(out / "results.jsonl"), "no run came back"
+        campaign = _start_and_wait_first(camp_file, out, address, procs)
         with Client(address, timeout="10s") as client:
             names = {addr: w["name"] for addr, w in client.scheduler_info()["workers"].items()}
             busy = [names[addr] for addr, keys in client.processing().items() if keys]
@@ -107,13 +114,7 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
         assert campaign.returncode == 0, stderr.decode()[-2000:]
         # Ctrl-C on the client cancels every run on the scheduler and ends at once (exit 130)
         out2 = tmp_path / "out2"
-        campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(camp_file),
-                                     "--out", str(out2), "--cluster", address],
-                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        procs.append(campaign)
-        end = time.monotonic() + 60
-        while not _lines(out2 / "results.jsonl") and time.monotonic() < end and campaign.poll() is None:
-            time.sleep(0.05)
+        campaign = _start_and_wait_first(camp_file, out2, address, procs)
         campaign.send_signal(signal.SIGINT)
         t0 = time.monotonic()
         campaign.communicate(timeout=30)
