@@ -23,12 +23,15 @@ from typing import Any
 
 from robotexp.experiment import RunSpec, run_experiment, run_on_robot
 from robotexp.laser import LASER_EMULATORS, LASERS, Laser
-from robotexp.laser_mount import LaserMountedRobot
+from robotexp.laser_mount import LaserMountedRobot, robot_options
 from robotexp.registry import available, connect_robot, load, make_emulator
 from robotexp.robot import LaserScan, Robot
 from robotexp.sim import mounted_source
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.kobuki.robot import KobukiRobot
+from robotexp_drivers.p3dx import constants as p3dx
+
+_SIM_LASER = (p3dx.CMD_SIM_LRF_ENABLE, p3dx.CMD_OLD_SIM_LRF_ENABLE)
 
 
 class NewestScan:
@@ -84,16 +87,20 @@ def main() -> int:
         if args.unpaired:
             robot: Robot = KobukiRobot(emu.address, laser=NewestScan(laser))
         else:
-            robot = LaserMountedRobot(connect_robot(args.robot, emu.address), laser)
+            # no simulated-laser packets: the robot is connected as with a laser device mounted
+            robot = LaserMountedRobot(connect_robot(args.robot, emu.address, **robot_options(args.robot, True)), laser)
         with robot:
             record = run_on_robot(spec(), robot, None, world).record
             scans = (laser.latest().seq + 1) if laser.latest() else 0
+        # commands that asked the robot emulator for its own simulated laser (P3-DX's SIM_LRF_ENABLE)
+        asked = sum(1 for cmd in getattr(emu, "commands", ()) if getattr(cmd, "cmd", None) in _SIM_LASER)
     diff = 100 * (record["coverage"] - embedded["coverage"])
     print(f"{args.robot} + {args.laser} emulators on pseudo-terminals, {'un' if args.unpaired else ''}paired "
           f"(speed-up {args.speedup:g} / laser "
           f"{laser_speedup:g}): coverage {record['coverage']:.4f}, completed "
           f"{record['completed']} ({record['reason']}), path {record['path_length_m']:.1f} m, collisions "
-          f"{record['collisions']}, {scans} scans, {time.monotonic() - t0:.0f} s wall; "
+          f"{record['collisions']}, {scans} scans, {asked} simulated-laser requests, "
+          f"{time.monotonic() - t0:.0f} s wall; "
           f"{diff:+.2f} points against the embedded simulator")
     return 0 if abs(diff) <= 2.0 else 1
 

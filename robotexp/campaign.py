@@ -52,9 +52,9 @@ __all__ = ["Campaign", "RunKey", "load_campaign", "method_label", "run_campaign"
            "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
-                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall"}
+                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
 _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep"}
-             | _CAMPAIGN_KEYS - {"name", "description"})
+             | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
 
 RunKey = tuple[str, str, str, int, int, str]
@@ -68,6 +68,7 @@ class Campaign:
     name: str
     source: Path
     runs: list[RunSpec]
+    record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
     sweeps: dict[int, dict[str, Any]] | None = None    # id(spec) -> swept parameter values
 
     def sweep_of(self, spec: RunSpec) -> dict[str, Any]:
@@ -92,8 +93,9 @@ def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = No
 def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
-    sweep = r.extra.get("sweep")
-    return (str(r.extra.get("world_spec", r.world)), r.method, str(r.extra.get("pose_spec", r.pose)),
+    # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
+    sweep = r.get("sweep")
+    return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
             sweep_label(sweep if isinstance(sweep, dict) else None))
 
@@ -101,7 +103,7 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:
     """The method of a record as the report names it: with its swept values, "frontier [clearance=0.2]"."""
     r = RunRecord.from_dict(record)
-    sweep = r.extra.get("sweep")
+    sweep = r.get("sweep")
     label = sweep_label(sweep if isinstance(sweep, dict) else None)
     return f"{r.method} [{label}]" if label else r.method
 
@@ -175,7 +177,7 @@ def load_campaign(path: str | Path) -> Campaign:
                         f"{keys[key].speed * 1000:g} and {spec.speed * 1000:g} mm/s; a seed, speed or swept value "
                         "given twice?); give each run once")
         keys[key] = spec
-    return Campaign(name, p, runs, sweeps)
+    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps)
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -358,9 +360,9 @@ def _record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict
     return extra
 
 
-def _run_one(spec: RunSpec, out: str, extra: dict[str, Any] | None = None) -> RunRecord | None:
-    """Worker: one run, written to `out` (record first, then images). Returns the record (None: a run
-    queued after Ctrl-C, not made)."""
+def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any] | None = None) -> RunRecord | None:
+    """Worker: one run, written to `out` (record first, then images; with `record` its bag in
+    `out/bags`). Returns the record (None: a run queued after Ctrl-C, not made)."""
     from robotexp.experiment import run_experiment
 
     global _worker_running
@@ -368,7 +370,13 @@ def _run_one(spec: RunSpec, out: str, extra: dict[str, Any] | None = None) -> Ru
         return None
     _worker_running = True
     try:
-        result = run_experiment(spec, Path(out), record_extra=extra or _record_extra(spec))
+        observers = []
+        if record:
+            from robotexp.bag.recorder import BagRecorder
+
+            (Path(out) / "bags").mkdir(exist_ok=True)
+            observers.append(BagRecorder(folder=Path(out) / "bags", world=spec.world))
+        result = run_experiment(spec, Path(out), observers=observers, record_extra=extra or _record_extra(spec))
     finally:
         _worker_running = False
     return result.record
@@ -428,13 +436,15 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
             if progress:
                 progress(len(records), total, record)
 
-        run_on_cluster(todo, out, cluster, lambda spec: _record_extra(spec, campaign.sweep_of(spec)), written)
+        run_on_cluster(todo, out, cluster, lambda spec: _record_extra(spec, campaign.sweep_of(spec)), written,
+                       record=campaign.record)
         return records
     pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                initializer=_worker_init)
     try:
         pending: set[Future[RunRecord | None]] = {
-            pool.submit(_run_one, spec, str(out), _record_extra(spec, campaign.sweep_of(spec))) for spec in todo}
+            pool.submit(_run_one, spec, str(out), campaign.record, _record_extra(spec, campaign.sweep_of(spec)))
+            for spec in todo}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:

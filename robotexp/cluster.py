@@ -49,24 +49,32 @@ def check_cluster_address(address: str) -> None:
                           "tcp://10.0.0.5:8786, from `dask scheduler`) or local:N (N worker processes here)")
 
 
-def _run_task(spec: RunSpec, extra: dict[str, Any]) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
-    """On a worker: make one run in a temporary folder; return its record (as JSON data), the bytes
-    of every file it wrote but results.jsonl, and the error that ended it (None: none). A run whose
-    explorer or robot failed still returns the record written before the error. Pure: nothing is
-    left behind on the worker."""
+def _run_task(spec: RunSpec, extra: dict[str, Any],
+              record: bool = False) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
+    """On a worker: make one run in a temporary folder (with `record`, its ROS 2 bag in bags/); return
+    its record (as JSON data), the bytes of every file it wrote but results.jsonl (by path relative to
+    the folder), and the error that ended it (None: none). A run whose explorer or robot failed still
+    returns the record written before the error. Pure: nothing is left behind on the worker."""
     from robotexp.experiment import run_experiment
     from robotexp.results import read_jsonl
 
     with tempfile.TemporaryDirectory(prefix="robotexp-run-") as tmp:
         folder = Path(tmp)
+        observers = []
+        if record:
+            from robotexp.bag.recorder import BagRecorder
+
+            (folder / "bags").mkdir()
+            observers.append(BagRecorder(folder=folder / "bags", world=spec.world))
         error = None
         try:
-            data: dict[str, Any] | None = run_experiment(spec, folder, record_extra=extra).record.as_dict()
+            data: dict[str, Any] | None = run_experiment(spec, folder, observers=observers,
+                                                         record_extra=extra).record.as_dict()
         except RobotexpError as exc:
             error = f"{type(exc).__name__}: {exc}"
             written = read_jsonl(folder / "results.jsonl") if (folder / "results.jsonl").exists() else []
             data = written[-1] if written else None
-        files = {p.name: p.read_bytes() for p in sorted(folder.iterdir())
+        files = {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
                  if p.is_file() and p.name != "results.jsonl"}
     return data, files, error
 
@@ -84,11 +92,15 @@ def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecor
         name = f"{base}_{k}"
     record = RunRecord.from_dict({**data, "run": name})
     append_jsonl(out / "results.jsonl", record)            # first: the record is never lost
-    for fname, blob in files.items():
-        target = name + fname[len(base):] if fname.startswith(base + ".") else fname
+    for rel, blob in files.items():
+        parent, _, fname = rel.rpartition("/")
+        if fname.startswith(base + "."):
+            fname = name + fname[len(base):]
         if name != base and fname.endswith(".yaml"):        # a ROS map's yaml names its image file
             blob = blob.replace(f"{base}.".encode(), f"{name}.".encode())
-        (out / target).write_bytes(blob)
+        target = out / parent / fname if parent else out / fname
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(blob)
     return record
 
 
@@ -124,9 +136,9 @@ def _client(address: str) -> Iterator[Any]:
 
 
 def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable[[RunSpec], dict[str, Any]],
-                   on_record: Callable[[RunRecord], None]) -> None:
+                   on_record: Callable[[RunRecord], None], *, record: bool = False) -> None:
     """Make the runs `todo` on the Dask cluster at `address`, writing each into `out` as it finishes
-    and passing its record to `on_record`.
+    (with `record`, each run's ROS 2 bag into `out/bags`) and passing its record to `on_record`.
 
     A worker lost mid-run has its run rescheduled on another worker by the scheduler (up to its
     `allowed-failures`, 3 by default). Ctrl-C (KeyboardInterrupt) cancels every run not yet written
@@ -142,8 +154,8 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
 
     token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
     with _client(address) as client:
-        futures = [client.submit(_run_task, spec, extra(spec), pure=False, key=f"robotexp-{token}-{i}-{spec.method}")
-                   for i, spec in enumerate(todo)]
+        futures = [client.submit(_run_task, spec, extra(spec), record, pure=False,
+                                 key=f"robotexp-{token}-{i}-{spec.method}") for i, spec in enumerate(todo)]
         try:
             for fut in as_completed(futures):
                 data, files, error = fut.result()

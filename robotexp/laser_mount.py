@@ -31,7 +31,8 @@ from robotexp.laser import Laser, LaserEmulator, ScanSource
 from robotexp.robot import Clock, LaserScan, Pose, Robot, RobotState, Twist, wrap_angle
 
 __all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec",
-           "check_laser_options", "connect_laser", "attach_laser", "serve_laser", "emulate_devices"]
+           "check_laser_options", "connect_laser", "attach_laser", "robot_options", "connect_with_laser", "serve_laser",
+           "emulate_devices"]
 
 
 class PoseHistory:
@@ -294,6 +295,35 @@ def attach_laser(robot: Robot, spec: str | None, pose: str | None) -> Robot:
         robot.close()
         raise
     return LaserMountedRobot(robot, laser, mount)
+
+
+def robot_options(backend: str, laser: bool) -> dict[str, Any]:
+    """The keyword options that connect robot `backend` (`robotexp.robots`) without a laser of its own
+    when a laser device is mounted on it (`laser`): the class's `mounted_laser_options` (P3-DX: no
+    MobileSim simulated-laser packets), else none.
+
+    Raises:
+        PluginError: an unknown backend.
+    """
+    from robotexp.registry import ROBOTS, load
+
+    if not laser:
+        return {}
+    return dict(getattr(load(ROBOTS, backend, Robot), "mounted_laser_options", {}))
+
+
+def connect_with_laser(backend: str, address: str, spec: str | None, pose: str | None) -> Robot:
+    """Connect robot `backend` at `address` (`robotexp.registry.connect_robot`) and mount the laser
+    `spec` at `pose` on it (`attach_laser`); with a laser, the robot is connected without its own
+    simulated laser (`robot_options`). Options are checked before anything connects.
+
+    Raises:
+        ConfigError, PluginError, RobotError: as `check_laser_options`, `connect_robot`, `attach_laser`.
+    """
+    from robotexp.registry import connect_robot
+
+    check_laser_options(spec, pose)
+    return attach_laser(connect_robot(backend, address, **robot_options(backend, spec is not None)), spec, pose)
 
 
 def serve_laser(name: str, source: ScanSource, *, pty: bool = False, port: int | None = None,

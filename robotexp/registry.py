@@ -175,8 +175,9 @@ def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
                       f"got {value!r}")
 
 
-def connect_robot(backend: str, address: str) -> Robot:
-    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`.
+def connect_robot(backend: str, address: str, **options: Any) -> Robot:
+    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`, with the
+    backend's keyword `options` (e.g. `robotexp.laser_mount.robot_options`).
 
     Raises:
         PluginError: unknown backend.
@@ -190,7 +191,7 @@ def connect_robot(backend: str, address: str) -> Robot:
     if not getattr(cls, "by_address", True):
         raise ConfigError(f"robot {backend!r} has no address ({cls.__qualname__} runs in this process, "
                           "e.g. the embedded simulator); run without --address")
-    return cls(address)
+    return cls(address, **options)
 
 
 def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,

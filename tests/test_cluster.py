@@ -141,13 +141,17 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
 
 def test_local_cluster_runs_the_campaign_and_resume_adds_nothing(tmp_path: Path) -> None:
     camp_file = tmp_path / "tiny.toml"
-    camp_file.write_text(TINY.replace("seeds = [0, 1]", "seeds = [0]"), encoding="utf-8")
+    camp_file.write_text(TINY.replace("seeds = [0, 1]", "seeds = [0]").replace('name = "tiny"',
+                                                                                'name = "tiny"\nrecord = true'),
+                         encoding="utf-8")
     camp = load_campaign(camp_file)
     out = tmp_path / "out"
     r = CliRunner().invoke(main, ["campaign", "run", str(camp_file), "--out", str(out), "--cluster", "local:2"])
     assert r.exit_code == 0, r.output
     records = _lines(out / "results.jsonl")
     assert sorted(record_key(x) for x in records) == sorted(run_key(s, s.pose or "default") for s in camp.runs)
+    # `record = true`: each run's ROS 2 bag came back from its worker into out/bags
+    assert all((out / "bags" / f"{x['run']}.mcap").stat().st_size > 0 for x in records)
     # resume: drop one record, resume on the cluster, get exactly that one back (its files renamed _2)
     lines = (out / "results.jsonl").read_text(encoding="utf-8").splitlines()
     (out / "results.jsonl").write_text("\n".join(lines[1:]) + "\n", encoding="utf-8")

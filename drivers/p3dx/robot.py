@@ -13,7 +13,9 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -77,6 +79,8 @@ class P3DXRobot(StreamBackend):
     name = "p3dx"
     capabilities = frozenset({Capability.SONAR, Capability.LASER, Capability.MOVE_TO})
     radius = c.ROBOT_RADIUS_MM / 1000.0
+    # with a laser device mounted (robotexp.laser_mount.robot_options): no simulated-laser packets
+    mounted_laser_options: Mapping[str, object] = MappingProxyType({"laser": False})
     _join_timeout = 2.0
 
     def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, laser: bool = True,
