@@ -304,8 +304,22 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
         by_group.setdefault((r.world, method_label(r)), []).append(r)
     keys = sorted(by_group)
     used = {id(r) for r in _selected(runs, include_incomplete)}
-    groups = [(f"{w} {m}", [float(r.visited_cells) for r in by_group[(w, m)] if id(r) in used])
-              for w, m in keys]
+    # visited cells are counted in cells of each run's map: where a world has runs at several cell
+    # sizes, each box says its size (boxes of different sizes are not comparable)
+    sizes: dict[str, set[float | None]] = {}
+    for r in runs:
+        sizes.setdefault(r.world, set()).add(_cell(r))
+    groups = []
+    for w, m in keys:
+        by_cell: dict[float | None, list[float]] = {}
+        for r in by_group[(w, m)]:
+            if id(r) in used:
+                by_cell.setdefault(_cell(r), []).append(float(r.visited_cells))
+        if len(sizes[w]) > 1:
+            groups += [(f"{w} {m} ({_cell_label(c)})", v) for c, v in sorted(
+                by_cell.items(), key=lambda kv: (kv[0] is None, kv[0] or 0.0))]
+        else:
+            groups.append((f"{w} {m}", next(iter(by_cell.values()), [])))
     what = "all finished runs" if include_incomplete else "completed runs"
     written = [save_png(box_plot(groups, ylabel="visited cells",
                                  title=f"Visited cells per run, by world and method ({what})",

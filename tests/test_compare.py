@@ -229,3 +229,25 @@ def test_plot_two_tiny_runs(tmp_path: Path) -> None:
     with Image.open(pics / "paths_dense_frontier.png") as again:
         px2 = np.asarray(again.convert("RGB"))
     assert np.all(px2 == PALETTE[0], axis=2).sum() > 100 and not np.all(px2 == PALETTE[1], axis=2).any()
+
+
+def test_box_plot_separates_cell_sizes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import robotexp.plot
+    from robotexp.compare import campaign_plots
+
+    seen: list[list[tuple[str, list[float]]]] = []
+    real = robotexp.plot.box_plot
+
+    def spy(groups: list[tuple[str, list[float]]], **kw: Any) -> Any:
+        seen.append(groups)
+        return real(groups, **kw)
+
+    monkeypatch.setattr(robotexp.plot, "box_plot", spy)
+    recs = [{**_rec("dense", "srt-laser", i, 1700 + i), "cell_m": 0.1} for i in range(3)]
+    recs += [{**_rec("dense", "meta-ga", i, 4124 + i), "cell_m": 0.05} for i in range(3)]
+    recs += [{**_rec("sparse", "meta-ga", i, 900 + i), "cell_m": 0.05} for i in range(2)]
+    campaign_plots(recs, tmp_path, tmp_path / "pics", note=lambda text: None)
+    (groups,) = seen
+    assert [label for label, _ in groups] == ["dense meta-ga (cells of 0.05 m)", "dense srt-laser (cells of 0.1 m)",
+                                              "sparse meta-ga"]
+    assert groups[1][1] == [1700.0, 1701.0, 1702.0]
