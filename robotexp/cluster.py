@@ -17,14 +17,20 @@ from __future__ import annotations
 import contextlib
 import re
 import tempfile
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import ConfigError, RobotexpError
 from robotexp.experiment import RunSpec
-from robotexp.record import RunRecord
+from robotexp.observers import RunObserver
+from robotexp.record import EndReason, RunRecord
+
+if TYPE_CHECKING:
+    from robotexp.explorer import ExplorationRun
+    from robotexp.observers import StepEvent
 
 __all__ = ["check_cluster_address", "run_on_cluster"]
 
@@ -49,8 +55,32 @@ def check_cluster_address(address: str) -> None:
                           "tcp://10.0.0.5:8786, from `dask scheduler`) or local:N (N worker processes here)")
 
 
-def _run_task(spec: RunSpec, extra: dict[str, Any],
-              record: bool = False) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
+class _CancelWatch(RunObserver):
+    """On a worker: ends the run (interrupted) soon after the client set the campaign's stop event
+    (Ctrl-C), so that a cancelled campaign frees its workers at once instead of finishing its runs
+    (Dask cannot stop a task that is executing). The event is asked at most twice a second."""
+
+    def __init__(self, event: str) -> None:
+        self.event_name = event
+        self.event: Any = None
+        self.next_check = 0.0
+
+    def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+        """Ask the scheduler whether the campaign was cancelled; stop the run if so."""
+        now = time.monotonic()
+        if now < self.next_check:
+            return
+        self.next_check = now + 0.5
+        if self.event is None:
+            from distributed import Event
+
+            self.event = Event(self.event_name)
+        if self.event.is_set():
+            run.request_stop("the campaign was cancelled (Ctrl-C on its client)", EndReason.INTERRUPTED)
+
+
+def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
+              stop_event: str | None = None) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
     """On a worker: make one run in a temporary folder (with `record`, its ROS 2 bag in bags/); return
     its record (as JSON data), the bytes of every file it wrote but results.jsonl (by path relative to
     the folder), and the error that ended it (None: none). A run whose explorer or robot failed still
@@ -60,7 +90,7 @@ def _run_task(spec: RunSpec, extra: dict[str, Any],
 
     with tempfile.TemporaryDirectory(prefix="robotexp-run-") as tmp:
         folder = Path(tmp)
-        observers = []
+        observers: list[RunObserver] = [_CancelWatch(stop_event)] if stop_event else []
         if record:
             from robotexp.bag.recorder import BagRecorder
 
@@ -143,18 +173,19 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
     A worker lost mid-run has its run rescheduled on another worker by the scheduler (up to its
     `allowed-failures`, 3 by default). Ctrl-C (KeyboardInterrupt) cancels every run not yet written
     and closes the client (and a local cluster, whose worker processes stop with it), then re-raises;
-    on a remote cluster a run already executing finishes on its worker and is dropped.
+    the runs executing on workers end within about a second (a stop event they watch) and are dropped.
 
     Raises:
         ConfigError: a bad address, or no scheduler there.
         RobotexpError: a run failed (its record, when it has one, is written first).
         KilledWorker: (distributed) a run killed its workers more often than allowed.
     """
-    from distributed import as_completed
+    from distributed import Event, as_completed
 
     token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
     with _client(address) as client:
-        futures = [client.submit(_run_task, spec, extra(spec), record, pure=False,
+        stop = Event(f"robotexp-stop-{token}", client=client)
+        futures = [client.submit(_run_task, spec, extra(spec), record, stop.name, pure=False,
                                  key=f"robotexp-{token}-{i}-{spec.method}") for i, spec in enumerate(todo)]
         try:
             for fut in as_completed(futures):
@@ -165,5 +196,7 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
                     raise RobotexpError(f"a run failed on the cluster: {error}")
                 fut.release()
         except BaseException:
+            with contextlib.suppress(Exception):
+                stop.set()              # the runs executing on workers end at their next check
             client.cancel(futures, force=True)
             raise

@@ -32,6 +32,18 @@ speeds_mm_s = [300, 200]
 seeds = [0, 1]
 """
 
+# runs of about 20 s wall each here (a generated office at 40 mm/s, up to an hour of robot time)
+LONG = """
+[campaign]
+name = "long"
+max_time_s = 3600
+[[set]]
+world = "generated:office:0"
+methods = ["frontier"]
+speeds_mm_s = [40]
+seeds = [0, 1, 2]
+"""
+
 DASK = str(Path(sys.executable).parent / "dask")
 
 
@@ -112,23 +124,39 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path)
         workers[int(str(busy[0])[1:])].send_signal(signal.SIGKILL)
         stdout, stderr = campaign.communicate(timeout=120)
         assert campaign.returncode == 0, stderr.decode()[-2000:]
-        # Ctrl-C on the client cancels every run on the scheduler and ends at once (exit 130)
-        out2 = tmp_path / "out2"
-        campaign = _start_and_wait_first(camp_file, out2, address, procs)
-        campaign.send_signal(signal.SIGINT)
-        t0 = time.monotonic()
-        campaign.communicate(timeout=30)
-        assert campaign.returncode == 130 and time.monotonic() - t0 < 10
-        assert 1 <= len(_lines(out2 / "results.jsonl")) < len(camp.runs)
+        # Ctrl-C on the client, in the middle of long runs: every run is cancelled on the scheduler, the
+        # run executing on the worker ends within about a second (Dask alone would let it finish), exit 130
+        long_file = tmp_path / "long.toml"
+        long_file.write_text(LONG, encoding="utf-8")
+        campaign = subprocess.Popen([str(Path(sys.executable).parent / "robotexp"), "campaign", "run", str(long_file),
+                                     "--out", str(tmp_path / "out2"), "--cluster", address],
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        procs.append(campaign)
 
-        def _scheduler_tasks(dask_scheduler: Any) -> int:      # local: pickled by value for the scheduler
+        def executing(dask_worker: Any) -> int:      # local: pickled by value for the workers
+            return len(dask_worker.state.executing)
+
+        def scheduler_tasks(dask_scheduler: Any) -> int:
             return len(dask_scheduler.tasks)
 
         with Client(address, timeout="10s") as client:
+            end = time.monotonic() + 30
+            while not sum(client.run(executing).values()) and time.monotonic() < end:
+                time.sleep(0.1)
+            assert sum(client.run(executing).values()) == 1      # the surviving worker is making a run
+            time.sleep(1.0)
+            campaign.send_signal(signal.SIGINT)
+            t0 = time.monotonic()
+            campaign.communicate(timeout=30)
+            assert campaign.returncode == 130 and time.monotonic() - t0 < 10
             end = time.monotonic() + 10
-            while client.run_on_scheduler(_scheduler_tasks) and time.monotonic() < end:
-                time.sleep(0.2)
-            assert client.run_on_scheduler(_scheduler_tasks) == 0     # nothing queued or kept
+            while (client.run_on_scheduler(scheduler_tasks) or sum(client.run(executing).values())) \
+                    and time.monotonic() < end:
+                time.sleep(0.1)
+            stopped = time.monotonic() - t0
+            assert client.run_on_scheduler(scheduler_tasks) == 0     # nothing queued or kept
+            assert sum(client.run(executing).values()) == 0 and stopped < 5, stopped
+        assert _lines(tmp_path / "out2" / "results.jsonl") == []     # a cancelled run is not recorded
     finally:
         _stop(procs)
     records = _lines(out / "results.jsonl")
