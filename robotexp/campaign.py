@@ -16,6 +16,10 @@ A campaign file (see `campaigns/thesis.toml`):
     [set.params.bvp]                # keyword parameters of one method in this set
     iterations = 30
 
+    [set.sweep.frontier]            # a sweep: one run per combination of these values
+    clearance = [0.2, 0.3]                               # a list of values
+    replan_period = {start = 1.0, stop = 3.0, step = 1.0}  # a range, stop included
+
 Everything is checked before the first run starts, so a bad file leaves no results behind.
 Each finished run is appended to `OUT/results.jsonl` at once; `resume` skips the runs recorded there.
 """
@@ -23,6 +27,8 @@ Each finished run is appended to `OUT/results.jsonl` at once; `resume` skips the
 from __future__ import annotations
 
 import contextlib
+import itertools
+import json
 import math
 import os
 import re
@@ -42,35 +48,64 @@ from robotexp.record import EndReason, RunRecord
 from robotexp.registry import make_explorer
 from robotexp.world.bounds import parse_bounds
 
-__all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
+__all__ = ["Campaign", "RunKey", "load_campaign", "method_label", "run_campaign", "run_key", "record_key",
+           "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
                   "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
-_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description",
-                                                                                                 "record"}
+_SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep"}
+             | _CAMPAIGN_KEYS - {"name", "description", "record"})
+
+
+RunKey = tuple[str, str, str, int, int, str]
 
 
 @dataclass
 class Campaign:
-    """A parsed campaign: its name, source file and the expanded list of runs."""
+    """A parsed campaign: its name, source file and the expanded list of runs (with, for the runs of a
+    sweep, the swept explorer parameters of each: `sweep_of`)."""
 
     name: str
     source: Path
     runs: list[RunSpec]
     record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
+    sweeps: dict[int, dict[str, Any]] | None = None    # id(spec) -> swept parameter values
+
+    def sweep_of(self, spec: RunSpec) -> dict[str, Any]:
+        """The swept parameter values of a run of this campaign ({} outside a sweep)."""
+        return (self.sweeps or {}).get(id(spec), {})
+
+    def key(self, spec: RunSpec) -> RunKey:
+        """`run_key` of a run of this campaign."""
+        return run_key(spec, _pose_label(spec), self.sweep_of(spec))
 
 
-def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
-    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed)."""
-    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed)
+def sweep_label(sweep: Mapping[str, Any] | None) -> str:
+    """The swept values as text, names sorted: "clearance=0.2,replan_period=1.0" ("" for none)."""
+    return ",".join(f"{k}={json.dumps(v)}" for k, v in sorted((sweep or {}).items()))
 
 
-def record_key(record: RunRecord | Mapping[str, Any]) -> tuple[str, str, str, int, int]:
+def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
+    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values)."""
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, sweep_label(sweep))
+
+
+def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
     # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
+    sweep = r.get("sweep")
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
-            round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0))
+            round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
+            sweep_label(sweep if isinstance(sweep, dict) else None))
+
+
+def method_label(record: RunRecord | Mapping[str, Any]) -> str:
+    """The method of a record as the report names it: with its swept values, "frontier [clearance=0.2]"."""
+    r = RunRecord.from_dict(record)
+    sweep = r.get("sweep")
+    label = sweep_label(sweep if isinstance(sweep, dict) else None)
+    return f"{r.method} [{label}]" if label else r.method
 
 
 def _fail(path: Path, where: str, message: str, kind: type[Exception] = ConfigError) -> Exception:
@@ -117,6 +152,7 @@ def load_campaign(path: str | Path) -> Campaign:
         raise _fail(p, "set", "no [[set]] of runs")
     methods_installed = available(EXPLORERS)
     runs: list[RunSpec] = []
+    sweeps: dict[int, dict[str, Any]] = {}
     for i, raw in enumerate(sets, start=1):
         where = f"[[set]] #{i}"
         if not isinstance(raw, dict):
@@ -124,20 +160,24 @@ def load_campaign(path: str | Path) -> Campaign:
         _check_keys(raw, _SET_KEYS, p, where)
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
         for world in _worlds(merged, p, where):
-            runs.extend(_expand({**merged, "world": world}, p, where, methods_installed, load_world))
+            for spec, sweep in _expand({**merged, "world": world}, p, where, methods_installed, load_world):
+                runs.append(spec)
+                if sweep:
+                    sweeps[id(spec)] = sweep
     name = head.get("name", p.stem)
     if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", name)):
         raise _fail(p, "campaign.name", f"{str(name)[:60]!r} is not a folder name (letters, digits, '_', '.', "
                     "'-'; not starting with '.'): it names the output folder out/<name>")
-    keys: dict[tuple[str, str, str, int, int], RunSpec] = {}
+    keys: dict[RunKey, RunSpec] = {}
     for spec in runs:      # --resume and the report tell runs apart by this key: two runs must not share one
-        key = run_key(spec, _pose_label(spec))
+        key = run_key(spec, _pose_label(spec), sweeps.get(id(spec)))
         if key in keys:
             raise _fail(p, "set", f"two runs share the key world {key[0]!r}, method {key[1]!r}, pose {key[2]!r}, "
-                        f"speed {key[3]} mm/s, seed {key[4]} (speeds {keys[key].speed * 1000:g} and "
-                        f"{spec.speed * 1000:g} mm/s; a seed or speed given twice?); give each run once")
+                        f"speed {key[3]} mm/s, seed {key[4]}{f', sweep {key[5]}' if key[5] else ''} (speeds "
+                        f"{keys[key].speed * 1000:g} and {spec.speed * 1000:g} mm/s; a seed, speed or swept value "
+                        "given twice?); give each run once")
         keys[key] = spec
-    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"))
+    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps)
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -166,8 +206,49 @@ def _check_keys(table: dict[str, Any], allowed: set[str], path: Path, where: str
         raise _fail(path, where, f"unknown key {bad[0]!r} (allowed: {', '.join(sorted(allowed))})")
 
 
+def _sweep_values(value: Any, p: Path, where: str) -> list[Any]:
+    """The values of one swept parameter: a non-empty list, or {start, stop, step} (stop included)."""
+    if isinstance(value, list) and value:
+        return value
+    if isinstance(value, dict) and set(value) == {"start", "stop", "step"} and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value.values()):
+        start, stop, step = value["start"], value["stop"], value["step"]
+        if not step > 0 or stop < start:
+            raise _fail(p, where, f"a range needs step > 0 and stop >= start, got {value!r}")
+        count = int(math.floor((stop - start) / step + 1e-9)) + 1
+        if count > 10_000:
+            raise _fail(p, where, f"the range {value!r} gives {count} values; at most 10000")
+        as_int = all(isinstance(v, int) for v in value.values())
+        return [start + k * step if as_int else round(start + k * step, 12) for k in range(count)]
+    raise _fail(p, where, f"expected a non-empty list of values or {{start, stop, step}}, got {value!r}")
+
+
+def _sweeps(s: dict[str, Any], methods: list[str], params: dict[str, Any], p: Path,
+            where: str) -> dict[str, list[dict[str, Any]]]:
+    """Per method, the combinations of its swept values ([{}] for a method without a sweep)."""
+    sweep = s.get("sweep", {})
+    if not isinstance(sweep, dict) or not all(isinstance(v, dict) and v for v in sweep.values()):
+        raise _fail(p, f"{where}.sweep", "expected tables [set.sweep.<method>] of parameter = values")
+    out: dict[str, list[dict[str, Any]]] = {m: [{}] for m in methods}
+    for m, table in sweep.items():
+        if m not in methods:
+            raise _fail(p, f"{where}.sweep.{m}", f"a sweep for a method this set does not run ({methods})")
+        both = sorted(set(table) & set(params.get(m, {})))
+        if both:
+            raise _fail(p, f"{where}.sweep.{m}.{both[0]}", "set in both params and sweep; give it once")
+        names = sorted(table)
+        values = [_sweep_values(table[n], p, f"{where}.sweep.{m}.{n}") for n in names]
+        out[m] = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*values)]
+        for combo in out[m]:
+            try:
+                make_explorer(m, {**params.get(m, {}), **combo})      # names, types and ranges, before any run
+            except ConfigError as exc:
+                raise _fail(p, f"{where}.sweep.{m}", f"{sweep_label(combo)}: {exc}") from None
+    return out
+
+
 def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
-            load_world: Callable[[str], Any]) -> list[RunSpec]:
+            load_world: Callable[[str], Any]) -> list[tuple[RunSpec, dict[str, Any]]]:
     world_name = _get(s, "world", None, str, p, where)
     if world_name is None:
         raise _fail(p, f"{where}.world", "missing")
@@ -227,22 +308,21 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
             raise _fail(p, f"{where}.bounds_mm", f"expected [xmin, ymin, xmax, ymax] in mm, got {bounds!r}")
         bounds = parse_bounds(",".join(str(v) for v in bounds), f"{where}.bounds_mm")
     bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
+    swept = _sweeps(s, methods, params, p, where)
     runs = []
     for method in methods:
-        for pose in pose_names:
-            for speed in speeds:
-                for seed in seeds:
-                    spec = RunSpec(world=world_spec, method=method, pose=None if pose == "default" else pose,
-                                   speed=speed / 1000, laser_range=laser,
-                                   cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
-                                   params=dict(params.get(method, {})), max_time=max_time,
-                                   laser_sigma=sigma, laser_uniform=uniform, map_bounds=bounds,
-                                   bounds_wall=bounds_wall)
-                    try:
-                        spec.validate()
-                    except ConfigError as exc:
-                        raise _fail(p, where, str(exc)) from None
-                    runs.append(spec)
+        for sweep, pose, speed, seed in itertools.product(swept[method], pose_names, speeds, seeds):
+            spec = RunSpec(world=world_spec, method=method, pose=None if pose == "default" else pose,
+                           speed=speed / 1000, laser_range=laser,
+                           cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
+                           params={**params.get(method, {}), **sweep}, max_time=max_time,
+                           laser_sigma=sigma, laser_uniform=uniform, map_bounds=bounds,
+                           bounds_wall=bounds_wall)
+            try:
+                spec.validate()
+            except ConfigError as exc:
+                raise _fail(p, where, str(exc)) from None
+            runs.append((spec, sweep))
     return runs
 
 
@@ -271,7 +351,16 @@ def _worker_init() -> None:
     signal.signal(signal.SIGINT, interrupted)
 
 
-def _run_one(spec: RunSpec, out: str, record: bool = False) -> RunRecord | None:
+def _record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The keys a campaign adds to a run's record: the world and pose as the campaign file gave them,
+    and the swept parameter values of a run of a sweep."""
+    extra: dict[str, Any] = {"world_spec": spec.world, "pose_spec": _pose_label(spec)}
+    if sweep:
+        extra["sweep"] = dict(sweep)
+    return extra
+
+
+def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any] | None = None) -> RunRecord | None:
     """Worker: one run, written to `out` (record first, then images; with `record` its bag in
     `out/bags`). Returns the record (None: a run queued after Ctrl-C, not made)."""
     from robotexp.experiment import run_experiment
@@ -287,16 +376,17 @@ def _run_one(spec: RunSpec, out: str, record: bool = False) -> RunRecord | None:
 
             (Path(out) / "bags").mkdir(exist_ok=True)
             observers.append(BagRecorder(folder=Path(out) / "bags", world=spec.world))
-        result = run_experiment(spec, Path(out), observers=observers,
-                                record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
+        result = run_experiment(spec, Path(out), observers=observers, record_extra=extra or _record_extra(spec))
     finally:
         _worker_running = False
     return result.record
 
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
-                 progress: Callable[[int, int, RunRecord | None], None] | None = None) -> list[RunRecord]:
-    """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes.
+                 progress: Callable[[int, int, RunRecord | None], None] | None = None,
+                 cluster: str | None = None) -> list[RunRecord]:
+    """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
+    Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
     writes its partial run), cancels the queued runs at once and re-raises KeyboardInterrupt. The
@@ -304,25 +394,30 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     with this process.
 
     Raises:
-        ConfigError: --jobs < 1, or another campaign is writing into `out`.
+        ConfigError: --jobs < 1, a bad cluster address or no scheduler there, or another campaign is
+            writing into `out`.
     """
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
     from robotexp.safefile import folder_lock
 
+    if cluster is not None:
+        from robotexp.cluster import check_cluster_address
+        check_cluster_address(cluster)
     with folder_lock(out, f"campaign {campaign.name}"):
-        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress)
+        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster)
 
 
 def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
-                progress: Callable[[int, int, RunRecord | None], None] | None) -> list[RunRecord]:
+                progress: Callable[[int, int, RunRecord | None], None] | None,
+                cluster: str | None = None) -> list[RunRecord]:
     from robotexp.results import read_records
 
     results = out / "results.jsonl"
-    done: set[tuple[str, str, str, int, int]] = set()
+    done: set[RunKey] = set()
     if resume and results.exists():
         done = {record_key(r) for r in read_records(results) if r.end is not EndReason.INTERRUPTED}
-    todo = [s for s in campaign.runs if run_key(s, _pose_label(s)) not in done]
+    todo = [s for s in campaign.runs if campaign.key(s) not in done]
     # Likely-longest first, so that no process is left alone with a long run at the end: a run's robot
     # time grows with its time limit and falls with its speed (the order of the records does not matter).
     todo.sort(key=lambda s: (-s.max_time, s.speed))
@@ -333,11 +428,23 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
         return []
     out.mkdir(parents=True, exist_ok=True)
     records: list[RunRecord] = []
+    if cluster is not None:
+        from robotexp.cluster import run_on_cluster
+
+        def written(record: RunRecord) -> None:
+            records.append(record)
+            if progress:
+                progress(len(records), total, record)
+
+        run_on_cluster(todo, out, cluster, lambda spec: _record_extra(spec, campaign.sweep_of(spec)), written,
+                       record=campaign.record)
+        return records
     pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                initializer=_worker_init)
     try:
-        pending: set[Future[RunRecord | None]] = {pool.submit(_run_one, spec, str(out), campaign.record)
-                                                    for spec in todo}
+        pending: set[Future[RunRecord | None]] = {
+            pool.submit(_run_one, spec, str(out), campaign.record, _record_extra(spec, campaign.sweep_of(spec)))
+            for spec in todo}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:
@@ -389,7 +496,7 @@ def report_tables(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[Tabl
             continue
         key = (r.world, round(float(r.max_speed_m_s or 0) * 1000))
         row_key = (str(r.pose), int(r.seed or 0))
-        groups.setdefault(key, {}).setdefault(r.method, {})[row_key] = r
+        groups.setdefault(key, {}).setdefault(method_label(r), {})[row_key] = r
     tables = []
     for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
         methods = sorted(by_method)

@@ -401,16 +401,22 @@ def campaign() -> None:
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder (default: out/<campaign name>).")
 @click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+@click.option("--cluster", default=None, metavar="ADDRESS",
+              help="Run on a Dask cluster: tcp://HOST:PORT (a running `dask scheduler`) or local:N (N worker "
+                   "processes here). Default: a local process pool of --jobs.")
 @view_options
 @handle_errors
-def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, view: bool, view_port: int,
-                 view_host: str, view_speed: str | None) -> None:
+def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, cluster: str | None, view: bool,
+                 view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run every run of a campaign FILE in parallel processes, appending each to results.jsonl."""
     import os
     import time
 
     from robotexp.campaign import load_campaign, run_campaign
 
+    if cluster is not None:
+        from robotexp.cluster import check_cluster_address
+        check_cluster_address(cluster)
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
     writable_folder(out)
@@ -439,9 +445,10 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, v
             click.echo(f"{done}/{total} {record.run}: path {record.path_length_m:.1f} m, coverage "
                        f"{record.coverage}, {record.reason}", err=True)
 
-    click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {n_jobs} jobs, results in {out}", err=True)
+    where = f"cluster {cluster}" if cluster else f"{n_jobs} jobs"
+    click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {where}, results in {out}", err=True)
     try:
-        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress)
+        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster)
     except BaseException:
         end_view(live, interrupted=True)
         raise
@@ -470,12 +477,16 @@ def campaign_report(results: Path, out: Path | None, include_incomplete: bool) -
     import csv
 
     from robotexp.campaign import report_tables, table_markdown, table_text
-    from robotexp.compare import comparison_tables, load_results
+    from robotexp.compare import comparison_tables, excluded_table, load_results
 
-    records = load_results(results)
+    duplicates: list[RunRecord] = []
+    records = load_results(results, duplicates=duplicates)
     tables = report_tables(records) + comparison_tables(records, include_incomplete=include_incomplete)
     if not tables:
         raise ConfigError(f"{results}: no finished runs to report")
+    left_out = excluded_table(records, duplicates=duplicates, include_incomplete=include_incomplete)
+    if left_out is not None:
+        tables.append(left_out)
     folder = out or results.parent
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "tables.csv", "w", newline="", encoding="utf-8") as f:

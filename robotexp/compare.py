@@ -23,24 +23,25 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from robotexp.campaign import Table
+from robotexp.campaign import Table, method_label
 from robotexp.safefile import warn
 from robotexp.errors import ConfigError, WorldError
 from robotexp.record import EndReason, RunRecord
-from robotexp.stats import welch_t_test
+from robotexp.stats import NoVariance, bootstrap_mean_difference, mann_whitney_u, welch_t_test
 
-__all__ = ["REQUIRED_KEYS", "campaign_plots", "comparison_tables", "load_results", "path_file"]
+__all__ = ["REQUIRED_KEYS", "campaign_plots", "comparison_tables", "excluded_table", "load_results", "path_file"]
 
 log = logging.getLogger(__name__)
 
 REQUIRED_KEYS = ("run", "world", "method", "visited_cells")
 
 
-def load_results(path: Path) -> list[RunRecord]:
+def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> list[RunRecord]:
     """The records of a results.jsonl, checked to be robotexp run records (any robotexp wrote).
 
     A line that is not whole JSON (torn by a run killed while writing or a full disk) is skipped
-    and reported, as by `results.read_jsonl`; runs recorded twice are reported and counted once.
+    and reported, as by `results.read_jsonl`; runs recorded twice are reported and counted once
+    (the records left out are appended to `duplicates` when given).
 
     Raises:
         ConfigError: no such file, not UTF-8 text, a line that is not a JSON object, a record
@@ -76,10 +77,10 @@ def load_results(path: Path) -> list[RunRecord]:
     if torn:
         warn(f"{path}: skipped {len(torn)} line(s) that are not whole JSON records (torn by a fault): line "
              + ", ".join(torn[:5]) + (" ..." if len(torn) > 5 else ""))
-    return _unique(path, records)
+    return _unique(path, records, duplicates)
 
 
-def _unique(path: Path, records: list[RunRecord]) -> list[RunRecord]:
+def _unique(path: Path, records: list[RunRecord], dropped: list[RunRecord] | None = None) -> list[RunRecord]:
     """`records` with one record per run key (world, method, pose, speed, seed): the first of each,
     the others reported (a campaign run twice into one folder, a --resume over a killed campaign)."""
     from robotexp.campaign import record_key
@@ -98,6 +99,8 @@ def _unique(path: Path, records: list[RunRecord]) -> list[RunRecord]:
             continue
         if key in seen:
             dups.append(str(rec.get("run", key)))
+            if dropped is not None:
+                dropped.append(rec)
             continue
         seen[key] = len(kept)
         kept.append(rec)
@@ -134,14 +137,54 @@ def _mean(values: list[float | None], decimals: int) -> str:
     return f"{statistics.fmean(known):.{decimals}f}" if known else "-"
 
 
+def _cell_label(cell: float | None) -> str:
+    return "cell size unknown" if cell is None else f"cells of {cell:g} m"
+
+
+def _cell(record: RunRecord) -> float | None:
+    return None if record.cell_m is None else round(float(record.cell_m), 6)
+
+
+def _pair_rows(a: str, b: str, xa: list[float], xb: list[float]) -> list[list[str]]:
+    """Welch's t-test, Mann-Whitney U and the bootstrap 95 % interval of mean(a) - mean(b)."""
+    if len(xa) < 2 or len(xb) < 2:
+        few = "- (fewer than 2 runs)"
+        return [[f"Welch p, {a} vs {b}", "", few, "", ""], [f"Mann-Whitney p, {a} vs {b}", "", few, "", ""],
+                [f"95% CI of mean {a} - {b}", "", few, "", ""]]
+    try:
+        w = welch_t_test(xa, xb)
+        welch = f"{w.p:.3g} (t = {w.t:.2f}, df = {w.df:.1f})"
+    except NoVariance:
+        welch = "no variance (every run of both gave the same count)"
+    try:
+        u = mann_whitney_u(xa, xb)
+        mwu = f"{u.p:.3g} (U = {u.u:g})"
+    except NoVariance:
+        mwu = "no variance (every run gave the same count)"
+    try:
+        ci = bootstrap_mean_difference(xa, xb)
+        boot = f"{ci.difference:.1f} [{ci.low:.1f}, {ci.high:.1f}] (bootstrap)"
+    except NoVariance:
+        boot = f"{statistics.fmean(xa) - statistics.fmean(xb):.1f} (no variance: no interval)"
+    return [[f"Welch p, {a} vs {b}", "", welch, "", ""], [f"Mann-Whitney p, {a} vs {b}", "", mwu, "", ""],
+            [f"95% CI of mean {a} - {b}", "", boot, "", ""]]
+
+
 def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
                       include_incomplete: bool = False) -> list[Table]:
-    """Santos 2016 Table 8 per world (and maximum speed) that has runs of two or more methods.
+    """Santos 2016 Table 8 per world, maximum speed and map cell size that has runs of two or more
+    methods.
 
     Rows: per method (sorted) the runs used (n; "+k*" counts the runs cut short and left out),
     visited cells mean ± sample standard deviation, mean coverage (0..1) and mean path [m]; then
-    per pair of methods "Welch p, A vs B" with the two-sided p-value of Welch's t-test on the visited
-    cells, its t (A minus B) and df, or "-" when a method has fewer than 2 runs.
+    per pair of methods: "Welch p, A vs B" with the two-sided p-value of Welch's t-test on the
+    visited cells, its t (A minus B) and df; "Mann-Whitney p, A vs B"; "95% CI of mean A - B" (a
+    percentile bootstrap). "no variance" where a test needs variance the runs lack; "-" when a method
+    has fewer than 2 runs.
+
+    Visited cells count cells of the run's map: methods mapping at different cell sizes are never
+    compared. A world and speed run at several cell sizes gives one table per size, each saying which
+    methods were left out of it for their cell size.
 
     Args:
         records: results.jsonl records (`RunRecord`s, or their JSON objects).
@@ -149,37 +192,60 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
             always left out.
 
     Returns:
-        The tables, sorted by world then decreasing speed.
+        The tables, sorted by world, decreasing speed, then cell size.
     """
     all_runs = _finished(records)
     used = {id(r) for r in _selected(all_runs, include_incomplete)}
-    groups: dict[tuple[str, int], dict[str, list[RunRecord]]] = {}
+    groups: dict[tuple[str, int], dict[float | None, dict[str, list[RunRecord]]]] = {}
     for r in all_runs:
-        groups.setdefault((r.world, _speed(r)), {}).setdefault(r.method, []).append(r)
+        groups.setdefault((r.world, _speed(r)), {}).setdefault(_cell(r), {}).setdefault(method_label(r), []).append(r)
     tables = []
-    for (world, speed), by_method in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
-        if len(by_method) < 2:
+    for (world, speed), by_cell in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1])):
+        if len({m for by_method in by_cell.values() for m in by_method}) < 2 and len(by_cell) == 1:
             continue
-        methods = sorted(by_method)
-        header = ["method", "n", "visited cells", "coverage", "path (m)"]
-        rows = []
-        cells: dict[str, list[float]] = {}
-        for m in methods:
-            recs = [r for r in by_method[m] if id(r) in used]
-            left_out = len(by_method[m]) - len(recs)
-            cells[m] = [float(r.visited_cells) for r in recs]
-            n = f"{len(recs)}" + (f" +{left_out}*" if left_out else "")
-            rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.coverage for r in recs], 3),
-                         _mean([r.path_length_m for r in recs], 1)])
-        for a, b in itertools.combinations(methods, 2):
-            if len(cells[a]) < 2 or len(cells[b]) < 2:
-                p = "- (fewer than 2 runs)"
-            else:
-                w = welch_t_test(cells[a], cells[b])
-                p = f"{w.p:.3g} (t = {w.t:.2f}, df = {w.df:.1f})"
-            rows.append([f"Welch p, {a} vs {b}", "", p, "", ""])
-        tables.append(Table(f"{world}, max speed {speed} mm/s: visited cells per run", methods, header, rows))
+        mixed = len(by_cell) > 1
+        for cell, by_method in sorted(by_cell.items(), key=lambda kv: (kv[0] is None, kv[0] or 0.0)):
+            methods = sorted(by_method)
+            header = ["method", "n", "visited cells", "coverage", "path (m)"]
+            rows = []
+            cells: dict[str, list[float]] = {}
+            for m in methods:
+                recs = [r for r in by_method[m] if id(r) in used]
+                left_out = len(by_method[m]) - len(recs)
+                cells[m] = [float(r.visited_cells) for r in recs]
+                n = f"{len(recs)}" + (f" +{left_out}*" if left_out else "")
+                rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.coverage for r in recs], 3),
+                             _mean([r.path_length_m for r in recs], 1)])
+            for a, b in itertools.combinations(methods, 2):
+                rows += _pair_rows(a, b, cells[a], cells[b])
+            title = f"{world}, max speed {speed} mm/s: visited cells per run"
+            if mixed:
+                title += f", {_cell_label(cell)}"
+                others = [f"{', '.join(sorted(bm))} ({_cell_label(c)})" for c, bm in by_cell.items() if c != cell]
+                rows.append(["not compared", "", "different cell size: " + "; ".join(others)
+                             + " (visited cells of different sizes are not comparable)", "", ""])
+            tables.append(Table(title, methods, header, rows))
     return tables
+
+
+def excluded_table(records: Iterable[RunRecord | Mapping[str, Any]], *, duplicates: Iterable[RunRecord] = (),
+                   include_incomplete: bool = False) -> Table | None:
+    """The runs the statistics leave out and why: interrupted, cut short (time limit, stalled,
+    robot or plugin error; unless `include_incomplete`), recorded twice. None when there are none."""
+    rows = []
+    for r in map(RunRecord.from_dict, records):
+        if r.end is EndReason.INTERRUPTED:
+            why = "interrupted (--resume makes it again)"
+        elif not r.completed and not include_incomplete:
+            why = f"not completed ({r.end.value}): {r.reason}"
+        else:
+            continue
+        rows.append([str(r.run), r.world, r.method, why])
+    for r in duplicates:
+        rows.append([str(r.run), r.world, r.method, "recorded more than once: only the first record counts"])
+    if not rows:
+        return None
+    return Table(f"runs left out of the statistics: {len(rows)}", [], ["run", "world", "method", "why"], rows)
 
 
 def path_file(results_dir: Path, record: RunRecord | Mapping[str, Any]) -> Path:
@@ -235,11 +301,25 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
     out.mkdir(parents=True, exist_ok=True)
     by_group: dict[tuple[str, str], list[RunRecord]] = {}
     for r in runs:
-        by_group.setdefault((r.world, r.method), []).append(r)
+        by_group.setdefault((r.world, method_label(r)), []).append(r)
     keys = sorted(by_group)
     used = {id(r) for r in _selected(runs, include_incomplete)}
-    groups = [(f"{w} {m}", [float(r.visited_cells) for r in by_group[(w, m)] if id(r) in used])
-              for w, m in keys]
+    # visited cells are counted in cells of each run's map: where a world has runs at several cell
+    # sizes, each box says its size (boxes of different sizes are not comparable)
+    sizes: dict[str, set[float | None]] = {}
+    for r in runs:
+        sizes.setdefault(r.world, set()).add(_cell(r))
+    groups = []
+    for w, m in keys:
+        by_cell: dict[float | None, list[float]] = {}
+        for r in by_group[(w, m)]:
+            if id(r) in used:
+                by_cell.setdefault(_cell(r), []).append(float(r.visited_cells))
+        if len(sizes[w]) > 1:
+            groups += [(f"{w} {m} ({_cell_label(c)})", v) for c, v in sorted(
+                by_cell.items(), key=lambda kv: (kv[0] is None, kv[0] or 0.0))]
+        else:
+            groups.append((f"{w} {m}", next(iter(by_cell.values()), [])))
     what = "all finished runs" if include_incomplete else "completed runs"
     written = [save_png(box_plot(groups, ylabel="visited cells",
                                  title=f"Visited cells per run, by world and method ({what})",

@@ -36,7 +36,7 @@ def test_expansion_counts_every_combination(tmp_path: Path) -> None:
     assert camp.name == "mini"
     assert len(camp.runs) == 2 * 2 * 2          # poses x speeds x seeds
     keys = {run_key(s, s.pose or "default") for s in camp.runs}
-    assert ("ufmg-static", "frontier", "path2", 200, 1) in keys
+    assert ("ufmg-static", "frontier", "path2", 200, 1, "") in keys
     assert all(s.max_time == 20 for s in camp.runs)
 
 
@@ -149,3 +149,54 @@ def test_report_has_a_row_per_seed_when_a_campaign_repeats_poses() -> None:
     assert [r[0] for r in t.rows][:3] == ["1 seed 0", "1 seed 1", "1 seed 2"]
     assert [r[1] for r in t.rows][:3] == ["10.0", "30.0", "20.0"]
     assert {r[0]: r for r in t.rows}["mean"][1:] == ["20.0", "03:20"]
+
+
+SWEEP = """
+[campaign]
+name = "sweep"
+max_time_s = 8
+[[set]]
+world = "ufmg-static"
+poses = ["path1"]
+methods = ["frontier"]
+speeds_mm_s = [300]
+[set.sweep.frontier]
+clearance = [0.2, 0.35]
+replan_period = {start = 1.0, stop = 2.0, step = 0.5}
+"""
+
+
+def test_sweep_over_two_parameters_runs_and_reports_by_them(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, SWEEP))
+    # 2 clearances x 3 replan periods (1.0, 1.5, 2.0: the stop is included)
+    assert len(camp.runs) == 6
+    combos = {(s.params["clearance"], s.params["replan_period"]) for s in camp.runs}
+    assert combos == {(c, r) for c in (0.2, 0.35) for r in (1.0, 1.5, 2.0)}
+    keys = {camp.key(s) for s in camp.runs}
+    assert len(keys) == 6 and ("ufmg-static", "frontier", "path1", 300, 0,
+                               "clearance=0.35,replan_period=1.5") in keys
+    out = tmp_path / "out"
+    records = run_campaign(camp, out, jobs=2)
+    stored = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert len(records) == len(stored) == 6
+    assert {record_key(r) for r in stored} == keys                # every swept value is in the run key
+    assert all(set(r["sweep"]) == {"clearance", "replan_period"} for r in stored)
+    assert run_campaign(camp, out, jobs=1, resume=True) == []     # --resume tells the swept runs apart
+    (table,) = report_tables(stored)
+    methods = [f"frontier [clearance={c},replan_period={r}]" for c in (0.2, 0.35) for r in (1.0, 1.5, 2.0)]
+    assert table.methods == methods                                # one column group per swept combination
+    assert f"{methods[4]} path (m)" in table.header
+
+
+@pytest.mark.parametrize("sweep, words", [
+    ("clearance = []", "non-empty list"),
+    ("clearance = {start = 1.0, stop = 0.5, step = 0.1}", "stop >= start"),
+    ("clearance = {start = 0.1, stop = 0.5}", "{start, stop, step}"),
+    ("clearance = [-1.0]", "clearance must be >= 0"),
+    ("speed = [1, 2]", "speed"),
+])
+def test_bad_sweeps_name_the_key(tmp_path: Path, sweep: str, words: str) -> None:
+    text = SWEEP.split("[set.sweep.frontier]")[0] + "[set.sweep.frontier]\n" + sweep + "\n"
+    with pytest.raises(ConfigError, match="sweep") as err:
+        load_campaign(_write(tmp_path, text))
+    assert words in str(err.value)

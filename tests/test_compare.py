@@ -46,12 +46,17 @@ def test_comparison_table_layout_and_numbers_by_hand() -> None:
     (t,) = comparison_tables(_santos_records())
     assert t.title == "sparse, max speed 300 mm/s: visited cells per run"
     assert t.header == ["method", "n", "visited cells", "coverage", "path (m)"]
-    fa, ga, pair = t.rows
+    fa, ga, pair, mwu, ci = t.rows
     # coverage mean (0.80 + 0.81 + ... + 0.84) / 5 = 0.82; path mean (30 + ... + 34) / 5 = 32
     assert fa == ["meta-firefly", "5", "1426.0 ± 237.2", "0.820", "32.0"]
     assert ga == ["meta-ga", "5", "1923.0 ± 158.1", "0.900", "50.0"]
     assert pair[0] == "Welch p, meta-firefly vs meta-ga"
     assert pair[2].startswith("0.00") and "t = -3.90" in pair[2] and "df = 7.0" in pair[2]
+    # every FA below every GA but 1726 > 1723: U = 1; exact p = 2 P(U <= 1) = 2 * 2 / C(10, 5)
+    assert mwu[0] == "Mann-Whitney p, meta-firefly vs meta-ga" and mwu[2] == f"{4 / 252:.3g} (U = 1)"
+    assert ci[0] == "95% CI of mean meta-firefly - meta-ga" and ci[2].startswith("-497.0 [")
+    low, high = (float(v) for v in ci[2].split("[")[1].split("]")[0].split(", "))
+    assert -800 < low < -497 < high < -200
 
 
 def test_comparison_leaves_incomplete_and_interrupted_runs_out() -> None:
@@ -60,7 +65,7 @@ def test_comparison_leaves_incomplete_and_interrupted_runs_out() -> None:
             _rec("w", "a", 3, 5000, completed=False, reason="interrupted by Ctrl-C"),
             _rec("w", "b", 0, 30, coverage=None), _rec("w", "b", 1, 30, coverage=None)]
     (t,) = comparison_tables(recs)
-    a, b, pair = t.rows
+    a, b, pair = t.rows[:3]
     assert a[:3] == ["a", "2 +1*", "15.0 ± 7.1"]          # stdev(10, 20) = 7.07; interrupted not counted
     assert b[1:4] == ["2", "30.0 ± 0.0", "-"]             # no coverage known
     # a: s^2 = 50, b: s^2 = 0 -> t = (15 - 30) / sqrt(50 / 2) = -3, df = n_a - 1 = 1; p = 1 - (2/pi) atan 3
@@ -75,7 +80,8 @@ def test_comparison_of_three_methods_has_three_pairs_and_handles_single_runs() -
     recs = [_rec("w", "c", 0, 7), _rec("w", "a", 0, 1), _rec("w", "a", 1, 3), _rec("w", "b", 0, 2),
             _rec("w", "b", 1, 6)]
     (t,) = comparison_tables(recs)
-    assert [r[0] for r in t.rows] == ["a", "b", "c", "Welch p, a vs b", "Welch p, a vs c", "Welch p, b vs c"]
+    assert [r[0] for r in t.rows if not r[0].startswith(("Mann", "95%"))] == [
+        "a", "b", "c", "Welch p, a vs b", "Welch p, a vs c", "Welch p, b vs c"]
     assert t.rows[2][2] == "7.0"                           # one run: no sd
     rows = {r[0]: r for r in t.rows}
     assert rows["Welch p, a vs c"][2] == "- (fewer than 2 runs)"
@@ -83,6 +89,53 @@ def test_comparison_of_three_methods_has_three_pairs_and_handles_single_runs() -
     assert "t = -0.89, df = 1.5" in rows["Welch p, a vs b"][2]
     # separate speeds are separate tables
     assert len(comparison_tables(recs + [_rec("w", "a", 0, 1, speed=0.1), _rec("w", "b", 0, 1, speed=0.1)])) == 2
+
+
+def test_no_variance_is_said_not_p_zero() -> None:
+    # deterministic methods over seeds: same count every run
+    recs = [_rec("w", "a", i, 100) for i in range(3)] + [_rec("w", "b", i, 120) for i in range(3)]
+    (t,) = comparison_tables(recs)
+    rows = {r[0]: r[2] for r in t.rows}
+    assert rows["Welch p, a vs b"].startswith("no variance")
+    assert "inf" not in " ".join(rows.values()) and "p 0" not in " ".join(rows.values())
+    # ranks still order them: U = 0, ties -> normal approximation, z = (9/2 - 1/2) / sqrt(9 * 7 / 12 - tie term)
+    assert rows["Mann-Whitney p, a vs b"].endswith("(U = 0)")
+    assert rows["95% CI of mean a - b"] == "-20.0 (no variance: no interval)"
+    recs = [_rec("w", "a", i, 100) for i in range(3)] + [_rec("w", "b", i, 100) for i in range(3)]
+    rows = {r[0]: r[2] for r in comparison_tables(recs)[0].rows}
+    assert rows["Mann-Whitney p, a vs b"].startswith("no variance")
+
+
+def test_mixed_cell_sizes_are_never_tested_against_each_other() -> None:
+    # srt-laser maps at 0.1 m, meta-ga at 0.05 m (4x the cells for the same area): no test between them
+    recs = [{**_rec("w", "srt-laser", i, 1700 + i), "cell_m": 0.1} for i in range(3)]
+    recs += [{**_rec("w", "meta-ga", i, 4124 + 7 * i), "cell_m": 0.05} for i in range(3)]
+    recs += [{**_rec("w", "meta-pso", i, 4000 + 9 * i), "cell_m": 0.05} for i in range(3)]
+    fine, coarse = comparison_tables(recs)
+    assert fine.title.endswith("cells of 0.05 m") and coarse.title.endswith("cells of 0.1 m")
+    assert fine.methods == ["meta-ga", "meta-pso"] and coarse.methods == ["srt-laser"]
+    labels = [r[0] for r in fine.rows + coarse.rows]
+    assert "Welch p, meta-ga vs meta-pso" in labels
+    assert not any("srt-laser vs" in lab or "vs srt-laser" in lab for lab in labels)
+    assert fine.rows[-1][0] == "not compared" and "srt-laser (cells of 0.1 m)" in fine.rows[-1][2]
+    assert "meta-ga, meta-pso (cells of 0.05 m)" in coarse.rows[-1][2]
+
+
+def test_report_lists_the_runs_left_out(tmp_path: Path) -> None:
+    recs = _santos_records()
+    recs.append(_rec("sparse", "meta-ga", 7, 10, completed=False, reason="stalled: no progress for 60 s"))
+    recs.append(_rec("sparse", "meta-ga", 8, 11, completed=False, reason="interrupted by Ctrl-C"))
+    dup = {**recs[0], "pose_spec": "1", "world_spec": "sparse"}
+    recs[0] = dup
+    recs.append({**dup, "visited_cells": 5})           # recorded twice (a campaign run twice into a folder)
+    results = _jsonl(tmp_path / "results.jsonl", recs)
+    r = CliRunner().invoke(main, ["campaign", "report", str(results), "--out", str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    assert "runs left out of the statistics: 3" in r.output
+    assert "not completed (stalled): stalled: no progress" in r.output
+    assert "interrupted (--resume makes it again)" in r.output
+    assert "recorded more than once" in r.output
+    assert "runs left out of the statistics: 3" in (tmp_path / "rep" / "tables.md").read_text(encoding="utf-8")
 
 
 def _jsonl(path: Path, records: list[dict[str, Any]]) -> Path:
@@ -176,3 +229,25 @@ def test_plot_two_tiny_runs(tmp_path: Path) -> None:
     with Image.open(pics / "paths_dense_frontier.png") as again:
         px2 = np.asarray(again.convert("RGB"))
     assert np.all(px2 == PALETTE[0], axis=2).sum() > 100 and not np.all(px2 == PALETTE[1], axis=2).any()
+
+
+def test_box_plot_separates_cell_sizes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import robotexp.plot
+    from robotexp.compare import campaign_plots
+
+    seen: list[list[tuple[str, list[float]]]] = []
+    real = robotexp.plot.box_plot
+
+    def spy(groups: list[tuple[str, list[float]]], **kw: Any) -> Any:
+        seen.append(groups)
+        return real(groups, **kw)
+
+    monkeypatch.setattr(robotexp.plot, "box_plot", spy)
+    recs = [{**_rec("dense", "srt-laser", i, 1700 + i), "cell_m": 0.1} for i in range(3)]
+    recs += [{**_rec("dense", "meta-ga", i, 4124 + i), "cell_m": 0.05} for i in range(3)]
+    recs += [{**_rec("sparse", "meta-ga", i, 900 + i), "cell_m": 0.05} for i in range(2)]
+    campaign_plots(recs, tmp_path, tmp_path / "pics", note=lambda text: None)
+    (groups,) = seen
+    assert [label for label, _ in groups] == ["dense meta-ga (cells of 0.05 m)", "dense srt-laser (cells of 0.1 m)",
+                                              "sparse meta-ga"]
+    assert groups[1][1] == [1700.0, 1701.0, 1702.0]

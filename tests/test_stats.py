@@ -1,53 +1,17 @@
-"""Student's t tail and Welch's test against printed tables, closed forms and hand computations."""
+"""Student's t tail, Welch's test, Mann-Whitney U and the bootstrap interval against printed tables,
+closed forms, hand computations and scipy."""
 
 from __future__ import annotations
 
 import math
-import random
-from fractions import Fraction
 
 import numpy as np
 import pytest
 
-from robotexp.stats import regularized_incomplete_beta, student_t_sf, t_two_sided_p, welch_t_test
+from scipy import stats as st
 
-
-# -- incomplete beta: closed forms ----------------------------------------------------------------
-
-@pytest.mark.parametrize("b", [0.3, 1.0, 2.5, 17.0, 400.0])
-@pytest.mark.parametrize("x", [0.001, 0.2, 0.5, 0.77, 0.999])
-def test_incomplete_beta_a_one(b: float, x: float) -> None:
-    assert regularized_incomplete_beta(1.0, b, x) == pytest.approx(1 - (1 - x) ** b, rel=1e-12, abs=1e-14)
-
-
-@pytest.mark.parametrize("a", [0.3, 1.0, 2.5, 17.0, 400.0])
-@pytest.mark.parametrize("x", [0.001, 0.2, 0.5, 0.77, 0.999])
-def test_incomplete_beta_b_one(a: float, x: float) -> None:
-    assert regularized_incomplete_beta(a, 1.0, x) == pytest.approx(x ** a, rel=1e-12, abs=1e-14)
-
-
-@pytest.mark.parametrize("a, tol", [(0.1, 1e-13), (0.5, 1e-13), (1.0, 1e-13), (3.7, 1e-13), (50.0, 1e-13),
-                                    (5000.0, 1e-10)])   # lgamma's differences lose digits at large shapes
-def test_incomplete_beta_half_at_symmetric_shapes(a: float, tol: float) -> None:
-    assert regularized_incomplete_beta(a, a, 0.5) == pytest.approx(0.5, abs=tol)
-
-
-def test_incomplete_beta_integer_shapes_equal_a_binomial_tail() -> None:
-    # I_x(a, b) = P(Binomial(a + b - 1, x) >= a) for integer a, b; the sum is exact in fractions.
-    rng = random.Random(7)
-    for _ in range(60):
-        a, b, x = rng.randint(1, 120), rng.randint(1, 120), rng.random()
-        n, fx = a + b - 1, Fraction(x)
-        ref = float(sum(math.comb(n, j) * fx ** j * (1 - fx) ** (n - j) for j in range(a, n + 1)))
-        assert regularized_incomplete_beta(a, b, x) == pytest.approx(ref, abs=1e-12), (a, b, x)
-
-
-def test_incomplete_beta_ends_and_bad_input() -> None:
-    assert regularized_incomplete_beta(2.0, 3.0, 0.0) == 0.0
-    assert regularized_incomplete_beta(2.0, 3.0, 1.0) == 1.0
-    for a, b, x in [(0.0, 1.0, 0.5), (1.0, -1.0, 0.5), (1.0, 1.0, 1.5), (1.0, 1.0, math.nan), (math.inf, 1.0, 0.5)]:
-        with pytest.raises(ValueError, match="incomplete beta"):
-            regularized_incomplete_beta(a, b, x)
+from robotexp.stats import (NoVariance, bootstrap_mean_difference, mann_whitney_u, student_t_sf, t_two_sided_p,
+                            welch_t_test)
 
 
 # -- t distribution: printed critical values and closed forms -------------------------------------
@@ -141,16 +105,27 @@ def test_welch_one_constant_sample_has_df_n_minus_one() -> None:
     assert w.t == pytest.approx(-2.5 / math.sqrt(5 / 12))
 
 
-def test_welch_zero_variances() -> None:
-    same = welch_t_test([3, 3, 3], [3, 3])
-    assert (same.t, same.p, same.df) == (0.0, 1.0, 3.0)
-    apart = welch_t_test([3, 3, 3], [4, 4])
-    assert apart.p == 0.0 and apart.t == -math.inf
+def test_welch_zero_variances_say_no_variance() -> None:
+    # a deterministic method repeated over seeds: no variance, no test (never p = 0, t = -inf)
+    for a, b in (([3, 3, 3], [3, 3]), ([3, 3, 3], [4, 4])):
+        with pytest.raises(NoVariance, match="neither sample varies"):
+            welch_t_test(a, b)
+        with pytest.raises(NoVariance):
+            bootstrap_mean_difference(a, b)
+    with pytest.raises(NoVariance, match="every value is the same"):
+        mann_whitney_u([3, 3, 3], [3, 3])
+    # the ranks still tell 3, 3, 3 from 4, 4 apart: U = 0; with ties, the normal approximation:
+    # mean n_a n_b / 2 = 3, tie-corrected sd^2 = n_a n_b / 12 * (n + 1 - sum(t^3 - t) / (n (n - 1)))
+    # = 6 / 12 * (6 - (24 + 6) / 20) = 2.25, z = (|0 - 3| - 0.5) / 1.5 = 5/3, p = erfc(z / sqrt 2)
+    u = mann_whitney_u([3, 3, 3], [4, 4])
+    assert u.u == 0.0 and u.p == pytest.approx(math.erfc(5 / 3 / math.sqrt(2)), rel=1e-12)
 
 
 def test_welch_needs_two_values_per_group() -> None:
     with pytest.raises(ValueError, match="sample b has 1 value"):
         welch_t_test([1, 2, 3], [4])
+    with pytest.raises(ValueError, match="sample a has 1 value"):
+        mann_whitney_u([1], [4, 5])
     with pytest.raises(ValueError, match="sample a has 0 value"):
         welch_t_test([], [1, 2])
     with pytest.raises(ValueError, match="NaN or infinite"):
@@ -168,3 +143,37 @@ def test_santos_table_8_p_values() -> None:
     assert env2.df == pytest.approx(7.92, abs=5e-3)
     assert env2.p == pytest.approx(0.0139, abs=5e-5)
     assert 0.0136 <= t_two_sided_p(env2.t, round(env2.df)) < 0.0137
+    # and they are scipy's numbers
+    for a, b, w in (([1433, 1401, 1577, 1765, 1850], [928, 1730, 2094, 1675, 2207], env1),
+                    ([1257, 1324, 1192, 1713, 1646], [1960, 1709, 2112, 1608, 2227], env2)):
+        ref = st.ttest_ind(a, b, equal_var=False)
+        assert (w.t, w.df, w.p) == pytest.approx((ref.statistic, ref.df, ref.pvalue), rel=1e-12)
+
+
+def test_mann_whitney_exact_by_hand() -> None:
+    # a below every b: U_a = 0; without ties the exact two-sided p is 2 / C(8, 3) = 2 / 56
+    r = mann_whitney_u([1, 2, 3, 4, 5], [6, 7, 8])
+    assert r.u == 0.0 and r.p == pytest.approx(2 / 56, rel=1e-12)
+    # a = 1, 3, 5 vs b = 2, 4: pairs with a > b: (3, 2), (5, 2), (5, 4) -> U = 3 = n_a n_b / 2: p = 1
+    r = mann_whitney_u([1, 3, 5], [2, 4])
+    assert r.u == 3.0 and r.p == pytest.approx(1.0)
+    # Santos's Table 8, environment 2: every FA below every GA but 1713 > 1709 and 1713 > 1608,
+    # 1646 > 1608: U = 3; exact p = 2 P(U <= 3) = 2 * 7 / C(10, 5) (counts of U = 0..3: 1, 1, 2, 3)
+    r = mann_whitney_u([1257, 1324, 1192, 1713, 1646], [1960, 1709, 2112, 1608, 2227])
+    assert r.u == 3.0 and r.p == pytest.approx(2 * 7 / 252, rel=1e-12)
+
+
+def test_bootstrap_interval_agrees_with_plain_resampling() -> None:
+    a = [1126, 1276, 1426, 1576, 1726]
+    b = [1723, 1823, 1923, 2023, 2123]
+    ci = bootstrap_mean_difference(a, b, resamples=20000, seed=3)
+    assert ci.difference == pytest.approx(-497.0) and ci.level == 0.95
+    # the percentile interval by hand: resample each sample with replacement, 2.5 % and 97.5 % points
+    rng = np.random.default_rng(11)
+    xa, xb = np.array(a, float), np.array(b, float)
+    diffs = (xa[rng.integers(0, 5, (40000, 5))].mean(axis=1) - xb[rng.integers(0, 5, (40000, 5))].mean(axis=1))
+    lo, hi = np.percentile(diffs, [2.5, 97.5])
+    assert ci.low == pytest.approx(lo, abs=8.0) and ci.high == pytest.approx(hi, abs=8.0)
+    assert ci.low < -497 < ci.high < 0          # GA's advantage holds in every likely resample
+    assert bootstrap_mean_difference(a, b, resamples=2000, seed=1) == bootstrap_mean_difference(a, b, resamples=2000,
+                                                                                               seed=1)

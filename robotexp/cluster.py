@@ -1,0 +1,202 @@
+"""Campaign runs on a Dask distributed cluster (`robotexp campaign FILE --cluster ADDRESS`).
+
+`ADDRESS` is a running scheduler (`tcp://HOST:8786`, e.g. `dask scheduler` on a lab server or a
+SLURM job, with `dask worker` processes on the machines that make the runs) or `local:N`, a
+LocalCluster of N worker processes of one thread each started here and closed at the end.
+
+Each run is a pure task: a worker makes the run in a temporary folder of its own and returns the
+record with the bytes of the run's files (map, images, curves); this process, the client, writes
+them into the campaign folder as each run finishes (`as_completed`). The client alone writes
+results.jsonl, under the campaign's folder lock, so the workers need no shared file system, and a
+run that Dask retries on another worker after its first worker died is still recorded once: only
+the finished task's result is ever written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import tempfile
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from robotexp.errors import ConfigError, RobotexpError
+from robotexp.experiment import RunSpec
+from robotexp.observers import RunObserver
+from robotexp.record import EndReason, RunRecord
+
+if TYPE_CHECKING:
+    from robotexp.explorer import ExplorationRun
+    from robotexp.observers import StepEvent
+
+__all__ = ["check_cluster_address", "run_on_cluster"]
+
+_ADDRESS = re.compile(r"(?:tcp|tls)://\[?[A-Za-z0-9_.:-]+\]?:\d{1,5}")
+_LOCAL = re.compile(r"local:(\d{1,4})")
+CONNECT_TIMEOUT = "15s"     # how long the client waits for the scheduler to answer
+
+
+def check_cluster_address(address: str) -> None:
+    """Check the form of a `--cluster` value before any work starts.
+
+    Raises:
+        ConfigError: neither `tcp://HOST:PORT` (or `tls://`) nor `local:N` with N >= 1.
+    """
+    local = _LOCAL.fullmatch(address)
+    if local:
+        if int(local.group(1)) < 1:
+            raise ConfigError(f"--cluster {address}: a local cluster needs at least 1 worker (local:N, N >= 1)")
+        return
+    if not _ADDRESS.fullmatch(address):
+        raise ConfigError(f"--cluster {address!r}: expected a Dask scheduler address tcp://HOST:PORT (e.g. "
+                          "tcp://10.0.0.5:8786, from `dask scheduler`) or local:N (N worker processes here)")
+
+
+class _CancelWatch(RunObserver):
+    """On a worker: ends the run (interrupted) soon after the client set the campaign's stop event
+    (Ctrl-C), so that a cancelled campaign frees its workers at once instead of finishing its runs
+    (Dask cannot stop a task that is executing). The event is asked at most twice a second."""
+
+    def __init__(self, event: str) -> None:
+        self.event_name = event
+        self.event: Any = None
+        self.next_check = 0.0
+
+    def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+        """Ask the scheduler whether the campaign was cancelled; stop the run if so."""
+        now = time.monotonic()
+        if now < self.next_check:
+            return
+        self.next_check = now + 0.5
+        if self.event is None:
+            from distributed import Event
+
+            self.event = Event(self.event_name)
+        if self.event.is_set():
+            run.request_stop("the campaign was cancelled (Ctrl-C on its client)", EndReason.INTERRUPTED)
+
+
+def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
+              stop_event: str | None = None) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
+    """On a worker: make one run in a temporary folder (with `record`, its ROS 2 bag in bags/); return
+    its record (as JSON data), the bytes of every file it wrote but results.jsonl (by path relative to
+    the folder), and the error that ended it (None: none). A run whose explorer or robot failed still
+    returns the record written before the error. Pure: nothing is left behind on the worker."""
+    from robotexp.experiment import run_experiment
+    from robotexp.results import read_jsonl
+
+    with tempfile.TemporaryDirectory(prefix="robotexp-run-") as tmp:
+        folder = Path(tmp)
+        observers: list[RunObserver] = [_CancelWatch(stop_event)] if stop_event else []
+        if record:
+            from robotexp.bag.recorder import BagRecorder
+
+            (folder / "bags").mkdir()
+            observers.append(BagRecorder(folder=folder / "bags", world=spec.world))
+        error = None
+        try:
+            data: dict[str, Any] | None = run_experiment(spec, folder, observers=observers,
+                                                         record_extra=extra).record.as_dict()
+        except RobotexpError as exc:
+            error = f"{type(exc).__name__}: {exc}"
+            written = read_jsonl(folder / "results.jsonl") if (folder / "results.jsonl").exists() else []
+            data = written[-1] if written else None
+        files = {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
+                 if p.is_file() and p.name != "results.jsonl"}
+    return data, files, error
+
+
+def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecord:
+    """In the client: write a finished run into `out`, the record first (appended to results.jsonl),
+    then its files. The run is renamed (suffix _2, _3, ...) when its name is taken in `out` (a run
+    made again after an interrupted one)."""
+    from robotexp.results import append_jsonl
+
+    name = str(data["run"])
+    base, k = name, 1
+    while (out / f"{name}.png").exists() or (out / f"{name}.coverage.csv").exists():
+        k += 1
+        name = f"{base}_{k}"
+    record = RunRecord.from_dict({**data, "run": name})
+    append_jsonl(out / "results.jsonl", record)            # first: the record is never lost
+    for rel, blob in files.items():
+        parent, _, fname = rel.rpartition("/")
+        if fname.startswith(base + "."):
+            fname = name + fname[len(base):]
+        if name != base and fname.endswith(".yaml"):        # a ROS map's yaml names its image file
+            blob = blob.replace(f"{base}.".encode(), f"{name}.".encode())
+        target = out / parent / fname if parent else out / fname
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(blob)
+    return record
+
+
+@contextlib.contextmanager
+def _client(address: str) -> Iterator[Any]:
+    """A dask.distributed Client on `address` (a LocalCluster for local:N, closed at the end).
+
+    Raises:
+        ConfigError: no scheduler answers at the address.
+    """
+    from distributed import Client, LocalCluster
+
+    check_cluster_address(address)
+    local = _LOCAL.fullmatch(address)
+    if local:
+        cluster = LocalCluster(n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        try:
+            with Client(cluster) as client:
+                yield client
+        finally:
+            cluster.close()
+        return
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as exc:
+        raise ConfigError(f"--cluster {address}: no Dask scheduler answers there ({exc}); start one with "
+                          "`dask scheduler` and workers with `dask worker ADDRESS`") from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable[[RunSpec], dict[str, Any]],
+                   on_record: Callable[[RunRecord], None], *, record: bool = False) -> None:
+    """Make the runs `todo` on the Dask cluster at `address`, writing each into `out` as it finishes
+    (with `record`, each run's ROS 2 bag into `out/bags`) and passing its record to `on_record`.
+
+    A worker lost mid-run has its run rescheduled on another worker by the scheduler (up to its
+    `allowed-failures`, 3 by default). Ctrl-C (KeyboardInterrupt) cancels every run not yet written
+    and closes the client (and a local cluster, whose worker processes stop with it), then re-raises;
+    the runs executing on workers end within about a second (a stop event they watch) and are dropped.
+
+    Raises:
+        ConfigError: a bad address, or no scheduler there.
+        RobotexpError: a run failed (its record, when it has one, is written first).
+        KilledWorker: (distributed) a run killed its workers more often than allowed.
+    """
+    from distributed import Event, as_completed
+
+    token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
+    with _client(address) as client:
+        stop = Event(f"robotexp-stop-{token}", client=client)
+        futures = [client.submit(_run_task, spec, extra(spec), record, stop.name, pure=False,
+                                 key=f"robotexp-{token}-{i}-{spec.method}") for i, spec in enumerate(todo)]
+        try:
+            for fut in as_completed(futures):
+                data, files, error = fut.result()
+                if data is not None:
+                    on_record(_store(out, data, files))
+                if error is not None:
+                    raise RobotexpError(f"a run failed on the cluster: {error}")
+                fut.release()
+        except BaseException:
+            with contextlib.suppress(Exception):
+                stop.set()              # the runs executing on workers end at their next check
+            client.cancel(futures, force=True)
+            raise
