@@ -258,7 +258,10 @@ def test_body_frame_velocity_target_is_relative_to_the_heading(world: World) -> 
             # BODY_NED: vy > 0 is to the right: from east, the goal is south (NED yaw 180 deg)
             gcs.send(gcs.codec.mav.set_position_target_local_ned_encode(0, 1, 1, C.MAV_FRAME_BODY_NED, C.MASK_VELOCITY,
                                                                         0, 0, 0, 0.0, 0.3, 0, 0, 0, 0, 0, 0))
-            gcs.recv("HEARTBEAT")
+            # the target travels on its own: a heartbeat already on its way may come before it is handled
+            deadline = time.monotonic() + 2.0
+            while rover._heading_goal is None and time.monotonic() < deadline:
+                gcs.recv("HEARTBEAT")
             goal = rover._heading_goal
     assert goal is not None and abs(abs(math.degrees(goal[0])) - 180.0) < 0.1 and goal[1] == pytest.approx(0.3)
 

@@ -106,7 +106,9 @@ def test_error_and_timeout_stop_the_robot_and_keep_the_run(lua, emu):
 
 def test_timeout_stops_a_run_on_the_robot(lua, emu):
     with pytest.raises(ScriptError, match=r"stopped by --timeout after 1.5 s; the 1 run"):
-        lua(f'robot.setAddress("{emu.address}")\nexploration.setMaxTime(600000)\n'
+        # at 100 mm/s the exploration needs minutes of robot time: still going at the deadline, however
+        # fast the lockstep emulator runs (at the default speed it could end within 1.5 s of wall time)
+        lua(f'robot.setAddress("{emu.address}")\nrobot.setMaxSpeed(100)\nexploration.setMaxTime(600000)\n'
             'exploration.start(); exploration.wait()\nprint("not reached")', timeout=1.5)
     (rec,) = records(lua)
     assert rec["completed"] is False and "--timeout" in rec["reason"] and rec["robot_time_s"] < 600
