@@ -51,6 +51,20 @@ class Pose:
         return [float(self.x), float(self.y), float(self.theta)]
 
 
+def compose_pose(a: Pose, b: Pose) -> Pose:
+    """a (+) b: pose `b`, given in the frame of `a`, expressed in `a`'s parent frame."""
+    ca, sa = math.cos(a.theta), math.sin(a.theta)
+    return Pose(a.x + ca * b.x - sa * b.y, a.y + sa * b.x + ca * b.y, wrap_angle(a.theta + b.theta))
+
+
+def relative_pose(a: Pose, b: Pose) -> Pose:
+    """(-a) (+) b: pose `b` expressed in the frame of `a`, both in the same parent frame
+    (so `compose_pose(a, relative_pose(a, b)) == b`)."""
+    ca, sa = math.cos(a.theta), math.sin(a.theta)
+    dx, dy = b.x - a.x, b.y - a.y
+    return Pose(ca * dx + sa * dy, -sa * dx + ca * dy, wrap_angle(b.theta - a.theta))
+
+
 @dataclass(frozen=True, slots=True)
 class Twist:
     """A velocity command: forward speed `v` [m/s] and turn rate `w` [rad/s]."""

@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
-from robotexp.robot import Pose, Twist, wrap_angle
+from robotexp.robot import Pose, Twist, compose_pose, relative_pose, wrap_angle
 from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase
@@ -46,7 +46,6 @@ from robotexp_drivers.emulation import EmulatorBase
 from . import codec as k
 from . import constants as c
 from .motion import ArcosMotion, RotMode
-from .robot import compose_pose, relative_pose
 
 __all__ = ["P3DXEmulator", "reading_beams"]
 

@@ -20,7 +20,8 @@ from types import MappingProxyType
 import numpy as np
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.robot import (Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, compose_pose,
+                            relative_pose, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, require_positive
 
 from . import codec as k
@@ -34,19 +35,6 @@ log = logging.getLogger(__name__)
 _SONAR_ANGLES = np.radians(np.array([p[2] for p in c.SONAR_POSES], dtype=np.float64))
 _SONAR_RANGE_MAX = c.SONAR_NO_ECHO_MM / 1000.0
 _SONAR_POSITIONS = np.array([p[:2] for p in c.SONAR_POSES], dtype=np.float64) / 1000.0
-
-
-def compose_pose(a: Pose, b: Pose) -> Pose:
-    """Pose `b` given in the frame of `a`, expressed in `a`'s parent frame."""
-    ca, sa = math.cos(a.theta), math.sin(a.theta)
-    return Pose(a.x + ca * b.x - sa * b.y, a.y + sa * b.x + ca * b.y, wrap_angle(a.theta + b.theta))
-
-
-def relative_pose(a: Pose, b: Pose) -> Pose:
-    """Pose `b` expressed in the frame of `a` (both in the same parent frame)."""
-    ca, sa = math.cos(a.theta), math.sin(a.theta)
-    dx, dy = b.x - a.x, b.y - a.y
-    return Pose(ca * dx + sa * dy, -sa * dx + ca * dy, wrap_angle(b.theta - a.theta))
 
 
 def _int16(value: int) -> int:

@@ -21,7 +21,7 @@ from robotexp.errors import ConfigError
 from robotexp.localization import kernels as K
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.robot import LaserScan, Pose, wrap_angle
+from robotexp.robot import LaserScan, Pose, compose_pose, relative_pose, wrap_angle
 
 __all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
 
@@ -91,17 +91,8 @@ class Match:
     conditioning: float = 0.0      # smallest / largest eigenvalue of the fit's translation information
 
 
-def compose(a: Pose, b: Pose) -> Pose:
-    """a (+) b: pose `b`, given in the frame of `a`, in the world frame."""
-    c, s = math.cos(a.theta), math.sin(a.theta)
-    return Pose(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.theta + b.theta))
-
-
-def relative(a: Pose, b: Pose) -> Pose:
-    """(-a) (+) b: pose `b` in the frame of `a` (so compose(a, relative(a, b)) == b)."""
-    c, s = math.cos(a.theta), math.sin(a.theta)
-    dx, dy = b.x - a.x, b.y - a.y
-    return Pose(c * dx + s * dy, -s * dx + c * dy, wrap_angle(b.theta - a.theta))
+# the pose algebra of the whole project, under the short names this module has always used
+compose, relative = compose_pose, relative_pose
 
 
 def scan_points(scan: LaserScan, range_max: float = math.inf
