@@ -45,8 +45,9 @@ from robotexp.world.bounds import parse_bounds
 __all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
-                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall"}
-_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description"}
+                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
+_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description",
+                                                                                                 "record"}
 
 
 @dataclass
@@ -56,6 +57,7 @@ class Campaign:
     name: str
     source: Path
     runs: list[RunSpec]
+    record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
 
 
 def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
@@ -66,7 +68,8 @@ def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
 def record_key(record: RunRecord | Mapping[str, Any]) -> tuple[str, str, str, int, int]:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
-    return (str(r.extra.get("world_spec", r.world)), r.method, str(r.extra.get("pose_spec", r.pose)),
+    # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
+    return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0))
 
 
@@ -134,7 +137,7 @@ def load_campaign(path: str | Path) -> Campaign:
                         f"speed {key[3]} mm/s, seed {key[4]} (speeds {keys[key].speed * 1000:g} and "
                         f"{spec.speed * 1000:g} mm/s; a seed or speed given twice?); give each run once")
         keys[key] = spec
-    return Campaign(name, p, runs)
+    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"))
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -268,9 +271,9 @@ def _worker_init() -> None:
     signal.signal(signal.SIGINT, interrupted)
 
 
-def _run_one(spec: RunSpec, out: str) -> RunRecord | None:
-    """Worker: one run, written to `out` (record first, then images). Returns the record (None: a run
-    queued after Ctrl-C, not made)."""
+def _run_one(spec: RunSpec, out: str, record: bool = False) -> RunRecord | None:
+    """Worker: one run, written to `out` (record first, then images; with `record` its bag in
+    `out/bags`). Returns the record (None: a run queued after Ctrl-C, not made)."""
     from robotexp.experiment import run_experiment
 
     global _worker_running
@@ -278,7 +281,13 @@ def _run_one(spec: RunSpec, out: str) -> RunRecord | None:
         return None
     _worker_running = True
     try:
-        result = run_experiment(spec, Path(out),
+        observers = []
+        if record:
+            from robotexp.bag.recorder import BagRecorder
+
+            (Path(out) / "bags").mkdir(exist_ok=True)
+            observers.append(BagRecorder(folder=Path(out) / "bags", world=spec.world))
+        result = run_experiment(spec, Path(out), observers=observers,
                                 record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
     finally:
         _worker_running = False
@@ -327,7 +336,8 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
     pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                initializer=_worker_init)
     try:
-        pending: set[Future[RunRecord | None]] = {pool.submit(_run_one, spec, str(out)) for spec in todo}
+        pending: set[Future[RunRecord | None]] = {pool.submit(_run_one, spec, str(out), campaign.record)
+                                                    for spec in todo}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:

@@ -183,3 +183,16 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path):
     records = read_records(out / "results.jsonl")
     assert len(records) == 1 and records[0]["reason"].startswith("interrupted")
     assert took < 15
+
+
+def test_report_counts_a_run_recorded_twice_once_and_says_so(tmp_path):
+    path = tmp_path / "results.jsonl"
+    rec = {"run": "r1", "method": "frontier", "world": "dense", "world_spec": "dense", "pose_spec": "1",
+           "start_pose": [0, 0, 0], "max_speed_m_s": 0.3, "path_length_m": 1.0, "robot_time_s": 1.0,
+           "wall_time_s": 1.0, "coverage": 0.5, "collisions": 0, "nodes": None, "visited_cells": 1, "seed": 0,
+           "completed": True, "reason": "done", "map_iou": None}
+    other = dict(rec, run="r2", pose_spec="2")
+    path.write_text("".join(json.dumps(r) + "\n" for r in (rec, other, dict(rec, run="r1_2", path_length_m=9.0))))
+    assert [r.run for r in load_results(path)] == ["r1", "r2"]
+    result = CliRunner().invoke(main, ["campaign", "report", str(path)])
+    assert result.exit_code == 0 and "1 run(s) recorded more than once" in result.output and "r1_2" in result.output

@@ -192,6 +192,7 @@ class Session:
         self.show: dict[str, bool] = {"grid": False, "path": True, "laser": False, "vectors": False,
                                       "potential": False, "tracking": False}
         self.frame_folder: Path | None = None
+        self.record_folder: Path | None = None         # each run as a ROS 2 bag there (exploration.setRecordFolder)
         self.redraw_interval = 1.0                     # [s] robot time between frames
         self.frames = 0
         self.armed: RunSpec | None = None
@@ -263,6 +264,10 @@ class Session:
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
         observers = ([_ScriptWatch(self)] if watch else []) + self.observers
+        if self.record_folder is not None:
+            from robotexp.bag.recorder import BagRecorder
+
+            observers.append(BagRecorder(folder=self.record_folder, world=spec.world))
         if self.on_robot:
             robot = self._robot()
             if self.laser is None and hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
@@ -624,6 +629,15 @@ class Session:
         if self.on_robot:
             self._robot()
         self.armed = self._spec()
+
+    def lua_exploration__setRecordFolder(self, *args: Any) -> None:
+        """Record each following run as a ROS 2 bag, FOLDER/<run>.mcap (nil: stop recording)."""
+        if len(args) == 1 and args[0] is None:
+            self.record_folder = None
+            return
+        (folder,) = _args("exploration.setRecordFolder", "folder", args, "s")
+        self.record_folder = Path(self.paths.resolve(folder.rstrip("/") + "/run.mcap", "w",
+                                                     "exploration.setRecordFolder")).parent
 
     def lua_exploration__wait(self, *args: Any) -> None:
         """Run the armed exploration to its end (nothing when none is armed)."""

@@ -110,7 +110,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                timeout: float | None = None, code: str | None = None,
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
-               retire: bool = False, observers: Sequence[RunObserver] = ()) -> ScriptResult:
+               retire: bool = False, observers: Sequence[RunObserver] = (),
+               record: Path | None = None) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -133,6 +134,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         retire: never close the Lua state (closing runs the script's __gc finalizers, which could
             loop); for a process that exits right after.
         observers: told about each of the script's runs (a live view).
+        record: a folder where each run is also written as a ROS 2 bag, <run>.mcap (as the script's
+            `exploration.setRecordFolder` does; the script may change it).
 
     Returns:
         The exit status and the records of the script's runs.
@@ -160,6 +163,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     paths = PathPolicy(out, sandbox)
     session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
                       script=name, addresses=addresses, observers=observers)
+    session.record_folder = record
     lua = LuaRuntime(register_eval=False, register_builtins=False, unpack_returned_tuples=True,
                      attribute_filter=_refuse_attribute, max_memory=max_memory)
     if retire:

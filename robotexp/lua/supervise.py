@@ -113,7 +113,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of Ctrl-C: killed; the "
                        f"{made} run(s) finished so far are in {results}", err=True)
             click.echo("robotexp: interrupted", err=True)
-        return 130
+        # a child that ended by itself tells: 130 when Ctrl-C stopped its script, 0 when the script was
+        # over (`run --view` keeps its page up until Ctrl-C)
+        return proc.returncode if why is None and proc.returncode >= 0 else 130
     code = proc.returncode
     if code < 0:
         name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)

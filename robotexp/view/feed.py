@@ -113,7 +113,8 @@ class Frame:
     `path` and `curve` are appended to what was sent before (path: x, y pairs [m]; curve: robot
     time [s], coverage pairs). `overlays` replaces the explorer's overlays: any of "potential"
     (a MapLayer), "vectors" ({"spacing": m, "arrows": [x, y, dx, dy, ...]}) and markers
-    ("points": {name: [x, y, ...]}, "circles": {name: [x, y, r, ...]}).
+    ("points": {name: [x, y, ...]}, "circles": {name: [x, y, r, ...]}, "lines": {name: [x0, y0, x1, y1, ...]},
+    "polygons": {name: [[x, y, ...], ...]}), from an explorer's `markers()`.
     """
 
     time: float                                     # [s] robot time

@@ -26,6 +26,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
@@ -37,7 +38,7 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
 
-__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays"]
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels"]
 
 STOP_REASON = "stopped from the live view"
 
@@ -202,7 +203,8 @@ class ViewObserver(RunObserver):
         from robotexp.sim import SimRobot
 
         self.run = run
-        self.simulated = isinstance(run.robot, SimRobot)
+        # a replayed recording (robotexp replay --view) keeps robot time too: it is paced like a simulator
+        self.simulated = isinstance(run.robot, SimRobot) or getattr(run.robot, "replayed", False)
         self._reset()
         self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
         self.pacer.stopped = False
@@ -301,6 +303,25 @@ class ViewObserver(RunObserver):
         return out
 
 
+def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:
+    """A potential in [0, 1] (0 at the goals, 1 at obstacles) as levels 0..254 on the free cells (255 elsewhere):
+    log10(1 - p) spread over its range on the free cells below 1, goals 0, the free cell farthest from them
+    254 (as are free cells at 1, the inflation around obstacles).
+
+    A harmonic potential (BVP) falls off exponentially from the goals: linear levels would paint nearly
+    every free cell 1 (`render_map`'s overlay); the log scale shows where its gradient leads."""
+    ok = free & np.isfinite(potential)
+    out = np.full(potential.shape, 255, np.uint8)
+    out[ok & (potential >= 1.0)] = 254            # free cells held at the obstacles' value (inflation)
+    ok &= potential < 1.0
+    if not ok.any():
+        return out
+    q = np.log10(np.clip(1.0 - potential[ok], 1e-300, 1.0))
+    lo, hi = float(q.min()), float(q.max())
+    out[ok] = np.round(254 * (hi - q) / (hi - lo)) if hi > lo else 0
+    return out
+
+
 def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
     vectors as arrows on a lattice) and `Explorer.markers()` when the explorer has it."""
@@ -309,8 +330,7 @@ def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     overlays = run.explorer.overlays()
     pot = overlays.get("potential")
     if pot is not None and pot.shape == (geo.rows, geo.cols):
-        q = np.where(np.isfinite(pot), np.round(np.clip(pot, 0.0, 1.0) * 254), 255).astype(np.uint8)
-        out["potential"] = MapLayer(encode_classes(q), geo.rows, geo.cols)
+        out["potential"] = MapLayer(encode_classes(potential_levels(pot, run.grid.free())), geo.rows, geo.cols)
     vec = overlays.get("vectors")
     if vec is not None and vec.shape == (geo.rows, geo.cols, 2):
         spacing, arrows = vector_arrows(vec, (geo.origin_x, geo.origin_y), geo.cell)

@@ -36,10 +36,12 @@ class ViewServer:
         hub: the view's state.
         host: the address to listen on (127.0.0.1: this machine only).
         port: the TCP port (0: a free one, see `port` after `start`).
+        max_rate: [1/s] most messages per second to one browser (each redraws the page).
     """
 
-    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0) -> None:
         self.hub, self.host, self.port = hub, host, port
+        self.min_interval = 1.0 / max_rate
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
@@ -186,6 +188,6 @@ class ViewServer:
                     await ws.send_str(json.dumps(msg, separators=(",", ":")))
                 await changed.wait()
                 changed.clear()
-                await asyncio.sleep(0.02)     # at most ~50 messages per second per browser
+                await asyncio.sleep(self.min_interval)
         except (ConnectionError, RuntimeError) as exc:
             log.debug("view client gone: %s", exc)

@@ -61,8 +61,9 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
             name = next(iter(world.poses))
             return world.poses[name], name
         return central_free_pose(world, radius), "centre"
-    if pose in world.poses:
-        return world.poses[pose], pose
+    name = _named(world, pose)
+    if name is not None:
+        return world.poses[name], name
     if "," not in pose:
         world.pose(pose)                    # raises: lists the names the world has
     p = parse_pose(pose)
@@ -73,7 +74,16 @@ def pose_name(world: World, pose: str | None) -> str | None:
     """The world's name for the start pose `pose` (a name, or None for the default), else None."""
     if pose is None:
         return None if world.home is not None or not world.poses else next(iter(world.poses))
-    return pose if pose in world.poses else None
+    return _named(world, pose)
+
+
+def _named(world: World, pose: str) -> str | None:
+    """The world's pose name `pose` stands for: itself, else the one name equal to it but for case
+    ("Home" and "home" are the same pose, as in campaigns and the CLI), else None."""
+    if pose in world.poses:
+        return pose
+    folded = [key for key in world.poses if key.casefold() == pose.casefold()]
+    return folded[0] if len(folded) == 1 else None
 
 
 def central_free_pose(world: World, radius: float) -> Pose:

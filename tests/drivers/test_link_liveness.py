@@ -23,10 +23,12 @@ from robotexp_drivers.p3dx.robot import P3DXRobot
 
 class GarbageProxy:
     """TCP proxy to `target`; once `garbage` is set, the robot's bytes are replaced by bytes that
-    never form an ARCOS packet (no 0xFA header byte) at about 20 kB/s."""
+    never form a valid packet (all byte values but `no_byte`, ARCOS's 0xFA header by default; MAVLink
+    frames that start in them fail their CRC) at about 20 kB/s."""
 
-    def __init__(self, target: tuple[str, int], garbage_after: float | None = None) -> None:
+    def __init__(self, target: tuple[str, int], garbage_after: float | None = None, no_byte: int = 0xFA) -> None:
         self.target = target
+        self.no_byte = no_byte
         self.garbage_after = garbage_after
         self.server = socket.create_server(("127.0.0.1", 0))
         self.port = self.server.getsockname()[1]
@@ -42,7 +44,7 @@ class GarbageProxy:
             threading.Timer(self.garbage_after, self.garbage.set).start()
         threading.Thread(target=self._pump, args=(client, robot), daemon=True).start()
         robot.settimeout(0.01)
-        filler = bytes(b for b in range(256) if b != 0xFA) * 4
+        filler = bytes(b for b in range(256) if b != self.no_byte) * 4
         try:
             while not self.done.is_set():
                 try:
@@ -165,3 +167,24 @@ def test_a_run_ended_by_a_robot_error_exits_1_with_its_record(emulator, tmp_path
     assert "robotexp: error: " in result.output and "no valid SIP" in result.output
     (rec,) = read_records(tmp_path / "results.jsonl")
     assert rec.reason.startswith("robot error") and "no valid SIP" in rec.reason
+
+
+def test_mavlink_garbage_after_the_handshake_loses_the_vehicle():
+    from robotexp.world.builtin import builtin_world
+    from robotexp.world.poses import resolve_pose
+    from robotexp_drivers.mavlink.emulator import MavlinkEmulator
+    from robotexp_drivers.mavlink.robot import ROVER_RADIUS, MavlinkRobot
+
+    world = builtin_world("ufmg-static")
+    with MavlinkEmulator(world, pose=resolve_pose(world, "path1", ROVER_RADIUS)[0], speedup=10.0, tcp=True) as emu:
+        proxy = GarbageProxy(("127.0.0.1", int(emu.address.rsplit(":", 1)[1])), no_byte=-1)
+        robot = MavlinkRobot(f"tcp:127.0.0.1:{proxy.port}", timeout=0.5)
+        try:
+            robot.read()
+            proxy.garbage.set()
+            time.sleep(0.5 + 0.6)
+            with pytest.raises(ProtocolError, match="no valid message from the vehicle"):
+                robot.read()
+        finally:
+            robot.close()
+            proxy.close()

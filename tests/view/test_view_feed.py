@@ -96,3 +96,41 @@ def test_hub_commands_follow_controls() -> None:
     for cmd in ("pause", "resume", "step", "speed", "stop", "rm -rf"):
         hub.command({"cmd": cmd})
     assert [g["cmd"] for g in got] == ["pause", "resume", "stop"]
+
+
+def test_potential_levels_log_scale_on_free_cells() -> None:
+    from robotexp.view.observer import potential_levels
+
+    # 1 - p = 1e-1, 1e-3, 1e-5 on three free cells: equal steps on the log scale; the rest not drawn
+    p = np.array([[1 - 1e-1, 1 - 1e-3, 1 - 1e-5, 0.5, 1.0]])
+    free = np.array([[True, True, True, False, True]])
+    assert potential_levels(p, free).tolist() == [[0, 127, 254, 255, 254]]
+    assert potential_levels(p, np.zeros_like(free)).tolist() == [[255] * 5]
+
+
+@pytest.mark.parametrize("method", ["srt-star", "bvp", "frontier"])
+def test_explorer_overlays_reach_the_hub(method: str) -> None:
+    """The run's last frame carries what the explorer exposes: SRT's nodes, tree and safe regions, BVP's
+    potential and vectors, the frontier target (while it has one)."""
+    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.view.observer import ViewObserver
+
+    hub = ViewHub()
+    out = run_experiment(RunSpec(world="ufmg-static", method=method, max_time=15.0), None,
+                         observers=[ViewObserver(hub, speed=None)], image=False)
+    ov = hub.overlays
+    explorer = out.run.explorer
+    if method == "srt-star":
+        nodes = len(explorer.tree)  # type: ignore[attr-defined]
+        assert len(ov["points"]["SRT nodes"]) == 2 * nodes >= 2
+        assert len(ov["polygons"]["safe regions"]) == nodes
+        assert len(ov["lines"]["SRT tree"]) == 4 * (nodes - 1)
+    elif method == "bvp":
+        geo = out.run.grid.geo
+        levels = decode_classes(ov["potential"].data, geo.rows, geo.cols)
+        assert ((levels < 255) == out.run.grid.free()).all()          # drawn on the free cells only
+        assert ov["vectors"]["spacing"] > 0 and len(ov["vectors"]["arrows"]) % 4 == 0
+    else:
+        goal = explorer.goal  # type: ignore[attr-defined]
+        assert (goal is None and "points" not in ov) or ov["points"]["frontier target"] == \
+            pytest.approx(list(goal), abs=1e-3)

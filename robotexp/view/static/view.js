@@ -54,13 +54,21 @@
     canvas.style.height = height + "px";
   }
 
-  function draw() {
-    ctx.fillStyle = "#cdcdcd"; ctx.fillRect(0, 0, canvas.width, canvas.height);
+  // the background (map, overlays, path) is drawn into its own canvas when it changes, new path
+  // segments are added to it as they come; each frame copies it and draws the laser and the robot
+  const bg = document.createElement("canvas"), bgx = bg.getContext("2d");
+  let bgDirty = true, bgPath = 0;
+
+  function drawBackground() {
+    if (bg.width !== canvas.width || bg.height !== canvas.height) { bg.width = canvas.width; bg.height = canvas.height; }
+    const ctx = bgx;
+    ctx.fillStyle = "#cdcdcd"; ctx.fillRect(0, 0, bg.width, bg.height);
+    bgDirty = false; bgPath = 0;
     if (!S.meta) return;
-    const T = transform(), g = S.meta.geo;
+    const T = transform();
     ctx.imageSmoothingEnabled = false;
     if (S.mapCanvas) ctx.drawImage(S.mapCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
-    if (S.potCanvas) { ctx.globalAlpha = 0.55; ctx.drawImage(S.potCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
+    if (S.potCanvas) { ctx.globalAlpha = 0.7; ctx.drawImage(S.potCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
                        ctx.globalAlpha = 1; }
     const lw = Math.max(1, canvas.width / 700);
     const ov = S.overlays || {};
@@ -75,6 +83,15 @@
       }
       ctx.stroke();
     }
+    if (ov.polygons) for (const polys of Object.values(ov.polygons)) {
+      ctx.strokeStyle = "rgba(10,138,90,0.6)"; ctx.fillStyle = "rgba(10,138,90,0.10)"; ctx.lineWidth = lw;
+      for (const p of polys) {
+        if (p.length < 6) continue;
+        ctx.beginPath(); ctx.moveTo(T.px(p[0]), T.py(p[1]));
+        for (let i = 2; i < p.length; i += 2) ctx.lineTo(T.px(p[i]), T.py(p[i + 1]));
+        ctx.closePath(); ctx.fill(); ctx.stroke();
+      }
+    }
     if (ov.circles) for (const [name, c] of Object.entries(ov.circles)) {
       ctx.strokeStyle = name.includes("region") ? "rgba(10,138,90,0.55)" : "#0a8a5a";
       ctx.fillStyle = "rgba(10,138,90,0.08)"; ctx.lineWidth = lw;
@@ -87,20 +104,33 @@
       for (let i = 0; i < l.length; i += 4) { ctx.moveTo(T.px(l[i]), T.py(l[i + 1])); ctx.lineTo(T.px(l[i + 2]), T.py(l[i + 3])); }
       ctx.stroke();
     }
-    // path
-    if (S.path.length >= 4) {
-      ctx.strokeStyle = "#1e5adc"; ctx.lineWidth = lw * 1.6; ctx.lineJoin = "round"; ctx.beginPath();
-      ctx.moveTo(T.px(S.path[0]), T.py(S.path[1]));
-      for (let i = 2; i < S.path.length; i += 2) ctx.lineTo(T.px(S.path[i]), T.py(S.path[i + 1]));
-      ctx.stroke();
-    }
     if (ov.points) for (const [name, p] of Object.entries(ov.points)) {
       ctx.fillStyle = name.includes("node") ? "#0a8a5a" : "#b000b0";
+      ctx.strokeStyle = "#fff"; ctx.lineWidth = lw;
       const r = Math.max(3, 0.12 * T.k);
       for (let i = 0; i < p.length; i += 2) {
-        ctx.beginPath(); ctx.arc(T.px(p[i]), T.py(p[i + 1]), r, 0, 2 * Math.PI); ctx.fill();
+        ctx.beginPath(); ctx.arc(T.px(p[i]), T.py(p[i + 1]), r, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
       }
     }
+    drawPath(T);
+  }
+
+  function drawPath(T) {
+    const ctx = bgx, lw = Math.max(1, canvas.width / 700);
+    if (S.path.length < 4 || bgPath >= S.path.length - 2) return;
+    const from = Math.max(bgPath - 2, 0);
+    ctx.strokeStyle = "#1e5adc"; ctx.lineWidth = lw * 1.6; ctx.lineJoin = "round"; ctx.lineCap = "round"; ctx.beginPath();
+    ctx.moveTo(T.px(S.path[from]), T.py(S.path[from + 1]));
+    for (let i = from + 2; i < S.path.length; i += 2) ctx.lineTo(T.px(S.path[i]), T.py(S.path[i + 1]));
+    ctx.stroke();
+    bgPath = S.path.length;
+  }
+
+  function draw() {
+    if (!S.meta) { ctx.fillStyle = "#cdcdcd"; ctx.fillRect(0, 0, canvas.width, canvas.height); return; }
+    const T = transform(), lw = Math.max(1, canvas.width / 700);
+    if (bgDirty || bg.width !== canvas.width || bg.height !== canvas.height) drawBackground(); else drawPath(T);
+    ctx.drawImage(bg, 0, 0);
     // laser
     if (S.pose && S.laser.length) {
       ctx.fillStyle = "#ff8c00"; const d = Math.max(2, lw * 2.2);
@@ -108,7 +138,6 @@
     }
     if (S.meta.start) drawRobot(T, S.meta.start, "rgba(40,170,60,0.8)", lw, false);
     if (S.pose) drawRobot(T, S.pose, "#dc2828", lw, true);
-    $("scale").textContent = scaleText(g);
   }
 
   function drawRobot(T, pose, colour, lw, filled) {
@@ -163,20 +192,23 @@
       S.meta = msg.meta; S.path = []; S.curve = []; S.mapCanvas = S.potCanvas = null; S.overlays = {};
       $("title").textContent = msg.meta.title || "robotexp live view";
       $("run").textContent = msg.meta.run || "-";
-      fitCanvas();
+      fitCanvas(); bgDirty = true; $("scale").textContent = scaleText(msg.meta.geo);
     }
     S.t = msg.t; S.status = msg.status || {}; S.controls = msg.controls || [];
     if (msg.pose) S.pose = msg.pose;
     if (msg.laser) S.laser = msg.laser;
-    if (msg.path && msg.path.length) { S.path.length = msg.path_from * 2; S.path.push(...msg.path); }
+    if (msg.path && msg.path.length) {
+      if (msg.path_from * 2 < S.path.length) bgDirty = true;
+      S.path.length = msg.path_from * 2; S.path.push(...msg.path);
+    }
     if (msg.curve && msg.curve.length) { S.curve.length = msg.curve_from * 2; S.curve.push(...msg.curve); }
     if (msg.map) {
       const bytes = await inflate(msg.map.data);
       S.mapCanvas = layerCanvas(bytes, msg.map.rows, msg.map.cols, (v) => CLASS_RGBA[v] || CLASS_RGBA[0]);
-      S.mapVersion += 1; canvas.dataset.mapVersion = String(S.mapVersion);
+      S.mapVersion += 1; canvas.dataset.mapVersion = String(S.mapVersion); bgDirty = true;
     }
     if (msg.overlays) {
-      S.overlays = msg.overlays;
+      S.overlays = msg.overlays; bgDirty = true;
       const pot = msg.overlays.potential;
       if (pot) {
         const bytes = await inflate(pot.data);
@@ -184,9 +216,11 @@
           (v) => (v === 255 ? [0, 0, 0, 0] : [...viridis(v / 254), 255]));
       } else S.potCanvas = null;
       const extra = [];
-      if (pot) extra.push("potential: viridis, 0 (goal) → 1 (obstacle)");
+      if (pot) extra.push("potential (log scale): goal purple → far yellow");
       if (msg.overlays.points) extra.push(...Object.keys(msg.overlays.points));
       if (msg.overlays.circles) extra.push(...Object.keys(msg.overlays.circles));
+      if (msg.overlays.polygons) extra.push(...Object.keys(msg.overlays.polygons));
+      if (msg.overlays.lines) extra.push(...Object.keys(msg.overlays.lines));
       $("legend-extra").textContent = extra.join(" · ");
     }
     if (msg.speedup != null) $("speedup").textContent = `${msg.speedup.toFixed(1)}×`;
@@ -198,8 +232,9 @@
       `${(S.pose[0]).toFixed(2)}, ${(S.pose[1]).toFixed(2)} m, ${(S.pose[2] * 180 / Math.PI).toFixed(0)}°`;
     showStatus();
     document.body.dataset.t = String(msg.t);
-    draw(); drawCurve();
+    if (!drawPending) { drawPending = true; requestAnimationFrame(() => { drawPending = false; draw(); drawCurve(); }); }
   }
+  let drawPending = false;
 
   function showStatus() {
     const st = S.status.state || "waiting", ended = st === "ended";
@@ -238,6 +273,6 @@
     if (ev.target.tagName === "SELECT") return;
     if (ev.key === " ") { ev.preventDefault(); $("pause").click(); } else if (ev.key === "s") $("step").click();
   });
-  window.addEventListener("resize", () => { fitCanvas(); draw(); });
+  window.addEventListener("resize", () => { fitCanvas(); bgDirty = true; draw(); });
   connect();
 })();
