@@ -13,6 +13,11 @@ Run: python benchmarks/explore_laser.py [--robot kobuki] [--laser rplidar] [--wo
 (--laser-speedup above --speedup makes scans fresher in robot time: a way to see what the missing
 pose pairing costs.)
 Exit status 1 when the coverages differ by more than 2 points.
+
+The embedded simulator's run uses the robot preset's own laser (the Kobuki's: 181 beams over 180 deg),
+not the laser emulated here (an RPLidar turns 360 deg): the two runs differ in the sensor too, not only
+in the protocol. The P3-DX is connected as with a laser device mounted (`laser_mount.robot_options`:
+no simulated-laser packets); the line counts the simulated-laser requests it sent (0 expected).
 """
 
 from __future__ import annotations
