@@ -80,7 +80,8 @@ def test_observers_see_each_step_sample_and_the_end_in_order() -> None:
     # one step per state read, the last one Done; every other decision is the Twist the robot was sent
     assert len(steps) == robot.reads
     assert [s.decision for s in steps[:-1]] == robot.commands[:len(steps) - 1]
-    assert all(isinstance(s.decision, Twist) for s in steps[:-1]) and steps[-1].decision == Done("scripted end", explored=False)
+    assert all(isinstance(s.decision, Twist) for s in steps[:-1])
+    assert steps[-1].decision == Done("scripted end", explored=False)
     assert all(s.map_updated for s in steps) and [s.time for s in steps] == sorted(s.time for s in steps)
     # the samples are the run's coverage curve (one per second of robot time, and the final one)
     samples = [v for k, v in log.calls if k == "sample"]
