@@ -17,6 +17,10 @@ emulator's true pose is sampled every 0.1 s and the outcome checked:
   corners reached within 0.3 m in order (the program cancels its goal after 30 s, so three corners
   and at least 0.5 m of the last leg), no collision.
 
+- robot.move(500) then setDeltaHeading(90) (a 25-line client of ours, compiled here against the
+  checkout: ARIA sends MOVE, then HEAD): the emulator's robot moved 500 +- 10 mm and turned 90 +- 2 deg,
+  and ARIA's own pose agrees (it used to stay where it was).
+
 Prints one line per run with the figures and PASS/FAIL; exits 1 when a run fails, 2 on bad input.
 """
 
@@ -29,6 +33,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -41,6 +46,7 @@ from robotexp_drivers.p3dx.emulator import P3DXEmulator
 
 WALL = 0.1          # [m] wall thickness
 CORNER_TOL = 0.3    # [m] a gotoActionExample goal counts as reached this close
+ARIA_LIB = Path("lib")  # set from the command line: ARIACODA_DIR/lib
 CORRIDOR_END = 8.0  # [m] the far wall of the wander corridor (the robot starts at x = 0 facing it)
 
 
@@ -67,7 +73,7 @@ def run_peer(aria: Path, program: str, emu: P3DXEmulator, transport: str, second
         args = ["-remoteHost", host, "-remoteRobotTcpPort", port]
     else:       # ARIA tries TCP first (localhost:8101 unless -rrtp): point that at a closed port
         args = ["-robotPort", emu.address, "-remoteRobotTcpPort", str(closed_port())]
-    env = dict(os.environ, LD_LIBRARY_PATH=str(aria / "lib"))
+    env = dict(os.environ, LD_LIBRARY_PATH=str(ARIA_LIB))
     samples: list[tuple[float, Pose, bool]] = []
     stop = threading.Event()
 
@@ -80,7 +86,8 @@ def run_peer(aria: Path, program: str, emu: P3DXEmulator, transport: str, second
 
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
-    proc = subprocess.Popen([str(aria / "examples" / program), *args, *extra], env=env, stdout=subprocess.PIPE,
+    exe = aria / "examples" / program if (aria / "examples" / program).exists() else aria / program
+    proc = subprocess.Popen([str(exe), *args, *extra], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     try:
         out, _ = proc.communicate(timeout=seconds)
@@ -153,13 +160,80 @@ def check_goto(aria: Path, transport: str, seconds: float) -> bool:
     return ok
 
 
+# Our own 25-line ARIA client (compiled against ARIACODA_DIR): robot.move(500), then setDeltaHeading(90),
+# each awaited with ARIA's isMoveDone / isHeadingDone; prints ARIA's pose after each.
+MOTION_CPP = r"""
+#include "Aria/Aria.h"
+#include <cstdio>
+static void await(ArRobot &robot, bool heading) {
+  ArTime t;
+  while (t.mSecSince() < 15000) {
+    robot.lock();
+    bool done = heading ? robot.isHeadingDone() : robot.isMoveDone();
+    robot.unlock();
+    if (done && t.mSecSince() > 500) break;
+    ArUtil::sleep(50);
+  }
+  ArUtil::sleep(1000);                       // let it settle
+  robot.lock();
+  printf("pose %.1f %.1f %.1f\n", robot.getX(), robot.getY(), robot.getTh());
+  fflush(stdout);
+  robot.unlock();
+}
+int main(int argc, char **argv) {
+  Aria::init();
+  ArArgumentParser parser(&argc, argv);
+  parser.loadDefaultArguments();
+  ArRobot robot;
+  ArRobotConnector connector(&parser, &robot);
+  if (!connector.connectRobot()) { printf("no robot\n"); Aria::exit(1); }
+  robot.runAsync(true);
+  robot.lock(); robot.enableMotors(); robot.move(500); robot.unlock();
+  await(robot, false);
+  robot.lock(); robot.setDeltaHeading(90); robot.unlock();
+  await(robot, true);
+  Aria::exit(0);
+}
+"""
+
+
+def check_motion(aria: Path, transport: str, workdir: Path) -> bool:
+    exe = workdir / "aria_move_dhead"
+    if not exe.exists():
+        (workdir / "aria_move_dhead.cpp").write_text(MOTION_CPP)
+        build = subprocess.run(["g++", "-std=c++14", "-I", str(aria / "include"), str(workdir / "aria_move_dhead.cpp"),
+                                "-L", str(aria / "lib"), "-lAria", "-lpthread", "-ldl", "-lrt", "-o", str(exe)],
+                               capture_output=True, text=True)
+        if build.returncode:
+            print(f"move/dhead/{transport}: cannot build our ARIA client: {build.stderr[-1500:]}: FAIL")
+            return False
+    world = closed_box(-3.0, -3.0, 3.0, 3.0, "room")
+    start = Pose(-1.0, 0.0, 0.0)
+    with P3DXEmulator(world, pose=start, port=0, pty=transport == "pty") as emu:
+        emu.start()
+        samples, out = run_peer(workdir, exe.name, emu, transport, 40.0, [])
+        truth = emu.sim.read().true_pose
+    aria_poses = [tuple(float(v) for v in line.split()[1:]) for line in out.splitlines() if line.startswith("pose ")]
+    moved = math.hypot(truth.x - start.x, truth.y - start.y)
+    turned = math.degrees(truth.theta - start.theta)
+    ok = (len(aria_poses) == 2 and abs(moved - 0.5) < 0.01 and abs(turned - 90.0) < 2.0
+          and abs(aria_poses[0][0] - 500.0) < 10.0 and abs(aria_poses[1][2] - 90.0) < 2.0)
+    print(f"move(500) + setDeltaHeading(90)/{transport}: ARIA's poses {aria_poses}; emulator: moved "
+          f"{moved * 1000:.1f} mm, turned {turned:.1f} deg: {'PASS' if ok else 'FAIL'}")
+    if not ok:
+        print(out[-2000:])
+    return ok
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("aria", type=Path, help="a built AriaCoda checkout")
     parser.add_argument("--seconds", type=float, default=40.0, help="how long each program runs [s]")
     parser.add_argument("--transport", choices=("tcp", "pty", "both"), default="both")
-    parser.add_argument("--only", choices=("wander", "goto"), default=None, help="run one program only")
+    parser.add_argument("--only", choices=("wander", "goto", "motion"), default=None, help="run one program only")
     a = parser.parse_args()
+    global ARIA_LIB
+    ARIA_LIB = a.aria / "lib"
     for prog in ("wander", "gotoActionExample"):
         if not (a.aria / "examples" / prog).is_file() or not (a.aria / "lib" / "libAria.so").is_file():
             print(f"aria_peers: {a.aria}/examples/{prog} or lib/libAria.so missing: build AriaCoda first "
@@ -172,11 +246,14 @@ def main() -> int:
                             text=True).stdout.strip()
     print(f"AriaCoda {commit or '(not a git checkout)'} at {a.aria}")
     ok = True
-    for transport in (("tcp", "pty") if a.transport == "both" else (a.transport,)):
-        if a.only in (None, "wander"):
-            ok &= check_wander(a.aria, transport, a.seconds)
-        if a.only in (None, "goto"):
-            ok &= check_goto(a.aria, transport, a.seconds + 5.0)     # it cancels its goal after 30 s and exits
+    with tempfile.TemporaryDirectory(prefix="robotexp-aria-") as tmp:
+        for transport in (("tcp", "pty") if a.transport == "both" else (a.transport,)):
+            if a.only in (None, "motion"):
+                ok &= check_motion(a.aria, transport, Path(tmp))
+            if a.only in (None, "wander"):
+                ok &= check_wander(a.aria, transport, a.seconds)
+            if a.only in (None, "goto"):
+                ok &= check_goto(a.aria, transport, 35.0)     # it cancels its goal after 30 s and exits
     return 0 if ok else 1
 
 

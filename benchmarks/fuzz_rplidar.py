@@ -9,7 +9,9 @@ none), and, for streams left intact whose noise cannot pass for a node (bytes wh
 equal), any turn lost or altered (there must be none). The SCAN protocol has no checksum: in
 mutated streams noise that passes the node checks lands in the turn it falls into, which is why the
 decoder drops turns of too few nodes and keeps the nearest echo per beam. Then times clean decoding
-of full 360-node turns.
+of full 360-node turns. A quarter as many EXPRESS_SCAN streams (1..60 capsules of an A1's 720-sample
+turn, noise between them that cannot pass for a capsule's sync nibble when intact) go through the
+express decoder likewise: no exception, every turn of an intact stream exactly the turn sent.
 
 Run: python benchmarks/fuzz_rplidar.py [--streams 100000] [--seed 0]
 Exit status 1 when an exception or a lost turn was found.
@@ -54,6 +56,61 @@ def _noise(rng: random.Random, node_free: bool) -> bytes:
     if node_free:
         return bytes(rng.choice(_NODE_FREE) for _ in range(n))
     return bytes(rng.randrange(256) for _ in range(n))
+
+
+EXPRESS_SAMPLES = 720          # an A1 turn in express mode: a capsule spans 16 deg
+_CAPSULE_FREE = bytes(b for b in range(256) if b >> 4 != C.EXPRESS_SYNC_1)
+
+
+def _express_stream(rng: random.Random, mutated: bool) -> tuple[bytearray, np.ndarray, int]:
+    """Capsules of 1..60 (a turn is 22.5) with noise between them; the per-beam ranges every turn
+    holds, and how many turns an intact stream must give."""
+    n = EXPRESS_SAMPLES
+    mm = np.array([rng.randrange(150, 16383) if rng.random() < 0.9 else 0 for _ in range(n)], np.int64)
+    count = rng.randrange(1, 61)
+    stream = bytearray()
+    for i in range(count):
+        idx = np.arange(i * 32, i * 32 + 32) % n
+        noise = bytes(rng.randrange(256) for _ in range(rng.randrange(8))) if mutated else \
+            bytes(rng.choice(_CAPSULE_FREE) for _ in range(rng.randrange(8)))
+        stream += noise + k.encode_capsule(int(idx[0] * C.ANGLE_Q6_TURN // n), i == 0, mm[idx])
+    beam_of_sample = k.beam_index(k.node_angles_cw(n), n)
+    ranges = np.full(n, np.nan)
+    ranges[beam_of_sample] = np.where(mm > 0, mm / 1000.0, np.inf)
+    placed = 32 * (count - 1)                          # the last capsule waits for a next one
+    return stream, ranges, max(0, (placed - 1) // n - 1)
+
+
+def fuzz_express(streams: int, rng: random.Random) -> int:
+    """Capsule streams through ExpressDecoder; print the counts; return the problems found."""
+    totals = {"scans": 0, "capsules": 0, "dropped_bytes": 0, "gaps": 0, "short_turns": 0}
+    exceptions: list[str] = []
+    lost = 0
+    t0 = time.perf_counter()
+    for n in range(streams):
+        mutated = rng.random() < 0.8
+        stream, ranges, want = _express_stream(rng, mutated)
+        if mutated:
+            mutate(rng, stream)
+        dec = k.ExpressDecoder(EXPRESS_SAMPLES)
+        try:
+            out = feed_in_chunks(rng, dec, stream, 400)
+        except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
+            exceptions.append(f"express stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            continue
+        if not mutated and (len(out) != want or not all(np.array_equal(o, ranges) for o in out)):
+            lost += max(1, want - len(out))
+        for key in totals:
+            totals[key] += getattr(dec, key)
+    elapsed = time.perf_counter() - t0
+    print(f"express streams: {streams} in {elapsed:.1f} s")
+    for key, value in totals.items():
+        print(f"  {key}: {value}")
+    print(f"  express turns lost or altered in intact streams: {lost}")
+    print(f"  exceptions: {len(exceptions)}")
+    for text in exceptions[:3]:
+        print(text)
+    return len(exceptions) + lost
 
 
 def fuzz(streams: int, seed: int) -> int:
@@ -138,6 +195,7 @@ def main() -> int:
     if args.streams < 1 or args.turns < 1:
         parser.error("--streams and --turns must be >= 1")
     problems = fuzz(args.streams, args.seed)
+    problems += fuzz_express(max(1, args.streams // 4), random.Random(args.seed + 1))
     throughput(args.turns)
     return 1 if problems else 0
 

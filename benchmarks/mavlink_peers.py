@@ -29,7 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from robotexp.experiment import resolve_pose
+from robotexp.world.poses import resolve_pose
 from robotexp.robot import Pose
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.mavlink import constants as C

@@ -74,9 +74,9 @@ def _key(rec: dict[str, Any]) -> str:
     return f"{rec['world']}:{rec['method']}:{rec.get('pose')}:{rec['max_speed_m_s']}"
 
 
-def compare(a: Path, b: Path) -> int:
+def compare(a: Path, b: Path, ignore: frozenset[str] = frozenset()) -> int:
     """Print every difference between the records of `a` and `b` (matched by world, method, pose,
-    speed); return the number of differences."""
+    speed), wall times and the keys in `ignore` aside; return the number of differences."""
     def load(p: Path) -> dict[str, dict[str, Any]]:
         return {_key(r): r for r in (json.loads(line) for line in p.read_text().splitlines() if line.strip())}
     ra, rb = load(a), load(b)
@@ -88,7 +88,7 @@ def compare(a: Path, b: Path) -> int:
             continue
         x, y = ra[key], rb[key]
         for k in sorted(set(x) | set(y)):
-            if k in IGNORED:
+            if k in IGNORED or k in ignore:
                 continue
             if x.get(k, "<missing>") != y.get(k, "<missing>"):
                 print(f"{key}: {k}: {x.get(k, '<missing>')!r} != {y.get(k, '<missing>')!r}")
@@ -98,7 +98,8 @@ def compare(a: Path, b: Path) -> int:
 
 
 def main() -> None:
-    """Command line: `record OUT.jsonl [--only world:method ...] [--max-time S]` or `compare A B`."""
+    """Command line: `record OUT.jsonl [--only world:method ...] [--max-time S]` or
+    `compare A B [--ignore KEY ...]`."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="mode", required=True)
     r = sub.add_parser("record", help="run the cases and write their records")
@@ -108,11 +109,13 @@ def main() -> None:
     c = sub.add_parser("compare", help="compare two record files, wall times aside")
     c.add_argument("a", type=Path)
     c.add_argument("b", type=Path)
+    c.add_argument("--ignore", action="append", default=[],
+                   help="a key not to compare (repeatable), e.g. one a later change added to every record")
     args = ap.parse_args()
     if args.mode == "record":
         record(args.out, args.only, args.max_time)
     else:
-        sys.exit(1 if compare(args.a, args.b) else 0)
+        sys.exit(1 if compare(args.a, args.b, frozenset(args.ignore)) else 0)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,13 @@ backend live here:
 
 - the reader loop (`_reader`): read what the link has, hand it to `_on_data`, and fail the link
   when it ends, when nothing valid came for `timeout` s, or when the loop itself breaks (a bug
-  must not leave `read()` waiting forever);
+  must not leave `read()` waiting forever). Silence is judged on the reader's own clock: the link
+  is silent when two reads in a row that *started* more than `timeout` s after the last valid
+  packet brought none. Bytes that are never a valid packet do not count as life, and a reader
+  starved of the interpreter's lock (the main thread in a long numba kernel or numpy call) is not
+  silent: what arrived meanwhile waits in the link and its first read after the starvation brings
+  it. `_check()` in the caller's thread never judges silence by the wall clock for that reason;
+  it only reports what the reader found (or that the reader thread is gone);
 - failure: `_fail(exc)` records the first error for `read()` and the clock, wakes the waiters and
   tries once to stop the robot; `_check()` raises it again (a fresh copy, chained), or a silence
   error when the reader has not noticed the silence yet;
@@ -109,6 +115,7 @@ class StreamBackend(Robot):
         self._thread: threading.Thread | None = None
         self._twist = Twist.ZERO
         self._cmd_wall = self._last_rx = time.perf_counter()
+        self._quiet_reads = 0   # reads in a row that started more than `timeout` s after the last valid data
         self.watchdog_stops = 0
         self.command_time = 0.0
 
@@ -126,7 +133,8 @@ class StreamBackend(Robot):
     def _on_data(self, data: bytes, now: float) -> None:
         """Decode `data` (maybe b"") received at `now` [s, perf_counter] and do the periodic sends.
 
-        Updates `_last_rx` when something valid arrived. Raises ConnectionLost when a write fails.
+        Updates `_last_rx` when a valid packet (one that carries the robot's state) arrived, never
+        for bytes alone. Raises ConnectionLost when a write fails.
         """
 
     @abstractmethod
@@ -146,13 +154,14 @@ class StreamBackend(Robot):
         return 5e-4
 
     def _silent(self, now: float) -> bool:
-        """True when the reader should fail the link for silence."""
+        """True when a read that started at `now` [s] started more than `timeout` s after the last valid data."""
         return now - self._last_rx > self.timeout
 
     # -- reader thread -------------------------------------------------------------------
     def _reader(self) -> None:
         try:
             while not self._stop.is_set():
+                started = time.perf_counter()
                 try:
                     data = self._receive()
                 except ConnectionLost:
@@ -161,7 +170,10 @@ class StreamBackend(Robot):
                     raise
                 now = time.perf_counter()
                 self._on_data(data, now)
-                if self._silent(now):
+                # silent only when reads that began after the limit brought nothing valid: a reader
+                # that could not run (the lock held elsewhere) finds the waiting data on its next read
+                self._quiet_reads = self._quiet_reads + 1 if self._silent(started) else 0
+                if self._quiet_reads >= 2:
                     raise self._silence_error(now)
         except RobotError as exc:
             self._fail(exc)
@@ -197,12 +209,13 @@ class StreamBackend(Robot):
 
     # -- Robot hooks ---------------------------------------------------------------------
     def _check(self) -> None:
-        """Raise the reader's error, or a silence error it has not noticed yet (caller holds _cond)."""
+        """Raise the reader's error (caller holds _cond), or ConnectionLost when the reader thread is
+        gone without one. Silence is the reader's to judge (see the module docstring)."""
         if self._error is not None:
             raise type(self._error)(str(self._error)) from self._error
-        now = time.perf_counter()
-        if now - self._last_rx > self.timeout:
-            raise self._silence_error(now)
+        thread = self._thread
+        if thread is not None and not thread.is_alive() and not self._stop.is_set():
+            raise ConnectionLost(f"{self.name}: the reader thread of {self.address!r} stopped")
 
     def _command(self, twist: Twist) -> None:
         if twist != Twist.ZERO:      # a stop is always tried: the link may still carry it
@@ -225,7 +238,7 @@ class StreamBackend(Robot):
                 self._ensure_open()
                 self._check()
                 left = self._last_rx + self.timeout - time.perf_counter()
-                self._cond.wait(max(left, 0.0) + 1e-3)
+                self._cond.wait(min(max(left, 0.0) + 0.02, self.timeout))
             return self._robot_time()
 
     def make_clock(self, period: float) -> Clock:

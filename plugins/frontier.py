@@ -78,6 +78,12 @@ class FrontierExplorer(Explorer):
         self._pose_xy = (ctx.start.x, ctx.start.y)
 
     # -- the decision ----------------------------------------------------------------
+    def markers(self) -> dict[str, dict[str, object]]:
+        """What the live view draws (robotexp.view): the goal [m] the robot drives to, when it has one."""
+        if self.goal is None:
+            return {}
+        return {"points": {"frontier target": [round(float(v), 3) for v in self.goal]}}
+
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """Follow the current plan, re-planning when due; Done when no reachable frontier is left."""
         pose, now = state.pose, state.time

@@ -5,7 +5,7 @@ numba, lupa and pymavlink load only in the modules that need them. What plugin a
 need is here:
 
 - explorers: `Explorer`, `ExplorerContext`, `Done`, `Twist`, `RobotState`, `LaserScan`, `SonarScan`,
-  `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`;
+  `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`, and `check_explorer` for a plugin's own tests;
 - robot backends: `Robot`, `Capability`, `RobotEmulator`, `Laser`;
 - runs: `RunSpec`, `run_experiment`, `run_on_robot`, `RunOutput`, `ExplorationRun`, `RunInfo`,
   `RunObserver`, `StepEvent`, `RunRecord`, `EndReason`, `load_world`, `World`;
@@ -37,6 +37,7 @@ _EXPORTS = {
     "RobotexpError": "robotexp.errors", "RobotError": "robotexp.errors", "ConnectionLost": "robotexp.errors",
     "ProtocolError": "robotexp.errors", "WorldError": "robotexp.errors", "ScriptError": "robotexp.errors",
     "PluginError": "robotexp.errors", "ConfigError": "robotexp.errors",
+    "check_explorer": "robotexp.conformance",
 }
 
 __all__ = [
@@ -47,7 +48,7 @@ __all__ = [
     "RunSpec", "RunOutput", "run_experiment", "run_on_robot", "RunObserver", "StepEvent", "RunRecord", "EndReason",
     "load_world", "World",
     "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError", "WorldError", "ScriptError", "PluginError",
-    "ConfigError",
+    "ConfigError", "check_explorer",
 ]
 
 if TYPE_CHECKING:
@@ -55,6 +56,7 @@ if TYPE_CHECKING:
                                  ScriptError, WorldError)
     from robotexp.experiment import RunOutput, RunSpec, run_experiment, run_on_robot
     from robotexp.explorer import Done, ExplorationRun, Explorer, ExplorerContext, RunInfo
+    from robotexp.conformance import check_explorer
     from robotexp.laser import Laser
     from robotexp.mapping.geometry import GridGeometry
     from robotexp.mapping.grid import OccupancyGrid

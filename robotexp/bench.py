@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -111,7 +111,7 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     writer.writeheader()
     writer.writerows(table)
-    width = max([len(t["map"]) for t in table] + [3])
+    width = max([len(str(t["map"])) for t in table] + [3])
     lines = [f"{'map':<{width}}  {'method':<12} {'coverage':>8} {'path m':>8} {'time s':>7} {'coll':>4} "
              f"{'ok':>3}  end reason"]
     for t in table:
@@ -131,7 +131,7 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
 
 def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
               max_time: float = 4 * 3600.0,
-              progress: Callable[[int, int, dict[str, Any] | None], None] | None = None) -> tuple[str, str]:
+              progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
     """Run every map x method (see `bench_specs`) through the campaign runner into `out`, write
     `bench.txt` and `bench.csv` there from every record in `out/results.jsonl`, return (text, csv)."""
     from robotexp.campaign import Campaign, run_campaign

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,7 @@ def bench(maps: tuple[str, ...], methods: str, jobs: int | None, out: Path, max_
     then the success rate per method (also bench.txt and bench.csv in --out)."""
     from robotexp.bench import run_bench
 
-    def progress(done: int, total: int, record: dict[str, Any] | None) -> None:
+    def progress(done: int, total: int, record: Mapping[str, Any] | None) -> None:
         if record is not None:
             click.echo(f"{done}/{total} {record['run']}: coverage {record['coverage']}, {record['reason']}", err=True)
 

@@ -22,7 +22,11 @@ Each finished run is appended to `OUT/results.jsonl` at once; `resume` skips the
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import re
+import signal
 import statistics
 import tomllib
 from collections.abc import Callable, Iterable, Mapping
@@ -41,8 +45,9 @@ from robotexp.world.bounds import parse_bounds
 __all__ = ["Campaign", "load_campaign", "run_campaign", "run_key", "record_key", "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
-                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall"}
-_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description"}
+                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
+_SET_KEYS = {"world", "worlds", "poses", "methods", "speeds_mm_s", "params"} | _CAMPAIGN_KEYS - {"name", "description",
+                                                                                                 "record"}
 
 
 @dataclass
@@ -52,6 +57,7 @@ class Campaign:
     name: str
     source: Path
     runs: list[RunSpec]
+    record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
 
 
 def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
@@ -62,7 +68,8 @@ def run_key(spec: RunSpec, pose_label: str) -> tuple[str, str, str, int, int]:
 def record_key(record: RunRecord | Mapping[str, Any]) -> tuple[str, str, str, int, int]:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
-    return (str(r.extra.get("world_spec", r.world)), r.method, str(r.extra.get("pose_spec", r.pose)),
+    # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
+    return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0))
 
 
@@ -95,6 +102,9 @@ def load_campaign(path: str | Path) -> Campaign:
         raise ConfigError(f"{p}: cannot read the campaign file ({exc.strerror or exc})") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    except RecursionError:
+        raise ConfigError(f"{p}: not valid TOML: nested too deeply (arrays or tables within each other); a "
+                          "campaign file needs two levels") from None
     unknown = set(data) - {"campaign", "set"}
     if unknown:
         raise _fail(p, "top level", f"unknown key(s) {', '.join(sorted(unknown))} (use [campaign] and [[set]])")
@@ -115,7 +125,19 @@ def load_campaign(path: str | Path) -> Campaign:
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
         for world in _worlds(merged, p, where):
             runs.extend(_expand({**merged, "world": world}, p, where, methods_installed, load_world))
-    return Campaign(str(head.get("name", p.stem)), p, runs)
+    name = head.get("name", p.stem)
+    if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", name)):
+        raise _fail(p, "campaign.name", f"{str(name)[:60]!r} is not a folder name (letters, digits, '_', '.', "
+                    "'-'; not starting with '.'): it names the output folder out/<name>")
+    keys: dict[tuple[str, str, str, int, int], RunSpec] = {}
+    for spec in runs:      # --resume and the report tell runs apart by this key: two runs must not share one
+        key = run_key(spec, _pose_label(spec))
+        if key in keys:
+            raise _fail(p, "set", f"two runs share the key world {key[0]!r}, method {key[1]!r}, pose {key[2]!r}, "
+                        f"speed {key[3]} mm/s, seed {key[4]} (speeds {keys[key].speed * 1000:g} and "
+                        f"{spec.speed * 1000:g} mm/s; a seed or speed given twice?); give each run once")
+        keys[key] = spec
+    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"))
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -228,11 +250,47 @@ def _pose_label(spec: RunSpec) -> str:
     return spec.pose or "default"
 
 
-def _run_one(spec: RunSpec, out: str) -> RunRecord:
-    """Worker: one run, written to `out` (record first, then images). Returns the record."""
+_worker_interrupted = False     # in a worker: Ctrl-C came; queued runs are skipped at once
+_worker_running = False         # in a worker: a run is being made (Ctrl-C interrupts it)
+
+
+def _worker_init() -> None:
+    """Worker start: die with the campaign process (kill -9 included), and remember a Ctrl-C so that
+    the runs already queued to this worker are skipped instead of run in full."""
+    from robotexp.lifeline import die_with_parent
+
+    die_with_parent()
+
+    def interrupted(signum: int, frame: Any) -> None:
+        global _worker_interrupted
+        first = not _worker_interrupted
+        _worker_interrupted = True
+        if first and _worker_running:    # idle (waiting for work): only remember it
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, interrupted)
+
+
+def _run_one(spec: RunSpec, out: str, record: bool = False) -> RunRecord | None:
+    """Worker: one run, written to `out` (record first, then images; with `record` its bag in
+    `out/bags`). Returns the record (None: a run queued after Ctrl-C, not made)."""
     from robotexp.experiment import run_experiment
 
-    result = run_experiment(spec, Path(out), record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
+    global _worker_running
+    if _worker_interrupted:
+        return None
+    _worker_running = True
+    try:
+        observers = []
+        if record:
+            from robotexp.bag.recorder import BagRecorder
+
+            (Path(out) / "bags").mkdir(exist_ok=True)
+            observers.append(BagRecorder(folder=Path(out) / "bags", world=spec.world))
+        result = run_experiment(spec, Path(out), observers=observers,
+                                record_extra={"world_spec": spec.world, "pose_spec": _pose_label(spec)})
+    finally:
+        _worker_running = False
     return result.record
 
 
@@ -241,12 +299,25 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes.
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
-    writes its partial run) and re-raises KeyboardInterrupt.
-    """
-    from robotexp.results import read_records
+    writes its partial run), cancels the queued runs at once and re-raises KeyboardInterrupt. The
+    output folder is locked for the campaign (`robotexp.safefile.folder_lock`) and the workers die
+    with this process.
 
+    Raises:
+        ConfigError: --jobs < 1, or another campaign is writing into `out`.
+    """
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
+    from robotexp.safefile import folder_lock
+
+    with folder_lock(out, f"campaign {campaign.name}"):
+        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress)
+
+
+def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
+                progress: Callable[[int, int, RunRecord | None], None] | None) -> list[RunRecord]:
+    from robotexp.results import read_records
+
     results = out / "results.jsonl"
     done: set[tuple[str, str, str, int, int]] = set()
     if resume and results.exists():
@@ -262,20 +333,29 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
         return []
     out.mkdir(parents=True, exist_ok=True)
     records: list[RunRecord] = []
-    with ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn")) as pool:
-        pending: set[Future[RunRecord]] = {pool.submit(_run_one, spec, str(out)) for spec in todo}
-        try:
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    record = fut.result()
-                    records.append(record)
-                    if progress:
-                        progress(len(records), total, record)
-        except KeyboardInterrupt:
-            for fut in pending:
-                fut.cancel()
-            raise
+    pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
+                               initializer=_worker_init)
+    try:
+        pending: set[Future[RunRecord | None]] = {pool.submit(_run_one, spec, str(out), campaign.record)
+                                                    for spec in todo}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                record = fut.result()
+                if record is None:
+                    continue
+                records.append(record)
+                if progress:
+                    progress(len(records), total, record)
+    except KeyboardInterrupt:
+        # queued runs are dropped now; the running ones write their partial run and end (the SIGINT is
+        # passed on for a Ctrl-C sent to this process alone; a worker ignores a second one)
+        for proc in list(getattr(pool, "_processes", {}).values()):
+            with contextlib.suppress(OSError):
+                os.kill(proc.pid, signal.SIGINT)
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
     return records
 
 

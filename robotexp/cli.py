@@ -17,7 +17,8 @@ import click
 
 from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
 from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
+from robotexp.record import EndReason, RunRecord
+from robotexp.view.live import end_view, parse_speed, start_view, view_options
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -61,31 +62,75 @@ def main(debug: bool) -> None:
 
 
 class Progress(RunObserver):
-    """A one-line progress display on stderr (only when stderr is a terminal); a run observer
-    (`on_sample`), or called as `progress(t, coverage)`."""
+    """Progress of a run on stderr: on a terminal one line redrawn at each coverage sample (coverage,
+    robot time, wall time and, at the run's speed so far, the wall time left until its time limit at
+    most; "no gain for N s" once coverage stopped growing); without a terminal one line a minute (logs).
+    A run observer (`on_sample`), or called as `progress(t, coverage)`.
 
-    def __init__(self, label: str, enabled: bool | None = None) -> None:
+    Args:
+        label: what the line starts with.
+        enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
+        every: [s] wall time between lines without a terminal.
+        clock: wall clock [s].
+        notice: a line said on stderr when the run starts.
+    """
+
+    STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
+    GAIN = 0.001        # coverage
+
+    def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
+                 clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
+        import time
+
         self.label = label
+        self.notice = notice
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
+        self.every = every
+        self.clock = clock or time.monotonic
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + every
+        self.max_time: float | None = None
+        self.best = (-1.0, 0.0)         # (coverage, robot time it was reached)
+
+    def on_start(self, run: Any) -> None:
+        """Say the notice, note the run's time limit and start the wall clock."""
+        if self.notice:
+            click.echo(self.notice, err=True)
+        self.max_time = run.max_time
+        self.wall0 = self.clock()
+        self.next_line = self.wall0 + self.every
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """Show the sample."""
         self(time, coverage)
 
-    def __call__(self, t: float, coverage: float | None) -> None:
-        if not self.enabled:
-            return
-        width = 30
-        if coverage is None:
-            bar = "?" * 0
-            text = f"\r{self.label}  robot time {t:7.0f} s"
-        else:
+    def line(self, t: float, coverage: float | None) -> str:
+        """The progress text at robot time `t` [s] with `coverage` (None: unknown)."""
+        wall = self.clock() - self.wall0
+        parts = [self.label]
+        if coverage is not None:
+            width = 30
             done = int(round(coverage * width))
-            bar = "#" * done + "-" * (width - done)
-            text = f"\r{self.label}  [{bar}] {coverage * 100:5.1f}%  robot time {t:7.0f} s"
-        click.echo(text, nl=False, err=True)
-        self.shown = True
+            parts.append(f"[{'#' * done}{'-' * (width - done)}] {coverage * 100:5.1f}%")
+            if coverage > self.best[0] + self.GAIN:
+                self.best = (coverage, t)
+            elif t - self.best[1] >= self.STALL:
+                parts.append(f"no gain for {t - self.best[1]:.0f} s")
+        parts.append(f"robot time {t:7.0f} s, wall {wall:5.0f} s")
+        if self.max_time is not None and t > 0 and wall > 1.0:
+            left = (self.max_time - t) * wall / t
+            parts.append(f"<= {left:.0f} s left (time limit)")
+        return "  ".join(parts)
+
+    def __call__(self, t: float, coverage: float | None) -> None:
+        text = self.line(t, coverage)
+        if self.enabled:
+            click.echo(f"\r{text}\033[K", nl=False, err=True)
+            self.shown = True
+        elif self.clock() >= self.next_line:
+            self.next_line = self.clock() + self.every
+            click.echo(text, err=True)
 
     def close(self) -> None:
         """End the progress line."""
@@ -99,6 +144,30 @@ def _mm(value: float | None, what: str) -> float | None:
     if not (value > 0 and math.isfinite(value)):
         raise ConfigError(f"{what} must be a positive number of mm, got {value:g}")
     return value / 1000.0
+
+
+def writable_folder(out: Path, option: str = "--out") -> None:
+    """Check, before any run starts, that the output folder `out` can be made and written.
+
+    Raises:
+        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system).
+    """
+    import tempfile
+
+    made = [d for d in (out, *out.parents) if not d.exists()]     # removed again: nothing is left behind
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{option} {out}: cannot write there ({exc.strerror or exc}); give a folder you can "
+                          "create and write") from None
+    finally:
+        for d in made:
+            try:
+                d.rmdir()
+            except OSError:
+                break
 
 
 def _params(items: tuple[str, ...]) -> dict[str, Any]:
@@ -130,26 +199,55 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--address", default=None,
               help="Run on a connected robot at this address (serial device, host[:port], pyserial URL); "
                    "--world, if given, is then only the ground truth for coverage.")
-@click.option("--param", "-p", multiple=True, help="Explorer parameter key=value (repeatable).")
+@click.option("--laser", default=None, help="With --address: a laser of its own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
+@click.option("--param", "-p", multiple=True,
+              help="Explorer parameter key=value (repeatable); -p help lists the method's parameters.")
 @click.option("--show", default="", help="Overlays on the map image: grid,laser,vectors,potential.")
 @click.option("--max-time", type=float, default=14400.0, show_default=True, help="Robot-time limit [s].")
 @click.option("--noise-uniform", type=float, default=0.0, show_default=True,
               help="Laser noise: uniform in +-MM (the UFMG study: 100).")
 @click.option("--noise-sigma", type=float, default=0.0, show_default=True, help="Laser noise: gaussian sigma [mm].")
+@click.option("--odometry-error", default="none", show_default=True,
+              help="Simulated odometry error: none, p3dx, kobuki, or key=value,... (mismatch, slip, drift "
+                   "[deg/m], servo); a preset:key=value,... overrides its values.")
+@click.option("--localize", type=click.Choice(["auto", "none", "scan-match"]), default="auto", show_default=True,
+              help="Correct the pose by scan matching before the map and the explorer see it (auto: in the "
+                   "simulator when --odometry-error is on).")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",
               help="Exploration area [mm] (default: what the map declares, else the world's box).")
 @click.option("--bounds-wall", is_flag=True, help="The simulator gets walls along the exploration area's edge.")
+@click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
+              help="Record the run as a ROS 2 bag in MCAP (robotexp replay / video read it; Foxglove opens it).")
+@click.option("--frames", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
+              help="Save a PNG frame of the map (with the --show overlays) every --frame-every s of robot time in DIR.")
+@click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
+@view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
-            seed: int, robot: str, address: str | None, param: tuple[str, ...], show: str, max_time: float,
-            noise_uniform: float, noise_sigma: float, out: Path, bounds: str | None, bounds_wall: bool) -> None:
+            seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
+            param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
+            odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
+            record: Path | None, frames: Path | None, frame_every: float, view: bool, view_port: int,
+            view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
-    from robotexp.registry import connect_robot
+    from robotexp.laser_mount import check_laser_options, connect_with_laser
     from robotexp.world.bounds import parse_bounds
 
+    if "help" in param:         # -p help: the method's parameters, nothing run
+        from robotexp.paramhelp import parameters_text
+        click.echo(parameters_text(method))
+        return
+    hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
+    _compile_notice()
+
+    if (laser is not None or laser_pose is not None) and address is None:
+        raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
+                          "simulator has its own")
+    check_laser_options(laser, laser_pose)
     overlays = tuple(s for s in show.split(",") if s)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
     if unknown:
@@ -161,25 +259,84 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    laser_range=_mm(laser_range, "--laser-range") or 3.0, cell=_mm(cell, "--cell"),
                    params=_params(param), max_time=max_time, laser_uniform=noise_uniform / 1000,
                    laser_sigma=noise_sigma / 1000, bounds_wall=bounds_wall,
-                   map_bounds=None if bounds is None else parse_bounds(bounds))
-    progress = Progress(f"{Path(world).stem} {method}")
+                   map_bounds=None if bounds is None else parse_bounds(bounds),
+                   odometry=odometry_error, localize=localize)
+    spec.validate()
+    writable_folder(out)
+    live = start_view(view, view_host, view_port, view_speed)
+    progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}")
+    watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
+    if frames is not None:
+        from robotexp.video import FrameObserver, PngFrames
+
+        watchers.append(FrameObserver(PngFrames(frames), frame_every, overlays))
+    recorder = None
+    if record is not None:
+        from robotexp.bag.recorder import BagRecorder
+
+        recorder = BagRecorder(record, world=world)
+        watchers.append(recorder)
     try:
         if address is None:
-            result = run_experiment(spec, out, observers=[progress], show=overlays)
+            result = run_experiment(spec, out, observers=watchers, show=overlays)
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with connect_robot(robot, address) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, observers=[progress], show=overlays)
+            with connect_with_laser(robot, address, laser, laser_pose) as bot:
+                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
+    except (WorldError, ConfigError) as exc:
+        end_view(live, interrupted=True)
+        if hint is not None:            # one line: the refusal and how the pose was read
+            raise type(exc)(f"{exc} ({hint})") from None
+        raise
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     finally:
         progress.close()
+        if recorder is not None:
+            recorder.close()            # a run that never started leaves no file
     r = result.record
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
     click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
                f"(wall {r.wall_time_s:.1f} s), coverage {cov}, collisions {r.collisions}")
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
+    end_view(live, result.interrupted)
     if result.interrupted:
         sys.exit(130)
+    if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
+        _fail(f"{r.run}: {r.reason}", 1)
+
+
+def _compile_notice() -> None:
+    """Say why the first run after an install is slower: numba compiles the kernels once and caches them."""
+    import os
+
+    import robotexp.mapping as mapping
+
+    where = os.environ.get("NUMBA_CACHE_DIR")       # numba's cache: there, else beside the module
+    cached = (any(Path(where).glob("**/kernels.*.nbi")) if where
+              else any((Path(mapping.__file__).parent / "__pycache__").glob("kernels.*.nbi")))
+    if not cached:
+        click.echo("robotexp: first run after an install: numba compiles the map and planning kernels "
+                   "(a few seconds more, cached for the next runs)", err=True)
+
+
+def _pose_hint(text: str | None) -> str | None:
+    """How an x,y[,theta] --pose is read when it has no heading or looks like metres (0 < |x|, |y| < 100 mm),
+    else None."""
+    from robotexp.world.poses import parse_pose
+
+    if text is None or "," not in text:
+        return None
+    p = parse_pose(text)
+    parts = text.split(",")
+    small = 0 < max(abs(p.x), abs(p.y)) < 0.1
+    if not small and len(parts) == 3:
+        return None
+    return (f"--pose {text} is read as x {p.x * 1000:g} mm, y {p.y * 1000:g} mm, heading {math.degrees(p.theta):g} deg"
+            + ("" if len(parts) == 3 else " (none given)")
+            + (f"; in metres write {float(parts[0]) * 1000:g},{float(parts[1]) * 1000:g}" if small else ""))
 
 
 @main.group(invoke_without_command=True)
@@ -195,21 +352,28 @@ def worlds(ctx: click.Context) -> None:
         w = builtin_world(name)
         width, height = w.size
         click.echo(f"{name:14s} {width:5.1f} x {height:4.1f} m  {len(w.poses)} start poses  {w.description}")
+        # the poses --pose takes by name, with where they are (x, y in mm, heading in degrees, as --pose reads them)
+        click.echo("  poses: " + ", ".join(f"{key} ({p.x * 1000:.0f},{p.y * 1000:.0f},{math.degrees(p.theta):.0f})"
+                                           for key, p in w.poses.items()))
 
 
 from robotexp.world.generate_cli import generate  # noqa: E402  (the command lives with the generator)
 
 worlds.add_command(generate)
 main.add_command(__import__("robotexp.bench_cli", fromlist=["bench"]).bench)
+for _name in ("replay", "video", "figure"):      # recordings, video, figures (robotexp.bag.cli)
+    _command = getattr(__import__("robotexp.bag.cli", fromlist=[_name]), _name)
+    _command.callback = handle_errors(_command.callback)
+    main.add_command(_command)
 
 
 @main.command()
 @handle_errors
 def plugins() -> None:
-    """List the explorers and robot backends found through entry points."""
-    from robotexp.registry import EXPLORERS, ROBOTS, available, lua_name
+    """List the explorers, robot backends and their emulators found through entry points."""
+    from robotexp.registry import EMULATORS, EXPLORERS, ROBOTS, available, lua_name
 
-    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS)):
+    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS), ("emulators", EMULATORS)):
         click.echo(f"{title} ({group}):")
         for info in available(group).values():
             extra = f"  Lua: ExplorationMethod.{lua_name(info.name)}" if group == EXPLORERS else ""
@@ -247,6 +411,7 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool) -
 
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
+    writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
@@ -337,16 +502,72 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder; the script's relative paths are relative to it.")
 @click.option("--sandbox", is_flag=True,
-              help="Refuse os.execute, io.popen, C modules and files outside the output folder.")
+              help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
+                   "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
+@click.option("--allow-address", multiple=True,
+              help="With --sandbox: a robot or laser address (host[:port] or device path) the script may open "
+                   "(repeatable).")
+@click.option("--max-memory", type=float, default=None,
+              help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
+@click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
+@click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
+              help="Record each run of the script as a ROS 2 bag, DIR/<run>.mcap.")
+@view_options
 @handle_errors
-def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, timeout: float | None) -> None:
-    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView)."""
+def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
+            max_memory: float | None, timeout: float | None, child: bool, record: Path | None, view: bool,
+            view_port: int, view_host: str, view_speed: str | None) -> None:
+    """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
+
+    The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
+    if it does not stop by itself; runs already written stay in results.jsonl."""
+    from robotexp.lua.runtime import SANDBOX_MAX_MEMORY_MB
+    from robotexp.lua.sandbox import AddressPolicy
+
+    if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
+        raise ConfigError(f"--timeout must be a number of seconds > 0, got {timeout:g}")
+    if max_memory is not None and not (1 <= max_memory <= 2**20):
+        raise ConfigError(f"--max-memory must be 1..1048576 MB, got {max_memory:g}")
+    if allow_address and not sandbox:
+        raise ConfigError("--allow-address only means something with --sandbox (without it a script may open "
+                          "any address)")
+    AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
+    memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
+    writable_folder(out)
+    parse_speed(view_speed)                     # a bad --view-speed: one line, before anything runs
+    if record is not None:
+        writable_folder(record, "--record")
+        record = record.resolve()
+    if not child:
+        from robotexp.lua.supervise import supervise
+
+        args = [str(script), "--robot", robot, "--out", str(out)] + (["--world", world] if world else [])
+        args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
+        args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
+        args += [f"--timeout={timeout!r}"] if timeout is not None else []
+        args += [f"--record={record}"] if record is not None else []
+        if view:            # the child runs the script, so it serves the view
+            args += ["--view", f"--view-port={view_port}", f"--view-host={view_host}"]
+            args += [f"--view-speed={view_speed}"] if view_speed is not None else []
+        if click.get_current_context().find_root().params.get("debug", False):
+            args.append("--debug")
+        sys.exit(supervise(args, script=script.name, out=out, timeout=timeout))
+
     from robotexp.lua import run_script
 
-    result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
-                        emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True))
+    live = start_view(view, view_host, view_port, view_speed)
+    try:
+        result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
+                            emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                            max_memory=None if memory is None else int(memory * 2**20),
+                            allow_addresses=allow_address, retire=True,
+                            observers=() if live is None else (live.observer,), record=record)
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
     click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
+    end_view(live, interrupted=False)
     if result.exit_code:
         sys.exit(result.exit_code)
 
@@ -360,24 +581,35 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
 @click.option("--pty", is_flag=True, help="Serve on a pseudo-terminal (prints its device path) instead of TCP.")
 @click.option("--speedup", type=float, default=1.0, show_default=True, help="Robot time per wall time.")
 @click.option("--udp", default=None, help="mavlink: send to a ground station at HOST:PORT (e.g. 127.0.0.1:14550).")
+@click.option("--laser", default=None, help="Serve a laser on the simulated robot too (rplidar, hokuyo, lms2xx).")
+@click.option("--laser-pose", default=None, help="Where that laser sits on the robot: X,Y,THETA [mm, mm, deg].")
 @handle_errors
 def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
-            udp: str | None) -> None:
-    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim)."""
+            udp: str | None, laser: str | None, laser_pose: str | None) -> None:
+    """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim), or
+    a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world."""
     import time
 
-    from robotexp.registry import make_emulator
+    from robotexp.laser_mount import emulate_devices
 
-    emulator = make_emulator(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp)
+    devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
+                              laser=laser, laser_pose=laser_pose)
     try:
-        emulator.start()
-        click.echo(f"{backend} emulator of world {world!r} at {emulator.address} (speedup {speedup:g}); Ctrl-C stops")
+        served = [(label, device) for label, device in devices if label != "simulator"]
+        if [label for label, _ in served] == ["robot"]:
+            click.echo(f"{backend} emulator of world {world!r} at {served[0][1].address} (speedup {speedup:g}); "
+                       "Ctrl-C stops")
+        else:
+            for label, device in served:
+                click.echo(f"{label}: {device.address}")
+            click.echo(f"world {world!r}, speedup {speedup:g}; Ctrl-C stops", err=True)
         while True:
             time.sleep(0.5)
     except KeyboardInterrupt:
         click.echo("emulator stopped", err=True)
     finally:
-        emulator.close()
+        for _, device in reversed(devices):
+            device.close()
 
 
 def _status_line(state: Any) -> str:
@@ -400,14 +632,21 @@ def _status_line(state: Any) -> str:
 @click.argument("address")
 @click.option("--drive", default=None, help="Drive at V,W (mm/s, deg/s) during --for; the robot stops after.")
 @click.option("--for", "duration", type=float, default=2.0, show_default=True, help="How long [s] to drive / watch.")
+@click.option("--laser", default=None, help="A laser of the robot's own, NAME:ADDRESS (rplidar:/dev/ttyUSB0).")
+@click.option("--laser-pose", default=None, help="Where --laser sits on the robot: X,Y,THETA [mm, mm, deg].")
+@click.option("--record", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE.mcap",
+              help="Record the states read (odometry, laser) as a ROS 2 bag in MCAP (robotexp replay maps it).")
+@view_options
 @handle_errors
-def connect(backend: str, address: str, drive: str | None, duration: float) -> None:
-    """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line."""
-    import time
-
-    from robotexp.registry import connect_robot
+def connect(backend: str, address: str, drive: str | None, duration: float, laser: str | None,
+            laser_pose: str | None, record: Path | None, view: bool, view_port: int, view_host: str,
+            view_speed: str | None) -> None:
+    """Connect to robot BACKEND at ADDRESS, print what it says about itself and a live status line
+    (with --view: its pose, laser, path and a map built from its scans in the browser)."""
+    from robotexp.laser_mount import check_laser_options
     from robotexp.robot import Twist
 
+    check_laser_options(laser, laser_pose)
     twist = None
     if drive is not None:
         try:
@@ -418,30 +657,74 @@ def connect(backend: str, address: str, drive: str | None, duration: float) -> N
     if not (duration >= 0 and math.isfinite(duration)):
         raise ConfigError(f"--for must be >= 0 s, got {duration:g}")
     tty = sys.stdout.isatty()
-    with connect_robot(backend, address) as robot:
+    recorder = None
+    if record is not None:
+        from robotexp.bag.recorder import BagRecorder
+
+        recorder = BagRecorder(record)
+    live = start_view(view, view_host, view_port, view_speed)
+    try:
+        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
+    except BaseException:
+        end_view(live, interrupted=True)
+        raise
+    finally:
+        if recorder is not None:
+            recorder.close()
+    end_view(live, interrupted=False)
+
+
+def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty: bool, live: Any,
+                   laser: str | None = None, laser_pose: str | None = None, recorder: Any = None) -> None:
+    """`connect`'s watch of the robot for `duration` [s], driving at `twist` (None: not), shown in `live`,
+    with `laser` (NAME:ADDRESS) attached at `laser_pose` when given, each state read written to
+    `recorder` (a `robotexp.bag.recorder.BagRecorder`) when given."""
+    import time
+
+    from robotexp.laser_mount import connect_with_laser
+    from robotexp.view.watch import StateFeed
+
+    with connect_with_laser(backend, address, laser, laser_pose) as robot:
+        feed = None if live is None else StateFeed(live.hub, f"{backend} at {address}", robot.radius)
         info = robot.describe()
         click.echo("  ".join(f"{key}: {value}" for key, value in info.items()))
         lim = robot.limits
         click.echo(f"limits: {lim.v_max * 1000:.0f} mm/s, {math.degrees(lim.w_max):.0f} deg/s; "
                    f"capabilities: {', '.join(sorted(robot.capabilities)) or 'none'}")
         end, next_line = time.monotonic() + duration, 0.0
+        t0: float | None = None
         try:
             while True:
                 now = time.monotonic()
                 if twist is not None:
                     robot.command(twist)
-                if now >= next_line or now >= end:
-                    line = _status_line(robot.read())
+                due = now >= next_line or now >= end
+                state = robot.read() if due or feed is not None or recorder is not None else None
+                if feed is not None and state is not None:
+                    feed.publish(state)
+                if recorder is not None and state is not None:
+                    t0 = state.time if t0 is None else t0
+                    recorder.write_state(state.time - t0, state)
+                if due:
+                    line = _status_line(state)
                     click.echo(f"\r{line}" if tty else line, nl=not tty)
                     next_line = now + 0.5
-                if now >= end:
+                if now >= end or (feed is not None and feed.stop_requested):
                     break
                 time.sleep(0.1)
         finally:
             robot.stop()
             if tty:
                 click.echo("")
+            if feed is not None:
+                feed.finish("stopped from the live view" if feed.stop_requested else "watch over; robot stopped")
     click.echo("robot stopped and disconnected")
+
+
+from robotexp.mapcmd import map_command  # noqa: E402  (a command of its own module, registered here)
+
+map_command.callback = handle_errors(map_command.callback)  # type: ignore[type-var]
+main.add_command(map_command)
 
 
 if __name__ == "__main__":  # pragma: no cover

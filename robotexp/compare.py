@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from robotexp.campaign import Table
+from robotexp.safefile import warn
 from robotexp.errors import ConfigError, WorldError
 from robotexp.record import EndReason, RunRecord
 from robotexp.stats import welch_t_test
@@ -38,7 +39,8 @@ REQUIRED_KEYS = ("run", "world", "method", "visited_cells")
 def load_results(path: Path) -> list[RunRecord]:
     """The records of a results.jsonl, checked to be robotexp run records (any robotexp wrote).
 
-    A torn last line (a run killed while writing) is skipped, as by `results.read_jsonl`.
+    A line that is not whole JSON (torn by a run killed while writing or a full disk) is skipped
+    and reported, as by `results.read_jsonl`; runs recorded twice are reported and counted once.
 
     Raises:
         ConfigError: no such file, not UTF-8 text, a line that is not a JSON object, a record
@@ -52,15 +54,14 @@ def load_results(path: Path) -> list[RunRecord]:
         raise ConfigError(f"{path}: not a results file (not UTF-8 text); give a results.jsonl") from None
     numbered = [(i, line.strip()) for i, line in enumerate(lines, start=1) if line.strip()]
     records: list[RunRecord] = []
-    for k, (i, line) in enumerate(numbered):
+    torn: list[str] = []
+    for i, line in numbered:
         try:
             rec = json.loads(line)
         except json.JSONDecodeError as exc:
-            if k == len(numbered) - 1 and records:
-                log.warning("%s:%d: torn last line skipped", path, i)
-                continue
-            raise ConfigError(f"{path}:{i}: not a JSON record ({exc.msg}); give a results.jsonl "
-                              "(one JSON object per line)") from None
+            # a torn line (a run cut off while it was written, a full disk) is skipped and said, not fatal
+            torn.append(f"{i} ({exc.msg})")
+            continue
         if not isinstance(rec, dict):
             raise ConfigError(f"{path}:{i}: expected a JSON object per line, got {type(rec).__name__}")
         missing = [key for key in REQUIRED_KEYS if key not in rec]
@@ -68,8 +69,42 @@ def load_results(path: Path) -> list[RunRecord]:
             raise ConfigError(f"{path}:{i}: record lacks {', '.join(missing)}; is this a robotexp results.jsonl?")
         records.append(RunRecord.from_dict(rec))
     if not records:
+        if torn:
+            raise ConfigError(f"{path}:{torn[0].split()[0]}: not a JSON record; give a results.jsonl "
+                              "(one JSON object per line)")
         raise ConfigError(f"{path}: no runs recorded (the file is empty)")
-    return records
+    if torn:
+        warn(f"{path}: skipped {len(torn)} line(s) that are not whole JSON records (torn by a fault): line "
+             + ", ".join(torn[:5]) + (" ..." if len(torn) > 5 else ""))
+    return _unique(path, records)
+
+
+def _unique(path: Path, records: list[RunRecord]) -> list[RunRecord]:
+    """`records` with one record per run key (world, method, pose, speed, seed): the first of each,
+    the others reported (a campaign run twice into one folder, a --resume over a killed campaign)."""
+    from robotexp.campaign import record_key
+
+    seen: dict[tuple[Any, ...], int] = {}
+    kept: list[RunRecord] = []
+    dups: list[str] = []
+    for rec in records:
+        if "pose_spec" not in rec or str(rec.get("reason", "")).startswith("interrupted"):
+            kept.append(rec)        # a single run (no campaign key), or an interrupted one --resume redoes
+            continue
+        try:
+            key = record_key(rec)
+        except (KeyError, TypeError, ValueError):
+            kept.append(rec)
+            continue
+        if key in seen:
+            dups.append(str(rec.get("run", key)))
+            continue
+        seen[key] = len(kept)
+        kept.append(rec)
+    if dups:
+        warn(f"{path}: {len(dups)} run(s) recorded more than once (same world, method, pose, speed and seed); "
+             f"only the first record of each is counted: {', '.join(dups[:5])}{' ...' if len(dups) > 5 else ''}")
+    return kept
 
 
 def _finished(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[RunRecord]:

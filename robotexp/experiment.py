@@ -40,6 +40,10 @@ __all__ = ["RunSpec", "RunOutput", "RunPlan", "run_experiment", "run_on_robot", 
 
 DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
 MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
+MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
+MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
+MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
+MAX_MAP_CELLS = 1e8     # cells of a map given by limits (1e8 cells: 10 km x 10 km at 1 m, 1 km x 1 km at 10 cm)
 
 
 @dataclass
@@ -61,13 +65,19 @@ class RunSpec:
     map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
     #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
     bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
+    odometry: str = "none"              # simulator odometry error (robotexp.sim.odometry_error spec)
+    localize: str = "auto"              # "none", "scan-match", "auto" (robotexp.localization.run: wrap)
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
-        if not (self.speed > 0 and math.isfinite(self.speed)):
-            raise ConfigError(f"speed must be > 0, got {self.speed * 1000:g} mm/s")
-        if not (self.laser_range > 0 and math.isfinite(self.laser_range)):
-            raise ConfigError(f"laser range must be > 0, got {self.laser_range * 1000:g} mm")
+        if not (0 < self.speed <= MAX_SPEED):
+            raise ConfigError(f"speed must be > 0 and at most {MAX_SPEED * 1000:g} mm/s, got "
+                              f"{self.speed * 1000:g} mm/s")
+        if not (0 < self.laser_range <= MAX_LASER_RANGE):
+            raise ConfigError(f"laser range must be > 0 and at most {MAX_LASER_RANGE * 1000:g} mm, got "
+                              f"{self.laser_range * 1000:g} mm")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise ConfigError(f"seed must be an integer 0..{MAX_SEED}, got {self.seed!r}")
         if self.cell is not None and not (0.005 <= self.cell <= 2.0):
             raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
         if not self.max_time > 0:
@@ -75,11 +85,22 @@ class RunSpec:
         if self.laser_sigma < 0 or self.laser_uniform < 0:
             raise ConfigError(f"laser noise must be >= 0 mm, got uniform {self.laser_uniform * 1000:g}, "
                               f"sigma {self.laser_sigma * 1000:g}")
+        from robotexp.localization.run import check_localize
+        from robotexp.sim.presets import odometry_error
+
+        odometry_error(self.odometry)
+        check_localize(self.localize)
         if self.map_bounds is not None:
             x0, y0, x1, y1 = self.map_bounds
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
                 raise ConfigError(f"map limits must be finite with min < max, got x {x0 * 1000:g}..{x1 * 1000:g}, "
                                   f"y {y0 * 1000:g}..{y1 * 1000:g} mm")
+            cell = self.cell or DEFAULT_CELL
+            cells = ((x1 - x0) / cell) * ((y1 - y0) / cell)
+            if cells > MAX_MAP_CELLS:
+                raise ConfigError(f"map limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm make "
+                                  f"{cells:.3g} cells of {cell * 1000:g} mm, more than {MAX_MAP_CELLS:.0e}; give "
+                                  "smaller limits or larger cells")
 
 
 @dataclass
@@ -110,13 +131,13 @@ def sim_robot(spec: RunSpec, world: World, start: Pose, *, sonar: bool = True) -
         WorldError: the start pose is outside the world or touches an obstacle.
         ConfigError: an unknown robot preset.
     """
-    from robotexp.sim import LaserConfig, SimRobot, preset
+    from robotexp.sim import LaserConfig, SimRobot, odometry_error, preset
 
     robot_preset = preset(spec.robot)
     laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
                         sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
     return SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser, max_speed=spec.speed,
-                    sonar=sonar)
+                    sonar=sonar, odometry=odometry_error(spec.odometry))
 
 
 @dataclass
@@ -230,6 +251,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         PluginError: the explorer failed during the run (its record is written first).
         OSError: the results could not be written (an error of a `critical` observer).
     """
+    from robotexp.localization.run import localized, release
     from robotexp.mapping.grid import OccupancyGrid
 
     spec.validate()
@@ -257,6 +279,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
                                     cell=cell)
     robot.set_max_speed(spec.speed)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
+    robot, tracker = localized(spec, robot, geo)    # robotexp.localization.run: the explorer's pose
 
     extra: dict[str, Any] = {}
     if robot.address is not None:
@@ -273,11 +296,15 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     chain: list[RunObserver] = [] if writer is None else [writer]
     if on_sample is not None or on_run is not None:
         chain.append(SampleCallback(on_sample, on_run))
+    chain.insert(0, tracker)                          # first: ate_m is in the record the writer writes
     chain.append(RunWatch(StallWatch(), area))         # honest endings: stalls, the area, "done" checked
     chain.extend(observers)
     run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=spec.max_time, seed=spec.seed, goals=goals,
                          start_name=start_name, info=info, observers=chain, area=area)
-    run.run()
+    try:
+        run.run()
+    finally:
+        release(robot)
     for observer, exc in run.observer_errors:
         if observer.critical:
             raise exc

@@ -2,7 +2,7 @@
 
 An explorer only decides: given the robot's state and the map it returns a `Twist`, or `Done`.
 It never sleeps, reads clocks, does I/O or holds a robot handle; its randomness comes from the
-generator in its `ExplorerContext`. `ExplorationRun` owns the loop of DESIGN.md:
+generator in its `ExplorerContext`. `ExplorationRun` owns the loop of docs/architecture.md ("One run"):
 
     clock tick -> robot.read() -> grid.update() -> explorer.step() -> robot.command() -> metrics
 
@@ -269,7 +269,8 @@ class ExplorationRun:
                     self.completed = True
                 elif decision is not None:
                     robot.command(decision)
-            notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
+            if self.observers.listening("on_step"):
+                notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
             if not isinstance(decision, Twist):
                 return
             clock.tick()

@@ -9,7 +9,8 @@
     on_sample(run, t, cov)   every coverage sample (1 s of robot time by default, and once at the end)
     on_end(run, record)      once, after the robot was stopped, with the run's `RunRecord`
 
-Subclass `RunObserver` and override the hooks you need (each is a no-op here). An observer may call
+Subclass `RunObserver` and override the hooks you need (each is a no-op here; the loop builds a
+`StepEvent` only when some observer overrides `on_step`). An observer may call
 `run.request_stop(reason, end)` to end the run at the next tick (a view's stop button, a stall
 watch, a script's timeout). Observers run in the loop's thread; a slow observer slows the run (a
 simulated run keeps its results: robot time does not pass while an observer works).
@@ -89,10 +90,20 @@ class Observers:
     def __init__(self, observers: Iterable[RunObserver] = ()) -> None:
         self.active: list[RunObserver] = list(observers)
         self.errors: list[tuple[RunObserver, Exception]] = []
+        self._listening: dict[str, bool] = {}
 
     def add(self, observer: RunObserver) -> None:
         """Append `observer`."""
         self.active.append(observer)
+        self._listening.clear()
+
+    def listening(self, hook: str) -> bool:
+        """True when an attached observer overrides `hook` (the loop skips building what nobody reads)."""
+        known = self._listening.get(hook)
+        if known is None:
+            base = getattr(RunObserver, hook)
+            known = self._listening[hook] = any(getattr(type(o), hook, base) is not base for o in self.active)
+        return known
 
     def notify(self, hook: str, *args: Any) -> None:
         """Call `hook` of every attached observer with `args`."""
@@ -104,6 +115,7 @@ class Observers:
                           type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
+                self._listening.clear()
 
     def end(self, run: ExplorationRun, record: RunRecord) -> None:
         """`on_end` of every observer still attached."""

@@ -117,14 +117,36 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     from robotexp.explorer import Explorer
 
     cls = load(EXPLORERS, method, Explorer)
+    accepted = _parameter_names(cls)
+    unknown = [key for key in params if accepted is not None and key not in accepted]
+    if unknown:
+        listing = ", ".join(accepted) if accepted else "none"
+        raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
     params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
     try:
-        return cls(**params)   # type: ignore[no-any-return]
+        return cls(**params)
     except TypeError as exc:
         raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
 
 
 _KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
+
+
+def _parameter_names(cls: type) -> list[str] | None:
+    """The keyword parameters of `cls` by name (None: it takes **kwargs, or has no signature to read)."""
+    import inspect
+
+    try:
+        sig = inspect.signature(cls)
+    except (TypeError, ValueError):
+        return None
+    names = []
+    for p in sig.parameters.values():
+        if p.kind is inspect.Parameter.VAR_KEYWORD:
+            return None
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY):
+            names.append(p.name)
+    return names
 
 
 def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
@@ -153,8 +175,9 @@ def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
                       f"got {value!r}")
 
 
-def connect_robot(backend: str, address: str) -> Robot:
-    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`.
+def connect_robot(backend: str, address: str, **options: Any) -> Robot:
+    """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`, with the
+    backend's keyword `options` (e.g. `robotexp.laser_mount.robot_options`).
 
     Raises:
         PluginError: unknown backend.
@@ -168,7 +191,7 @@ def connect_robot(backend: str, address: str) -> Robot:
     if not getattr(cls, "by_address", True):
         raise ConfigError(f"robot {backend!r} has no address ({cls.__qualname__} runs in this process, "
                           "e.g. the embedded simulator); run without --address")
-    return cls(address)   # type: ignore[no-any-return]
+    return cls(address, **options)
 
 
 def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
@@ -205,4 +228,4 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
     kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup, **given}
     if port is not None:
         kwargs["port"] = port
-    return cls(w, **kwargs)   # type: ignore[no-any-return]
+    return cls(w, **kwargs)

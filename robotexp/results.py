@@ -8,8 +8,6 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
-import json
-import os
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -95,7 +93,7 @@ class ResultsWriter(RunObserver):
 
         out, name = self.out, record.run
         out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record.as_dict())      # first: the record is never lost
+        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
@@ -152,32 +150,22 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
                       title=title)
 
 
-def append_jsonl(path: Path, record: dict[str, Any]) -> None:
-    """Append `record` as one line to `path` and force it to disk."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a", encoding="utf-8") as f:
-        f.write(json.dumps(record, sort_keys=False) + "\n")
-        f.flush()
-        os.fsync(f.fileno())
+def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:
+    """Append `record` (a RunRecord is written as its `as_dict()`) as one line to `path` and force it
+    to disk; a torn last line left by an earlier fault is repaired first (and reported), and a failed
+    write leaves no half line (`robotexp.safefile.append_line`)."""
+    from robotexp.safefile import append_line
+    append_line(path, record.as_dict() if isinstance(record, RunRecord) else record)
 
 
 def read_jsonl(path: Path) -> list[dict[str, Any]]:
-    """Every record of a results file; a torn last line (a run killed while writing) is skipped."""
-    records = []
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                records.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue
-    return records
+    """Every record of a results file; a torn or damaged line is reported and skipped."""
+    from robotexp.safefile import read_records
+    return read_records(path)
 
 
 def read_records(path: Path) -> list[RunRecord]:
-    """Every record of a results file as a `RunRecord` (a torn last line is skipped)."""
+    """Every record of a results file as a `RunRecord` (a torn or damaged line is reported and skipped)."""
     return [RunRecord.from_dict(r) for r in read_jsonl(path) if isinstance(r, dict)]
 
 

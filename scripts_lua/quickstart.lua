@@ -20,3 +20,4 @@ print(string.format("coverage:     %.1f %%  collisions: %d  (%s)", r.coverage * 
 mapView.setMapScaling(0.05)               -- 50 px per metre
 robotView.setShowPath(true)
 mapView.saveMapImage("quickstart.png")
+print("map image:    quickstart.png in the output folder (--out, default out/)")

@@ -21,7 +21,7 @@ TIMEOUT = 60.0      # [s] bound on any subprocess
 def test_worlds_lists_builtin_worlds_with_sizes() -> None:
     result = CliRunner().invoke(main, ["worlds"])
     assert result.exit_code == 0, result.output
-    lines = {line.split()[0]: line for line in result.output.splitlines() if line.strip()}
+    lines = {line.split()[0]: line for line in result.output.splitlines() if line.strip() and line[0] != " "}
     # outer walls 0.1 m thick centred on the room's edge: 0.1 m more than the room
     sizes = {"dense": "20.1 x 15.1 m", "sparse": "30.1 x 20.1 m", "ufmg-static": "10.1 x 10.1 m",
              "ufmg-dynamic": "10.1 x 10.1 m"}
@@ -29,6 +29,8 @@ def test_worlds_lists_builtin_worlds_with_sizes() -> None:
     for name, size in sizes.items():
         assert size in lines[name], lines[name]
     assert "9 start poses" in lines["dense"] and "2 start poses" in lines["ufmg-static"]
+    # each world's pose names with where they are, as --pose reads them (mm, mm, deg)
+    assert "  poses: path1 (-4200,-4200,45), path2 (4200,4200,-135)" in result.output.splitlines()
 
 
 def test_plugins_lists_frontier() -> None:

@@ -173,3 +173,21 @@ def test_request_stop_ends_the_run_with_the_reason_given() -> None:
     assert EndReason.classify(False, run.reason) is EndReason.STALLED
     with pytest.raises(Exception, match="not one an observer can give"):
         run.request_stop("x", EndReason.EXPLORED)
+
+
+def test_the_loop_builds_step_events_only_for_observers_that_read_them() -> None:
+    from robotexp.observers import Observers
+
+    class SamplesOnly(RunObserver):
+        def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None: ...
+
+    class Steps(RunObserver):
+        def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+            raise ValueError("no")
+
+    group = Observers([RunObserver(), SamplesOnly()])
+    assert not group.listening("on_step") and group.listening("on_sample") and not group.listening("on_end")
+    group.add(Steps())
+    assert group.listening("on_step")
+    group.notify("on_step", None, None)              # Steps raises: detached, nobody listens any more
+    assert not group.listening("on_step") and [type(o) for o, _ in group.errors] == [Steps]

@@ -166,22 +166,23 @@ class KobukiEmulator(StreamEmulator):
     def _handle(self, m: Message) -> None:
         self.commands_received += 1
         self.last_command = m
-        if isinstance(m, BaseControl):
-            self.last_base_control = m
-            v, w = twist_from_base_control(m.speed_mm_s, m.radius_mm)
-            with self.lock:
-                self.sim.command(Twist(v, w))
-                self._last_cmd_time = self.sim.time
-        elif isinstance(m, RequestExtra):
-            self._pending_extra |= m.flags
-        elif isinstance(m, GetControllerGain):
-            self._pending_gain = True
-        elif isinstance(m, SetControllerGain):
-            self.gains = ControllerInfo(m.gain_type, m.p_x1000, m.i_x1000, m.d_x1000)
-        elif isinstance(m, (Sound, SoundSequence)):
-            self.sounds.append(m)
-        elif isinstance(m, GeneralPurposeOutput):
-            self.gpo = m.flags
+        match m:                                  # one case per command sub-payload (the codec's classes)
+            case BaseControl(speed_mm_s=speed, radius_mm=radius):
+                self.last_base_control = m
+                v, w = twist_from_base_control(speed, radius)
+                with self.lock:
+                    self.sim.command(Twist(v, w))
+                    self._last_cmd_time = self.sim.time
+            case RequestExtra(flags=flags):
+                self._pending_extra |= flags
+            case GetControllerGain():
+                self._pending_gain = True
+            case SetControllerGain():
+                self.gains = ControllerInfo(m.gain_type, m.p_x1000, m.i_x1000, m.d_x1000)
+            case Sound() | SoundSequence():
+                self.sounds.append(m)
+            case GeneralPurposeOutput(flags=flags):
+                self.gpo = flags
 
     def _step(self) -> bytes:
         """Advance the robot by one cycle and encode the feedback frame of its new state."""

@@ -20,6 +20,7 @@ import threading
 import time
 from abc import abstractmethod
 
+import numpy as np
 import serial
 
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
@@ -287,6 +288,9 @@ class LaserEmulatorBase(StreamEmulator):
     def _init_laser(self, source: ScanSource, speedup: float = 1.0) -> None:
         self._init_stream(speedup)
         self.source = source
+        # measure once now: a first measurement may compile or load the ray caster (seconds, holding
+        # the interpreter), which must not happen while a driver waits for its first scan
+        source(np.zeros(1), 1.0)
 
     def _open_transport(self, pty: bool, port: int | None, host: str) -> None:
         """Serve on a pseudo-terminal (`address` its device path) or TCP `host`:`port` (None or 0: a

@@ -85,9 +85,9 @@ def parse_address(address: str, baudrate: int = C.DEFAULT_BAUD) -> tuple[str, st
     device, comma, baud = address.rpartition(",")
     if comma and baud.isdigit() and not os.path.exists(address):
         return "serial", device, int(baud)
-    host, sep, port = address.rpartition(":")
-    if sep and port.isdigit() and host and "/" not in address and not os.path.exists(address):
-        return "udpin", (host, int(port)), baudrate
+    udp_host, colon, udp_port = address.rpartition(":")
+    if colon and udp_port.isdigit() and udp_host and "/" not in address and not os.path.exists(address):
+        return "udpin", (udp_host, int(udp_port)), baudrate
     return "serial", address, baudrate
 
 

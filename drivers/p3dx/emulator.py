@@ -228,8 +228,7 @@ class P3DXEmulator(EmulatorBase):
                                   rot_decel=round(math.degrees(lim.alpha_max)))
             if not simulator:
                 self.config = replace(self.config, name=EMULATED_NAME, serial_number=EMULATED_SERIAL)
-            # the emulator ramps the speeds itself (SETA / SETRA, `ArcosMotion`): the simulator follows
-            self.sim.limits = replace(lim, a_max=math.inf, alpha_max=math.inf)
+            self._sim_limits = lim      # each cycle the simulator ramps with SETA's / SETRA's value in force
             # cast once before serving: the first client must not wait for the first casts' set-up
             self.sim.scan()
             self.sim.sonar()
@@ -421,8 +420,12 @@ class P3DXEmulator(EmulatorBase):
             c.CMD_SIM_STAT: self._sim_stat,
         }
         for number, which in _LRF_FOV.items():
-            table[number] = lambda i, a, conn, which=which: self._set_fov(which, i)
+            table[number] = self._fov_handler(which)
         return table
+
+    def _fov_handler(self, which: int) -> Callable[[int, object, _TcpConn | _PtyConn], None]:
+        """The handler of the laser field-of-view command that sets bound `which`."""
+        return lambda i, a, conn: self._set_fov(which, i)
 
     def _drive(self, command: Callable[[int], None]) -> Callable[[int, object, _TcpConn | _PtyConn], None]:
         """A motion command's handler: ignored while the motors are disabled (as MobileSim)."""
@@ -495,12 +498,15 @@ class P3DXEmulator(EmulatorBase):
         if self.watchdog is not None and self.sim.time - self._last_cmd_time > self.watchdog:
             self.motion.stop()
             self.commanded = (0, 0)
-        if self._estopped:
+        if self._estopped:               # at once: no ramp
             v = w = 0.0
+            self.sim.limits = replace(self._sim_limits, a_max=math.inf, alpha_max=math.inf)
             self._estopped = False
-        else:
+        else:                            # the goals of this cycle, ramped by the simulator (as `ArcosMotion.step`)
             now = self._velocity
-            v, w = self.motion.step(now.v * 1000.0, math.degrees(now.w), self._heading_deg(), c.SIP_PERIOD_S)
+            v, w = self.motion.targets(self._heading_deg(), c.SIP_PERIOD_S)
+            accel, rot_accel = self.motion.ramp_rates(now.v * 1000.0, math.degrees(now.w), v, w)
+            self.sim.limits = replace(self._sim_limits, a_max=accel / 1000.0, alpha_max=math.radians(rot_accel))
         self.sim.command(Twist(v / 1000.0, math.radians(w)))
         self.sim.advance(c.SIP_PERIOD_S)
         state = self.sim.read()

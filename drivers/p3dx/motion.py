@@ -28,7 +28,7 @@ from enum import Enum
 
 from robotexp.errors import ConfigError
 
-__all__ = ["ArcosMotion", "TransMode", "RotMode", "approach", "stopping_speed"]
+__all__ = ["ArcosMotion", "TransMode", "RotMode", "approach", "speeding_up", "stopping_speed"]
 
 MOVE_DONE_MM = 0.5            # a MOVE is done within this distance of its goal
 HEAD_DONE_DEG = 0.5           # a HEAD is held (no turning) within this angle of its goal
@@ -48,6 +48,11 @@ class RotMode(Enum):
     HEAD = "head"
 
 
+def speeding_up(current: float, target: float) -> bool:
+    """Going from speed `current` to `target` speeds up (same direction, or from a standstill)."""
+    return abs(target) > abs(current) and (current == 0 or (current > 0) == (target > 0))
+
+
 def approach(current: float, target: float, accel: float, decel: float, dt: float) -> float:
     """`current` moved towards `target` by at most `accel * dt` when speeding up, `decel * dt` when
     slowing down (towards or through zero).
@@ -60,8 +65,7 @@ def approach(current: float, target: float, accel: float, decel: float, dt: floa
     Returns:
         The speed after the step.
     """
-    speeding_up = abs(target) > abs(current) and (current == 0 or (current > 0) == (target > 0))
-    step = (accel if speeding_up else decel) * dt
+    step = (accel if speeding_up(current, target) else decel) * dt
     if abs(target - current) <= step:
         return target
     return current + math.copysign(step, target - current)
@@ -220,6 +224,12 @@ class ArcosMotion:
         v_goal, w_goal = self.targets(heading_now, dt)
         return (approach(v_now, v_goal, self.trans_accel, self.trans_decel, dt),
                 approach(w_now, w_goal, self.rot_accel, self.rot_decel, dt))
+
+    def ramp_rates(self, v_now: float, w_now: float, v_goal: float, w_goal: float) -> tuple[float, float]:
+        """The acceleration each axis ramps with this cycle: SETA's / SETRA's acceleration when
+        speeding up, deceleration otherwise ([mm/s^2], [deg/s^2])."""
+        return (self.trans_accel if speeding_up(v_now, v_goal) else self.trans_decel,
+                self.rot_accel if speeding_up(w_now, w_goal) else self.rot_decel)
 
     def travelled(self, mm: float) -> None:
         """Account for `mm` of signed travel (odometry, forward > 0) during the last cycle."""

@@ -13,7 +13,9 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -66,7 +68,7 @@ class P3DXRobot(StreamBackend):
         max_speed: forward speed limit [m/s] (default: the robot's CONFIG maximum).
         watchdog: [s] stop the robot when no command came from the control loop for this long.
         silence: [s] the link counts as lost after this long without a packet from the robot.
-        connect_timeout: [s] longest handshake.
+        connect_timeout: [s] longest handshake, and longest wait for the first SIP after it.
 
     Raises:
         ConnectionLost: the port cannot be opened, or the robot stops answering.
@@ -77,6 +79,8 @@ class P3DXRobot(StreamBackend):
     name = "p3dx"
     capabilities = frozenset({Capability.SONAR, Capability.LASER, Capability.MOVE_TO})
     radius = c.ROBOT_RADIUS_MM / 1000.0
+    # with a laser device mounted (robotexp.laser_mount.robot_options): no simulated-laser packets
+    mounted_laser_options: Mapping[str, object] = MappingProxyType({"laser": False})
     _join_timeout = 2.0
 
     def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, laser: bool = True,
@@ -86,6 +90,9 @@ class P3DXRobot(StreamBackend):
         require_positive("p3dx", watchdog=watchdog, silence=silence, connect_timeout=connect_timeout,
                          laser_range=laser_range)
         self._init_stream(silence, watchdog)
+        self._last_byte = time.perf_counter()   # [s] when the last bytes came (ARIA's 100 ms gap rule)
+        self._bytes_since_sip = 0               # bytes received since the last valid SIP
+        self._first_sip_wait = 2.0 + silence    # [s] silence allowed before the first SIP
         self.address = address
         self.silence = silence
         self.laser_range, self.laser_offset = laser_range, laser_offset
@@ -115,8 +122,9 @@ class P3DXRobot(StreamBackend):
             self.limits = self._limits_from_config()
             if max_speed is not None:
                 self.set_max_speed(max_speed)
+            self._first_sip_wait = max(connect_timeout, silence)
             self._start_reader(f"p3dx-reader {address}")
-            self._wait_state(lambda s: True, min(connect_timeout, 2.0 + silence))
+            self._wait_state(lambda s: True, self._first_sip_wait)
             if laser and self.is_simulator:
                 try:    # the explorer learns the laser's range from the first state it reads
                     self._wait_state(lambda s: s.laser is not None, self.silence)
@@ -220,18 +228,31 @@ class P3DXRobot(StreamBackend):
 
     def _on_data(self, data: bytes, now: float) -> None:
         if data:
-            self._last_rx = now
+            self._last_byte = now
+            self._bytes_since_sip += len(data)
             packets = self.decoder.feed(data)
-        elif self.decoder.buffered and now - self._last_rx > c.BODY_GAP_S:
+        elif self.decoder.buffered and now - self._last_byte > c.BODY_GAP_S:
             packets = self.decoder.flush()     # §2.1: a gap > 100 ms drops a partial packet
         else:
             packets = []
         for pkt in packets:
+            if isinstance(pkt, k.StandardSip):   # the state stream is the robot's life; other bytes are not
+                self._last_rx = now
+                self._bytes_since_sip = 0
             self._handle(pkt)
         if not self._watch(now) and now - self._last_write > c.REFRESH_S:
             self._write(k.cmd_pulse())
 
+    def _silent(self, now: float) -> bool:
+        # before the first SIP the robot (or a loaded MobileSim) may take the connect wait to start its stream
+        limit = self.timeout if self._sips else max(self.timeout, self._first_sip_wait)
+        return now - self._last_rx > limit
+
     def _silence_error(self, now: float) -> RobotError:
+        if self._bytes_since_sip:
+            return ProtocolError(f"p3dx: no valid SIP from {self.link.url!r} for {now - self._last_rx:.2f} s "
+                                 f"(silence {self.silence:g} s) though {self._bytes_since_sip} bytes came: the line "
+                                 "is noisy, the baud rate is wrong or it is not a Pioneer")
         return ConnectionLost(f"p3dx: no data from {self.link.url!r} for {now - self._last_rx:.2f} s (silence "
                               f"{self.silence:g} s); the robot or the link is down")
 

@@ -192,6 +192,22 @@ class SRTExplorer(Explorer):
         return {"nodes": len(self.tree), "backtracks": self.backtracks, "detours": self.detours,
                 "abandoned": self.abandoned}
 
+    def markers(self) -> dict[str, dict[str, object]]:
+        """What the live view draws (robotexp.view): the tree's nodes and edges, each node's safe region
+        (its boundary, at most 90 vertices) and the current target, in world coordinates [m]."""
+        nodes = self.tree.nodes
+        regions = []
+        for node in nodes:
+            b = node.region.boundary()
+            b = b[:: max(1, math.ceil(len(b) / 90))]
+            regions.append([round(float(v), 3) for v in b.ravel()])
+        edges = [round(float(v), 3) for n in nodes if n.parent is not None
+                 for v in (nodes[n.parent].x, nodes[n.parent].y, n.x, n.y)]
+        points: dict[str, object] = {"SRT nodes": [round(float(v), 3) for n in nodes for v in (n.x, n.y)]}
+        if self.target is not None:
+            points["target"] = [round(float(v), 3) for v in self.target]
+        return {"polygons": {"safe regions": regions}, "lines": {"SRT tree": edges}, "points": points}
+
     # -- the perception, per variant --------------------------------------------------
     @abstractmethod
     def _begin_sense(self) -> None:

@@ -13,19 +13,27 @@ once. Between runs the robot stays where its last run ended, unless `robot.moveM
 
 Robots. With a P3-DX address (`robot.setAddress("host[:port]")` or a serial device) and no
 `robotexp run --world`, runs go to a connected `p3dx` robot (MobileSim, our emulator or the real
-one) through `run_on_robot`, at the robot's pace: one connection for the whole script, opened at
-the first `exploration.start()` (or `robot.getPose()`), closed by `Session.close()` (robot stopped).
-`robot.moveMobileSim` then sends SIM_SET_POSE (at once when connected, else right after
-connecting). Coverage is null unless the script names a world with `exploration.setWorld`, which
-is then ground truth only (as `robotexp explore --address --world`).
+one) through `run_on_robot`, at the robot's pace (a robot model with a backend of its own,
+`robot.setModel("kobuki")` or `robotexp run --robot kobuki`, connects that backend instead): one
+connection for the whole script, opened at the first `exploration.start()` (or `robot.getPose()`),
+closed by `Session.close()` (robot stopped). `robot.moveMobileSim` then sends SIM_SET_POSE (at
+once when connected, else right after connecting). Coverage is null unless the script names a
+world with `exploration.setWorld`, which is then ground truth only (as `robotexp explore
+--address --world`).
+
+Lasers. `robot.setLaser("NAME:ADDRESS", x, y, theta)` mounts a laser device (`robotexp.lasers`) at
+(x [mm], y [mm], theta [deg]) on the robot of the address, as `robotexp explore --laser --laser-pose`
+does (`robotexp.laser_mount`): runs then map from its scans, each paired with the robot's pose at
+its stamp. Its address obeys the script's address rule (`--sandbox`, `--allow-address`).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,7 +48,7 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
     from robotexp.robot import Robot
-    from robotexp.lua.sandbox import PathPolicy
+    from robotexp.lua.sandbox import AddressPolicy, PathPolicy
     from robotexp.world.model import World
 
 __all__ = ["Session", "Control", "P3DX_PORT", "parse_address"]
@@ -48,8 +56,10 @@ __all__ = ["Session", "Control", "P3DX_PORT", "parse_address"]
 log = logging.getLogger(__name__)
 
 P3DX_PORT = 8101        # MobileSim's and ARIA's default TCP port
-ROBOT_BACKEND = "p3dx"  # the `robotexp.robots` backend of a non-sim address (the P3-DX protocol)
+ROBOT_BACKEND = "p3dx"  # the `robotexp.robots` backend of a non-sim address (the P3-DX protocol) ...
+ADDRESS_MODELS = ("kobuki",)   # ... unless the robot model is one of these (its own backend)
 TRACK_WINDOW = (800, 600)       # [px] image size around the robot when tracking is on
+MAX_IMAGE_PIXELS = 1e8          # a map image larger than 10000 x 10000 px is refused (memory, not a picture)
 _UPDATE_PARAMS = ("update_period",)   # explorer parameter names of the potential update interval [s]
 _NAME = {"n": "a number", "s": "a string", "b": "a boolean", "i": "an integer"}
 
@@ -151,18 +161,26 @@ class Session:
         robot: simulated robot preset (p3dx, kobuki).
         notice: prints a one-line notice for the user (stderr).
         script: the script's name, recorded with each run.
+        addresses: which robot addresses the script may open (default: any).
+        observers: told about each of the script's runs (`robotexp run --view`).
     """
 
     def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
-                 robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "") -> None:
+                 robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
+                 addresses: AddressPolicy | None = None, observers: Sequence[RunObserver] = ()) -> None:
         from robotexp.experiment import RunSpec
+        from robotexp.lua.sandbox import AddressPolicy
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
+        self.addresses = addresses if addresses is not None else AddressPolicy(False)
+        self.observers = list(observers)               # told about every run (a live view)
         self.forced_world = world is not None
         self.spec = RunSpec(world=world or "dense", robot=robot)
         self.address = ""
         self.target: tuple[str, str] = ("sim", "")     # parse_address(self.address)
         self.connected: Robot | None = None            # the robot of a P3-DX address, once connected
+        self.laser: tuple[str, str] | None = None      # robot.setLaser: ("NAME:ADDRESS", "x,y,theta" mm/deg)
+        self._mounted: tuple[str, str] | None = None   # the laser mounted on self.connected
         self.truth_world = False                       # the script named a world (exploration.setWorld)
         self._move_pending = False                     # moveMobileSim not yet sent to the robot
         self._moved = False                            # self.pose comes from moveMobileSim (no run since)
@@ -174,12 +192,14 @@ class Session:
         self.show: dict[str, bool] = {"grid": False, "path": True, "laser": False, "vectors": False,
                                       "potential": False, "tracking": False}
         self.frame_folder: Path | None = None
+        self.record_folder: Path | None = None         # each run as a ROS 2 bag there (exploration.setRecordFolder)
         self.redraw_interval = 1.0                     # [s] robot time between frames
         self.frames = 0
         self.armed: RunSpec | None = None
         self.last: RunOutput | None = None
         self.records: list[RunRecord] = []
         self._told_forced = False
+        self._told_laser = False
         self._worlds: dict[str, World] = {}
 
     # -- plumbing ----------------------------------------------------------------------------------
@@ -243,10 +263,14 @@ class Session:
 
         self._next_frame = 0.0
         watch = self.frame_folder is not None or self.control.deadline is not None
-        observers = [_ScriptWatch(self)] if watch else []
+        observers = ([_ScriptWatch(self)] if watch else []) + self.observers
+        if self.record_folder is not None:
+            from robotexp.bag.recorder import BagRecorder
+
+            observers.append(BagRecorder(folder=self.record_folder, world=spec.world))
         if self.on_robot:
             robot = self._robot()
-            if hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
+            if self.laser is None and hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
                 robot.laser_range = spec.laser_range
             if self.truth_world and self.pose is not None and not self._moved:
                 # run_on_robot moves the robot to the start: start where it stands now, not where
@@ -270,22 +294,37 @@ class Session:
         """True when runs go to a connected robot (a P3-DX address and no `robotexp run --world`)."""
         return self.target[0] != "sim" and not self.forced_world
 
+    @property
+    def backend(self) -> str:
+        """The `robotexp.robots` backend of the address: the robot model's own, else the P3-DX's."""
+        return self.spec.robot if self.spec.robot in ADDRESS_MODELS else ROBOT_BACKEND
+
     def _robot(self) -> Robot:
-        """The robot of the address, connected on first use; a pending moveMobileSim is sent.
+        """The robot of the address, connected on first use, with the laser of robot.setLaser mounted;
+        a pending moveMobileSim is sent.
 
         Raises:
-            ScriptError: the robot cannot be reached (naming robot.setAddress and the address).
+            ScriptError: the robot or its laser cannot be reached (naming the call and the address).
         """
         if self.connected is None:
+            from robotexp.laser_mount import robot_options
             from robotexp.registry import connect_robot
             kind, where = self.target
+            backend = self.backend
+            if kind == "tcp" and backend != ROBOT_BACKEND:
+                where = self.address.strip()           # host:8101 is the P3-DX's default, not this robot's
             try:
-                self.connected = connect_robot(ROBOT_BACKEND, where)
+                options = robot_options(backend, self.laser is not None)
+                self.connected = connect_robot(backend, where, **options)
             except RobotexpError as exc:
-                raise ScriptError(f"robot.setAddress({self.address!r}): cannot connect to a P3-DX ({kind} {where}): "
-                                  f"{exc}; start MobileSim or `robotexp emulate p3dx` there, or use '' for the "
+                shown, peer = ("P3-DX", "MobileSim or ") if backend == ROBOT_BACKEND else (backend, "")
+                raise ScriptError(f"robot.setAddress({self.address!r}): cannot connect to a {shown} ({kind} {where}): "
+                                  f"{exc}; start {peer}`robotexp emulate {backend}` there, or use '' for the "
                                   "embedded simulator") from exc
-            log.info("lua: connected to %s at %s", ROBOT_BACKEND, where)
+            self._mounted = None
+            log.info("lua: connected to %s at %s", backend, where)
+        if self.laser != self._mounted:
+            self._mount_laser(self.connected)
         if self._move_pending and self.pose is not None:
             self._move_pending = False
             self._place(self.connected, self.pose)
@@ -297,9 +336,32 @@ class Session:
                               "moved or told its pose")
         robot.move_to(pose)
 
+    def _mount_laser(self, robot: Robot) -> None:
+        """Mount the laser of robot.setLaser on the connected `robot` (replacing the one mounted before).
+
+        Raises:
+            ScriptError: the laser cannot be reached (the robot stays connected; the script's end stops it).
+        """
+        from robotexp.laser_mount import LaserMountedRobot, connect_laser, parse_laser_pose
+
+        if isinstance(robot, LaserMountedRobot):
+            robot.laser.close()
+            robot = robot.robot
+        self.connected, self._mounted = robot, None
+        if self.laser is None:
+            return
+        spec, pose = self.laser
+        try:
+            laser = connect_laser(spec)
+        except RobotexpError as exc:
+            raise ScriptError(f"robot.setLaser({spec!r}): cannot connect to the laser: {exc}") from exc
+        self.connected = LaserMountedRobot(robot, laser, parse_laser_pose(pose))
+        self._mounted = self.laser
+        log.info("lua: laser %s mounted at %s mm, mm, deg", spec, pose)
+
     def close(self) -> None:
         """Stop the connected robot and close its link (nothing without one). Safe to call twice."""
-        robot, self.connected = self.connected, None
+        robot, self.connected, self._mounted = self.connected, None, None
         if robot is not None:
             try:
                 robot.close()
@@ -320,14 +382,18 @@ class Session:
         from robotexp.render import map_layout
 
         show = tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
-        place = self.spec.world if self.truth_world or not self.on_robot else f"{ROBOT_BACKEND} {self.target[1]}"
+        place = self.spec.world if self.truth_world or not self.on_robot else f"{self.backend} {self.target[1]}"
         title = f"{place} - {run.explorer.__class__.__name__} - {run.metrics.path_length:.1f} m"
         geo = run.grid.geo
         if self.scaling is None:
             base = float(map_layout(geo, scale=None, title=title).scale)
         else:
             base = self.scaling * geo.cell * 1000.0       # px/mm -> px per cell
-        scale = max(1, round(base * self.zoom))
+        wanted = base * self.zoom
+        if not wanted * wanted * geo.rows * geo.cols <= MAX_IMAGE_PIXELS:     # inf and nan refused too
+            raise ScriptError(f"mapView: the map image would be {geo.cols * wanted:.3g} x {geo.rows * wanted:.3g} px, "
+                              f"more than {MAX_IMAGE_PIXELS:.0e} pixels; lower mapView.setMapScaling or zoomOut")
+        scale = max(1, round(wanted))
         image = map_image(run, title, show, scale=scale, path=self.show["path"])
         state = run.state
         if self.show["tracking"] and state is not None:
@@ -356,6 +422,7 @@ class Session:
         Ignored (said once) when `robotexp run --world` was given: the script stays on the simulator.
         """
         (address,) = _args("robot.setAddress", "address", args, "s")
+        self.addresses.check(address, "robot.setAddress")
         target = parse_address(address)
         if target[0] != "sim" and self.forced_world and not self._told_forced:
             self.notice(f"robot.setAddress({address!r}): --world {self.spec.world} given, so the script "
@@ -368,6 +435,35 @@ class Session:
                 self.pose = None
             self._move_pending = self._moved and target[0] != "sim"
         self.address, self.target = address, target
+
+    def lua_robot__setLaser(self, *args: Any) -> None:
+        """A laser device "NAME:ADDRESS" (rplidar:/dev/ttyUSB0) mounted at (x [mm], y [mm], theta [deg]) on
+        the robot of robot.setAddress (default 0, 0, 0); nil: no laser of its own (the robot's).
+
+        Ignored (said once) when the script runs on the embedded simulator, which has its own laser.
+        """
+        from robotexp.laser import LASERS
+        from robotexp.laser_mount import check_laser_options, parse_laser_spec
+        from robotexp.registry import available
+
+        usage = "address, x_mm, y_mm, theta_deg"
+        if len(args) == 1 and args[0] is None:
+            self.finish()
+            self.laser = None
+            return
+        spec, *pose = _args("robot.setLaser", usage, args, "snnn" if len(args) > 1 else "s")
+        pose_text = ",".join(repr(float(v)) for v in pose) if pose else "0,0,0"
+        try:
+            check_laser_options(spec, pose_text)
+        except RobotexpError as exc:
+            raise ScriptError(f"robot.setLaser({spec!r}): {exc}") from None
+        name, address = parse_laser_spec(spec)
+        lasers = available(LASERS)
+        if name not in lasers:
+            raise ScriptError(f"robot.setLaser({spec!r}): unknown laser {name!r}; available: {', '.join(lasers)}")
+        self.addresses.check(address, "robot.setLaser")
+        self.finish()
+        self.laser = (spec, pose_text)
 
     def lua_robot__setMaxLaserRange(self, *args: Any) -> None:
         """Laser range [mm]."""
@@ -394,7 +490,11 @@ class Session:
         (name,) = _args("robot.setModel", "name", args, "s")
         if name not in PRESETS:
             raise ScriptError(f"robot.setModel({name!r}): unknown robot; available: {', '.join(PRESETS)}")
+        self.finish()
+        before = self.backend
         self.spec.robot = name
+        if self.backend != before:      # another protocol at the address: connect that at the next start
+            self.close()
 
     def lua_robot__moveMobileSim(self, *args: Any) -> None:
         """Place the simulated robot at (x [mm], y [mm], theta [deg]) and reset odometry there."""
@@ -463,8 +563,14 @@ class Session:
     def lua_exploration__setWorld(self, *args: Any) -> None:
         """A built-in world name, or a .map / .yaml file (relative to the output folder)."""
         (name,) = _args("exploration.setWorld", "name_or_file", args, "s")
-        if Path(name).suffix.lower() in (".map", ".yaml", ".yml"):
+        suffix = Path(name).suffix.lower()
+        if suffix in (".map", ".yaml", ".yml"):
             name = self.paths.resolve(name, "r", "exploration.setWorld")
+            if suffix != ".map" and self.paths.sandbox and Path(name).is_file():
+                from robotexp.world.rosmap import ros_image_path
+                # the image the YAML names must be inside the output folder too (checked before it is read)
+                image = os.path.abspath(ros_image_path(name))
+                self.paths.resolve(image, "r", f"exploration.setWorld({args[0]!r}): the map's image")
         self.finish()
         old = self.spec.world
         self.spec.world = name
@@ -516,9 +622,22 @@ class Session:
         """Check the settings and arm a run (wait() runs it)."""
         _args("exploration.start", "", args, "")
         self.finish()
+        if self.laser is not None and not self.on_robot and not self._told_laser:
+            self.notice(f"robot.setLaser({self.laser[0]!r}): the embedded simulator measures with its own laser; "
+                        "the laser is mounted on a robot at robot.setAddress")
+            self._told_laser = True
         if self.on_robot:
             self._robot()
         self.armed = self._spec()
+
+    def lua_exploration__setRecordFolder(self, *args: Any) -> None:
+        """Record each following run as a ROS 2 bag, FOLDER/<run>.mcap (nil: stop recording)."""
+        if len(args) == 1 and args[0] is None:
+            self.record_folder = None
+            return
+        (folder,) = _args("exploration.setRecordFolder", "folder", args, "s")
+        self.record_folder = Path(self.paths.resolve(folder.rstrip("/") + "/run.mcap", "w",
+                                                     "exploration.setRecordFolder")).parent
 
     def lua_exploration__wait(self, *args: Any) -> None:
         """Run the armed exploration to its end (nothing when none is armed)."""

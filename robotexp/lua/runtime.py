@@ -11,7 +11,7 @@ import logging
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,11 +20,16 @@ from typing import Any
 
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
-from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, PathPolicy
+from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
+from robotexp.observers import RunObserver
+from robotexp.record import RunRecord
 
-__all__ = ["ScriptResult", "run_script", "substitute_method"]
+__all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB"]
 
 log = logging.getLogger(__name__)
+
+SANDBOX_MAX_MEMORY_MB = 512     # [MB] the Lua memory limit under --sandbox when --max-memory is not given
+_RETIRED: list[Any] = []        # Lua states never closed (retire=True): closing runs __gc finalizers
 
 
 @dataclass
@@ -33,7 +38,7 @@ class ScriptResult:
     its runs (also in OUT/results.jsonl)."""
 
     exit_code: int = 0
-    records: list[dict[str, Any]] = field(default_factory=list)
+    records: list[RunRecord] = field(default_factory=list)
 
 
 def substitute_method(code: str, old: str, new: str) -> str:
@@ -62,12 +67,23 @@ def _plain(lua: Any, value: Any) -> Any:
     raise ScriptError(f"internal: a {type(value).__name__} cannot be given to a script")
 
 
-def _message(exc: BaseException) -> str:
+def _message(exc: BaseException, name: str, max_memory: int | None) -> str:
+    """The one-line message of a Lua error (never empty)."""
+    from lupa import LuaMemoryError  # type: ignore[import-untyped]
+
+    if isinstance(exc, LuaMemoryError):
+        limit = f"its memory limit of {max_memory / 2**20:g} MB" if max_memory else "the memory available"
+        return (f"{name}: out of memory: the script's Lua data reached {limit}; raise it with --max-memory MB "
+                "if the script needs more")
     text = str(exc)
     for prefix in ("error loading code: ",):
         if text.startswith(prefix):
             text = text[len(prefix):]
-    return text.split("\nstack traceback:", 1)[0].strip()
+    text = text.split("stack traceback:", 1)[0].strip()
+    if not text:
+        return (f"{name}: the script raised an error without a message (error(nil), error({{}}) or another "
+                "value that is not a string)")
+    return text
 
 
 @contextmanager
@@ -78,6 +94,8 @@ def _sigint_sets(control: Control) -> Iterator[None]:
         return
 
     def handler(signum: int, frame: FrameType | None) -> None:
+        if control.reason == "interrupted":
+            return          # a second Ctrl-C (or the supervisor's copy of the first) must not cut the cleanup
         control.reason = control.reason or "interrupted"
         raise KeyboardInterrupt
 
@@ -90,7 +108,10 @@ def _sigint_sets(control: Control) -> Iterator[None]:
 
 def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,
                timeout: float | None = None, code: str | None = None,
-               emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning) -> ScriptResult:
+               emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
+               max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
+               retire: bool = False, observers: Sequence[RunObserver] = (),
+               record: Path | None = None) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -107,15 +128,25 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         code: the script text (default: read from `path`).
         emit: receives each line the script prints.
         notice: receives notices for the user (e.g. the simulator replaces the address).
+        max_memory: [bytes] limit of the script's Lua memory (None: no limit; --sandbox gives
+            `SANDBOX_MAX_MEMORY_MB` by default at the command line).
+        allow_addresses: with `sandbox`, the robot addresses the script may open besides the simulator.
+        retire: never close the Lua state (closing runs the script's __gc finalizers, which could
+            loop); for a process that exits right after.
+        observers: told about each of the script's runs (a live view).
+        record: a folder where each run is also written as a ROS 2 bag, <run>.mcap (as the script's
+            `exploration.setRecordFolder` does; the script may change it).
 
     Returns:
         The exit status and the records of the script's runs.
 
     Raises:
-        ScriptError: syntax or runtime error (script:line: message), a bad API call, --timeout.
+        ScriptError: syntax or runtime error (script:line: message), a bad API call, --timeout,
+            the memory limit.
+        ConfigError: an allowed address that is not a host[:port] or a device path; max_memory < 1 MB.
         KeyboardInterrupt: Ctrl-C, after the robot is stopped and the runs so far are written.
     """
-    from lupa import LuaError, LuaRuntime  # type: ignore[import-untyped]
+    from lupa import LuaError, LuaRuntime
 
     if timeout is not None and not timeout > 0:
         raise ScriptError(f"--timeout must be > 0 s, got {timeout:g}")
@@ -125,12 +156,18 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             code = path.read_text(encoding="utf-8")
         except OSError as exc:
             raise ScriptError(f"{path}: cannot read the script ({exc.strerror or exc})") from exc
+    if max_memory is not None and max_memory < 2**20:
+        raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
+    addresses = AddressPolicy(sandbox, allow_addresses)
     control = Control(timeout, time.monotonic)
     paths = PathPolicy(out, sandbox)
     session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
-                      script=name)
+                      script=name, addresses=addresses, observers=observers)
+    session.record_folder = record
     lua = LuaRuntime(register_eval=False, register_builtins=False, unpack_returned_tuples=True,
-                     attribute_filter=_refuse_attribute)
+                     attribute_filter=_refuse_attribute, max_memory=max_memory)
+    if retire:
+        _RETIRED.append(lua)
     g = lua.globals()
     g.python = None
     lua.execute("package.loaded.python = nil")
@@ -140,10 +177,12 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             control.exit_code = 0
         elif code_value is False:
             control.exit_code = 1
-        elif isinstance(code_value, int):
+        elif isinstance(code_value, int) and 0 <= code_value <= 255:
             control.exit_code = code_value
         else:
-            raise ScriptError("os.exit([code]): expected an integer or a boolean")
+            shown = code_value if isinstance(code_value, (int, float)) else lua_kind(code_value)
+            raise ScriptError(f"os.exit([code]): expected an integer 0..255 or a boolean, got {shown} "
+                              "(an exit status is one byte: 256 would read as 0, success)")
         control.reason = control.reason or "exit"
 
     def lua_function(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -169,7 +208,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         except LuaError as exc:
             if _stopped(control, name, session):
                 return ScriptResult(control.exit_code, session.records)
-            raise ScriptError(_message(exc)) from None
+            raise ScriptError(_message(exc, name, max_memory)) from None
         except KeyboardInterrupt:
             control.reason = control.reason or "interrupted"
             _stopped(control, name, session)

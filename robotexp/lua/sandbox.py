@@ -5,24 +5,101 @@ relative to the output folder, as if the script ran there. With `--sandbox` a pa
 resolve (symbolic links followed) inside that folder, and os.execute, io.popen, os.tmpname,
 package.loadlib, C-module searchers, binary chunks and most of `debug` are refused.
 
+A robot address a script gives (robot.setAddress) goes through `AddressPolicy`: with `--sandbox`
+only "" / "sim" or an address the user named on the command line (`--allow-address`, a host:port
+or a device path) is accepted, never a pyserial URL (spy:// writes files, socket:// and
+rfc2217:// reach the network, loop:// / alt:// / hwgrep:// / cp2110:// pick devices).
+
 The prelude also installs the interrupt hook: every `HOOK_EVERY` Lua instructions it asks Python
 whether the script must stop (Ctrl-C, --timeout, os.exit), and `pcall`, `xpcall` and
-`coroutine.resume` re-raise that stop so a script cannot swallow it.
+`coroutine.resume` re-raise that stop so a script cannot swallow it. The debug functions that
+reach into other functions (getupvalue, setupvalue, upvaluejoin, getlocal, setlocal,
+getregistry) refuse robotexp's own functions, so the raw sethook and the hook's state stay out of
+reach even without `--sandbox`. What the hook cannot see (a finalizer, a long pattern match, a
+message handler that loops) is stopped from outside: `robotexp run` runs the script in a child
+process and kills it at the deadline (`robotexp.lua.supervise`).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 from robotexp.errors import ScriptError
 
-__all__ = ["PathPolicy", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
+__all__ = ["AddressPolicy", "PathPolicy", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
 
 HOOK_EVERY = 10_000     # Lua instructions between two stop checks (~0.1 ms of Lua; ~1 % overhead)
 ABORT = "\x00robotexp: script stopped"   # the error value of a stop; never shown to the user
 
 _WRITE_MODES = ("w", "a", "+")
+_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
+_HOST = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.-]*$")
+_DEVICE = re.compile(r"^/[A-Za-z0-9_./+-]+$")
+DEFAULT_PORT = 8101     # a bare host is MobileSim's TCP port (as robotexp.lua.api.parse_address)
+
+
+def normal_address(address: str) -> str | None:
+    """`address` in one spelling ("host:port" or a resolved device path), or None when it is
+    neither a host[:port] nor a plain device path (a pyserial URL, a query, spaces, ...)."""
+    a = address.strip()
+    m = _HOST_PORT.match(a)
+    if m:
+        port = int(m.group(2))
+        return f"{m.group(1).lower()}:{port}" if 1 <= port <= 65535 else None
+    if _HOST.match(a):
+        return f"{a.lower()}:{DEFAULT_PORT}"
+    if _DEVICE.match(a) and "/../" not in a + "/":
+        return os.path.realpath(a)
+    return None
+
+
+class AddressPolicy:
+    """Which robot (and laser) addresses a script may open.
+
+    Without a sandbox every address is the script's to choose. With one, only "" / "sim" (the
+    embedded simulator) and the addresses of `allowed` (given by the user on the command line) are
+    accepted, compared in one spelling (`normal_address`): "host" is "host:8101", a device path is
+    compared after resolving its symbolic links. A pyserial URL is never accepted in a sandbox,
+    even when named: its handlers open files (spy://), sockets (socket://, rfc2217://) or search
+    devices (hwgrep://) on their own.
+
+    Args:
+        sandbox: apply the rule.
+        allowed: the addresses the user allowed (each a host[:port] or a device path).
+
+    Raises:
+        ConfigError: an allowed address that is not a host[:port] or a device path.
+    """
+
+    def __init__(self, sandbox: bool, allowed: tuple[str, ...] | list[str] = ()) -> None:
+        from robotexp.errors import ConfigError
+
+        self.sandbox = sandbox
+        self.allowed: dict[str, str] = {}
+        for a in allowed:
+            key = normal_address(a)
+            if key is None:
+                raise ConfigError(f"--allow-address {a!r}: expected host, host:port (port 1..65535) or a device "
+                                  "path such as /dev/ttyUSB0; pyserial URLs (socket://, spy://, ...) are never "
+                                  "allowed in a sandbox")
+            self.allowed[key] = a
+
+    def check(self, address: str, where: str) -> None:
+        """Accept `address` given by the script to `where`, or refuse it.
+
+        Raises:
+            ScriptError: (sandbox) the address is neither the simulator nor one the user allowed.
+        """
+        if not self.sandbox or address.strip() in ("", "sim"):
+            return
+        key = normal_address(address)
+        if key is None or key not in self.allowed:
+            named = ", ".join(sorted(self.allowed.values())) or "none"
+            raise ScriptError(f"{where}({address!r}): refused by --sandbox: a sandboxed script may use the "
+                              "simulator ('' or 'sim') or an address given with --allow-address "
+                              f"(allowed: {named})")
 
 
 class PathPolicy:
@@ -88,6 +165,8 @@ local check, resolve, refuse, emit, exit_request, api, methods, sandbox, every, 
 local pack, unpack, concat = table.pack, table.unpack, table.concat
 local raw_pcall, raw_xpcall, tostring, error, select, pairs, type = pcall, xpcall, tostring, error, select, pairs, type
 local sethook = debug.sethook
+local d_getupvalue, d_getinfo, d_setupvalue, d_upvaluejoin, d_getlocal, d_setlocal =
+    debug.getupvalue, debug.getinfo, debug.setupvalue, debug.upvaluejoin, debug.getlocal, debug.setlocal
 
 local stopping = false
 local function aborting()
@@ -195,11 +274,32 @@ if sandbox then
   os.tmpname = no("os.tmpname")
   io.popen = no("io.popen")
   package.loadlib = no("package.loadlib")
-  load = function(chunk, name, mode, env) return raw_load(chunk, name, "t", env) end
+  load = function(chunk, name, mode, ...)
+    if select("#", ...) == 0 then return raw_load(chunk, name, "t") end   -- no env: the globals
+    return raw_load(chunk, name, "t", (...))
+  end
+  os.getenv = function() return nil end     -- the user's environment is not the script's business
   package.cpath = ""
   package.path = out .. "/?.lua;" .. out .. "/?/init.lua"
   local preload = package.searchers[1]
-  local searchpath = package.searchpath
+  -- a file outside the output folder is "not found" whether or not it exists
+  local function searchpath(name, path, sep, rep)
+    if type(name) ~= "string" or type(path) ~= "string" then
+      error("package.searchpath(name, path): expected two strings", 2)
+    end
+    sep, rep = sep or ".", rep or "/"
+    if sep ~= "" then name = name:gsub(sep:gsub("%p", "%%%0"), (rep:gsub("%%", "%%%%"))) end
+    local tried = {}
+    for template in path:gmatch("[^;]+") do
+      local file = template:gsub("%?", (name:gsub("%%", "%%%%")))
+      local ok, full = raw_pcall(resolve, file, "r", "package.searchpath")
+      local f = ok and io_open(full, "r")
+      if f then f:close(); return file end
+      tried[#tried + 1] = "no file '" .. file .. "'"
+    end
+    return nil, concat(tried, "\n\t")
+  end
+  package.searchpath = searchpath
   package.searchers = {
     preload,
     function(name)
@@ -214,5 +314,80 @@ if sandbox then
   package.loaded.debug = debug
 elseif script_dir ~= "" then
   package.path = script_dir .. "/?.lua;" .. package.path
+end
+
+-- robotexp's own functions (the hook, its state, the wrappers) are closed to the debug library:
+-- every Lua function reachable from the globals now, and every one in their upvalues, was made
+-- here (the script has not run yet)
+local dbg = debug
+local guarded = setmetatable({}, {__mode = "k"})
+local seen = {}
+local function collect(v)
+  if seen[v] then return end
+  local kind = type(v)
+  if kind == "table" then
+    seen[v] = true
+    for _, x in pairs(v) do collect(x) end
+  elseif kind == "function" then
+    seen[v] = true
+    if d_getinfo(v, "S").what ~= "C" then guarded[v] = true end
+    local i = 1
+    while true do
+      local up, x = d_getupvalue(v, i)
+      if up == nil then break end
+      if type(x) == "function" then collect(x) end
+      i = i + 1
+    end
+  end
+end
+collect(_G)
+for _, f in ipairs({hook, aborting, wrap, pass, path_of}) do collect(f) end
+seen = nil
+if dbg.getupvalue then
+  local function closed(what, level)
+    error(what .. ": robotexp's own functions are closed to scripts (they stop the script on Ctrl-C and "
+          .. "--timeout)", level or 3)
+  end
+  -- the function running at a stack level given to getlocal/setlocal (1 = the caller of the wrapper)
+  local function frame(what, a, b)
+    local info
+    if type(a) == "thread" then
+      if type(b) == "number" then info = d_getinfo(a, b, "f") end
+    elseif type(a) == "number" then
+      info = d_getinfo(a + 2, "f")
+    end
+    if info and guarded[info.func] then closed(what, 4) end
+  end
+  dbg.getupvalue = function(f, n)
+    if guarded[f] then closed("debug.getupvalue") end
+    return d_getupvalue(f, n)
+  end
+  dbg.setupvalue = function(f, n, v)
+    if guarded[f] then closed("debug.setupvalue") end
+    return d_setupvalue(f, n, v)
+  end
+  dbg.upvaluejoin = function(f1, n1, f2, n2)
+    if guarded[f1] or guarded[f2] then closed("debug.upvaluejoin") end
+    return d_upvaluejoin(f1, n1, f2, n2)
+  end
+  -- getlocal / setlocal: refused on a frame of robotexp's own; a level counts from the caller
+  local function level_guarded(what, raw)
+    return function(a, b, ...)
+      frame(what, a, b)
+      if type(a) == "number" then
+        local r = pack(raw(a + 1, b, ...))
+        return unpack(r, 1, r.n)
+      end
+      return raw(a, b, ...)
+    end
+  end
+  dbg.getlocal = level_guarded("debug.getlocal", d_getlocal)
+  dbg.setlocal = level_guarded("debug.setlocal", d_setlocal)
+  dbg.getregistry = function()
+    error("debug.getregistry is reserved by robotexp (the registry holds the hook that stops scripts)", 2)
+  end
+  for _, name in ipairs({"getupvalue", "setupvalue", "upvaluejoin", "getlocal", "setlocal", "getregistry"}) do
+    guarded[dbg[name]] = true
+  end
 end
 """

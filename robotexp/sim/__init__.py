@@ -1,6 +1,16 @@
 """The embedded simulator: a pybullet world and the `SimRobot` backend (imports pybullet)."""
 
-from robotexp.sim.presets import PRESETS, LaserConfig, OdometryError, RobotPreset, SonarConfig, preset
+from robotexp.sim.presets import (
+    ODOMETRY_PRESETS,
+    PRESETS,
+    LaserConfig,
+    OdometryError,
+    RobotPreset,
+    SonarConfig,
+    odometry_error,
+    preset,
+)
 from robotexp.sim.robot import SimRobot, mounted_source
 
-__all__ = ["SimRobot", "mounted_source", "LaserConfig", "SonarConfig", "OdometryError", "RobotPreset", "PRESETS", "preset"]
+__all__ = ["SimRobot", "mounted_source", "LaserConfig", "SonarConfig", "OdometryError", "RobotPreset", "PRESETS",
+           "preset", "ODOMETRY_PRESETS", "odometry_error"]

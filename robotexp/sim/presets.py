@@ -11,8 +11,8 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.robot import Limits
 
-__all__ = ["LaserConfig", "SonarConfig", "OdometryError", "RobotPreset", "PRESETS", "preset", "P3DX_SONAR",
-           "P3DX_SONAR_ARIA"]
+__all__ = ["LaserConfig", "SonarConfig", "OdometryError", "ODOMETRY_PRESETS", "odometry_error", "RobotPreset",
+           "PRESETS", "preset", "P3DX_SONAR", "P3DX_SONAR_ARIA"]
 
 
 @dataclass(frozen=True)
@@ -86,20 +86,98 @@ class SonarConfig:
 
 @dataclass(frozen=True)
 class OdometryError:
-    """Odometry error model: a systematic wheel-diameter mismatch and random slip (both off by default).
+    """Odometry error model: systematic wheel-diameter mismatch, random slip and heading drift (all off
+    by default; `ODOMETRY_PRESETS` holds the documented robot figures).
 
-    `wheel_mismatch` is the relative diameter difference (right - left) / nominal, which makes a
-    straight command drift into a curve (the thesis's P3-DX); `slip_sigma` is the standard deviation
-    of the relative error of each wheel's travel per step.
+    `wheel_mismatch` is the relative diameter difference (right - left) / nominal. With `wheel_servo`
+    False the robot moves exactly as commanded and the mismatch bends what odometry believes; with
+    `wheel_servo` True the wheel speeds are servoed on the encoders, as the P3-DX and Kobuki firmware
+    do, so the encoders (and odometry) follow the command and the true path bends: a robot told to go
+    straight believes it goes straight and curves (the thesis's P3-DX). Either way the true path and
+    odometry differ by the same wheel model. `slip_sigma` is the standard deviation of the relative
+    error of each wheel's travel per step (random, not systematic). `heading_drift` [rad/m] is a
+    systematic heading error odometry accrues per metre travelled (a misaligned axle or a gyro bias).
     """
 
     wheel_mismatch: float = 0.0
     slip_sigma: float = 0.0
+    heading_drift: float = 0.0
+    wheel_servo: bool = False
 
     def __post_init__(self) -> None:
         if abs(self.wheel_mismatch) >= 0.5 or self.slip_sigma < 0:
             raise ConfigError("odometry: wheel_mismatch must be in (-0.5, 0.5) and slip_sigma >= 0, "
                               f"got {self.wheel_mismatch} and {self.slip_sigma}")
+        if not abs(self.heading_drift) < 1.0:
+            raise ConfigError(f"odometry: heading_drift must be in (-1, 1) rad/m, got {self.heading_drift}")
+
+    @property
+    def active(self) -> bool:
+        """True when the model makes any error at all."""
+        return bool(self.wheel_mismatch or self.slip_sigma or self.heading_drift)
+
+
+# Where the numbers come from (estimates are named as such):
+# - p3dx: the thesis (Ribacki 2011, 4.4.2) reports that its P3-DX's wheels differ in size so that it
+#   curves when told to go straight, large enough to make its real runs only qualitative, and that ARIA
+#   could not be calibrated; it gives no figure. Borenstein & Feng's UMBmark (1996) found uncalibrated
+#   differential robots with wheel-diameter ratios off by some tenths of a percent to about one
+#   percent; pneumatic tyres such as the P3-DX's change diameter with pressure and load. 1 % is our
+#   ESTIMATE at the large end of that range: commanded straight for 5 m, the true heading turns by
+#   5 * 0.01 / 0.33 = 0.15 rad (8.7 deg) and the end lies 0.38 m off the line. The slip (0.2 % per
+#   wheel per step) is an ESTIMATE for a carpeted office floor.
+# - kobuki: hard rubber wheels of fixed diameter and a factory-calibrated gyro that the driver uses
+#   for heading. The 0.2 % mismatch and 0.1 deg/m residual heading drift are ESTIMATES, an order of
+#   magnitude below the P3-DX, as users report for gyro-fused Kobuki odometry.
+ODOMETRY_PRESETS: dict[str, OdometryError] = {
+    "none": OdometryError(),
+    "p3dx": OdometryError(wheel_mismatch=0.01, slip_sigma=0.002, wheel_servo=True),
+    "kobuki": OdometryError(wheel_mismatch=0.002, slip_sigma=0.001, heading_drift=math.radians(0.1),
+                            wheel_servo=True),
+}
+
+_ODOMETRY_KEYS = {"mismatch": "wheel_mismatch", "slip": "slip_sigma", "drift": "heading_drift"}
+
+
+def odometry_error(spec: str) -> OdometryError:
+    """Parse an `--odometry-error` value: a preset name (`none`, `p3dx`, `kobuki`), optionally
+    followed by `:key=value,...` overrides, or the overrides alone (on the error-free model). Keys:
+    `mismatch` (relative wheel-diameter difference), `slip` (relative per-step sigma), `drift`
+    [deg/m], `servo` (0/1).
+
+    Examples: `p3dx`, `p3dx:mismatch=0.02`, `mismatch=0.005,drift=0.5,servo=1`.
+
+    Raises:
+        ConfigError: unknown preset or key, or a value that is not a number or out of range.
+    """
+    text = spec.strip()
+    name, _, rest = text.partition(":")
+    if "=" in name:
+        name, rest = "none", text
+    name = name.strip().lower() or "none"
+    if name not in ODOMETRY_PRESETS:
+        raise ConfigError(f"--odometry-error: unknown preset {name!r} (available: {', '.join(ODOMETRY_PRESETS)}; "
+                          "or key=value pairs: mismatch, slip, drift [deg/m], servo)")
+    changes: dict[str, object] = {}
+    for item in filter(None, (part.strip() for part in rest.split(","))):
+        key, eq, value = item.partition("=")
+        key = key.strip().lower()
+        if not eq or key not in (*_ODOMETRY_KEYS, "servo"):
+            raise ConfigError(f"--odometry-error: {item!r} is not key=value with key one of "
+                              f"{', '.join((*_ODOMETRY_KEYS, 'servo'))}")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ConfigError(f"--odometry-error: {key}={value!r} is not a number") from None
+        if not math.isfinite(number):
+            raise ConfigError(f"--odometry-error: {key}={value!r} is not a finite number")
+        if key == "servo":
+            changes["wheel_servo"] = bool(number)
+        elif key == "drift":
+            changes["heading_drift"] = math.radians(number)
+        else:
+            changes[_ODOMETRY_KEYS[key]] = number
+    return replace(ODOMETRY_PRESETS[name], **changes) if changes else ODOMETRY_PRESETS[name]  # type: ignore[arg-type]
 
 
 # The P3-DX sonar ring (ARIA p3dx.p): 8 front transducers, 8 rear, on a 0.2 m ring.

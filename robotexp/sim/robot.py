@@ -147,15 +147,16 @@ class SimRobot(Robot):
         lim = self.limits
         v = _approach(self._vel.v, self._cmd.v, lim.a_max * dt)
         w = _approach(self._vel.w, self._cmd.w, lim.alpha_max * dt)
+        vt, wt = self._wheel_motion(v, w)
         # split long steps so contacts are found close to where they happen
-        n = max(1, math.ceil(abs(v) * dt / (self.radius / 5)))
+        n = max(1, math.ceil(abs(vt) * dt / (self.radius / 5)))
         h = dt / n
         blocked = False
         for _ in range(n):
-            new = _integrate(self._true, v, w, h)
+            new = _integrate(self._true, vt, wt, h)
             self.engine.place_robot(new.x, new.y)
-            if v != 0.0 and self.engine.robot_collides():
-                new = self._last_free(v, w, h)      # stop where the robot touches
+            if vt != 0.0 and self.engine.robot_collides():
+                new = self._last_free(vt, wt, h)      # stop where the robot touches
                 self.engine.place_robot(new.x, new.y)
                 blocked = True
             self._odometry_step(self._true, new)
@@ -174,6 +175,18 @@ class SimRobot(Robot):
         self._vel = Twist(v, w)
         self.time += dt
         self._scan_cache = None
+
+    def _wheel_motion(self, v: float, w: float) -> tuple[float, float]:
+        """The true (v, w) of a robot whose wheels are servoed to the command on the encoders: each
+        wheel turns as commanded, and its travel on the ground is that times its true diameter over
+        the nominal one. Without `wheel_servo` the robot moves as commanded."""
+        err = self.odometry_error
+        if not (err.wheel_servo and err.wheel_mismatch):
+            return v, w
+        b = self.preset.wheel_base
+        vl = (v - w * b / 2) * (1.0 - err.wheel_mismatch / 2)
+        vr = (v + w * b / 2) * (1.0 + err.wheel_mismatch / 2)
+        return (vl + vr) / 2, (vr - vl) / b
 
     def _last_free(self, v: float, w: float, h: float) -> Pose:
         """The farthest pose along this sub-step that does not touch (bisection to ~h/64)."""
@@ -200,7 +213,7 @@ class SimRobot(Robot):
         err = self.odometry_error
         b = self.preset.wheel_base
         dl, dr = ds - dth * b / 2, ds + dth * b / 2
-        if err.wheel_mismatch or err.slip_sigma:
+        if err.active:
             # the encoders count turns of wheels of diameter (1 -+ m/2) nominal and odometry
             # converts them with the nominal one: a larger right wheel under-reads its travel
             dl /= 1.0 - err.wheel_mismatch / 2
@@ -209,6 +222,8 @@ class SimRobot(Robot):
                 dl *= 1.0 + self.rng.normal(0.0, err.slip_sigma)
                 dr *= 1.0 + self.rng.normal(0.0, err.slip_sigma)
         ods, odth = (dl + dr) / 2, (dr - dl) / b
+        if err.heading_drift:
+            odth += err.heading_drift * abs(ods)
         o = self._odom
         mid = o.theta + odth / 2
         self._odom = Pose(o.x + ods * math.cos(mid), o.y + ods * math.sin(mid), wrap_angle(o.theta + odth))
@@ -235,6 +250,11 @@ class SimRobot(Robot):
     def true_pose(self) -> Pose:
         """Where the robot really is (not what odometry believes)."""
         return self._true
+
+    @property
+    def commanded(self) -> Twist:
+        """The velocity command in force (clamped to `limits`; the robot accelerates towards it)."""
+        return self._cmd
 
     def mover_positions(self) -> list[tuple[float, float]]:
         """Where each mover is now [m]."""

@@ -251,8 +251,8 @@ def _cave(rng: np.random.Generator, w: float, h: float) -> npt.NDArray[np.bool_]
     rock = rng.random((br, bc)) < 0.42
     for _ in range(5):                           # 4-5 rule: rock where 5 of the 9 around are rock
         padded = np.pad(rock, 1, constant_values=True).astype(np.int8)
-        n = sum(padded[1 + dr:1 + dr + br, 1 + dc:1 + dc + bc] for dr in (-1, 0, 1) for dc in (-1, 0, 1))
-        rock = n >= 5
+        around = sum(padded[1 + dr:1 + dr + br, 1 + dc:1 + dc + bc] for dr in (-1, 0, 1) for dc in (-1, 0, 1))
+        rock = np.asarray(around >= 5)
     rock[0, :] = rock[-1, :] = rock[:, 0] = rock[:, -1] = True
     fine = np.kron(rock, np.ones((block, block), dtype=bool))
     # the robot's centre space: cells farther than DOOR_MIN/2 from rock; its largest 8-connected part,

@@ -13,11 +13,14 @@ from robotexp.world.model import World
 __all__ = ["parse_pose", "resolve_pose", "pose_name", "pose_text", "central_free_pose"]
 
 
+POSE_LIMIT_MM = 1e7     # [mm] |x|, |y| of a pose given as numbers (10 km: larger is a typo or an attack)
+
+
 def parse_pose(text: str) -> Pose:
     """Parse "x,y,theta" (mm, mm, degrees; theta optional) into a Pose in SI units.
 
     Raises:
-        ConfigError: not two or three finite numbers.
+        ConfigError: not two or three finite numbers, |x| or |y| over `POSE_LIMIT_MM`, or |theta| over 360 degrees.
     """
     parts = text.split(",")
     try:
@@ -30,6 +33,9 @@ def parse_pose(text: str) -> Pose:
     except ValueError:
         raise ConfigError(f"pose {text!r}: expected a pose name or x,y,theta in mm, mm, degrees "
                           "(e.g. -5000,7500,0)") from None
+    if max(abs(x), abs(y)) > POSE_LIMIT_MM or abs(th) > 360:
+        raise ConfigError(f"pose {text!r}: x and y must be within +-{POSE_LIMIT_MM:.0f} mm and theta within "
+                          "+-360 degrees")
     return Pose(x / 1000, y / 1000, math.radians(th))
 
 
@@ -55,8 +61,9 @@ def resolve_pose(world: World, pose: str | None, radius: float) -> tuple[Pose, s
             name = next(iter(world.poses))
             return world.poses[name], name
         return central_free_pose(world, radius), "centre"
-    if pose in world.poses:
-        return world.poses[pose], pose
+    name = _named(world, pose)
+    if name is not None:
+        return world.poses[name], name
     if "," not in pose:
         world.pose(pose)                    # raises: lists the names the world has
     p = parse_pose(pose)
@@ -67,7 +74,16 @@ def pose_name(world: World, pose: str | None) -> str | None:
     """The world's name for the start pose `pose` (a name, or None for the default), else None."""
     if pose is None:
         return None if world.home is not None or not world.poses else next(iter(world.poses))
-    return pose if pose in world.poses else None
+    return _named(world, pose)
+
+
+def _named(world: World, pose: str) -> str | None:
+    """The world's pose name `pose` stands for: itself, else the one name equal to it but for case
+    ("Home" and "home" are the same pose, as in campaigns and the CLI), else None."""
+    if pose in world.poses:
+        return pose
+    folded = [key for key in world.poses if key.casefold() == pose.casefold()]
+    return folded[0] if len(folded) == 1 else None
 
 
 def central_free_pose(world: World, radius: float) -> Pose:

@@ -451,3 +451,21 @@ def _classify(shade: npt.NDArray[np.float64], mode: str, negate: bool, free: flo
     values[p > occupied] = 100
     values[p < free] = 0
     return values
+
+
+def ros_image_path(yaml_path: str | os.PathLike[str]) -> Path:
+    """The image file a map YAML names (its `image` key, relative to the YAML's folder), unread.
+
+    Lets a caller check where the image is before `load_ros_grid` reads it (the Lua sandbox).
+
+    Raises:
+        WorldError: the YAML cannot be read or parsed, or has no non-empty `image` key.
+    """
+    src = str(yaml_path)
+    entries = _parse_yaml(_read_text(Path(yaml_path), src), src)
+    if "image" not in entries:
+        raise WorldError(f"{src}: missing key 'image', expected the map_server keys {', '.join(_REQUIRED)}")
+    image = _scalar(entries["image"], "image", src)
+    if not image:
+        raise WorldError(f"{src}:{entries['image'].line}: key 'image' is empty, expected an image file name")
+    return Path(yaml_path).parent / image

@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import pytest
 
-from robotexp.experiment import resolve_pose
+from robotexp.world.poses import resolve_pose
 from robotexp.robot import Pose
 from robotexp.world.model import World
 from robotexp_drivers.mavlink import constants as C

@@ -15,19 +15,28 @@ def test_no_python_escape_hatches(lua):
             lua(code)
 
 
-def test_attribute_walk_on_a_raw_python_function_is_refused(lua):
-    # a Python callable dug out of a wrapper's upvalues still shows no attributes
-    code = """
-local f
-for i = 1, 30 do
-  local _, v = debug.getupvalue(robot.setAddress, i)
-  if type(v) == "userdata" then f = v end
-end
-assert(f ~= nil, "no Python callable found")
-print(f.__class__)
-"""
-    with pytest.raises(ScriptError, match="scripts cannot reach Python attributes"):
+@pytest.mark.parametrize("code", [
+    "debug.getupvalue(robot.setAddress, 1)",                # the raw Python callable behind a wrapper
+    "debug.getupvalue(coroutine.create, 2)",                # the raw sethook
+    "debug.setupvalue(pcall, 1, function() end)",
+    "debug.upvaluejoin(pcall, 1, function() return x end, 1)",
+    "debug.getregistry()",                                  # the hook table
+    "local h = debug.gethook(); debug.getupvalue(h, 1)",    # the hook's state (the stop flag, the check)
+    # a local of robotexp's pcall (level 3: 1 the function, 2 Lua's own pcall); pcall returns the refusal
+    "local ok, e = pcall(function() debug.setlocal(3, 1, nil) end); error(e, 0)",
+])
+def test_debug_cannot_reach_robotexp_functions(lua, code):
+    # without --sandbox too: the raw sethook and the hook's state would let a script remove its stop
+    with pytest.raises(ScriptError, match=r"script.lua:1: debug.(getupvalue|setupvalue|upvaluejoin|getregistry|"
+                                          r"setlocal).*(closed to scripts|reserved by robotexp)"):
         lua(code)
+
+
+def test_debug_still_works_on_the_scripts_own_functions(lua):
+    lua("local a = 5; local function f() return a end\n"
+        "local n1, v1 = debug.getupvalue(f, 1); local n2, v2 = debug.getlocal(1, 1); print(n1, v1, n2, v2)\n"
+        "debug.setupvalue(f, 1, 6); print(f())")
+    assert lua.lines == ["a\t5\ta\t5", "6"]
 
 
 def test_debug_sethook_is_reserved(lua):

@@ -2,11 +2,11 @@
 
 `RPLidarLaser(address)` spins the motor (DTR low on the A1/A2 USB adapter; SET_MOTOR_PWM when
 asked), stops a scan left running (STOP), reads the identity (GET_INFO) and health (GET_HEALTH;
-a protection stop is reset once), then starts SCAN; a reader thread decodes the 5-byte nodes
-(`codec.ScanDecoder`), bins each turn to `beams` beams and stamps it when the next turn begins.
-The device measures clockwise from its front; scans come out in the laser frame (0 forward,
-counter-clockwise, metres; NaN: no node fell in that beam this turn). `close()` sends STOP and
-stops the motor. Protocol notes: docs/protocols/rplidar.md.
+a protection stop is reset once), then starts SCAN (or EXPRESS_SCAN); a reader thread decodes the
+5-byte nodes (`codec.ScanDecoder`; capsules: `codec.ExpressDecoder`), bins each turn to `beams`
+beams and stamps it when the next turn begins. The device measures clockwise from its front; scans
+come out in the laser frame (0 forward, counter-clockwise, metres; NaN: no node fell in that beam
+this turn). `close()` sends STOP and stops the motor. Protocol notes: docs/protocols/rplidar.md.
 """
 
 from __future__ import annotations
@@ -15,10 +15,21 @@ import struct
 import time
 from typing import ClassVar
 
+import numpy as np
+import numpy.typing as npt
+
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.rplidar import constants as C
-from robotexp_drivers.lasers.rplidar.codec import DeviceInfo, Health, ScanDecoder, geometry, parse_descriptor, request
+from robotexp_drivers.lasers.rplidar.codec import (
+    DeviceInfo,
+    ExpressDecoder,
+    Health,
+    ScanDecoder,
+    geometry,
+    parse_descriptor,
+    request,
+)
 
 __all__ = ["RPLidarLaser"]
 
@@ -30,7 +41,9 @@ class RPLidarLaser(StreamLaser):
         address: a serial device (/dev/ttyUSB0), or "host:port" / socket://host:port (a serial server).
         timeout: no complete turn for this long [s] fails the laser (ConnectionLost).
         baudrate: 115200 (A1, A2M8) or 256000 (A2M7/A2M12, A3).
-        beams: how many beams a turn is binned into (360: 1 deg, about the A1's samples per turn).
+        beams: how many beams a turn is binned into (default 360, 1 deg, about the A1's samples per
+            turn in SCAN; 720 with `express`).
+        express: stream EXPRESS_SCAN capsules (A1: 4000 samples/s) instead of SCAN nodes (2000/s).
         range_min, range_max: [m] the device's range (A1/A2: 0.15 .. 12 m).
         motor_pwm: send SET_MOTOR_PWM with this duty (0..1023) before scanning (A2/A3), None: don't.
         reply_timeout: how long to wait for each reply of the handshake [s].
@@ -44,9 +57,12 @@ class RPLidarLaser(StreamLaser):
 
     name: ClassVar[str] = "rplidar"
 
-    def __init__(self, address: str, *, timeout: float = 1.0, baudrate: int = C.BAUD_A1, beams: int = 360,
-                 range_min: float = C.A1_RANGE_MIN_MM / 1000.0, range_max: float = C.A1_RANGE_MAX_MM / 1000.0,
-                 motor_pwm: int | None = None, reply_timeout: float = 1.0) -> None:
+    def __init__(self, address: str, *, timeout: float = 1.0, baudrate: int = C.BAUD_A1, beams: int | None = None,
+                 express: bool = False, range_min: float = C.A1_RANGE_MIN_MM / 1000.0,
+                 range_max: float = C.A1_RANGE_MAX_MM / 1000.0, motor_pwm: int | None = None,
+                 reply_timeout: float = 1.0) -> None:
+        if beams is None:
+            beams = 720 if express else 360
         if not 8 <= beams <= 8192:
             raise ConfigError(f"rplidar: beams must be 8..8192, got {beams}")
         if not 0 <= range_min < range_max:
@@ -57,13 +73,15 @@ class RPLidarLaser(StreamLaser):
         self._pending = bytearray()
         self._link = LaserLink(self.name, address, baudrate=baudrate)
         try:
-            self._handshake(motor_pwm, reply_timeout)
+            self._handshake(motor_pwm, reply_timeout, express)
         except BaseException:
             self._link.close()
             raise
         # the period is nominal until turns arrive (A1 5.5 Hz)
         self.geometry = geometry(beams, range_min, range_max, 1 / 5.5)
-        self._decoder = ScanDecoder(beams, range_min=range_min)
+        self.express = express
+        self._decoder: ScanDecoder | ExpressDecoder = (ExpressDecoder(beams, range_min=range_min) if express
+                                                       else ScanDecoder(beams, range_min=range_min))
         self._last_turn: float | None = None
         self._start_reader(timeout)
 
@@ -81,10 +99,10 @@ class RPLidarLaser(StreamLaser):
         del self._pending[:n]
         return out
 
-    def _ask(self, cmd: int, dtype: int, length: int | None, mode: int, timeout: float) -> bytes:
+    def _ask(self, cmd: int, dtype: int, length: int | None, mode: int, timeout: float, payload: bytes = b"") -> bytes:
         """Send `cmd`, check the descriptor (type, length, send mode), return the data (b"" for a
         multiple response, whose data then streams)."""
-        self._link.write(request(cmd))
+        self._link.write(request(cmd, payload))
         deadline = time.monotonic() + timeout
         name = f"reply to 0x{cmd:02X}"
         # skip whatever precedes the descriptor (a scan still draining after STOP)
@@ -99,7 +117,7 @@ class RPLidarLaser(StreamLaser):
                                 f"{got_len}, mode {got_mode}; expected 0x{dtype:02X}, {length}, {mode}")
         return self._read_exact(got_len, deadline, name) if mode == C.SEND_MODE_SINGLE else b""
 
-    def _handshake(self, motor_pwm: int | None, reply_timeout: float) -> None:
+    def _handshake(self, motor_pwm: int | None, reply_timeout: float, express: bool) -> None:
         self._link.set_dtr(False)                       # spin the motor (A1/A2 USB adapter)
         if motor_pwm is not None:
             self._link.write(request(C.CMD_SET_MOTOR_PWM, struct.pack("<H", motor_pwm)))
@@ -120,7 +138,11 @@ class RPLidarLaser(StreamLaser):
             if self.health.status == C.HEALTH_ERROR:
                 raise ProtocolError(f"rplidar at {self.address!r} reports a hardware error (code "
                                     f"0x{self.health.error_code:04X}) that a reset did not clear")
-        self._ask(C.CMD_SCAN, C.ANS_TYPE_MEASUREMENT, C.NODE_LEN, C.SEND_MODE_MULTI, reply_timeout)
+        if express:
+            self._ask(C.CMD_EXPRESS_SCAN, C.ANS_TYPE_MEASUREMENT_CAPSULED, C.EXPRESS_CAPSULE_LEN, C.SEND_MODE_MULTI,
+                      reply_timeout, C.EXPRESS_PAYLOAD)
+        else:
+            self._ask(C.CMD_SCAN, C.ANS_TYPE_MEASUREMENT, C.NODE_LEN, C.SEND_MODE_MULTI, reply_timeout)
 
     # -- StreamLaser ---------------------------------------------------------------------------------
     def _on_data(self, data: bytes, now: float) -> None:
@@ -139,6 +161,14 @@ class RPLidarLaser(StreamLaser):
     def _stop_device(self) -> None:
         self._link.write(request(C.CMD_STOP))
         self._link.set_dtr(True)                        # stop the motor
+
+    def beam_offsets(self) -> npt.NDArray[np.float64]:
+        """When each beam of a turn was measured [s], relative to the turn's stamp (<= 0): the turn
+        sweeps clockwise from the front and ends when the next one begins (`robotexp.laser_mount`
+        places each echo from the robot pose at its beam's time)."""
+        g = self.geometry
+        cw = (-g.angles()) % (2 * np.pi)
+        return -(1.0 - cw / (2 * np.pi)) * g.period
 
     def describe(self) -> str:
         g = self.geometry

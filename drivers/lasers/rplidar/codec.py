@@ -24,7 +24,8 @@ from robotexp_drivers.lasers.rplidar import constants as C
 _RUN_MAX = 4096     # nodes checked at once
 
 __all__ = [
-    "DeviceInfo", "Health", "Node", "Request", "RequestDecoder", "ScanDecoder", "beam_index", "checksum",
+    "Capsule", "DeviceInfo", "ExpressDecoder", "Health", "Node", "Request", "RequestDecoder", "ScanDecoder",
+    "beam_index", "bin_turn", "checksum", "decode_capsule", "encode_capsule",
     "decode_node", "descriptor", "encode_node", "encode_scan", "geometry", "node_angles_cw", "parse_descriptor",
     "request",
 ]
@@ -215,7 +216,7 @@ def geometry(beams: int, range_min: float, range_max: float, period: float) -> L
     return LaserGeometry(-math.pi, 2 * math.pi / beams, beams, range_min, range_max, period)
 
 
-def beam_index(angle_q6: npt.NDArray[np.int64] | int, beams: int) -> npt.NDArray[np.int64]:
+def beam_index(angle_q6: npt.ArrayLike, beams: int) -> npt.NDArray[np.int64]:
     """The beam (see `geometry`) nearest to clockwise angles `angle_q6`."""
     ccw_deg = -np.asarray(angle_q6, np.float64) / C.ANGLE_Q6_PER_DEG
     return np.rint((ccw_deg + 180.0) * beams / 360.0).astype(np.int64) % beams
@@ -264,7 +265,53 @@ def encode_scan(ranges: npt.ArrayLike, *, quality: int = 47, first: int = 0, cou
     return out.tobytes()
 
 
-class ScanDecoder:
+class _Turns:
+    """What both stream decoders share: a turn's samples gathered in runs, split where a new turn
+    begins, and binned (`bin_turn`) when it ends."""
+
+    def _init_turns(self, who: str, beams: int, min_nodes: int | None, range_min: float) -> None:
+        if beams < 1:
+            raise ConfigError(f"rplidar {who}: beams must be >= 1, got {beams}")
+        self.beams = beams
+        self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
+        self.range_min = range_min
+        self._buffer = bytearray()
+        self._angles: list[npt.NDArray[np.generic]] = []     # the open turn's samples, in runs
+        self._dist: list[npt.NDArray[np.int64]] = []
+        self._in_turn = False
+        self.scans = 0
+        self.dropped_bytes = 0
+        self.short_turns = 0
+
+    def _add(self, angles_q6: npt.NDArray[np.generic], dist_q2: npt.NDArray[np.int64], starts: npt.NDArray[np.intp],
+             out: list[npt.NDArray[np.float64]]) -> None:
+        """Append a run of samples in which a new turn begins at each index of `starts`."""
+        begin = 0
+        for s in starts:
+            if self._in_turn:
+                self._angles.append(angles_q6[begin:s])
+                self._dist.append(dist_q2[begin:s])
+                done = self._finish()
+                if done is not None:
+                    out.append(done)
+            self._in_turn = True
+            begin = int(s)
+        if self._in_turn:
+            self._angles.append(angles_q6[begin:])
+            self._dist.append(dist_q2[begin:])
+
+    def _finish(self) -> npt.NDArray[np.float64] | None:
+        angles = np.concatenate(self._angles) if self._angles else np.zeros(0, np.int64)
+        dist_q2 = np.concatenate(self._dist) if self._dist else np.zeros(0, np.int64)
+        self._angles, self._dist = [], []
+        if angles.size < self.min_nodes:
+            self.short_turns += 1
+            return None
+        self.scans += 1
+        return bin_turn(angles, dist_q2, self.beams, self.range_min)
+
+
+class ScanDecoder(_Turns):
     """Incremental decoder of the SCAN node stream: feed it any bytes, get the ranges of every turn
     completed by them (a turn completes when the next turn's first node arrives).
 
@@ -283,19 +330,8 @@ class ScanDecoder:
     """
 
     def __init__(self, beams: int = 360, *, min_nodes: int | None = None, range_min: float = 0.0) -> None:
-        if beams < 1:
-            raise ConfigError(f"rplidar ScanDecoder: beams must be >= 1, got {beams}")
-        self.beams = beams
-        self.min_nodes = max(1, beams // 4) if min_nodes is None else min_nodes
-        self.range_min = range_min
-        self._buffer = bytearray()
-        self._angles: list[npt.NDArray[np.int64]] = []     # the open turn's nodes, in runs
-        self._dist: list[npt.NDArray[np.int64]] = []
-        self._in_turn = False
-        self.scans = 0
+        self._init_turns("ScanDecoder", beams, min_nodes, range_min)
         self.nodes = 0
-        self.dropped_bytes = 0
-        self.short_turns = 0
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[npt.NDArray[np.float64]]:
         """Append `data` to the stream; return the ranges [m] of the turns it completed, in order.
@@ -325,39 +361,143 @@ class ScanDecoder:
         angle = (b1 >> C.NODE_ANGLE_SHIFT) | (a[:, 2] << 7)
         ok = (((b0 ^ (b0 >> 1)) & 1) == 1) & ((b1 & C.NODE_CHECKBIT) == 1) & (angle < C.ANGLE_Q6_TURN)
         k = count if ok.all() else int(np.argmin(ok))
-        dist = a[:k, 3] | (a[:k, 4] << 8)
-        angle = angle[:k]
         self.nodes += k
-        begin = 0
-        for s in np.flatnonzero(b0[:k] & C.NODE_SYNCBIT):
-            if self._in_turn:
-                self._angles.append(angle[begin:s])
-                self._dist.append(dist[begin:s])
-                done = self._finish()
-                if done is not None:
-                    out.append(done)
-            self._in_turn = True
-            begin = int(s)
-        if self._in_turn:
-            self._angles.append(angle[begin:k])
-            self._dist.append(dist[begin:k])
+        self._add(angle[:k], a[:k, 3] | (a[:k, 4] << 8), np.flatnonzero(b0[:k] & C.NODE_SYNCBIT), out)
         return k
 
-    def _finish(self) -> npt.NDArray[np.float64] | None:
-        angles = np.concatenate(self._angles) if self._angles else np.zeros(0, np.int64)
-        dist_q2 = np.concatenate(self._dist) if self._dist else np.zeros(0, np.int64)
-        self._angles, self._dist = [], []
-        if angles.size < self.min_nodes:
-            self.short_turns += 1
-            return None
-        idx = beam_index(angles, self.beams)
-        d = dist_q2 / (1000.0 * C.DISTANCE_Q2_PER_MM)
-        d[d <= 0] = math.inf
-        d[d < self.range_min] = math.inf
-        ranges = np.full(self.beams, math.inf)
-        np.minimum.at(ranges, idx, d)
-        seen = np.zeros(self.beams, bool)
-        seen[idx] = True
-        ranges[~seen] = math.nan
-        self.scans += 1
-        return ranges
+
+def bin_turn(angles_q6: npt.ArrayLike, dist_q2: npt.ArrayLike, beams: int, range_min: float = 0.0
+             ) -> npt.NDArray[np.float64]:
+    """A turn's measurements (clockwise angles [1/64 deg], distances [1/4 mm]) binned to the nearest of
+    `beams` beams (`geometry`): the nearest echo per beam; inf where the nodes had no distance (or one
+    under `range_min` [m]); NaN where no node fell."""
+    angles = np.asarray(angles_q6, np.float64)
+    idx = beam_index(angles, beams)
+    d = np.asarray(dist_q2, np.float64) / (1000.0 * C.DISTANCE_Q2_PER_MM)
+    d[(d <= 0) | (d < range_min)] = math.inf
+    ranges = np.full(beams, math.inf)
+    np.minimum.at(ranges, idx, d)
+    seen = np.zeros(beams, bool)
+    seen[idx] = True
+    ranges[~seen] = math.nan
+    return ranges
+
+
+# --- express scan (legacy capsules) --------------------------------------------------------------------
+@dataclass(frozen=True)
+class Capsule:
+    """One EXPRESS_SCAN capsule: the start angle of its first sample, the start flag (first capsule
+    after the request), and 32 samples: distance [mm] (0: none) and angle compensation dθ [1/8 deg]."""
+
+    start_q6: int
+    new_scan: bool
+    distance_mm: tuple[int, ...]
+    dtheta_q3: tuple[int, ...]
+
+
+def encode_capsule(start_q6: int, new_scan: bool, distance_mm: npt.ArrayLike, dtheta_q3: npt.ArrayLike | None = None
+                   ) -> bytes:
+    """The 84 bytes of a capsule: sync nibbles 0xA / 0x5 around the XOR checksum of bytes 2..83, the
+    start angle (15 bits) with the start flag in bit 15, and 16 cabins of two samples: distance
+    [mm] << 2 | dθ bits 4-5 (u16 LE each), then both dθ's low nibbles.
+
+    Raises:
+        ConfigError: not 32 samples, or a distance or dθ that does not fit (14 / 6 bits).
+    """
+    d = np.asarray(distance_mm, np.int64).ravel()
+    t = np.zeros(C.EXPRESS_SAMPLES, np.int64) if dtheta_q3 is None else np.asarray(dtheta_q3, np.int64).ravel()
+    if d.size != C.EXPRESS_SAMPLES or t.size != C.EXPRESS_SAMPLES:
+        raise ConfigError(f"rplidar capsule: {C.EXPRESS_SAMPLES} samples needed, got {d.size} and {t.size}")
+    if d.min() < 0 or d.max() > C.EXPRESS_DISTANCE_MAX_MM or t.min() < 0 or t.max() > 63:
+        raise ConfigError("rplidar capsule: distances must be 0..16383 mm and dθ 0..63 (1/8 deg)")
+    body = bytearray(struct.pack("<H", (start_q6 & 0x7FFF) | (C.EXPRESS_SYNCBIT if new_scan else 0)))
+    for c in range(C.EXPRESS_CABINS):
+        d1, d2, t1, t2 = d[2 * c], d[2 * c + 1], t[2 * c], t[2 * c + 1]
+        body += struct.pack("<HHB", int(d1 << 2 | t1 >> 4), int(d2 << 2 | t2 >> 4), int((t1 & 0xF) | (t2 & 0xF) << 4))
+    cs = checksum(bytes(body))
+    return bytes((C.EXPRESS_SYNC_1 << 4 | cs & 0xF, C.EXPRESS_SYNC_2 << 4 | cs >> 4)) + bytes(body)
+
+
+def decode_capsule(data: bytes | bytearray, pos: int = 0) -> Capsule | None:
+    """The capsule at `data[pos:pos + 84]`, or None when its sync nibbles or checksum are wrong."""
+    if len(data) - pos < C.EXPRESS_CAPSULE_LEN:
+        return None
+    b0, b1 = data[pos], data[pos + 1]
+    if b0 >> 4 != C.EXPRESS_SYNC_1 or b1 >> 4 != C.EXPRESS_SYNC_2:
+        return None
+    body = bytes(data[pos + 2:pos + C.EXPRESS_CAPSULE_LEN])
+    if checksum(body) != (b0 & 0xF) | (b1 & 0xF) << 4:
+        return None
+    start = body[0] | body[1] << 8
+    cab = np.frombuffer(body, np.uint8, offset=2).reshape(C.EXPRESS_CABINS, 5).astype(np.int64)
+    w1, w2, off = cab[:, 0] | cab[:, 1] << 8, cab[:, 2] | cab[:, 3] << 8, cab[:, 4]
+    dist = np.stack([w1 >> 2, w2 >> 2], axis=1).ravel()
+    dtheta = np.stack([(off & 0xF) | (w1 & 0x3) << 4, (off >> 4) | (w2 & 0x3) << 4], axis=1).ravel()
+    return Capsule(start & 0x7FFF, bool(start & C.EXPRESS_SYNCBIT), tuple(int(x) for x in dist),
+                   tuple(int(x) for x in dtheta))
+
+
+class ExpressDecoder(_Turns):
+    """Incremental decoder of the EXPRESS_SCAN capsule stream, with the same output as `ScanDecoder`.
+
+    Sample k of capsule i lies at start_i + k * (start_{i+1} - start_i) / 32 - dθ_k (Slamtec's rule:
+    a capsule is decoded when the next one arrives); a turn ends where the sample angles wrap past
+    360 deg. A capsule with a bad sync or checksum is skipped byte by byte; one that carries the start
+    flag, or follows a step of more than `max_step` deg or half again the step before (a capsule was
+    lost), starts afresh: the capsule before it cannot be placed and its samples are left out.
+    `feed` never raises on any bytes.
+
+    Attributes:
+        scans: turns decoded.
+        capsules: valid capsules seen.
+        dropped_bytes: bytes skipped while resynchronising.
+        gaps: capsules dropped because the next one could not place them.
+        short_turns: turns dropped for having fewer than `min_nodes` samples.
+    """
+
+    def __init__(self, beams: int = 720, *, min_nodes: int | None = None, range_min: float = 0.0,
+                 max_step: float = 45.0) -> None:
+        self._init_turns("ExpressDecoder", beams, min_nodes, range_min)
+        self.max_step_q6 = max_step * C.ANGLE_Q6_PER_DEG
+        self._prev: Capsule | None = None
+        self._last_raw = -1.0
+        self._last_diff = 0
+        self.capsules = 0
+        self.gaps = 0
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[npt.NDArray[np.float64]]:
+        """Append `data` to the stream; return the ranges [m] of the turns it completed, in order."""
+        buf = self._buffer
+        buf += data
+        out: list[npt.NDArray[np.float64]] = []
+        pos = 0
+        while len(buf) - pos >= C.EXPRESS_CAPSULE_LEN:
+            cap = decode_capsule(buf, pos)
+            if cap is None:
+                pos += 1
+                self.dropped_bytes += 1
+                continue
+            pos += C.EXPRESS_CAPSULE_LEN
+            self.capsules += 1
+            self._place(cap, out)
+        del buf[:pos]
+        return out
+
+    def _place(self, cap: Capsule, out: list[npt.NDArray[np.float64]]) -> None:
+        prev, self._prev = self._prev, cap
+        if prev is None:
+            return
+        diff = (cap.start_q6 - prev.start_q6) % C.ANGLE_Q6_TURN
+        last, self._last_diff = self._last_diff, diff
+        # a capsule lost in between shows as a step much longer than the last one
+        if cap.new_scan or diff > self.max_step_q6 or (last > 0 and diff > 1.5 * last + C.ANGLE_Q6_PER_DEG):
+            self.gaps += 1
+            return
+        raw = prev.start_q6 + diff * np.arange(C.EXPRESS_SAMPLES) / C.EXPRESS_SAMPLES
+        raw_mod = raw % C.ANGLE_Q6_TURN
+        angles = (raw - 8.0 * np.array(prev.dtheta_q3)) % C.ANGLE_Q6_TURN
+        dist_q2 = np.array(prev.distance_mm, np.int64) * C.DISTANCE_Q2_PER_MM
+        # where the raw angle wraps past 360 deg a new turn begins
+        wraps = np.flatnonzero(np.diff(np.concatenate(([self._last_raw], raw_mod))) < 0)
+        self._last_raw = float(raw_mod[-1])
+        self._add(angles, dist_q2, wraps, out)

@@ -36,7 +36,7 @@ CMD_STOP: Final = 0x25              # no response
 CMD_RESET: Final = 0x40             # no response (the device reboots)
 CMD_SCAN: Final = 0x20              # multiple response: measurement nodes
 CMD_FORCE_SCAN: Final = 0x21        # the same without waiting for a stable motor speed
-CMD_EXPRESS_SCAN: Final = 0x82      # payload: mode + 4 reserved bytes (not emulated)
+CMD_EXPRESS_SCAN: Final = 0x82      # payload: working mode + 4 reserved bytes
 CMD_GET_INFO: Final = 0x50
 CMD_GET_HEALTH: Final = 0x52
 CMD_GET_SAMPLERATE: Final = 0x59
@@ -83,6 +83,21 @@ ANGLE_Q6_PER_DEG: Final = 64
 DISTANCE_Q2_PER_MM: Final = 4
 ANGLE_Q6_TURN: Final = 360 * 64     # angles at or past this are not valid
 QUALITY_MAX: Final = 63
+
+# --- express scan, legacy capsules [proto "EXPRESS_SCAN"; sdk _capsuleToNormal]: request payload
+# working mode 0 + 4 reserved bytes; descriptor A5 5A 54 00 00 40 82; 84-byte capsules:
+#   byte 0: 0xA << 4 | checksum bits 0-3; byte 1: 0x5 << 4 | checksum bits 4-7 (XOR of bytes 2..83)
+#   bytes 2-3: start angle q6 (15 bits) | start flag << 15 (first capsule after the request)
+#   16 cabins of 5 bytes: u16 distance1 [mm] << 2 | dθ1 bits 4-5, u16 distance2 << 2 | dθ2 bits 4-5,
+#   dθ1 bits 0-3 | dθ2 bits 0-3 << 4; dθ [1/8 deg] is subtracted from the sample's angle [sdk].
+EXPRESS_PAYLOAD: Final = bytes(5)
+EXPRESS_CAPSULE_LEN: Final = 84
+EXPRESS_SYNC_1: Final = 0xA
+EXPRESS_SYNC_2: Final = 0x5
+EXPRESS_SYNCBIT: Final = 1 << 15
+EXPRESS_CABINS: Final = 16
+EXPRESS_SAMPLES: Final = 32
+EXPRESS_DISTANCE_MAX_MM: Final = (1 << 14) - 1
 
 # --- models. A1M8 [cap]: model 24 (0x18; the SDK reads the series in the high nibble), firmware
 # 1.29, hardware 7; 508 us per sample in SCAN mode (1968 samples/s), 5.5 Hz typical, 0.15-12 m.

@@ -2,7 +2,9 @@
 pseudo-terminal (as the USB serial adapter) or TCP.
 
 It answers GET_INFO, GET_HEALTH and GET_SAMPLERATE, starts streaming on SCAN / FORCE_SCAN (the
-7-byte descriptor, then 5-byte nodes), stops on STOP and RESET, and takes SET_MOTOR_PWM. A turn
+7-byte descriptor, then 5-byte nodes) or EXPRESS_SCAN (84-byte capsules of 32 samples at the
+express sample time: an A1 turn of 720 samples, two capsules every 16 ms), stops on STOP and
+RESET, and takes SET_MOTOR_PWM. A turn
 is `samples` nodes (360 by default: one per degree) at the model's sample time (A1M8: 508 us, so a
 turn of 360 takes 0.183 s, 5.5 Hz), sent in pieces of `samples / 18` nodes as they are measured:
 each piece is measured by the source when it is sent, at the angles of its nodes.
@@ -10,9 +12,9 @@ each piece is measured by the source when it is sent, at the angles of its nodes
 Emulation choices (documented, not the firmware's): node angles fall exactly on the driver's beams
 (a real turn drifts by a fraction of a degree); no echo within 12 m is distance 0 with quality 0,
 an echo quality 47; RESET stops the stream without the boot banner a real device prints; DTR (the
-A1 adapter's motor line) does not exist on a pseudo-terminal and is not modelled; EXPRESS_SCAN is
-not served (the request is ignored). Serving, transports and fault injection are
-`robotexp_drivers.emulation.StreamEmulator`'s.
+A1 adapter's motor line) does not exist on a pseudo-terminal and is not modelled; express samples
+carry no angle compensation (dθ = 0) and the working mode of EXPRESS_SCAN is not read. Serving,
+transports and fault injection are `robotexp_drivers.emulation.StreamEmulator`'s.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from robotexp_drivers.lasers.rplidar.codec import (
     RequestDecoder,
     beam_index,
     descriptor,
+    encode_capsule,
     encode_scan,
     geometry,
     node_angles_cw,
@@ -42,6 +45,7 @@ from robotexp_drivers.lasers.rplidar.codec import (
 __all__ = ["RPLidarEmulator", "RPLidarModel", "MODELS"]
 
 PIECES_PER_TURN = 18
+CAPSULES_PER_STEP = 2       # express: 64 samples a step (16 ms on an A1)
 
 
 @dataclass(frozen=True)
@@ -107,7 +111,11 @@ class RPLidarEmulator(LaserEmulatorBase):
         self.turns_sent = 0
         self._decoder = RequestDecoder()
         self._scanning = False
+        self._express = False
         self._piece = 0
+        self._sample = 0            # express: samples sent since the request
+        # express: as many samples a turn as the sample times allow (A1: 720 at 254 us)
+        self.express_samples = round(samples * self.model.sample_us / self.model.express_us)
         # the laser-frame angle of each node of a turn, in sweep order
         g = geometry(samples, 0.0, self.model.range_max, 1.0)
         self._angles = g.angles()[beam_index(node_angles_cw(samples), samples)]
@@ -120,6 +128,8 @@ class RPLidarEmulator(LaserEmulatorBase):
 
     @property
     def _period(self) -> float:
+        if self._express:
+            return CAPSULES_PER_STEP * C.EXPRESS_SAMPLES * self.model.express_us * 1e-6 / self.speedup
         return self.period / PIECES_PER_TURN / self.speedup
 
     @property
@@ -137,6 +147,8 @@ class RPLidarEmulator(LaserEmulatorBase):
     def _step(self) -> bytes:
         if not self._scanning:
             return b""
+        if self._express:
+            return self._capsules()
         per = self.samples // PIECES_PER_TURN
         first = self._piece * per
         measured = self.source(self._angles[first:first + per], self.model.range_max)
@@ -147,6 +159,19 @@ class RPLidarEmulator(LaserEmulatorBase):
         if self._piece == 0:
             self.turns_sent += 1
         return encode_scan(ranges, first=first, count=per)
+
+    def _capsules(self) -> bytes:
+        """The next `CAPSULES_PER_STEP` express capsules, measured now; angle compensation 0."""
+        n = self.express_samples
+        out = bytearray()
+        for _ in range(CAPSULES_PER_STEP):
+            cw_q6 = np.rint((self._sample + np.arange(C.EXPRESS_SAMPLES)) % n * (C.ANGLE_Q6_TURN / n))
+            r = self.source(-np.radians(cw_q6 / C.ANGLE_Q6_PER_DEG), self.model.range_max)
+            ok = np.isfinite(r) & (r > 0)
+            mm = np.where(ok, np.clip(np.rint(np.where(ok, r, 0.0) * 1000.0), 1, C.EXPRESS_DISTANCE_MAX_MM), 0)
+            out += encode_capsule(int(cw_q6[0]), self._sample == 0, mm.astype(np.int64))
+            self._sample += C.EXPRESS_SAMPLES
+        return bytes(out)
 
     def _on_bytes(self, data: bytes) -> None:
         for req in self._decoder.feed(data):
@@ -163,11 +188,14 @@ class RPLidarEmulator(LaserEmulatorBase):
         if req.cmd == C.CMD_GET_SAMPLERATE:
             return (descriptor(C.SAMPLE_RATE_LEN, C.SEND_MODE_SINGLE, C.ANS_TYPE_SAMPLE_RATE)
                     + struct.pack("<HH", m.sample_us, m.express_us))
-        if req.cmd in (C.CMD_SCAN, C.CMD_FORCE_SCAN):
+        if req.cmd in (C.CMD_SCAN, C.CMD_FORCE_SCAN, C.CMD_EXPRESS_SCAN):
             if self.health.status == C.HEALTH_ERROR:
                 return b""                          # a protection stop: no scan until RESET
             self._scanning = True
-            self._piece = 0
+            self._express = req.cmd == C.CMD_EXPRESS_SCAN
+            self._piece = self._sample = 0
+            if self._express:
+                return descriptor(C.EXPRESS_CAPSULE_LEN, C.SEND_MODE_MULTI, C.ANS_TYPE_MEASUREMENT_CAPSULED)
             return descriptor(C.NODE_LEN, C.SEND_MODE_MULTI, C.ANS_TYPE_MEASUREMENT)
         if req.cmd == C.CMD_STOP:
             self._scanning = False

@@ -37,7 +37,7 @@ def test_driver_reads_the_emulated_urg04lx(served: tuple[HokuyoEmulator, BoxSour
         first = laser.wait_scan(-1, 1.0)
         later = laser.wait_scan(first.seq + 4, 1.0)
         # 10 Hz: 5 scans in ~0.5 s
-        assert 0.4 < later.stamp - first.stamp < 0.6
+        assert 0.35 < later.stamp - first.stamp < 0.65      # loose: 2 shared cores
         want = src.ranges(g.angles(), 4.0)
         got = later.scan.ranges
         assert np.array_equal(np.isfinite(got), np.isfinite(want))

@@ -45,6 +45,7 @@ def test_builders_make_the_documented_telegrams(name: str) -> None:
     assert k.crc16_reference(expected[:-2]) == expected[-2] | expected[-1] << 8
 
 
+@settings(deadline=None)       # the first call loads the numba kernel
 @given(st.binary(max_size=900))
 def test_crc_kernel_equals_reference(data: bytes) -> None:
     assert k.crc16(data) == k.crc16_reference(data)

@@ -232,7 +232,7 @@ def test_scan_rate_follows_the_line_rate_on_a_pty() -> None:
                     s = laser.wait_scan(s.seq, 2.0)
                 mean = (s.stamp - first.stamp) / (s.seq - first.seq)
                 assert laser.geometry.period == pytest.approx(period)
-                assert 0.9 * period <= mean <= 2.5 * period
+                assert 0.9 * period <= mean <= 5 * period          # never faster than the line; loaded hosts lag
 
 
 def test_driver_resends_after_a_nak(emulator: LMS2xxEmulator) -> None:

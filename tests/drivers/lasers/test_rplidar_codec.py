@@ -174,3 +174,77 @@ def test_vectorised_decoder_matches_the_node_by_node_reference(parts: list, step
     assert len(got) == len(want)
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w)
+
+
+def test_capsule_layout() -> None:
+    dist = np.arange(32) * 100 + 7
+    dtheta = np.arange(32) % 64
+    cap = k.encode_capsule(90 * 64 + 5, True, dist, dtheta)
+    assert len(cap) == 84 and cap[0] >> 4 == 0xA and cap[1] >> 4 == 0x5
+    assert (cap[0] & 0xF) | (cap[1] & 0xF) << 4 == k.checksum(cap[2:])
+    assert int.from_bytes(cap[2:4], "little") == 0x8000 | (90 * 64 + 5)
+    # first cabin: u16 distance1 << 2 | dθ1 >> 4, u16 distance2 << 2 | dθ2 >> 4, both low nibbles
+    assert cap[4:9] == bytes.fromhex("1c 00 ac 01 10")
+    # cabin 8: samples 16, 17 with dθ 16, 17 put their bit 4 in the distance words
+    assert cap[44:49] == bytes.fromhex("1d 19 ad 1a 10")
+    got = k.decode_capsule(cap)
+    assert got == k.Capsule(90 * 64 + 5, True, tuple(int(x) for x in dist), tuple(int(x) for x in dtheta))
+    spoilt = bytearray(cap)
+    spoilt[40] ^= 1
+    assert k.decode_capsule(bytes(spoilt)) is None
+    with pytest.raises(ConfigError):
+        k.encode_capsule(0, False, np.full(32, 16384))
+
+
+def test_express_sample_angles_follow_the_sdk_rule() -> None:
+    # sample j of capsule i: start_i + j * (start_{i+1} - start_i) / 32 - dθ_j / 8 deg
+    dtheta = np.zeros(32, np.int64)
+    dtheta[3] = 16                                           # 2 deg of compensation on sample 3
+    caps = [k.encode_capsule(s * 64, False, np.full(32, 1000), dtheta if s == 350 else None)
+            for s in (342, 350, 358, 6, 14)]
+    dec = k.ExpressDecoder(720, min_nodes=1)
+    dec.feed(b"".join(caps))
+    # the turn in progress began where the raw angles wrapped: at 360 deg = 358 + 8 * 8/32 (sample 8 of
+    # the third capsule); sample 3 of the second capsule lies at 350 + 3 * 0.25 - 2 = 348.75 deg
+    assert dec.capsules == 5 and dec.gaps == 0
+    assert np.concatenate(dec._angles)[0] == 0.0
+    out = k.ExpressDecoder(720, min_nodes=1)
+    first = out.feed(b"".join(caps[:2]))
+    assert first == [] and out._angles == []                 # no turn begun yet
+
+
+def test_express_round_trip_and_gap() -> None:
+    n = 720
+    rng = np.random.default_rng(3)
+    turn = rng.integers(150, 12000, n)
+    turn[::11] = 0
+    caps = []
+    for i in range(70):                                      # 3.1 turns of 720 samples
+        j = i * 32
+        idx = (j + np.arange(32)) % n
+        caps.append(k.encode_capsule(int(round(idx[0] * 23040 / n)), i == 0, turn[idx]))
+    dec = k.ExpressDecoder(n)
+    out = []
+    stream = b"".join(caps)
+    for i in range(0, len(stream), 50):
+        out += dec.feed(stream[i:i + 50])
+    assert len(out) == 2
+    want = np.where(turn > 0, turn / 1000.0, np.inf)[k.beam_index(k.node_angles_cw(n), n).argsort()]
+    for got in out:
+        np.testing.assert_array_equal(got, want)
+    # capsule 30 lost: capsule 29 cannot be placed; the turn misses their 64 samples (NaN), no more
+    dec2 = k.ExpressDecoder(n)
+    out2 = dec2.feed(b"".join(caps[:30] + caps[31:]))
+    assert dec2.gaps == 1 and len(out2) == 2
+    assert np.isnan(out2[0]).sum() == 64 and np.isnan(out2[1]).sum() == 0
+    fin = ~np.isnan(out2[0])
+    np.testing.assert_array_equal(out2[0][fin], want[fin])
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=1200), st.integers(1, 90))
+def test_express_decoder_never_raises(data: bytes, step: int) -> None:
+    dec = k.ExpressDecoder(72, min_nodes=1)
+    for i in range(0, len(data), step):
+        for r in dec.feed(data[i:i + step]):
+            assert r.shape == (72,)

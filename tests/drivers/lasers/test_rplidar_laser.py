@@ -15,7 +15,7 @@ from scan_sources import BoxSource, seconds_until_lost
 from robotexp.errors import ProtocolError
 from robotexp_drivers.lasers.rplidar import RPLidarLaser
 from robotexp_drivers.lasers.rplidar import constants as C
-from robotexp_drivers.lasers.rplidar.codec import Health
+from robotexp_drivers.lasers.rplidar.codec import Health, Request
 from robotexp_drivers.lasers.rplidar.emulator import RPLidarEmulator
 
 
@@ -35,8 +35,8 @@ def test_driver_reads_the_emulated_a1(served: tuple[RPLidarEmulator, BoxSource])
         assert g.beams == 360 and g.range_max == 12.0 and g.increment == pytest.approx(math.radians(1))
         first = laser.wait_scan(-1, 1.0)
         later = laser.wait_scan(first.seq + 4, 2.0)
-        # 360 samples of 508 us: 0.183 s a turn
-        assert (later.stamp - first.stamp) / (later.seq - first.seq) == pytest.approx(0.18288, rel=0.1)
+        # 360 samples of 508 us: 0.183 s a turn (loose: 2 shared cores)
+        assert (later.stamp - first.stamp) / (later.seq - first.seq) == pytest.approx(0.18288, rel=0.25)
         want = src.ranges(g.angles(), 12.0)
         got = later.scan.ranges
         assert np.all(np.isfinite(got)) and np.max(np.abs(got - want)) <= 0.000125 + 1e-9
@@ -52,7 +52,7 @@ def test_a2_at_high_speed_baud_and_motor_pwm() -> None:
         assert emu.motor_pwm == 660 and laser.info.model >> 4 == 2
         a = laser.wait_scan(laser.wait_scan(-1, 1.0).seq, 1.0)
         b = laser.wait_scan(a.seq + 3, 1.0)
-        assert (b.stamp - a.stamp) / 4 == pytest.approx(720 * 250e-6, rel=0.1)
+        assert (b.stamp - a.stamp) / 4 == pytest.approx(720 * 250e-6, rel=0.25)
         assert np.max(np.abs(b.scan.ranges - src.ranges(laser.geometry.angles(), 12.0))) <= 0.000125 + 1e-9
 
 
@@ -112,3 +112,16 @@ def test_driver_takes_over_a_lidar_left_scanning() -> None:
         time.sleep(0.3)
         with RPLidarLaser(emu.address) as laser:
             assert laser.wait_scan(-1, 1.0).scan.ranges.shape == (360,)
+
+
+def test_driver_reads_the_express_scan(served: tuple[RPLidarEmulator, BoxSource]) -> None:
+    emu, src = served
+    with RPLidarLaser(emu.address, express=True) as laser:
+        assert laser.geometry.beams == 720
+        first = laser.wait_scan(-1, 1.0)
+        later = laser.wait_scan(first.seq + 4, 2.0)
+        # 720 samples of 254 us a turn; turns end on capsule boundaries (+-2 capsules of 16 ms)
+        assert (later.stamp - first.stamp) / (later.seq - first.seq) == pytest.approx(0.18288, rel=0.25)
+        want = src.ranges(laser.geometry.angles(), 12.0)
+        assert np.max(np.abs(later.scan.ranges - want)) <= 0.0005 + 1e-9     # express: whole mm
+    assert emu.requests[-2] == Request(C.CMD_EXPRESS_SCAN, bytes(5)) and not emu.scanning

@@ -1,0 +1,351 @@
+"""Replay a recording: read a ROS 2 bag in MCAP (`read_bag`) and run its ticks through the run loop
+(`replay_bag`), so that the map and every metric come from the same code as a live run's.
+
+A recording made by `robotexp` (`robotexp.bag.recorder`) replays tick for tick: each /odom message is
+a tick, with the scan (/robotexp/scan, float64 as the run had it; else /scan) and /ground_truth of the
+same stamp; the grid takes the recorded geometry,
+model and range cap, and coverage is measured against the recorded ground truth (/ground_truth/map),
+or, at another cell size, against ground truth recomputed from the recorded world. A bag from a ROS 2
+robot (/scan and /odom, optionally /tf_static base_link -> laser) replays one tick per scan, with the
+newest odometry at or before the scan; it has no ground truth, so its coverage is n/a.
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import logging
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robotexp.bag.recorder import yaw_of
+from robotexp.clock import Clock, SimClock
+from robotexp.errors import ConfigError, WorldError
+from robotexp.explorer import Done, Explorer, ExplorerContext, ExplorationRun, RunInfo
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.groundtruth import GroundTruth
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.observers import RunObserver
+from robotexp.record import EndReason
+from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotState, Twist
+
+__all__ = ["Tick", "Bag", "read_bag", "replay_bag", "ReplayRobot", "ReplayExplorer"]
+
+log = logging.getLogger(__name__)
+
+FOREIGN_MARGIN = 1.0    # [m] a foreign bag's map reaches this far beyond its poses plus the laser range
+
+
+@dataclass
+class Tick:
+    """One control tick of a recording."""
+
+    time: float                     # [s] since the recording's first tick
+    pose: Pose                      # the pose the map used
+    velocity: Twist
+    scan: LaserScan | None = None   # the scan the map integrated at this tick
+    true_pose: Pose | None = None
+
+
+@dataclass
+class Bag:
+    """What a recording holds for a replay."""
+
+    path: Path
+    ticks: list[Tick]
+    meta: dict[str, Any] | None = None          # `robotexp.run` metadata (None: not made by robotexp)
+    record: dict[str, Any] | None = None        # the run's record (`robotexp.record` metadata)
+    truth: GroundTruth | None = None            # the recorded ground truth
+    topics: dict[str, str] = field(default_factory=dict)   # topic -> schema name
+
+
+def _pose(msg: Any) -> Pose:
+    p = msg.pose.pose
+    return Pose(float(p.position.x), float(p.position.y), yaw_of(p.orientation))
+
+
+def _scan(msg: Any, offset_x: float, yaw: float) -> LaserScan:
+    """A LaserScan of a sensor_msgs/LaserScan: NaN and readings below range_min dropped, readings
+    beyond range_max read as no echo (inf)."""
+    ranges = np.asarray(msg.ranges, np.float64)
+    n = len(ranges)
+    angles = msg.angle_min + np.arange(n, dtype=np.float64) * msg.angle_increment + yaw
+    rmax = float(msg.range_max)
+    ranges = np.where(ranges > rmax, np.inf, ranges)
+    keep = ~np.isnan(ranges) & (ranges >= msg.range_min)
+    return LaserScan(angles[keep], ranges[keep], rmax, offset_x)
+
+
+def _exact_scan(msg: Any) -> LaserScan:
+    """The LaserScan of a robotexp_msgs/ExactScan, exactly as it was recorded."""
+    ranges = np.asarray(msg.ranges, np.float64)
+    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else \
+        msg.angle_min + np.arange(len(ranges)) * msg.angle_increment
+    return LaserScan(angles, ranges, float(msg.range_max), float(msg.offset_x))
+
+
+def _mount(transforms: list[Any], frame: str) -> tuple[float, float]:
+    """The laser's offset ahead [m] and yaw [rad] on the robot from the static transform base_link (or
+    base_footprint) -> `frame` (0, 0 when there is none; a sideways offset is not modelled: warned)."""
+    for tf in transforms:
+        if tf.child_frame_id == frame and tf.header.frame_id in ("base_link", "base_footprint"):
+            t = tf.transform.translation
+            if abs(t.y) > 0.001:
+                log.warning("laser frame %r sits %.3f m sideways on the robot: replayed as if centred", frame, t.y)
+            return float(t.x), yaw_of(tf.transform.rotation)
+    return 0.0, 0.0
+
+
+def _grid_of(msg: Any) -> tuple[GridGeometry, np.ndarray[Any, Any]]:
+    info = msg.info
+    geo = GridGeometry(float(info.origin.position.x), float(info.origin.position.y), float(info.resolution),
+                       int(info.height), int(info.width))
+    return geo, np.asarray(msg.data, np.int8).reshape(geo.rows, geo.cols)
+
+
+def read_bag(path: Path) -> Bag:
+    """Read a recording (see the module's docstring).
+
+    Raises:
+        ConfigError: the file is missing, is not MCAP, or holds no /scan with /odom.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such recording; give an .mcap file (robotexp explore --record FILE.mcap)")
+    odom: list[tuple[int, Pose, Twist]] = []
+    scans: list[tuple[int, Any]] = []
+    exact: dict[int, LaserScan] = {}
+    truths: dict[int, Pose] = {}
+    statics: list[Any] = []
+    truth_msg = None
+    meta = record = None
+    topics: dict[str, str] = {}
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for m in reader.iter_metadata():
+                if m.name == "robotexp.run":
+                    meta = json.loads(m.metadata["json"])
+                elif m.name == "robotexp.record":
+                    record = json.loads(m.metadata["json"])
+            f.seek(0)
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static", "/robotexp/scan"]
+            for schema, channel, message, msg in reader.iter_decoded_messages(topics=wanted, log_time_order=True):
+                topics[channel.topic] = schema.name if schema is not None else ""
+                t = message.log_time
+                if channel.topic == "/odom":
+                    v = msg.twist.twist
+                    odom.append((t, _pose(msg), Twist(float(v.linear.x), float(v.angular.z))))
+                elif channel.topic == "/scan":
+                    scans.append((t, msg))
+                elif channel.topic == "/robotexp/scan":
+                    exact[t] = _exact_scan(msg)
+                elif channel.topic == "/ground_truth":
+                    truths[t] = _pose(msg)
+                elif channel.topic == "/ground_truth/map":
+                    truth_msg = msg
+                elif channel.topic == "/tf_static":
+                    statics.extend(msg.transforms)
+    except (McapError, OSError, ValueError, KeyError) as exc:
+        raise ConfigError(f"{path}: not a readable MCAP recording ({type(exc).__name__}: {exc})") from None
+    if not odom or not scans:
+        raise ConfigError(f"{path}: a replay needs /scan (sensor_msgs/LaserScan) and /odom (nav_msgs/Odometry); "
+                          f"this recording has {', '.join(sorted(topics)) or 'neither'}")
+    offset_x, yaw = _mount(statics, scans[0][1].header.frame_id)
+    truth = None
+    if truth_msg is not None:
+        geo, states = _grid_of(truth_msg)
+        occupied = states == 100
+        explorable = states == 0
+        truth = GroundTruth(geo, occupied, explorable, explorable)
+    ticks: list[Tick] = []
+    if meta is not None:        # robotexp's own: one /odom per tick, scans and true poses at the same stamps
+        by_time = {t: msg for t, msg in scans}
+        t0 = odom[0][0]
+        for t, pose, vel in odom:
+            msg = by_time.get(t)
+            scan = exact.get(t) or (None if msg is None else _scan(msg, offset_x, yaw))
+            ticks.append(Tick((t - t0) / 1e9, pose, vel, scan, truths.get(t)))
+    else:                       # a robot's: one tick per scan, at the newest odometry up to its stamp
+        stamps = [t for t, _, _ in odom]
+        t0 = None
+        for t, msg in scans:
+            i = bisect.bisect_right(stamps, t) - 1
+            if i < 0:
+                continue
+            if t0 is None:
+                t0 = t
+            _, pose, vel = odom[i]
+            ticks.append(Tick((t - t0) / 1e9, pose, vel, _scan(msg, offset_x, yaw)))
+        if not ticks:
+            raise ConfigError(f"{path}: no /scan comes after the first /odom; nothing to replay")
+    return Bag(path, ticks, meta, record, truth, topics)
+
+
+class ReplayRobot(Robot):
+    """A robot that reads a recording's ticks in order (commands go nowhere). `on_last()` is called when
+    the last tick is read."""
+
+    name = "replay"
+    capabilities = frozenset({Capability.PACED_CLOCK})
+    replayed = True         # the live view paces it by robot time, as a simulator (robotexp.view.observer)
+
+    def __init__(self, ticks: list[Tick], *, radius: float = 0.25, model: str = "replay",
+                 final_extra: dict[str, float] | None = None,
+                 on_last: Callable[[], None] | None = None) -> None:
+        self.ticks = ticks
+        self.radius = radius
+        self._model = model
+        self.limits = Limits(10.0, 10.0, 100.0, 100.0)
+        self._i = 0
+        self._final_extra = dict(final_extra or {})
+        self.on_last = on_last
+        super().__init__()
+
+    @property
+    def model(self) -> str:
+        """The recorded robot's model."""
+        return self._model
+
+    def make_clock(self, period: float) -> Clock:
+        """A clock whose ticks take no time (the recording's stamps are the robot time)."""
+        return SimClock(period, lambda dt: None)
+
+    def _read(self) -> RobotState:
+        i = min(self._i, len(self.ticks) - 1)
+        self._i += 1
+        t = self.ticks[i]
+        last = i == len(self.ticks) - 1
+        if last and self.on_last is not None:
+            self.on_last()
+        return RobotState(time=t.time, pose=t.pose, velocity=t.velocity, laser=t.scan, true_pose=t.true_pose,
+                          extra=self._final_extra if last else {})
+
+    def _command(self, twist: Twist) -> None:
+        pass
+
+    def _close(self) -> None:
+        pass
+
+
+class ReplayExplorer(Explorer):
+    """Drives nothing: returns the recorded velocity until the last tick, then Done when the recorded
+    run ended explored."""
+
+    def __init__(self, robot: ReplayRobot, done_reason: str | None) -> None:
+        self.robot, self.done_reason = robot, done_reason
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Nothing to reset."""
+
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        """The recorded velocity; Done(reason) at the last tick of a run that ended explored."""
+        if self.robot._i >= len(self.robot.ticks) and self.done_reason is not None:
+            return Done(self.done_reason)
+        return state.velocity
+
+
+def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
+    """Ground truth on `geo`: the recorded one when it has that geometry, else recomputed from the
+    recorded world (None, with a warning, when that cannot be done)."""
+    t = bag.truth
+    if t is not None and (t.geo.rows, t.geo.cols) == (geo.rows, geo.cols) and \
+            max(abs(t.geo.origin_x - geo.origin_x), abs(t.geo.origin_y - geo.origin_y)) < 1e-6 * geo.cell + 1e-9 \
+            and abs(t.geo.cell - geo.cell) < 1e-6 * geo.cell:      # the message's resolution is a float32
+        return GroundTruth(geo, t.occupied, t.reachable, t.explorable)
+    meta = bag.meta
+    if meta is None or bag.truth is None or not meta.get("world_source") or meta.get("start") is None:
+        return None
+    from robotexp.mapping.groundtruth import ground_truth
+    from robotexp.world.loader import load_world
+
+    try:
+        world = load_world(meta["world_source"])
+        return ground_truth(world, geo, robot_radius=meta["radius_m"], laser_range=meta["laser_range_m"],
+                            start=Pose(*meta["start"]))
+    except (WorldError, ConfigError, OSError) as exc:
+        log.warning("%s: no ground truth at cell %g m (%s): coverage n/a", bag.path, geo.cell, exc)
+        return None
+
+
+def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: bool = True,
+               observers: Iterable[RunObserver] = ()) -> ExplorationRun:
+    """Rebuild the map and metrics of `bag` through the run loop and, with `out`, write the results
+    there as `robotexp explore` does (results.jsonl, CSVs, map files and images).
+
+    Args:
+        cell: [m] map cell (None: the recorded one; a foreign bag: 0.1).
+
+    Raises:
+        ConfigError: a cell size out of range.
+        OSError: the results could not be written.
+    """
+    from robotexp.results import ResultsWriter, run_id
+
+    if cell is not None and not 0.005 <= cell <= 2.0:
+        raise ConfigError(f"cell size must be within 5..2000 mm, got {cell * 1000:g} mm")
+    meta = bag.meta or {}
+    rec = bag.record or {}
+    scans = [t.scan for t in bag.ticks if t.scan is not None]
+    laser_range = meta.get("laser_range_m") or max(s.range_max for s in scans)
+    g = meta.get("grid")
+    if g is not None:
+        recorded = GridGeometry(g["origin_x"], g["origin_y"], g["cell"], g["rows"], g["cols"])
+        geo = recorded if cell is None or cell == recorded.cell else GridGeometry.covering(
+            recorded.origin_x, recorded.origin_y, recorded.origin_x + recorded.width,
+            recorded.origin_y + recorded.height, cell=cell)
+        model, range_max = g["model"], g["range_max"]
+    else:
+        xs = [t.pose.x for t in bag.ticks]
+        ys = [t.pose.y for t in bag.ticks]
+        r = laser_range + FOREIGN_MARGIN
+        geo = GridGeometry.covering(min(xs) - r, min(ys) - r, max(xs) + r, max(ys) + r, cell=cell or 0.1)
+        model, range_max = "logodds", None
+    grid = OccupancyGrid(geo, model=model, range_max=range_max)
+    truth = _truth_at(bag, geo)
+    end = EndReason.classify(bool(rec.get("completed")), str(rec.get("reason", ""))) if rec else EndReason.STOPPED
+    reason = str(rec.get("reason", "stopped: end of the recording")) if rec else "stopped: end of the recording"
+    run_box: list[ExplorationRun] = []
+
+    def on_last() -> None:
+        if end is not EndReason.EXPLORED and run_box:
+            run_box[0].request_stop(reason, EndReason.STOPPED if end is EndReason.UNKNOWN else end)
+
+    extra = {"collisions": float(rec["collisions"])} if rec.get("collisions") else {}
+    robot = ReplayRobot(bag.ticks, radius=meta.get("radius_m", 0.25), model=meta.get("robot") or "replay",
+                        final_extra=extra, on_last=on_last)
+    explorer = ReplayExplorer(robot, reason if end is EndReason.EXPLORED else None)
+    world = meta.get("world") or bag.path.stem
+    method = meta.get("method") or "replay"
+    pose = meta.get("pose") or "robot"
+    speed = meta.get("max_speed_m_s") or 0.0
+    info_extra: dict[str, Any] = {"replay_of": str(bag.path)}
+    if out is None:
+        name = meta.get("run") or f"{world}_{method}_{pose}"
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        name = run_id(world, method, pose, speed, int(meta.get("seed", 0)), out)
+    info = RunInfo(name=name, method=method, world=world, pose=pose, robot=robot.model, max_speed=speed,
+                   laser_range=laser_range, extra=info_extra)
+    chain: list[RunObserver] = [] if out is None else [ResultsWriter(out, image=image)]
+    chain.extend(observers)
+    last_t = bag.ticks[-1].time
+    run = ExplorationRun(robot, explorer, grid, truth=truth, period=meta.get("period_s", 0.1),
+                         max_time=last_t + 1.0,
+                         sample_period=meta.get("sample_period_s", 1.0), seed=int(meta.get("seed", 0)),
+                         info=info, observers=chain)
+    run_box.append(run)
+    with robot:
+        run.run()
+    for observer, exc in run.observer_errors:
+        if observer.critical:
+            raise exc
+    return run

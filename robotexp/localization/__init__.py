@@ -1,0 +1,16 @@
+"""Localization: scan-to-map matching that corrects odometry, and trajectory metrics."""
+
+from robotexp.localization.matcher import (
+    HitMap,
+    Localizer,
+    Match,
+    MatcherConfig,
+    ScanMatcher,
+    compose,
+    relative,
+    scan_points,
+)
+from robotexp.localization.metrics import ate, rigid_alignment
+
+__all__ = ["HitMap", "Localizer", "Match", "MatcherConfig", "ScanMatcher", "compose", "relative", "scan_points", "ate",
+           "rigid_alignment"]

@@ -1,0 +1,182 @@
+"""CARMEN laser logs: FLASER, ROBOTLASER1 and ODOM lines, plain or gzip-compressed.
+
+Line formats (CARMEN logger; lengths in m, angles in rad):
+
+- `FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta timestamp host logger_timestamp`: a front
+  laser of n beams from -90 deg, spaced as CARMEN guesses from n (1 deg for 180 or 181 beams,
+  0.5 deg for 360 or 361, 0.25 deg for 720 or 721, else 180 deg / (n - 1)); (x, y, theta) is the
+  laser's pose, (odom_*) the robot's odometry.
+- `ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode n r_1 .. r_n
+  m e_1 .. e_m laser_x laser_y laser_theta robot_x robot_y robot_theta tv rv forward side turn
+  timestamp host logger_timestamp`.
+- `ODOM x y theta tv rv accel timestamp host logger_timestamp`.
+
+Other lines (PARAM, NEFF, RAWLASER without a pose, comments) are ignored. A malformed line of a known
+kind is reported as `file:line: what` in `CarmenLog.problems` and skipped.
+"""
+
+from __future__ import annotations
+
+import gzip
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.robot import LaserScan, Pose
+
+__all__ = ["LogScan", "CarmenLog", "read_carmen", "flaser_angles", "format_flaser"]
+
+
+@dataclass(frozen=True)
+class LogScan:
+    """One laser reading of a log: beams, the laser's pose and the robot's odometry when it was taken.
+
+    Attributes:
+        stamp: [s] the reading's timestamp.
+        angles: [rad] beam angles relative to the laser's heading.
+        ranges: [m] the ranges as logged.
+        pose: the laser's pose (in a pose-corrected log, the corrected one).
+        odom: the robot's odometry pose.
+        range_max: [m] the laser's maximum range when the line gives it (ROBOTLASER1), else None.
+        line: the line number in the file (1-based).
+    """
+
+    stamp: float
+    angles: npt.NDArray[np.float64]
+    ranges: npt.NDArray[np.float64]
+    pose: Pose
+    odom: Pose
+    range_max: float | None
+    line: int
+
+    def scan(self, range_max: float, no_echo: float = math.inf) -> LaserScan:
+        """The reading as a `LaserScan` seen from `pose`: ranges at or beyond `no_echo` [m] (the sensor's
+        "nothing seen" value) become NaN (skipped), the others are capped at `range_max` [m]."""
+        r = self.ranges.astype(np.float64, copy=True)
+        r[~(r >= 0.0) | (r >= no_echo)] = np.nan
+        r[r >= range_max] = range_max
+        return LaserScan(self.angles, r, range_max, 0.0)
+
+
+@dataclass
+class CarmenLog:
+    """A parsed log: its laser readings in file order, the ODOM poses, PARAM values, and the problems."""
+
+    path: str
+    scans: list[LogScan] = field(default_factory=list)
+    odometry: list[tuple[float, Pose]] = field(default_factory=list)
+    params: dict[str, str] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+    def no_echo(self) -> float:
+        """[m] the range that means "no echo": the `robot_front_laser_max` PARAM when given; otherwise the
+        largest logged range when at least 0.5 % of all beams read exactly it (a saturated sensor);
+        else inf."""
+        value = self.params.get("robot_front_laser_max")
+        if value is not None:
+            try:
+                return float(value)
+            except ValueError:
+                pass
+        if not self.scans:
+            return math.inf
+        ranges = np.concatenate([s.ranges for s in self.scans])
+        top = float(ranges.max())
+        return top if np.count_nonzero(ranges == top) >= 0.005 * len(ranges) else math.inf
+
+
+_BEAM_STEPS = {180: 1.0, 181: 1.0, 360: 0.5, 361: 0.5, 720: 0.25, 721: 0.25}
+
+
+def flaser_angles(n: int) -> npt.NDArray[np.float64]:
+    """The beam angles [rad] of an n-beam FLASER line (see the module docstring)."""
+    step = _BEAM_STEPS.get(n, 180.0 / max(n - 1, 1))
+    return np.radians(-90.0 + step * np.arange(n))
+
+
+def _open(path: Path):  # type: ignore[no-untyped-def]
+    with open(path, "rb") as f:
+        magic = f.read(2)
+    if magic == b"\x1f\x8b":
+        return gzip.open(path, "rt", encoding="utf-8", errors="replace")
+    return open(path, encoding="utf-8", errors="replace")
+
+
+def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
+    """Read a CARMEN log (gzip detected by content, not name).
+
+    Raises:
+        ConfigError: the file cannot be read, or is not gzip-valid.
+    """
+    p = Path(path)
+    log = CarmenLog(str(p))
+    try:
+        with _open(p) as f:
+            for number, text in enumerate(f, 1):
+                _line(log, number, text)
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
+    except EOFError:
+        raise ConfigError(f"{p}: the gzip stream ends early: the file is truncated") from None
+    return log
+
+
+def _floats(fields: list[str], start: int, count: int) -> list[float]:
+    if start + count > len(fields):
+        raise ValueError(f"expected at least {start + count} fields, got {len(fields)}")
+    out = [float(v) for v in fields[start:start + count]]
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError("a number is not finite")
+    return out
+
+
+def _count(fields: list[str], i: int, what: str) -> int:
+    if i >= len(fields):
+        raise ValueError(f"missing {what}")
+    n = int(fields[i])
+    if n < 0 or n > 100_000:
+        raise ValueError(f"{what} {n} is out of range")
+    return n
+
+
+def _line(log: CarmenLog, number: int, text: str) -> None:
+    fields = text.split()
+    if not fields or fields[0].startswith("#"):
+        return
+    kind = fields[0]
+    try:
+        if kind == "FLASER":
+            n = _count(fields, 1, "beam count")
+            ranges = np.array(_floats(fields, 2, n))
+            x, y, th, ox, oy, oth, stamp = _floats(fields, 2 + n, 7)
+            log.scans.append(LogScan(stamp, flaser_angles(n), ranges, Pose(x, y, th), Pose(ox, oy, oth), None, number))
+        elif kind == "ROBOTLASER1":
+            start, _fov, res, rmax, _acc, _mode = _floats(fields, 2, 6)
+            n = _count(fields, 8, "beam count")
+            ranges = np.array(_floats(fields, 9, n))
+            m = _count(fields, 9 + n, "remission count")
+            k = 10 + n + m
+            lx, ly, lth, rx, ry, rth = _floats(fields, k, 6)
+            (stamp,) = _floats(fields, k + 11, 1)
+            angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
+            log.scans.append(LogScan(stamp, angles, ranges, Pose(lx, ly, lth), Pose(rx, ry, rth), rmax, number))
+        elif kind == "ODOM":
+            x, y, th, _tv, _rv, _acc, stamp = _floats(fields, 1, 7)
+            log.odometry.append((stamp, Pose(x, y, th)))
+        elif kind == "PARAM" and len(fields) >= 3:
+            log.params[fields[1]] = fields[2]
+    except ValueError as exc:
+        log.problems.append(f"{log.path}:{number}: malformed {kind} line skipped: {exc}")
+
+
+def format_flaser(ranges: npt.ArrayLike, pose: Pose, odom: Pose, stamp: float) -> str:
+    """One FLASER line (the inverse of the reader, for tests and converters)."""
+    r = np.asarray(ranges, np.float64)
+    values = " ".join(f"{v:.3f}" for v in r)
+    return (f"FLASER {len(r)} {values} {pose.x:.6f} {pose.y:.6f} {pose.theta:.6f} "
+            f"{odom.x:.6f} {odom.y:.6f} {odom.theta:.6f} {stamp:.6f} robotexp {stamp:.6f}")

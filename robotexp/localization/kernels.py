@@ -1,0 +1,318 @@
+"""Numba kernels of the scan matcher: likelihood field, correlative search, Gauss-Newton refinement.
+
+A likelihood field is a float64 (rows, cols) array over a `GridGeometry`: at each cell centre, a
+Gaussian of the distance to the nearest laser hit of the map (`splat_field`). Scan points are
+given in the robot frame as two float64 arrays `px`, `py` [m]; a pose (x, y, theta) maps point i to
+(x + c px - s py, y + s px + c py). Points outside the field score 0.
+
+`search` is the correlative matcher (Olson 2009): it scores every pose of a window of x, y offsets
+(multiples of a step of whole cells) and headings by the sum of the field under the points, looked
+up in the cell that holds each point, less a quadratic prior around the prediction (Olson's motion
+model: in a corridor or a symmetric room the nearest of the good poses wins). Run on a max-pooled
+field (`pool_max`) the scores bound the fine ones from above, which is what makes coarse-to-fine
+search sound. `refine` is Gauss-Newton on
+the bilinearly interpolated field (Kohlbrecher et al. 2011, Hector SLAM): it minimises
+sum_i (1 - M(S_i(pose)))^2 and returns the normal matrix, whose conditioning tells a corridor.
+
+Every kernel has a plain-numpy reference in `robotexp.localization.reference` (tested equal).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "search", "refine", "bilinear"]
+
+kernel = numba.njit(cache=True, nogil=True)
+
+DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace (the least Levenberg-Marquardt damping)
+RETRIES = 4        # tries of a step with ten times more damping each before Gauss-Newton stops
+
+
+@kernel
+def splat_field(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
+                cell: float, sigma: float, reach: int) -> npt.NDArray[np.float64]:
+    """The likelihood field of hit points: at each cell centre, exp(-d^2 / (2 sigma^2)) with d [m] the least
+    distance to the mean hit point of an occupied cell within `reach` cells (rows and columns) when
+    d <= reach + 0.5 cells, else 0; a cell's mean hit point lies (off_x, off_y) [cells] from its
+    centre (0, 0 when only the cell is known).
+
+    Matching against cell centres would pull a scan by up to half a cell towards the walls it faces
+    (a forward-looking laser sees most walls ahead); the hit points do not."""
+    rows, cols = occ.shape
+    d2 = np.full((rows, cols), np.inf)          # the least squared distance [cells^2], then its Gaussian
+    r2 = (reach + 0.5) * (reach + 0.5)          # nothing beyond the reach (the Gaussian is ~0 there anyway)
+    for r in range(rows):
+        for c in range(cols):
+            if not occ[r, c]:
+                continue
+            hx = c + off_x[r, c]
+            hy = r + off_y[r, c]
+            for rr in range(max(r - reach, 0), min(r + reach + 1, rows)):
+                dy = rr - hy
+                for cc in range(max(c - reach, 0), min(c + reach + 1, cols)):
+                    dx = cc - hx
+                    q = dx * dx + dy * dy
+                    if q < d2[rr, cc]:
+                        d2[rr, cc] = q
+    out = np.zeros((rows, cols), np.float64)
+    k = -cell * cell / (2.0 * sigma * sigma)
+    for r in range(rows):
+        for c in range(cols):
+            if d2[r, c] <= r2:
+                out[r, c] = math.exp(k * d2[r, c])
+    return out
+
+
+@kernel
+def pool_max(field: npt.NDArray[np.float64], factor: int) -> npt.NDArray[np.float64]:
+    """Max over blocks of factor x factor cells: coarse cell (R, C) covers fine rows R*f..R*f+f-1."""
+    rows, cols = field.shape
+    cr = (rows + factor - 1) // factor
+    cc = (cols + factor - 1) // factor
+    out = np.zeros((cr, cc), np.float64)
+    for r in range(rows):
+        for c in range(cols):
+            v = field[r, c]
+            if v > out[r // factor, c // factor]:
+                out[r // factor, c // factor] = v
+    return out
+
+
+@kernel
+def search(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+           px: npt.NDArray[np.float64], py: npt.NDArray[np.float64],
+           x0: float, y0: float, th0: float, nxy: int, step: int, nth: int, dth: float,
+           cx: float, cy: float, cth: float, kxy: float, kth: float,
+           ) -> tuple[float, float, float, float]:
+    """Best pose of the window x0 + i*step*cell, y0 + j*step*cell (|i|, |j| <= nxy), th0 + k*dth (|k| <= nth).
+
+    A pose scores the sum of the field under the points minus a prior penalty
+    kxy ((x - cx)^2 + (y - cy)^2) + kth (theta - cth)^2 around the prediction (cx, cy, cth).
+
+    Args:
+        field: the (pooled) field; cell (r, c) covers [ox + c cell, ox + (c+1) cell) in x.
+        ox, oy: [m] lower-left corner of the field.
+        cell: [m] the field's cell size.
+        px, py: [m] the scan points in the robot frame.
+        x0, y0, th0: the window's centre pose [m, m, rad].
+        nxy: half-width of the x and y window in steps.
+        step: the x, y step in cells of this field.
+        nth: half-width of the heading window in steps.
+        dth: [rad] the heading step.
+        cx, cy, cth: the prediction the prior is centred on.
+        kxy: [1/m^2] weight of the prior on position.
+        kth: [1/rad^2] weight of the prior on heading.
+
+    Returns:
+        (x, y, theta, score): the best pose and its score (penalised sum of the field). Ties
+        go to the pose nearest the centre (offsets in steps, squared), then the first in scan order.
+    """
+    n = px.shape[0]
+    rows, cols = field.shape
+    rr = np.empty(n, np.int64)
+    cc = np.empty(n, np.int64)
+    best = -1.0
+    best_d = 1 << 60
+    bx, by, bth = x0, y0, th0
+    span = nxy * step
+    for k in range(-nth, nth + 1):
+        th = th0 + k * dth
+        pen_th = kth * (th - cth) * (th - cth)
+        c, s = math.cos(th), math.sin(th)
+        for i in range(n):
+            cc[i] = math.floor((x0 + c * px[i] - s * py[i] - ox) / cell)
+            rr[i] = math.floor((y0 + s * px[i] + c * py[i] - oy) / cell)
+        for j in range(-span, span + 1, step):
+            for i2 in range(-span, span + 1, step):
+                ex = x0 + i2 * cell - cx
+                ey = y0 + j * cell - cy
+                total = -pen_th - kxy * (ex * ex + ey * ey)
+                for i in range(n):
+                    r = rr[i] + j
+                    q = cc[i] + i2
+                    if 0 <= r < rows and 0 <= q < cols:
+                        total += field[r, q]
+                d = (i2 // step) ** 2 + (j // step) ** 2 + k * k
+                if total > best + 1e-9 or (total > best - 1e-9 and d < best_d):
+                    best = total
+                    best_d = d
+                    bx = x0 + i2 * cell
+                    by = y0 + j * cell
+                    bth = th
+    return bx, by, bth, best
+
+
+@kernel
+def bilinear(field: npt.NDArray[np.float64], gx: float, gy: float) -> tuple[float, float, float]:
+    """Bilinear value and gradient [per cell] of `field` at grid coordinates (gx, gy) [cells].
+
+    Sample (r, c) sits at the centre of its cell, grid coordinates (c + 0.5, r + 0.5); outside the
+    samples the field is 0 (value and gradient)."""
+    rows, cols = field.shape
+    fx = gx - 0.5
+    fy = gy - 0.5
+    c0 = math.floor(fx)
+    r0 = math.floor(fy)
+    if c0 < 0 or r0 < 0 or c0 + 1 >= cols or r0 + 1 >= rows:
+        return 0.0, 0.0, 0.0
+    ax = fx - c0
+    ay = fy - r0
+    m00 = field[r0, c0]
+    m01 = field[r0, c0 + 1]
+    m10 = field[r0 + 1, c0]
+    m11 = field[r0 + 1, c0 + 1]
+    value = (1 - ay) * ((1 - ax) * m00 + ax * m01) + ay * ((1 - ax) * m10 + ax * m11)
+    dx = (1 - ay) * (m01 - m00) + ay * (m11 - m10)
+    dy = (1 - ax) * (m10 - m00) + ax * (m11 - m01)
+    return value, dx, dy
+
+
+@kernel
+def refine(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+           px: npt.NDArray[np.float64], py: npt.NDArray[np.float64],
+           x: float, y: float, th: float, iterations: int,
+           cx: float, cy: float, cth: float, wxy: float, wth: float,
+           ) -> tuple[float, float, float, float, npt.NDArray[np.float64]]:
+    """Gauss-Newton on sum_i (1 - M(S_i))^2 + wxy ((x - cx)^2 + (y - cy)^2) + wth (th - cth)^2 from
+    (x, y, th), at most `iterations` steps: the scan's fit plus a motion prior around the prediction
+    (cx, cy, cth), which holds the directions the scan does not fix (along a corridor) near it.
+
+    Levenberg-Marquardt: each step solves (H + lam trace(H) I) step = J^T r, lam starting at DAMPING; a
+    step that does not lower the cost is retried with lam ten times larger (RETRIES tries in all, then
+    the iterations end), an accepted one divides lam by ten (not below DAMPING). A step below 1e-5 m
+    and 1e-5 rad, or a zero normal matrix, ends them too.
+
+    Returns:
+        (x, y, th, mean, H): the refined pose, the mean field value under the points there, and the
+        3x3 normal matrix J^T J of the scan alone [x, y in m, theta in rad] at the last pose.
+    """
+    n = px.shape[0]
+    h = np.zeros((3, 3), np.float64)
+    cost = _cost(field, ox, oy, cell, px, py, x, y, th) + _prior(x, y, th, cx, cy, cth, wxy, wth)
+    lam = DAMPING
+    for _ in range(iterations):
+        h[:, :] = 0.0
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        c, s = math.cos(th), math.sin(th)
+        for i in range(n):
+            wx = x + c * px[i] - s * py[i]
+            wy = y + s * px[i] + c * py[i]
+            m, dx, dy = bilinear(field, (wx - ox) / cell, (wy - oy) / cell)
+            dx /= cell
+            dy /= cell
+            dth = dx * (-s * px[i] - c * py[i]) + dy * (c * px[i] - s * py[i])
+            res = 1.0 - m
+            g0 += dx * res
+            g1 += dy * res
+            g2 += dth * res
+            h[0, 0] += dx * dx
+            h[0, 1] += dx * dy
+            h[0, 2] += dx * dth
+            h[1, 1] += dy * dy
+            h[1, 2] += dy * dth
+            h[2, 2] += dth * dth
+        h[1, 0] = h[0, 1]
+        h[2, 0] = h[0, 2]
+        h[2, 1] = h[1, 2]
+        g0 -= wxy * (x - cx)
+        g1 -= wxy * (y - cy)
+        g2 -= wth * (th - cth)
+        # Levenberg-Marquardt: a little damping keeps a corridor's flat direction from blowing the step
+        # up; a step that raises the cost is retried with ten times the damping, up to RETRIES times
+        trace = h[0, 0] + h[1, 1] + h[2, 2] + 2.0 * wxy + wth
+        if trace == 0.0:
+            break
+        hp = h.copy()
+        hp[0, 0] += wxy
+        hp[1, 1] += wxy
+        hp[2, 2] += wth
+        hd = hp.copy()
+        accepted = False
+        s0 = s1 = s2 = 0.0
+        for _retry in range(RETRIES):
+            for d in range(3):
+                hd[d, d] = hp[d, d] + lam * trace
+            det = _det3(hd)
+            if not abs(det) > 1e-300:
+                break
+            s0, s1, s2 = _solve3(hd, det, g0, g1, g2)
+            new_cost = (_cost(field, ox, oy, cell, px, py, x + s0, y + s1, th + s2)
+                        + _prior(x + s0, y + s1, th + s2, cx, cy, cth, wxy, wth))
+            if new_cost < cost:
+                accepted = True
+                break
+            lam *= 10.0
+        if not accepted:
+            break
+        x, y, th, cost = x + s0, y + s1, th + s2, new_cost
+        lam = max(lam / 10.0, DAMPING)
+        if abs(s0) < 1e-5 and abs(s1) < 1e-5 and abs(s2) < 1e-5:
+            break
+    mean = mean_field(field, ox, oy, cell, px, py, x, y, th)
+    return x, y, th, mean, h
+
+
+@kernel
+def objective(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float, px: npt.NDArray[np.float64],
+              py: npt.NDArray[np.float64], x: float, y: float, th: float, cx: float, cy: float, cth: float,
+              wxy: float, wth: float) -> float:
+    """What `refine` minimises: sum_i (1 - M(S_i))^2 plus the motion prior."""
+    return _cost(field, ox, oy, cell, px, py, x, y, th) + _prior(x, y, th, cx, cy, cth, wxy, wth)
+
+
+@kernel
+def _prior(x: float, y: float, th: float, cx: float, cy: float, cth: float, wxy: float, wth: float) -> float:
+    return wxy * ((x - cx) * (x - cx) + (y - cy) * (y - cy)) + wth * (th - cth) * (th - cth)
+
+
+@kernel
+def _det3(h: npt.NDArray[np.float64]) -> float:
+    return (h[0, 0] * (h[1, 1] * h[2, 2] - h[1, 2] * h[2, 1]) - h[0, 1] * (h[1, 0] * h[2, 2] - h[1, 2] * h[2, 0])
+            + h[0, 2] * (h[1, 0] * h[2, 1] - h[1, 1] * h[2, 0]))
+
+
+@kernel
+def _solve3(h: npt.NDArray[np.float64], det: float, b0: float, b1: float, b2: float) -> tuple[float, float, float]:
+    """h x = b for a symmetric 3x3 h of determinant `det` (Cramer's rule; no LAPACK in a kernel)."""
+    x0 = (b0 * (h[1, 1] * h[2, 2] - h[1, 2] * h[2, 1]) - h[0, 1] * (b1 * h[2, 2] - h[1, 2] * b2)
+          + h[0, 2] * (b1 * h[2, 1] - h[1, 1] * b2)) / det
+    x1 = (h[0, 0] * (b1 * h[2, 2] - h[1, 2] * b2) - b0 * (h[1, 0] * h[2, 2] - h[1, 2] * h[2, 0])
+          + h[0, 2] * (h[1, 0] * b2 - b1 * h[2, 0])) / det
+    x2 = (h[0, 0] * (h[1, 1] * b2 - b1 * h[2, 1]) - h[0, 1] * (h[1, 0] * b2 - b1 * h[2, 0])
+          + b0 * (h[1, 0] * h[2, 1] - h[1, 1] * h[2, 0])) / det
+    return x0, x1, x2
+
+
+@kernel
+def _sums(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float
+          ) -> tuple[float, float]:
+    """Sum of the bilinear field under the points placed at (x, y, th), and sum of (1 - field)^2."""
+    c, s = math.cos(th), math.sin(th)
+    total = 0.0
+    squares = 0.0
+    for i in range(px.shape[0]):
+        m, _, _ = bilinear(field, (x + c * px[i] - s * py[i] - ox) / cell, (y + s * px[i] + c * py[i] - oy) / cell)
+        total += m
+        squares += (1.0 - m) * (1.0 - m)
+    return total, squares
+
+
+@kernel
+def _cost(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+          px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+    return _sums(field, ox, oy, cell, px, py, x, y, th)[1]
+
+
+@kernel
+def mean_field(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
+               px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
+    """The mean bilinear field value under the points placed at (x, y, th)."""
+    return _sums(field, ox, oy, cell, px, py, x, y, th)[0] / max(px.shape[0], 1)

@@ -1,0 +1,206 @@
+"""Loop closure, an optional stage after scan matching: a pose graph over the scan poses with the matched
+increments as edges, loop edges found by matching a scan against a submap of an earlier, nearby part
+of the path, and Gauss-Newton on the graph (Grisetti et al. 2010, "A tutorial on graph-based SLAM").
+
+Loop edges are only added when the scan fits the submap well and unambiguously (not a corridor), and
+the optimisation weighs them with a Cauchy kernel, so that a wrong one pulls little.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.localization.matcher import HitMap, MatcherConfig, ScanMatcher, relative, scan_points
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import LaserScan, Pose
+
+__all__ = ["Edge", "LoopConfig", "optimize", "find_loops", "close_loops"]
+
+
+@dataclass(frozen=True)
+class Edge:
+    """A measured pose of node j in the frame of node i, with its information matrix (3x3, inverse
+    covariance in x, y [m] and theta [rad]); `loop` edges get the robust kernel."""
+
+    i: int
+    j: int
+    z: Pose
+    info: npt.NDArray[np.float64]
+    loop: bool = False
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Loop-closure settings.
+
+    Attributes:
+        min_gap: a loop edge joins scans at least this many scans apart.
+        radius: [m] the earlier scan's estimated position lies within this of the current one.
+        every: try a loop closure at every `every`-th scan.
+        submap: scans on each side of the earlier scan that make its submap.
+        window_xy: [m] half-width of the search window (the drift a loop can correct).
+        window_theta: [rad] half-width of the heading window.
+        min_score: mean field value a loop match must reach.
+        min_conditioning: smallest / largest eigenvalue of the loop match's translation information
+            it must reach: along a corridor a loop match can slide by metres and still fit.
+        sigma_xy: [m] standard deviation of a matched increment's and a loop edge's position.
+        sigma_theta: [rad] the same for heading.
+        cauchy: [in standard deviations] scale of the Cauchy kernel on loop edges.
+        iterations: Gauss-Newton iterations on the graph.
+    """
+
+    min_gap: int = 40
+    radius: float = 4.0
+    every: int = 2
+    submap: int = 6
+    window_xy: float = 1.5
+    window_theta: float = math.radians(10.0)
+    min_score: float = 0.55
+    min_conditioning: float = 0.2
+    sigma_xy: float = 0.05
+    sigma_theta: float = math.radians(0.5)
+    cauchy: float = 3.0
+    iterations: int = 10
+
+    def __post_init__(self) -> None:
+        if self.min_gap < 1 or self.every < 1 or self.submap < 0 or self.iterations < 0:
+            raise ConfigError(f"loop closure: min_gap, every >= 1 and submap, iterations >= 0 expected, got {self}")
+        if not (self.radius > 0 and self.sigma_xy > 0 and self.sigma_theta > 0 and self.cauchy > 0):
+            raise ConfigError(f"loop closure: radius, sigmas and cauchy must be > 0, got {self}")
+
+
+def _info(cfg: LoopConfig) -> npt.NDArray[np.float64]:
+    return np.diag([cfg.sigma_xy ** -2, cfg.sigma_xy ** -2, cfg.sigma_theta ** -2])
+
+
+def _wrap(a: npt.NDArray[np.float64] | float) -> npt.NDArray[np.float64] | float:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def optimize(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int = 10, cauchy: float = 3.0
+             ) -> npt.NDArray[np.float64]:
+    """Gauss-Newton on the pose graph, node 0 held fixed; loop edges weighted by a Cauchy kernel of
+    scale `cauchy` (in units of their standard deviation) by iterative reweighting.
+
+    Args:
+        poses: (n, 3) initial [x, y, theta].
+        edges: the constraints.
+        iterations: at most this many steps (stops when the step is below 1e-6).
+        cauchy: the kernel's scale.
+
+    Returns:
+        (n, 3) optimised poses.
+
+    Raises:
+        ConfigError: an edge names a node outside 0..n-1.
+    """
+    x = np.array(poses, np.float64, copy=True)
+    n = len(x)
+    for e in edges:
+        if not (0 <= e.i < n and 0 <= e.j < n):
+            raise ConfigError(f"pose graph: edge {e.i} -> {e.j} outside the {n} nodes")
+    for _ in range(iterations):
+        h = np.zeros((3 * n, 3 * n))
+        b = np.zeros(3 * n)
+        for e in edges:
+            xi, xj = x[e.i], x[e.j]
+            ci, si = math.cos(xi[2]), math.sin(xi[2])
+            cz, sz = math.cos(e.z.theta), math.sin(e.z.theta)
+            ri_t = np.array([[ci, si], [-si, ci]])
+            rz_t = np.array([[cz, sz], [-sz, cz]])
+            dt = xj[:2] - xi[:2]
+            err = np.empty(3)
+            err[:2] = rz_t @ (ri_t @ dt - np.array([e.z.x, e.z.y]))
+            err[2] = _wrap(xj[2] - xi[2] - e.z.theta)
+            dri_t = np.array([[-si, ci], [-ci, -si]])
+            a = np.zeros((3, 3))
+            a[:2, :2] = -rz_t @ ri_t
+            a[:2, 2] = rz_t @ dri_t @ dt
+            a[2, 2] = -1.0
+            bj = np.zeros((3, 3))
+            bj[:2, :2] = rz_t @ ri_t
+            bj[2, 2] = 1.0
+            omega = e.info
+            if e.loop:
+                chi2 = float(err @ omega @ err)
+                omega = omega / (1.0 + chi2 / (cauchy * cauchy))
+            si_, sj_ = slice(3 * e.i, 3 * e.i + 3), slice(3 * e.j, 3 * e.j + 3)
+            h[si_, si_] += a.T @ omega @ a
+            h[si_, sj_] += a.T @ omega @ bj
+            h[sj_, si_] += bj.T @ omega @ a
+            h[sj_, sj_] += bj.T @ omega @ bj
+            b[si_] += a.T @ omega @ err
+            b[sj_] += bj.T @ omega @ err
+        h[:3, :3] += np.eye(3) * 1e12          # hold node 0
+        h += np.eye(3 * n) * 1e-9
+        step = np.linalg.solve(h, -b)
+        x += step.reshape(n, 3)
+        x[:, 2] = _wrap(x[:, 2])
+        if np.abs(step).max() < 1e-6:
+            break
+    return x
+
+
+def _submap(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], centre: int, k: int, cell: float,
+            reach: float) -> tuple[OccupancyGrid, HitMap]:
+    lo, hi = max(centre - k, 0), min(centre + k + 1, len(scans))
+    xy = poses[lo:hi, :2]
+    geo = GridGeometry.covering(float(xy[:, 0].min()), float(xy[:, 1].min()), float(xy[:, 0].max()),
+                                float(xy[:, 1].max()), cell, margin=reach)
+    grid = OccupancyGrid(geo, p_occ=0.9, p_free=0.4, range_max=reach)
+    hits = HitMap(geo)
+    for m in range(lo, hi):
+        grid.update(Pose(*poses[m]), scans[m])
+        hits.add(Pose(*poses[m]), scans[m], reach)
+    return grid, hits
+
+
+def find_loops(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], cell: float, matcher: MatcherConfig,
+               cfg: LoopConfig) -> list[Edge]:
+    """Loop edges: for every `cfg.every`-th scan, the nearest earlier scan at least `min_gap` before it
+    within `radius`; the scan is matched against that scan's submap and kept when the fit is good."""
+    out: list[Edge] = []
+    mcfg = MatcherConfig(sigma=matcher.sigma, window_xy=cfg.window_xy, window_theta=cfg.window_theta,
+                         coarse=matcher.coarse, iterations=matcher.iterations, range_max=matcher.range_max,
+                         min_points=matcher.min_points, min_score=cfg.min_score,
+                         degenerate_ratio=matcher.degenerate_ratio, prior=0.0,
+                         motion_sigma_xy=cfg.window_xy, motion_sigma_theta=cfg.window_theta)
+    sm = ScanMatcher(mcfg)
+    xy = poses[:, :2]
+    for i in range(cfg.min_gap, len(poses), cfg.every):
+        earlier = xy[: i - cfg.min_gap + 1]
+        d = np.hypot(*(earlier - xy[i]).T)
+        j = int(np.argmin(d))
+        if d[j] > cfg.radius:
+            continue
+        grid, hits = _submap(poses, scans, j, cfg.submap, cell, matcher.range_max + cfg.window_xy)
+        px, py = scan_points(scans[i], matcher.range_max)
+        m = sm.match(grid.values, grid.geo, px, py, Pose(*poses[i]), hits)
+        if m.status != "matched" or m.conditioning < cfg.min_conditioning:
+            continue
+        out.append(Edge(j, i, relative(Pose(*poses[j]), m.pose), _info(cfg), loop=True))
+    return out
+
+
+def close_loops(poses: npt.ArrayLike, scans: Sequence[LaserScan], *, cell: float, matcher: MatcherConfig,
+                cfg: LoopConfig | None = None, rounds: int = 2) -> tuple[npt.NDArray[np.float64], int]:
+    """The scan-matched path (n, 3) corrected by loop closure: sequential edges from the matched
+    increments, loop edges from `find_loops`, optimised; repeated `rounds` times (loops found on the
+    corrected path). Returns the corrected path and the number of loop edges of the last round."""
+    c = cfg or LoopConfig()
+    est = np.array(poses, np.float64, copy=True)
+    chain = [Edge(k, k + 1, relative(Pose(*est[k]), Pose(*est[k + 1])), _info(c)) for k in range(len(est) - 1)]
+    loops: list[Edge] = []
+    for _ in range(rounds):
+        loops = find_loops(est, scans, cell, matcher, c)
+        if not loops:
+            break
+        est = optimize(est, chain + loops, iterations=c.iterations, cauchy=c.cauchy)
+    return est, len(loops)

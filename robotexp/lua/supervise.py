@@ -1,0 +1,125 @@
+"""Run a Lua script in a child process that the parent stops from outside.
+
+The interrupt hook of the prelude stops a script only where Lua calls hooks: not inside a __gc
+finalizer, a long pattern match (`string.find(("a"):rep(40), ("a*"):rep(40) .. "b")`), a
+message handler that loops, or the finalizers Lua runs when its state is closed. `robotexp run`
+therefore runs the script in a child process (`python -m robotexp.lua.child`, the same command
+in-process) and watches it:
+
+- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress;
+- at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
+  (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
+  are; a timeout exits 1, Ctrl-C 130;
+- the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
+- the child's output is relayed line by line to the parent's stdout and stderr.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import IO
+
+import click
+
+from robotexp.lifeline import die_with_parent
+
+__all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE"]
+
+TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it writes the run it stopped)
+INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
+_POLL = 0.05            # [s]
+
+
+def _records(path: Path) -> int:
+    """Complete lines in a results file (0 when there is none)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read().count(b"\n")
+    except OSError:
+        return 0
+
+
+def _relay(stream: IO[bytes], err: bool) -> None:
+    for line in iter(stream.readline, b""):
+        click.echo(line, nl=False, err=err)
+    stream.close()
+
+
+def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
+              timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE) -> int:
+    """Run `robotexp run ARGS` in a child process; return its exit status (see the module docstring).
+
+    Args:
+        args: the `robotexp run` arguments (the script and its options; the child adds --child).
+        script: the script's name, for messages.
+        out: the output folder (results.jsonl).
+        timeout: [s] the script's --timeout, or None.
+        timeout_grace: [s] after `timeout` before the child is killed.
+        interrupt_grace: [s] after Ctrl-C before the child is killed.
+
+    Returns:
+        The exit status: the child's, 1 after a kill at the timeout, 130 after Ctrl-C.
+    """
+    results = out / "results.jsonl"
+    before = _records(results)
+    start = time.monotonic()
+    cmd = [sys.executable, "-m", "robotexp.lua.child", *args]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=die_with_parent)
+    relays = [threading.Thread(target=_relay, args=(s, e), daemon=True)
+              for s, e in ((proc.stdout, False), (proc.stderr, True))]
+    for t in relays:
+        t.start()
+    kill_at = None if timeout is None else start + timeout + timeout_grace
+    why: str | None = None          # "timeout" or "interrupted": the parent killed the child
+    interrupted = False
+    try:
+        while True:
+            try:
+                while proc.poll() is None:
+                    now = time.monotonic()
+                    if kill_at is not None and now >= kill_at:
+                        why = "interrupted" if interrupted else "timeout"
+                        proc.kill()
+                        proc.wait()
+                        break
+                    time.sleep(_POLL)
+                break
+            except KeyboardInterrupt:
+                interrupted = True
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)   # the child ignores a second one
+                limit = time.monotonic() + interrupt_grace
+                kill_at = limit if kill_at is None else min(kill_at, limit)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for t in relays:
+            t.join(timeout=2.0)
+    made = max(_records(results) - before, 0)
+    if why == "timeout":
+        click.echo(f"robotexp: error: {script}: stopped by --timeout after {timeout:g} s (it did not stop by "
+                   f"itself within {timeout_grace:g} s: killed); the {made} run(s) finished so far are in "
+                   f"{results}", err=True)
+        return 1
+    if interrupted:
+        if why == "interrupted":
+            click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of Ctrl-C: killed; the "
+                       f"{made} run(s) finished so far are in {results}", err=True)
+            click.echo("robotexp: interrupted", err=True)
+        # a child that ended by itself tells: 130 when Ctrl-C stopped its script, 0 when the script was
+        # over (`run --view` keeps its page up until Ctrl-C)
+        return proc.returncode if why is None and proc.returncode >= 0 else 130
+    code = proc.returncode
+    if code < 0:
+        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
+        click.echo(f"robotexp: error: {script}: the script's process was killed by {name} (out of memory? "
+                   f"see --max-memory); the {made} run(s) finished so far are in {results}", err=True)
+        return 1
+    return code

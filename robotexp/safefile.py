@@ -1,0 +1,177 @@
+"""Results that survive faults: JSON-lines appends that repair a torn tail, tolerant readers, and
+a lock on an output folder.
+
+- `append_line` takes an exclusive lock on the file, repairs a torn last line first (a run killed
+  or a disk filled while writing left bytes without their newline: they are moved to
+  `<file>.torn` and the repair is reported through `note`), writes the line, flushes and fsyncs
+  it; a write that fails (ENOSPC, EFBIG, ...) is undone (the file is cut back to its size before)
+  before the error is raised, so the file never holds half a record.
+- `read_records` returns every JSON object of the file and reports each line that is not one
+  (torn or damaged) instead of refusing the file.
+- `folder_lock` holds `OUT/.robotexp.lock` (fcntl.flock) while a campaign writes into OUT: a
+  second campaign into the same folder is refused with one line instead of running every run twice.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import json
+import logging
+import os
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from robotexp.errors import ConfigError
+
+__all__ = ["append_line", "read_records", "repair_tail", "folder_lock", "LOCK_NAME"]
+
+log = logging.getLogger(__name__)
+
+LOCK_NAME = ".robotexp.lock"
+
+
+def warn(text: str) -> None:
+    """The default `note`: one line on stderr, where the user sees it."""
+    print(f"robotexp: warning: {text}", file=sys.stderr, flush=True)
+
+
+def _repair_locked(fd: int, path: Path, note: Callable[[str], None]) -> bool:
+    """Cut a torn last line off the open file `fd` (lock held); True when there was one."""
+    size = os.fstat(fd).st_size
+    if size == 0:
+        return False
+    os.lseek(fd, size - 1, os.SEEK_SET)
+    if os.read(fd, 1) == b"\n":
+        return False
+    # find the start of the torn line: the byte after the last newline
+    block, end = 65536, size
+    start = 0
+    while end > 0:
+        begin = max(0, end - block)
+        os.lseek(fd, begin, os.SEEK_SET)
+        chunk = os.read(fd, end - begin)
+        i = chunk.rfind(b"\n")
+        if i >= 0:
+            start = begin + i + 1
+            break
+        end = begin
+    os.lseek(fd, start, os.SEEK_SET)
+    torn = os.read(fd, size - start)
+    with open(f"{path}.torn", "ab") as keep:
+        keep.write(torn + b"\n")
+    os.ftruncate(fd, start)
+    line = 1 + _count_newlines(fd, start)
+    note(f"{path}:{line}: a torn last line ({len(torn)} bytes, a run cut off while it was written) was moved "
+         f"to {path}.torn before appending")
+    return True
+
+
+def _count_newlines(fd: int, upto: int) -> int:
+    os.lseek(fd, 0, os.SEEK_SET)
+    n, left = 0, upto
+    while left > 0:
+        chunk = os.read(fd, min(left, 1 << 20))
+        if not chunk:
+            break
+        n += chunk.count(b"\n")
+        left -= len(chunk)
+    return n
+
+
+def repair_tail(path: Path, note: Callable[[str], None] = warn) -> bool:
+    """Repair a torn last line of `path` (see the module docstring); True when there was one."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        return _repair_locked(fd, path, note)
+    finally:
+        os.close(fd)
+
+
+def append_line(path: Path, record: dict[str, Any], note: Callable[[str], None] = warn) -> None:
+    """Append `record` as one JSON line to `path`, whole or not at all, and force it to disk.
+
+    Raises:
+        OSError: the write failed (the file is left as it was before the call).
+    """
+    data = (json.dumps(record, sort_keys=False) + "\n").encode("utf-8")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)     # workers of one campaign append to the same file
+        _repair_locked(fd, path, note)
+        size = os.fstat(fd).st_size
+        try:
+            os.lseek(fd, size, os.SEEK_SET)
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                if n <= 0:
+                    raise OSError(errno.EIO, "write returned 0")
+                view = view[n:]
+            os.fsync(fd)
+        except OSError:
+            try:
+                os.ftruncate(fd, size)      # never leave half a record behind
+            except OSError:
+                log.exception("%s: could not cut a failed append back", path)
+            raise
+    finally:
+        os.close(fd)
+
+
+def read_records(path: Path, note: Callable[[str], None] = warn) -> list[dict[str, Any]]:
+    """Every JSON object (one per line) of `path`; each other non-empty line is reported and skipped.
+
+    Raises:
+        OSError: the file cannot be read.
+    """
+    records: list[dict[str, Any]] = []
+    with open(path, "rb") as f:
+        for number, raw in enumerate(f, start=1):
+            line = raw.strip()
+            if not line:
+                continue
+            try:
+                value = json.loads(line.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                value = None
+            if not isinstance(value, dict):
+                what = "torn last line" if not raw.endswith(b"\n") else "line that is not a JSON record"
+                note(f"{path}:{number}: {what} skipped ({len(raw)} bytes)")
+                continue
+            records.append(value)
+    return records
+
+
+@contextmanager
+def folder_lock(out: Path, what: str) -> Iterator[None]:
+    """Hold the output folder `out` for `what` (e.g. "campaign thesis") while the block runs.
+
+    Raises:
+        ConfigError: another process holds the folder (its pid and task are named).
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / LOCK_NAME
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EACCES):
+                raise
+            holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
+            raise ConfigError(f"{out}: in use by {holder}; wait for it to finish or give another --out "
+                              "(two campaigns in one folder would run every run twice)") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{what} (pid {os.getpid()})\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)       # closing releases the lock

@@ -1,0 +1,341 @@
+"""The run observer that feeds the live view, and the pacer that holds a run's loop for it.
+
+`Pacer` lives in the loop's thread (its `wait` is called at every control tick): it sleeps so that a
+simulated run goes at `speed` times real time (None: as fast as it can), and holds the loop while
+the view is paused. A simulated robot's time only passes in `clock.tick()`, so no robot time passes
+while paused and the run's results do not change. A real robot keeps moving under the last command
+unless told otherwise: while paused the pacer calls `halt()` (the observer's: `robot.stop()`, a
+zero Twist) at once and again every `halt_period` seconds (a robot whose driver has a command
+watchdog stays stopped either way); on resume the loop reads the robot afresh and the explorer
+decides from there. On a real robot, robot time (the robot's clock) goes on while paused and counts
+against the run's time limit, and the speed control does nothing (a real robot runs in real time).
+
+`ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and laser at most `frame_rate`
+times per wall second, the path (points at least half a cell apart), the coverage samples, the map
+(at most `map_rate` per second, only when it changed) and the explorer's overlays
+(`Explorer.overlays()`: potential and vectors, and its `markers()` when it has them) at most
+`overlay_rate` per second. Its cost per tick when nothing is due is a clock read and a comparison.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.observers import RunObserver, StepEvent
+from robotexp.record import EndReason
+from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, laser_points, \
+    vector_arrows
+from robotexp.view.live import DEFAULT_SPEED
+
+if TYPE_CHECKING:
+    from robotexp.explorer import ExplorationRun
+    from robotexp.record import RunRecord
+
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels"]
+
+STOP_REASON = "stopped from the live view"
+
+
+class Pacer:
+    """Pace, pause, single-step and stop requests for a loop (thread-safe; `wait` is the loop's side).
+
+    Args:
+        speed: robot time per wall time (None: no pacing).
+        clock: wall clock [s] (monotonic).
+        sleep: sleeps [s] (pacing only; pauses wait on a condition).
+        halt_period: [s] between `halt()` calls while paused.
+    """
+
+    def __init__(self, speed: float | None = DEFAULT_SPEED, *, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep, halt_period: float = 0.5) -> None:
+        self._cond = threading.Condition()
+        self.clock, self.sleep, self.halt_period = clock, sleep, halt_period
+        self.speed = speed
+        self.paused = False
+        self.stopped = False
+        self._steps = 0
+        self._ref: tuple[float, float] | None = None   # (robot time, wall time) pacing starts from
+
+    def set_speed(self, speed: float | None) -> None:
+        """Robot time per wall time from now on (None: as fast as possible)."""
+        if speed is not None and not (speed > 0 and math.isfinite(speed)):
+            raise ValueError(f"speed must be > 0, got {speed}")
+        with self._cond:
+            self.speed, self._ref = speed, None
+
+    def pause(self) -> None:
+        """Hold the loop at its next tick."""
+        with self._cond:
+            self.paused = True
+
+    def resume(self) -> None:
+        """Let the loop go on."""
+        with self._cond:
+            self.paused, self._steps = False, 0
+            self._cond.notify_all()
+
+    def step(self) -> None:
+        """Paused: let exactly one more tick pass (then hold again). Running: pause."""
+        with self._cond:
+            if self.paused:
+                self._steps += 1
+            self.paused = True
+            self._cond.notify_all()
+
+    def stop(self) -> None:
+        """Release the loop for good (it ends the run at its next tick)."""
+        with self._cond:
+            self.stopped, self.paused = True, False
+            self._cond.notify_all()
+
+    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,
+             on_hold: Callable[[bool], None] | None = None) -> bool:
+        """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
+        paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
+        `on_hold(False)` when it ends), then sleep as pacing wants. Returns whether the loop was held."""
+        held = False
+        with self._cond:
+            while self.paused and not self.stopped:
+                if self._steps > 0:
+                    self._steps -= 1
+                    break
+                if not held:
+                    held = True
+                    if on_hold is not None:
+                        on_hold(True)
+                if halt is not None:
+                    halt()
+                self._cond.wait(self.halt_period)
+            if held:
+                self._ref = None
+                if on_hold is not None:
+                    on_hold(False)
+            speed = None if self.stopped else self.speed
+            now = self.clock()
+            if robot_time is None:
+                return held
+            if speed is None or self._ref is None:
+                self._ref = (robot_time, now)
+                return held
+            t0, w0 = self._ref
+        due = w0 + (robot_time - t0) / speed
+        if due > now:
+            self.sleep(due - now)
+        elif now - due > 0.5:           # far behind (a slow tick): pace from here, no burst to catch up
+            with self._cond:
+                self._ref = (robot_time, now)
+        return held
+
+
+class ViewObserver(RunObserver):
+    """Feeds a `ViewHub` from a run and holds the run for the view's controls.
+
+    Args:
+        hub: where the frames go (its commands come back here).
+        speed: robot time per wall time for a simulated run (None: as fast as it can).
+        frame_rate, map_rate, overlay_rate: [1/s] most pose-and-laser frames, maps and overlays per
+            wall second.
+        clock: wall clock [s].
+    """
+
+    def __init__(self, hub: ViewHub, *, speed: float | None = DEFAULT_SPEED, frame_rate: float = 25.0,
+                 map_rate: float = 4.0, overlay_rate: float = 2.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.hub = hub
+        self.clock = clock
+        self.pacer = Pacer(speed, clock=clock)
+        self.frame_period, self.map_period, self.overlay_period = 1 / frame_rate, 1 / map_rate, 1 / overlay_rate
+        self.run: ExplorationRun | None = None
+        self.simulated = True
+        self._stop_requested = False
+        hub.on_command = self.command
+        hub.set_status(speed=speed)
+        self._reset()
+
+    def _reset(self) -> None:
+        self._next_frame = self._next_map = self._next_overlay = -math.inf
+        self._map_dirty = True
+        self._last_classes: Any = None
+        self._path_sent = 0
+        self._last_xy: tuple[float, float] | None = None
+        self._rate_ref: tuple[float, float] | None = None
+        self._pending_curve: list[float] = []
+        self._coverage: float | None = None
+
+    # -- commands from the page (server thread) --
+    def command(self, msg: dict[str, Any]) -> None:
+        """Act on a page's command: pause, resume, step, stop, speed (value: a number or "max")."""
+        cmd = msg.get("cmd")
+        if cmd == "pause":
+            self.pacer.pause()
+            self.hub.set_status(state="paused")
+        elif cmd == "resume":
+            self.pacer.resume()
+            self.hub.set_status(state="running")
+        elif cmd == "step":
+            self.pacer.step()
+            self.hub.set_status(state="paused")
+        elif cmd == "stop":
+            run = self.run
+            if run is not None:
+                run.request_stop(STOP_REASON, EndReason.STOPPED)
+                self._stop_requested = True
+            self.pacer.stop()
+        elif cmd == "speed" and self.simulated:
+            value = msg.get("value")
+            try:
+                speed = None if value in (None, "max") else float(value)
+                self.pacer.set_speed(speed)
+            except (TypeError, ValueError):
+                return
+            self.hub.set_status(speed=speed)
+
+    # -- the run (loop thread) --
+    def on_start(self, run: ExplorationRun) -> None:
+        """Tell the hub about the new run: its map geometry, robot and names."""
+        from robotexp.sim import SimRobot
+
+        self.run = run
+        # a replayed recording (robotexp replay --view) keeps robot time too: it is paced like a simulator
+        self.simulated = isinstance(run.robot, SimRobot) or getattr(run.robot, "replayed", False)
+        self._reset()
+        self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
+        self.pacer.stopped = False
+        geo = run.grid.geo
+        info = run.info
+        start = run.start_pose
+        self.hub.controls = ("pause", "step", "stop", "speed") if self.simulated else ("pause", "step", "stop")
+        self.hub.start({
+            "geo": {"origin_x": geo.origin_x, "origin_y": geo.origin_y, "cell": geo.cell, "rows": geo.rows,
+                    "cols": geo.cols},
+            "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
+            "method": info.method, "world": info.world, "robot": info.robot, "simulated": self.simulated,
+            "max_time": run.max_time, "truth": run.truth is not None,
+            "start": None if start is None else [start.x, start.y, start.theta]})
+        self.hub.set_status(state="paused" if self.pacer.paused else "running",
+                            speed=self.pacer.speed if self.simulated else 1.0)
+        self._send(run, run.robot_time, force=True)
+
+    def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+        """Send what is due, then hold or pace the loop."""
+        if step.map_updated:
+            self._map_dirty = True
+        now = self.clock()
+        if now >= self._next_frame:
+            self._send(run, step.time)
+        if self._stop_requested:
+            return
+        # a simulated robot stands still while the loop waits; a real one is told to stop (and again
+        # every halt_period) while paused
+        halt = None if self.simulated else run.robot.stop
+        self.pacer.wait(step.time if self.simulated else None, halt,
+                        lambda holding: self._hold(run, step.time, holding))
+
+    def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
+        if holding:
+            self._send(run, t, force=True)
+            self.hub.set_status(state="paused")
+        else:
+            self._rate_ref = None
+            if not self._stop_requested:
+                self.hub.set_status(state="paused" if self.pacer.paused else "running")
+
+    def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
+        """Keep the coverage sample for the next frame."""
+        if coverage is not None:
+            self._pending_curve += [round(time, 3), round(coverage, 5)]
+            self._coverage = coverage
+
+    def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
+        """Send the final state and say why the run ended."""
+        self._map_dirty = True
+        self._send(run, run.robot_time, force=True)
+        self.hub.finish(f"{record.end.value}: {record.reason}" if not record.reason.startswith(record.end.value)
+                        else record.reason)
+
+    def _send(self, run: ExplorationRun, t: float, force: bool = False) -> None:
+        """Publish the state of `run` at robot time `t` (the map and overlays when due or `force`)."""
+        now = self.clock()
+        self._next_frame = now + self.frame_period
+        state = run.state
+        frame = Frame(time=t)
+        if state is not None:
+            p = state.pose
+            frame.pose = (p.x, p.y, p.theta)
+            sc = state.laser
+            frame.laser = [] if sc is None else laser_points(p.x, p.y, p.theta, sc.angles, sc.ranges, sc.offset_x)
+        frame.path = self._new_path(run)
+        frame.curve, self._pending_curve = self._pending_curve, []
+        frame.coverage = self._coverage
+        if self._rate_ref is None:
+            self._rate_ref = (t, now)
+        elif now - self._rate_ref[1] >= 1.0:
+            frame.speedup = (t - self._rate_ref[0]) / (now - self._rate_ref[1])
+            self._rate_ref = (t, now)
+        if self._map_dirty and (force or now >= self._next_map):
+            self._next_map = now + self.map_period
+            self._map_dirty = False
+            classes = classes_of_states(run.grid.states())
+            if self._last_classes is None or not np.array_equal(classes, self._last_classes):
+                self._last_classes = classes
+                frame.map = MapLayer(encode_classes(classes), *classes.shape)
+        if force or now >= self._next_overlay:
+            self._next_overlay = now + self.overlay_period
+            frame.overlays = explorer_overlays(run)
+        self.hub.publish(frame)
+
+    def _new_path(self, run: ExplorationRun) -> list[float]:
+        path = run.metrics.path
+        half = run.grid.geo.cell / 2
+        out: list[float] = []
+        for x, y in path[self._path_sent:]:
+            if self._last_xy is None or math.hypot(x - self._last_xy[0], y - self._last_xy[1]) >= half:
+                out += [round(x, 3), round(y, 3)]
+                self._last_xy = (x, y)
+        self._path_sent = len(path)
+        return out
+
+
+def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:
+    """A potential in [0, 1] (0 at the goals, 1 at obstacles) as levels 0..254 on the free cells (255 elsewhere):
+    log10(1 - p) spread over its range on the free cells below 1, goals 0, the free cell farthest from them
+    254 (as are free cells at 1, the inflation around obstacles).
+
+    A harmonic potential (BVP) falls off exponentially from the goals: linear levels would paint nearly
+    every free cell 1 (`render_map`'s overlay); the log scale shows where its gradient leads."""
+    ok = free & np.isfinite(potential)
+    out = np.full(potential.shape, 255, np.uint8)
+    out[ok & (potential >= 1.0)] = 254            # free cells held at the obstacles' value (inflation)
+    ok &= potential < 1.0
+    if not ok.any():
+        return out
+    q = np.log10(np.clip(1.0 - potential[ok], 1e-300, 1.0))
+    lo, hi = float(q.min()), float(q.max())
+    out[ok] = np.round(254 * (hi - q) / (hi - lo)) if hi > lo else 0
+    return out
+
+
+def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
+    """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
+    vectors as arrows on a lattice) and `Explorer.markers()` when the explorer has it."""
+    out: dict[str, Any] = {}
+    geo = run.grid.geo
+    overlays = run.explorer.overlays()
+    pot = overlays.get("potential")
+    if pot is not None and pot.shape == (geo.rows, geo.cols):
+        out["potential"] = MapLayer(encode_classes(potential_levels(pot, run.grid.free())), geo.rows, geo.cols)
+    vec = overlays.get("vectors")
+    if vec is not None and vec.shape == (geo.rows, geo.cols, 2):
+        spacing, arrows = vector_arrows(vec, (geo.origin_x, geo.origin_y), geo.cell)
+        out["vectors"] = {"spacing": spacing, "arrows": arrows}
+    markers = getattr(run.explorer, "markers", None)
+    if callable(markers):
+        out.update(markers())
+    return out

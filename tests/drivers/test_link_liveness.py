@@ -1,0 +1,190 @@
+"""A robot link is alive only while valid packets come (issue 15): bytes that are never a packet
+lose the robot within its silence time, and a reader thread starved of the interpreter's lock by
+our own main thread does not (the data waits in the link). Against the real P3-DX emulator on TCP,
+through a proxy that can turn its stream into garbage."""
+
+from __future__ import annotations
+
+import socket
+import sys
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+from click.testing import CliRunner
+
+from robotexp.cli import main
+from robotexp.errors import ProtocolError
+from robotexp.results import read_records
+from robotexp.experiment import make_emulator
+from robotexp_drivers.p3dx.robot import P3DXRobot
+
+
+class GarbageProxy:
+    """TCP proxy to `target`; once `garbage` is set, the robot's bytes are replaced by bytes that
+    never form a valid packet (all byte values but `no_byte`, ARCOS's 0xFA header by default; MAVLink
+    frames that start in them fail their CRC) at about 20 kB/s."""
+
+    def __init__(self, target: tuple[str, int], garbage_after: float | None = None, no_byte: int = 0xFA) -> None:
+        self.target = target
+        self.no_byte = no_byte
+        self.garbage_after = garbage_after
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        self.garbage = threading.Event()
+        self.done = threading.Event()
+        self.sent_garbage = 0
+        threading.Thread(target=self._run, daemon=True).start()
+
+    def _run(self) -> None:
+        client, _ = self.server.accept()
+        robot = socket.create_connection(self.target)
+        if self.garbage_after is not None:
+            threading.Timer(self.garbage_after, self.garbage.set).start()
+        threading.Thread(target=self._pump, args=(client, robot), daemon=True).start()
+        robot.settimeout(0.01)
+        filler = bytes(b for b in range(256) if b != self.no_byte) * 4
+        try:
+            while not self.done.is_set():
+                try:
+                    data = robot.recv(4096)
+                    if not data:
+                        break
+                except TimeoutError:
+                    data = b""
+                if self.garbage.is_set():
+                    client.sendall(filler[:200])
+                    self.sent_garbage += 200
+                elif data:
+                    client.sendall(data)
+        except OSError:
+            pass
+        finally:
+            client.close()
+            robot.close()
+
+    @staticmethod
+    def _pump(src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(4096):
+                dst.sendall(data)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self.done.set()
+        self.server.close()
+
+
+@pytest.fixture
+def emulator() -> Iterator[object]:
+    emu = make_emulator("p3dx", "dense", port=0)
+    emu.start()
+    yield emu
+    emu.close()
+
+
+def _port(emu: object) -> int:
+    return int(str(emu.address).rsplit(":", 1)[1])  # type: ignore[attr-defined]
+
+
+def test_garbage_after_the_handshake_loses_the_robot(emulator):
+    proxy = GarbageProxy(("127.0.0.1", _port(emulator)))
+    robot = P3DXRobot(f"127.0.0.1:{proxy.port}", silence=0.5)
+    try:
+        t = robot.wait_until(0.3)          # the stream is alive: robot time advances
+        proxy.garbage.set()
+        t0 = time.monotonic()
+        outcome: list[BaseException | float] = []
+
+        def wait() -> None:
+            try:
+                outcome.append(robot.wait_until(t + 3600.0))   # forever if any byte counted as life
+            except BaseException as exc:   # noqa: BLE001 (handed to the test thread)
+                outcome.append(exc)
+
+        waiter = threading.Thread(target=wait, daemon=True)
+        waiter.start()
+        waiter.join(timeout=5.0)
+        assert outcome, "wait_until still waiting 5 s into a garbage stream"
+        assert isinstance(outcome[0], ProtocolError), outcome
+        assert "no valid SIP" in str(outcome[0]) and "bytes came" in str(outcome[0])
+        assert time.monotonic() - t0 < 0.5 + 0.5 and proxy.sent_garbage > 0
+        with pytest.raises(ProtocolError):
+            robot.read()
+    finally:
+        robot.close()
+        proxy.close()
+
+
+def test_a_reader_starved_by_the_main_thread_keeps_its_robot(emulator):
+    robot = P3DXRobot(emulator.address, silence=0.5)    # type: ignore[attr-defined]
+    old = sys.getswitchinterval()
+    try:
+        t = robot.wait_until(0.2)
+        sys.setswitchinterval(5.0)     # the main thread keeps the lock as a long numba kernel would
+        t0 = time.perf_counter()
+        stalled = robot._last_rx       # noqa: SLF001 (what the reader saw last)
+        n = 0
+        while time.perf_counter() - t0 < 1.5:
+            n += 1
+        hogged = time.perf_counter() - t0
+        starved = robot._last_rx == stalled
+        sys.setswitchinterval(old)
+        state = robot.read()           # 3 times the silence limit later: still connected
+        after = robot.wait_until(state.time + 0.5)
+    finally:
+        sys.setswitchinterval(old)
+        robot.close()
+    assert hogged >= 1.5 and starved, "the reader ran during the hog: the test did not starve it"
+    assert after >= t + 0.5
+
+
+def test_a_reader_starved_for_longer_than_silence_then_fed_nothing_is_still_lost(emulator):
+    # the other side of the rule: once the reader runs again and nothing comes, the robot is lost
+    proxy = GarbageProxy(("127.0.0.1", _port(emulator)))
+    robot = P3DXRobot(f"127.0.0.1:{proxy.port}", silence=0.5)
+    try:
+        robot.wait_until(0.2)
+        proxy.garbage.set()
+        time.sleep(1.0)
+        with pytest.raises(ProtocolError):
+            robot.read()
+    finally:
+        robot.close()
+        proxy.close()
+
+
+def test_a_run_ended_by_a_robot_error_exits_1_with_its_record(emulator, tmp_path):
+    proxy = GarbageProxy(("127.0.0.1", _port(emulator)), garbage_after=2.0)
+    try:
+        result = CliRunner().invoke(main, ["explore", "--address", f"127.0.0.1:{proxy.port}", "--world", "dense",
+                                           "--max-time", "600", "--out", str(tmp_path)])
+    finally:
+        proxy.close()
+    assert result.exit_code == 1, result.output
+    assert "robotexp: error: " in result.output and "no valid SIP" in result.output
+    (rec,) = read_records(tmp_path / "results.jsonl")
+    assert rec.reason.startswith("robot error") and "no valid SIP" in rec.reason
+
+
+def test_mavlink_garbage_after_the_handshake_loses_the_vehicle():
+    from robotexp.world.builtin import builtin_world
+    from robotexp.world.poses import resolve_pose
+    from robotexp_drivers.mavlink.emulator import MavlinkEmulator
+    from robotexp_drivers.mavlink.robot import ROVER_RADIUS, MavlinkRobot
+
+    world = builtin_world("ufmg-static")
+    with MavlinkEmulator(world, pose=resolve_pose(world, "path1", ROVER_RADIUS)[0], speedup=10.0, tcp=True) as emu:
+        proxy = GarbageProxy(("127.0.0.1", int(emu.address.rsplit(":", 1)[1])), no_byte=-1)
+        robot = MavlinkRobot(f"tcp:127.0.0.1:{proxy.port}", timeout=0.5)
+        try:
+            robot.read()
+            proxy.garbage.set()
+            time.sleep(0.5 + 0.6)
+            with pytest.raises(ProtocolError, match="no valid message from the vehicle"):
+                robot.read()
+        finally:
+            robot.close()
+            proxy.close()

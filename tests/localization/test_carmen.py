@@ -1,0 +1,154 @@
+"""CARMEN logs: the reader against hand-written lines, and `robotexp map` on a log simulated here."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from robotexp.cli import main
+from robotexp.errors import ConfigError
+from robotexp.localization import ate
+from robotexp.localization.carmen import flaser_angles, format_flaser, read_carmen
+from robotexp.localization.logmap import OdometryNoise, perturb_path
+from robotexp.robot import Pose
+from robotexp.sim.raycast import RayIndex
+from robotexp.world.builtin import builtin_world
+from robotexp.world.rosmap import load_ros_grid, load_ros_world
+
+REACH = 8.0
+
+
+def loop_path() -> list[Pose]:
+    """Along the corridor of the built-in `dense` office and back (y = 7.5 m, x from -9 to 9 m), a pose
+    every 0.25 m, turning about in place in 30 degree steps."""
+    poses: list[Pose] = []
+    for x0, x1, th in ((-9.0, 9.0, 0.0), (9.0, -9.0, math.pi)):
+        if poses:
+            last = poses[-1].theta
+            poses += [Pose(x0, 7.5, last + math.radians(30.0 * k)) for k in range(1, 6)]
+        n = round(abs(x1 - x0) / 0.25)
+        poses += [Pose(x0 + (x1 - x0) * k / n, 7.5, th) for k in range(n + 1)]
+    return poses
+
+
+def simulated_log(path: Path, *, gz: bool = False, junk: bool = False) -> list[Pose]:
+    """Write a CARMEN log of 181-beam scans along `loop_path` in `dense` (no echo: 81.91 m)."""
+    world = builtin_world("dense")
+    index = RayIndex(world.boxes, world.discs, 2.0)
+    angles = flaser_angles(181)
+    truth = loop_path()
+    lines = ["# simulated by the robotexp tests", "PARAM robot_front_laser_max 81.91 nohost 0"]
+    for k, p in enumerate(truth):
+        frac = index.cast(np.tile([p.x, p.y], (181, 1)), p.theta + angles, REACH, 0.3)
+        ranges = np.where(frac >= 1.0, 81.91, frac * REACH)
+        lines.append(f"ODOM {p.x:.6f} {p.y:.6f} {p.theta:.6f} 0 0 0 {k:.3f} robotexp {k:.3f}")
+        lines.append(format_flaser(ranges, p, p, float(k)))
+        if junk and k == 3:
+            lines.append("FLASER 181 1.0 2.0 oops")
+            lines.append("ODOM 1 2")
+    text = "\n".join(lines) + "\n"
+    if gz:
+        path.write_bytes(gzip.compress(text.encode()))
+    else:
+        path.write_text(text)
+    return truth
+
+
+def test_reader_parses_flaser_robotlaser_and_odom(tmp_path: Path) -> None:
+    log = tmp_path / "hand.log"
+    log.write_text(
+        "PARAM robot_front_laser_max 50 nohost 0\n"
+        "FLASER 4 1.0 2.0 3.0 50.0 1.5 -2.0 0.5 1.4 -2.1 0.6 12.5 host 12.6\n"
+        "ROBOTLASER1 0 -1.5708 3.1416 0.7854 30.0 0.01 0 5 1 2 3 4 5 0 1.0 2.0 0.1 0.9 2.0 0.1 "
+        "0 0 0 0 0 13.0 host 13.1\n"
+        "ODOM 1.0 2.0 0.3 0.1 0.0 0.0 14.0 host 14.1\n"
+        "RAWLASER1 0 -1.57 3.14 0.5 30 0.01 0 3 1 2 3 0 15.0 host 15.1\n")
+    parsed = read_carmen(log)
+    assert parsed.problems == []
+    f, r = parsed.scans
+    assert np.array_equal(f.ranges, [1.0, 2.0, 3.0, 50.0]) and f.pose == Pose(1.5, -2.0, 0.5)
+    assert f.odom == Pose(1.4, -2.1, 0.6) and f.stamp == 12.5 and f.line == 2
+    # 4 beams over 180 degrees: -90, -30, 30, 90
+    assert np.allclose(np.degrees(f.angles), [-90.0, -30.0, 30.0, 90.0])
+    assert np.allclose(r.angles, -1.5708 + 0.7854 * np.arange(5)) and r.range_max == 30.0
+    assert r.pose == Pose(1.0, 2.0, 0.1) and r.odom == Pose(0.9, 2.0, 0.1) and r.stamp == 13.0
+    assert parsed.odometry == [(14.0, Pose(1.0, 2.0, 0.3))]
+    assert parsed.no_echo() == 50.0
+    s = f.scan(range_max=2.5, no_echo=parsed.no_echo())
+    assert s.ranges[0] == 1.0 and s.ranges[1] == 2.0 and s.ranges[2] == 2.5 and math.isnan(s.ranges[3])
+    # CARMEN's beam spacing guesses
+    assert np.allclose(np.degrees(flaser_angles(180))[[0, 1, -1]], [-90.0, -89.0, 89.0])
+    assert np.allclose(np.degrees(flaser_angles(361))[[0, 1, -1]], [-90.0, -89.5, 90.0])
+
+
+def test_malformed_lines_are_reported_with_file_and_line_and_skipped(tmp_path: Path) -> None:
+    log = tmp_path / "bad.log.gz"
+    simulated_log(log, gz=True, junk=True)
+    parsed = read_carmen(log)
+    assert len(parsed.scans) == len(loop_path())
+    assert len(parsed.problems) == 2
+    assert parsed.problems[0].startswith(f"{log}:11: malformed FLASER line skipped")
+    assert parsed.problems[1].startswith(f"{log}:12: malformed ODOM line skipped")
+    truncated = tmp_path / "cut.log.gz"
+    truncated.write_bytes(log.read_bytes()[:300])
+    with pytest.raises(ConfigError, match="truncated"):
+        read_carmen(truncated)
+
+
+def test_perturbed_path_drifts_by_the_noise() -> None:
+    straight = [Pose(0.1 * k, 0.0, 0.0) for k in range(101)]          # 10 m east
+    odom = perturb_path(straight, OdometryNoise(0.02, math.radians(1.0)), seed=0)
+    assert odom[0] == straight[0]
+    # systematic 1 deg/m over 10 m plus random of the same size per step: about 10 deg
+    assert math.degrees(odom[-1].theta) == pytest.approx(10.0, abs=1.5)
+    assert perturb_path(straight, OdometryNoise(), 0) == straight
+
+
+def test_map_command_recovers_the_path_and_writes_a_loadable_map(tmp_path: Path) -> None:
+    log = tmp_path / "dense-sim.log"
+    truth = simulated_log(log)
+    out = tmp_path / "out"
+    runner = CliRunner()
+    raw = runner.invoke(main, ["map", str(log), "--out", str(out), "--odometry-noise", "0.02,1",
+                               "--localize", "none", "--cell", "0.05"])
+    assert raw.exit_code == 0, raw.output
+    fixed = runner.invoke(main, ["map", str(log), "--out", str(out), "--odometry-noise", "0.02,1",
+                                 "--localize", "scan-match", "--cell", "0.05"])
+    assert fixed.exit_code == 0, fixed.output
+    first, second = (json.loads(line) for line in (out / "results.jsonl").read_text().splitlines())
+    assert first["localize"] == "none" and second["localize"] == "scan-match" and second["loop_closure"]
+    assert first["ate_m"] == first["odometry_ate_m"] > 2.0          # odometry alone drifts metres
+    # scan matching keeps the path within the target of the real logs; its shape is right to two cells
+    # (the whole path turns by the heading the matcher loses where walls run out of the mapped part);
+    # along a corridor no loop edge is trusted
+    assert second["ate_m"] < 0.3 and second["ate_rigid_m"] < 0.1
+    assert second["matches"]["loop-edges"] == 0
+    assert second["matches"]["matched"] + second["matches"].get("degenerate", 0) == len(truth) - 1
+    assert fixed.output.strip().endswith(f"ATE {second['ate_m']:.3f} m")
+    assert second["scans"] == len(truth) and second["ate_alignment"] == "none"
+    # the map is a ROS map and a world: the corridor's walls are where the world has them
+    values, geo = load_ros_grid(out / "dense-sim.yaml")
+    r, c = geo.cell_of(0.0, 8.5)                                     # the north wall's face at x = 0
+    assert (values[r - 3:r + 4, c - 3:c + 4] == 100).any()
+    r, c = geo.cell_of(0.0, 7.5)                                     # the middle of the corridor
+    assert values[r, c] == 0
+    world = load_ros_world(out / "dense-sim.yaml")
+    assert len(world.boxes) > 0 and (out / "dense-sim.png").stat().st_size > 1000
+
+
+def test_map_command_rejects_bad_input(tmp_path: Path) -> None:
+    log = tmp_path / "x.log"
+    log.write_text("PARAM a b\n")
+    runner = CliRunner()
+    res = runner.invoke(main, ["map", str(log), "--out", str(tmp_path / "o"), "--odometry-noise", "2%"])
+    assert res.exit_code == 2 and "DIST,DEG_PER_M" in res.output
+    res = runner.invoke(main, ["map", str(log), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "no FLASER or ROBOTLASER1 line" in res.output
+    assert not (tmp_path / "o" / "results.jsonl").exists()
+    assert ate([[0.0, 0.0]], [[0.0, 0.0]]) == 0.0

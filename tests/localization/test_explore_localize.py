@@ -1,0 +1,33 @@
+"""`robotexp explore --odometry-error --localize`: the record carries ate_m, and scan matching lowers it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from robotexp.cli import main
+from robotexp.record import RunRecord
+
+
+def test_explore_records_ate_with_and_without_scan_matching(tmp_path: Path) -> None:
+    runner = CliRunner()
+    base = ["explore", "-w", "dense", "-m", "srt-laser", "--max-time", "60", "--odometry-error", "p3dx",
+            "--out", str(tmp_path)]
+    for extra in (["--localize", "none"], [], ["--odometry-error", "none"]):
+        res = runner.invoke(main, base + extra)
+        assert res.exit_code == 0, res.output
+    raw, fixed, exact = (json.loads(line) for line in (tmp_path / "results.jsonl").read_text().splitlines())
+    assert raw["localize"] == "none" and raw["odometry_error"] == "p3dx"
+    assert fixed["localize"] == "scan-match" and fixed["matches"]["matched"] > 0     # auto: on with the error
+    assert exact["localize"] == "none" and exact["ate_m"] == 0.0                     # auto: off without it
+    assert fixed["ate_m"] < 0.1 < raw["ate_m"]
+    # the typed record keeps the new keys
+    assert RunRecord.from_dict(fixed).as_dict() == fixed
+
+
+def test_explore_rejects_a_bad_odometry_error_before_the_run(tmp_path: Path) -> None:
+    res = CliRunner().invoke(main, ["explore", "--odometry-error", "pioneer", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "unknown preset 'pioneer'" in res.output
+    assert not (tmp_path / "results.jsonl").exists()

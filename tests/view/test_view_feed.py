@@ -1,0 +1,136 @@
+"""The live view's frame feed (issue 16, item 1): map encoding, laser points, arrows, and what the hub
+sends each browser (the newest state, path and curve points once, a new run from scratch)."""
+
+from __future__ import annotations
+
+import math
+import zlib
+
+import numpy as np
+import pytest
+
+from robotexp.view.feed import FREE, OCCUPIED, UNKNOWN, Frame, MapLayer, ViewClient, ViewHub, classes_of_states, \
+    decode_classes, encode_classes, laser_points, vector_arrows
+
+
+def test_classes_of_ros_states() -> None:
+    states = np.array([[-1, 0, 100], [49, 50, -1]], np.int8)
+    assert classes_of_states(states).tolist() == [[UNKNOWN, FREE, OCCUPIED], [FREE, OCCUPIED, UNKNOWN]]
+
+
+def test_map_encoding_round_trip_and_size() -> None:
+    rng = np.random.default_rng(3)
+    classes = rng.integers(0, 3, size=(37, 53)).astype(np.uint8)
+    text = encode_classes(classes)
+    assert np.array_equal(decode_classes(text, 37, 53), classes)
+    # row-major bytes, zlib stream (what the page's DecompressionStream("deflate") inflates)
+    import base64
+    assert zlib.decompress(base64.b64decode(text)) == classes.tobytes()
+    with pytest.raises(ValueError, match="expected 38 x 53"):
+        decode_classes(text, 38, 53)
+    # a large, mostly uniform map compresses to a small message: 1000 x 1000 cells under 20 kB
+    big = np.zeros((1000, 1000), np.uint8)
+    big[200:400, 300:700] = FREE
+    big[200, 300:700] = OCCUPIED
+    assert len(encode_classes(big)) < 20_000
+
+
+def test_laser_points_in_world_frame() -> None:
+    # robot at (1, 2) facing +y, laser 0.1 m ahead: a beam straight ahead at 1 m hits (1, 3.1);
+    # a beam to the left (+90 deg) at 0.5 m hits (0.5, 2.1); the inf beam is left out
+    angles = np.array([0.0, math.pi / 2, -math.pi / 2])
+    ranges = np.array([1.0, 0.5, math.inf])
+    pts = laser_points(1.0, 2.0, math.pi / 2, angles, ranges, offset_x=0.1)
+    assert pts == pytest.approx([1.0, 3.1, 0.5, 2.1], abs=1e-9)
+    many = laser_points(0, 0, 0, np.linspace(-1, 1, 1000), np.ones(1000), max_points=100)
+    assert len(many) // 2 == 100
+
+
+def test_vector_arrows_lattice() -> None:
+    vec = np.zeros((10, 20, 2))
+    vec[..., 0] = 3.0                     # all pointing +x, not unit length
+    vec[5, 11] = 0.0                      # one without direction (on the lattice)
+    spacing, arrows = vector_arrows(vec, (-1.0, -2.0), 0.1, max_arrows=50)
+    step = math.ceil(math.sqrt(200 / 50))     # 2 cells
+    assert spacing == pytest.approx(step * 0.1)
+    a = np.array(arrows).reshape(-1, 4)
+    assert len(a) == 5 * 10 - 1           # rows 1, 3, .., 9 x cols 1, 3, .., 19 but (5, 11)
+    assert np.allclose(a[:, 2:], [1.0, 0.0])
+    assert a[0, :2] == pytest.approx([-1.0 + 1.5 * 0.1, -2.0 + 1.5 * 0.1])
+
+
+def test_hub_sends_newest_state_and_points_once() -> None:
+    hub = ViewHub()
+    client = ViewClient()
+    first = hub.message_for(client)
+    assert first is not None and "meta" not in first            # nothing started yet
+    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.2})
+    hub.publish(Frame(time=0.1, pose=(0, 0, 0), path=[0.0, 0.0], map=MapLayer("A", 2, 2)))
+    hub.publish(Frame(time=0.2, pose=(1, 0, 0), path=[1.0, 0.0], curve=[0.0, 0.5]))
+    hub.publish(Frame(time=0.3, pose=(2, 0, 0), path=[2.0, 0.0]))
+    msg = hub.message_for(client)
+    assert msg is not None
+    assert msg["meta"]["radius"] == 0.2
+    assert msg["t"] == 0.3 and msg["pose"] == (2, 0, 0)             # the stale poses were skipped
+    assert msg["path_from"] == 0 and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0]
+    assert msg["curve"] == [0.0, 0.5] and msg["map"]["data"] == "A"
+    assert hub.message_for(client) is None                          # nothing new
+    hub.publish(Frame(time=0.4, path=[3.0, 0.0]))
+    msg = hub.message_for(client)
+    assert msg is not None and "meta" not in msg and "map" not in msg
+    assert msg["path_from"] == 3 and msg["path"] == [3.0, 0.0] and msg["pose"] == (2, 0, 0)
+    late = ViewClient()                                             # a browser that joins now gets it all
+    msg = hub.message_for(late)
+    assert msg is not None and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 3.0, 0.0] and msg["map"]["data"] == "A"
+    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.3})
+    msg = hub.message_for(client)                                   # a new run: from scratch
+    assert msg is not None and msg["meta"]["radius"] == 0.3 and msg["path"] == [] and "map" not in msg
+    hub.finish("stopped from the live view")
+    msg = hub.message_for(client)
+    assert msg is not None and msg["status"]["state"] == "ended"
+
+
+def test_hub_commands_follow_controls() -> None:
+    got: list[dict[str, object]] = []
+    hub = ViewHub(controls=("pause", "stop"), on_command=got.append)
+    for cmd in ("pause", "resume", "step", "speed", "stop", "rm -rf"):
+        hub.command({"cmd": cmd})
+    assert [g["cmd"] for g in got] == ["pause", "resume", "stop"]
+
+
+def test_potential_levels_log_scale_on_free_cells() -> None:
+    from robotexp.view.observer import potential_levels
+
+    # 1 - p = 1e-1, 1e-3, 1e-5 on three free cells: equal steps on the log scale; the rest not drawn
+    p = np.array([[1 - 1e-1, 1 - 1e-3, 1 - 1e-5, 0.5, 1.0]])
+    free = np.array([[True, True, True, False, True]])
+    assert potential_levels(p, free).tolist() == [[0, 127, 254, 255, 254]]
+    assert potential_levels(p, np.zeros_like(free)).tolist() == [[255] * 5]
+
+
+@pytest.mark.parametrize("method", ["srt-star", "bvp", "frontier"])
+def test_explorer_overlays_reach_the_hub(method: str) -> None:
+    """The run's last frame carries what the explorer exposes: SRT's nodes, tree and safe regions, BVP's
+    potential and vectors, the frontier target (while it has one)."""
+    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.view.observer import ViewObserver
+
+    hub = ViewHub()
+    out = run_experiment(RunSpec(world="ufmg-static", method=method, max_time=15.0), None,
+                         observers=[ViewObserver(hub, speed=None)], image=False)
+    ov = hub.overlays
+    explorer = out.run.explorer
+    if method == "srt-star":
+        nodes = len(explorer.tree)  # type: ignore[attr-defined]
+        assert len(ov["points"]["SRT nodes"]) == 2 * nodes >= 2
+        assert len(ov["polygons"]["safe regions"]) == nodes
+        assert len(ov["lines"]["SRT tree"]) == 4 * (nodes - 1)
+    elif method == "bvp":
+        geo = out.run.grid.geo
+        levels = decode_classes(ov["potential"].data, geo.rows, geo.cols)
+        assert ((levels < 255) == out.run.grid.free()).all()          # drawn on the free cells only
+        assert ov["vectors"]["spacing"] > 0 and len(ov["vectors"]["arrows"]) % 4 == 0
+    else:
+        goal = explorer.goal  # type: ignore[attr-defined]
+        assert (goal is None and "points" not in ov) or ov["points"]["frontier target"] == \
+            pytest.approx(list(goal), abs=1e-3)
