@@ -22,6 +22,7 @@ import numpy as np
 
 from robotexp_drivers.lasers.lms2xx import codec as k
 from robotexp_drivers.lasers.lms2xx import constants as c
+from fuzz_streams import mutate
 
 
 def _scan(rng: random.Random, beams: int, units: str) -> bytes:
@@ -60,19 +61,6 @@ def _noise(rng: random.Random, stx_free: bool) -> bytes:
     return bytes(out)
 
 
-def _mutate(rng: random.Random, stream: bytearray) -> None:
-    for _ in range(rng.randrange(1, 6)):
-        if not stream:
-            return
-        pos, kind = rng.randrange(len(stream)), rng.randrange(3)
-        if kind == 0:
-            stream[pos] ^= rng.randrange(1, 256)
-        elif kind == 1:
-            stream[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9)))
-        else:
-            del stream[pos:pos + rng.randrange(1, 5)]
-
-
 def _key(obj: object) -> object:
     return obj.tobytes() if isinstance(obj, np.ndarray) else obj
 
@@ -95,7 +83,7 @@ def fuzz(streams: int, seed: int) -> int:
             stream += _noise(rng, stx_free=not mutated) + f
         stream += _noise(rng, stx_free=not mutated)
         if mutated:
-            _mutate(rng, stream)
+            mutate(rng, stream)
         tel = k.TelegramDecoder(replies=kind == "replies")
         scans = k.ScanDecoder()
         out_t: list[k.Telegram] = []

@@ -19,6 +19,7 @@ import traceback
 
 from robotexp_drivers.p3dx import codec as k
 from robotexp_drivers.p3dx import constants as c
+from fuzz_streams import mutate
 
 
 def _sip(rng: random.Random) -> k.StandardSip:
@@ -68,19 +69,6 @@ def _noise(rng: random.Random, header_free: bool) -> bytes:
     return bytes(out)
 
 
-def _mutate(rng: random.Random, stream: bytearray) -> None:
-    for _ in range(rng.randrange(1, 6)):
-        if not stream:
-            return
-        pos, kind = rng.randrange(len(stream)), rng.randrange(3)
-        if kind == 0:
-            stream[pos] ^= rng.randrange(1, 256)
-        elif kind == 1:
-            stream[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9)))
-        else:
-            del stream[pos:pos + rng.randrange(1, 5)]
-
-
 def fuzz(streams: int, seed: int) -> int:
     """Run the fuzz loop; print the counts; return the number of problems found."""
     rng = random.Random(seed)
@@ -101,7 +89,7 @@ def fuzz(streams: int, seed: int) -> int:
             stream += _noise(rng, header_free=not mutated) + f
         stream += _noise(rng, header_free=not mutated)
         if mutated:
-            _mutate(rng, stream)
+            mutate(rng, stream)
         dec: k.PacketDecoder | k.CommandDecoder = (k.PacketDecoder() if kind == "packets"
                                                    else k.CommandDecoder())
         out: list[object] = []

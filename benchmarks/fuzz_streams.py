@@ -1,4 +1,4 @@
-"""What the laser fuzz scripts share: random mutations of a byte stream and feeding it in chunks."""
+"""What the fuzz scripts share: random mutations of a byte stream and feeding it in chunks."""
 
 from __future__ import annotations
 

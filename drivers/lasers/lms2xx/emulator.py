@@ -87,15 +87,7 @@ class LMS2xxEmulator(LaserEmulatorBase):
         self._nak_next = 0
         self._serial = pty
         self._power_on()
-        try:
-            if pty:
-                self.address = self._open_pty()
-            else:
-                bound_host, bound_port = self._listen(host, port or 0)
-                self.address = f"{bound_host}:{bound_port}"
-        except BaseException:
-            self._release()
-            raise
+        self._open_transport(pty, port, host)
 
     # -- fault injection ----------------------------------------------------------------------------------
     def nak_requests(self, n: int) -> None:
