@@ -38,13 +38,13 @@ import math
 import threading
 import time
 from abc import abstractmethod
-from typing import Protocol
+from typing import Any, Protocol
 
 from robotexp.clock import Clock, PacedClock
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
 from robotexp.robot import Robot, Twist
 
-__all__ = ["StreamBackend", "StreamLink", "require_positive"]
+__all__ = ["StreamBackend", "StreamLink", "read_waiting", "require_positive"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +71,21 @@ class StreamLink(Protocol):
     def close(self) -> None:
         """Release the link; safe to call twice."""
         ...
+
+
+def read_waiting(port: Any, timeout: float) -> bytes:
+    """What a pyserial `port` (timeout `timeout` [s]) received: wait up to `timeout` for a first byte
+    (b"" when none came), then take whatever else is there without waiting (serial_for_url's
+    `read(n)` would wait for all n bytes). The port's own errors reach the caller."""
+    first = port.read(1)
+    if not first:
+        return b""
+    port.timeout = 0
+    try:
+        rest: bytes = port.read(65536)
+    finally:
+        port.timeout = timeout
+    return bytes(first) + rest
 
 
 def require_positive(who: str, **values: float) -> None:

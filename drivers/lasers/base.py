@@ -26,6 +26,7 @@ import serial
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
 from robotexp.laser import Laser, ScanSource, StampedScan
 from robotexp.robot import LaserScan
+from robotexp_drivers.backend import read_waiting
 from robotexp_drivers.emulation import StreamEmulator
 
 __all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "laser_url"]
@@ -87,18 +88,8 @@ class LaserLink:
         Raises:
             ConnectionLost: the other side closed the link or the port failed.
         """
-        port = self._port
         try:
-            first = port.read(1)
-            if not first:
-                return b""
-            # serial_for_url's read(n) waits for n bytes: take whatever else is there without waiting
-            port.timeout = 0
-            try:
-                rest = port.read(65536)
-            finally:
-                port.timeout = self.poll
-            return first + rest
+            return read_waiting(self._port, self.poll)
         except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
             raise ConnectionLost(f"{self.who}: link {self.url!r} lost while reading: {exc}") from exc
 

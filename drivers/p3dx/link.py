@@ -14,6 +14,7 @@ import time
 import serial
 
 from robotexp.errors import ConfigError, ConnectionLost
+from robotexp_drivers.backend import read_waiting
 
 from . import constants as c
 
@@ -84,22 +85,12 @@ class SerialLink:
         Raises:
             ConnectionLost: the other side closed the link or the port failed.
         """
-        port = self._port
         try:
-            first = port.read(1)
-            if not first:
-                return b""
-            # serial_for_url's read(n) waits for n bytes: take whatever else is there without waiting
-            port.timeout = 0
-            try:
-                rest = port.read(65536)
-            finally:
-                port.timeout = self.timeout
+            return read_waiting(self._port, self.timeout)
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"p3dx: link {self.url!r} lost while reading: {exc}") from exc
         except (TypeError, AttributeError) as exc:    # pyserial after close() from another thread
             raise ConnectionLost(f"p3dx: link {self.url!r} closed while reading") from exc
-        return first + rest
 
     def write(self, data: bytes) -> None:
         """Send `data` completely.
