@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
+import sys
 import types
 import typing
 from dataclasses import dataclass
@@ -44,9 +46,34 @@ class PluginInfo:
     version: str
 
 
+_SCANS: dict[tuple[str, tuple[tuple[str, int], ...]], dict[str, PluginInfo]] = {}
+
+
 def available(group: str) -> dict[str, PluginInfo]:
     """Every entry point of `group`, by name, sorted. Raises PluginError on a name in two
-    distributions or a malformed name."""
+    distributions or a malformed name.
+
+    The scan (0.5 s: every installed distribution's metadata is parsed) is kept while sys.path and
+    the modification times of its folders are unchanged (an install adds a folder to one of them),
+    so a campaign worker making runs one after another scans once."""
+    key = (group, tuple((entry, _mtime_ns(entry)) for entry in sys.path))
+    found = _SCANS.get(key)
+    if found is None:
+        if len(_SCANS) > 16:
+            _SCANS.clear()
+        found = _SCANS[key] = _scan(group)
+    return dict(found)
+
+
+def _mtime_ns(entry: str) -> int:
+    try:
+        return os.stat(entry or ".").st_mtime_ns
+    except OSError:
+        return -1
+
+
+def _scan(group: str) -> dict[str, PluginInfo]:
+    """`available` without the cache."""
     found: dict[str, PluginInfo] = {}
     seen_dists: set[str] = set()
     for dist in distributions():

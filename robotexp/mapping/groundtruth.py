@@ -158,24 +158,72 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
         raise ConfigError(f"ground truth: sample_step must be > 0 m, got {sample_step}")
     geo = _geo64(geo)
     step = 2 if sample_step is None else max(1, round(sample_step / geo.cell))
-    occ = occupancy(world, geo)
+    base = _world_grid(world, geo, float(robot_radius))
+    occ = base.occupied
     row, col = geo.cell_of(start.x, start.y)
     where = f"world {world.name!r}: start pose ({start.x:g}, {start.y:g}) m"
     if not geo.contains(row, col):
         x1, y1 = geo.origin_x + geo.width, geo.origin_y + geo.height
         raise WorldError(f"{where} is outside the map (x {geo.origin_x:g}..{x1:g} m, "
                          f"y {geo.origin_y:g}..{y1:g} m): pick a start inside it")
-    cfree = clearance_mask(occ, robot_radius / geo.cell)
-    if not cfree[row, col]:
+    if not base.cfree[row, col]:
         raise WorldError(f"{where} is inside an obstacle or closer than the robot radius "
                          f"({robot_radius:g} m) to one: pick a start in open space")
-    reachable = flood8(cfree, row, col)
-    views = _border(reachable)
-    views[::step, ::step] |= reachable[::step, ::step]
-    views[row, col] = True
     offsets, skip = ray_tree(int(n_rays), float(laser_range) / geo.cell)
-    seen = view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip)
-    return GroundTruth(geo, occ, reachable, seen | reachable)
+    sight = (step, int(n_rays), float(laser_range))
+    part = next((c for c in base.components if c.sight == sight and c.reachable[row, col]), None)
+    if part is None:
+        reachable = flood8(base.cfree, row, col)
+        views = _border(reachable)
+        views[::step, ::step] |= reachable[::step, ::step]
+        part = _Component(sight, reachable, views, view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip))
+        base.components.append(part)
+    seen = part.seen
+    if not part.views[row, col]:        # the start cell is a viewpoint too: what it sees joins the rest
+        seen = seen | view_free(occ, np.array([[row, col]], np.int64), offsets, skip)
+    return GroundTruth(geo, occ.copy(), part.reachable.copy(), seen | part.reachable)
+
+
+@dataclass
+class _Component:
+    """A reachable region of a world's grid and the free cells seen from its viewpoints (the lattice
+    and the border of `ground_truth`, without a start cell)."""
+
+    sight: tuple[int, int, float]           # (lattice step, rays, laser range) they were seen with
+    reachable: npt.NDArray[np.bool_]
+    views: npt.NDArray[np.bool_]
+    seen: npt.NDArray[np.bool_]
+
+
+@dataclass
+class _WorldGrid:
+    """A world rasterised on a grid for one robot radius, and its reachable regions found so far."""
+
+    occupied: npt.NDArray[np.bool_]
+    cfree: npt.NDArray[np.bool_]
+    components: list[_Component]
+
+
+_GRIDS: dict[tuple[object, ...], _WorldGrid] = {}
+_GRIDS_KEPT = 4
+
+
+def _world_grid(world: World, geo: GridGeometry, robot_radius: float) -> _WorldGrid:
+    """The world's occupied and C-free cells on `geo`, kept for the next runs in the same world (a
+    campaign makes many runs per world: rasterising, the clearance and the sight from a region's
+    viewpoints are the same for every start in that region; only the start cell's own view differs,
+    and `view_free` of a set of viewpoints is the union of theirs, so the result is the same bit for bit)."""
+    boxes = np.ascontiguousarray(world.boxes, np.float64)
+    discs = np.ascontiguousarray(world.discs, np.float64)
+    key = (tuple(geo), robot_radius, boxes.shape, boxes.tobytes(), discs.shape, discs.tobytes())
+    grid = _GRIDS.pop(key, None)
+    if grid is None:
+        occ = occupancy(world, geo)
+        grid = _WorldGrid(occ, clearance_mask(occ, robot_radius / geo.cell), [])
+    _GRIDS[key] = grid                      # most recently used last
+    while len(_GRIDS) > _GRIDS_KEPT:
+        del _GRIDS[next(iter(_GRIDS))]
+    return grid
 
 
 def _check_shape(name: str, grid: npt.NDArray[np.generic], gt: GroundTruth) -> None:
