@@ -34,6 +34,7 @@ import os
 import re
 import signal
 import statistics
+import time
 import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -48,8 +49,8 @@ from robotexp.record import EndReason, RunRecord
 from robotexp.registry import make_explorer
 from robotexp.world.bounds import parse_bounds
 
-__all__ = ["Campaign", "RunKey", "load_campaign", "method_label", "run_campaign", "run_key", "record_key",
-           "report_tables", "Table"]
+__all__ = ["Campaign", "RunKey", "RunTiming", "expected_robot_time", "load_campaign", "method_label", "run_campaign",
+           "run_key", "run_order", "record_key", "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
                   "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
@@ -70,6 +71,7 @@ class Campaign:
     runs: list[RunSpec]
     record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
     sweeps: dict[int, dict[str, Any]] | None = None    # id(spec) -> swept parameter values
+    areas: dict[str, float] | None = None     # world spec -> [m^2] area of its bounds (for `run_order`)
 
     def sweep_of(self, spec: RunSpec) -> dict[str, Any]:
         """The swept parameter values of a run of this campaign ({} outside a sweep)."""
@@ -153,6 +155,15 @@ def load_campaign(path: str | Path) -> Campaign:
     methods_installed = available(EXPLORERS)
     runs: list[RunSpec] = []
     sweeps: dict[int, dict[str, Any]] = {}
+    areas: dict[str, float] = {}
+
+    def world_of(spec: str) -> Any:
+        world = load_world(spec)
+        if world.bounds is not None:
+            x0, y0, x1, y1 = world.bounds
+            areas[spec] = max(x1 - x0, 0.0) * max(y1 - y0, 0.0)
+        return world
+
     for i, raw in enumerate(sets, start=1):
         where = f"[[set]] #{i}"
         if not isinstance(raw, dict):
@@ -160,7 +171,7 @@ def load_campaign(path: str | Path) -> Campaign:
         _check_keys(raw, _SET_KEYS, p, where)
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
         for world in _worlds(merged, p, where):
-            for spec, sweep in _expand({**merged, "world": world}, p, where, methods_installed, load_world):
+            for spec, sweep in _expand({**merged, "world": world}, p, where, methods_installed, world_of):
                 runs.append(spec)
                 if sweep:
                     sweeps[id(spec)] = sweep
@@ -177,7 +188,7 @@ def load_campaign(path: str | Path) -> Campaign:
                         f"{keys[key].speed * 1000:g} and {spec.speed * 1000:g} mm/s; a seed, speed or swept value "
                         "given twice?); give each run once")
         keys[key] = spec
-    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps)
+    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps, areas)
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -330,6 +341,64 @@ def _pose_label(spec: RunSpec) -> str:
     return spec.pose or "default"
 
 
+def expected_robot_time(spec: RunSpec, area: float | None) -> float:
+    """A guess of a run's robot time [s] before it runs, for ordering runs: the world's area [m^2]
+    over the run's speed [m/s] (about a metre of path per square metre: the thesis's runs took
+    0.5-1.1 m/m^2 in `dense` and `sparse`), at most the run's time limit; the time limit without an area."""
+    if area is None or not area > 0:
+        return spec.max_time
+    return min(spec.max_time, area / spec.speed)
+
+
+def run_order(campaign: Campaign, runs: Iterable[RunSpec]) -> list[RunSpec]:
+    """`runs` longest expected first (`expected_robot_time`), ties in the campaign's own order.
+
+    Longest first (LPT scheduling): the workers take the next run as they come free, so the short runs
+    fill the gaps at the end instead of one long run keeping a core busy while the others idle."""
+    index = {id(spec): i for i, spec in enumerate(campaign.runs)}
+    areas = campaign.areas or {}
+    listed = list(runs)
+    order = sorted(range(len(listed)), key=lambda i: (-expected_robot_time(listed[i], areas.get(listed[i].world)),
+                                                       index.get(id(listed[i]), len(index) + i)))
+    return [listed[i] for i in order]
+
+
+@dataclass(frozen=True)
+class RunTiming:
+    """Where one run of a campaign spent its time, measured in the process that made it.
+
+    Attributes:
+        run: the run's name.
+        worker: the process that made it ("pid N" in the pool; the Dask worker's address on a cluster).
+        start: [s] time.time() when the worker began the run (before its imports, world and set-up).
+        end: [s] time.time() when the run's record and files were done.
+        cpu_s: [s] CPU time of the worker process over the run (all its threads).
+        loop_s: [s] wall time of the run loop (the record's wall_time_s).
+        first_in_worker: the first run this worker made (its imports and numba cache loads are in it).
+    """
+
+    run: str
+    worker: str
+    start: float
+    end: float
+    cpu_s: float
+    loop_s: float
+    first_in_worker: bool
+
+    @property
+    def wall_s(self) -> float:
+        """[s] the run's wall time in its worker, set-up and writing included."""
+        return self.end - self.start
+
+    @property
+    def setup_s(self) -> float:
+        """[s] the wall time outside the run loop: imports (first run), world, ground truth, robot, files."""
+        return self.wall_s - self.loop_s
+
+
+_runs_made = 0                  # in a worker: runs begun so far
+
+
 _worker_interrupted = False     # in a worker: Ctrl-C came; queued runs are skipped at once
 _worker_running = False         # in a worker: a run is being made (Ctrl-C interrupts it)
 
@@ -360,14 +429,28 @@ def _record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict
     return extra
 
 
-def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any] | None = None) -> RunRecord | None:
-    """Worker: one run, written to `out` (record first, then images; with `record` its bag in
-    `out/bags`). Returns the record (None: a run queued after Ctrl-C, not made)."""
-    from robotexp.experiment import run_experiment
+def timed_run(worker: str) -> Callable[[RunRecord], RunTiming]:
+    """In a worker: start timing a run; call the result with the run's record when the run is done."""
+    global _runs_made
+    start, cpu0, first = time.time(), time.process_time(), _runs_made == 0
+    _runs_made += 1
 
+    def done(record: RunRecord) -> RunTiming:
+        return RunTiming(record.run, worker, start, time.time(), time.process_time() - cpu0,
+                         float(record.wall_time_s), first)
+    return done
+
+
+def _run_one(spec: RunSpec, out: str, record: bool = False,
+             extra: dict[str, Any] | None = None) -> tuple[RunRecord, RunTiming] | None:
+    """Worker: one run, written to `out` (record first, then images; with `record` its bag in
+    `out/bags`). Returns the record and its timing (None: a run queued after Ctrl-C, not made)."""
     global _worker_running
     if _worker_interrupted:
         return None
+    timing = timed_run(f"pid {os.getpid()}")
+    from robotexp.experiment import run_experiment
+
     _worker_running = True
     try:
         observers = []
@@ -379,14 +462,16 @@ def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any
         result = run_experiment(spec, Path(out), observers=observers, record_extra=extra or _record_extra(spec))
     finally:
         _worker_running = False
-    return result.record
+    return result.record, timing(result.record)
 
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
                  progress: Callable[[int, int, RunRecord | None], None] | None = None,
-                 cluster: str | None = None) -> list[RunRecord]:
+                 cluster: str | None = None, timings: list[RunTiming] | None = None) -> list[RunRecord]:
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
     Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
+    The runs start longest expected first (`run_order`); with `timings`, each finished run's
+    `RunTiming` is appended to it (benchmarks/bench_thesis_campaign.py reads them).
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
     writes its partial run), cancels the queued runs at once and re-raises KeyboardInterrupt. The
@@ -405,22 +490,21 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
         from robotexp.cluster import check_cluster_address
         check_cluster_address(cluster)
     with folder_lock(out, f"campaign {campaign.name}"):
-        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster)
+        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster,
+                           timings=timings)
 
 
 def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
                 progress: Callable[[int, int, RunRecord | None], None] | None,
-                cluster: str | None = None) -> list[RunRecord]:
+                cluster: str | None = None, timings: list[RunTiming] | None = None) -> list[RunRecord]:
     from robotexp.results import read_records
 
     results = out / "results.jsonl"
     done: set[RunKey] = set()
     if resume and results.exists():
         done = {record_key(r) for r in read_records(results) if r.end is not EndReason.INTERRUPTED}
-    todo = [s for s in campaign.runs if campaign.key(s) not in done]
-    # Likely-longest first, so that no process is left alone with a long run at the end: a run's robot
-    # time grows with its time limit and falls with its speed (the order of the records does not matter).
-    todo.sort(key=lambda s: (-s.max_time, s.speed))
+    # likely-longest first (the order of the records does not matter)
+    todo = run_order(campaign, (s for s in campaign.runs if campaign.key(s) not in done))
     total = len(todo)
     if progress:
         progress(0, total, None)
@@ -437,20 +521,24 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
                 progress(len(records), total, record)
 
         run_on_cluster(todo, out, cluster, lambda spec: _record_extra(spec, campaign.sweep_of(spec)), written,
-                       record=campaign.record)
+                       record=campaign.record, timings=timings)
         return records
     pool = ProcessPoolExecutor(max_workers=min(jobs, total), mp_context=get_context("spawn"),
                                initializer=_worker_init)
     try:
-        pending: set[Future[RunRecord | None]] = {
+        # submitted in order; the pool hands each worker the next one as it comes free
+        pending: set[Future[tuple[RunRecord, RunTiming] | None]] = {
             pool.submit(_run_one, spec, str(out), campaign.record, _record_extra(spec, campaign.sweep_of(spec)))
             for spec in todo}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:
-                record = fut.result()
-                if record is None:
+                made = fut.result()
+                if made is None:
                     continue
+                record, timing = made
+                if timings is not None:
+                    timings.append(timing)
                 records.append(record)
                 if progress:
                     progress(len(records), total, record)

@@ -29,6 +29,7 @@ from robotexp.observers import RunObserver
 from robotexp.record import EndReason, RunRecord
 
 if TYPE_CHECKING:
+    from robotexp.campaign import RunTiming
     from robotexp.explorer import ExplorationRun
     from robotexp.observers import StepEvent
 
@@ -80,11 +81,16 @@ class _CancelWatch(RunObserver):
 
 
 def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
-              stop_event: str | None = None) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None]:
+              stop_event: str | None = None) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None,
+                                                        RunTiming | None]:
     """On a worker: make one run in a temporary folder (with `record`, its ROS 2 bag in bags/); return
     its record (as JSON data), the bytes of every file it wrote but results.jsonl (by path relative to
-    the folder), and the error that ended it (None: none). A run whose explorer or robot failed still
-    returns the record written before the error. Pure: nothing is left behind on the worker."""
+    the folder), the error that ended it (None: none) and its timing (None without a record). A run
+    whose explorer or robot failed still returns the record written before the error. Pure: nothing
+    is left behind on the worker."""
+    from robotexp.campaign import timed_run
+
+    timing = timed_run(_worker_name())
     from robotexp.experiment import run_experiment
     from robotexp.results import read_jsonl
 
@@ -106,7 +112,19 @@ def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
             data = written[-1] if written else None
         files = {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
                  if p.is_file() and p.name != "results.jsonl"}
-    return data, files, error
+    return data, files, error, None if data is None else timing(RunRecord.from_dict(data))
+
+
+def _worker_name() -> str:
+    """The Dask worker this runs on (its address), or this process."""
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        import os
+
+        return f"pid {os.getpid()}"
 
 
 def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecord:
@@ -166,9 +184,11 @@ def _client(address: str) -> Iterator[Any]:
 
 
 def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable[[RunSpec], dict[str, Any]],
-                   on_record: Callable[[RunRecord], None], *, record: bool = False) -> None:
+                   on_record: Callable[[RunRecord], None], *, record: bool = False,
+                   timings: list[RunTiming] | None = None) -> None:
     """Make the runs `todo` on the Dask cluster at `address`, writing each into `out` as it finishes
-    (with `record`, each run's ROS 2 bag into `out/bags`) and passing its record to `on_record`.
+    (with `record`, each run's ROS 2 bag into `out/bags`) and passing its record to `on_record` (and
+    its `RunTiming` to `timings`, when given).
 
     A worker lost mid-run has its run rescheduled on another worker by the scheduler (up to its
     `allowed-failures`, 3 by default). Ctrl-C (KeyboardInterrupt) cancels every run not yet written
@@ -189,9 +209,11 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
                                  key=f"robotexp-{token}-{i}-{spec.method}") for i, spec in enumerate(todo)]
         try:
             for fut in as_completed(futures):
-                data, files, error = fut.result()
+                data, files, error, timing = fut.result()
                 if data is not None:
                     on_record(_store(out, data, files))
+                if timing is not None and timings is not None:
+                    timings.append(timing)
                 if error is not None:
                     raise RobotexpError(f"a run failed on the cluster: {error}")
                 fut.release()

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
+import random
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from robotexp.campaign import load_campaign, record_key, report_tables, run_campaign, run_key
+from robotexp.campaign import (RunTiming, expected_robot_time, load_campaign, record_key, report_tables,
+                               run_campaign, run_key, run_order)
 from robotexp.errors import ConfigError, PluginError, WorldError
 
 MINI = """
@@ -53,6 +56,33 @@ def test_thesis_campaign_has_66_runs_when_its_methods_are_installed() -> None:
     assert all(s.laser_range == 3.0 for s in camp.runs)
 
 
+def test_runs_start_longest_expected_first_each_once_in_a_fixed_order() -> None:
+    from robotexp.registry import EXPLORERS, available
+    if {"bvp", "srt-laser", "srt-ball"} - set(available(EXPLORERS)):
+        pytest.skip("the thesis's methods are not installed")
+    camp = load_campaign(Path(__file__).parents[1] / "campaigns" / "thesis.toml")
+    # the bounds of the worlds: dense 20.1 x 15.1 m, sparse 30.1 x 20.1 m
+    assert camp.areas == {"dense": pytest.approx(20.1 * 15.1), "sparse": pytest.approx(30.1 * 20.1)}
+    order = run_order(camp, camp.runs)
+    assert sorted(map(id, order)) == sorted(map(id, camp.runs))          # each run exactly once
+    shuffled = list(camp.runs)
+    random.Random(3).shuffle(shuffled)
+    assert run_order(camp, shuffled) == order                            # whatever order they come in
+    guess = [expected_robot_time(s, camp.areas[s.world]) for s in order]
+    assert guess == sorted(guess, reverse=True)
+    # sparse at 40 mm/s: 605 m^2 / 0.04 m/s = 15,125 s, under SRT-Ball's 6 h limit, the others cut at 4 h;
+    # then dense at 40 mm/s (7,588 s), sparse at 100 mm/s (6,050 s), dense at 100 mm/s (3,035 s) last
+    assert guess[0] == pytest.approx(605.01 / 0.04) and guess[5] == 4 * 3600
+    assert [(s.world, s.method, round(s.speed * 1000)) for s in order[:6]] == \
+        [("sparse", "srt-ball", 40)] * 5 + [("sparse", "bvp", 40)]
+    assert {(s.world, round(s.speed * 1000)) for s in order[-18:]} == {("dense", 100)}
+    # ties keep the campaign's order (poses 1..9 of the same world, method and speed)
+    assert [s.pose for s in order if (s.world, s.method, s.speed) == ("dense", "bvp", 0.1)] == \
+        [str(i) for i in range(1, 10)]
+    # no area known (a world without bounds): the time limit decides
+    assert expected_robot_time(order[0], None) == order[0].max_time
+
+
 @pytest.mark.parametrize("text, error, words", [
     (MINI.replace("methods", "methds"), ConfigError, ["[[set]] #1", "methds"]),
     (MINI.replace('name = "mini"', 'name = "mini"\nspeed = 3'), ConfigError, ["[campaign]", "speed"]),
@@ -93,8 +123,16 @@ def test_run_resume_and_report(tmp_path: Path) -> None:
     camp = load_campaign(_write(tmp_path, MINI.replace("seeds = [0, 1]", "seeds = [0]")))
     out = tmp_path / "out"
     seen: list[int] = []
-    records = run_campaign(camp, out, jobs=2, progress=lambda done, total, rec: seen.append(done))
+    timings: list[RunTiming] = []
+    records = run_campaign(camp, out, jobs=2, progress=lambda done, total, rec: seen.append(done), timings=timings)
     assert len(records) == 4 and seen[-1] == 4
+    # every run timed once, in the process that made it: two workers, each with one first run
+    assert sorted(t.run for t in timings) == sorted(r.run for r in records)
+    assert sum(t.first_in_worker for t in timings) == len({t.worker for t in timings}) <= 2
+    by_run = {r.run: r for r in records}
+    for t in timings:
+        assert t.loop_s == by_run[t.run].wall_time_s and 0 < t.loop_s < t.wall_s and t.setup_s > 0
+        assert t.cpu_s > 0 and t.worker.startswith("pid ") and t.worker != f"pid {os.getpid()}"
     lines = (out / "results.jsonl").read_text().splitlines()
     assert len(lines) == 4
     stored = [json.loads(x) for x in lines]
