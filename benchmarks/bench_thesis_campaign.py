@@ -1,7 +1,7 @@
 """Where a whole campaign's seconds go (default: the thesis's 66 runs, campaigns/thesis.toml).
 
 Run: python benchmarks/bench_thesis_campaign.py [FILE] [--jobs 2] [--cluster local:2] [--max-time S]
-                                                [--out DIR] [--top 8]
+                                                [--sample] [--out DIR] [--top 8]
 
 Runs the campaign from scratch as `robotexp campaign run FILE --jobs N` does (or on `--cluster`), with
 every run timed in its worker (`robotexp.campaign.RunTiming`), and prints:
@@ -12,9 +12,10 @@ every run timed in its worker (`robotexp.campaign.RunTiming`), and prints:
 - per-run set-up (wall time in the worker outside the run loop: imports and numba cache loads in a
   worker's first run; world, ground truth, robot and files in every run) and the workers' start-up;
 - the longest runs; how long the workers idled at the end (the last run running alone).
-Each run's timing goes to DIR/timings.csv. `--max-time S` cuts every run at S s of robot time (a
-quick look; the records then differ from the campaign's). On a machine shared with other work the wall
-times grow with the load; the CPU figures much less.
+Each run's timing goes to DIR/timings.csv, the results stay in DIR for `robotexp campaign report`.
+`--sample` runs one start pose per group and estimates the whole campaign from it (a quick look).
+`--max-time S` cuts every run at S s of robot time (the records then differ from the campaign's).
+On a machine shared with other work the wall times grow with the load; the CPU figures much less.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ import threading
 import time
 from pathlib import Path
 
-from robotexp.campaign import RunTiming, load_campaign, run_campaign
+from robotexp.campaign import RunTiming, load_campaign, record_key, run_campaign, run_order
+from robotexp.experiment import RunSpec
 
 
 def list_schedule(durations: list[float], workers: int) -> float:
@@ -62,11 +64,22 @@ def main() -> None:
     ap.add_argument("--max-time", type=float, default=None, help="[s] cut every run at this robot time")
     ap.add_argument("--out", default=None, help="output folder (default out/bench-<name>; emptied first)")
     ap.add_argument("--top", type=int, default=8, help="longest runs to list")
+    ap.add_argument("--sample", action="store_true",
+                    help="run only the first start pose of each (world, method, speed, seed, sweep) and estimate "
+                         "the whole campaign's CPU time and schedule from them (each run standing for its group)")
     args = ap.parse_args()
     camp = load_campaign(args.file)
     if args.max_time is not None:
         for spec in camp.runs:
             spec.max_time = min(spec.max_time, args.max_time)
+    weight: dict[str, int] = {}         # with --sample: run name -> runs of the campaign it stands for
+    if args.sample:
+        groups: dict[tuple[object, ...], list[RunSpec]] = {}
+        for spec in camp.runs:
+            key = camp.key(spec)
+            groups.setdefault((key[0], key[1], key[3], key[4], key[5]), []).append(spec)
+        camp.runs = [g[0] for g in groups.values()]
+        stand_for = {id(g[0]): len(g) for g in groups.values()}
     workers = args.jobs
     if args.cluster and args.cluster.startswith("local:"):
         workers = int(args.cluster.split(":", 1)[1])
@@ -87,6 +100,9 @@ def main() -> None:
 
     self0 = resource.getrusage(resource.RUSAGE_SELF)
     records = run_campaign(camp, out, jobs=args.jobs, progress=progress, cluster=args.cluster, timings=timings)
+    if args.sample:
+        by_key = {camp.key(spec): stand_for[id(spec)] for spec in camp.runs}
+        weight = {r.run: by_key[record_key(r)] for r in records}
     wall = time.time() - t0
     self1 = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)     # the worker processes (and a cluster's nannies), ended
@@ -95,7 +111,9 @@ def main() -> None:
     where = f"cluster {args.cluster}" if args.cluster else f"{args.jobs} jobs (process pool)"
     cut = f", each run cut at {args.max_time:g} s robot time" if args.max_time is not None else ""
     print(f"\ncampaign {camp.name}: {len(records)} runs on {where}{cut}, {os.cpu_count()} cores here")
-    print(f"wall time {wall:.1f} s = {wall / 60:.2f} min")
+    robot = sum(r.robot_time_s for r in records)
+    print(f"wall time {wall:.1f} s = {wall / 60:.2f} min; {len(records) / wall * 60:.1f} runs/min; robot time "
+          f"{robot:.0f} s = {robot / wall:.0f}x the wall time; incomplete: {sum(not r.completed for r in records)}")
     print(f"load average (1 min): {load0[0]:.2f} before, {statistics.fmean(sampler.samples):.2f} mean during "
           f"(max {max(sampler.samples):.2f}), {load1[0]:.2f} after")
     if not timings:
@@ -149,6 +167,18 @@ def main() -> None:
     print(f"  {'run':<32} {'CPU s':>7} {'wall s':>7} {'loop s':>7} {'set-up s':>8}")
     for t in sorted(timings, key=lambda t: -t.cpu_s)[:args.top]:
         print(f"  {t.run:<32} {t.cpu_s:>7.1f} {t.wall_s:>7.1f} {t.loop_s:>7.1f} {t.setup_s:>8.2f}")
+    if weight:
+        est = [(t.cpu_s, weight[t.run]) for t in timings]
+        total = sum(c * w for c, w in est)
+        # the whole campaign in its own order (longest expected first): each sampled run as often as its group
+        full = load_campaign(args.file)
+        key_of = {r.run: record_key(r) for r in records}
+        cpu_of = {(k[0], k[1], k[3], k[4], k[5]): t.cpu_s for t in timings for k in [key_of[t.run]]}
+        seq = [cpu_of[(k[0], k[1], k[3], k[4], k[5])] for k in (full.key(s) for s in run_order(full, full.runs))]
+        print(f"\n--sample: {len(timings)} runs standing for {sum(w for _, w in est)}: the whole campaign would take "
+              f"{total:.1f} s CPU; longest run {max(seq):.1f} s; list schedule in the campaign's order on {workers} "
+              f"idle cores {list_schedule(seq, workers):.1f} s = {list_schedule(seq, workers) / 60:.2f} min "
+              "(start poses of a group differ: see the full campaign's timings)")
     print(f"\ntimings: {out / 'timings.csv'}; tables: robotexp campaign report {out / 'results.jsonl'}")
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import contextlib
 import re
 import tempfile
-import time
+import threading
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -59,25 +59,41 @@ def check_cluster_address(address: str) -> None:
 class _CancelWatch(RunObserver):
     """On a worker: ends the run (interrupted) soon after the client set the campaign's stop event
     (Ctrl-C), so that a cancelled campaign frees its workers at once instead of finishing its runs
-    (Dask cannot stop a task that is executing). The event is asked at most twice a second."""
+    (Dask cannot stop a task that is executing).
+
+    A thread of the run waits on the event at the scheduler (a long poll renewed every second) and
+    raises a flag the run loop reads at each step: asking the scheduler from the loop itself (it did,
+    twice a second) held the run for a round trip each time, 25 ms on a loaded 2-core machine (5 % of
+    the run's time)."""
 
     def __init__(self, event: str) -> None:
         self.event_name = event
-        self.event: Any = None
-        self.next_check = 0.0
+        self.stopped = threading.Event()        # the campaign was cancelled
+        self.done = threading.Event()           # the run ended: the thread ends too
+
+    def on_start(self, run: ExplorationRun) -> None:
+        """Start waiting for the stop event (on the worker's client, found here in the task's thread: the
+        waiting thread would find none)."""
+        from distributed import Event, get_client
+
+        event = Event(self.event_name, client=get_client())
+        threading.Thread(target=self._wait, args=(event,), name="robotexp-cancel-watch", daemon=True).start()
+
+    def _wait(self, event: Any) -> None:
+        with contextlib.suppress(Exception):        # a worker closing under it: nothing left to stop
+            while not self.done.is_set():
+                if event.wait(timeout=1.0):
+                    self.stopped.set()
+                    return
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
-        """Ask the scheduler whether the campaign was cancelled; stop the run if so."""
-        now = time.monotonic()
-        if now < self.next_check:
-            return
-        self.next_check = now + 0.5
-        if self.event is None:
-            from distributed import Event
-
-            self.event = Event(self.event_name)
-        if self.event.is_set():
+        """Stop the run once the campaign was cancelled."""
+        if self.stopped.is_set():
             run.request_stop("the campaign was cancelled (Ctrl-C on its client)", EndReason.INTERRUPTED)
+
+    def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
+        """The run is over: let the waiting thread end."""
+        self.done.set()
 
 
 def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
@@ -152,6 +168,23 @@ def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecor
     return record
 
 
+# Dask settings of a local:N cluster (its scheduler, nannies and worker processes). Each was measured to cost
+# CPU that a 2-core machine takes from the runs (benchmarks/bench_thesis_campaign.py --cluster local:2):
+LOCAL_CONFIG: dict[str, Any] = {
+    # the nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which also freezes glibc's mmap threshold
+    # at 128 KiB: every large numpy temporary of a step is then mmapped and page-faulted afresh (a bvp run
+    # in sparse: 18x the page faults, +0.4 s system time on 2.2 s)
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    # a sample of the running task's stack every 10 ms, for the dashboard's profile (which local:N has not)
+    "distributed.worker.profile.enabled": False,
+    # event-loop health ticks every 20 ms and a psutil system monitor every 500 ms, in the scheduler, each
+    # nanny and each worker
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.admin.system-monitor.disk": False,
+}
+
+
 @contextlib.contextmanager
 def _client(address: str) -> Iterator[Any]:
     """A dask.distributed Client on `address` (a LocalCluster for local:N, closed at the end).
@@ -159,13 +192,17 @@ def _client(address: str) -> Iterator[Any]:
     Raises:
         ConfigError: no scheduler answers at the address.
     """
+    import dask
     from distributed import Client, LocalCluster
 
     check_cluster_address(address)
     local = _LOCAL.fullmatch(address)
     if local:
-        cluster = LocalCluster(n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        with dask.config.set(LOCAL_CONFIG):     # read when the scheduler, nannies and workers are made
+            # no dashboard; the scheduler's HTTP server (health routes) on a free port: 8787 may be taken
+            # by another cluster on a shared machine (a warning, and in the tests an error)
+            cluster = LocalCluster(n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", scheduler_kwargs={"dashboard": False})
         try:
             with Client(cluster) as client:
                 yield client

@@ -212,3 +212,31 @@ def test_no_scheduler_there_is_one_line_exit_2(tmp_path: Path, monkeypatch: pyte
                                   "--cluster", f"tcp://127.0.0.1:{_free_port()}"])
     assert r.exit_code == 2 and "no Dask scheduler answers there" in r.output, r.output
     assert not (tmp_path / "o" / "results.jsonl").exists()
+
+
+def _worker_settings(dask_worker: Any) -> tuple[str | None, bool, bool]:
+    import dask
+
+    return (os.environ.get("MALLOC_TRIM_THRESHOLD_"), bool(dask.config.get("distributed.worker.profile.enabled")),
+            "profile" in dask_worker.periodic_callbacks)
+
+
+def test_local_cluster_workers_run_lean_and_time_their_runs(tmp_path: Path) -> None:
+    from robotexp.campaign import RunTiming, run_campaign
+    from robotexp.cluster import _client
+
+    # no trim threshold from the nanny (it froze glibc's mmap threshold: page faults in every step), no
+    # stack sampling of the running task every 10 ms
+    with _client("local:1") as client:
+        assert list(client.run(_worker_settings).values()) == [(None, False, False)]
+    camp_file = tmp_path / "one.toml"
+    camp_file.write_text(TINY.replace("seeds = [0, 1]", "seeds = [0]").replace('poses = ["path1", "path2"]',
+                                                                                'poses = ["path1"]'), encoding="utf-8")
+    camp = load_campaign(camp_file)
+    timings: list[RunTiming] = []
+    records = run_campaign(camp, tmp_path / "out", jobs=1, cluster="local:2", timings=timings)
+    assert sorted(t.run for t in timings) == sorted(r.run for r in records) and len(records) == 2
+    by_run = {r.run: r for r in records}
+    for t in timings:
+        assert t.worker.startswith("tcp://127.0.0.1:") and t.loop_s == by_run[t.run].wall_time_s
+        assert 0 < t.loop_s < t.wall_s and t.cpu_s > 0
