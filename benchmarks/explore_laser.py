@@ -23,10 +23,10 @@ RPLidar's).
 The pairing line measures what the pairing gets wrong: for each scan the run used, the robot pose it
 was paired with (`LaserMountedRobot.last_pair`) against the emulated robot's true pose when that scan
 ended (logged by the laser emulator's source at each measurement: scan k of an RPLidar ends when the
-first piece of turn k+1 is measured, an LMS2xx or Hokuyo scan is measured at once), as the median and
-95th percentile of the position [mm] and heading [deg] errors, and the stamp's lateness [ms]. It
-includes the odometry's own error (small on these emulators). The scan count check says whether the
-k-th scan read is the k-th measured (else the figures are not meaningful).
+first piece of turn k+1 is measured; an LMS2xx or Hokuyo scan is measured at once and found by its
+ranges in whole mm), as the median and 95th percentile of the position [mm] and heading [deg] errors,
+and the stamp's lateness [ms]. It includes the odometry's own error (small on these emulators). For
+the RPLidar the scan counts say whether the k-th turn read is the k-th measured.
 
 The embedded simulator's run uses the robot preset's own laser (the Kobuki's: 181 beams over 180 deg),
 not the laser emulated here (an RPLidar turns 360 deg): the two runs differ in the sensor too, not only
@@ -46,7 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.experiment import RunSpec, run_experiment, run_on_robot
-from robotexp.laser import LASER_EMULATORS, LASERS, Laser
+from robotexp.laser import LASER_EMULATORS, LASERS, Laser, StampedScan
 from robotexp.laser_mount import LaserMountedRobot, robot_options
 from robotexp.registry import available, connect_robot, load, make_emulator
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, wrap_angle
@@ -94,6 +94,7 @@ class TruthLog:
         self.source, self.sim, self.lock = source, sim, lock or threading.Lock()
         self.times: list[float] = []
         self.poses: list[Pose] = []
+        self.by_ranges: dict[bytes, list[int]] = {}     # whole-mm ranges -> the measurements that gave them
 
     def __call__(self, angles: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
         ranges = self.source(angles, reach)
@@ -102,13 +103,21 @@ class TruthLog:
                 pose = self.sim.true_pose
             self.times.append(time.monotonic())
             self.poses.append(pose)
+            self.by_ranges.setdefault(mm_key(np.asarray(ranges)), []).append(len(self.times) - 1)
         return np.asarray(ranges)
+
+
+def mm_key(ranges: npt.NDArray[np.float64]) -> bytes:
+    """A scan's ranges in whole mm (echoes under 7.9 m; others -1) as a dictionary key."""
+    r = np.asarray(ranges, np.float64)
+    ok = np.isfinite(r) & (r < 7.9)
+    return np.where(ok, np.rint(np.where(ok, r, 0.0) * 1000), -1).astype(np.int64).tobytes()
 
 
 class PairLog(LaserMountedRobot):
     """A `LaserMountedRobot` that keeps each pairing it made: (scan seq, stamp, paired robot pose)."""
 
-    pairs: list[tuple[int, float, Pose]]
+    pairs: list[tuple[StampedScan, Pose]]
 
     def _read(self) -> RobotState:
         state = super()._read()
@@ -117,11 +126,16 @@ class PairLog(LaserMountedRobot):
         return state
 
 
-def pairing_line(pairs: list[tuple[int, float, Pose]], truth: TruthLog, calls_per_scan: int, offset: int) -> str:
-    """The pairing errors (see the module docstring): scan k ends at measurement calls_per_scan * k + offset."""
+def pairing_line(pairs: list[tuple[StampedScan, Pose]], truth: TruthLog, turns: bool) -> str:
+    """The pairing errors (see the module docstring); `turns`: RPLidar turns of 18 measurements."""
     pos, head, late = [], [], []
-    for seq, stamp, pose in {p[0]: p for p in pairs}.values():
-        i = calls_per_scan * seq + offset
+    for stamped, pose in {p[0].seq: p for p in pairs}.values():
+        stamp = stamped.stamp
+        if turns:
+            i = 18 * (stamped.seq + 1)
+        else:       # the measurement with these ranges nearest in time
+            found = truth.by_ranges.get(mm_key(stamped.scan.ranges), [])
+            i = min(found, key=lambda j: abs(truth.times[j] - stamp), default=len(truth.times))
         if i >= len(truth.times):
             continue
         true = truth.poses[i]
@@ -201,11 +215,10 @@ def main() -> int:
         with robot:
             record = run_on_robot(spec(), robot, None, world).record
             scans = (laser.latest().seq + 1) if laser.latest() else 0
-        # an RPLidar turn is 18 pieces, each measured on its own; it ends when the next turn's first is measured
-        per, offset = (18, 18) if args.laser == "rplidar" else (1, 0)
-        sent = len(truth.times) // per
-        pairing = "" if args.unpaired or direct else (pairing_line(robot.pairs, truth, per, offset)  # type: ignore[attr-defined]
-                                            + f" (scans measured {sent}, read {scans})")
+        turns = args.laser == "rplidar"      # 18 pieces a turn, each measured on its own
+        sent = len(truth.times) // (18 if turns else 1)
+        pairing = "" if args.unpaired or direct else (pairing_line(robot.pairs, truth, turns)  # type: ignore[attr-defined]
+                                                      + f" (scans measured {sent}, read {scans})")
         # commands that asked the robot emulator for its own simulated laser (P3-DX's SIM_LRF_ENABLE)
         asked = sum(1 for cmd in getattr(emu, "commands", ()) if getattr(cmd, "cmd", None) in _SIM_LASER)
     diff = 100 * (record["coverage"] - embedded["coverage"])

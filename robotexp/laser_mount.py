@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.laser import Laser, LaserEmulator, ScanSource
+from robotexp.laser import Laser, LaserEmulator, ScanSource, StampedScan
 from robotexp.robot import Clock, LaserScan, Pose, Robot, RobotState, Twist, wrap_angle
 
 __all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec",
@@ -180,7 +180,7 @@ class LaserMountedRobot(Robot):
         self.radius = robot.radius
         self.history = PoseHistory()
         self.paired = 0                                           # scans given with an interpolated pose
-        self.last_pair: tuple[int, float, Pose] | None = None    # (seq, stamp, robot pose) of the newest pairing
+        self.last_pair: tuple[StampedScan, Pose] | None = None   # the newest scan given and its robot pose
         listen = getattr(robot, "add_state_listener", None)
         self.streamed = listen is not None                        # every state, stamped as it arrived
         if listen is not None:
@@ -220,7 +220,7 @@ class LaserMountedRobot(Robot):
             at_scan = self.history.oldest() or state.pose
         else:
             self.paired += 1
-        self.last_pair = (stamped.seq, stamped.stamp, at_scan)
+        self.last_pair = (stamped, at_scan)
         sensor = _compose(at_scan, self.mount)
         beam_sensors = None
         offsets = getattr(self.laser, "beam_offsets", None)
