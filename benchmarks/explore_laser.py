@@ -22,11 +22,12 @@ RPLidar's).
 
 The pairing line measures what the pairing gets wrong: for each scan the run used, the robot pose it
 was paired with (`LaserMountedRobot.last_pair`) against the emulated robot's true pose when that scan
-ended (logged by the laser emulator's source at each measurement: scan k of an RPLidar ends when the
-first piece of turn k+1 is measured; an LMS2xx or Hokuyo scan is measured at once and found by its
-ranges in whole mm), as the median and 95th percentile of the position [mm] and heading [deg] errors,
-and the stamp's lateness [ms]. It includes the odometry's own error (small on these emulators). For
-the RPLidar the scan counts say whether the k-th turn read is the k-th measured.
+ended (logged by the laser emulator's source at each measurement; a scan is found among them by its
+ranges in whole mm: an LMS2xx or Hokuyo scan is measured at once; an RPLidar turn is measured in 18
+pieces, found by its first piece, and ends when the next turn's first piece is measured), as the
+median and 95th percentile of the position [mm] and heading [deg] errors, and the stamp's lateness
+[ms]. It includes the odometry's own error (small on these emulators); scans not found (a piece lost
+on a full pseudo-terminal) are left out.
 
 The embedded simulator's run uses the robot preset's own laser (the Kobuki's: 181 beams over 180 deg),
 not the laser emulated here (an RPLidar turns 360 deg): the two runs differ in the sensor too, not only
@@ -53,6 +54,7 @@ from robotexp.robot import LaserScan, Pose, Robot, RobotState, wrap_angle
 from robotexp.sim import mounted_source
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.kobuki.robot import KobukiRobot
+from robotexp_drivers.lasers.rplidar.codec import beam_index, node_angles_cw
 from robotexp_drivers.p3dx import constants as p3dx
 
 _SIM_LASER = (p3dx.CMD_SIM_LRF_ENABLE, p3dx.CMD_OLD_SIM_LRF_ENABLE)
@@ -95,6 +97,7 @@ class TruthLog:
         self.times: list[float] = []
         self.poses: list[Pose] = []
         self.by_ranges: dict[bytes, list[int]] = {}     # whole-mm ranges -> the measurements that gave them
+        self.ranges: list[npt.NDArray[np.float64]] = []
 
     def __call__(self, angles: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
         ranges = self.source(angles, reach)
@@ -104,6 +107,7 @@ class TruthLog:
             self.times.append(time.monotonic())
             self.poses.append(pose)
             self.by_ranges.setdefault(mm_key(np.asarray(ranges)), []).append(len(self.times) - 1)
+            self.ranges.append(np.asarray(ranges, np.float64))
         return np.asarray(ranges)
 
 
@@ -126,18 +130,30 @@ class PairLog(LaserMountedRobot):
         return state
 
 
-def pairing_line(pairs: list[tuple[StampedScan, Pose]], truth: TruthLog, turns: bool) -> str:
-    """The pairing errors (see the module docstring); `turns`: RPLidar turns of 18 measurements."""
+def pairing_line(pairs: list[tuple[StampedScan, Pose]], truth: TruthLog, first_piece: npt.NDArray[np.int64] | None
+                 ) -> str:
+    """The pairing errors (see the module docstring); `first_piece`: an RPLidar turn's first piece's beams."""
     pos, head, late = [], [], []
+    found = 0
+    starts = np.arange(0, len(truth.ranges), 18)        # an RPLidar turn's first pieces
+    if first_piece is not None and len(starts):
+        firsts = np.nan_to_num(np.stack([truth.ranges[j] for j in starts]), posinf=-1.0)
     for stamped, pose in {p[0].seq: p for p in pairs}.values():
         stamp = stamped.stamp
-        if turns:
-            i = 18 * (stamped.seq + 1)
-        else:       # the measurement with these ranges nearest in time
-            found = truth.by_ranges.get(mm_key(stamped.scan.ranges), [])
-            i = min(found, key=lambda j: abs(truth.times[j] - stamp), default=len(truth.times))
+        # the measurement with these ranges nearest in time (a turn: its first piece, within 2 mm; it
+        # ends 18 pieces on)
+        if first_piece is None:
+            seen = truth.by_ranges.get(mm_key(stamped.scan.ranges), [])
+        elif len(starts):
+            r = np.nan_to_num(np.asarray(stamped.scan.ranges)[first_piece], nan=-2.0, posinf=-1.0)
+            seen = [int(j) + 18 for j in starts[np.max(np.abs(firsts - r), axis=1) <= 0.002]]
+        else:
+            seen = []
+        i = min(seen, key=lambda j: abs(truth.times[j] - stamp) if j < len(truth.times) else math.inf,
+                default=len(truth.times))
         if i >= len(truth.times):
             continue
+        found += 1
         true = truth.poses[i]
         pos.append(1000 * math.hypot(pose.x - true.x, pose.y - true.y))
         head.append(abs(math.degrees(wrap_angle(pose.theta - true.theta))))
@@ -148,7 +164,9 @@ def pairing_line(pairs: list[tuple[StampedScan, Pose]], truth: TruthLog, turns: 
     p50, p95 = np.percentile(pos, q)
     h50, h95 = np.percentile(head, q)
     l50, l95 = np.percentile(late, q)
-    return (f"pairing over {len(pos)} scans used: position error median {p50:.0f} mm, 95% {p95:.0f} mm; heading "
+    used = len({p[0].seq for p in pairs})
+    return (f"pairing over {found} of the {used} scans used: position error median {p50:.0f} mm, 95% {p95:.0f} mm; "
+            f"heading "
             f"median {h50:.2f} deg, 95% {h95:.2f} deg; stamp minus true end median {l50:.1f} ms, 95% {l95:.1f} ms")
 
 
@@ -215,9 +233,12 @@ def main() -> int:
         with robot:
             record = run_on_robot(spec(), robot, None, world).record
             scans = (laser.latest().seq + 1) if laser.latest() else 0
-        turns = args.laser == "rplidar"      # 18 pieces a turn, each measured on its own
-        sent = len(truth.times) // (18 if turns else 1)
-        pairing = "" if args.unpaired or direct else (pairing_line(robot.pairs, truth, turns)  # type: ignore[attr-defined]
+        first_piece = None
+        if args.laser == "rplidar":         # 18 pieces a turn, each measured on its own
+            n = lemu.samples
+            first_piece = beam_index(node_angles_cw(n)[:n // 18], n)
+        sent = len(truth.times) // (1 if first_piece is None else 18)
+        pairing = "" if args.unpaired or direct else (pairing_line(robot.pairs, truth, first_piece)  # type: ignore[attr-defined]
                                                       + f" (scans measured {sent}, read {scans})")
         # commands that asked the robot emulator for its own simulated laser (P3-DX's SIM_LRF_ENABLE)
         asked = sum(1 for cmd in getattr(emu, "commands", ()) if getattr(cmd, "cmd", None) in _SIM_LASER)

@@ -5,7 +5,8 @@ reader thread decodes the stream and folds it into the backend's state under `_c
 `threading.Condition`) on which readers of that state wait. The parts that are the same in every
 backend live here:
 
-- the reader loop (`_reader`): read what the link has, hand it to `_on_data`, and fail the link
+- the reader loop (`StreamReader._reader`, which the laser drivers run too): read what the link
+  has, hand it to `_on_data`, and fail the link
   when it ends, when nothing valid came for `timeout` s, or when the loop itself breaks (a bug
   must not leave `read()` waiting forever). Silence is judged on the reader's own clock: the link
   is silent when two reads in a row that *started* more than `timeout` s after the last valid
@@ -45,13 +46,13 @@ import threading
 import time
 from abc import abstractmethod
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 from robotexp.clock import Clock, PacedClock
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
 from robotexp.robot import Pose, Robot, Twist
 
-__all__ = ["StateStamps", "StreamBackend", "StreamLink", "read_waiting", "require_positive"]
+__all__ = ["StateStamps", "StreamBackend", "StreamLink", "StreamReader", "read_waiting", "require_positive"]
 
 log = logging.getLogger(__name__)
 
@@ -110,6 +111,71 @@ def require_positive(who: str, **values: float) -> None:
             raise ConfigError(f"{who}: {what} must be > 0, got {value}")
 
 
+class StreamReader:
+    """The reader thread's loop of a device that streams (a robot backend, a laser driver): read
+    what the link has, hand it to `_on_read`, and fail the device (`_fail`) when the link ends, when
+    two reads in a row that started after `_silent` says the data stopped brought nothing valid (a
+    reader starved of the interpreter's lock finds what arrived meanwhile on its next read), or when
+    the loop itself breaks (a bug must not leave a waiting caller waiting forever).
+
+    A user has `name` and `address` and sets `_stop` (a `threading.Event`; set: the loop ends, a link closing
+    under it is no error) and `_quiet_reads = 0`, and implements `_receive`, `_on_read`, `_silent`,
+    `_silence_error` and `_fail`; `_clock` is the time the loop measures with.
+    """
+
+    name: ClassVar[str]
+    _stop: threading.Event
+    _quiet_reads: int
+
+    def _clock(self) -> float:
+        """The time [s] `_on_read` and `_silent` get."""
+        return time.perf_counter()
+
+    @abstractmethod
+    def _receive(self) -> bytes:
+        """What the link has now (b"" after its poll timeout); raises ConnectionLost at its end."""
+
+    @abstractmethod
+    def _on_read(self, data: bytes, now: float) -> None:
+        """Decode `data` (maybe b"") read at `now` [s, `_clock`]; may raise RobotError."""
+
+    @abstractmethod
+    def _silent(self, started: float) -> bool:
+        """True when a read that started at `started` [s, `_clock`] started past the silence limit."""
+
+    @abstractmethod
+    def _silence_error(self, now: float) -> RobotError:
+        """The error for the silence noticed at `now` [s, `_clock`]."""
+
+    @abstractmethod
+    def _fail(self, exc: RobotError) -> None:
+        """Record `exc` for the device's callers (and stop what must stop)."""
+
+    def _reader(self) -> None:
+        try:
+            while not self._stop.is_set():
+                started = self._clock()
+                try:
+                    data = self._receive()
+                except ConnectionLost:
+                    if self._stop.is_set():
+                        return      # closing: the link went away under us on purpose
+                    raise
+                now = self._clock()
+                self._on_read(data, now)
+                # silent only when reads that began after the limit brought nothing valid: a reader
+                # that could not run (the lock held elsewhere) finds the waiting data on its next read
+                self._quiet_reads = self._quiet_reads + 1 if self._silent(started) else 0
+                if self._quiet_reads >= 2:
+                    raise self._silence_error(now)
+        except RobotError as exc:
+            self._fail(exc)
+        except Exception as exc:     # a bug here must not leave a caller waiting forever
+            log.exception("%s: reader thread failed", self.name)
+            self._fail(RobotError(f"{self.name}: reader thread failed at {getattr(self, 'address', None)!r}: "
+                                  f"{exc!r}"))
+
+
 class StateStamps:
     """Host stamps of the robot states one read brought: the newest at the read's time, each earlier
     one as much before as its robot time is older, in host seconds per robot second as the stream
@@ -140,7 +206,7 @@ class StateStamps:
         return [max(now - (newest - t) * rate, floor) for t in robot_times]
 
 
-class StreamBackend(Robot):
+class StreamBackend(StreamReader, Robot):
     """A `Robot` whose state arrives as a stream decoded by a reader thread (see the module docstring).
 
     Attributes:
@@ -203,6 +269,12 @@ class StreamBackend(Robot):
         """What the link has now (b"" after its poll timeout); raises ConnectionLost at its end."""
         return self._link.read_some()
 
+    def _on_read(self, data: bytes, now: float) -> None:
+        arrived = time.monotonic()
+        self._on_data(data, now)
+        if self._seen:
+            self._hand_out_states(arrived)
+
     @abstractmethod
     def _on_data(self, data: bytes, now: float) -> None:
         """Decode `data` (maybe b"") received at `now` [s, perf_counter] and do the periodic sends.
@@ -231,32 +303,7 @@ class StreamBackend(Robot):
         """True when a read that started at `now` [s] started more than `timeout` s after the last valid data."""
         return now - self._last_rx > self.timeout
 
-    # -- reader thread -------------------------------------------------------------------
-    def _reader(self) -> None:
-        try:
-            while not self._stop.is_set():
-                started = time.perf_counter()
-                try:
-                    data = self._receive()
-                except ConnectionLost:
-                    if self._stop.is_set():
-                        return      # closing: the link went away under us on purpose
-                    raise
-                now, arrived = time.perf_counter(), time.monotonic()
-                self._on_data(data, now)
-                if self._seen:
-                    self._hand_out_states(arrived)
-                # silent only when reads that began after the limit brought nothing valid: a reader
-                # that could not run (the lock held elsewhere) finds the waiting data on its next read
-                self._quiet_reads = self._quiet_reads + 1 if self._silent(started) else 0
-                if self._quiet_reads >= 2:
-                    raise self._silence_error(now)
-        except RobotError as exc:
-            self._fail(exc)
-        except Exception as exc:     # a bug here must not leave read() waiting forever
-            log.exception("%s: reader thread failed", self.name)
-            self._fail(RobotError(f"{self.name}: reader thread failed at {self.address!r}: {exc!r}"))
-
+    # -- reader thread (StreamReader) ----------------------------------------------------
     def _fail(self, exc: RobotError) -> None:
         """Record the error for read() and the clock, and try once to stop the robot."""
         with self._cond:
