@@ -74,3 +74,24 @@ def test_a_mounted_laser_pairs_with_every_state_the_kobuki_sent(devices, wait_fo
         assert wait_for(lambda: robot.robot.read().velocity == Twist(0.0, 0.0), 2.0)
         time.sleep(0.1)
         assert robot.history.samples()[1][-1] == robot.robot.read().pose
+
+
+def test_the_p3dx_emulator_world_moves_between_sips() -> None:
+    # a laser emulator measures the emulated world whenever it likes: between two SIPs (100 ms of
+    # robot time) the robot must be on its way, not parked where the last SIP put it
+    from robotexp_drivers.p3dx.emulator import P3DXEmulator
+    from robotexp_drivers.p3dx.robot import P3DXRobot
+
+    with P3DXEmulator("dense", pose="1", port=0, speedup=1.0) as emu, P3DXRobot(emu.address) as robot:
+        robot.command(Twist(0.3, 0.0))
+        robot.wait_until(robot.read().time + 0.5)        # up to speed
+        xs, sips = set(), emu.sips_sent
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            xs.add(emu.sim.true_pose.x)
+            time.sleep(0.002)
+        sips = emu.sips_sent - sips
+        robot.command(Twist.ZERO)
+    # 5 SIPs in 0.5 s; the world moves every 20 ms of robot time (a loaded machine wakes the emulator
+    # less often, but more than once a cycle); parked between SIPs it would take at most sips + 1 places
+    assert sips >= 2 and len(xs) >= 2 * sips, (sips, len(xs))
