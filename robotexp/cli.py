@@ -425,7 +425,9 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     if camp.devices:            # a robot: one run at a time, the operator places it between runs
         from robotexp.campaign_robot import one_at_a_time, operator
         click.echo(one_at_a_time(camp, jobs), err=True)
-        n_jobs, place = 1, operator(sys.stdin.readline, lambda line: click.echo(line, err=True))
+        # on a terminal the line starts below the progress bar
+        n_jobs, place = 1, operator(sys.stdin.readline, lambda line: click.echo(
+            ("\n" if sys.stderr.isatty() else "") + line, err=True))
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
     failed: list[str] = []
