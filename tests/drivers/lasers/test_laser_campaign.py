@@ -138,3 +138,11 @@ def test_a_campaign_on_a_robot_refuses_a_cluster(tmp_path: Path) -> None:
     result = CliRunner().invoke(main, ["campaign", "run", str(path), "--cluster", "local:2",
                                        "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and "run without --cluster" in result.output and str(path) in result.output
+
+
+def test_a_robot_that_cannot_be_reached_ends_the_campaign_with_one_line(tmp_path: Path) -> None:
+    path = _campaign(tmp_path, str(tmp_path / "no-kobuki"), str(tmp_path / "no-rplidar"))
+    result = CliRunner().invoke(main, ["campaign", "run", str(path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    last = result.output.splitlines()[-1]
+    assert last.startswith("robotexp: error: kobuki: cannot open ") and "no-kobuki" in last
