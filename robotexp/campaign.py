@@ -42,7 +42,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from robotexp.campaign_robot import DEVICE_KEYS, RobotDevices, check_starts, robot_devices, run_on_robots
+from robotexp.campaign_robot import DEVICE_KEYS, Place, RobotDevices, check_starts, robot_devices, run_on_robots
 from robotexp.errors import ConfigError, PluginError, WorldError
 from robotexp.experiment import RunSpec
 from robotexp.record import EndReason, RunRecord
@@ -396,7 +396,7 @@ def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
                  progress: Callable[[int, int, RunRecord | None], None] | None = None,
-                 cluster: str | None = None, place: Any = None) -> list[RunRecord]:
+                 cluster: str | None = None, place: Place | None = None) -> list[RunRecord]:
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
     Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
 
@@ -428,7 +428,7 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
 
 def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
                 progress: Callable[[int, int, RunRecord | None], None] | None,
-                cluster: str | None = None, place: Any = None) -> list[RunRecord]:
+                cluster: str | None = None, place: Place | None = None) -> list[RunRecord]:
     from robotexp.results import read_records
 
     results = out / "results.jsonl"

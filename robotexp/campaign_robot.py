@@ -37,7 +37,8 @@ from robotexp.robot import Pose
 if TYPE_CHECKING:
     from robotexp.campaign import Campaign
 
-__all__ = ["DEVICE_KEYS", "RobotDevices", "robot_devices", "run_on_robots"]
+__all__ = ["DEVICE_KEYS", "Place", "RobotDevices", "check_starts", "one_at_a_time", "operator", "robot_devices",
+           "run_on_robots"]
 
 DEVICE_KEYS = frozenset({"address", "laser", "laser_pose"})
 
