@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, RobotError
+from robotexp.errors import ConfigError, RobotError, interrupt_behind
 from robotexp.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
@@ -287,6 +287,8 @@ class ExplorationRun:
         except RobotError:          # the robot's fault, met by the explorer (an emergency stop seen in a state)
             raise
         except Exception as exc:
+            if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: an interruption, not a plugin error
+                raise KeyboardInterrupt from exc
             self.error = exc
             self.reason = f"plugin error: {where}: {method.__name__} raised {type(exc).__name__}: {exc}"
             self.end = EndReason.PLUGIN_ERROR
