@@ -293,7 +293,7 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
     Raises:
         ConfigError: no run left to plot.
     """
-    from robotexp.figures import PAGE_WIDTH, box_figure, curve_figure, paths_figure, save_figure
+    from robotexp.figures import PAGE_WIDTH, box_figure, curve_figure, figure_title, paths_figure, save_figure
     from robotexp.results import read_curve_csv
     from robotexp.trajectory import read_path_csv
     from robotexp.world.loader import load_world
@@ -326,8 +326,8 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
             groups.append((f"{w} {m}", next(iter(by_cell.values()), [])))
     what = "all finished runs" if include_incomplete else "completed runs"
     every = set().union(*sizes.values())
-    unit = (f"[cells of {next(iter(every)) * 1000:g} mm]" if len(every) == 1 and None not in every
-            else "[cells of each run's map]")
+    only = next(iter(every)) if len(every) == 1 else None
+    unit = f"[cells of {only * 1000:g} mm]" if only is not None else "[cells of each run's map]"
     box = box_figure(groups, ylabel=f"visited cells {unit}",
                      title=f"Visited cells per run, by world and method ({what})",
                      width=max(PAGE_WIDTH, 1.1 * len(groups)))
@@ -344,10 +344,12 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
                 if len(curve) and curve[-1, 2] >= 0:
                     curves.append((method, curve[:, 0] / 60, curve[:, 2] * 100))
         if curves:
+            methods = {c[0] for c in curves}
             cells = " / ".join(f"{c * 1000:g}" for c in sorted(c for c in sizes[world] if c is not None))
             fig = curve_figure(curves, xlabel="robot time [min]",
                                ylabel="coverage [%]" + (f" ({cells} mm cells)" if cells else ""),
-                               title=f"{world}: coverage of the explorable free space, {len(curves)} run(s)",
+                               title=f"{figure_title(world, methods.pop()) if len(methods) == 1 else world}: "
+                                     f"coverage of the explorable free space, {len(curves)} run(s)",
                                hlines=(90, 95, 99), ylim=(0, 100))
             written += save_figure(fig, out / f"coverage_{_safe(world)}", ("png",))
     worlds: dict[str, Any] = {}

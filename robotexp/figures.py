@@ -51,6 +51,7 @@ FONT_SIZE = 9           # [pt]
 DPI = 200               # PNG pixels per inch: a page-wide figure is 1260 px wide
 MIN_BOX = 5             # fewer runs than this in a group: points only, no box
 EST_APART = 0.01        # [m] an estimated path this far from the true one somewhere is drawn beside it
+POTENTIAL_PATH = "#e7298a"   # the path over a potential field (magenta: apart from every viridis colour)
 LEGEND_COLUMNS = 4      # entries per legend row under a map
 LEGEND_ROW = 0.2        # [in] height of a legend row at FONT_SIZE
 ARROWS_ACROSS = 40      # vector-field arrows along the wider side of the view
@@ -197,6 +198,18 @@ def _vector_layer(ax: Axes, vectors: npt.ArrayLike, geo: GridGeometry, free: npt
               color=_rgb("vector"), width=0.0025, headwidth=4, zorder=3)
 
 
+def _scale_bar(ax: Axes, width: float, height: float) -> None:
+    """A 1-2-5 scale bar near a tenth of the view's `width` [m], above the map's upper right corner (the title
+    is left-aligned), so it never hides a part of the map."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar   # untyped: Any ([tool.mypy] overrides)
+
+    length = _nice_length(width / 2)
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.1, borderpad=0.2,
+                                  color="black", frameon=False, size_vertical=height / 120, label_top=True,
+                                  bbox_to_anchor=(1.0, 1.0), bbox_transform=ax.transAxes,
+                                  fontproperties={"size": FONT_SIZE}))
+
+
 def _map_axes(figure: Any, width: float, aspect: float, *, legend_rows: int, colour_bar: bool
               ) -> tuple[Figure, Axes, Axes | None]:
     """A figure `width` [in] wide holding map axes of `aspect` (height / width) with fixed margins (no layout
@@ -225,7 +238,7 @@ def _grid_lines(ax: Axes, geo: GridGeometry, x0: float, x1: float, y0: float, y1
                                          math.floor((x1 - geo.origin_x) / step) + 1)
     ys = geo.origin_y + step * np.arange(math.ceil((y0 - geo.origin_y) / step),
                                          math.floor((y1 - geo.origin_y) / step) + 1)
-    kw = {"color": _rgb("grid"), "linewidth": 0.3, "alpha": 0.6, "zorder": 1.5}
+    kw: dict[str, Any] = {"color": _rgb("grid"), "linewidth": 0.3, "alpha": 0.6, "zorder": 1.5}
     ax.vlines(xs, y0, y1, **kw)
     ax.hlines(ys, x0, x1, **kw)
 
@@ -238,7 +251,6 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
-    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar   # untyped: Any ([tool.mypy] overrides)
 
     cells = np.asarray(states)
     if cells.shape != (geo.rows, geo.cols):
@@ -276,9 +288,10 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     if vectors is not None:
         _vector_layer(ax, vectors, geo, free, view)
     two = len(est) >= 2 and len(pts) >= 2
+    line = POTENTIAL_PATH if potential is not None else _rgb("path")    # blue is lost on viridis
     if len(pts) >= 2:
-        ax.plot(pts[:, 0], pts[:, 1], color=_rgb("path"), linewidth=1.2, zorder=4)
-        handles.append(Line2D([], [], color=_rgb("path"), linewidth=1.2, label="true path" if two else "path"))
+        ax.plot(pts[:, 0], pts[:, 1], color=line, linewidth=1.2, zorder=4)
+        handles.append(Line2D([], [], color=line, linewidth=1.2, label="true path" if two else "path"))
     if two:
         ax.plot(est[:, 0], est[:, 1], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)), zorder=4)
         handles.append(Line2D([], [], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)),
@@ -299,15 +312,12 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     ax.set_facecolor(_rgb("unknown"))
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    length = _nice_length(x1 - x0)
-    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.4,
-                                  color="black", frameon=True, size_vertical=(y1 - y0) / 150,
-                                  fontproperties={"size": FONT_SIZE}))
+    _scale_bar(ax, x1 - x0, y1 - y0)
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(handles), LEGEND_COLUMNS),
                frameon=False, borderaxespad=0.3)
     detail = note if note is not None else f"cell {geo.cell * 1000:g} mm"
     if title or detail:
-        ax.set_title("\n".join(t for t in (title, detail) if t))
+        ax.set_title("\n".join(t for t in (title, detail) if t), loc="left")
     return fig
 
 
@@ -367,7 +377,7 @@ def curve_figure(series: Sequence[tuple[str, npt.ArrayLike, npt.ArrayLike]], *, 
 
         height = width * 0.5                # fixed margins [in] (no layout engine: it costs more than the drawing)
         fig = Figure(figsize=(width, height))
-        ax = fig.add_axes((0.75 / width, 0.5 / height, (width - 0.75 - 0.35) / width, (height - 0.5 - 0.3) / height))
+        ax = fig.add_axes((0.75 / width, 0.5 / height, (width - 0.75 - 0.5) / width, (height - 0.5 - 0.3) / height))
         colours: dict[str, str] = {}
         right = 0.0
         for label, xs, ys in series:
@@ -379,9 +389,10 @@ def curve_figure(series: Sequence[tuple[str, npt.ArrayLike, npt.ArrayLike]], *, 
             ax.plot(x, y, color=colour, linewidth=1.2, alpha=0.85, label=label if first else "_")
             if x.size and np.isfinite(x).any():
                 right = max(right, float(np.nanmax(x)))
+        unit = " %" if "[%]" in ylabel else ""
         for v in hlines:
             ax.axhline(v, color="0.55", linewidth=0.8, linestyle=(0, (4, 3)), zorder=0)
-            ax.annotate(f"{v:g}", (1, v), xycoords=("axes fraction", "data"), xytext=(3, 0),
+            ax.annotate(f"{v:g}{unit}", (1, v), xycoords=("axes fraction", "data"), xytext=(3, 0),
                         textcoords="offset points", va="center", color="0.4", fontsize=FONT_SIZE - 1)
         ax.set_xlim(0, right if right > 0 else 1)
         if ylim is not None:
@@ -441,12 +452,11 @@ def paths_figure(world: World | None, runs: Sequence[tuple[str, npt.ArrayLike]],
         from matplotlib.figure import Figure
         from matplotlib.lines import Line2D
         from matplotlib.patches import Patch
-        from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
         x0, x1 = geo.origin_x, geo.origin_x + geo.cols * geo.cell
         y0, y1 = geo.origin_y, geo.origin_y + geo.rows * geo.cell
         fig, ax, _ = _map_axes(Figure, width, (y1 - y0) / (x1 - x0),
-                               legend_rows=math.ceil((1 + len(runs) + len(notes)) / 3), colour_bar=False)
+                               legend_rows=math.ceil((1 + len(runs) + len(notes)) / 2), colour_bar=False)
         ax.imshow(np.where(walls, 0.2, 1.0), origin="lower", extent=(x0, x1, y0, y1), cmap="gray", vmin=0, vmax=1,
                   interpolation="antialiased")
         handles: list[Any] = [Patch(facecolor="0.2", label=f"obstacles ({PATHS_CELL * 1000:g} mm cells)")]
@@ -462,12 +472,10 @@ def paths_figure(world: World | None, runs: Sequence[tuple[str, npt.ArrayLike]],
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        length = _nice_length(x1 - x0)
-        ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.4, color="black",
-                                      frameon=True, size_vertical=(y1 - y0) / 150, fontproperties={"size": FONT_SIZE}))
-        fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(handles), 3),
+        _scale_bar(ax, x1 - x0, y1 - y0)
+        fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(handles), 2),
                    frameon=False, borderaxespad=0.3)
-        ax.set_title(title)
+        ax.set_title(title, loc="left")
         return fig
 
 
