@@ -62,6 +62,8 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#17becf")
 
 _LOCK = threading.RLock()
+_RC = {"font.size": FONT_SIZE, "axes.titlesize": FONT_SIZE + 1, "svg.fonttype": "none", "pdf.fonttype": 42,
+       "svg.hashsalt": "robotexp"}
 
 
 def _rgb(name: str) -> tuple[float, float, float]:
@@ -89,12 +91,14 @@ def _nice_length(span: float) -> float:
 
 @contextlib.contextmanager
 def _style() -> Iterator[None]:
-    """The figures' text settings (text drawn when the figure is made takes them then), under the module's
-    lock: matplotlib's settings are global to the process, so two threads never draw at once."""
+    """matplotlib's defaults with the figures' text settings (text drawn when the figure is made takes them
+    then), under the module's lock: matplotlib's settings are global to the process, so two threads never draw
+    at once."""
     import matplotlib
 
-    with _LOCK, matplotlib.rc_context({"font.size": FONT_SIZE, "svg.fonttype": "none", "pdf.fonttype": 42,
-                                       "svg.hashsalt": "robotexp", "axes.titlesize": FONT_SIZE + 1}):
+    with _LOCK, matplotlib.rc_context():
+        matplotlib.rcdefaults()         # a user's matplotlibrc (savefig.bbox: tight, a style) changes nothing here
+        matplotlib.rcParams.update(_RC)
         yield
 
 

@@ -44,7 +44,7 @@ def test_a_run_with_odometry_error_shows_the_estimated_and_the_true_path(localiz
     np.testing.assert_allclose(est, np.array(res.run.metrics.estimated))
     assert np.hypot(*(est - true).T).max() > 0.01                  # they differ: the localizer is not exact
     assert res.record["localize"] == "scan-match" and res.record["ate_m"] > 0
-    assert "ATE" in ax.get_title() and "ufmg-static - frontier" in ax.get_title()
+    assert "ATE" in ax.get_title("left") and "ufmg-static - frontier" in ax.get_title("left")
 
 
 def test_a_run_without_localization_error_shows_one_path(tmp_path: Path) -> None:
@@ -58,7 +58,7 @@ def test_a_run_without_localization_error_shows_one_path(tmp_path: Path) -> None
     pts = np.array(res.run.metrics.path)
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     assert x0 <= pts[:, 0].min() and pts[:, 0].max() <= x1 and y0 <= pts[:, 1].min() and pts[:, 1].max() <= y1
-    assert ax.get_xlabel() == "x [m]" and "cell 100 mm" in ax.get_title() and "coverage" in ax.get_title()
+    assert ax.get_xlabel() == "x [m]" and "cell 100 mm" in ax.get_title("left") and "coverage" in ax.get_title("left")
     cov = run_coverage_figure(res.run)
     assert cov is not None
     cax = cov.axes[0]
@@ -124,3 +124,17 @@ def test_figures_drawn_from_threads_at_once(tmp_path: Path) -> None:
         assert f">t{k}<" in (tmp_path / f"f{k}_1.svg").read_text() or f"t{k}" in (tmp_path / f"f{k}_1.svg").read_text()
         with Image.open(tmp_path / f"f{k}_1.png") as im:
             assert im.width == round(PAGE_WIDTH * DPI)
+
+
+def test_a_users_matplotlib_settings_do_not_change_the_figures(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import matplotlib
+
+    geo = GridGeometry(0.0, 0.0, 0.1, 50, 80)
+    for key, value in (("savefig.bbox", "tight"), ("savefig.dpi", 50), ("font.size", 30.0)):
+        monkeypatch.setitem(matplotlib.rcParams, key, value)
+    fig = map_figure(np.zeros((50, 80), np.int8), geo, title="t")
+    (png,) = save_figure(fig, tmp_path / "m", ("png",))
+    with Image.open(png) as im:
+        assert im.width == round(PAGE_WIDTH * DPI)
+    assert fig.axes[0].xaxis.label.get_fontsize() == 9.0                 # FONT_SIZE, not the 30 pt set above
+    assert matplotlib.rcParams["savefig.bbox"] == "tight"        # the user's settings are left as they were
