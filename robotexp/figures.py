@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
 __all__ = ["map_figure", "run_map_figure", "curve_figure", "run_coverage_figure", "paths_figure", "box_figure",
            "campaign_figures", "save_figure", "save_run_figures", "figure_title", "run_title", "FORMATS",
-           "PAGE_WIDTH", "DPI", "write_figure"]
+           "PAGE_WIDTH", "DPI", "write_figure", "apart"]
 
 FORMATS = ("png", "svg", "pdf")
 PAGE_WIDTH = 6.3        # [in] a thesis's text width (16 cm): figures are drawn at it, text in points
@@ -51,6 +51,7 @@ FONT_SIZE = 9           # [pt]
 DPI = 200               # PNG pixels per inch: a page-wide figure is 1260 px wide
 MIN_BOX = 5             # fewer runs than this in a group: points only, no box
 EST_APART = 0.01        # [m] an estimated path this far from the true one somewhere is drawn beside it
+LASER = "#17becf"            # the last scan's hits (the estimated path has the raster's laser orange)
 POTENTIAL_PATH = "#e7298a"   # the path over a potential field (magenta: apart from every viridis colour)
 LEGEND_COLUMNS = 4      # entries per legend row under a map
 LEGEND_ROW = 0.2        # [in] height of a legend row at FONT_SIZE
@@ -62,8 +63,6 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#17becf")
 
 _LOCK = threading.RLock()
-_RC = {"font.size": FONT_SIZE, "axes.titlesize": FONT_SIZE + 1, "svg.fonttype": "none", "pdf.fonttype": 42,
-       "svg.hashsalt": "robotexp"}
 
 
 def _rgb(name: str) -> tuple[float, float, float]:
@@ -82,6 +81,14 @@ def run_title(run: ExplorationRun, extra: str = "") -> str:
     return figure_title(run.info.world or "robot", run.info.method or type(run.explorer).__name__, extra)
 
 
+def apart(est: npt.NDArray[np.float64] | None, true: npt.NDArray[np.float64] | None) -> bool:
+    """Whether an estimated path (k, 2+) [m] is worth drawing beside the true one sampled at the same moments:
+    somewhere more than EST_APART from it."""
+    if est is None or true is None or len(est) != len(true) or len(est) < 2:
+        return False
+    return bool(np.hypot(est[:, 0] - true[:, 0], est[:, 1] - true[:, 1]).max() > EST_APART)
+
+
 def _nice_length(span: float) -> float:
     """A 1-2-5 length [m] near a fifth of `span`."""
     target = max(span / 5, 1e-6)
@@ -98,8 +105,9 @@ def _style() -> Iterator[None]:
 
     with _LOCK, matplotlib.rc_context():
         matplotlib.rcdefaults()         # a user's matplotlibrc (savefig.bbox: tight, a style) changes nothing here
-        matplotlib.rcParams.update(_RC)
-        yield
+        with matplotlib.rc_context({"font.size": FONT_SIZE, "axes.titlesize": FONT_SIZE + 1, "svg.fonttype": "none",
+                                    "pdf.fonttype": 42, "svg.hashsalt": "robotexp"}):
+            yield
 
 
 def _points(name: str, value: npt.ArrayLike | None) -> npt.NDArray[np.float64]:
@@ -127,7 +135,7 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
                start: Pose | None = None, end: Pose | None = None, potential: npt.ArrayLike | None = None,
                vectors: npt.ArrayLike | None = None, laser: npt.ArrayLike | None = None, grid: bool = False,
                title: str | None = None, note: str | None = None, content: npt.ArrayLike | None = None,
-               width: float = PAGE_WIDTH) -> Figure:
+               labels: tuple[str, str] = ("true path", "estimated path"), width: float = PAGE_WIDTH) -> Figure:
     """An occupancy map as a thesis figure (see the module's docstring).
 
     Args:
@@ -148,6 +156,8 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
         note: a second title line; default "cell N mm".
         content: bool (rows, cols) the cells that matter (default: the known ones); the view is cropped to
             them and the path (`robotexp.render.content_window`).
+        labels: the legend's names of `path` and `est_path` when both are drawn (a CARMEN log's reference poses
+            are "logged path").
         width: [in] the figure's width.
 
     Raises:
@@ -156,7 +166,7 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
     with _style():
         return _map_figure(states, geo, truth=truth, path=path, est_path=est_path, start=start, end=end,
                            potential=potential, vectors=vectors, laser=laser, grid=grid, title=title, note=note,
-                           content=content, width=width)
+                           content=content, labels=labels, width=width)
 
 
 def _potential_layer(fig: Figure, ax: Axes, cbar: Axes | None, potential: npt.ArrayLike, geo: GridGeometry,
@@ -251,7 +261,7 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
                 path: npt.ArrayLike | None, est_path: npt.ArrayLike | None, start: Pose | None, end: Pose | None,
                 potential: npt.ArrayLike | None, vectors: npt.ArrayLike | None, laser: npt.ArrayLike | None,
                 grid: bool, title: str | None, note: str | None, content: npt.ArrayLike | None,
-                width: float) -> Figure:
+                labels: tuple[str, str], width: float) -> Figure:
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -295,14 +305,14 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     line = POTENTIAL_PATH if potential is not None else _rgb("path")    # blue is lost on viridis
     if len(pts) >= 2:
         ax.plot(pts[:, 0], pts[:, 1], color=line, linewidth=1.2, zorder=4)
-        handles.append(Line2D([], [], color=line, linewidth=1.2, label="true path" if two else "path"))
+        handles.append(Line2D([], [], color=line, linewidth=1.2, label=labels[0] if two else "path"))
     if two:
         ax.plot(est[:, 0], est[:, 1], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)), zorder=4)
         handles.append(Line2D([], [], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)),
-                              label="estimated path"))
+                              label=labels[1]))
     if len(hits):
-        ax.plot(hits[:, 0], hits[:, 1], ".", color=_rgb("laser"), markersize=2, zorder=4)
-        handles.append(Line2D([], [], marker=".", linestyle="", color=_rgb("laser"), label="laser"))
+        ax.plot(hits[:, 0], hits[:, 1], ".", color=LASER, markersize=2, zorder=4)
+        handles.append(Line2D([], [], marker=".", linestyle="", color=LASER, label="laser"))
     tick = 0.04 * max(x1 - x0, y1 - y0)
     for pose, name in ((start, "start"), (end, "end")):
         if pose is not None:
@@ -331,6 +341,8 @@ def run_map_figure(run: ExplorationRun, *, show: Sequence[str] = (), potential: 
     from the true one), start and end, and the `show` overlays (grid, laser, vectors, potential; `potential`
     True is the same as naming it), titled by `run_title` with the cell size, path length, coverage and ATE
     under it."""
+    from robotexp.results import laser_hits
+
     m = run.metrics
     states = run.grid.states()
     state = run.state
@@ -338,15 +350,9 @@ def run_map_figure(run: ExplorationRun, *, show: Sequence[str] = (), potential: 
     wanted = set(show) | ({"potential"} if potential else set())
     true_path = np.array(m.path) if m.path and path else None
     est = np.array(m.estimated) if m.estimated and path else None
-    if est is not None and (true_path is None or len(est) != len(true_path)
-                            or not np.hypot(*(est - true_path).T).max() > EST_APART):
+    if not apart(est, true_path):
         est = None
-    laser = None
-    if "laser" in wanted and state is not None and state.laser is not None:
-        p, sc = state.pose, state.laser
-        ok = np.isfinite(sc.ranges)
-        a = p.theta + sc.angles[ok]
-        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
+    laser = laser_hits(run) if "laser" in wanted else None
     parts = [f"cell {run.grid.geo.cell * 1000:g} mm", f"path {m.path_length:.1f} m"]
     cov = run.coverage()
     if cov is not None:

@@ -8,6 +8,7 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import math
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,7 +22,8 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
 
 __all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
-           "ResultsWriter", "save_run_images", "map_image", "read_curve_csv", "RESULT_KEYS", "RunRecord", "EndReason"]
+           "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
+           "RunRecord", "EndReason"]
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
@@ -113,6 +115,19 @@ def save_run_images(run: ExplorationRun, out: Path, name: str, show: tuple[str, 
     return save_run_figures(run, out, name, fmts, show)
 
 
+def laser_hits(run: ExplorationRun) -> np.ndarray[Any, np.dtype[np.float64]] | None:
+    """(n, 2) world points [m] of the finite beams of the run's last scan, from the laser's place on the robot
+    at the pose the explorer got (the map's frame); None without a scan."""
+    state = run.state
+    if state is None or state.laser is None:
+        return None
+    p, sc = state.pose, state.laser
+    ok = np.isfinite(sc.ranges)
+    a = p.theta + sc.angles[ok]
+    sx, sy = p.x + sc.offset_x * math.cos(p.theta), p.y + sc.offset_x * math.sin(p.theta)
+    return np.column_stack([sx + sc.ranges[ok] * np.cos(a), sy + sc.ranges[ok] * np.sin(a)])
+
+
 def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, scale: int | None = None,
               path: bool = True) -> Any:
     """The fast raster image (PIL, `robotexp.render`) of a run's map with its path and the overlays named in
@@ -123,12 +138,7 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
     m = run.metrics
     overlays = run.explorer.overlays()
     state = run.state
-    laser = None
-    if "laser" in show and state is not None and state.laser is not None:
-        p, sc = state.pose, state.laser
-        ok = np.isfinite(sc.ranges)
-        a = p.theta + sc.angles[ok]
-        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
+    laser = laser_hits(run) if "laser" in show else None
     end = None if state is None else (state.true_pose or state.pose)
     states = run.grid.states()
     content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable

@@ -16,6 +16,7 @@ from robotexp.cli import main
 from robotexp.experiment import RunSpec, run_experiment
 from robotexp.figures import DPI, PAGE_WIDTH, map_figure, run_coverage_figure, run_map_figure, save_figure
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.render import COLORS
 from robotexp.robot import Pose
 
 
@@ -138,3 +139,46 @@ def test_a_users_matplotlib_settings_do_not_change_the_figures(tmp_path: Path, m
         assert im.width == round(PAGE_WIDTH * DPI)
     assert fig.axes[0].xaxis.label.get_fontsize() == 9.0                 # FONT_SIZE, not the 30 pt set above
     assert matplotlib.rcParams["savefig.bbox"] == "tight"        # the user's settings are left as they were
+
+
+def test_the_show_overlays_are_drawn_on_the_figure(tmp_path: Path) -> None:
+    from matplotlib.collections import LineCollection
+    from matplotlib.quiver import Quiver
+
+    res = run_experiment(RunSpec(world="ufmg-static", method="bvp", max_time=8), tmp_path, image=False)
+    fig = run_map_figure(res.run, show=("grid", "laser", "vectors", "potential"))
+    ax = fig.axes[0]
+    assert "laser" in _legend(fig) and len(fig.axes) == 2                 # the potential's colour bar
+    assert any(isinstance(c, Quiver) for c in ax.collections)             # the vector field
+    assert sum(isinstance(c, LineCollection) for c in ax.collections) == 2   # grid lines, both ways
+    plain = run_map_figure(res.run)
+    assert len(plain.axes) == 1 and not plain.axes[0].collections and "laser" not in _legend(plain)
+
+
+def test_a_log_map_shows_the_logged_and_the_estimated_path(tmp_path: Path) -> None:
+    from robotexp.localization.carmen import flaser_angles, format_flaser
+    from robotexp.world.builtin import builtin_world
+    from robotexp.sim.raycast import RayIndex
+
+    world = builtin_world("dense")
+    index = RayIndex(world.boxes, world.discs, 2.0)
+    angles = flaser_angles(181)
+    lines = ["PARAM robot_front_laser_max 81.91 nohost 0"]
+    for k in range(40):                                           # along the corridor, 0.15 m a scan
+        p = Pose(-8.0 + 0.15 * k, 7.5, 0.0)
+        frac = index.cast(np.tile([p.x, p.y], (181, 1)), p.theta + angles, 8.0, 0.3)
+        lines.append(format_flaser(np.where(frac >= 1.0, 81.91, frac * 8.0), p, p, float(k)))
+    log = tmp_path / "corridor.log"
+    log.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["map", str(log), "--out", str(out), "--odometry-noise", "0.05,5",
+                                    "--localize", "none"])
+    assert res.exit_code == 0, res.output
+    with Image.open(out / "corridor.png") as im:
+        assert im.width == round(PAGE_WIDTH * DPI)
+        px = np.asarray(im.convert("RGB")).astype(int)
+
+    def count(rgb: tuple[int, int, int]) -> int:
+        return int((np.abs(px - np.array(rgb)).max(axis=2) <= 30).sum())
+
+    assert count(COLORS["path"]) > 200 and count(COLORS["laser"]) > 100   # the logged and the estimated path
