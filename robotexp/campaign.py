@@ -418,9 +418,10 @@ _worker_running = False         # in a worker: a run is being made (Ctrl-C inter
 def _worker_init() -> None:
     """Worker start: die with the campaign process (kill -9 included), and remember a Ctrl-C so that
     the runs already queued to this worker are skipped instead of run in full."""
-    from robotexp.lifeline import die_with_parent
+    from robotexp.lifeline import die_with_parent, exit_without_teardown
 
     die_with_parent()
+    exit_without_teardown()     # the pool's shutdown at the end of a campaign waits for its workers to exit
 
     def interrupted(signum: int, frame: Any) -> None:
         global _worker_interrupted

@@ -96,15 +96,20 @@ class _CancelWatch(RunObserver):
         self.done.set()
 
 
-def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False,
-              stop_event: str | None = None) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None,
-                                                        RunTiming | None]:
+def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False, stop_event: str | None = None,
+              local: bool = False) -> tuple[dict[str, Any] | None, dict[str, bytes], str | None, RunTiming | None]:
     """On a worker: make one run in a temporary folder (with `record`, its ROS 2 bag in bags/); return
     its record (as JSON data), the bytes of every file it wrote but results.jsonl (by path relative to
     the folder), the error that ended it (None: none) and its timing (None without a record). A run
     whose explorer or robot failed still returns the record written before the error. Pure: nothing
-    is left behind on the worker."""
+    is left behind on the worker. `local`: a worker of our own local:N cluster, which then ends without
+    the interpreter's teardown when the cluster closes (`robotexp.lifeline.exit_without_teardown`)."""
     from robotexp.campaign import timed_run
+
+    if local:
+        from robotexp.lifeline import exit_without_teardown
+
+        exit_without_teardown()
 
     timing = timed_run(_worker_name())
     from robotexp.experiment import run_experiment
@@ -242,7 +247,8 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
     token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
     with _client(address) as client:
         stop = Event(f"robotexp-stop-{token}", client=client)
-        futures = [client.submit(_run_task, spec, extra(spec), record, stop.name, pure=False,
+        local = _LOCAL.fullmatch(address) is not None
+        futures = [client.submit(_run_task, spec, extra(spec), record, stop.name, local, pure=False,
                                  key=f"robotexp-{token}-{i}-{spec.method}") for i, spec in enumerate(todo)]
         try:
             for fut in as_completed(futures):
