@@ -265,3 +265,7 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
                 stop.set()              # the runs executing on workers end at their next check
             client.cancel(futures, force=True)
             raise
+        # every run is in: release the runs' watch threads still waiting on the event (a wait left at the
+        # scheduler when a local cluster closes is logged as an error)
+        with contextlib.suppress(Exception):
+            stop.set()
