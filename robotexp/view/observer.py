@@ -10,11 +10,13 @@ watchdog stays stopped either way); on resume the loop reads the robot afresh an
 decides from there. On a real robot, robot time (the robot's clock) goes on while paused and counts
 against the run's time limit, and the speed control does nothing (a real robot runs in real time).
 
-`ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and laser at most `frame_rate`
-times per wall second, the path (points at least half a cell apart), the coverage samples, the map
-(at most `map_rate` per second, only when it changed) and the explorer's overlays
-(`Explorer.overlays()`: potential and vectors, and its `markers()` when it has them) at most
-`overlay_rate` per second. Its cost per tick when nothing is due is a clock read and a comparison.
+`ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and scan at most `frame_rate`
+times per wall second, the path (points at least half a cell apart), the coverage samples, and while
+a browser watches the map (at most `map_rate` per second, when the grid took a scan since) and the
+explorer's overlays (`Explorer.overlays()`: potential and vectors, and its `markers()`) at most
+`overlay_rate` per second. Its cost per tick when nothing is due is a clock read and a comparison;
+the work of a message (laser points, the map's changed tiles, JSON) is the server thread's, at the
+rate the browsers take messages (`robotexp.view.feed`, `robotexp.view.server`).
 """
 
 from __future__ import annotations
@@ -30,8 +32,7 @@ import numpy.typing as npt
 
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
-from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, laser_points, \
-    vector_arrows
+from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
 from robotexp.view.live import DEFAULT_SPEED
 
 if TYPE_CHECKING:
@@ -100,6 +101,8 @@ class Pacer:
         """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
         paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
         `on_hold(False)` when it ends), then sleep as pacing wants. Returns whether the loop was held."""
+        if not (self.paused or self.stopped) and self.speed is None:
+            return False            # as fast as it goes: nothing to hold or pace (no lock: read under the GIL)
         held = False
         with self._cond:
             while self.paused and not self.stopped:
@@ -162,7 +165,6 @@ class ViewObserver(RunObserver):
     def _reset(self) -> None:
         self._next_frame = self._next_map = self._next_overlay = -math.inf
         self._map_dirty = True
-        self._last_classes: Any = None
         self._path_sent = 0
         self._last_xy: tuple[float, float] | None = None
         self._rate_ref: tuple[float, float] | None = None
@@ -232,11 +234,13 @@ class ViewObserver(RunObserver):
             self._send(run, step.time)
         if self._stop_requested:
             return
+        pacer = self.pacer
+        if pacer.speed is None and not (pacer.paused or pacer.stopped):
+            return                  # nothing to hold or pace
         # a simulated robot stands still while the loop waits; a real one is told to stop (and again
         # every halt_period) while paused
         halt = None if self.simulated else run.robot.stop
-        self.pacer.wait(step.time if self.simulated else None, halt,
-                        lambda holding: self._hold(run, step.time, holding))
+        pacer.wait(step.time if self.simulated else None, halt, lambda holding: self._hold(run, step.time, holding))
 
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:
@@ -261,7 +265,9 @@ class ViewObserver(RunObserver):
                         else record.reason)
 
     def _send(self, run: ExplorationRun, t: float, force: bool = False) -> None:
-        """Publish the state of `run` at robot time `t` (the map and overlays when due or `force`)."""
+        """Publish the state of `run` at robot time `t`: the pose, the scan (the hub makes its points
+        when a browser takes them), the new path and curve points, and, while a browser watches (or
+        with `force`), the map and overlays when due."""
         now = self.clock()
         self._next_frame = now + self.frame_period
         state = run.state
@@ -269,8 +275,10 @@ class ViewObserver(RunObserver):
         if state is not None:
             p = state.pose
             frame.pose = (p.x, p.y, p.theta)
-            sc = state.laser
-            frame.laser = [] if sc is None else laser_points(p.x, p.y, p.theta, sc.angles, sc.ranges, sc.offset_x)
+            if state.laser is None:
+                frame.laser = []
+            else:
+                frame.scan = state.laser
         frame.path = self._new_path(run)
         frame.curve, self._pending_curve = self._pending_curve, []
         frame.coverage = self._coverage
@@ -279,14 +287,12 @@ class ViewObserver(RunObserver):
         elif now - self._rate_ref[1] >= 1.0:
             frame.speedup = (t - self._rate_ref[0]) / (now - self._rate_ref[1])
             self._rate_ref = (t, now)
-        if self._map_dirty and (force or now >= self._next_map):
+        watched = force or self.hub.watched
+        if watched and self._map_dirty and (force or now >= self._next_map):
             self._next_map = now + self.map_period
             self._map_dirty = False
-            classes = classes_of_states(run.grid.states())
-            if self._last_classes is None or not np.array_equal(classes, self._last_classes):
-                self._last_classes = classes
-                frame.map = MapLayer(encode_classes(classes), *classes.shape)
-        if force or now >= self._next_overlay:
+            frame.map = classes_of_states(run.grid.states())
+        if watched and (force or now >= self._next_overlay):
             self._next_overlay = now + self.overlay_period
             frame.overlays = explorer_overlays(run)
         self.hub.publish(frame)

@@ -37,11 +37,17 @@ class ViewServer:
         host: the address to listen on (127.0.0.1: this machine only).
         port: the TCP port (0: a free one, see `port` after `start`).
         max_rate: [1/s] most messages per second to one browser (each redraws the page).
+        busy_rate: [1/s] most messages per second while the producer goes as fast as it can (a
+            simulated run at speed "max", status speed None): each page update costs the browser a few
+            ms of CPU (about 5 ms for headless Chromium, whatever changed), which on a busy machine is
+            taken from the run; a paced run has that time to spare.
     """
 
-    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0) -> None:
+    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0,
+                 busy_rate: float = 4.0) -> None:
         self.hub, self.host, self.port = hub, host, port
         self.min_interval = 1.0 / max_rate
+        self.busy_interval = 1.0 / min(busy_rate, max_rate)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
@@ -152,14 +158,17 @@ class ViewServer:
         await ws.prepare(request)
         loop = asyncio.get_running_loop()
         changed = asyncio.Event()
+        pending = [False]
 
-        def wake() -> None:           # called in the producer's thread
-            loop.call_soon_threadsafe(changed.set)
+        def wake() -> None:           # called in the producer's thread: one wake-up per send, not per frame
+            if not pending[0]:
+                pending[0] = True
+                loop.call_soon_threadsafe(changed.set)
 
         self._sockets.add(ws)
         self.clients += 1
         self.hub.add_listener(wake)
-        sender = asyncio.create_task(self._send_loop(ws, changed))
+        sender = asyncio.create_task(self._send_loop(ws, changed, pending))
         try:
             async for msg in ws:
                 if msg.type == WSMsgType.TEXT:
@@ -178,16 +187,19 @@ class ViewServer:
             self.clients -= 1
         return ws
 
-    async def _send_loop(self, ws: web.WebSocketResponse, changed: asyncio.Event) -> None:
-        """Send the newest state whenever it changed and the last send is done (stale frames are skipped)."""
+    async def _send_loop(self, ws: web.WebSocketResponse, changed: asyncio.Event, pending: list[bool]) -> None:
+        """Send the newest state whenever it changed and the last send is done (stale frames are skipped),
+        at most `max_rate` times a second."""
         client = ViewClient()
         try:
             while not ws.closed:
                 msg = self.hub.message_for(client)
                 if msg is not None:
                     await ws.send_str(json.dumps(msg, separators=(",", ":")))
+                busy = self.hub.status.get("speed", 0) is None and self.hub.status.get("state") == "running"
+                await asyncio.sleep(self.busy_interval if busy else self.min_interval)
                 await changed.wait()
                 changed.clear()
-                await asyncio.sleep(self.min_interval)
+                pending[0] = False
         except (ConnectionError, RuntimeError) as exc:
             log.debug("view client gone: %s", exc)

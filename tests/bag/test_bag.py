@@ -237,7 +237,7 @@ def test_replay_feeds_the_live_view(recorded: tuple[Path, dict[str, object]]) ->
     run = replay_bag(read_bag(bag), None, observers=(observer,))
     assert run.record is not None and run.record.coverage == record["coverage"]
     assert hub.meta["world"] == "ufmg-static" and hub.meta["simulated"] is True
-    assert hub.map is not None and len(hub.path) >= 4
+    assert hub.classes is not None and len(hub.path) >= 4
     # paced at 50x: 25 s of robot time take 0.5 s of (fake) wall time
     assert sum(sleeps) == pytest.approx(25.0 / 50.0, rel=0.05)
 

@@ -9,8 +9,9 @@ import zlib
 import numpy as np
 import pytest
 
-from robotexp.view.feed import FREE, OCCUPIED, UNKNOWN, Frame, MapLayer, ViewClient, ViewHub, classes_of_states, \
-    decode_classes, encode_classes, laser_points, vector_arrows
+from robotexp.robot import LaserScan
+from robotexp.view.feed import FREE, OCCUPIED, TILE, UNKNOWN, Frame, ViewClient, ViewHub, changed_tiles, \
+    classes_of_states, decode_classes, decode_tiles, encode_classes, encode_tiles, laser_points, vector_arrows
 
 
 def test_classes_of_ros_states() -> None:
@@ -59,32 +60,79 @@ def test_vector_arrows_lattice() -> None:
     assert a[0, :2] == pytest.approx([-1.0 + 1.5 * 0.1, -2.0 + 1.5 * 0.1])
 
 
+def test_changed_tiles_and_their_encoding() -> None:
+    rng = np.random.default_rng(5)
+    old = rng.integers(0, 3, size=(70, 45)).astype(np.uint8)     # 3 x 2 tiles of 32, the last ones cut
+    assert changed_tiles(None, old).tolist() == [[True, True]] * 3
+    new = old.copy()
+    new[33, 40] = (new[33, 40] + 1) % 3                            # tile (1, 1)
+    new[69, 0] = (new[69, 0] + 1) % 3                              # tile (2, 0), the cut one
+    which = changed_tiles(old, new)
+    assert which.tolist() == [[False, False], [False, True], [True, False]]
+    msg = encode_tiles(new, which)
+    assert msg["tiles"] == [1, 1, 2, 0] and msg["tile"] == TILE
+    raw = zlib.decompress(__import__("base64").b64decode(msg["data"]))
+    assert raw == new[32:64, 32:45].tobytes() + new[64:70, 0:32].tobytes()      # row-major, tile after tile
+    painted = old.copy()
+    decode_tiles(msg, painted)
+    assert np.array_equal(painted, new)
+    whole = np.zeros_like(old)
+    decode_tiles(encode_tiles(new, changed_tiles(None, new)), whole)
+    assert np.array_equal(whole, new)
+    with pytest.raises(ValueError, match="tiles of a 70 x 45 map"):
+        decode_tiles(msg, np.zeros((45, 70), np.uint8))
+
+
+def _classes(rows: int, cols: int, free: tuple[int, int] | None = None) -> np.ndarray:
+    out = np.zeros((rows, cols), np.uint8)
+    if free is not None:
+        out[free] = FREE
+    return out
+
+
 def test_hub_sends_newest_state_and_points_once() -> None:
     hub = ViewHub()
     client = ViewClient()
     first = hub.message_for(client)
     assert first is not None and "meta" not in first            # nothing started yet
-    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.2})
-    hub.publish(Frame(time=0.1, pose=(0, 0, 0), path=[0.0, 0.0], map=MapLayer("A", 2, 2)))
+    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 40, "cols": 40}, "radius": 0.2})
+    hub.publish(Frame(time=0.1, pose=(0, 0, 0), path=[0.0, 0.0], map=_classes(40, 40, (0, 0))))
     hub.publish(Frame(time=0.2, pose=(1, 0, 0), path=[1.0, 0.0], curve=[0.0, 0.5]))
-    hub.publish(Frame(time=0.3, pose=(2, 0, 0), path=[2.0, 0.0]))
+    hub.publish(Frame(time=0.3, pose=(2, 0, 0), path=[2.0, 0.0],
+                      scan=LaserScan(np.array([0.0, 1.0]), np.array([1.0, np.inf]), 4.0)))
     msg = hub.message_for(client)
     assert msg is not None
     assert msg["meta"]["radius"] == 0.2
     assert msg["t"] == 0.3 and msg["pose"] == (2, 0, 0)             # the stale poses were skipped
+    assert msg["laser"] == [3.0, 0.0]                                # the scan's points, made at the send
     assert msg["path_from"] == 0 and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0]
-    assert msg["curve"] == [0.0, 0.5] and msg["map"]["data"] == "A"
+    assert msg["curve"] == [0.0, 0.5] and msg["map"]["tiles"] == [0, 0, 0, 1, 1, 0, 1, 1]   # all of it
     assert hub.message_for(client) is None                          # nothing new
-    hub.publish(Frame(time=0.4, path=[3.0, 0.0]))
+    hub.publish(Frame(time=0.4, path=[3.0, 0.0], map=_classes(40, 40, (0, 0))))   # the same map: no tiles
     msg = hub.message_for(client)
     assert msg is not None and "meta" not in msg and "map" not in msg
     assert msg["path_from"] == 3 and msg["path"] == [3.0, 0.0] and msg["pose"] == (2, 0, 0)
+    hub.publish(Frame(time=0.5, map=_classes(40, 40, (35, 0))))     # cell (0, 0) back to unknown, (35, 0) free
+    msg = hub.message_for(client)
+    assert msg is not None and msg["map"]["tiles"] == [0, 0, 1, 0]  # only the tiles that changed
     late = ViewClient()                                             # a browser that joins now gets it all
     msg = hub.message_for(late)
-    assert msg is not None and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 3.0, 0.0] and msg["map"]["data"] == "A"
+    assert msg is not None and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 3.0, 0.0]
+    assert len(msg["map"]["tiles"]) == 8
+    got = np.full((40, 40), 9, np.uint8)
+    decode_tiles(msg["map"], got)
+    assert np.array_equal(got, _classes(40, 40, (35, 0)))
+    hub.restart(0.2)                                                # a replay seeks back: path from scratch,
+    hub.publish(Frame(time=0.2, path=[1.0, 0.0], map=_classes(40, 40, (0, 0))))     # the map's changes only
+    msg = hub.message_for(client)
+    assert msg is not None and "meta" not in msg and msg["path_from"] == 0 and msg["path"] == [1.0, 0.0]
+    assert msg["map"]["tiles"] == [0, 0, 1, 0] and msg["t"] == 0.2
     hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.3})
     msg = hub.message_for(client)                                   # a new run: from scratch
     assert msg is not None and msg["meta"]["radius"] == 0.3 and msg["path"] == [] and "map" not in msg
+    hub.publish(Frame(time=0.1, map=_classes(2, 2)))
+    msg = hub.message_for(client)
+    assert msg is not None and msg["map"]["tiles"] == [0, 0] and msg["map"]["rows"] == 2
     hub.finish("stopped from the live view")
     msg = hub.message_for(client)
     assert msg is not None and msg["status"]["state"] == "ended"

@@ -17,7 +17,9 @@ import aiohttp
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.view.feed import Frame, MapLayer, ViewHub
+import numpy as np
+
+from robotexp.view.feed import Frame, ViewHub
 from robotexp.view.server import ViewServer
 
 META = {"geo": {"origin_x": 0.0, "origin_y": 0.0, "cell": 0.1, "rows": 100, "cols": 100}, "radius": 0.2,
@@ -68,7 +70,7 @@ def test_websocket_frames_and_commands() -> None:
     got: list[dict[str, Any]] = []
     hub = ViewHub(on_command=got.append)
     hub.start(META)
-    hub.publish(Frame(time=1.5, pose=(1.0, 2.0, 0.5), path=[1.0, 2.0], map=MapLayer("eJw=", 0, 0)))
+    hub.publish(Frame(time=1.5, pose=(1.0, 2.0, 0.5), path=[1.0, 2.0], map=np.ones((100, 100), np.uint8)))
     with ViewServer(hub) as server:
         frames = asyncio.run(_frames(server.url, 1, [{"cmd": "pause"}, {"cmd": "stop"}, "junk"]))  # type: ignore[list-item]
         deadline = time.monotonic() + 5
@@ -76,7 +78,7 @@ def test_websocket_frames_and_commands() -> None:
             time.sleep(0.01)
     first = frames[0]
     assert first["meta"]["title"] == "test" and first["t"] == 1.5 and first["pose"] == [1.0, 2.0, 0.5]
-    assert first["path"] == [1.0, 2.0] and first["map"]["data"] == "eJw="
+    assert first["path"] == [1.0, 2.0] and first["map"]["rows"] == 100 and len(first["map"]["tiles"]) == 2 * 16
     assert [g["cmd"] for g in got] == ["pause", "stop"]
 
 
