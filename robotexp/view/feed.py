@@ -81,7 +81,7 @@ def changed_tiles(old: npt.NDArray[np.uint8] | None, new: npt.NDArray[np.uint8],
         return np.ones((tr, tc), bool)
     diff = np.zeros((tr * tile, tc * tile), bool)
     np.not_equal(old, new, out=diff[:rows, :cols])
-    out: npt.NDArray[np.bool_] = diff.reshape(tr, tile, tc, tile).any(axis=(1, 3))
+    out: npt.NDArray[np.bool_] = np.any(diff.reshape(tr, tile, tc, tile), axis=(1, 3))
     return out
 
 
