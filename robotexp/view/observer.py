@@ -21,6 +21,7 @@ rate the browsers take messages (`robotexp.view.feed`, `robotexp.view.server`).
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
@@ -30,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from robotexp.markers import markers_problem
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
@@ -40,6 +42,8 @@ if TYPE_CHECKING:
     from robotexp.record import RunRecord
 
 __all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels"]
+
+log = logging.getLogger(__name__)
 
 STOP_REASON = "stopped from the live view"
 
@@ -330,7 +334,7 @@ def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bo
 
 def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
-    vectors as arrows on a lattice) and `Explorer.markers()` when the explorer has it."""
+    vectors as arrows on a lattice) and `Explorer.markers()` (left out, with a warning, when malformed)."""
     out: dict[str, Any] = {}
     geo = run.grid.geo
     overlays = run.explorer.overlays()
@@ -341,7 +345,11 @@ def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     if vec is not None and vec.shape == (geo.rows, geo.cols, 2):
         spacing, arrows = vector_arrows(vec, (geo.origin_x, geo.origin_y), geo.cell)
         out["vectors"] = {"spacing": spacing, "arrows": arrows}
-    markers = getattr(run.explorer, "markers", None)
-    if callable(markers):
-        out.update(markers())
+    markers = run.explorer.markers()
+    problem = markers_problem(markers)
+    if problem is None:
+        out.update(markers)
+    else:
+        log.warning("explorer %s: %s; its markers are not drawn", run.info.method or type(run.explorer).__name__,
+                    problem)
     return out

@@ -25,7 +25,7 @@ def _last(path: Path) -> dict[str, object]:
 TOPICS = {"/scan": "sensor_msgs/msg/LaserScan", "/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
           "/tf_static": "tf2_msgs/msg/TFMessage", "/map": "nav_msgs/msg/OccupancyGrid",
           "/ground_truth": "nav_msgs/msg/Odometry", "/ground_truth/map": "nav_msgs/msg/OccupancyGrid",
-          "/robotexp/scan": "robotexp_msgs/msg/ExactScan"}
+          "/robotexp/scan": "robotexp_msgs/msg/ExactScan", "/robotexp/markers": "visualization_msgs/msg/MarkerArray"}
 
 
 def test_recording_holds_ros2_topics(recorded: tuple[Path, dict[str, object]]) -> None:
