@@ -96,8 +96,8 @@ def marker_array(ns: int, markers: Markers) -> bytes:
     c = Cdr()
     c.u32(len(items) + 1)
     _marker(c, ns, "", 0, 0, DELETEALL, (0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), None)
-    for space, kind, ident, pose, scale, colour, points in items:
-        _marker(c, ns, space, ident, kind, ADD, pose, scale, colour, points)
+    for space, shape, ident, pose, scale, colour, points in items:
+        _marker(c, ns, space, ident, shape, ADD, pose, scale, colour, points)
     return c.data()
 
 
