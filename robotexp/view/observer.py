@@ -41,7 +41,8 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
 
-__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels"]
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
+           "run_meta"]
 
 log = logging.getLogger(__name__)
 
@@ -66,6 +67,7 @@ class Pacer:
         self.paused = False
         self.stopped = False
         self._steps = 0
+        self._woken = False
         self._ref: tuple[float, float] | None = None   # (robot time, wall time) pacing starts from
 
     def set_speed(self, speed: float | None) -> None:
@@ -78,7 +80,7 @@ class Pacer:
     def pause(self) -> None:
         """Hold the loop at its next tick."""
         with self._cond:
-            self.paused = True
+            self.paused, self._woken = True, False
 
     def resume(self) -> None:
         """Let the loop go on."""
@@ -93,6 +95,17 @@ class Pacer:
                 self._steps += 1
             self.paused = True
             self._cond.notify_all()
+
+    def wake(self) -> None:
+        """Let a held `wait` return now without a step (a replay's seek while paused); the pause stays."""
+        with self._cond:
+            self._woken = True
+            self._cond.notify_all()
+
+    def unwake(self) -> None:
+        """Forget a `wake` not yet taken by `wait` (its reason was dealt with)."""
+        with self._cond:
+            self._woken = False
 
     def stop(self) -> None:
         """Release the loop for good (it ends the run at its next tick)."""
@@ -112,6 +125,9 @@ class Pacer:
             while self.paused and not self.stopped:
                 if self._steps > 0:
                     self._steps -= 1
+                    break
+                if self._woken:
+                    self._woken = False
                     break
                 if not held:
                     held = True
@@ -214,17 +230,8 @@ class ViewObserver(RunObserver):
         self._reset()
         self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
         self.pacer.stopped = False
-        geo = run.grid.geo
-        info = run.info
-        start = run.start_pose
         self.hub.controls = ("pause", "step", "stop", "speed") if self.simulated else ("pause", "step", "stop")
-        self.hub.start({
-            "geo": {"origin_x": geo.origin_x, "origin_y": geo.origin_y, "cell": geo.cell, "rows": geo.rows,
-                    "cols": geo.cols},
-            "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
-            "method": info.method, "world": info.world, "robot": info.robot, "simulated": self.simulated,
-            "max_time": run.max_time, "truth": run.truth is not None,
-            "start": None if start is None else [start.x, start.y, start.theta]})
+        self.hub.start(run_meta(run, self.simulated))
         self.hub.set_status(state="paused" if self.pacer.paused else "running",
                             speed=self.pacer.speed if self.simulated else 1.0)
         self._send(run, run.robot_time, force=True)
@@ -311,6 +318,20 @@ class ViewObserver(RunObserver):
                 self._last_xy = (x, y)
         self._path_sent = len(path)
         return out
+
+
+def run_meta(run: ExplorationRun, simulated: bool) -> dict[str, Any]:
+    """What the view's page is told about a run when it starts (`ViewHub.start`): its map geometry,
+    robot radius, names, time limit, whether coverage is known, and the start pose."""
+    geo = run.grid.geo
+    info = run.info
+    start = run.start_pose
+    return {"geo": {"origin_x": geo.origin_x, "origin_y": geo.origin_y, "cell": geo.cell, "rows": geo.rows,
+                    "cols": geo.cols},
+            "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
+            "method": info.method, "world": info.world, "robot": info.robot, "simulated": simulated,
+            "max_time": run.max_time, "truth": run.truth is not None,
+            "start": None if start is None else [start.x, start.y, start.theta]}
 
 
 def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:

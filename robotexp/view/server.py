@@ -1,10 +1,11 @@
 """The live view's web server: aiohttp on its own asyncio loop in a background thread.
 
 `ViewServer(hub).start()` serves the page (static files of this package: index.html, view.js,
-view.css) and a websocket at /ws. Each websocket connection gets the hub's newest state whenever it
-changed and it is ready for more (`ViewHub.message_for`): a slow browser skips frames, a browser
-that goes away only ends its own connection; the run never waits for either. Commands a page sends
-({"cmd": ...}) go to `ViewHub.command`.
+view.css), a websocket at /ws and POST /command (a command as JSON, for scripts). Each websocket
+connection gets the hub's newest state whenever it changed and it is ready for more
+(`ViewHub.message_for`): a slow browser skips frames, a browser that goes away only ends its own
+connection; the run never waits for either. Commands a page sends ({"cmd": ...}) go to
+`ViewHub.command`.
 """
 
 from __future__ import annotations
@@ -104,6 +105,7 @@ class ViewServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
         app.router.add_get("/static/{name}", self._static)
+        app.router.add_post("/command", self._command)
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
@@ -152,6 +154,19 @@ class ViewServer:
         if body is None or suffix not in _TYPES:
             raise web.HTTPNotFound()
         return web.Response(body=body, content_type=_TYPES[suffix], headers={"Cache-Control": "no-store"})
+
+    async def _command(self, request: web.Request) -> web.Response:
+        """POST /command with a JSON command, as a page sends it on the websocket ({"cmd": "seek",
+        "value": 12.5}): 204 when handed over (commands the view does not offer are ignored), 400 when
+        the body is no JSON object."""
+        try:
+            data = await request.json()
+        except ValueError:
+            data = None
+        if not isinstance(data, dict) or not isinstance(data.get("cmd"), str):
+            raise web.HTTPBadRequest(text='expected a JSON object like {"cmd": "pause"}\n')
+        self.hub.command(data)
+        return web.Response(status=204)
 
     async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)

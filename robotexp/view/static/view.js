@@ -228,6 +228,10 @@
       $("title").textContent = msg.meta.title || "robotexp live view";
       $("run").textContent = msg.meta.run || "-";
       sizeLayers(); fitCanvas(); $("scale").textContent = scaleText(msg.meta.geo);
+      if (msg.meta.duration != null) {
+        $("seek").max = String(msg.meta.duration); $("seektime").max = String(msg.meta.duration);
+        $("duration").textContent = `of ${fmtTime(msg.meta.duration)}`;
+      }
     }
     S.t = msg.t; S.status = msg.status || {}; S.controls = msg.controls || [];
     if (msg.pose) S.pose = msg.pose;
@@ -257,6 +261,8 @@
     $("coverage").textContent = msg.coverage == null ? (S.meta && S.meta.truth === false ? "n/a" : "-")
                                                      : `${(msg.coverage * 100).toFixed(1)} %`;
     $("t").textContent = fmtTime(msg.t);
+    if (!seeking) $("seek").value = String(msg.t);
+    if (document.activeElement !== $("seektime")) $("seektime").value = msg.t.toFixed(1);
     $("pathlen").textContent = `${pathLength().toFixed(1)} m`;
     if (S.pose) $("pose").textContent =
       `${(S.pose[0]).toFixed(2)}, ${(S.pose[1]).toFixed(2)} m, ${(S.pose[2] * 180 / Math.PI).toFixed(0)}°`;
@@ -311,6 +317,7 @@
     $("stop").disabled = ended || !S.controls.includes("stop");
     $("speedbox").style.display = S.controls.includes("speed") ? "" : "none";
     $("speed").disabled = ended;
+    $("seekbox").hidden = !S.controls.includes("seek");
     const sp = S.status.speed == null ? "max" : String(S.status.speed);
     if (document.activeElement !== $("speed")) {
       if (![...$("speed").options].some((o) => o.value === sp)) $("speed").add(new Option(`${sp}x`, sp));
@@ -333,8 +340,15 @@
   $("step").onclick = () => send({ cmd: "step" });
   $("stop").onclick = () => send({ cmd: "stop" });
   $("speed").onchange = () => send({ cmd: "speed", value: $("speed").value });
+  // seeking (a replay): the slider sends when let go, the time box on Enter or Go
+  let seeking = false;
+  const seekTo = (v) => { const t = Number(v); if (Number.isFinite(t)) send({ cmd: "seek", value: t }); };
+  $("seek").oninput = () => { seeking = true; $("seektime").value = Number($("seek").value).toFixed(1); };
+  $("seek").onchange = () => { seeking = false; seekTo($("seek").value); };
+  $("seekgo").onclick = () => seekTo($("seektime").value);
+  $("seektime").addEventListener("keydown", (ev) => { if (ev.key === "Enter") { ev.preventDefault(); seekTo($("seektime").value); } });
   document.addEventListener("keydown", (ev) => {
-    if (ev.target.tagName === "SELECT") return;
+    if (ev.target.tagName === "SELECT" || ev.target.tagName === "INPUT") return;
     if (ev.key === " ") { ev.preventDefault(); $("pause").click(); } else if (ev.key === "s") $("step").click();
   });
   window.addEventListener("resize", () => { fitCanvas(); draw(); });
