@@ -162,3 +162,63 @@ def test_campaign_view_in_chromium(tmp_path: Path) -> None:
             proc.communicate()
     assert sorted(rows) == sorted(r.run for r in read_records(out / "results.jsonl"))
     assert len(rows) == 2
+
+
+FREE_PIXELS_JS = """() => { const c = document.getElementById('map');
+  const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  let n = 0; for (let i = 0; i < d.length; i += 4) if (d[i] === 255) n++;
+  return n; }"""
+
+
+def test_replay_seek_in_chromium(tmp_path: Path) -> None:
+    """`robotexp replay BAG --view`: the time box and the slider on the page seek; the map shows the
+    free cells of that time (fewer early on), paused stays paused."""
+    _need_browser()
+    from click.testing import CliRunner
+    from playwright.sync_api import sync_playwright
+
+    from robotexp.cli import main
+
+    bag = tmp_path / "run.mcap"
+    res = CliRunner().invoke(main, ["explore", "-w", "ufmg-static", "--max-time", "12", "-o", str(tmp_path / "rec"),
+                                    "--record", str(bag)])
+    assert res.exit_code == 0, res.output
+    cmd = [sys.executable, "-m", "robotexp.cli", "replay", str(bag), "-o", str(tmp_path / "out"), "--view",
+           "--view-speed", "1"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()
+        match = re.fullmatch(r"view: (http://127\.0\.0\.1:\d+/)\n", first)
+        assert match, f"expected 'view: URL' first, got {first!r}"
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1200, "height": 800})
+                page.goto(match.group(1))
+                page.wait_for_selector("#seekbox:not([hidden])", timeout=30_000)
+                assert page.get_attribute("#seek", "max") == "12"
+                page.click("#pause")
+                page.wait_for_function("document.body.dataset.state === 'paused'", timeout=10_000)
+                page.fill("#seektime", "9")
+                page.press("#seektime", "Enter")
+                page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 9) < 0.05", timeout=10_000)
+                page.wait_for_timeout(300)
+                late = page.evaluate(FREE_PIXELS_JS)
+                page.eval_on_selector("#seek", "s => { s.value = '1'; s.dispatchEvent(new Event('change')); }")
+                page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 1) < 0.05", timeout=10_000)
+                page.wait_for_timeout(300)
+                early = page.evaluate(FREE_PIXELS_JS)
+                assert 0 < early < late                     # the map of 1 s: less seen than at 9 s
+                assert page.inner_text("#state") == "paused" and _robot_time(page) == pytest.approx(1.0, abs=0.05)
+                page.click("#pause")                        # resume: plays on from 1 s
+                page.wait_for_function("Number(document.body.dataset.t) > 1.5", timeout=10_000)
+            finally:
+                browser.close()
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=20)
+        assert proc.returncode == 0, rest
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()

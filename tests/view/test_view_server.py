@@ -111,3 +111,24 @@ def test_stuck_and_vanished_browsers_never_slow_the_producer() -> None:
             s.close()
     assert per_frame < 2e-3, f"publish took {per_frame * 1e3:.2f} ms per frame with stuck browsers"
     assert frames[0]["t"] == pytest.approx((n - 1) * 0.1) and len(frames[0]["path"]) == 2 * n
+
+
+def test_post_command() -> None:
+    """POST /command hands a JSON command to the hub (204); anything else is a 400 naming the form."""
+    got: list[dict[str, Any]] = []
+    hub = ViewHub(controls=("pause", "seek"), on_command=got.append)
+    with ViewServer(hub) as server:
+        def post(body: bytes) -> int:
+            req = urllib.request.Request(server.url + "command", data=body, method="POST",
+                                         headers={"Content-Type": "application/json"})
+            try:
+                with urllib.request.urlopen(req, timeout=5) as r:
+                    return int(r.status)
+            except urllib.error.HTTPError as err:
+                err.close()
+                return int(err.code)
+
+        assert post(b'{"cmd": "seek", "value": 12.5}') == 204
+        assert post(b'{"cmd": "stop"}') == 204                # not offered here: ignored
+        assert post(b"seek 12") == 400 and post(b"[1]") == 400
+    assert got == [{"cmd": "seek", "value": 12.5}]
