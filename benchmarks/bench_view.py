@@ -6,18 +6,26 @@ process. The three settings are interleaved `--repeats` times (their order rotat
 repeat's runs share the machine's load of the moment: the figure judged is the median over repeats of
 the watched run's speed over the unwatched one's of the same repeat.
 
+The browser is Chromium started as a user would (its own session, `chromium --headless URL`, a fresh
+profile, 1280 x 800), once per watched run, connected before the run starts: no driver process runs
+beside it (a playwright driver would sit in this process's session and take its CPU from the run).
+
 Run: python benchmarks/bench_view.py [--world dense] [--method frontier] [--max-time 600] [--repeats 5]
          [--chromium /usr/bin/chromium] [--page-rate HZ] [--busy-rate HZ]
-Prints each setting's speeds, the ratios, the CPU time of this process and of its Chromium, and the
-machine's load average; exit 1 when the watched run is more than 10 % slower, 2 on bad arguments.
+Prints each setting's speeds, the ratios, the CPU time of this process and of its Chromium, the
+messages the page got and the machine's load average; exit 1 when the watched run is more than 10 %
+slower, 2 on bad arguments.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -57,12 +65,37 @@ def descendants_cpu(root: int) -> float:
     return total / os.sysconf("SC_CLK_TCK")
 
 
-def one_run(spec: RunSpec, setting: str, browser: Any, page_rate: float | None,
+def _wait(what: str, done: Any, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while not done():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"bench_view: {what} within {timeout:g} s")
+        time.sleep(0.05)
+
+
+def open_browser(chromium: str, url: str, profile: Path) -> subprocess.Popen[bytes]:
+    """Headless Chromium showing `url`, in a session of its own (as a user's browser would be)."""
+    return subprocess.Popen([chromium, *CHROMIUM_ARGS, f"--user-data-dir={profile}", "--window-size=1280,800", url],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def close_browser(proc: subprocess.Popen[bytes]) -> None:
+    """End Chromium and every process it started (its session's process group)."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=10)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def one_run(spec: RunSpec, setting: str, chromium: str, page_rate: float | None,
             busy_rate: float | None) -> dict[str, float]:
     """Speed [robot s / wall s of the loop], this process's CPU [s], Chromium's CPU [s], the loop's wall
-    time [s], maps the page drew and the 1-minute load average, of `spec` in `setting`."""
+    time [s], messages the page got and the 1-minute load average, of `spec` in `setting`."""
     observers = []
-    server = page = None
+    server = browser = None
+    profile = None
     if setting != "none":
         hub = ViewHub()
         observers.append(ViewObserver(hub, speed=None))
@@ -74,23 +107,27 @@ def one_run(spec: RunSpec, setting: str, browser: Any, page_rate: float | None,
         server = ViewServer(hub, **rates)
         server.start()
         if setting == "browser":
-            page = browser.new_page(viewport={"width": 1280, "height": 800})
-            page.goto(server.url)
-            page.wait_for_function("document.body.dataset.state === 'waiting'", timeout=10_000)
+            profile = tempfile.TemporaryDirectory(prefix="bench_view_")
+            browser = open_browser(chromium, server.url, Path(profile.name))
+            s = server
+            _wait("the page did not connect", lambda: s.clients > 0 and s.sent > 0, 60)
+            time.sleep(1.0)                 # the browser's start-up work done before the run starts
     me = os.getpid()
+    sent0 = server.sent if server is not None else 0
     cpu0, chrome0 = time.process_time(), descendants_cpu(me)
     out = run_experiment(spec, None, observers=observers, image=False)
     cpu, chrome = time.process_time() - cpu0, descendants_cpu(me) - chrome0
-    maps = 0
-    if page is not None:
-        page.wait_for_function("document.body.dataset.state === 'ended'", timeout=60_000)
-        maps = int(page.evaluate("Number(document.getElementById('map').dataset.mapVersion)"))
-        page.close()
+    sent = 0
     if server is not None:
+        sent = server.sent - sent0
         server.close()
+    if browser is not None:
+        close_browser(browser)
+    if profile is not None:
+        profile.cleanup()
     wall = out.run.wall_time
-    return {"speed": out.record.robot_time_s / wall, "cpu": cpu, "chrome": chrome if page else 0.0, "wall": wall,
-            "maps": maps, "load": os.getloadavg()[0]}
+    return {"speed": out.record.robot_time_s / wall, "cpu": cpu, "chrome": chrome if browser else 0.0,
+            "wall": wall, "sent": sent, "load": os.getloadavg()[0]}
 
 
 def main() -> int:
@@ -112,20 +149,13 @@ def main() -> int:
         print(f"bench_view: no Chromium at {a.chromium}; install Debian's chromium or pass --chromium PATH",
               file=sys.stderr)
         return 2
-    from playwright.sync_api import sync_playwright
-
     spec = RunSpec(world=a.world, method=a.method, max_time=a.max_time)
     run_experiment(RunSpec(world=a.world, method=a.method, max_time=5.0), None, image=False)   # warm-up: JIT
     runs: dict[str, list[dict[str, float]]] = {s: [] for s in SETTINGS}
-    with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=a.chromium, args=CHROMIUM_ARGS)
-        try:
-            for k in range(a.repeats):
-                for i in range(len(SETTINGS)):
-                    setting = SETTINGS[(i + k) % len(SETTINGS)]
-                    runs[setting].append(one_run(spec, setting, browser, a.page_rate, a.busy_rate))
-        finally:
-            browser.close()
+    for k in range(a.repeats):
+        for i in range(len(SETTINGS)):
+            setting = SETTINGS[(i + k) % len(SETTINGS)]
+            runs[setting].append(one_run(spec, setting, a.chromium, a.page_rate, a.busy_rate))
 
     def med(setting: str, key: str) -> float:
         return statistics.median(r[key] for r in runs[setting])
@@ -141,8 +171,9 @@ def main() -> int:
               f"  ratio: of medians {med(setting, 'speed') / base:5.3f}, paired median {paired:5.3f}"
               f"  CPU {med(setting, 'cpu'):5.2f} s ({med(setting, 'cpu') / base_cpu:5.3f})  speeds: {speeds}")
     chrome = statistics.median(r["chrome"] / r["wall"] for r in runs["browser"])
-    print(f"  maps the page drew per watched run: {[int(r['maps']) for r in runs['browser']]}; this Chromium's "
-          f"CPU while watching: {chrome * 100:.1f} % of one core")
+    walls = ", ".join(f"{r['wall']:.1f}" for r in runs["browser"])
+    print(f"  messages the page got per watched run: {[int(r['sent']) for r in runs['browser']]} (in {walls} s); "
+          f"this Chromium's CPU while watching: {chrome * 100:.1f} % of one core")
     ratio = statistics.median(b["speed"] / n["speed"] for b, n in zip(runs["browser"], runs["none"], strict=True))
     print(f"watched run at {ratio * 100:.1f} % of the speed without the view (paired median; target >= 90 %)")
     return 0 if ratio >= 0.9 else 1

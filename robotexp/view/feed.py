@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 __all__ = ["UNKNOWN", "FREE", "OCCUPIED", "TILE", "Frame", "MapLayer", "ViewClient", "ViewHub", "classes_of_states",
            "encode_classes", "decode_classes", "changed_tiles", "encode_tiles", "decode_tiles", "laser_points",
-           "vector_arrows"]
+           "packed_laser", "unpack_laser", "vector_arrows"]
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 TILE = 32           # [cells] side of the map tiles sent to browsers
@@ -121,10 +121,10 @@ def decode_tiles(msg: dict[str, Any], into: npt.NDArray[np.uint8]) -> None:
         raise ValueError(f"tiles hold {at} cells, data {len(raw)}")
 
 
-def laser_points(x: float, y: float, theta: float, angles: npt.NDArray[np.float64],
-                 ranges: npt.NDArray[np.float64], offset_x: float = 0.0, max_points: int = 360) -> list[float]:
-    """World points [m] of the finite beams of a scan taken at pose (x, y, theta), as a flat list
-    x0, y0, x1, y1, ... rounded to mm, at most `max_points` (every k-th beam beyond that)."""
+def _laser_xy(x: float, y: float, theta: float, angles: npt.NDArray[np.float64], ranges: npt.NDArray[np.float64],
+              offset_x: float, max_points: int) -> tuple[float, float, npt.NDArray[np.float64]]:
+    """The laser's position [m] and the (n, 2) world points [m] of the finite beams (every k-th beyond
+    `max_points`) of a scan taken at pose (x, y, theta)."""
     ok = np.flatnonzero(np.isfinite(ranges))
     if len(ok) > max_points:
         ok = ok[:: math.ceil(len(ok) / max_points)]
@@ -133,7 +133,33 @@ def laser_points(x: float, y: float, theta: float, angles: npt.NDArray[np.float6
     pts = np.empty((len(ok), 2))
     pts[:, 0] = sx + ranges[ok] * np.cos(a)
     pts[:, 1] = sy + ranges[ok] * np.sin(a)
+    return sx, sy, pts
+
+
+def laser_points(x: float, y: float, theta: float, angles: npt.NDArray[np.float64],
+                 ranges: npt.NDArray[np.float64], offset_x: float = 0.0, max_points: int = 360) -> list[float]:
+    """World points [m] of the finite beams of a scan taken at pose (x, y, theta), as a flat list
+    x0, y0, x1, y1, ... rounded to mm, at most `max_points` (every k-th beam beyond that)."""
+    pts = _laser_xy(x, y, theta, angles, ranges, offset_x, max_points)[2]
     return [float(v) for v in np.round(pts.ravel(), 3)]
+
+
+def packed_laser(x: float, y: float, theta: float, angles: npt.NDArray[np.float64],
+                 ranges: npt.NDArray[np.float64], offset_x: float = 0.0, max_points: int = 360) -> dict[str, Any]:
+    """The points of `laser_points` as a browser is sent them: {"x", "y": the laser's position [m], "cm":
+    base64 of int16 little-endian offsets from it [cm], x0, y0, x1, y1, ...} (a few bytes a point, no
+    float formatting; the page adds them back, see `unpack_laser`)."""
+    sx, sy, pts = _laser_xy(x, y, theta, angles, ranges, offset_x, max_points)
+    pts[:, 0] -= sx
+    pts[:, 1] -= sy
+    cm = np.clip(np.round(pts * 100), -32768, 32767).astype("<i2")
+    return {"x": round(sx, 3), "y": round(sy, 3), "cm": base64.b64encode(cm.tobytes()).decode("ascii")}
+
+
+def unpack_laser(packed: dict[str, Any]) -> list[float]:
+    """The world points [m] x0, y0, ... of a `packed_laser` message (what the page computes)."""
+    cm = np.frombuffer(base64.b64decode(packed["cm"]), "<i2").reshape(-1, 2) / 100.0
+    return [float(v) for v in (cm + [packed["x"], packed["y"]]).ravel()]
 
 
 def vector_arrows(vectors: npt.NDArray[np.float64], origin: tuple[float, float], cell: float,
@@ -233,7 +259,7 @@ class ViewHub:
     def _reset(self) -> None:
         self.time = 0.0
         self.pose: tuple[float, float, float] | None = None
-        self.laser: list[float] = []
+        self.laser: list[float] | dict[str, Any] = []     # world points, or `packed_laser` of a scan
         self._scan: tuple[tuple[float, float, float], LaserScan] | None = None
         self.path: list[float] = []
         self.curve: list[float] = []
@@ -335,7 +361,8 @@ class ViewHub:
 
     def message_for(self, client: ViewClient) -> dict[str, Any] | None:
         """What `client` has not received yet, as one JSON-ready message (None: nothing new); marks it sent.
-        Called in the server's thread: the laser points and the map's tiles are made here."""
+        Called in the server's thread: the laser points and the map's tiles are made here, outside the
+        lock (a producer's `publish` never waits for them; the classes it gave are never changed)."""
         with self._lock:
             if client.seq == self.seq:
                 return None
@@ -346,10 +373,7 @@ class ViewHub:
                     client.run, client.rows, client.map_version, client.overlay_version = self.run, 0, 0, 0
                     msg["meta"] = self.meta
                 client.epoch, client.path, client.curve = self.epoch, 0, 0
-            if self._scan is not None:
-                (x, y, theta), sc = self._scan
-                self.laser = laser_points(x, y, theta, sc.angles, sc.ranges, sc.offset_x)
-                self._scan = None
+            scan = self._scan
             msg["pose"] = self.pose
             msg["laser"] = self.laser
             msg["path_from"], msg["path"] = client.path // 2, self.path[client.path:]
@@ -358,16 +382,27 @@ class ViewHub:
             if len(self.rows) > client.rows:
                 msg["rows_from"], msg["rows"] = client.rows, self.rows[client.rows:]
                 client.rows = len(self.rows)
+            classes = tiles = None
             if self.classes is not None and client.map_version != self.map_version:
-                msg["map"] = encode_tiles(self.classes, self.tile_version > client.map_version)
+                classes, tiles = self.classes, self.tile_version > client.map_version
                 client.map_version = self.map_version
+            overlays = None
             if client.overlay_version != self.overlay_version:
-                msg["overlays"] = {k: (v.__dict__ if isinstance(v, MapLayer) else v)
-                                   for k, v in self.overlays.items()}
+                overlays = self.overlays
                 client.overlay_version = self.overlay_version
             msg["speedup"], msg["coverage"] = self.speedup, self.coverage
             client.seq = self.seq
-            return msg
+        if scan is not None:
+            (x, y, theta), sc = scan
+            msg["laser"] = packed_laser(x, y, theta, sc.angles, sc.ranges, sc.offset_x)
+            with self._lock:
+                if self._scan is scan:              # kept for the other browsers
+                    self._scan, self.laser = None, msg["laser"]
+        if classes is not None and tiles is not None:
+            msg["map"] = encode_tiles(classes, tiles)
+        if overlays is not None:
+            msg["overlays"] = {k: (v.__dict__ if isinstance(v, MapLayer) else v) for k, v in overlays.items()}
+        return msg
 
     def command(self, msg: dict[str, Any]) -> None:
         """A command from a page (see `on_command`); unknown or disallowed ones are ignored."""

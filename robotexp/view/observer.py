@@ -168,7 +168,7 @@ class ViewObserver(RunObserver):
         clock: wall clock [s].
     """
 
-    def __init__(self, hub: ViewHub, *, speed: float | None = DEFAULT_SPEED, frame_rate: float = 25.0,
+    def __init__(self, hub: ViewHub, *, speed: float | None = DEFAULT_SPEED, frame_rate: float = 10.0,
                  map_rate: float = 4.0, overlay_rate: float = 2.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.hub = hub

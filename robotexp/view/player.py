@@ -90,7 +90,7 @@ class ReplayPlayer:
     """
 
     def __init__(self, hub: ViewHub, bag: Bag, run: ExplorationRun, checkpoints: Checkpoints | None = None, *,
-                 speed: float | None = DEFAULT_SPEED, frame_rate: float = 25.0, map_rate: float = 4.0,
+                 speed: float | None = DEFAULT_SPEED, frame_rate: float = 10.0, map_rate: float = 4.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.hub, self.ticks, self.run = hub, bag.ticks, run
         self.times = [t.time for t in self.ticks]

@@ -53,7 +53,8 @@ class ViewServer:
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
         self._sockets: set[web.WebSocketResponse] = set()
-        self.clients = 0
+        self.clients = 0           # browsers connected now
+        self.sent = 0              # messages sent to browsers so far
 
     @property
     def url(self) -> str:
@@ -169,7 +170,9 @@ class ViewServer:
         return web.Response(status=204)
 
     async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
+        # no permessage-deflate: the map tiles are compressed already, and deflating every frame would cost
+        # the run's process CPU for a few kB of laser and path
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16, compress=False)
         await ws.prepare(request)
         loop = asyncio.get_running_loop()
         changed = asyncio.Event()
@@ -211,6 +214,7 @@ class ViewServer:
                 msg = self.hub.message_for(client)
                 if msg is not None:
                     await ws.send_str(json.dumps(msg, separators=(",", ":")))
+                    self.sent += 1
                 busy = self.hub.status.get("speed", 0) is None and self.hub.status.get("state") == "running"
                 await asyncio.sleep(self.busy_interval if busy else self.min_interval)
                 await changed.wait()

@@ -11,7 +11,8 @@ import pytest
 
 from robotexp.robot import LaserScan
 from robotexp.view.feed import FREE, OCCUPIED, TILE, UNKNOWN, Frame, ViewClient, ViewHub, changed_tiles, \
-    classes_of_states, decode_classes, decode_tiles, encode_classes, encode_tiles, laser_points, vector_arrows
+    classes_of_states, decode_classes, decode_tiles, encode_classes, encode_tiles, laser_points, packed_laser, \
+    unpack_laser, vector_arrows
 
 
 def test_classes_of_ros_states() -> None:
@@ -45,6 +46,18 @@ def test_laser_points_in_world_frame() -> None:
     assert pts == pytest.approx([1.0, 3.1, 0.5, 2.1], abs=1e-9)
     many = laser_points(0, 0, 0, np.linspace(-1, 1, 1000), np.ones(1000), max_points=100)
     assert len(many) // 2 == 100
+
+
+def test_packed_laser_is_the_points_to_the_cm() -> None:
+    rng = np.random.default_rng(2)
+    angles = np.linspace(-2.0, 2.0, 500)
+    ranges = rng.uniform(0.05, 30.0, 500)
+    ranges[::7] = np.inf
+    args = (-3.2, 14.7, 0.8, angles, ranges, 0.12)
+    packed = packed_laser(*args)
+    assert isinstance(packed["cm"], str) and len(packed["cm"]) < 4 * 360 * 4 / 3 + 4   # 4 bytes a point
+    assert unpack_laser(packed) == pytest.approx(laser_points(*args), abs=0.005 + 1e-9)
+    assert len(unpack_laser(packed)) == len(laser_points(*args)) == 2 * 214     # 428 finite beams: every 2nd
 
 
 def test_vector_arrows_lattice() -> None:
@@ -104,7 +117,7 @@ def test_hub_sends_newest_state_and_points_once() -> None:
     assert msg is not None
     assert msg["meta"]["radius"] == 0.2
     assert msg["t"] == 0.3 and msg["pose"] == (2, 0, 0)             # the stale poses were skipped
-    assert msg["laser"] == [3.0, 0.0]                                # the scan's points, made at the send
+    assert unpack_laser(msg["laser"]) == [3.0, 0.0]                  # the scan's points, made at the send
     assert msg["path_from"] == 0 and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0]
     assert msg["curve"] == [0.0, 0.5] and msg["map"]["tiles"] == [0, 0, 0, 1, 1, 0, 1, 1]   # all of it
     assert hub.message_for(client) is None                          # nothing new

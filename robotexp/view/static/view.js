@@ -75,6 +75,17 @@
     potx.putImageData(img, 0, 0); pot.hidden = false;
   }
 
+  // laser points sent packed (robotexp/view/feed.py packed_laser): int16 cm offsets from the laser
+  function unpackLaser(p) {
+    const b = atob(p.cm), out = new Array(b.length / 2);
+    for (let i = 0; i < out.length; i++) {
+      let v = b.charCodeAt(2 * i) | (b.charCodeAt(2 * i + 1) << 8);
+      if (v >= 32768) v -= 65536;
+      out[i] = (i % 2 ? p.y : p.x) + v / 100;
+    }
+    return out;
+  }
+
   // world [m] -> layer pixels (#over, #dyn)
   function transform() {
     const g = S.meta.geo, w = g.cols * g.cell, h = g.rows * g.cell;
@@ -235,7 +246,7 @@
     }
     S.t = msg.t; S.status = msg.status || {}; S.controls = msg.controls || [];
     if (msg.pose) S.pose = msg.pose;
-    if (msg.laser) S.laser = msg.laser;
+    if (msg.laser) S.laser = Array.isArray(msg.laser) ? msg.laser : unpackLaser(msg.laser);
     if (msg.path) {
       if (msg.path_from * 2 < S.path.length) overDirty = true;
       S.path.length = msg.path_from * 2; for (const v of msg.path) S.path.push(v);
