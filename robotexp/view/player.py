@@ -175,7 +175,8 @@ class ReplayPlayer:
     # -- playing (the caller's thread) --
     def play(self, until: Callable[[], bool] = lambda: False) -> None:
         """Play until `until()` is true (checked at least twice a second) or Ctrl-C (KeyboardInterrupt)."""
-        self.hub.start({**run_meta(self.run, True), "duration": self.duration, "replay": True})
+        meta = run_meta(self.run, True)
+        self.hub.start({**meta, "title": f"{meta['title']} (replay)", "duration": self.duration, "replay": True})
         self.hub.set_status(state="paused" if self.pacer.paused else "running", speed=self.pacer.speed)
         self._send(0.0, force=True)
         n = len(self.ticks)
