@@ -25,7 +25,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from robotexp.record import RunRecord
 
 __all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
-           "run_meta"]
+           "run_meta", "pacer_command", "new_path_points", "SpeedMeter"]
 
 log = logging.getLogger(__name__)
 
@@ -157,6 +157,68 @@ class Pacer:
         return held
 
 
+class SpeedMeter:
+    """Robot time per wall time, measured over spans of at least a wall second."""
+
+    def __init__(self) -> None:
+        self._ref: tuple[float, float] | None = None
+
+    def reset(self) -> None:
+        """Start a new span at the next `update` (after a pause: the pause is no slowness)."""
+        self._ref = None
+
+    def update(self, t: float, now: float) -> float | None:
+        """Robot time `t` [s] at wall time `now` [s]: the speed-up over the span that ends here when it
+        lasted a second or more (a new span starts), else None."""
+        if self._ref is None:
+            self._ref = (t, now)
+            return None
+        t0, w0 = self._ref
+        if now - w0 < 1.0:
+            return None
+        self._ref = (t, now)
+        return (t - t0) / (now - w0)
+
+
+def pacer_command(pacer: Pacer, hub: ViewHub, msg: dict[str, Any]) -> bool:
+    """Apply a page's pause, resume, step or speed (value: a number or "max") command to `pacer` and show
+    it in `hub`'s status; whether `msg` was one of these (a bad speed is ignored)."""
+    cmd = msg.get("cmd")
+    if cmd == "pause":
+        pacer.pause()
+        hub.set_status(state="paused")
+    elif cmd == "step":
+        pacer.step()
+        hub.set_status(state="paused")
+    elif cmd == "resume":
+        pacer.resume()
+        if hub.status.get("state") != "ended":
+            hub.set_status(state="running")
+    elif cmd == "speed":
+        value = msg.get("value")
+        try:
+            speed = None if value in (None, "max") else float(value)
+            pacer.set_speed(speed)
+        except (TypeError, ValueError):
+            return True
+        hub.set_status(speed=speed)
+    else:
+        return False
+    return True
+
+
+def new_path_points(path: Sequence[tuple[float, float]], start: int, end: int, last: tuple[float, float] | None,
+                    spacing: float) -> tuple[list[float], tuple[float, float] | None]:
+    """The points of `path[start:end]` at least `spacing` [m] from the one kept before (`last`, None: keep
+    the first), as a flat list x, y, ... rounded to mm, and the last point kept."""
+    out: list[float] = []
+    for x, y in path[start:end]:
+        if last is None or math.hypot(x - last[0], y - last[1]) >= spacing:
+            out += [round(x, 3), round(y, 3)]
+            last = (x, y)
+    return out, last
+
+
 class ViewObserver(RunObserver):
     """Feeds a `ViewHub` from a run and holds the run for the view's controls.
 
@@ -187,37 +249,21 @@ class ViewObserver(RunObserver):
         self._map_dirty = True
         self._path_sent = 0
         self._last_xy: tuple[float, float] | None = None
-        self._rate_ref: tuple[float, float] | None = None
+        self._speed = SpeedMeter()
         self._pending_curve: list[float] = []
         self._coverage: float | None = None
 
     # -- commands from the page (server thread) --
     def command(self, msg: dict[str, Any]) -> None:
         """Act on a page's command: pause, resume, step, stop, speed (value: a number or "max")."""
-        cmd = msg.get("cmd")
-        if cmd == "pause":
-            self.pacer.pause()
-            self.hub.set_status(state="paused")
-        elif cmd == "resume":
-            self.pacer.resume()
-            self.hub.set_status(state="running")
-        elif cmd == "step":
-            self.pacer.step()
-            self.hub.set_status(state="paused")
-        elif cmd == "stop":
+        if msg.get("cmd") == "stop":
             run = self.run
             if run is not None:
                 run.request_stop(STOP_REASON, EndReason.STOPPED)
                 self._stop_requested = True
             self.pacer.stop()
-        elif cmd == "speed" and self.simulated:
-            value = msg.get("value")
-            try:
-                speed = None if value in (None, "max") else float(value)
-                self.pacer.set_speed(speed)
-            except (TypeError, ValueError):
-                return
-            self.hub.set_status(speed=speed)
+        elif msg.get("cmd") != "speed" or self.simulated:
+            pacer_command(self.pacer, self.hub, msg)
 
     # -- the run (loop thread) --
     def on_start(self, run: ExplorationRun) -> None:
@@ -258,7 +304,7 @@ class ViewObserver(RunObserver):
             self._send(run, t, force=True)
             self.hub.set_status(state="paused")
         else:
-            self._rate_ref = None
+            self._speed.reset()
             if not self._stop_requested:
                 self.hub.set_status(state="paused" if self.pacer.paused else "running")
 
@@ -293,11 +339,7 @@ class ViewObserver(RunObserver):
         frame.path = self._new_path(run)
         frame.curve, self._pending_curve = self._pending_curve, []
         frame.coverage = self._coverage
-        if self._rate_ref is None:
-            self._rate_ref = (t, now)
-        elif now - self._rate_ref[1] >= 1.0:
-            frame.speedup = (t - self._rate_ref[0]) / (now - self._rate_ref[1])
-            self._rate_ref = (t, now)
+        frame.speedup = self._speed.update(t, now)
         watched = force or self.hub.watched
         if watched and self._map_dirty and (force or now >= self._next_map):
             self._next_map = now + self.map_period
@@ -310,12 +352,7 @@ class ViewObserver(RunObserver):
 
     def _new_path(self, run: ExplorationRun) -> list[float]:
         path = run.metrics.path
-        half = run.grid.geo.cell / 2
-        out: list[float] = []
-        for x, y in path[self._path_sent:]:
-            if self._last_xy is None or math.hypot(x - self._last_xy[0], y - self._last_xy[1]) >= half:
-                out += [round(x, 3), round(y, 3)]
-                self._last_xy = (x, y)
+        out, self._last_xy = new_path_points(path, self._path_sent, len(path), self._last_xy, run.grid.geo.cell / 2)
         self._path_sent = len(path)
         return out
 

@@ -26,7 +26,7 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.view.feed import Frame, ViewHub, classes_of_states
 from robotexp.view.live import DEFAULT_SPEED
-from robotexp.view.observer import STOP_REASON, Pacer, run_meta
+from robotexp.view.observer import STOP_REASON, Pacer, SpeedMeter, new_path_points, pacer_command, run_meta
 
 if TYPE_CHECKING:
     from robotexp.bag.replay import Bag
@@ -126,35 +126,19 @@ class ReplayPlayer:
         self._marker_index = -2
         self._next_frame = self._next_map = -math.inf
         self._map_dirty = True
-        self._rate_ref: tuple[float, float] | None = None
+        self._speed = SpeedMeter()
 
     # -- commands (server thread) --
     def command(self, msg: dict[str, Any]) -> None:
         """pause, resume, step, stop, speed (a number or "max"), seek (robot time [s])."""
         cmd = msg.get("cmd")
-        if cmd == "pause":
-            self.pacer.pause()
-            self.hub.set_status(state="paused")
-        elif cmd == "resume":
-            self.pacer.resume()
-            self._idle.set()
-            if not self._ended:
-                self.hub.set_status(state="running")
-        elif cmd == "step":
-            self.pacer.step()
-            self.hub.set_status(state="paused")
+        if pacer_command(self.pacer, self.hub, msg):
+            if cmd == "resume":
+                self._idle.set()
         elif cmd == "stop":
             self._stopped = True
             self.pacer.stop()
             self._idle.set()
-        elif cmd == "speed":
-            value = msg.get("value")
-            try:
-                speed = None if value in (None, "max") else float(value)
-                self.pacer.set_speed(speed)
-            except (TypeError, ValueError):
-                return
-            self.hub.set_status(speed=speed)
         elif cmd == "seek":
             try:
                 t = float(msg.get("value"))  # type: ignore[arg-type]
@@ -206,7 +190,7 @@ class ReplayPlayer:
             self._send(self.times[max(self.i - 1, 0)], force=True)
             self.hub.set_status(state="paused")
         else:
-            self._rate_ref = None
+            self._speed.reset()
             if not self._stopped and self._seek is None:
                 self.hub.set_status(state="paused" if self.pacer.paused else "running")
 
@@ -258,11 +242,7 @@ class ReplayPlayer:
         frame.path = self._new_path()
         frame.curve = self._new_curve(t)
         frame.coverage = self._coverage
-        if self._rate_ref is None:
-            self._rate_ref = (t, now)
-        elif now - self._rate_ref[1] >= 1.0:
-            frame.speedup = (t - self._rate_ref[0]) / (now - self._rate_ref[1])
-            self._rate_ref = (t, now)
+        frame.speedup = self._speed.update(t, now)
         if self._map_dirty and (force or (self.hub.watched and now >= self._next_map)):
             self._next_map = now + self.map_period
             self._map_dirty = False
@@ -276,12 +256,7 @@ class ReplayPlayer:
     def _new_path(self) -> list[float]:
         path = self.run.metrics.path
         end = min(self.i, len(path))
-        half = self.run.grid.geo.cell / 2
-        out: list[float] = []
-        for x, y in path[self._path_sent:end]:
-            if self._last_xy is None or math.hypot(x - self._last_xy[0], y - self._last_xy[1]) >= half:
-                out += [round(x, 3), round(y, 3)]
-                self._last_xy = (x, y)
+        out, self._last_xy = new_path_points(path, self._path_sent, end, self._last_xy, self.run.grid.geo.cell / 2)
         self._path_sent = max(end, self._path_sent)
         return out
 

@@ -8,10 +8,6 @@ from __future__ import annotations
 import asyncio
 import bisect
 import json
-import re
-import signal
-import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
@@ -125,29 +121,16 @@ async def _session(url: str, data: Bag, times: list[float], grid: OccupancyGrid)
     return got
 
 
-def test_replay_view_seeks_end_to_end(recorded: tuple[Path, dict[str, object]], tmp_path: Path) -> None:
+def test_replay_view_seeks_end_to_end(recorded: tuple[Path, dict[str, object]], tmp_path: Path,
+                                      view_cli: Any) -> None:
     bag, record = recorded
     data = read_bag(bag)
     reference = replay_bag(data, None)
     times = [t.time for t in data.ticks]
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "replay", str(bag), "-o", str(out), "--view",
-                             "--view-speed", "2"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        assert proc.stdout is not None
-        match = None
-        while match is None:
-            line = proc.stdout.readline()
-            assert line, "replay --view ended without serving its view"
-            match = re.fullmatch(r"view: (http://127\.0\.0\.1:\d+/)\n", line)
-        got = asyncio.run(_session(match.group(1), data, times, reference.grid))
-        proc.send_signal(signal.SIGINT)
-        rest, _ = proc.communicate(timeout=20)
-        assert proc.returncode == 0, rest
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    proc, url = view_cli.start("replay", str(bag), "-o", str(out), "--view", "--view-speed", "2")
+    got = asyncio.run(_session(url, data, times, reference.grid))
+    view_cli.interrupt(proc)
     assert "seek" in got["controls"] and got["meta"]["duration"] == pytest.approx(times[-1])
     for target, t, state, seen in got["maps"]:
         k = bisect.bisect_right(times, target + 1e-9) - 1
