@@ -211,3 +211,37 @@ def test_hub_sends_campaign_rows_once() -> None:
     hub.publish(Frame(time=4.0))
     msg = hub.message_for(client)
     assert msg is not None and "rows" not in msg
+
+
+def test_observer_skips_the_map_while_nobody_watches() -> None:
+    """Without a browser the observer publishes no maps (the run does not build them); one that connects
+    gets the run's current map at once."""
+    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.explorer import ExplorationRun
+    from robotexp.observers import RunObserver, StepEvent
+    from robotexp.view.observer import ViewObserver
+
+    hub = ViewHub()
+    versions: list[tuple[float, int]] = []
+
+    class Browser(RunObserver):
+        """Connects at 5 s of robot time; notes the hub's map version at every tick."""
+
+        def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+            if step.time >= 5.0 and not hub.watched:
+                hub.add_listener(lambda: None)
+            versions.append((step.time, hub.map_version))
+
+    clock = [0.0]
+
+    def tick() -> float:              # a wall clock that moves 10 ms a call: maps fall due as they would
+        clock[0] += 0.01
+        return clock[0]
+
+    out = run_experiment(RunSpec(world="ufmg-static", method="frontier", max_time=10.0), None,
+                         observers=[Browser(), ViewObserver(hub, speed=None, clock=tick)], image=False)
+    before = {v for t, v in versions if t < 5.0}
+    after = [v for t, v in versions if t >= 5.2]
+    assert before == {1}                          # the map of the start only (sent with the run's meta)
+    assert after[-1] > 2                          # maps flow once watched
+    assert hub.classes is not None and np.array_equal(hub.classes, classes_of_states(out.run.grid.states()))
