@@ -2,9 +2,9 @@
 
 `ViewServer(hub).start()` serves the page (static files of this package: index.html, view.js,
 view.css), a websocket at /ws and POST /command (a command as JSON, for scripts). Each websocket
-connection gets the hub's newest state whenever it changed and it is ready for more
-(`ViewHub.message_for`): a slow browser skips frames, a browser that goes away only ends its own
-connection; the run never waits for either. Commands a page sends ({"cmd": ...}) go to
+connection polls the hub at its rate and sends its newest state when it changed and the last send is
+done (`ViewHub.message_for`): a slow browser skips frames, a browser that goes away only ends its own
+connection; the run never waits for either, nor wakes this thread. Commands a page sends ({"cmd": ...}) go to
 `ViewHub.command`.
 """
 
@@ -174,19 +174,16 @@ class ViewServer:
         # the run's process CPU for a few kB of laser and path
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16, compress=False)
         await ws.prepare(request)
-        loop = asyncio.get_running_loop()
-        changed = asyncio.Event()
-        pending = [False]
-
-        def wake() -> None:           # called in the producer's thread: one wake-up per send, not per frame
-            if not pending[0]:
-                pending[0] = True
-                loop.call_soon_threadsafe(changed.set)
+        # the sender polls the hub at its rate: the producer never wakes this thread (each wake-up would
+        # take the GIL from the run's thread, and on a busy machine a thread that holds it may wait long
+        # for a CPU while the run waits for it); the listener only counts the browser as watching
+        def watching() -> None:
+            pass
 
         self._sockets.add(ws)
         self.clients += 1
-        self.hub.add_listener(wake)
-        sender = asyncio.create_task(self._send_loop(ws, changed, pending))
+        self.hub.add_listener(watching)
+        sender = asyncio.create_task(self._send_loop(ws))
         try:
             async for msg in ws:
                 if msg.type == WSMsgType.TEXT:
@@ -199,15 +196,15 @@ class ViewServer:
                 elif msg.type == WSMsgType.ERROR:
                     break
         finally:
-            self.hub.remove_listener(wake)
+            self.hub.remove_listener(watching)
             sender.cancel()
             self._sockets.discard(ws)
             self.clients -= 1
         return ws
 
-    async def _send_loop(self, ws: web.WebSocketResponse, changed: asyncio.Event, pending: list[bool]) -> None:
-        """Send the newest state whenever it changed and the last send is done (stale frames are skipped),
-        at most `max_rate` times a second."""
+    async def _send_loop(self, ws: web.WebSocketResponse) -> None:
+        """Send the newest state when it changed, at most `max_rate` times a second (`busy_rate` while the
+        run goes at max speed); stale frames are skipped, a slow browser delays only its own messages."""
         client = ViewClient()
         try:
             while not ws.closed:
@@ -217,8 +214,5 @@ class ViewServer:
                     self.sent += 1
                 busy = self.hub.status.get("speed", 0) is None and self.hub.status.get("state") == "running"
                 await asyncio.sleep(self.busy_interval if busy else self.min_interval)
-                await changed.wait()
-                changed.clear()
-                pending[0] = False
         except (ConnectionError, RuntimeError) as exc:
             log.debug("view client gone: %s", exc)
