@@ -205,6 +205,17 @@ def test_foreign_bag_replays(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     rec = _last(tmp_path / "out" / "results.jsonl")
     assert rec["coverage"] is None and rec["path_length_m"] == pytest.approx(0.98, abs=1e-4)
+    # the view's player seeks in it too: the map at the end is the replay's, at 2 s that of 21 scans
+    from robotexp.view.feed import ViewHub
+    from robotexp.view.player import Checkpoints, ReplayPlayer
+
+    checkpoints = Checkpoints(duration=data.ticks[-1].time)
+    run = replay_bag(data, None, cell=0.1, observers=(checkpoints,))
+    player = ReplayPlayer(ViewHub(), data, run, checkpoints, speed=None)
+    player.seek_to(10.0)
+    assert player.i == 50 and np.array_equal(player.grid.states(), run.grid.states())
+    player.seek_to(2.0)
+    assert player.i == 21 and player.grid.scans == 21
 
 
 def test_replay_bad_input(tmp_path: Path) -> None:
