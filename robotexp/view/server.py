@@ -39,9 +39,9 @@ class ViewServer:
         port: the TCP port (0: a free one, see `port` after `start`).
         max_rate: [1/s] most messages per second to one browser (each redraws the page).
         busy_rate: [1/s] most messages per second while the producer goes as fast as it can (a
-            simulated run at speed "max", status speed None): each page update costs the browser a few
-            ms of CPU (about 5 ms for headless Chromium, whatever changed), which on a busy machine is
-            taken from the run; a paced run has that time to spare.
+            simulated run at speed "max", status speed None): each page update costs the browser
+            8-11 ms of CPU whatever changed (headless Chromium, benchmarks/bench_view_page.py), which
+            on a busy machine is taken from the run; a paced run has that time to spare.
     """
 
     def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0,
