@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from robotexp.clock import Clock
+from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, ScanMatcher
 from robotexp.localization.metrics import ate
 from robotexp.mapping.geometry import GridGeometry
@@ -45,6 +46,7 @@ class LocalizedRobot(Robot):
         min_turn: [rad] ... or turned this much (a 10 Hz loop otherwise matches every 3 cm).
         motion_noise: the `Localizer` option (MOTION_NOISE by default).
         gate: the `Localizer` option (GATE by default).
+        calibrate: estimate odometry's systematic heading error online (`OdometryCalibration`).
 
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
@@ -55,7 +57,7 @@ class LocalizedRobot(Robot):
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
                  min_travel: float = 0.1, min_turn: float = math.radians(5.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
-                 gate: float = GATE) -> None:
+                 gate: float = GATE, calibrate: bool = True) -> None:
         self.inner = inner
         self.name = f"{inner.name}+scan-match"         # type: ignore[misc]
         self.capabilities = inner.capabilities          # type: ignore[misc]
@@ -64,7 +66,7 @@ class LocalizedRobot(Robot):
         self.address = inner.address
         self.localizer = Localizer(geo, matcher, range_max=range_max, skip_unseen=skip_unseen,
                                    min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise,
-                                   gate=gate)
+                                   gate=gate, calibration=OdometryCalibration() if calibrate else None)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None

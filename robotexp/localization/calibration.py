@@ -1,0 +1,87 @@
+"""Online calibration of systematic odometry error from scan matches.
+
+Wheel odometry errs systematically (Borenstein & Feng's UMBmark: unequal wheel diameters, an uncertain
+wheelbase): a P3-DX whose wheels differ by 1 % turns 1.7 deg per metre it believes straight. Scan
+matching corrects that only where the scan pins the heading down against an already-mapped part; in an
+unmapped corridor, or in a hall the laser does not reach across, the pose follows odometry and the
+heading drifts. And where it matches, the matcher's motion prior pulls towards a prediction that is
+biased the same way every time, so the corrected path is still bent by a fraction of the bias.
+
+`OdometryCalibration` estimates the two systematic heading terms of a differential drive from the
+heading corrections of well-conditioned matches (in the spirit of Kümmerle et al. 2011, "Simultaneous
+calibration, localization, and mapping", and Censi et al. 2013, where the calibration is estimated
+from the same scan matches that localize the robot): per odometry increment of forward distance d [m]
+and turn dth [rad], the true turn is dth + k d + e dth (k [rad/m]: unequal wheel diameters; e: the
+wheelbase's relative error). `apply` corrects an increment with the current (k, e); `observe` adds the
+heading correction c a match made after odometry moved (d, dth) since the last one, and refits (k, e)
+by exponentially forgotten, ridge-regularised least squares on y = k_used d + e_used dth + c (the
+corrections measured with the estimate then in use, added back, so the fixed point is the true bias
+even when the matcher only corrects part of the error at each match).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from robotexp.errors import ConfigError
+from robotexp.robot import Pose
+
+__all__ = ["OdometryCalibration"]
+
+
+class OdometryCalibration:
+    """Online estimate of odometry's systematic heading error (see the module docstring).
+
+    Args:
+        forget: weight of the past at each new observation (0.995: the last ~200 matches count).
+        ridge: (distance [m^2], turn [rad^2]) of pseudo-observations of zero bias: with little motion
+            of one kind the estimate of its term stays near 0.
+        k_max: [rad/m] the curvature bias is clamped to +-k_max (0.1 rad/m = 5.7 deg/m, three times
+            a 1 % wheel mismatch on a P3-DX).
+        e_max: the wheelbase's relative error is clamped to +-e_max.
+
+    Attributes:
+        k: [rad/m] heading error per metre driven forward.
+        e: relative turn error (true turn = (1 + e) odometry turn, plus k d).
+        samples: observations used.
+    """
+
+    def __init__(self, *, forget: float = 0.995, ridge: tuple[float, float] = (0.05, 0.1), k_max: float = 0.1,
+                 e_max: float = 0.1) -> None:
+        if not 0.0 < forget <= 1.0:
+            raise ConfigError(f"odometry calibration: forget must be in (0, 1], got {forget}")
+        if min(ridge) <= 0 or k_max < 0 or e_max < 0:
+            raise ConfigError(f"odometry calibration: ridge must be > 0 and the clamps >= 0, got {ridge}, "
+                              f"{k_max}, {e_max}")
+        self.forget = forget
+        self.ridge = np.diag(np.asarray(ridge, np.float64))
+        self.k_max, self.e_max = k_max, e_max
+        self.k = 0.0
+        self.e = 0.0
+        self.samples = 0
+        self._a = np.zeros((2, 2))
+        self._b = np.zeros(2)
+
+    def apply(self, inc: Pose) -> Pose:
+        """The odometry increment `inc` (in the frame of its start) with its heading corrected; the
+        position is turned by half the correction (the chord of an arc)."""
+        dth = self.k * inc.x + self.e * inc.theta
+        if dth == 0.0:
+            return inc
+        c, s = math.cos(dth / 2), math.sin(dth / 2)
+        return Pose(c * inc.x - s * inc.y, s * inc.x + c * inc.y, inc.theta + dth)
+
+    def observe(self, d: float, dth: float, correction: float) -> None:
+        """Add one match: odometry moved `d` [m] forward and turned `dth` [rad] since the last match (with
+        the current estimate applied to the prediction), and the match turned the prediction by
+        `correction` [rad]."""
+        f = np.array([d, dth])
+        y = self.k * d + self.e * dth + correction
+        self._a = self.forget * self._a + np.outer(f, f)
+        self._b = self.forget * self._b + f * y
+        k, e = np.linalg.solve(self._a + self.ridge, self._b)
+        self.k = float(np.clip(k, -self.k_max, self.k_max))
+        self.e = float(np.clip(e, -self.e_max, self.e_max))
+        self.samples += 1
