@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from robotexp.errors import ConfigError
 from robotexp.robot import Pose
 
@@ -56,13 +54,13 @@ class OdometryCalibration:
             raise ConfigError(f"odometry calibration: ridge must be > 0 and the clamps >= 0, got {ridge}, "
                               f"{k_max}, {e_max}")
         self.forget = forget
-        self.ridge = np.diag(np.asarray(ridge, np.float64))
+        self.ridge = ridge
         self.k_max, self.e_max = k_max, e_max
         self.k = 0.0
         self.e = 0.0
         self.samples = 0
-        self._a = np.zeros((2, 2))
-        self._b = np.zeros(2)
+        self._a = (0.0, 0.0, 0.0)      # the forgotten sums of d d, d dth, dth dth
+        self._b = (0.0, 0.0)           # ... and of d y, dth y
 
     def apply(self, inc: Pose) -> Pose:
         """The odometry increment `inc` (in the frame of its start) with its heading corrected; the
@@ -77,11 +75,14 @@ class OdometryCalibration:
         """Add one match: odometry moved `d` [m] forward and turned `dth` [rad] since the last match (with
         the current estimate applied to the prediction), and the match turned the prediction by
         `correction` [rad]."""
-        f = np.array([d, dth])
         y = self.k * d + self.e * dth + correction
-        self._a = self.forget * self._a + np.outer(f, f)
-        self._b = self.forget * self._b + f * y
-        k, e = np.linalg.solve(self._a + self.ridge, self._b)
-        self.k = float(np.clip(k, -self.k_max, self.k_max))
-        self.e = float(np.clip(e, -self.e_max, self.e_max))
+        w = self.forget
+        self._a = (w * self._a[0] + d * d, w * self._a[1] + d * dth, w * self._a[2] + dth * dth)
+        self._b = (w * self._b[0] + d * y, w * self._b[1] + dth * y)
+        a00, a01, a11 = self._a[0] + self.ridge[0], self._a[1], self._a[2] + self.ridge[1]
+        det = a00 * a11 - a01 * a01          # > 0: the ridge makes the 2x2 normal matrix positive definite
+        k = (a11 * self._b[0] - a01 * self._b[1]) / det
+        e = (a00 * self._b[1] - a01 * self._b[0]) / det
+        self.k = min(max(k, -self.k_max), self.k_max)
+        self.e = min(max(e, -self.e_max), self.e_max)
         self.samples += 1

@@ -20,13 +20,14 @@ from robotexp.localization.metrics import ate
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot, RobotState, Twist
 
-__all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE"]
+__all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE", "MAX_TURN_RATE"]
 
 # The motion prior between matches: 2 cm + 5 % of the distance, 0.5 deg + 2 deg/m + 5 % of the turn.
 # Wheel odometry over 0.1 m or 5 deg is better than that (the P3-DX preset: 0.17 deg/m of curve); a
 # loose prior let the matcher turn the map by 1 deg while the robot spun in place in a corridor.
 MOTION_NOISE = (0.02, 0.05, math.radians(0.5), math.radians(2.0), 0.05)
 GATE = 4.0      # a match farther than this many sigmas of the motion prior is refused
+MAX_TURN_RATE = 0.5     # [rad/s] no matching while turning faster (see `Localizer`)
 
 
 class LocalizedRobot(Robot):
@@ -47,6 +48,8 @@ class LocalizedRobot(Robot):
         motion_noise: the `Localizer` option (MOTION_NOISE by default).
         gate: the `Localizer` option (GATE by default).
         calibrate: estimate odometry's systematic heading error online (`OdometryCalibration`).
+        max_turn_rate: [rad/s] the `Localizer` option (none by default: a simulator's scan is taken at
+            the state's instant; MAX_TURN_RATE for a laser of its own, whose stamps are not).
 
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
@@ -57,7 +60,7 @@ class LocalizedRobot(Robot):
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
                  min_travel: float = 0.1, min_turn: float = math.radians(5.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
-                 gate: float = GATE, calibrate: bool = True) -> None:
+                 gate: float = GATE, calibrate: bool = True, max_turn_rate: float = math.inf) -> None:
         self.inner = inner
         self.name = f"{inner.name}+scan-match"         # type: ignore[misc]
         self.capabilities = inner.capabilities          # type: ignore[misc]
@@ -66,7 +69,8 @@ class LocalizedRobot(Robot):
         self.address = inner.address
         self.localizer = Localizer(geo, matcher, range_max=range_max, skip_unseen=skip_unseen,
                                    min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise,
-                                   gate=gate, calibration=OdometryCalibration() if calibrate else None)
+                                   gate=gate, calibration=OdometryCalibration() if calibrate else None,
+                                   max_turn_rate=max_turn_rate)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
@@ -82,7 +86,7 @@ class LocalizedRobot(Robot):
             if state.laser is not None:
                 self.localizer.integrate(pose, state.laser)
         else:
-            pose = self.localizer.locate(state.pose, state.laser)
+            pose = self.localizer.locate(state.pose, state.laser, state.velocity.w)
         out = replace(state, pose=pose)
         if state.true_pose is not None:
             self.track.append((pose, state.true_pose))
