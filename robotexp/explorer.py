@@ -100,6 +100,8 @@ class RunMetrics:
 
     path_length: float = 0.0                # [m] along the true path where known, else odometry
     path: list[tuple[float, float]] = field(default_factory=list)
+    # the pose the explorer got (odometry or the localizer's), one per entry of `path`, where `path` is the true one
+    estimated_path: list[tuple[float, float]] = field(default_factory=list)
     visited: set[tuple[int, int]] = field(default_factory=set)
     curve: list[tuple[float, float, float]] = field(default_factory=list)  # (robot time, path, coverage)
     milestones: dict[float, tuple[float, float] | None] = field(
@@ -306,6 +308,8 @@ class ExplorationRun:
             x0, y0 = m.path[-1]
             m.path_length += math.hypot(p.x - x0, p.y - y0)
         m.path.append((p.x, p.y))
+        if state.true_pose is not None:
+            m.estimated_path.append((state.pose.x, state.pose.y))
         row, col = self.grid.geo.cell_of(p.x, p.y)
         m.visited.add((row, col))
         m.collisions = int(state.extra.get("collisions", 0)) - collisions0

@@ -14,7 +14,7 @@ from the same scan matches that localize the robot): per odometry increment of f
 and turn dth [rad], the true turn is dth + k d + e dth (k [rad/m]: unequal wheel diameters; e: the
 wheelbase's relative error). `apply` corrects an increment with the current (k, e); `observe` adds the
 heading correction c a match made after odometry moved (d, dth) since the last one, and refits (k, e)
-by exponentially forgotten, ridge-regularised least squares on y = k_used d + e_used dth + c (the
+by exponentially forgotten, regularised least squares on y = k_used d + e_used dth + c (the
 corrections measured with the estimate then in use, added back, so the fixed point is the true bias
 even when the matcher only corrects part of the error at each match).
 """
@@ -34,8 +34,8 @@ class OdometryCalibration:
 
     Args:
         forget: weight of the past at each new observation (0.995: the last ~200 matches count).
-        ridge: (distance [m^2], turn [rad^2]) of pseudo-observations of zero bias: with little motion
-            of one kind the estimate of its term stays near 0.
+        ridge: (distance [m^2], turn [rad^2]) of pseudo-observations of the estimate in use: with little
+            motion of one kind the estimate of its term moves slowly (from 0 at first).
         k_max: [rad/m] the curvature bias is clamped to +-k_max (0.1 rad/m = 5.7 deg/m, three times
             a 1 % wheel mismatch on a P3-DX).
         e_max: the wheelbase's relative error is clamped to +-e_max.
@@ -81,8 +81,10 @@ class OdometryCalibration:
         self._b = (w * self._b[0] + d * y, w * self._b[1] + dth * y)
         a00, a01, a11 = self._a[0] + self.ridge[0], self._a[1], self._a[2] + self.ridge[1]
         det = a00 * a11 - a01 * a01          # > 0: the ridge makes the 2x2 normal matrix positive definite
-        k = (a11 * self._b[0] - a01 * self._b[1]) / det
-        e = (a00 * self._b[1] - a01 * self._b[0]) / det
+        b0 = self._b[0] + self.ridge[0] * self.k      # the ridge pulls towards the estimate in use (0 at
+        b1 = self._b[1] + self.ridge[1] * self.e      # first), so that it leaves no lasting bias
+        k = (a11 * b0 - a01 * b1) / det
+        e = (a00 * b1 - a01 * b0) / det
         self.k = min(max(k, -self.k_max), self.k_max)
         self.e = min(max(e, -self.e_max), self.e_max)
         self.samples += 1

@@ -27,6 +27,7 @@ from robotexp.robot import LaserScan, Pose, compose_pose, relative_pose, wrap_an
 __all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
 
 WINDOW_CAP = (1.5, math.radians(12.0))   # [m], [rad]: the widest search after a stretch without matches
+CALIBRATION_POINTS = 60   # matches with fewer points do not calibrate odometry (in an open hall they turned it wrong)
 FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
 
 Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
@@ -328,6 +329,10 @@ class Localizer:
             is 1.5 deg, and matches pulled the heading by up to 2 deg there and back (its explored map
             smeared and frontier exploration stopped at 0.81 coverage); odometry (or a gyro) turns in
             place better than that.
+        map_uncertain: [m] once odometry has gone this far since the last match, an unmatched scan
+            ("few-points", "poor", "gated") no longer goes into the matching map (where nothing is
+            mapped yet, "no-map", it still does): mapped at a drifting pose, the walls of an open hall
+            seen by a few beams made a second, turned copy of the map that later scans matched.
 
     Attributes:
         grid: the matching map.
@@ -339,7 +344,8 @@ class Localizer:
                  p_free: float = 0.4, range_max: float | None = None, use_hits: bool = True,
                  skip_unseen: bool = False, min_travel: float = 0.0, min_turn: float = 0.0,
                  motion_noise: tuple[float, float, float, float, float] | None = None, gate: float = 0.0,
-                 calibration: OdometryCalibration | None = None, max_turn_rate: float = math.inf) -> None:
+                 calibration: OdometryCalibration | None = None, max_turn_rate: float = math.inf,
+                 map_uncertain: float = math.inf) -> None:
         if min_travel < 0 or min_turn < 0:
             raise ConfigError(f"localizer: min_travel and min_turn must be >= 0, got {min_travel} and {min_turn}")
         self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
@@ -354,6 +360,7 @@ class Localizer:
         self.counts: dict[str, int] = {}
         self.calibration = calibration
         self.max_turn_rate = max_turn_rate
+        self.map_uncertain = map_uncertain
         self._last_status = ""
         self._free = (0.0, 0.0)    # odometry's distance [m] and turn [rad] since the last correction
         self._odom: Pose | None = None
@@ -422,13 +429,14 @@ class Localizer:
                     # a jump beyond the usual window (after a stretch without matches) needs a scan that
                     # fixes the pose well: a few points on a wall in an open hall turned the pose by 15 deg
                     status, pose = "gated", prediction
-            if self.calibration is not None and moved is not None and status in ("matched", "degenerate") \
-                    and self._last_status in ("matched", "degenerate"):
+            if self.calibration is not None and moved is not None and status == "matched" \
+                    and m.points >= CALIBRATION_POINTS and self._last_status in ("matched", "degenerate"):
                 self.calibration.observe(moved.x, moved.theta, wrap_angle(pose.theta - prediction.theta))
             self._last_status = status
             if status in ("matched", "degenerate"):
                 self._free = (0.0, 0.0)
-            self.integrate(pose, scan)
+            if status in ("matched", "degenerate", "no-map") or self._free[0] < self.map_uncertain:
+                self.integrate(pose, scan)
         self.counts[status] = self.counts.get(status, 0) + 1
         self._odom, self._pose = odom, pose
         return pose

@@ -27,6 +27,7 @@ __all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE", "MAX_TURN_RATE"]
 # loose prior let the matcher turn the map by 1 deg while the robot spun in place in a corridor.
 MOTION_NOISE = (0.02, 0.05, math.radians(0.5), math.radians(2.0), 0.05)
 GATE = 4.0      # a match farther than this many sigmas of the motion prior is refused
+MAP_UNCERTAIN = 1.0     # [m] the `Localizer` option: unmatched scans leave the matching map alone after this
 MAX_TURN_RATE = 0.5     # [rad/s] no matching while turning faster (see `Localizer`)
 
 
@@ -70,7 +71,7 @@ class LocalizedRobot(Robot):
         self.localizer = Localizer(geo, matcher, range_max=range_max, skip_unseen=skip_unseen,
                                    min_travel=min_travel, min_turn=min_turn, motion_noise=motion_noise,
                                    gate=gate, calibration=OdometryCalibration() if calibrate else None,
-                                   max_turn_rate=max_turn_rate)
+                                   max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
