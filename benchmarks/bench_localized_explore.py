@@ -67,16 +67,24 @@ def main() -> None:
             for s in speeds for mode in modes]
     print(f"{'world':7s} {'method':10s} {'mm/s':>5s} {'mode':11s} {'coverage':>8s} {'IoU':>7s} {'dIoU':>7s} "
           f"{'ATE m':>7s} {'time s':>7s} {'x real':>6s}  reason / matches", flush=True)
+    results = []
     with ProcessPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(run_one, jobs))
-    exact = {(r["world"], r["method"], r["speed"]): r["iou"] for r in results if r["mode"] == "exact"}
+        for r in pool.map(run_one, jobs):      # in order: each line as soon as its run (and those before) ended
+            results.append(r)
+            _line(r, results)
+    print("IoU drops against the exact runs:")
     for r in results:
-        base = exact.get((r["world"], r["method"], r["speed"]))
-        drop = "" if base is None else f"{r['iou'] - base:+7.4f}"
-        ate = "-" if r["ate"] is None else f"{r['ate']:.3f}"
-        print(f"{r['world']:7s} {r['method']:10s} {r['speed']:5.0f} {r['mode']:11s} {r['coverage']:8.4f} "
-              f"{r['iou']:7.4f} {drop:>7s} {ate:>7s} {r['time']:7.0f} {r['ratio']:6.0f}  {r['reason']} "
-              f"{r['counts']}", flush=True)
+        _line(r, results)
+
+
+def _line(r: dict[str, Any], results: list[dict[str, Any]]) -> None:
+    exact = {(e["world"], e["method"], e["speed"]): e["iou"] for e in results if e["mode"] == "exact"}
+    base = exact.get((r["world"], r["method"], r["speed"]))
+    drop = "" if base is None else f"{r['iou'] - base:+7.4f}"
+    ate = "-" if r["ate"] is None else f"{r['ate']:.3f}"
+    print(f"{r['world']:7s} {r['method']:10s} {r['speed']:5.0f} {r['mode']:11s} {r['coverage']:8.4f} "
+          f"{r['iou']:7.4f} {drop:>7s} {ate:>7s} {r['time']:7.0f} {r['ratio']:6.0f}  {r['reason']} "
+          f"{r['counts']}", flush=True)
 
 
 if __name__ == "__main__":

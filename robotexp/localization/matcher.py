@@ -28,6 +28,7 @@ __all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "comp
 
 WINDOW_CAP = (1.5, math.radians(12.0))   # [m], [rad]: the widest search after a stretch without matches
 CALIBRATION_POINTS = 60   # matches with fewer points do not calibrate odometry (in an open hall they turned it wrong)
+CACHE_MARGIN = 1.0   # [m] a cached likelihood field reaches this much beyond the box a match needs
 FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
 
 Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
@@ -164,6 +165,8 @@ class ScanMatcher:
 
     def __init__(self, config: MatcherConfig | None = None) -> None:
         self.config = config or MatcherConfig()
+        self._cache: tuple[int, tuple[float, float, float, float],
+                           tuple[npt.NDArray[np.float64], float, float] | None] | None = None
 
     def field(self, occupied: npt.NDArray[Any], geo: GridGeometry, box: tuple[float, float, float, float],
               hits: HitMap | None = None) -> tuple[npt.NDArray[np.float64], float, float] | None:
@@ -192,7 +195,7 @@ class ScanMatcher:
     def match(self, occupied: npt.NDArray[Any], geo: GridGeometry, px: npt.NDArray[np.float64],
               py: npt.NDArray[np.float64], prediction: Pose, hits: HitMap | None = None,
               known: npt.NDArray[Any] | None = None, motion: tuple[float, float] | None = None,
-              window: tuple[float, float] | None = None) -> Match:
+              window: tuple[float, float] | None = None, version: int | None = None) -> Match:
         """Align the points (robot frame [m]) with the occupied cells (bool, or > 0), starting at `prediction`
         (with `hits`, the field is centred on the cells' mean hit points).
 
@@ -202,7 +205,10 @@ class ScanMatcher:
         the part mapped so far, the end of the mapped part pulls them back along it and turns the scan.
         The correlative search still uses every point (unless `drop_unseen`). `motion` (sigma_xy [m], sigma_theta [rad])
         replaces the config's motion prior (the `Localizer` scales it with the motion since the last
-        match). `window` (xy [m], theta [rad]) replaces the config's search window.
+        match). `window` (xy [m], theta [rad]) replaces the config's search window. `version` names the
+        state of the map (a number the caller changes whenever the map changes): with it the likelihood
+        field is computed over a box CACHE_MARGIN wider and reused while the version stays and the
+        box it needs lies inside.
 
         Raises:
             ConfigError: `occupied` does not match `geo`, or px, py differ in shape.
@@ -239,7 +245,17 @@ class ScanMatcher:
         pad = win_xy + reach * math.sin(min(win_th, math.pi / 2)) + 4 * cfg.sigma + geo.cell
         box = (min(float(wx.min()), prediction.x) - pad, min(float(wy.min()), prediction.y) - pad,
                max(float(wx.max()), prediction.x) + pad, max(float(wy.max()), prediction.y) + pad)
-        made = self.field(occupied, geo, box, hits)
+        made: tuple[npt.NDArray[np.float64], float, float] | None = None
+        cached = self._cache
+        if version is not None and cached is not None and cached[0] == version and cached[1][0] <= box[0] \
+                and cached[1][1] <= box[1] and cached[1][2] >= box[2] and cached[1][3] >= box[3]:
+            made = cached[2]                 # the map has not changed and its field covers the box
+        else:
+            if version is not None:          # a field over a wider box serves the next matches too
+                box = (box[0] - CACHE_MARGIN, box[1] - CACHE_MARGIN, box[2] + CACHE_MARGIN, box[3] + CACHE_MARGIN)
+            made = self.field(occupied, geo, box, hits)
+            if version is not None:
+                self._cache = (version, box, made)
         if made is None:
             return Match(prediction, 0.0, n, "no-map")
         f, ox, oy = made
@@ -341,6 +357,11 @@ class Localizer:
             ("few-points", "poor", "gated") no longer goes into the matching map (where nothing is
             mapped yet, "no-map", it still does): mapped at a drifting pose, the walls of an open hall
             seen by a few beams made a second, turned copy of the map that later scans matched.
+        map_travel: [m] a matched scan goes into the matching map only once odometry has moved this far
+            since the last one that did ...
+        map_turn: [rad] ... or turned this much (or where nothing is mapped yet): Hector SLAM's map
+            update thresholds; the scans between are matched against the same map (and its cached
+            likelihood field, `ScanMatcher.match`'s `version`).
 
     Attributes:
         grid: the matching map.
@@ -353,7 +374,7 @@ class Localizer:
                  skip_unseen: bool = False, min_travel: float = 0.0, min_turn: float = 0.0,
                  motion_noise: tuple[float, float, float, float, float] | None = None, gate: float = 0.0,
                  calibration: OdometryCalibration | None = None, max_turn_rate: float = math.inf,
-                 map_uncertain: float = math.inf) -> None:
+                 map_uncertain: float = math.inf, map_travel: float = 0.0, map_turn: float = 0.0) -> None:
         if min_travel < 0 or min_turn < 0:
             raise ConfigError(f"localizer: min_travel and min_turn must be >= 0, got {min_travel} and {min_turn}")
         self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
@@ -369,6 +390,9 @@ class Localizer:
         self.calibration = calibration
         self.max_turn_rate = max_turn_rate
         self.map_uncertain = map_uncertain
+        self.map_travel, self.map_turn = map_travel, map_turn
+        self.version = 0                 # changes with every scan put into the matching map
+        self._mapped: Pose | None = None  # odometry at the last scan put into it
         self._last_status = ""
         self._free = (0.0, 0.0)    # odometry's distance [m] and turn [rad] since the last correction
         self._odom: Pose | None = None
@@ -378,6 +402,7 @@ class Localizer:
         """Restart from `pose` (the corrected pose) with odometry reading `odom` there."""
         self._odom, self._pose, self._matched = odom, pose, odom
         self._last_status = ""
+        self._mapped = None
         self._free = (0.0, 0.0)
 
     def integrate(self, pose: Pose, scan: LaserScan) -> None:
@@ -385,6 +410,7 @@ class Localizer:
         self.grid.update(pose, scan)
         rmax = self.grid.range_max if self.grid.range_max is not None else math.inf
         self.hits.add(pose, scan, rmax)
+        self.version += 1
 
     def predict(self, odom: Pose) -> Pose:
         """The last corrected pose moved by the odometry increment since then (odom itself at first)."""
@@ -425,7 +451,7 @@ class Localizer:
                           min(max(cfg.window_theta, 3 * motion[1]), WINDOW_CAP[1]))
             m = self.matcher.match(self.grid.values, self.grid.geo, px, py, prediction,
                                    self.hits if self.use_hits else None, self.grid.stamp if self.skip_unseen else None,
-                                   motion, window)
+                                   motion, window, self.version)
             status, pose = m.status, m.pose
             if motion is not None and self.gate > 0:
                 dev = relative(prediction, pose)
@@ -443,8 +469,12 @@ class Localizer:
             self._last_status = status
             if status in ("matched", "degenerate"):
                 self._free = (0.0, 0.0)
-            if status in ("matched", "degenerate", "no-map") or self._free[0] < self.map_uncertain:
+            since = relative(self._mapped, odom) if self._mapped is not None else None
+            due = since is None or math.hypot(since.x, since.y) >= self.map_travel or \
+                abs(since.theta) >= self.map_turn or status == "no-map"
+            if due and (status in ("matched", "degenerate", "no-map") or self._free[0] < self.map_uncertain):
                 self.integrate(pose, scan)
+                self._mapped = odom
         self.counts[status] = self.counts.get(status, 0) + 1
         self._odom, self._pose = odom, pose
         return pose

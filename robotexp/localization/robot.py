@@ -32,6 +32,7 @@ GATE = 4.0      # a match farther than this many sigmas of the motion prior is r
 # against 0.865, but corrected the P3-DX's heading less: 3.9 deg off after 3.5 m of corridor.)
 RUN_MATCHER = MatcherConfig(drop_unseen=True)
 MAP_UNCERTAIN = 1.0     # [m] the `Localizer` option: unmatched scans leave the matching map alone after this
+MAP_TRAVEL, MAP_TURN = 0.3, math.radians(15.0)   # [m], [rad]: the `Localizer`'s map update thresholds
 MAX_TURN_RATE = 0.5     # [rad/s] no matching while turning faster (see `Localizer`)
 
 
@@ -63,7 +64,7 @@ class LocalizedRobot(Robot):
 
     def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
-                 min_travel: float = 0.1, min_turn: float = math.radians(5.0),
+                 min_travel: float = 0.1, min_turn: float = math.radians(10.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
                  gate: float = GATE, calibrate: bool = True, max_turn_rate: float = math.inf) -> None:
         self.inner = inner
@@ -76,7 +77,8 @@ class LocalizedRobot(Robot):
                                    skip_unseen=skip_unseen, min_travel=min_travel, min_turn=min_turn,
                                    motion_noise=motion_noise,
                                    gate=gate, calibration=OdometryCalibration() if calibrate else None,
-                                   max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN)
+                                   max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
+                                   map_travel=MAP_TRAVEL, map_turn=MAP_TURN)
         self.track: list[tuple[Pose, Pose]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
