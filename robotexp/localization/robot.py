@@ -64,7 +64,7 @@ class LocalizedRobot(Robot):
 
     def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
-                 min_travel: float = 0.1, min_turn: float = math.radians(10.0),
+                 min_travel: float = 0.1, min_turn: float = math.radians(5.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
                  gate: float = GATE, calibrate: bool = True, max_turn_rate: float = math.inf) -> None:
         self.inner = inner
