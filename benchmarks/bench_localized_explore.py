@@ -2,7 +2,7 @@
 
 Run: python benchmarks/bench_localized_explore.py [--worlds dense,sparse] [--methods frontier,srt-laser]
          [--speeds 300] [--modes exact,odometry,scan-match] [--max-time 3600] [--seed 0]
-         [--odometry p3dx] [--jobs 2]
+         [--odometry p3dx] [--jobs 2] [--trace DIR]
 
 For each world, method and speed [mm/s], runs from the same start and seed in each mode: "exact"
 (perfect odometry), "odometry" (the error on, the map built on odometry: `--localize none`) and
@@ -11,18 +11,24 @@ explorer get the corrected pose). Printed per run: coverage, map IoU against the
 drop against the exact run of the same world, method and speed, ATE [m] (the record's `ate_m`: RMSE of
 the pose the explorer used against the true pose, sampled every second of robot time, no alignment),
 robot time, robot time / wall time (noisy with --jobs > 1 or a busy machine), the localizer's outcome
-counts. The issue 14 speed table (item 5): `--worlds dense --methods bvp,srt-laser --speeds 40,100,300`.
+counts. `--trace DIR` writes each scan-match run's per-step errors (heading error against time, where
+the matcher fell back: few points, corridors) as CSV. The issue 14 speed table (item 5):
+`--worlds dense --methods bvp,srt-laser --speeds 40,100,300 --modes odometry,scan-match --max-time 7200`.
 Targets (issue 14): with scan matching ATE <= 0.10 m and map IoU within 0.03 of the exact run.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import math
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
 from robotexp.experiment import RunSpec, run_experiment
+from robotexp.localization.robot import LocalizedRobot
 
 MODES = ("exact", "odometry", "scan-match")
 
@@ -33,11 +39,30 @@ def run_one(job: tuple[str, str, float, str, argparse.Namespace]) -> dict[str, A
     spec = RunSpec(world=world, method=method, speed=speed / 1000, laser_range=args.laser_range, seed=args.seed,
                    max_time=args.max_time, odometry="none" if mode == "exact" else args.odometry,
                    localize="scan-match" if mode == "scan-match" else "none")
-    r = run_experiment(spec, None).record
+    out = run_experiment(spec, None)
+    r = out.record
+    robot = out.run.robot
+    if args.trace is not None and isinstance(robot, LocalizedRobot):
+        _write_trace(args.trace / f"{world}_{method}_{speed:g}mms.csv", robot)
     return {"world": world, "method": method, "speed": speed, "mode": mode, "coverage": r["coverage"] or 0.0,
             "iou": r["map_iou"], "ate": r["ate_m"], "time": r["robot_time_s"],
             "ratio": r["robot_time_s"] / max(r["wall_time_s"], 1e-9), "reason": r["reason"],
             "counts": r.get("matches") or {}}
+
+
+def _write_trace(path: Path, robot: LocalizedRobot) -> None:
+    """One line per state: robot time, the localizer's status, the scan's echoes, calibration k
+    [deg/m], the corrected and true pose (x, y [m], theta [deg]), position error [m], heading error [deg]."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t_s", "status", "echoes", "k_deg_per_m", "x_m", "y_m", "theta_deg", "true_x_m", "true_y_m",
+                    "true_theta_deg", "error_m", "heading_error_deg"])
+        for (t, status, echoes, k), (p, q) in zip(robot.steps, robot.track, strict=True):
+            dth = math.degrees(math.remainder(p.theta - q.theta, 2 * math.pi))
+            w.writerow([f"{t:.2f}", status, echoes, f"{math.degrees(k):.4f}", f"{p.x:.4f}", f"{p.y:.4f}",
+                        f"{math.degrees(p.theta):.3f}", f"{q.x:.4f}", f"{q.y:.4f}", f"{math.degrees(q.theta):.3f}",
+                        f"{math.hypot(p.x - q.x, p.y - q.y):.4f}", f"{dth:.3f}"])
 
 
 def main() -> None:
@@ -52,6 +77,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec (robotexp.sim.odometry_error)")
     ap.add_argument("--jobs", type=int, default=1, help="runs at once (processes)")
+    ap.add_argument("--trace", type=Path, default=None, metavar="DIR",
+                    help="write a per-step error trace of each scan-match run (CSV) in DIR")
     args = ap.parse_args()
     modes = args.modes.split(",")
     if set(modes) - set(MODES) or args.jobs < 1:

@@ -366,7 +366,8 @@ class Localizer:
     Attributes:
         grid: the matching map.
         hits: where the hits fell in its cells.
-        counts: how many scans ended in each `Match.status` (and "no-scan").
+        counts: how many scans ended in each `Match.status` (and "no-scan", "odometry", "turning", "gated").
+        status: the last `locate`'s outcome.
     """
 
     def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,
@@ -392,6 +393,7 @@ class Localizer:
         self.map_uncertain = map_uncertain
         self.map_travel, self.map_turn = map_travel, map_turn
         self.version = 0                 # changes with every scan put into the matching map
+        self.status = ""                 # what the last `locate` did (a `counts` key)
         self._mapped: Pose | None = None  # odometry at the last scan put into it
         self._last_status = ""
         self._free = (0.0, 0.0)    # odometry's distance [m] and turn [rad] since the last correction
@@ -476,5 +478,6 @@ class Localizer:
                 self.integrate(pose, scan)
                 self._mapped = odom
         self.counts[status] = self.counts.get(status, 0) + 1
+        self.status = status
         self._odom, self._pose = odom, pose
         return pose

@@ -60,6 +60,9 @@ class LocalizedRobot(Robot):
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
         track: (corrected, true) poses of every new state, where the true pose is known.
+        steps: beside each `track` entry: (robot time [s], the localizer's status, the scan's echoes,
+            the odometry calibration's heading bias k [rad/m]); `benchmarks/bench_localized_explore.py
+            --trace` writes them with the errors.
     """
 
     def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
@@ -80,6 +83,7 @@ class LocalizedRobot(Robot):
                                    max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
                                    map_travel=MAP_TRAVEL, map_turn=MAP_TURN)
         self.track: list[tuple[Pose, Pose]] = []
+        self.steps: list[tuple[float, str, int, float]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
         super().__init__()
@@ -98,6 +102,9 @@ class LocalizedRobot(Robot):
         out = replace(state, pose=pose)
         if state.true_pose is not None:
             self.track.append((pose, state.true_pose))
+            cal = self.localizer.calibration
+            hits = 0 if state.laser is None else int(np.count_nonzero(np.isfinite(state.laser.ranges)))
+            self.steps.append((state.time, self.localizer.status, hits, 0.0 if cal is None else cal.k))
         self._last = (state.time, out)
         return out
 
