@@ -173,10 +173,13 @@ def gauss_seidel_perturbed_ref(p: npt.NDArray[np.float64], fixed: npt.NDArray[np
 
 def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int, *,
           preferred: tuple[float, float] = (0.0, 0.0),
-          eps_abs: npt.NDArray[np.float64] | float = 0.0) -> None:
+          eps_abs: npt.NDArray[np.float64] | float = 0.0,
+          window: tuple[int, int, int, int] | None = None) -> None:
     """Checked entry point: `sweeps` in-place Gauss-Seidel sweeps of the (perturbed) potential.
 
-    Uses the plain Laplace kernel when both perturbations are zero.
+    Uses the plain Laplace kernel when both perturbations are zero. With `window` only its rows and
+    columns are read and swept (its outer ring is their boundary): the same result as the whole array
+    when every cell outside the window's inner part is fixed, at a cost that follows the window.
 
     Args:
         p: (rows, cols) C-contiguous float64 potential, padded: the outer ring is the boundary.
@@ -184,6 +187,7 @@ def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
         sweeps: number of sweeps, >= 0.
         preferred: eps * v of eq. 3.6 as (x, y) [1/cell]; each component within [-1, 1].
         eps_abs: eps(r) of eq. 3.7 [1/cell], a scalar or a (rows, cols) array, within [-1, 1].
+        window: rows r0..r1 and columns c0..c1 (half-open) of `p`, or None for all of it.
 
     Raises:
         ConfigError: wrong shapes or dtypes, a negative sweep count, a perturbation out of range.
@@ -197,13 +201,21 @@ def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
     ex, ey = float(preferred[0]), float(preferred[1])
     if not (abs(ex) <= 1.0 and abs(ey) <= 1.0):
         raise ConfigError(f"relax: preferred (eps * v) components must be within [-1, 1], got {preferred}")
-    field = np.broadcast_to(np.asarray(eps_abs, np.float64), p.shape)
-    if not (np.abs(field) <= 1.0).all():
+    eps = np.asarray(eps_abs, np.float64)
+    if eps.ndim and eps.shape != p.shape:
+        raise ConfigError(f"relax: eps_abs must be a scalar or an array of shape {p.shape}, got {eps.shape}")
+    if not (np.abs(eps) <= 1.0).all():
         raise ConfigError("relax: eps_abs must be within [-1, 1] everywhere")
-    if ex == 0.0 and ey == 0.0 and not field.any():
+    if window is not None:
+        r0, r1, c0, c1 = (int(v) for v in window)
+        if not (0 <= r0 < r1 <= p.shape[0] and 0 <= c0 < c1 <= p.shape[1]):
+            raise ConfigError(f"relax: window rows {r0}..{r1}, cols {c0}..{c1} is not inside {p.shape}")
+        p, fixed = p[r0:r1, c0:c1], fixed[r0:r1, c0:c1]
+        eps = eps[r0:r1, c0:c1] if eps.ndim else eps
+    if ex == 0.0 and ey == 0.0 and not eps.any():
         gauss_seidel(p, fixed, int(sweeps))
     else:
-        gauss_seidel_perturbed(p, fixed, int(sweeps), ex, ey, np.ascontiguousarray(field))
+        gauss_seidel_perturbed(p, fixed, int(sweeps), ex, ey, np.ascontiguousarray(np.broadcast_to(eps, p.shape)))
 
 
 def descent(p: npt.NDArray[np.float64], row: int, col: int) -> tuple[float, float]:

@@ -19,7 +19,7 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import cost_grid, distance_transform
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
-           "usable_frontier"]
+           "usable_frontier", "known_window"]
 
 MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
@@ -70,8 +70,31 @@ def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach:
     return int(cand[best, 0]), int(cand[best, 1])
 
 
+def known_window(grid: OccupancyGrid, margin: int) -> tuple[OccupancyGrid, tuple[int, int]]:
+    """The part of `grid` that holds every cell a scan has touched, grown by `margin` cells, as a window
+    (`OccupancyGrid.window`, sharing the arrays) and the (row, col) of its cell (0, 0) in `grid`.
+
+    Every cell outside it is unknown, so a plan (only known-free cells are passable), the frontier and
+    the walls' inflation (within `margin` of a wall) are the same on the window as on the whole grid,
+    at a cost that follows what has been explored rather than the map's size. Before the first scan
+    the window is the whole grid.
+
+    Args:
+        grid: the map.
+        margin: [cells] kept around the touched cells (>= 1 for the frontier's unknown neighbours).
+
+    Returns:
+        (window, (row0, col0)).
+    """
+    box = grid.touched_box()
+    if box is None:
+        return grid, (0, 0)
+    r0, c0 = max(box[0] - margin, 0), max(box[2] - margin, 0)
+    return grid.window(r0, box[1] + margin, c0, box[3] + margin), (r0, c0)
+
+
 def passable_cell(geo: GridGeometry, passable: npt.NDArray[np.bool_], x: float, y: float,
-                  reach: float = START_REACH) -> tuple[int, int] | None:
+                  reach: float = START_REACH, offset: tuple[int, int] = (0, 0)) -> tuple[int, int] | None:
     """The cell a plan from or to the world point (x, y) [m] uses: its own cell when passable, else the
     nearest passable one within `reach` [m]; None when the point is off the grid or none is near.
 
@@ -81,12 +104,15 @@ def passable_cell(geo: GridGeometry, passable: npt.NDArray[np.bool_], x: float, 
         x: [m] world x.
         y: [m] world y.
         reach: [m] how far to look for a passable cell.
+        offset: (row, col) in `geo` of `passable`'s cell (0, 0) when `passable` covers a window of the
+            grid (`known_window`); the cell returned is the window's.
 
     Returns:
         (row, col) or None.
     """
     r, c = geo.cell_of(x, y)
-    if not geo.contains(r, c):
+    r, c = r - offset[0], c - offset[1]
+    if not (0 <= r < passable.shape[0] and 0 <= c < passable.shape[1]):
         return None
     if passable[r, c]:
         return r, c
