@@ -32,8 +32,18 @@ from robotexp.world.rosmap import save_ros_map
 MAP_CELL = 0.05     # [m] the ROS map's resolution
 
 
-def tiled_map(folder: Path, world: str, n: int) -> Path:
+# `dense`'s doors between tiles (--connect), in the first tile's coordinates [m]: through its east wall at
+# the corridor (y 6.6-8.4) into the next tile's corridor, through its north wall from its north-west room
+EAST_DOOR_Y = (7.0, 8.0)
+NORTH_DOOR_X = (-8.0, -7.0)
+DOOR_DEPTH = 0.3        # [m] cut into the walls on both sides of the tiles' common edge
+
+
+def tiled_map(folder: Path, world: str, n: int, connect: bool = False) -> Path:
     """Write `world`'s walls tiled n x n as a ROS map in `folder`; the first tile keeps the world's coordinates.
+
+    Args:
+        connect: cut doors between neighbouring tiles (`dense` only), so the robot explores all of them.
 
     Returns:
         the YAML path.
@@ -43,8 +53,19 @@ def tiled_map(folder: Path, world: str, n: int) -> Path:
     geo = GridGeometry(x0, y0, MAP_CELL, int(round((y1 - y0) / MAP_CELL)), int(round((x1 - x0) / MAP_CELL)))
     tile = np.where(occupancy(w, geo), 100, 0).astype(np.int8)
     values = np.tile(tile, (n, n))
+    if connect:
+        rows, cols = tile.shape
+        depth = int(round(DOOR_DEPTH / MAP_CELL))
+        ey = [int((v - y0) / MAP_CELL) for v in EAST_DOOR_Y]
+        nx = [int((v - x0) / MAP_CELL) for v in NORTH_DOOR_X]
+        for i in range(n):
+            for j in range(n):
+                if i > 0:       # through the west wall of tile (i, j) and the east wall of its neighbour
+                    values[j * rows + ey[0]:j * rows + ey[1], i * cols - depth:i * cols + depth] = 0
+                if j > 0:       # through the south wall of tile (i, j) and the north wall of its neighbour
+                    values[j * rows - depth:j * rows + depth, i * cols + nx[0]:i * cols + nx[1]] = 0
     big = GridGeometry(x0, y0, MAP_CELL, values.shape[0], values.shape[1])
-    path = folder / f"{world}-{n}x{n}.yaml"
+    path = folder / f"{world}-{n}x{n}{'-connected' if connect else ''}.yaml"
     save_ros_map(path, values, big)
     return path
 
@@ -91,7 +112,9 @@ def main() -> None:
     ap.add_argument("--world", default="dense")
     ap.add_argument("--speed", type=float, default=300.0, help="[mm/s]")
     ap.add_argument("--cell", type=float, default=None, help="[mm] the run's map cell (default: the method's)")
-    ap.add_argument("--max-time", type=float, default=3600.0, help="[s] robot time per run")
+    ap.add_argument("--connect", action="store_true",
+                    help="doors between the tiles: the robot explores the whole building (dense only)")
+    ap.add_argument("--max-time", type=float, default=14400.0, help="[s] robot time per run")
     args = ap.parse_args()
     methods = [m for m in args.methods.split(",") if m]
     try:
@@ -104,7 +127,7 @@ def main() -> None:
     p = builtin_world(args.world).poses["1"]
     pose = f"{p.x * 1000:.0f},{p.y * 1000:.0f},{np.degrees(p.theta):.0f}"
     with tempfile.TemporaryDirectory() as tmp:
-        maps = {n: tiled_map(Path(tmp), args.world, n) for n in tiles}
+        maps = {n: tiled_map(Path(tmp), args.world, n, args.connect) for n in tiles}
         for method in methods:      # warm-up: numba kernels compiled or loaded from the cache
             measure(maps[tiles[0]], method, args.speed / 1000, pose, 5.0, cell)
         print(f"{args.world} tiled n x n as ROS maps at {MAP_CELL * 1000:g} mm, {args.speed:g} mm/s, from pose 1; "
