@@ -16,7 +16,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
-from robotexp.planning.grid_planner import distance_transform
+from robotexp.planning.targets import WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
@@ -159,6 +159,7 @@ class BVPExplorer(Explorer):
         self.v = 0.0
         self.flat_steps = 0
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
+        self.walls = WallDistance(0.0)
         self._goal_off = (0, 0)
 
     # -- the potential ---------------------------------------------------------------
@@ -171,6 +172,8 @@ class BVPExplorer(Explorer):
             self.q[0, :] = self.q[-1, :] = 0.0
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
+            self.cover_box = None
+            self.walls = WallDistance(self._inflate_cells(grid))
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -205,7 +208,7 @@ class BVPExplorer(Explorer):
         r0, c0 = max(r0, 0), max(c0, 0)
         return grid.window(r0, r1, c0, c1), (r0, c0)
 
-    def boundary(self, grid: OccupancyGrid, off: tuple[int, int] | None = None
+    def boundary(self, grid: OccupancyGrid, window: tuple[OccupancyGrid, tuple[int, int]] | None = None
                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """The Dirichlet cells of the current map: (wall, goal), each (rows, cols) bool.
 
@@ -213,22 +216,24 @@ class BVPExplorer(Explorer):
         goal: unknown, not covered by the robot and not a wall (potential 0).
 
         Args:
-            grid: the map, or a window of it (`window`) whose cell (0, 0) is the map's `off`.
-            off: (row, col) of a window's first cell; None when `grid` is the whole map.
+            grid: the map.
+            window: (view, (row, col) of its cell (0, 0)) from `window`, or None for the whole map; the
+                arrays returned are the window's.
         """
-        if off is None:
-            self._ensure(grid)
-            off = (0, 0)
-        occ = grid.occupied()
-        inflate = self.ctx.radius if self.inflate is None else self.inflate
-        if inflate > 0 and occ.any():
-            wall = distance_transform(occ) <= inflate / grid.geo.cell + 0.5
-        else:
-            wall = occ
-        rows, cols = grid.shape
+        self._ensure(grid)
+        view, off = (grid, (0, 0)) if window is None else window
+        rows, cols = view.shape
+        self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
+        dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        goal = grid.unknown() & ~covered & ~wall
+        goal = view.unknown() & ~covered & ~wall
         return wall, goal
+
+    def _inflate_cells(self, grid: OccupancyGrid) -> float:
+        """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
+        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        return inflate / grid.geo.cell + 0.5
 
     def update_potential(self, grid: OccupancyGrid
                          ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], tuple[int, int]]:
@@ -240,7 +245,7 @@ class BVPExplorer(Explorer):
         """
         self._ensure(grid)
         view, off = self.window(grid)
-        wall, goal = self.boundary(view, off)
+        wall, goal = self.boundary(grid, (view, off))
         rows, cols = view.shape
         inner = self.q[1 + off[0]:1 + off[0] + rows, 1 + off[1]:1 + off[1] + cols]
         inner[wall] = 0.0           # p = 1

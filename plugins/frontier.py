@@ -12,7 +12,7 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
-from robotexp.planning.targets import frontier_targets, known_window, passable_cell, plan_costs
+from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, passable_cell
 from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["FrontierExplorer"]
@@ -37,8 +37,9 @@ class FrontierExplorer(Explorer):
     Frontier cells are given up on (blacklisted) when the robot stood by them and looked their way
     yet they stayed frontier, or when their goal brought no progress for `goal_timeout` [s]: a run
     neither ends early nor loops on an unreachable goal. Every plan is made on the part of the map the
-    scans have touched (`known_window`; beyond it every cell is unknown, so never passable nor frontier):
-    the same plans as on the whole map, at a cost that does not grow with the map's size.
+    scans have touched (`known_window`; beyond it every cell is unknown, so never passable nor frontier),
+    on costs updated only near the cells the scans changed (`PlanCosts`): the same plans as on the whole
+    map, at a cost that does not grow with the map's size.
 
     Args:
         min_group_cells: smallest frontier group considered (None: the robot's diameter in cells).
@@ -80,6 +81,7 @@ class FrontierExplorer(Explorer):
         self.reach = 0.0            # [cells] from the goal to the frontier cells it serves
         self._now = 0.0
         self._pose_xy = (ctx.start.x, ctx.start.y)
+        self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
 
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
@@ -150,7 +152,7 @@ class FrontierExplorer(Explorer):
         """A fresh path to the current goal on the current map; False when it cannot be reached."""
         assert self.goal is not None
         view, off = known_window(grid, WINDOW_MARGIN)
-        cost = plan_costs(view, self.ctx.radius, self.clearance)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
         start = self._start_cell(pose, grid, passable, off)
         gr, gc = grid.geo.cell_of(*self.goal)
@@ -190,7 +192,7 @@ class FrontierExplorer(Explorer):
         geo = grid.geo
         self.plans += 1
         view, off = known_window(grid, WINDOW_MARGIN)
-        cost = plan_costs(view, self.ctx.radius, self.clearance)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
         start = self._start_cell(pose, grid, passable, off)
         if start is None:
@@ -228,6 +230,11 @@ class FrontierExplorer(Explorer):
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         rows, cols = view.shape
         return frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+
+    def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
+        """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
+        rows, cols = view.shape
+        return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],
                     off: Offset) -> tuple[int, int] | None:
@@ -269,7 +276,7 @@ class FrontierExplorer(Explorer):
             return Done("no reachable frontier left")
         start = self.ctx.start
         view, off = known_window(grid, WINDOW_MARGIN)
-        cost = plan_costs(view, self.ctx.radius, self.clearance)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
         here = self._start_cell(pose, grid, passable, off)
         hr, hc = grid.geo.cell_of(start.x, start.y)

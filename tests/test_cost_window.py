@@ -25,7 +25,7 @@ from robotexp.planning.harmonic import (
     gauss_seidel_ref,
     relax,
 )
-from robotexp.planning.targets import frontier_targets, known_window, plan_costs
+from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, plan_costs
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
@@ -163,3 +163,23 @@ def test_windowed_costs_and_frontier_equal_the_whole_maps() -> None:
     t_whole, t_part = frontier_targets(grid, 5), frontier_targets(view, 5)
     assert t_part.any() and np.array_equal(t_part, t_whole[r0:r0 + rows, c0:c0 + cols])
     assert not t_whole[outside].any()
+
+
+def test_plan_costs_kept_up_to_date_equal_the_whole_computation() -> None:
+    geo = GridGeometry(-1.0, -2.0, 0.1, 90, 130)
+    grid = OccupancyGrid(geo)
+    cache = PlanCosts(0.25, 0.3)
+    rng = np.random.default_rng(5)
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    assert np.isinf(cache.update(grid)).all()
+    for k in range(60):
+        pose = Pose(rng.uniform(0, 11), rng.uniform(-1, 6), rng.uniform(-math.pi, math.pi))
+        grid.update(pose, LaserScan(angles, rng.uniform(0.2, 3.5, angles.size), 3.0))
+        if k % 7 == 3:
+            assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+    wall = np.zeros(grid.shape, bool)
+    wall[40:43, 20:90] = True
+    grid.mark_occupied(wall)
+    assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+    other = grid.copy()                                   # another grid: computed afresh
+    assert np.array_equal(cache.update(other), plan_costs(other, 0.25, 0.3))

@@ -15,6 +15,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.localization.metrics import ate
@@ -63,7 +64,13 @@ class TrajectoryTracker(RunObserver):
 
     def __init__(self, localize: str, odometry: str, robot: LocalizedRobot | None) -> None:
         self.localize, self.odometry, self.robot = localize, odometry, robot
-        self.pairs: list[tuple[float, float, float, float]] = []
+        self._pairs = np.zeros((256, 4))        # (x, y, true x, true y) per sample, grown by doubling
+        self._n = 0
+
+    @property
+    def pairs(self) -> npt.NDArray[np.float64]:
+        """(k, 4) the samples so far: (x, y, true x, true y) [m]."""
+        return self._pairs[:self._n]
 
     def on_start(self, run: ExplorationRun) -> None:
         """Name the settings in the record."""
@@ -73,8 +80,11 @@ class TrajectoryTracker(RunObserver):
         """Add the current pair and refresh `ate_m`."""
         s = run.state
         if s is not None and s.true_pose is not None:
-            self.pairs.append((s.pose.x, s.pose.y, s.true_pose.x, s.true_pose.y))
-            a = np.array(self.pairs)
+            if self._n == len(self._pairs):         # an array, not a list made one at every sample: a
+                self._pairs = np.concatenate([self._pairs, np.zeros_like(self._pairs)])   # long run stays cheap
+            self._pairs[self._n] = (s.pose.x, s.pose.y, s.true_pose.x, s.true_pose.y)
+            self._n += 1
+            a = self.pairs
             value = ate(a[:, :2], a[:, 2:])
             run.info.extra["ate_m"] = round(value, 4) if math.isfinite(value) else None
         if self.robot is not None:

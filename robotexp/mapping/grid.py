@@ -112,6 +112,7 @@ class OccupancyGrid:
         self.scans = 0
         self.cells_updated = 0
         self.box: tuple[int, int, int, int] | None = None   # see touched_box
+        self._changes: list[tuple[int, int, int, int]] = []  # per scan or mark: the box it touched (see changed_box)
 
     @property
     def seen(self) -> npt.NDArray[np.bool_]:
@@ -168,6 +169,19 @@ class OccupancyGrid:
         """
         return self.box
 
+    def changed_box(self, since: int) -> tuple[int, int, int, int] | None:
+        """Rows r0..r1 and columns c0..c1 (half-open) holding every cell the scans and marks after the
+        `since`-th (`scans` counts them) may have changed; None when none did.
+
+        A consumer that keeps something derived from the map (costs, an inflation) remembers `scans`
+        and recomputes only near this box at its next update.
+        """
+        boxes = [b for b in self._changes[max(since, 0):] if b[1] > b[0]]
+        if not boxes:
+            return None
+        a = np.array(boxes)
+        return int(a[:, 0].min()), int(a[:, 1].max()), int(a[:, 2].min()), int(a[:, 3].max())
+
     def window(self, r0: int, r1: int, c0: int, c1: int) -> OccupancyGrid:
         """The rows r0..r1 and columns c0..c1 (half-open, clipped to the grid) as an `OccupancyGrid` that
         shares this grid's arrays (views, not copies): its cell (0, 0) is this grid's (r0, c0).
@@ -190,17 +204,21 @@ class OccupancyGrid:
         other.geo = GridGeometry(g.origin_x + c0 * g.cell, g.origin_y + r0 * g.cell, g.cell, r1 - r0, c1 - c0)
         other.values = self.values[r0:r1, c0:c1]
         other.stamp = self.stamp[r0:r1, c0:c1]
+        other._changes = []             # a window keeps no history: ask the grid (its own cells' numbers)
         other.box = None if self.box is None else (
             max(self.box[0] - r0, 0), max(min(self.box[1] - r0, r1 - r0), 0),
             max(self.box[2] - c0, 0), max(min(self.box[3] - c0, c1 - c0), 0))
         return other
 
     def _note(self, r0: int, r1: int, c0: int, c1: int) -> None:
-        """Grow `box` by rows r0..r1, columns c0..c1 (half-open; clipped to the grid)."""
+        """Log rows r0..r1, columns c0..c1 (half-open; clipped to the grid) as the box of the latest scan
+        or mark, and grow `box` by it."""
         rows, cols = self.shape
         r0, r1, c0, c1 = max(r0, 0), min(r1, rows), max(c0, 0), min(c1, cols)
         if r1 <= r0 or c1 <= c0:
+            self._changes.append((0, 0, 0, 0))
             return
+        self._changes.append((r0, r1, c0, c1))
         if self.box is not None:
             b = self.box
             r0, r1, c0, c1 = min(r0, b[0]), max(r1, b[1]), min(c0, b[2]), max(c1, b[3])
@@ -326,6 +344,7 @@ class OccupancyGrid:
         other.__dict__.update(self.__dict__)
         other.values = self.values.copy()
         other.stamp = self.stamp.copy()
+        other._changes = list(self._changes)
         return other
 
     def _touch(self, mask: npt.NDArray[np.bool_]) -> None:
@@ -336,3 +355,5 @@ class OccupancyGrid:
         if rows.size:
             cols = np.flatnonzero(mask.any(axis=0))
             self._note(int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+        else:
+            self._note(0, 0, 0, 0)
