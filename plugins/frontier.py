@@ -82,6 +82,7 @@ class FrontierExplorer(Explorer):
         self._now = 0.0
         self._pose_xy = (ctx.start.x, ctx.start.y)
         self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
+        self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
 
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
@@ -126,6 +127,7 @@ class FrontierExplorer(Explorer):
         if self.blacklist.shape != grid.shape:
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         self.blacklist[self.goal_cells[:, 0], self.goal_cells[:, 1]] = True
+        self._targets = None
         # the goals it switched between are around it: give up the frontier within GIVE_UP_REACH too
         view, off = known_window(grid, WINDOW_MARGIN)
         targets = np.argwhere(self._frontier_targets(grid, view, off)) + off
@@ -229,7 +231,14 @@ class FrontierExplorer(Explorer):
         if self.blacklist.shape != grid.shape:
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         rows, cols = view.shape
-        return frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+        # the same map (no scan since), window and blacklist give the same targets: computed once a step
+        key = (id(grid), grid.scans, self.blacklist_events, off, view.shape)
+        if self._targets is not None and self._targets[0] == key:
+            return self._targets[1]
+        targets = frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+        targets.flags.writeable = False
+        self._targets = (key, targets)
+        return targets
 
     def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
         """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
