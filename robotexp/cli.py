@@ -421,6 +421,13 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     out = out or Path("out") / camp.name
     writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
+    place = None
+    if camp.devices:            # a robot: one run at a time, the operator places it between runs
+        from robotexp.campaign_robot import one_at_a_time, operator
+        click.echo(one_at_a_time(camp, jobs), err=True)
+        # on a terminal the line starts below the progress bar
+        n_jobs, place = 1, operator(sys.stdin.readline, lambda line: click.echo(
+            ("\n" if sys.stderr.isatty() else "") + line, err=True))
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
     failed: list[str] = []
@@ -448,7 +455,8 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     where = f"cluster {cluster}" if cluster else f"{n_jobs} jobs"
     click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {where}, results in {out}", err=True)
     try:
-        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster)
+        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster,
+                               place=place)
     except BaseException:
         end_view(live, interrupted=True)
         raise
