@@ -27,7 +27,10 @@ class FrontierExplorer(Explorer):
     Frontier cells are free cells next to unknown ones, grouped by 8-connectivity; groups smaller
     than the robot (`min_group_cells`, default the robot's diameter in cells) are ignored, and so
     are frontier cells touching an occupied cell (the face of a wall whose far side is never seen
-    is not an opening). Paths are planned on known-free cells with the robot radius (plus a 5 cm
+    is not an opening) and those whose unknown neighbours all lie within `face_reach` of an occupied
+    cell: beams grazing a wall clear stretches of its face, and the unknown behind them is the wall's
+    inside (a robot that drove to them looked, saw nothing new and dithered on warehouse rack faces).
+    Paths are planned on known-free cells with the robot radius (plus a 5 cm
     margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
     nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
     within a robot radius of a frontier cell - inside the room rather than in its door - or, for
@@ -47,10 +50,13 @@ class FrontierExplorer(Explorer):
         goal_timeout: [s] without progress before a goal is blacklisted.
         clearance: [m] width of the costly zone beyond the robot radius.
         return_home: drive back to the start pose when exploration is done.
+        face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
+            occupied cell (0: no such test, the explorer of session 4).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
-                 goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False) -> None:
+                 goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False,
+                 face_reach: float = 0.25) -> None:
         if min_group_cells is not None and min_group_cells < 1:
             raise ConfigError(f"frontier: min_group_cells must be >= 1, got {min_group_cells}")
         for name, value in (("replan_period", replan_period), ("goal_timeout", goal_timeout)):
@@ -63,6 +69,9 @@ class FrontierExplorer(Explorer):
         self.goal_timeout = goal_timeout
         self.clearance = clearance
         self.return_home = return_home
+        if not (math.isfinite(face_reach) and face_reach >= 0):
+            raise ConfigError(f"frontier: face_reach must be >= 0 m, got {face_reach}")
+        self.face_reach = face_reach
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
@@ -236,6 +245,8 @@ class FrontierExplorer(Explorer):
         if self._targets is not None and self._targets[0] == key:
             return self._targets[1]
         targets = frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+        if self.face_reach > 0 and targets.any():
+            targets &= self._opening(grid, view, off)
         targets.flags.writeable = False
         self._targets = (key, targets)
         return targets
@@ -244,6 +255,23 @@ class FrontierExplorer(Explorer):
         """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
         rows, cols = view.shape
         return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+
+    def _opening(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
+        """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every occupied
+        cell. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the wall's
+        inside, a cell or two from the hits on either face; an opening leads into unknown space away
+        from walls."""
+        rows, cols = view.shape
+        self.costs.update(grid)
+        assert self.costs.walls is not None
+        dist = self.costs.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        deep = view.unknown() & (dist > self.face_reach / grid.geo.cell)
+        out = np.zeros_like(deep)
+        out[1:, :] |= deep[:-1, :]
+        out[:-1, :] |= deep[1:, :]
+        out[:, 1:] |= deep[:, :-1]
+        out[:, :-1] |= deep[:, 1:]
+        return out
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],
                     off: Offset) -> tuple[int, int] | None:
