@@ -112,7 +112,8 @@ class OccupancyGrid:
         self.scans = 0
         self.cells_updated = 0
         self.box: tuple[int, int, int, int] | None = None   # see touched_box
-        self._changes: list[tuple[int, int, int, int]] = []  # per scan or mark: the box it touched (see changed_box)
+        self._changes = np.zeros((64, 4), np.int32)   # per scan or mark (row scans - 1): the box it touched, grown
+        #                                                by doubling (see changed_box)
 
     @property
     def seen(self) -> npt.NDArray[np.bool_]:
@@ -176,10 +177,10 @@ class OccupancyGrid:
         A consumer that keeps something derived from the map (costs, an inflation) remembers `scans`
         and recomputes only near this box at its next update.
         """
-        boxes = [b for b in self._changes[max(since, 0):] if b[1] > b[0]]
-        if not boxes:
+        a = self._changes[max(since, 0):self.scans]
+        a = a[a[:, 1] > a[:, 0]]
+        if len(a) == 0:
             return None
-        a = np.array(boxes)
         return int(a[:, 0].min()), int(a[:, 1].max()), int(a[:, 2].min()), int(a[:, 3].max())
 
     def window(self, r0: int, r1: int, c0: int, c1: int) -> OccupancyGrid:
@@ -204,7 +205,7 @@ class OccupancyGrid:
         other.geo = GridGeometry(g.origin_x + c0 * g.cell, g.origin_y + r0 * g.cell, g.cell, r1 - r0, c1 - c0)
         other.values = self.values[r0:r1, c0:c1]
         other.stamp = self.stamp[r0:r1, c0:c1]
-        other._changes = []             # a window keeps no history: ask the grid (its own cells' numbers)
+        other._changes = np.zeros((64, 4), np.int32)   # a window keeps no history: ask the grid (its numbers)
         other.box = None if self.box is None else (
             max(self.box[0] - r0, 0), max(min(self.box[1] - r0, r1 - r0), 0),
             max(self.box[2] - c0, 0), max(min(self.box[3] - c0, c1 - c0), 0))
@@ -215,10 +216,12 @@ class OccupancyGrid:
         or mark, and grow `box` by it."""
         rows, cols = self.shape
         r0, r1, c0, c1 = max(r0, 0), min(r1, rows), max(c0, 0), min(c1, cols)
+        if self.scans > len(self._changes):
+            self._changes = np.concatenate([self._changes, np.zeros_like(self._changes)])
         if r1 <= r0 or c1 <= c0:
-            self._changes.append((0, 0, 0, 0))
+            self._changes[self.scans - 1] = 0
             return
-        self._changes.append((r0, r1, c0, c1))
+        self._changes[self.scans - 1] = (r0, r1, c0, c1)
         if self.box is not None:
             b = self.box
             r0, r1, c0, c1 = min(r0, b[0]), max(r1, b[1]), min(c0, b[2]), max(c1, b[3])
@@ -344,7 +347,7 @@ class OccupancyGrid:
         other.__dict__.update(self.__dict__)
         other.values = self.values.copy()
         other.stamp = self.stamp.copy()
-        other._changes = list(self._changes)
+        other._changes = self._changes.copy()
         return other
 
     def _touch(self, mask: npt.NDArray[np.bool_]) -> None:
