@@ -17,6 +17,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 
+from bench_cost_growth import CpuClock  # noqa: E402
 from bench_grid_kernel import CELL, RANGE, _rate, _scans  # noqa: E402
 
 from robotexp.experiment import RunSpec, run_experiment  # noqa: E402
@@ -55,9 +56,11 @@ def main() -> None:
 
     # warm-up: compile (or load cached) kernels so the timed run measures the steady state
     run_experiment(RunSpec(world="ufmg-static", method=args.method, max_time=5.0), None, image=False)
+    print(f"load average before: {os.getloadavg()[0]:.1f} (1 min)")
+    clock = CpuClock()
     t0 = time.perf_counter()
     out = run_experiment(RunSpec(world=args.world, method=args.method, speed=args.speed / 1000, seed=args.seed),
-                         None, image=False)
+                         None, image=False, observers=[clock])
     total = time.perf_counter() - t0
     r = out.record
     print(f"exploration {args.world} / {args.method} at {args.speed:g} mm/s: {r['reason']}")
@@ -66,6 +69,10 @@ def main() -> None:
           f"(with set-up and ground truth {total:.2f} s)")
     print(f"  robot time / wall time = {r['robot_time_s'] / r['wall_time_s']:.0f}x (loop), "
           f"{r['robot_time_s'] / total:.0f}x (whole run)")
+    cpu = clock.figures()[0]
+    print(f"  robot time / CPU time (user + system) of the loop = {r['robot_time_s'] / cpu:.0f}x "
+          f"({cpu:.2f} s of CPU; less sensitive to other processes than wall time, not immune: caches are shared); "
+          f"load average after: {os.getloadavg()[0]:.1f}")
 
     exact, bullet = scan_cost(args.world, "exact", 5000), scan_cost(args.world, "pybullet", 1000)
     print(f"laser scan (181 rays of 3 m in {args.world}): exact kernel {exact * 1e6:.1f} us, pybullet ray test "

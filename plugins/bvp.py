@@ -16,13 +16,14 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
-from robotexp.planning.grid_planner import distance_transform
+from robotexp.planning.targets import WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
 __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
+WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -85,6 +86,11 @@ class BVPExplorer(Explorer):
       (free or covered, not inflated) from the robot's cell (or the nearest passable one within
       0.5 m); done when no cell of the region has a goal (unknown, not inflated) as 4-neighbour.
       Run at each potential update.
+    - Cost: the boundary, the sweeps and the stop test are computed on the window of the map that
+      holds every cell a scan touched or the robot covered, grown by the inflation and a margin
+      (`OccupancyGrid.window`). Beyond it every cell is an unknown goal of fixed potential 0 in every
+      update, so the field, the walls and the region are those of the whole map, bit for bit, at a cost
+      that follows the explored part of the building rather than the map's size.
     - Turning: omega = -k_turn * varphi, clamped to the robot's limit; varphi = theta - phi on the
       short arc. The robot moves forward at the speed of eq. 3.5 while it turns.
     - rho of eq. 3.5: d is measured from the robot's edge (not its centre) to the nearest laser
@@ -152,6 +158,9 @@ class BVPExplorer(Explorer):
         self.phi: float | None = None
         self.v = 0.0
         self.flat_steps = 0
+        self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
+        self.walls = WallDistance(0.0)
+        self._goal_off = (0, 0)
 
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
@@ -163,6 +172,8 @@ class BVPExplorer(Explorer):
             self.q[0, :] = self.q[-1, :] = 0.0
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
+            self.cover_box = None
+            self.walls = WallDistance(self._inflate_cells(grid))
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -176,48 +187,93 @@ class BVPExplorer(Explorer):
         cx = geo.origin_x + (cs + 0.5) * geo.cell
         inside = (cy[:, None] - y) ** 2 + (cx[None, :] - x) ** 2 <= self.ctx.radius ** 2
         self.covered[rs[0]:rs[-1] + 1, cs[0]:cs[-1] + 1] |= inside
+        box = (int(rs[0]), int(rs[-1]) + 1, int(cs[0]), int(cs[-1]) + 1)
+        b = self.cover_box
+        self.cover_box = box if b is None else (min(b[0], box[0]), max(b[1], box[1]),
+                                                min(b[2], box[2]), max(b[3], box[3]))
 
-    def boundary(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    def window(self, grid: OccupancyGrid) -> tuple[OccupancyGrid, tuple[int, int]]:
+        """The part of `grid` every update works on, and the (row, col) of its cell (0, 0) in `grid`: the
+        cells scans touched and the robot covered, grown by the inflation and `WINDOW_MARGIN`. Outside
+        it every cell is unknown, uncovered and beyond any wall's inflation: a goal."""
+        boxes = [b for b in (grid.touched_box(), self.cover_box) if b is not None]
+        if not boxes:
+            return grid, (0, 0)
+        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        m = int(math.ceil(inflate / grid.geo.cell + 0.5)) + WINDOW_MARGIN
+        r0 = min(b[0] for b in boxes) - m
+        c0 = min(b[2] for b in boxes) - m
+        r1 = max(b[1] for b in boxes) + m
+        c1 = max(b[3] for b in boxes) + m
+        r0, c0 = max(r0, 0), max(c0, 0)
+        return grid.window(r0, r1, c0, c1), (r0, c0)
+
+    def boundary(self, grid: OccupancyGrid, window: tuple[OccupancyGrid, tuple[int, int]] | None = None
+                 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """The Dirichlet cells of the current map: (wall, goal), each (rows, cols) bool.
 
         wall: occupied (HIMM > 2) or within the inflation of an occupied cell (potential 1);
         goal: unknown, not covered by the robot and not a wall (potential 0).
+
+        Args:
+            grid: the map.
+            window: (view, (row, col) of its cell (0, 0)) from `window`, or None for the whole map; the
+                arrays returned are the window's.
         """
         self._ensure(grid)
-        occ = grid.occupied()
-        inflate = self.ctx.radius if self.inflate is None else self.inflate
-        if inflate > 0 and occ.any():
-            wall = distance_transform(occ) <= inflate / grid.geo.cell + 0.5
-        else:
-            wall = occ
-        goal = grid.unknown() & ~self.covered & ~wall
+        view, off = (grid, (0, 0)) if window is None else window
+        rows, cols = view.shape
+        self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
+        dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
+        covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        goal = view.unknown() & ~covered & ~wall
         return wall, goal
 
-    def update_potential(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-        """Set the boundary values from `grid` and run `sweeps` Gauss-Seidel sweeps from the last field.
+    def _inflate_cells(self, grid: OccupancyGrid) -> float:
+        """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
+        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        return inflate / grid.geo.cell + 0.5
+
+    def update_potential(self, grid: OccupancyGrid
+                         ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], tuple[int, int]]:
+        """Set the boundary values from `grid` and run `sweeps` Gauss-Seidel sweeps from the last field,
+        on the `window` of the map (every cell outside it is a goal, fixed at p = 0 from the start).
 
         Returns:
-            (wall, goal) as from `boundary`.
+            (wall, goal, off): `boundary` of the window and the (row, col) of its cell (0, 0).
         """
-        wall, goal = self.boundary(grid)
-        inner = self.q[1:-1, 1:-1]
+        self._ensure(grid)
+        view, off = self.window(grid)
+        wall, goal = self.boundary(grid, (view, off))
+        rows, cols = view.shape
+        inner = self.q[1 + off[0]:1 + off[0] + rows, 1 + off[1]:1 + off[1] + cols]
         inner[wall] = 0.0           # p = 1
         inner[goal] = 1.0           # p = 0
-        self.fixed[1:-1, 1:-1] = wall | goal
+        self.fixed[1 + off[0]:1 + off[0] + rows, 1 + off[1]:1 + off[1] + cols] = wall | goal
         e = self.epsilon
-        # in q = 1 - p eq. 3.6 keeps its sign and eq. 3.7 flips it
+        # in q = 1 - p eq. 3.6 keeps its sign and eq. 3.7 flips it; the window with its ring of the
+        # padded field (fixed cells or the map's border) is all the sweeps read
         relax(self.q, self.fixed, self.sweeps,
-              preferred=(e * math.cos(self.direction), e * math.sin(self.direction)), eps_abs=-self.epsilon_grad)
+              preferred=(e * math.cos(self.direction), e * math.sin(self.direction)), eps_abs=-self.epsilon_grad,
+              window=(off[0], off[0] + rows + 2, off[1], off[1] + cols + 2))
         self.updates += 1
-        return wall, goal
+        return wall, goal, off
 
     def explored(self, grid: OccupancyGrid, wall: npt.NDArray[np.bool_], goal: npt.NDArray[np.bool_],
-                 x: float, y: float) -> bool:
-        """The stop test: True when no passable cell reachable from (x, y) [m] touches a goal cell."""
-        passable = ~wall & ~goal & (grid.free() | self.covered)
+                 x: float, y: float, off: tuple[int, int] = (0, 0)) -> bool:
+        """The stop test: True when no passable cell reachable from (x, y) [m] touches a goal cell.
+
+        `wall` and `goal` are `boundary`'s, of the whole map or of a window of it whose cell (0, 0) is
+        the map's `off`."""
+        rows, cols = wall.shape
+        view = grid if (rows, cols) == grid.shape else grid.window(off[0], off[0] + rows, off[1], off[1] + cols)
+        covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        passable = ~wall & ~goal & (view.free() | covered)
         geo = grid.geo
         r, c = geo.cell_of(x, y)
-        if not (geo.contains(r, c) and passable[r, c]):
+        r, c = r - off[0], c - off[1]
+        if not (0 <= r < rows and 0 <= c < cols and passable[r, c]):
             reach = int(math.ceil(0.5 / geo.cell))
             r0, c0 = max(r - reach, 0), max(c - reach, 0)
             cand = np.argwhere(passable[r0:r + reach + 1, c0:c + reach + 1])
@@ -235,9 +291,9 @@ class BVPExplorer(Explorer):
         self._ensure(grid)
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:
-            wall, goal = self.update_potential(grid)
-            self._goal = goal
-            if self.explored(grid, wall, goal, pose.x, pose.y):
+            wall, goal, off = self.update_potential(grid)
+            self._goal, self._goal_off = goal, off
+            if self.explored(grid, wall, goal, pose.x, pose.y, off):
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
         r, c = grid.geo.cell_of(pose.x, pose.y)
@@ -276,7 +332,7 @@ class BVPExplorer(Explorer):
         goal = getattr(self, "_goal", None)
         if goal is None or not goal.any():
             return None
-        cells = np.argwhere(goal)
+        cells = np.argwhere(goal) + self._goal_off
         k = int(np.argmin((cells[:, 0] - r) ** 2 + (cells[:, 1] - c) ** 2))
         return math.atan2(float(cells[k, 0] - r), float(cells[k, 1] - c))
 

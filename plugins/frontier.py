@@ -12,12 +12,14 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
-from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
+from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, passable_cell
 from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["FrontierExplorer"]
 
 GIVE_UP_REACH = 2.0     # [m] frontier given up around the goal and the robot when the run's stall watch strikes
+WINDOW_MARGIN = 2       # [cells] kept around the scanned part of the map, where every plan is made
+Offset = tuple[int, int]
 
 class FrontierExplorer(Explorer):
     """Drive to the nearest reachable frontier group (Yamauchi 1997); done when none is left.
@@ -25,7 +27,10 @@ class FrontierExplorer(Explorer):
     Frontier cells are free cells next to unknown ones, grouped by 8-connectivity; groups smaller
     than the robot (`min_group_cells`, default the robot's diameter in cells) are ignored, and so
     are frontier cells touching an occupied cell (the face of a wall whose far side is never seen
-    is not an opening). Paths are planned on known-free cells with the robot radius (plus a 5 cm
+    is not an opening) and those whose unknown neighbours all lie within `face_reach` of an occupied
+    cell: beams grazing a wall clear stretches of its face, and the unknown behind them is the wall's
+    inside (a robot that drove to them looked, saw nothing new and dithered on warehouse rack faces).
+    Paths are planned on known-free cells with the robot radius (plus a 5 cm
     margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
     nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
     within a robot radius of a frontier cell - inside the room rather than in its door - or, for
@@ -34,7 +39,10 @@ class FrontierExplorer(Explorer):
     at every plan makes robots oscillate); the path to it is refreshed every `replan_period` [s].
     Frontier cells are given up on (blacklisted) when the robot stood by them and looked their way
     yet they stayed frontier, or when their goal brought no progress for `goal_timeout` [s]: a run
-    neither ends early nor loops on an unreachable goal.
+    neither ends early nor loops on an unreachable goal. Every plan is made on the part of the map the
+    scans have touched (`known_window`; beyond it every cell is unknown, so never passable nor frontier),
+    on costs updated only near the cells the scans changed (`PlanCosts`): the same plans as on the whole
+    map, at a cost that does not grow with the map's size.
 
     Args:
         min_group_cells: smallest frontier group considered (None: the robot's diameter in cells).
@@ -42,10 +50,13 @@ class FrontierExplorer(Explorer):
         goal_timeout: [s] without progress before a goal is blacklisted.
         clearance: [m] width of the costly zone beyond the robot radius.
         return_home: drive back to the start pose when exploration is done.
+        face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
+            occupied cell (0: no such test, the explorer of session 4).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
-                 goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False) -> None:
+                 goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False,
+                 face_reach: float = 0.25) -> None:
         if min_group_cells is not None and min_group_cells < 1:
             raise ConfigError(f"frontier: min_group_cells must be >= 1, got {min_group_cells}")
         for name, value in (("replan_period", replan_period), ("goal_timeout", goal_timeout)):
@@ -58,6 +69,9 @@ class FrontierExplorer(Explorer):
         self.goal_timeout = goal_timeout
         self.clearance = clearance
         self.return_home = return_home
+        if not (math.isfinite(face_reach) and face_reach >= 0):
+            raise ConfigError(f"frontier: face_reach must be >= 0 m, got {face_reach}")
+        self.face_reach = face_reach
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
@@ -76,6 +90,8 @@ class FrontierExplorer(Explorer):
         self.reach = 0.0            # [cells] from the goal to the frontier cells it serves
         self._now = 0.0
         self._pose_xy = (ctx.start.x, ctx.start.y)
+        self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
+        self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
 
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
@@ -120,8 +136,10 @@ class FrontierExplorer(Explorer):
         if self.blacklist.shape != grid.shape:
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         self.blacklist[self.goal_cells[:, 0], self.goal_cells[:, 1]] = True
+        self._targets = None
         # the goals it switched between are around it: give up the frontier within GIVE_UP_REACH too
-        targets = np.argwhere(self._frontier_targets(grid))
+        view, off = known_window(grid, WINDOW_MARGIN)
+        targets = np.argwhere(self._frontier_targets(grid, view, off)) + off
         if len(targets):
             xy = grid.geo.centers_of(targets)
             for px, py in (self.goal, self._pose_xy):
@@ -137,21 +155,26 @@ class FrontierExplorer(Explorer):
         """True while the robot is on its way to a goal whose frontier cells are not all resolved."""
         if self.goal is None or self.follower.done or len(self.goal_cells) == 0:
             return False
-        return bool(self._frontier_targets(grid)[self.goal_cells[:, 0], self.goal_cells[:, 1]].any())
+        view, off = known_window(grid, WINDOW_MARGIN)
+        local = self.goal_cells - off
+        return bool(self._frontier_targets(grid, view, off)[local[:, 0], local[:, 1]].any())
 
     def _replan_path(self, pose: Pose, grid: OccupancyGrid) -> bool:
         """A fresh path to the current goal on the current map; False when it cannot be reached."""
         assert self.goal is not None
-        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        view, off = known_window(grid, WINDOW_MARGIN)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
-        start = self._start_cell(pose, grid, passable)
-        goal_rc = grid.geo.cell_of(*self.goal)
-        if start is None or not passable[goal_rc]:
+        start = self._start_cell(pose, grid, passable, off)
+        gr, gc = grid.geo.cell_of(*self.goal)
+        goal_rc = (gr - off[0], gc - off[1])
+        if start is None or not (0 <= goal_rc[0] < passable.shape[0] and 0 <= goal_rc[1] < passable.shape[1]
+                                 and passable[goal_rc]):
             return False
         path = astar(cost, start, goal_rc)
         if path is None:
             return False
-        self._follow(path, passable, pose, grid)
+        self._follow(path, passable, pose, grid, off)
         return True
 
     def _watch_progress(self, pose: Pose, now: float) -> None:
@@ -167,7 +190,9 @@ class FrontierExplorer(Explorer):
             self.next_plan = -math.inf
 
     def _blacklist_unresolved(self, grid: OccupancyGrid) -> None:
-        still = self._frontier_targets(grid)[self.goal_cells[:, 0], self.goal_cells[:, 1]]
+        view, off = known_window(grid, WINDOW_MARGIN)
+        local = self.goal_cells - off
+        still = self._frontier_targets(grid, view, off)[local[:, 0], local[:, 1]]
         if still.any():
             stuck = self.goal_cells[still]
             self.blacklist[stuck[:, 0], stuck[:, 1]] = True
@@ -177,12 +202,13 @@ class FrontierExplorer(Explorer):
         """Choose the nearest reachable frontier goal; False when there is none."""
         geo = grid.geo
         self.plans += 1
-        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        view, off = known_window(grid, WINDOW_MARGIN)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
-        start = self._start_cell(pose, grid, passable)
+        start = self._start_cell(pose, grid, passable, off)
         if start is None:
             return False
-        targets = self._frontier_targets(grid)
+        targets = self._frontier_targets(grid, view, off)
         if not targets.any():
             return False
         # stand within a robot radius (plus the inflation) of a frontier cell
@@ -198,51 +224,87 @@ class FrontierExplorer(Explorer):
         if found is None:
             return False
         goal_rc, path, _ = found
-        gx, gy = geo.center_of(*goal_rc)
+        gx, gy = geo.center_of(goal_rc[0] + off[0], goal_rc[1] + off[1])
         if self.goal is None or math.hypot(gx - self.goal[0], gy - self.goal[1]) > geo.cell * 1.5:
             self.best_remaining = math.inf
             self.last_progress = self._now
         self.goal = (gx, gy)
-        self._aim(targets, goal_rc, grid)
-        self._follow(path, passable, pose, grid)
+        self._aim(targets, goal_rc, view, grid, off)
+        self._follow(path, passable, pose, grid, off)
         return True
 
-    def _frontier_targets(self, grid: OccupancyGrid) -> npt.NDArray[np.bool_]:
-        """`frontier_targets` of the groups large enough to matter, blacklisted cells left out."""
+    def _frontier_targets(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
+        """`frontier_targets` of the groups large enough to matter, blacklisted cells left out, on the
+        window `view` of `grid` whose cell (0, 0) is `off`."""
         min_cells = self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
         if self.blacklist.shape != grid.shape:
             self.blacklist = np.zeros(grid.shape, dtype=bool)
-        return frontier_targets(grid, min_cells, self.blacklist)
+        rows, cols = view.shape
+        # the same map (no scan since), window and blacklist give the same targets: computed once a step
+        key = (id(grid), grid.scans, self.blacklist_events, off, view.shape)
+        if self._targets is not None and self._targets[0] == key:
+            return self._targets[1]
+        targets = frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+        if self.face_reach > 0 and targets.any():
+            targets &= self._opening(grid, view, off)
+        targets.flags.writeable = False
+        self._targets = (key, targets)
+        return targets
 
-    def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_]) -> tuple[int, int] | None:
-        return passable_cell(grid.geo, passable, pose.x, pose.y)
+    def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
+        """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
+        rows, cols = view.shape
+        return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
 
-    def _aim(self, targets: npt.NDArray[np.bool_], goal_rc: tuple[int, int], grid: OccupancyGrid) -> None:
-        """Remember the frontier cells this goal is for, and where to look on arrival: the centre of
-        their unknown neighbours."""
+    def _opening(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
+        """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every occupied
+        cell. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the wall's
+        inside, a cell or two from the hits on either face; an opening leads into unknown space away
+        from walls."""
+        rows, cols = view.shape
+        self.costs.update(grid)
+        assert self.costs.walls is not None
+        dist = self.costs.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        deep = view.unknown() & (dist > self.face_reach / grid.geo.cell)
+        out = np.zeros_like(deep)
+        out[1:, :] |= deep[:-1, :]
+        out[:-1, :] |= deep[1:, :]
+        out[:, 1:] |= deep[:, :-1]
+        out[:, :-1] |= deep[:, 1:]
+        return out
+
+    def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],
+                    off: Offset) -> tuple[int, int] | None:
+        return passable_cell(grid.geo, passable, pose.x, pose.y, offset=off)
+
+    def _aim(self, targets: npt.NDArray[np.bool_], goal_rc: tuple[int, int], view: OccupancyGrid,
+             grid: OccupancyGrid, off: Offset) -> None:
+        """Remember the frontier cells this goal is for (in `grid`'s cells), and where to look on arrival:
+        the centre of their unknown neighbours. `targets` and `goal_rc` are the window `view`'s."""
         geo = grid.geo
         k = int(math.ceil(self.reach)) + 1
         r0, c0 = max(goal_rc[0] - k, 0), max(goal_rc[1] - k, 0)
         window = targets[r0:goal_rc[0] + k + 1, c0:goal_rc[1] + k + 1]
-        self.goal_cells = np.argwhere(window) + (r0, c0)
+        local = np.argwhere(window) + (r0, c0)
+        self.goal_cells = local + off
         if len(self.goal_cells) == 0:
             self.face = None
             return
         # look at the unknown 4-neighbours of those frontier cells: they are what must be seen
-        unknown = grid.unknown()
+        unknown = view.unknown()
         rows, cols = unknown.shape
         seen_from: list[tuple[int, int]] = []
-        for r, c in self.goal_cells:
+        for r, c in local:
             for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
                 rr, cc = r + dr, c + dc
                 if 0 <= rr < rows and 0 <= cc < cols and unknown[rr, cc]:
-                    seen_from.append((rr, cc))
+                    seen_from.append((rr + off[0], cc + off[1]))
         centre = np.mean(seen_from, axis=0) if seen_from else self.goal_cells.mean(axis=0)
         self.face = (geo.origin_x + (centre[1] + 0.5) * geo.cell, geo.origin_y + (centre[0] + 0.5) * geo.cell)
 
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
-                grid: OccupancyGrid) -> None:
-        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y))
+                grid: OccupancyGrid, off: Offset) -> None:
+        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y), off)
 
     def _finish(self, pose: Pose, grid: OccupancyGrid) -> Twist | Done:
         """No frontier left: done, or drive home first."""
@@ -250,14 +312,16 @@ class FrontierExplorer(Explorer):
         if not self.return_home:
             return Done("no reachable frontier left")
         start = self.ctx.start
-        cost = plan_costs(grid, self.ctx.radius, self.clearance)
+        view, off = known_window(grid, WINDOW_MARGIN)
+        cost = self._costs(grid, view, off)
         passable = np.isfinite(cost)
-        here = self._start_cell(pose, grid, passable)
-        home = grid.geo.cell_of(start.x, start.y)
-        path = astar(cost, here, home) if here is not None and grid.geo.contains(*home) else None
+        here = self._start_cell(pose, grid, passable, off)
+        hr, hc = grid.geo.cell_of(start.x, start.y)
+        home = (hr - off[0], hc - off[1])
+        path = astar(cost, here, home) if here is not None and view.geo.contains(*home) else None
         self.homing = True
         if path is None:
             return Done("no reachable frontier left; the start is unreachable")
-        self._follow(path, passable, pose, grid)
+        self._follow(path, passable, pose, grid, off)
         self.follower.path[-1] = (start.x, start.y)
         return Twist.ZERO

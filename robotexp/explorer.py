@@ -205,8 +205,8 @@ class ExplorationRun:
         """Share of the explorable free space the map marks free now (None without ground truth)."""
         if self.truth is None:
             return None
-        from robotexp.mapping.groundtruth import coverage
-        return coverage(self.grid.free(), self.truth)
+        from robotexp.mapping.groundtruth import grid_coverage
+        return grid_coverage(self.grid, self.truth)
 
     def run(self) -> ExplorationRun:
         """Run to the end. Ctrl-C, robot errors, explorer errors and stop requests end the run with

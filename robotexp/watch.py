@@ -156,7 +156,9 @@ class StallWatch:
         Returns:
             The reason to end the run (it starts with "stalled"), or None to go on.
         """
-        known = int(grid.unknown().size - np.count_nonzero(grid.unknown()))
+        box = grid.touched_box()            # every cell outside it is unknown
+        view = grid.window(*box) if box is not None else None
+        known = 0 if view is None else int(view.values.size - np.count_nonzero(view.unknown()))
         if known >= self.best + self._gain_cells or self.best < 0:
             self.best, self.since, self.strikes = known, time, 0
             return None

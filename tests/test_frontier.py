@@ -216,3 +216,42 @@ def test_plan_costs_danger_zone_and_unknown_cells() -> None:
     unknown_corner.values[:] = values
     cost2 = plan_costs(unknown_corner, radius=0.25, clearance=0.2)
     assert np.isinf(cost2[0, 0]) and cost2[0, 1] == 1.0
+
+
+def _frontier_of(explorer: FrontierExplorer, grid: OccupancyGrid) -> np.ndarray:
+    from robotexp.explorer import ExplorerContext
+    from robotexp.planning.targets import known_window
+    from robotexp.robot import Limits
+
+    explorer.reset(ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1,
+                                   start=Pose(1.0, 1.0, 0.0), laser_range=3.0, rng=np.random.default_rng(0)))
+    view, off = known_window(grid, 2)
+    out = np.zeros(grid.shape, bool)
+    rows, cols = view.shape
+    out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier_targets(grid, view, off)
+    return out
+
+
+def test_grazed_wall_face_is_no_frontier_but_an_opening_is() -> None:
+    """A 0.4 m wall seen from both sides whose face beams grazed clear over 1.1 m (its inside unknown),
+    and a room open to the east onto unknown space: only the opening is a target by default."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[24:40, 5:40] = True        # two rooms either side of the wall (rows 20-23)
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[23, 5:40] = True             # the wall's two faces; rows 21-22 never seen
+    wall[23, 10:21] = False
+    free[23, 10:21] = True                             # grazing beams cleared 11 face cells
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    old = _frontier_of(FrontierExplorer(face_reach=0.0), grid)
+    new = _frontier_of(FrontierExplorer(), grid)
+    face = np.zeros(grid.shape, bool)
+    face[23, 10:21] = True
+    assert (old & face).sum() >= 5 and not (new & face).any()
+    opening = np.zeros(grid.shape, bool)
+    opening[6:19, 39] = opening[25:39, 39] = True      # the rooms' east ends, unknown beyond
+    # the opening stays a target, but for its cells within face_reach of the wall's corners
+    assert (new & opening).sum() >= 20 and not (new & ~old).any()
+    with pytest.raises(ConfigError, match="face_reach"):
+        FrontierExplorer(face_reach=-1.0)

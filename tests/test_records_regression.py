@@ -46,11 +46,17 @@ EXPECTED = {
 }
 
 
+# frontier as it was (session 5 made it skip grazed wall faces, `face_reach`, which changes its runs on
+# purpose): the run loop, the mapping and the planners still give the same records to the last digit
+PARAMS: dict[tuple[str, str, float], dict[str, object]] = {("dense", "frontier", 60.0): {"face_reach": 0.0}}
+
+
 @pytest.mark.parametrize("case", list(EXPECTED), ids=lambda c: f"{c[0]}-{c[1]}")
 def test_builtin_explorer_records_are_unchanged(case: tuple[str, str, float], tmp_path: Path) -> None:
     world, method, max_time = case
     want = EXPECTED[case]
-    out = run_experiment(RunSpec(world=world, method=method, max_time=max_time), tmp_path, image=False)
+    out = run_experiment(RunSpec(world=world, method=method, max_time=max_time, params=dict(PARAMS.get(case, {}))),
+                         tmp_path, image=False)
     got = out.record
     for key, value in want["record"].items():      # type: ignore[union-attr]
         assert got[key] == value, key

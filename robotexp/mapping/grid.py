@@ -111,6 +111,9 @@ class OccupancyGrid:
         self.stamp: npt.NDArray[np.int32] = np.zeros(shape, np.int32)   # last scan id per cell, 0 = never
         self.scans = 0
         self.cells_updated = 0
+        self.box: tuple[int, int, int, int] | None = None   # see touched_box
+        self._changes = np.zeros((64, 4), np.int32)   # per scan or mark (row scans - 1): the box it touched, grown
+        #                                                by doubling (see changed_box)
 
     @property
     def seen(self) -> npt.NDArray[np.bool_]:
@@ -146,6 +149,7 @@ class OccupancyGrid:
         sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
                            pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
         self.scans += 1
+        self._note_disc(float(sensor[0]), float(sensor[1]), rmax)
         if self.model == "logodds":
             lm = LogOddsModel(self.l_free, self.l_occ, -self.l_clamp, self.l_clamp, rmax)
             logodds = cast("npt.NDArray[np.float32]", self.values)
@@ -155,6 +159,85 @@ class OccupancyGrid:
             n = integrate_scan_himm(cert, self.stamp, self.scans, self.geo, sensor, angles, ranges, rmax)
         self.cells_updated += int(n)
         return int(n)
+
+    def touched_box(self) -> tuple[int, int, int, int] | None:
+        """Rows r0..r1 and columns c0..c1 (half-open) that hold every cell a scan or mark has touched so far
+        (a scan's box is its sensor's reach, so the box may be a little larger); None before the first.
+
+        Every cell outside it is unknown: whole-map work (planning, frontier, potentials) can be done
+        on `window` of this box grown by a margin, at a cost that follows the explored part of the
+        map, not the map.
+        """
+        return self.box
+
+    def changed_box(self, since: int) -> tuple[int, int, int, int] | None:
+        """Rows r0..r1 and columns c0..c1 (half-open) holding every cell the scans and marks after the
+        `since`-th (`scans` counts them) may have changed; None when none did.
+
+        A consumer that keeps something derived from the map (costs, an inflation) remembers `scans`
+        and recomputes only near this box at its next update.
+        """
+        a = self._changes[max(since, 0):self.scans]
+        a = a[a[:, 1] > a[:, 0]]
+        if len(a) == 0:
+            return None
+        return int(a[:, 0].min()), int(a[:, 1].max()), int(a[:, 2].min()), int(a[:, 3].max())
+
+    def window(self, r0: int, r1: int, c0: int, c1: int) -> OccupancyGrid:
+        """The rows r0..r1 and columns c0..c1 (half-open, clipped to the grid) as an `OccupancyGrid` that
+        shares this grid's arrays (views, not copies): its cell (0, 0) is this grid's (r0, c0).
+
+        Use it for the states (`occupied`, `free`, `frontier`, ...) of a part of the map; convert world
+        points to cells with this grid's `geo` and subtract (r0, c0): the window's `geo.origin_*` are
+        rounded sums and may place a point on a cell border in the other cell.
+
+        Raises:
+            ConfigError: the clipped window is empty.
+        """
+        rows, cols = self.shape
+        r0, r1, c0, c1 = max(r0, 0), min(r1, rows), max(c0, 0), min(c1, cols)
+        if r1 <= r0 or c1 <= c0:
+            raise ConfigError(f"occupancy grid window: rows {r0}..{r1}, cols {c0}..{c1} hold no cell of the "
+                              f"{rows} x {cols} grid")
+        other = object.__new__(type(self))
+        other.__dict__.update(self.__dict__)
+        g = self.geo
+        other.geo = GridGeometry(g.origin_x + c0 * g.cell, g.origin_y + r0 * g.cell, g.cell, r1 - r0, c1 - c0)
+        other.values = self.values[r0:r1, c0:c1]
+        other.stamp = self.stamp[r0:r1, c0:c1]
+        other._changes = np.zeros((64, 4), np.int32)   # a window keeps no history: ask the grid (its numbers)
+        other.box = None if self.box is None else (
+            max(self.box[0] - r0, 0), max(min(self.box[1] - r0, r1 - r0), 0),
+            max(self.box[2] - c0, 0), max(min(self.box[3] - c0, c1 - c0), 0))
+        return other
+
+    def _note(self, r0: int, r1: int, c0: int, c1: int) -> None:
+        """Log rows r0..r1, columns c0..c1 (half-open; clipped to the grid) as the box of the latest scan
+        or mark, and grow `box` by it."""
+        rows, cols = self.shape
+        r0, r1, c0, c1 = max(r0, 0), min(r1, rows), max(c0, 0), min(c1, cols)
+        if self.scans > len(self._changes):
+            self._changes = np.concatenate([self._changes, np.zeros_like(self._changes)])
+        if r1 <= r0 or c1 <= c0:
+            self._changes[self.scans - 1] = 0
+            return
+        self._changes[self.scans - 1] = (r0, r1, c0, c1)
+        if self.box is not None:
+            b = self.box
+            r0, r1, c0, c1 = min(r0, b[0]), max(r1, b[1]), min(c0, b[2]), max(c1, b[3])
+        self.box = (r0, r1, c0, c1)
+
+    def _note_disc(self, x: float, y: float, reach: float) -> None:
+        """Grow `box` by the cells within `reach` [m] of (x, y) (a cell of slack on each side)."""
+        g = self.geo
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(reach)):
+            self._note(0, g.rows, 0, g.cols)
+            return
+        r0 = math.floor((y - reach - g.origin_y) / g.cell) - 1
+        r1 = math.floor((y + reach - g.origin_y) / g.cell) + 2
+        c0 = math.floor((x - reach - g.origin_x) / g.cell) - 1
+        c1 = math.floor((x + reach - g.origin_x) / g.cell) + 2
+        self._note(r0, r1, c0, c1)
 
     def occupied(self) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): occupied cells (log-odds > 0; HIMM certainty > 2)."""
@@ -264,9 +347,16 @@ class OccupancyGrid:
         other.__dict__.update(self.__dict__)
         other.values = self.values.copy()
         other.stamp = self.stamp.copy()
+        other._changes = self._changes.copy()
         return other
 
     def _touch(self, mask: npt.NDArray[np.bool_]) -> None:
         """Count a mark as one scan that touched the cells of `mask`."""
         self.scans += 1
         self.stamp[mask] = self.scans
+        rows = np.flatnonzero(mask.any(axis=1))
+        if rows.size:
+            cols = np.flatnonzero(mask.any(axis=0))
+            self._note(int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+        else:
+            self._note(0, 0, 0, 0)

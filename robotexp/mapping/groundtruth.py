@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -22,7 +23,10 @@ from robotexp.mapping.kernels import clearance_mask, flood8, rasterize, traverse
 from robotexp.robot import Pose
 from robotexp.world.model import World
 
-__all__ = ["GroundTruth", "coverage", "ground_truth", "map_iou", "occupancy", "ray_tree"]
+if TYPE_CHECKING:
+    from robotexp.mapping.grid import OccupancyGrid
+
+__all__ = ["GroundTruth", "coverage", "grid_coverage", "ground_truth", "map_iou", "occupancy", "ray_tree"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,11 @@ class GroundTruth:
     def free(self) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): cells overlapping no obstacle."""
         return ~self.occupied
+
+    @functools.cached_property
+    def explorable_cells(self) -> int:
+        """How many cells are explorable (counted once)."""
+        return int(np.count_nonzero(self.explorable))
 
 
 def _geo64(geo: GridGeometry) -> GridGeometry:
@@ -243,6 +252,25 @@ def coverage(grid_free: npt.NDArray[np.bool_], gt: GroundTruth) -> float:
     if total == 0:
         return 1.0
     return int(np.count_nonzero(grid_free & gt.explorable)) / total
+
+
+def grid_coverage(grid: OccupancyGrid, gt: GroundTruth) -> float:
+    """`coverage` of the free cells of `grid`, counted in the window of the cells scans touched
+    (`OccupancyGrid.touched_box`; every cell outside it is unknown): the same share at a cost that
+    follows the explored part of the map, not its size.
+
+    Raises:
+        ConfigError: the shapes differ.
+    """
+    _check_shape("coverage", grid.values, gt)
+    total = gt.explorable_cells
+    if total == 0:
+        return 1.0
+    box = grid.touched_box()
+    if box is None:
+        return 0.0
+    r0, r1, c0, c1 = box
+    return int(np.count_nonzero(grid.window(r0, r1, c0, c1).free() & gt.explorable[r0:r1, c0:c1])) / total
 
 
 def _iou(hits: int, union: int) -> float:

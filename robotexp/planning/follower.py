@@ -56,19 +56,21 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
 
 
 def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
-                geo: GridGeometry) -> npt.NDArray[np.float64]:
+                geo: GridGeometry, offset: tuple[int, int] = (0, 0)) -> npt.NDArray[np.float64]:
     """The world points [m] (k, 2) of a planner path: the cell centres of `cells` string-pulled on `passable`.
 
     Args:
         cells: (n, 2) int (row, col) cells of a path, consecutive ones 8-neighbours (as from `astar`).
         passable: (rows, cols) bool the path was planned on.
         geo: the grid's geometry.
+        offset: (row, col) of `passable`'s cell (0, 0) in `geo` (a window of the grid, as
+            `OccupancyGrid.window`); `cells` are the window's.
 
     Returns:
         (k, 2) float64, k <= n.
     """
     kept = simplify(cells, passable) if len(cells) > 2 else cells
-    return geo.centers_of(kept)
+    return geo.centers_of(np.asarray(kept) + np.asarray(offset, dtype=np.int64))
 
 
 class PathFollower:
@@ -90,10 +92,10 @@ class PathFollower:
         self.done = len(self.path) == 0
 
     def follow_cells(self, cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_], geo: GridGeometry,
-                     start: tuple[float, float]) -> None:
-        """Follow a planner path of cells (`path_points`), its first point moved to `start` (x, y) [m],
-        the robot's exact position."""
-        pts = path_points(cells, passable, geo)
+                     start: tuple[float, float], offset: tuple[int, int] = (0, 0)) -> None:
+        """Follow a planner path of cells (`path_points`, with its `offset`), its first point moved to
+        `start` (x, y) [m], the robot's exact position."""
+        pts = path_points(cells, passable, geo, offset)
         pts[0] = start
         self.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
 

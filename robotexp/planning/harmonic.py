@@ -44,8 +44,11 @@ __all__ = [
     "descent_field",
     "flood4",
     "free_box",
+    "free_box_in",
     "gauss_seidel",
+    "gauss_seidel_box",
     "gauss_seidel_perturbed",
+    "gauss_seidel_perturbed_box",
     "gauss_seidel_perturbed_ref",
     "gauss_seidel_ref",
     "relax",
@@ -58,10 +61,17 @@ def free_box(fixed: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
     """Rows r0..r1 and columns c0..c1 (inclusive) that hold every updated cell (not fixed, not on the outer
     ring); r1 < r0 when there is none. Sweeping only this box changes nothing in the result (every other
     cell keeps its value anyway) and skips the unknown and walled-off parts of the map."""
+    return free_box_in(fixed, 0, fixed.shape[0], 0, fixed.shape[1])
+
+
+@kernel
+def free_box_in(fixed: npt.NDArray[np.bool_], wr0: int, wr1: int, wc0: int, wc1: int) -> tuple[int, int, int, int]:
+    """`free_box` of the cells in rows wr0..wr1 and columns wc0..wc1 (half-open) only: the caller
+    guarantees every updated cell lies there (see `relax`'s window)."""
     rows, cols = fixed.shape
     r0, r1, c0, c1 = rows, -1, cols, -1
-    for r in range(1, rows - 1):
-        for c in range(1, cols - 1):
+    for r in range(max(wr0, 1), min(wr1, rows - 1)):
+        for c in range(max(wc0, 1), min(wc1, cols - 1)):
             if not fixed[r, c]:
                 r0 = min(r0, r)
                 r1 = max(r1, r)
@@ -89,6 +99,14 @@ def gauss_seidel(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweep
     flight instead of one: 4.9x the one-row sweep in `benchmarks/bench_gauss_seidel.py`).
     """
     r0, r1, c0, c1 = free_box(fixed)
+    gauss_seidel_box(p, fixed, sweeps, r0, r1, c0, c1)
+
+
+@kernel
+def gauss_seidel_box(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
+                     r0: int, r1: int, c0: int, c1: int) -> None:
+    """`gauss_seidel` sweeping rows r0..r1 and columns c0..c1 (inclusive, inside the outer ring), which
+    must hold every cell not fixed (`free_box`); nothing when r1 < r0."""
     if r1 < r0:
         return
     for _ in range(sweeps):
@@ -133,6 +151,14 @@ def gauss_seidel_perturbed(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.boo
         eps_abs: (rows, cols) float64 eps(r) of eq. 3.7 [1/cell].
     """
     r0, r1, c0, c1 = free_box(fixed)
+    gauss_seidel_perturbed_box(p, fixed, sweeps, ex, ey, eps_abs, r0, r1, c0, c1)
+
+
+@kernel
+def gauss_seidel_perturbed_box(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
+                               ex: float, ey: float, eps_abs: npt.NDArray[np.float64],
+                               r0: int, r1: int, c0: int, c1: int) -> None:
+    """`gauss_seidel_perturbed` sweeping rows r0..r1 and columns c0..c1 (inclusive) only (`free_box`)."""
     for _ in range(sweeps):
         for r in range(r0, r1 + 1):
             for c in range(c0, c1 + 1):
@@ -173,10 +199,13 @@ def gauss_seidel_perturbed_ref(p: npt.NDArray[np.float64], fixed: npt.NDArray[np
 
 def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int, *,
           preferred: tuple[float, float] = (0.0, 0.0),
-          eps_abs: npt.NDArray[np.float64] | float = 0.0) -> None:
+          eps_abs: npt.NDArray[np.float64] | float = 0.0,
+          window: tuple[int, int, int, int] | None = None) -> None:
     """Checked entry point: `sweeps` in-place Gauss-Seidel sweeps of the (perturbed) potential.
 
-    Uses the plain Laplace kernel when both perturbations are zero.
+    Uses the plain Laplace kernel when both perturbations are zero. With `window` only its rows and
+    columns are read and swept (its outer ring is their boundary): the same result as the whole array
+    when every cell outside the window's inner part is fixed, at a cost that follows the window.
 
     Args:
         p: (rows, cols) C-contiguous float64 potential, padded: the outer ring is the boundary.
@@ -184,6 +213,7 @@ def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
         sweeps: number of sweeps, >= 0.
         preferred: eps * v of eq. 3.6 as (x, y) [1/cell]; each component within [-1, 1].
         eps_abs: eps(r) of eq. 3.7 [1/cell], a scalar or a (rows, cols) array, within [-1, 1].
+        window: rows r0..r1 and columns c0..c1 (half-open) of `p`, or None for all of it.
 
     Raises:
         ConfigError: wrong shapes or dtypes, a negative sweep count, a perturbation out of range.
@@ -197,13 +227,21 @@ def relax(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweeps: int,
     ex, ey = float(preferred[0]), float(preferred[1])
     if not (abs(ex) <= 1.0 and abs(ey) <= 1.0):
         raise ConfigError(f"relax: preferred (eps * v) components must be within [-1, 1], got {preferred}")
-    field = np.broadcast_to(np.asarray(eps_abs, np.float64), p.shape)
-    if not (np.abs(field) <= 1.0).all():
+    eps = np.asarray(eps_abs, np.float64)
+    if eps.ndim and eps.shape != p.shape:
+        raise ConfigError(f"relax: eps_abs must be a scalar or an array of shape {p.shape}, got {eps.shape}")
+    if not (np.abs(eps) <= 1.0).all():
         raise ConfigError("relax: eps_abs must be within [-1, 1] everywhere")
-    if ex == 0.0 and ey == 0.0 and not field.any():
-        gauss_seidel(p, fixed, int(sweeps))
+    wr0, wr1, wc0, wc1 = (0, p.shape[0], 0, p.shape[1]) if window is None else (int(v) for v in window)
+    if not (0 <= wr0 < wr1 <= p.shape[0] and 0 <= wc0 < wc1 <= p.shape[1]):
+        raise ConfigError(f"relax: window rows {wr0}..{wr1}, cols {wc0}..{wc1} is not inside {p.shape}")
+    # the window's outer ring is its boundary: only the cells inside it are updated
+    r0, r1, c0, c1 = free_box_in(fixed, wr0 + 1, wr1 - 1, wc0 + 1, wc1 - 1)
+    if ex == 0.0 and ey == 0.0 and not eps.any():
+        gauss_seidel_box(p, fixed, int(sweeps), r0, r1, c0, c1)
     else:
-        gauss_seidel_perturbed(p, fixed, int(sweeps), ex, ey, np.ascontiguousarray(field))
+        field = np.ascontiguousarray(np.broadcast_to(eps, p.shape)) if eps.ndim else np.full(p.shape, float(eps))
+        gauss_seidel_perturbed_box(p, fixed, int(sweeps), ex, ey, field, r0, r1, c0, c1)
 
 
 def descent(p: npt.NDArray[np.float64], row: int, col: int) -> tuple[float, float]:

@@ -19,9 +19,10 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import cost_grid, distance_transform
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
-           "usable_frontier"]
+           "usable_frontier", "known_window", "PlanCosts", "WallDistance"]
 
 MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
+DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
 
 
@@ -40,10 +41,98 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
     Returns:
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
-    cell = grid.geo.cell
+    rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
     dist = distance_transform(grid.occupied())
-    return cost_grid(dist, robot_radius_cells=(radius + MARGIN) / cell + 0.5, danger_radius_cells=clearance / cell,
-                     danger_cost=4.0, blocked=~grid.free())
+    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
+
+
+def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
+    """`plan_costs`' robot radius and danger zone width [cells]."""
+    return (radius + MARGIN) / cell + 0.5, clearance / cell
+
+
+class WallDistance:
+    """The distance [cells] from each cell of a growing map to its nearest occupied cell, kept up to date
+    by recomputing only near what the scans changed.
+
+    Exact up to `reach` cells (beyond, some value > `reach`, or inf): a cell's distance within `reach`
+    depends only on the occupied cells within `reach` of it, so after some scans the cells within `reach`
+    of the box they changed (`OccupancyGrid.changed_box`) are recomputed from the occupied cells in that
+    box grown by twice `reach`. An update costs what the scans since the last one touched, not the map.
+
+    Args:
+        reach: [cells] how far the distance must be exact.
+    """
+
+    def __init__(self, reach: float) -> None:
+        self.k = int(math.ceil(reach)) + 1
+        self.dist = np.zeros((0, 0), np.float32)
+        self._grid: OccupancyGrid | None = None
+        self._synced = 0
+
+    def update(self, grid: OccupancyGrid) -> tuple[int, int, int, int] | None:
+        """Bring `dist` up to `grid` (a grid other than the last one, or with fewer scans, is started
+        afresh: no cell occupied yet, all inf); return the box (rows r0..r1, cols c0..c1, half-open) of
+        the cells recomputed, None when none was."""
+        if self._grid is not grid or self.dist.shape != grid.shape or grid.scans < self._synced:
+            self.dist = np.full(grid.shape, np.inf, np.float32)
+            self._grid, self._synced = grid, 0
+        box = grid.changed_box(self._synced)
+        self._synced = grid.scans
+        if box is None:
+            return None
+        k, (rows, cols) = self.k, grid.shape
+        r0, r1, c0, c1 = max(box[0] - k, 0), min(box[1] + k, rows), max(box[2] - k, 0), min(box[3] + k, cols)
+        s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
+        sub = distance_transform(grid.window(s0, s1, t0, t1).occupied())
+        self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
+        return r0, r1, c0, c1
+
+
+class PlanCosts:
+    """`plan_costs` of a growing map, kept up to date by recomputing only the cells near what changed.
+
+    A cell's cost depends on whether it is free and on its distance to the nearest occupied cell up to
+    the robot radius plus the danger zone (beyond, the cost is 1): `WallDistance` keeps that distance
+    and the costs are recomputed in the box it recomputed. The costs equal `plan_costs` of the whole
+    map, bit for bit; unknown cells (all of them at first) are blocked.
+
+    Args:
+        radius: [m] the robot's footprint radius.
+        clearance: [m] width of the danger zone beyond the inflated walls.
+    """
+
+    def __init__(self, radius: float, clearance: float) -> None:
+        self.radius, self.clearance = radius, clearance
+        self.cost = np.zeros((0, 0), np.float32)
+        self.walls: WallDistance | None = None
+
+    def update(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
+        """The costs of `grid` now, (rows, cols) float32 as `plan_costs` (the cache's own array: do not
+        write to it)."""
+        rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
+        if self.walls is None or self.walls._grid is not grid:
+            self.walls = WallDistance(rr + dr)
+        fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
+        box = self.walls.update(grid)
+        if fresh:
+            self.cost = np.full(grid.shape, np.inf, np.float32)     # unknown cells are blocked
+        if box is not None:
+            r0, r1, c0, c1 = box
+            self.cost[r0:r1, c0:c1] = cost_grid(self.walls.dist[r0:r1, c0:c1], robot_radius_cells=rr,
+                                                danger_radius_cells=dr, danger_cost=DANGER_COST,
+                                                blocked=~grid.window(r0, r1, c0, c1).free())
+        return self.cost
+        rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
+        k = int(math.ceil(rr + dr)) + 1
+        rows, cols = grid.shape
+        r0, r1, c0, c1 = max(box[0] - k, 0), min(box[1] + k, rows), max(box[2] - k, 0), min(box[3] + k, cols)
+        s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
+        dist = distance_transform(grid.window(s0, s1, t0, t1).occupied())[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
+        free = grid.window(r0, r1, c0, c1).free()
+        self.cost[r0:r1, c0:c1] = cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr,
+                                            danger_cost=DANGER_COST, blocked=~free)
+        return self.cost
 
 
 def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach: int) -> tuple[int, int] | None:
@@ -70,8 +159,31 @@ def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach:
     return int(cand[best, 0]), int(cand[best, 1])
 
 
+def known_window(grid: OccupancyGrid, margin: int) -> tuple[OccupancyGrid, tuple[int, int]]:
+    """The part of `grid` that holds every cell a scan has touched, grown by `margin` cells, as a window
+    (`OccupancyGrid.window`, sharing the arrays) and the (row, col) of its cell (0, 0) in `grid`.
+
+    Every cell outside it is unknown, so a plan (only known-free cells are passable), the frontier and
+    the walls' inflation (within `margin` of a wall) are the same on the window as on the whole grid,
+    at a cost that follows what has been explored rather than the map's size. Before the first scan
+    the window is the whole grid.
+
+    Args:
+        grid: the map.
+        margin: [cells] kept around the touched cells (>= 1 for the frontier's unknown neighbours).
+
+    Returns:
+        (window, (row0, col0)).
+    """
+    box = grid.touched_box()
+    if box is None:
+        return grid, (0, 0)
+    r0, c0 = max(box[0] - margin, 0), max(box[2] - margin, 0)
+    return grid.window(r0, box[1] + margin, c0, box[3] + margin), (r0, c0)
+
+
 def passable_cell(geo: GridGeometry, passable: npt.NDArray[np.bool_], x: float, y: float,
-                  reach: float = START_REACH) -> tuple[int, int] | None:
+                  reach: float = START_REACH, offset: tuple[int, int] = (0, 0)) -> tuple[int, int] | None:
     """The cell a plan from or to the world point (x, y) [m] uses: its own cell when passable, else the
     nearest passable one within `reach` [m]; None when the point is off the grid or none is near.
 
@@ -81,12 +193,15 @@ def passable_cell(geo: GridGeometry, passable: npt.NDArray[np.bool_], x: float, 
         x: [m] world x.
         y: [m] world y.
         reach: [m] how far to look for a passable cell.
+        offset: (row, col) in `geo` of `passable`'s cell (0, 0) when `passable` covers a window of the
+            grid (`known_window`); the cell returned is the window's.
 
     Returns:
         (row, col) or None.
     """
     r, c = geo.cell_of(x, y)
-    if not geo.contains(r, c):
+    r, c = r - offset[0], c - offset[1]
+    if not (0 <= r < passable.shape[0] and 0 <= c < passable.shape[1]):
         return None
     if passable[r, c]:
         return r, c
