@@ -217,7 +217,7 @@ def test_laser_candidates_need_an_open_frontier() -> None:
     assert cand is not None and 2.0 < cand[0] < 2.7 and abs(cand[1]) < 0.2
     # the same frontier inside another node's region: explored, nothing to do
     ex.tree.add(3.0, 0.0, BallRegion(3.0, 0.0, 1.0), 0)
-    assert ex.frontier(0).size == 0 and ex._candidate(0) is None
+    assert ex.frontier_vertices(0).size == 0 and ex._candidate(0) is None
 
 
 def test_region_mask_marks_the_cells_inside() -> None:

@@ -47,6 +47,117 @@ def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, 
     return x + distance * math.cos(theta), y + distance * math.sin(theta)
 
 
+class _FrontierRescue(SRTExplorer):
+    """The frontier rescue of srt-star and srt-laser (an extension of the thesis, switch `frontier`).
+
+    When VALIDATE finds no candidate at a node, before the robot goes back to the parent, the node
+    looks at the frontier of the run's map (`frontier_targets`: free cells next to unknown ones,
+    openings only, within the rescue view of the region), nearest first, and takes the point of its
+    region the robot reaches in a straight line (`_rescue_points`), at least `node_gap` from every
+    node, from which that cell is in sight through known-free cells within the rescue view. There the
+    robot perceives as at any new node; the frontier cells the rescue was for that are still frontier
+    then are given up (seen from beside them, they stay next to space the sensor cannot reach), so
+    every rescue opens new ground or retires frontier cells, and the node gap bounds the nodes.
+    Subclasses set `frontier`, `node_gap`, `tries`, `bins` and define the view and the points.
+    """
+
+    frontier: bool
+    node_gap: float
+    tries: int
+    bins: int
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run: no rescue yet, nothing given up."""
+        super().reset(ctx)
+        self.rescues = 0
+        self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
+        self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
+        self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
+
+    def result_fields(self) -> dict[str, object]:
+        """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
+        return {**super().result_fields(), "rescues": self.rescues}
+
+    @abstractmethod
+    def _rescue_view(self) -> float:
+        """[m] the farthest a frontier cell may be from a rescue candidate (and from the region)."""
+
+    @abstractmethod
+    def _rescue_points(self, index: int) -> np.ndarray:
+        """The (k, 2) points [m] of node `index`'s region the robot may drive to in a straight line."""
+
+    def _skip_frontier(self, centres: np.ndarray, cell: float) -> np.ndarray:
+        """Bool (k,): frontier cells (centres [m]) that are no openings for this sensor (default: none)."""
+        return np.zeros(len(centres), dtype=bool)
+
+    def frontier_cells(self, index: int) -> np.ndarray:
+        """The map's frontier cells (int (k, 2) rows and columns) within the rescue view of node `index`'s
+        region, nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
+        less the cells a rescue already failed to resolve and those `_skip_frontier` leaves out."""
+        grid = self._grid
+        if grid is None:
+            return np.zeros((0, 2), dtype=np.intp)
+        geo = grid.geo
+        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
+        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
+        node = self.tree.nodes[index]
+        centres = geo.centers_of(cells)
+        d = np.hypot(centres[:, 0] - node.x, centres[:, 1] - node.y)
+        near = d <= node.region.reach + self._rescue_view()
+        cells, centres, d = cells[near], centres[near], d[near]
+        if len(cells):
+            keep = ~self._skip_frontier(centres, geo.cell)
+            cells, d = cells[keep], d[keep]
+        return cells[np.argsort(d, kind="stable")]
+
+    def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
+        """The rescue: a point of the region, reachable in a straight line, from which a frontier cell of
+        the map is in sight (through known-free cells) within the rescue view."""
+        grid = self._grid
+        cells = self.frontier_cells(index)
+        if grid is None or len(cells) == 0:
+            return None
+        geo = grid.geo
+        view = self._rescue_view()
+        reach = self._rescue_points(index)
+        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
+        rc = geo.cells_of(reach)
+        inside = geo.contains_cells(rc)
+        _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
+        reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
+        if len(reach) == 0:
+            return None
+        free = grid.free()
+        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
+            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
+            for j in np.argsort(d, kind="stable")[:self.tries]:
+                if d[j] > view:
+                    break
+                # False also when either end is not free
+                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
+                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
+                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
+                    self.rescues += 1
+                    return float(reach[j, 0]), float(reach[j, 1])
+        return None
+
+    def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
+        """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
+        if self._given_up.shape != grid.shape:
+            self._given_up = np.zeros(grid.shape, dtype=bool)
+        return self._given_up
+
+    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
+        """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
+        given up (perceived from beside them, they stay next to unknown space the sensor cannot reach)."""
+        super()._add_node(pose, region, grid)
+        if len(self._aim) == 0:
+            return
+        still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
+        self._given_up_on(grid)[self._aim[still, 0], self._aim[still, 1]] = True
+        self._aim = np.zeros((0, 2), dtype=np.intp)
+
+
 class _SweepingSRT(SRTExplorer):
     """SRT whose perception is a turn on the spot with the laser (see the module docstring)."""
 
@@ -143,7 +254,7 @@ class SRTBallExplorer(_SweepingSRT):
         return float(pts[k, 0]), float(pts[k, 1])
 
 
-class SRTLaserExplorer(_SweepingSRT):
+class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     """SRT-Laser: the safe region is the polygon of the laser end points (thesis §3.2, §4.1.1).
 
     The boundary is split into frontier vertices (beams at the maximum range, not inside another
@@ -175,7 +286,7 @@ class SRTLaserExplorer(_SweepingSRT):
     name = "srt-laser"
 
     def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,
-                 tolerance: float = 0.1, node_gap: float = 0.3,
+                 tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
         super().__init__(sweep_rate=sweep_rate, bins=bins, max_nodes=max_nodes, stuck_timeout=stuck_timeout,
@@ -191,6 +302,7 @@ class SRTLaserExplorer(_SweepingSRT):
         if tolerance < 0 or node_gap < 0:
             raise ConfigError(f"srt-laser: tolerance and node_gap must be >= 0 m, got {tolerance} and {node_gap}")
         self.view, self.tries, self.tolerance, self.node_gap = view, tries, tolerance, node_gap
+        self.frontier = frontier
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
@@ -200,7 +312,7 @@ class SRTLaserExplorer(_SweepingSRT):
     def _region(self, x: float, y: float) -> SafeRegion:
         return self.sweep.polygon(x, y)
 
-    def frontier(self, index: int) -> np.ndarray:
+    def frontier_vertices(self, index: int) -> np.ndarray:
         """Indices of the frontier vertices of node `index` that no other node's region holds."""
         region = self.tree.nodes[index].region
         assert isinstance(region, PolygonRegion)
@@ -210,10 +322,26 @@ class SRTLaserExplorer(_SweepingSRT):
         return cand[~self.tree.inside_other(region.vertices()[cand], index, self.tolerance)]
 
     def _candidate(self, index: int) -> tuple[float, float] | None:
+        self._aim = np.zeros((0, 2), dtype=np.intp)
+        cand = self._vertex_candidate(index)
+        if cand is None and self.frontier:
+            cand = self._frontier_candidate(index)
+        return cand
+
+    def _rescue_view(self) -> float:
+        return self.view * self.ctx.laser_range
+
+    def _rescue_points(self, index: int) -> np.ndarray:
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        return reachable_points(self.tree.nodes[index].region, directions, self.offset, step=self.ray_step,
+                                min_step=max(self.d_min, self.ray_step))
+
+    def _vertex_candidate(self, index: int) -> tuple[float, float] | None:
+        """The thesis's candidate: a frontier vertex mapped onto the shrunk region (see the class)."""
         node = self.tree.nodes[index]
         region = node.region
         assert isinstance(region, PolygonRegion)
-        front = self.frontier(index)
+        front = self.frontier_vertices(index)
         if front.size == 0:
             return None
         directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
@@ -236,7 +364,7 @@ class SRTLaserExplorer(_SweepingSRT):
         return None
 
 
-class SRTStarExplorer(SRTExplorer):
+class SRTStarExplorer(_FrontierRescue):
     """SRT-Star: the safe region is a star of cones from the sonar ring (thesis §3.2, Fig. 3.7b).
 
     Perception: the P3-DX ring has 16 transducers whose axes are 20-40 deg apart, each hearing a
@@ -336,14 +464,6 @@ class SRTStarExplorer(SRTExplorer):
                               "sonar (e.g. --robot p3dx)")
         super().reset(ctx)
         self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * ctx.radius
-        self.rescues = 0
-        self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
-        self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
-        self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
-
-    def result_fields(self) -> dict[str, object]:
-        """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
-        return {**super().result_fields(), "rescues": self.rescues}
 
     def _begin_sense(self) -> None:
         self._apexes: list[np.ndarray] = []
@@ -410,26 +530,19 @@ class SRTStarExplorer(SRTExplorer):
             if reach is not None and reach >= dist[k] - 0.021:
                 return float(pts[k, 0]), float(pts[k, 1])
         return None
+    def _rescue_view(self) -> float:
+        return self.view
 
-    def frontier_cells(self, index: int) -> np.ndarray:
-        """The map's frontier cells (int (k, 2) rows and columns) within `view` of node `index`'s star,
-        nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
-        less the cells a rescue already failed to resolve and (`wall_faces`) those at a heard wall."""
-        grid = self._grid
-        if grid is None:
-            return np.zeros((0, 2), dtype=np.intp)
-        geo = grid.geo
-        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
-        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
-        node = self.tree.nodes[index]
-        centres = geo.centers_of(cells)
-        d = np.hypot(centres[:, 0] - node.x, centres[:, 1] - node.y)
-        near = d <= node.region.reach + self.view
-        cells, centres, d = cells[near], centres[near], d[near]
-        if self.wall_faces and len(cells):
-            keep = ~self.heard_wall(centres, geo.cell)
-            cells, d = cells[keep], d[keep]
-        return cells[np.argsort(d, kind="stable")]
+    def _rescue_points(self, index: int) -> np.ndarray:
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        return reachable_points(self.tree.nodes[index].region, directions, self.ctx.radius + self.margin,
+                                step=0.05, min_step=0.05, escape=ESCAPE)
+
+    def _skip_frontier(self, centres: np.ndarray, cell: float) -> np.ndarray:
+        """With `wall_faces`: the cells at a heard wall (`heard_wall`)."""
+        if not self.wall_faces:
+            return super()._skip_frontier(centres, cell)
+        return self.heard_wall(centres, cell)
 
     def heard_wall(self, points: np.ndarray, cell: float) -> np.ndarray:
         """Bool (k,): which of the (k, 2) world points [m] (cell centres of a grid of `cell` [m]) lie at
@@ -451,55 +564,6 @@ class SRTStarExplorer(SRTExplorer):
             out[np.flatnonzero(near)] |= region.walls[k] & (d[near] >= r - cell) & \
                 (d[near] <= r + self.margin + 1.5 * cell)
         return out
-
-    def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
-        """The rescue: a point of the star, reachable in a straight line with the robot's disc inside
-        it, from which a frontier cell of the map is in sight (through known-free cells) within `view`."""
-        grid = self._grid
-        cells = self.frontier_cells(index)
-        if grid is None or len(cells) == 0:
-            return None
-        node = self.tree.nodes[index]
-        geo = grid.geo
-        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
-        reach = reachable_points(node.region, directions, self.ctx.radius + self.margin, step=0.05, min_step=0.05,
-                                 escape=ESCAPE)
-        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
-        rc = geo.cells_of(reach)
-        inside = geo.contains_cells(rc)
-        _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
-        reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
-        if len(reach) == 0:
-            return None
-        free = grid.free()
-        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
-            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
-            for j in np.argsort(d, kind="stable")[:self.tries]:
-                if d[j] > self.view:
-                    break
-                # False also when either end is not free
-                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
-                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
-                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
-                    self.rescues += 1
-                    return float(reach[j, 0]), float(reach[j, 1])
-        return None
-
-    def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
-        """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
-        if self._given_up.shape != grid.shape:
-            self._given_up = np.zeros(grid.shape, dtype=bool)
-        return self._given_up
-
-    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
-        """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
-        given up (perceived from beside them, they stay next to unknown space the sonar cannot reach)."""
-        super()._add_node(pose, region, grid)
-        if len(self._aim) == 0:
-            return
-        still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
-        self._given_up_on(grid)[self._aim[still, 0], self._aim[still, 1]] = True
-        self._aim = np.zeros((0, 2), dtype=np.intp)
 
 
 def largest_gap(axes: np.ndarray) -> float:
