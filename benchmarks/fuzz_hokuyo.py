@@ -17,11 +17,10 @@ from __future__ import annotations
 import argparse
 import random
 import time
-import traceback
 
 import numpy as np
 
-from fuzz_streams import feed_in_chunks, mutate
+from fuzz_streams import Tally, feed_in_chunks, mutate
 
 from robotexp_drivers.lasers.hokuyo import codec as k
 from robotexp_drivers.lasers.hokuyo import constants as C
@@ -67,9 +66,7 @@ def fuzz(streams: int, seed: int) -> int:
     rng = random.Random(seed)
     scans = [_scan(rng) for _ in range(400)]
     others = _replies(rng)
-    totals = {"scans": 0, "replies": 0, "dropped_bytes": 0, "bad_sums": 0, "bad_lengths": 0}
-    exceptions: list[str] = []
-    lost = 0
+    tally = Tally(("scans", "replies", "dropped_bytes", "bad_sums", "bad_lengths"))
     t0 = time.perf_counter()
     for n in range(streams):
         mutated = rng.random() < 0.8
@@ -90,22 +87,14 @@ def fuzz(streams: int, seed: int) -> int:
         try:
             out = feed_in_chunks(rng, dec, stream, 200)
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
-            exceptions.append(f"stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            tally.exception(f"stream {n}", stream)
             continue
         if not mutated:
-            if len(out) != len(expected) or not all(np.array_equal(a, b) for a, b in zip(out, expected, strict=False)):
-                lost += max(1, len(expected) - len(out))
-        for key in totals:
-            totals[key] += getattr(dec, key)
+            tally.compare(out, expected, np.array_equal)
+        tally.add(dec)
     elapsed = time.perf_counter() - t0
-    print(f"streams: {streams} in {elapsed:.1f} s ({streams / elapsed:,.0f} streams/s, seed {seed})")
-    for key, value in totals.items():
-        print(f"  {key}: {value}")
-    print(f"  scans lost or altered in intact streams: {lost}")
-    print(f"  exceptions: {len(exceptions)}")
-    for text in exceptions[:3]:
-        print(text)
-    return len(exceptions) + lost
+    return tally.report(f"streams: {streams} in {elapsed:.1f} s ({streams / elapsed:,.0f} streams/s, seed {seed})",
+                        "scans lost or altered in intact streams")
 
 
 def throughput(count: int) -> None:

@@ -16,13 +16,12 @@ from __future__ import annotations
 import argparse
 import random
 import time
-import traceback
 
 import numpy as np
 
 from robotexp_drivers.lasers.lms2xx import codec as k
 from robotexp_drivers.lasers.lms2xx import constants as c
-from fuzz_streams import mutate
+from fuzz_streams import Tally, mutate
 
 
 def _scan(rng: random.Random, beams: int, units: str) -> bytes:
@@ -69,10 +68,7 @@ def fuzz(streams: int, seed: int) -> int:
     """Run the fuzz loop; print the counts; return the number of problems found."""
     rng = random.Random(seed)
     pools = {"replies": _reply_frames(rng), "requests": _request_frames(rng)}
-    totals = {"telegrams": 0, "scans": 0, "dropped_bytes": 0, "bad_crcs": 0, "bad_headers": 0, "truncated": 0,
-              "bad_scans": 0}
-    exceptions: list[str] = []
-    lost = 0
+    tally = Tally(("telegrams", "scans", "dropped_bytes", "bad_crcs", "bad_headers", "truncated", "bad_scans"))
     t0 = time.perf_counter()
     for n in range(streams):
         kind = "replies" if n % 3 else "requests"
@@ -101,31 +97,20 @@ def fuzz(streams: int, seed: int) -> int:
             if kind == "replies":
                 out_s += scans.flush()
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
-            exceptions.append(f"stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            tally.exception(f"stream {n}", stream)
             continue
         if not mutated:
             # STX-free noise around intact telegrams: every telegram (and scan) must come out, in order
-            expected = [t for f in frames for t in k.TelegramDecoder(replies=kind == "replies").feed(f)]
-            if out_t != expected:
-                lost += max(1, len(expected) - len(out_t))
+            tally.compare(out_t, [t for f in frames for t in k.TelegramDecoder(replies=kind == "replies").feed(f)])
             if kind == "replies":
-                want = [_key(s) for f in frames for s in k.ScanDecoder().feed(f)]
-                if [_key(s) for s in out_s] != want:
-                    lost += max(1, len(want) - len(out_s))
-        totals["telegrams"] += len(out_t)
-        totals["scans"] += len(out_s)
-        for key in ("dropped_bytes", "bad_crcs", "bad_headers", "truncated"):
-            totals[key] += getattr(tel, key)
-        totals["bad_scans"] += scans.bad_scans
+                tally.compare([_key(s) for s in out_s], [_key(s) for f in frames for s in k.ScanDecoder().feed(f)])
+        tally.totals["telegrams"] += len(out_t)
+        tally.totals["scans"] += len(out_s)
+        tally.add(tel, ("dropped_bytes", "bad_crcs", "bad_headers", "truncated"))
+        tally.add(scans, ("bad_scans",))
     elapsed = time.perf_counter() - t0
-    print(f"streams: {streams} in {elapsed:.1f} s (seed {seed})")
-    for key, value in totals.items():
-        print(f"  {key}: {value}")
-    print(f"  telegrams/scans lost from intact streams: {lost}")
-    print(f"  exceptions: {len(exceptions)}")
-    for text in exceptions[:3]:
-        print(text)
-    return len(exceptions) + lost
+    return tally.report(f"streams: {streams} in {elapsed:.1f} s (seed {seed})",
+                        "telegrams/scans lost from intact streams")
 
 
 def throughput(count: int, seed: int) -> None:

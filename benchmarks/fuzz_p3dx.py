@@ -15,11 +15,10 @@ from __future__ import annotations
 import argparse
 import random
 import time
-import traceback
 
 from robotexp_drivers.p3dx import codec as k
 from robotexp_drivers.p3dx import constants as c
-from fuzz_streams import mutate
+from fuzz_streams import Tally, mutate
 
 
 def _sip(rng: random.Random) -> k.StandardSip:
@@ -76,9 +75,7 @@ def fuzz(streams: int, seed: int) -> int:
     reference: dict[str, dict[bytes, list[object]]] = {   # what each pool entry decodes to
         "packets": {f: list(k.PacketDecoder().feed(f)) for f in pools["packets"]},
         "commands": {f: list(k.CommandDecoder().feed(f)) for f in pools["commands"]}}
-    totals = {"recovered": 0, "dropped_bytes": 0, "bad_checksums": 0, "bad_lengths": 0, "truncated": 0}
-    exceptions: list[str] = []
-    lost = 0
+    tally = Tally(("recovered", "dropped_bytes", "bad_checksums", "bad_lengths", "truncated"))
     t0 = time.perf_counter()
     for n in range(streams):
         kind = "packets" if n % 2 == 0 else "commands"
@@ -101,25 +98,15 @@ def fuzz(streams: int, seed: int) -> int:
                 pos += step
             out += dec.flush()
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
-            exceptions.append(f"stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            tally.exception(f"stream {n}", stream)
             continue
         if not mutated:
             # header-free noise around intact packets: every packet must come out, in order
-            expected = [obj for f in frames for obj in reference[kind][f]]
-            if out != expected:
-                lost += max(1, len(expected) - len(out))
-        totals["recovered"] += len(out)
-        for key in ("dropped_bytes", "bad_checksums", "bad_lengths", "truncated"):
-            totals[key] += getattr(dec, key)
+            tally.compare(out, [obj for f in frames for obj in reference[kind][f]])
+        tally.totals["recovered"] += len(out)
+        tally.add(dec, ("dropped_bytes", "bad_checksums", "bad_lengths", "truncated"))
     elapsed = time.perf_counter() - t0
-    print(f"streams: {streams} in {elapsed:.1f} s (seed {seed})")
-    for key, value in totals.items():
-        print(f"  {key}: {value}")
-    print(f"  packets lost from intact streams: {lost}")
-    print(f"  exceptions: {len(exceptions)}")
-    for text in exceptions[:3]:
-        print(text)
-    return len(exceptions) + lost
+    return tally.report(f"streams: {streams} in {elapsed:.1f} s (seed {seed})", "packets lost from intact streams")
 
 
 def throughput(count: int, seed: int) -> None:

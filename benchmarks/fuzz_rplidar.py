@@ -22,11 +22,10 @@ from __future__ import annotations
 import argparse
 import random
 import time
-import traceback
 
 import numpy as np
 
-from fuzz_streams import feed_in_chunks, mutate
+from fuzz_streams import Tally, feed_in_chunks, mutate
 
 from robotexp_drivers.lasers.rplidar import codec as k
 from robotexp_drivers.lasers.rplidar import constants as C
@@ -83,9 +82,7 @@ def _express_stream(rng: random.Random, mutated: bool) -> tuple[bytearray, np.nd
 
 def fuzz_express(streams: int, rng: random.Random) -> int:
     """Capsule streams through ExpressDecoder; print the counts; return the problems found."""
-    totals = {"scans": 0, "capsules": 0, "dropped_bytes": 0, "gaps": 0, "short_turns": 0}
-    exceptions: list[str] = []
-    lost = 0
+    tally = Tally(("scans", "capsules", "dropped_bytes", "gaps", "short_turns"))
     t0 = time.perf_counter()
     for n in range(streams):
         mutated = rng.random() < 0.8
@@ -96,21 +93,14 @@ def fuzz_express(streams: int, rng: random.Random) -> int:
         try:
             out = feed_in_chunks(rng, dec, stream, 400)
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
-            exceptions.append(f"express stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            tally.exception(f"express stream {n}", stream)
             continue
-        if not mutated and (len(out) != want or not all(np.array_equal(o, ranges) for o in out)):
-            lost += max(1, want - len(out))
-        for key in totals:
-            totals[key] += getattr(dec, key)
+        if not mutated:
+            tally.compare(out, [ranges] * want, np.array_equal)
+        tally.add(dec)
     elapsed = time.perf_counter() - t0
-    print(f"express streams: {streams} in {elapsed:.1f} s")
-    for key, value in totals.items():
-        print(f"  {key}: {value}")
-    print(f"  express turns lost or altered in intact streams: {lost}")
-    print(f"  exceptions: {len(exceptions)}")
-    for text in exceptions[:3]:
-        print(text)
-    return len(exceptions) + lost
+    return tally.report(f"express streams: {streams} in {elapsed:.1f} s",
+                        "express turns lost or altered in intact streams")
 
 
 def fuzz(streams: int, seed: int) -> int:
@@ -118,10 +108,8 @@ def fuzz(streams: int, seed: int) -> int:
     rng = random.Random(seed)
     turns = [_turn(rng) for _ in range(300)]
     requests = _requests(rng)
-    totals = {"scans": 0, "nodes": 0, "dropped_bytes": 0, "short_turns": 0}
-    req_totals = {"requests": 0, "dropped_bytes": 0, "bad_checksums": 0}
-    exceptions: list[str] = []
-    lost = 0
+    tally = Tally(("scans", "nodes", "dropped_bytes", "short_turns", "request decoder requests",
+                   "request decoder dropped_bytes", "request decoder bad_checksums"))
     t0 = time.perf_counter()
     for n in range(streams):
         mutated = rng.random() < 0.8
@@ -144,28 +132,18 @@ def fuzz(streams: int, seed: int) -> int:
                 if rng.random() < 0.8:
                     mutate(rng, reqs)
                 rdec = k.RequestDecoder()
-                req_totals["requests"] += len(feed_in_chunks(rng, rdec, reqs, 120))
-                req_totals["dropped_bytes"] += rdec.dropped_bytes
-                req_totals["bad_checksums"] += rdec.bad_checksums
+                tally.totals["request decoder requests"] += len(feed_in_chunks(rng, rdec, reqs, 120))
+                tally.totals["request decoder dropped_bytes"] += rdec.dropped_bytes
+                tally.totals["request decoder bad_checksums"] += rdec.bad_checksums
         except Exception:  # noqa: BLE001 - the fuzzer's job is to report any exception at all
-            exceptions.append(f"stream {n}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+            tally.exception(f"stream {n}", stream)
             continue
         if not mutated:
-            if len(out) != len(expected) or not all(np.array_equal(a, b) for a, b in zip(out, expected, strict=False)):
-                lost += max(1, len(expected) - len(out))
-        for key in totals:
-            totals[key] += getattr(dec, key)
+            tally.compare(out, expected, np.array_equal)
+        tally.add(dec, ("scans", "nodes", "dropped_bytes", "short_turns"))
     elapsed = time.perf_counter() - t0
-    print(f"streams: {streams} in {elapsed:.1f} s ({streams / elapsed:,.0f} streams/s, seed {seed})")
-    for key, value in totals.items():
-        print(f"  {key}: {value}")
-    for key, value in req_totals.items():
-        print(f"  request decoder {key}: {value}")
-    print(f"  turns lost or altered in intact streams: {lost}")
-    print(f"  exceptions: {len(exceptions)}")
-    for text in exceptions[:3]:
-        print(text)
-    return len(exceptions) + lost
+    return tally.report(f"streams: {streams} in {elapsed:.1f} s ({streams / elapsed:,.0f} streams/s, seed {seed})",
+                        "turns lost or altered in intact streams")
 
 
 def throughput(count: int) -> None:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import random
+import traceback
+from collections.abc import Callable
 from typing import Any
 
 
@@ -29,3 +31,42 @@ def feed_in_chunks(rng: random.Random, decoder: Any, stream: bytes | bytearray, 
         out += decoder.feed(bytes(stream[pos:pos + step]))
         pos += step
     return out
+
+
+class Tally:
+    """What one fuzz loop counts: the decoders' counters, the exceptions raised and the items lost from
+    intact streams; `report` prints them and returns the number of problems (exceptions + lost)."""
+
+    def __init__(self, keys: tuple[str, ...] | list[str]) -> None:
+        self.totals: dict[str, int] = dict.fromkeys(keys, 0)
+        self.exceptions: list[str] = []
+        self.lost = 0
+
+    def exception(self, label: str, stream: bytes | bytearray) -> None:
+        """Note the exception being handled, with the stream that raised it."""
+        self.exceptions.append(f"{label}: {bytes(stream).hex()}\n{traceback.format_exc()}")
+
+    def compare(self, out: list[Any], expected: list[Any], same: Callable[[Any, Any], bool] | None = None) -> None:
+        """Count what an intact stream lost: `out` must be `expected`, item by item (`same`, else ==)."""
+        if same is None:
+            equal = out == expected
+        else:
+            equal = len(out) == len(expected) and all(same(a, b) for a, b in zip(out, expected, strict=False))
+        if not equal:
+            self.lost += max(1, len(expected) - len(out))
+
+    def add(self, decoder: Any, keys: tuple[str, ...] | None = None) -> None:
+        """Add the decoder's counters named `keys` (all totals when None)."""
+        for key in keys if keys is not None else tuple(self.totals):
+            self.totals[key] += getattr(decoder, key)
+
+    def report(self, header: str, lost_label: str) -> int:
+        """Print the counts under `header`; return exceptions + lost."""
+        print(header)
+        for key, value in self.totals.items():
+            print(f"  {key}: {value}")
+        print(f"  {lost_label}: {self.lost}")
+        print(f"  exceptions: {len(self.exceptions)}")
+        for text in self.exceptions[:3]:
+            print(text)
+        return len(self.exceptions) + self.lost

@@ -76,3 +76,25 @@ def test_campaign_bad_files(tmp_path: Path, change: tuple[str, str], words: list
     _one_line_exit_2(["campaign", str(camp), "--out", str(out)], *words)
     assert not (out / "results.jsonl").exists()
     assert not (tmp_path.parent / "escape").exists()
+
+
+def test_emulate_port_out_of_range() -> None:
+    _one_line_exit_2(["emulate", "p3dx", "--port", "70000"], "--port must be within 0..65535, got 70000")
+
+
+def test_lua_syntax_error_is_bad_input(tmp_path: Path) -> None:
+    """A script that does not compile is refused before anything runs: one line with script:line, exit 2."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "bad.lua"
+    script.write_text('print("ran")\nx = = 1\n')
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert "ran" not in done.stdout
+    lines = [x for x in done.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("robotexp: error: bad.lua:2: "), done.stderr
+    assert "does not compile" in lines[0]
+    assert not (out / "results.jsonl").exists()

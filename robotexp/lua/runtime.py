@@ -141,12 +141,12 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         The exit status and the records of the script's runs.
 
     Raises:
-        ScriptError: syntax or runtime error (script:line: message), a bad API call, --timeout,
-            the memory limit.
-        ConfigError: an allowed address that is not a host[:port] or a device path; max_memory < 1 MB.
+        ScriptError: runtime error (script:line: message), a bad API call, --timeout, the memory limit.
+        ConfigError: a syntax error (the script is not run); an allowed address that is not a
+            host[:port] or a device path; max_memory < 1 MB.
         KeyboardInterrupt: Ctrl-C, after the robot is stopped and the runs so far are written.
     """
-    from lupa import LuaError, LuaRuntime
+    from lupa import LuaError, LuaRuntime, LuaSyntaxError
 
     if timeout is not None and not timeout > 0:
         raise ScriptError(f"--timeout must be > 0 s, got {timeout:g}")
@@ -197,9 +197,13 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     prelude(control.check, paths.resolve, paths.refuse, emit, exit_request, api,
             lua.table_from(session.methods()), sandbox, HOOK_EVERY, ABORT, script_dir, str(out))
 
+    try:
+        chunk = lua.compile(code, name=f"={name}", mode="t")
+    except LuaSyntaxError as exc:   # bad input, found before anything runs: exit 2 like the CLI's
+        session.close()
+        raise ConfigError(f"{_message(exc, name, max_memory)} (the script does not compile; nothing was run)") from None
     with _sigint_sets(control):
         try:
-            chunk = lua.compile(code, name=f"={name}", mode="t")
             chunk()
             try:
                 session.finish()

@@ -14,11 +14,10 @@ import pytest
 from click.testing import CliRunner
 
 from robotexp.cli import main
-from robotexp.errors import ScriptError
+from robotexp.errors import ConfigError, ScriptError
 
 
 @pytest.mark.parametrize(("code", "message"), [
-    ("x = 1\nlocal y = = 2", r"^s.lua:2: unexpected symbol near '='$"),
     ("\n\nlocal x = nil + 1", r"^s.lua:3: attempt to perform arithmetic on a nil value$"),
     ('error("boom")', r"^s.lua:1: boom$"),
     ("\nrobot.moveMobileSim(1, 2)",
@@ -42,6 +41,12 @@ from robotexp.errors import ScriptError
 def test_errors_name_script_line_and_function(lua, code, message):
     with pytest.raises(ScriptError, match=message):
         lua(code, name="s.lua")
+
+
+def test_syntax_error_is_bad_input_and_nothing_runs(lua):
+    with pytest.raises(ConfigError, match=r"^s.lua:2: unexpected symbol near '=' \(the script does not compile"):
+        lua('print("ran")\nlocal y = = 2', name="s.lua")
+    assert lua.lines == []
 
 
 def test_error_in_pcall_is_a_plain_string(lua):
