@@ -186,19 +186,30 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
+def _no_load(spec: str) -> None:
+    """`bench_specs` without loading the maps (a report of runs already made)."""
+
+
 def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
-              max_time: float = 4 * 3600.0,
+              max_time: float = 4 * 3600.0, run: bool = True,
               progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
-    """Run every map x method (see `bench_specs`) through the campaign runner into `out`, write
-    `bench.txt` and `bench.csv` there from every record in `out/results.jsonl`, return (text, csv)."""
+    """Run every map x method (see `bench_specs`) through the campaign runner into `out` (`run` False:
+    none, only the table), write `bench.txt` and `bench.csv` there from the records of these runs in
+    `out/results.jsonl` (the text says how many have none), return (text, csv)."""
     from robotexp.campaign import Campaign, run_campaign
     from robotexp.results import read_jsonl
 
-    specs = bench_specs(expand_maps(maps), methods, max_time=max_time)
-    run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
+    specs = bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
+    if run:
+        run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
     wanted = {(s.world, s.method) for s in specs}
-    records = [r for r in read_jsonl(out / "results.jsonl") if (r.get("world_spec"), r.get("method")) in wanted]
+    path = out / "results.jsonl"
+    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
+        if path.is_file() else []
     text, table = bench_table(records)
+    missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
+    if missing:
+        text += f"not run: {missing} of {len(wanted)} map x method pairs (no record in {path})\n"
     (out / "bench.txt").write_text(text, encoding="utf-8")
     (out / "bench.csv").write_text(table, encoding="utf-8")
     return text, table

@@ -28,8 +28,9 @@ __all__ = ["bench"]
 @click.option("--max-time", type=click.FloatRange(min=1.0), default=4 * 3600.0, show_default=True,
               help="Robot-time limit per run [s] (a run stopped by it is no success).")
 @click.option("--resume", is_flag=True, help="Skip the runs already recorded in the output folder.")
+@click.option("--report", is_flag=True, help="Run nothing: the table of the runs already recorded in --out.")
 def bench(maps: tuple[str, ...], methods: str | None, done_when: bool, seeds: str, jobs: int | None, out: Path,
-          max_time: float, resume: bool) -> None:
+          max_time: float, resume: bool, report: bool) -> None:
     """Run explorers over MAPS (map files, folders of them, built-in names, generated:KIND:A-B) from each
     map's default start; print per map and method coverage, path, robot time, end reason and success,
     then the success rate per method and map group and every failure with its end reason (also
@@ -50,7 +51,8 @@ def bench(maps: tuple[str, ...], methods: str | None, done_when: bool, seeds: st
         maps = tuple(done_when_maps(maps, seeds))
     try:
         text, _ = run_bench(list(maps), [m.strip() for m in methods.split(",") if m.strip()], out,
-                            jobs=jobs or os.cpu_count() or 1, resume=resume, max_time=max_time, progress=progress)
+                            jobs=jobs or os.cpu_count() or 1, resume=resume, max_time=max_time, progress=progress,
+                            run=not report)
     except (ConfigError, WorldError, PluginError) as exc:
         from robotexp.cli import _fail     # here, not at import: robotexp.cli imports this module
         _fail(str(exc), 2)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import io
 
 import pytest
@@ -94,3 +95,15 @@ def test_done_when_names_the_real_maps_and_three_generated_kinds():
     assert len(expand_maps(done_when_maps([], "0-49"))) == 150
     result = CliRunner().invoke(main, ["bench"])
     assert result.exit_code == 2 and "--done-when" in result.output
+
+
+def test_report_tables_the_recorded_runs_and_counts_the_missing(tmp_path):
+    out = tmp_path / "bench"
+    out.mkdir()
+    rec = {**record("frontier", 0.99, True, reason="done"), "world_spec": "generated:cave:0"}
+    (out / "results.jsonl").write_text(json.dumps(rec) + "\n")
+    result = CliRunner().invoke(main, ["bench", "generated:cave:0-1", "-m", "frontier", "-o", str(out), "--report"])
+    assert result.exit_code == 0, result.output
+    assert "frontier     success 1/1 = 100%" in result.output
+    assert "not run: 1 of 2 map x method pairs" in result.output
+    assert (out / "bench.csv").read_text().count("\n") == 2
