@@ -157,6 +157,11 @@ class StallWatch:
             The reason to end the run (it starts with "stalled"), or None to go on.
         """
         known = int(grid.unknown().size - np.count_nonzero(grid.unknown()))
+        if getattr(explorer, "backtracking", False):
+            # an explorer on a way back it bounds itself (SRT's drive to the parent node: each one
+            # moves up a finite tree) gains nothing by design; the window starts when it is done
+            self.since = time
+            return None
         if known >= self.best + self._gain_cells or self.best < 0:
             self.best, self.since, self.strikes = known, time, 0
             return None

@@ -63,13 +63,18 @@ class _FrontierRescue(SRTExplorer):
     the rescue was chosen, to the end of its perception) gives up every cell within `RESCUE_RADIUS`
     of its aim as a frontier: along a wall whose cells the grazing beams leave unknown, each
     perception moved the frontier a cell and the next rescue chased it (a generated office: 30
-    rescues in one corridor, 720 s without new space, run stalled at 0.48). When the run's stall
-    watch strikes (`give_up`), the frontier within the rescue view of the robot is given up.
+    rescues in one corridor, 720 s without new space, run stalled at 0.48). After `RESCUE_MISSES`
+    unproductive rescues in a row no rescue is tried until a node makes the map grow by
+    `RESCUE_GAIN`: in the sparse hall, rescues at the outer walls (wall cells left unknown) one after
+    another kept the map from growing for 720 s and the run stalled at 0.88, where the thesis's
+    tree alone completes. When the run's stall watch strikes (`give_up`), the frontier within the
+    rescue view of the robot is given up.
     Subclasses set `frontier`, `node_gap`, `tries`, `bins` and define the view and the points.
     """
 
     RESCUE_GAIN = 0.5       # [m2] newly known by a rescue for it to count as productive
     RESCUE_RADIUS = 1.0     # [m] around an unproductive rescue's aim, the frontier given up
+    RESCUE_MISSES = 2       # unproductive rescues in a row before rescues pause until the map grows
 
     frontier: bool
     node_gap: float
@@ -85,6 +90,7 @@ class _FrontierRescue(SRTExplorer):
         self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
         self._known_at_rescue = 0                               # known cells when the pending rescue was chosen
         self._known_best = 0                                    # the most cells the map has known (high water)
+        self._misses = 0                                        # unproductive rescues since the map last grew
 
     def result_fields(self) -> dict[str, object]:
         """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
@@ -101,6 +107,10 @@ class _FrontierRescue(SRTExplorer):
     def _skip_frontier(self, centres: np.ndarray, cell: float) -> np.ndarray:
         """Bool (k,): frontier cells (centres [m]) that are no openings for this sensor (default: none)."""
         return np.zeros(len(centres), dtype=bool)
+
+    def _rescue_allowed(self) -> bool:
+        """False after `RESCUE_MISSES` unproductive rescues in a row, until a node makes the map grow."""
+        return self.frontier and self._misses < self.RESCUE_MISSES
 
     def frontier_cells(self, index: int) -> np.ndarray:
         """The map's frontier cells (int (k, 2) rows and columns) within the rescue view of node `index`'s
@@ -182,7 +192,11 @@ class _FrontierRescue(SRTExplorer):
         """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
         given up (perceived from beside them, they stay next to unknown space the sensor cannot reach)."""
         super()._add_node(pose, region, grid)
+        known = int(np.count_nonzero(~grid.unknown()))
+        if (known - self._known_best) * grid.geo.cell ** 2 >= self.RESCUE_GAIN:
+            self._misses = 0                    # the map grew: rescues may be tried again
         if len(self._aim) == 0:
+            self._known_best = max(self._known_best, known)
             return
         front = frontier_targets(grid, 1)
         still = front[self._aim[:, 0], self._aim[:, 1]]
@@ -190,10 +204,10 @@ class _FrontierRescue(SRTExplorer):
         given_up[self._aim[still, 0], self._aim[still, 1]] = True
         # against the most the map ever knew (as the stall watch counts): cells that flicker between
         # free and unknown under grazing beams are no gain
-        known = int(np.count_nonzero(~grid.unknown()))
         gained = (known - self._known_at_rescue) * grid.geo.cell ** 2
         self._known_best = max(self._known_best, known)
         if gained < self.RESCUE_GAIN:
+            self._misses += 1
             # every cell near the aim, frontier now or not: cells beside a wall flicker between free,
             # unknown and wall face as beams graze them, and came back as frontier for the next rescue
             centre = grid.geo.centers_of(self._aim).mean(axis=0)
@@ -387,7 +401,7 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     def _candidate(self, index: int) -> tuple[float, float] | None:
         self._aim = np.zeros((0, 2), dtype=np.intp)
         cand = self._vertex_candidate(index)
-        if cand is None and self.frontier:
+        if cand is None and self._rescue_allowed():
             cand = self._frontier_candidate(index)
         return cand
 
@@ -573,7 +587,7 @@ class SRTStarExplorer(_FrontierRescue):
         self._aim = np.zeros((0, 2), dtype=np.intp)
         self._face = None
         cand = self._random_candidate(index)
-        if cand is None and self.frontier:
+        if cand is None and self._rescue_allowed():
             cand = self._frontier_candidate(index)
         return cand
 
