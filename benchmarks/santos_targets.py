@@ -67,7 +67,7 @@ from robotexp.planning.metaheuristics import (
 )
 from robotexp.planning.targets import nearest_passable, plan_costs, usable_frontier
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
-from robotexp.plot import box_plot
+from robotexp.figures import PAGE_WIDTH, box_figure, save_figure
 from robotexp.render import Marker, render_field, render_map, save_png
 from robotexp.robot import Pose
 
@@ -428,14 +428,14 @@ def main() -> None:
         _write_csv(args.out / "runs.csv", runs)
         form = "proportional" if "proportional" in args.forms else args.forms[0]
         groups = [(f"{st.name} {alg.upper()}", dist[(st.name, form, alg)]) for st in states for alg in ("ga", "fa")]
-        save_png(box_plot(groups, ylabel="distance to the optimum [5 cm cells]",
-                          title=f"GA and FA targets vs. the exhaustive optimum, {form} form, {args.seeds} seeds",
-                          size=(max(900, 100 * len(groups)), 540)), args.out / "distances.png")
+        save_figure(box_figure(groups, ylabel="distance to the optimum [5 cm cells]",
+                               title=f"GA and FA targets vs. the exhaustive optimum, {form} form, {args.seeds} seeds",
+                               width=max(PAGE_WIDTH, 0.8 * len(groups))), args.out / "distances", ("png",))
         pooled = [(f"{f} {alg.upper()}", np.concatenate([dist[(st.name, f, alg)] for st in states]))
                   for f in args.forms for alg in ("ga", "fa")]
-        save_png(box_plot(pooled, ylabel="distance to the optimum [5 cm cells]",
-                          title=f"distance to the optimum per form, {len(states)} states x {args.seeds} seeds",
-                          size=(max(900, 130 * len(pooled)), 540)), args.out / "distances_by_form.png")
+        save_figure(box_figure(pooled, ylabel="distance to the optimum [5 cm cells]",
+                               title=f"distance to the optimum per form, {len(states)} states x {args.seeds} seeds",
+                               width=max(PAGE_WIDTH, 1.0 * len(pooled))), args.out / "distances_by_form", ("png",))
     print(f"\nwrote {len(states) * (len(args.forms) + 1)} images, targets.csv, runs.csv and the box plots to "
           f"{args.out} in {time.perf_counter() - t0:.0f} s")
 

@@ -5,7 +5,8 @@ reader thread decodes the stream and folds it into the backend's state under `_c
 `threading.Condition`) on which readers of that state wait. The parts that are the same in every
 backend live here:
 
-- the reader loop (`_reader`): read what the link has, hand it to `_on_data`, and fail the link
+- the reader loop (`StreamReader._reader`, which the laser drivers run too): read what the link
+  has, hand it to `_on_data`, and fail the link
   when it ends, when nothing valid came for `timeout` s, or when the loop itself breaks (a bug
   must not leave `read()` waiting forever). Silence is judged on the reader's own clock: the link
   is silent when two reads in a row that *started* more than `timeout` s after the last valid
@@ -24,7 +25,13 @@ backend live here:
 - robot time: `wait_until(robot_time)` and `make_clock(period)` (a `PacedClock`), so a control
   loop runs in real time on a robot and as fast as an emulator's speed-up allows against one;
 - `close()` only logs a final stop that cannot reach the robot any more; `_shutdown()` stops the
-  reader and releases the link.
+  reader and releases the link;
+- every state as it arrives: a backend calls `_state_seen(robot_time, pose)` for each state packet
+  it decodes, and the reader hands the states of one read to the listeners of
+  `add_state_listener` (a laser mounted on the robot pairs its scans with them:
+  `robotexp.laser_mount`), stamped on the host's `time.monotonic()`: the newest at the read, each
+  earlier one as much before as its robot time is older (robot seconds turned into host seconds at
+  the rate the stream has been arriving: an emulator at 10x sends ten robot seconds a second).
 
 A backend calls `_init_stream()` first in its `__init__`, sets `address` and its link, starts the
 reader with `_start_reader()` and implements the hooks `_on_data`, `_send_twist`,
@@ -38,13 +45,14 @@ import math
 import threading
 import time
 from abc import abstractmethod
-from typing import Any, Protocol
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol
 
 from robotexp.clock import Clock, PacedClock
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
-from robotexp.robot import Robot, Twist
+from robotexp.robot import Pose, Robot, Twist
 
-__all__ = ["StreamBackend", "StreamLink", "read_waiting", "require_positive"]
+__all__ = ["StateStamps", "StreamBackend", "StreamLink", "StreamReader", "read_waiting", "require_positive"]
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +111,102 @@ def require_positive(who: str, **values: float) -> None:
             raise ConfigError(f"{who}: {what} must be > 0, got {value}")
 
 
-class StreamBackend(Robot):
+class StreamReader:
+    """The reader thread's loop of a device that streams (a robot backend, a laser driver): read
+    what the link has, hand it to `_on_read`, and fail the device (`_fail`) when the link ends, when
+    two reads in a row that started after `_silent` says the data stopped brought nothing valid (a
+    reader starved of the interpreter's lock finds what arrived meanwhile on its next read), or when
+    the loop itself breaks (a bug must not leave a waiting caller waiting forever).
+
+    A user has `name` and `address` and sets `_stop` (a `threading.Event`; set: the loop ends, a link closing
+    under it is no error) and `_quiet_reads = 0`, and implements `_receive`, `_on_read`, `_silent`,
+    `_silence_error` and `_fail`; `_clock` is the time the loop measures with.
+    """
+
+    name: ClassVar[str]
+    _stop: threading.Event
+    _quiet_reads: int
+
+    def _clock(self) -> float:
+        """The time [s] `_on_read` and `_silent` get."""
+        return time.perf_counter()
+
+    @abstractmethod
+    def _receive(self) -> bytes:
+        """What the link has now (b"" after its poll timeout); raises ConnectionLost at its end."""
+
+    @abstractmethod
+    def _on_read(self, data: bytes, now: float) -> None:
+        """Decode `data` (maybe b"") read at `now` [s, `_clock`]; may raise RobotError."""
+
+    @abstractmethod
+    def _silent(self, started: float) -> bool:
+        """True when a read that started at `started` [s, `_clock`] started past the silence limit."""
+
+    @abstractmethod
+    def _silence_error(self, now: float) -> RobotError:
+        """The error for the silence noticed at `now` [s, `_clock`]."""
+
+    @abstractmethod
+    def _fail(self, exc: RobotError) -> None:
+        """Record `exc` for the device's callers (and stop what must stop)."""
+
+    def _reader(self) -> None:
+        try:
+            while not self._stop.is_set():
+                started = self._clock()
+                try:
+                    data = self._receive()
+                except ConnectionLost:
+                    if self._stop.is_set():
+                        return      # closing: the link went away under us on purpose
+                    raise
+                now = self._clock()
+                self._on_read(data, now)
+                # silent only when reads that began after the limit brought nothing valid: a reader
+                # that could not run (the lock held elsewhere) finds the waiting data on its next read
+                self._quiet_reads = self._quiet_reads + 1 if self._silent(started) else 0
+                if self._quiet_reads >= 2:
+                    raise self._silence_error(now)
+        except RobotError as exc:
+            self._fail(exc)
+        except Exception as exc:     # a bug here must not leave a caller waiting forever
+            log.exception("%s: reader thread failed", self.name)
+            self._fail(RobotError(f"{self.name}: reader thread failed at {getattr(self, 'address', None)!r}: "
+                                  f"{exc!r}"))
+
+
+class StateStamps:
+    """Host stamps of the robot states one read brought: the newest at the read's time, each earlier
+    one as much before as its robot time is older, in host seconds per robot second as the stream
+    has been arriving (a decaying mean over the reads; 1 until two reads have come), none before the
+    previous read's newest."""
+
+    def __init__(self) -> None:
+        self._sum = [0.0, 0.0]                  # decaying sums of host and robot seconds between reads
+        self._last: tuple[float, float] | None = None   # (host, robot) time of the previous read's newest
+
+    @property
+    def host_per_robot(self) -> float:
+        """Host seconds per robot second (0.1 against an emulator at 10x)."""
+        return self._sum[0] / self._sum[1] if self._sum[1] > 0 else 1.0
+
+    def stamps(self, robot_times: list[float], now: float) -> list[float]:
+        """The stamps [s] of states at `robot_times` [s] (in order) that a read at `now` [s] brought."""
+        if not robot_times:
+            return []
+        newest = robot_times[-1]
+        last = self._last
+        if last is not None and newest > last[1] and now > last[0]:
+            self._sum[0] = 0.9 * self._sum[0] + (now - last[0])
+            self._sum[1] = 0.9 * self._sum[1] + (newest - last[1])
+        rate = self.host_per_robot
+        floor = -math.inf if last is None else last[0]
+        self._last = (now, newest)
+        return [max(now - (newest - t) * rate, floor) for t in robot_times]
+
+
+class StreamBackend(StreamReader, Robot):
     """A `Robot` whose state arrives as a stream decoded by a reader thread (see the module docstring).
 
     Attributes:
@@ -133,6 +236,28 @@ class StreamBackend(Robot):
         self._quiet_reads = 0   # reads in a row that started more than `timeout` s after the last valid data
         self.watchdog_stops = 0
         self.command_time = 0.0
+        self._listeners: list[Callable[[float, float, Pose], None]] = []
+        self._seen: list[tuple[float, Pose]] = []       # (robot time, pose) of the states of the read in hand
+        self._state_stamps = StateStamps()
+
+    def add_state_listener(self, listener: Callable[[float, float, Pose], None]) -> None:
+        """Call `listener(stamp, robot_time, pose)` for every state the robot sends, in order, from the
+        reader thread (keep it short): `stamp` [s, time.monotonic()] when it arrived (see the module
+        docstring), `robot_time` [s] and `pose` as `read()` would report them."""
+        self._listeners.append(listener)
+
+    def _state_seen(self, robot_time: float, pose: Pose) -> None:
+        """A state packet was decoded (reader thread): its robot time [s] and the pose `read()` reports."""
+        if self._listeners:
+            self._seen.append((robot_time, pose))
+
+    def _hand_out_states(self, now: float) -> None:
+        """Stamp the states of the read just decoded (read at `now` [s, time.monotonic()]) and give
+        them to the listeners."""
+        seen, self._seen = self._seen, []
+        for (robot_time, pose), stamp in zip(seen, self._state_stamps.stamps([t for t, _ in seen], now), strict=True):
+            for listener in self._listeners:
+                listener(stamp, robot_time, pose)
 
     def _start_reader(self, name: str) -> None:
         self._last_rx = time.perf_counter()     # the silence timeout runs from here
@@ -143,6 +268,12 @@ class StreamBackend(Robot):
     def _receive(self) -> bytes:
         """What the link has now (b"" after its poll timeout); raises ConnectionLost at its end."""
         return self._link.read_some()
+
+    def _on_read(self, data: bytes, now: float) -> None:
+        arrived = time.monotonic()
+        self._on_data(data, now)
+        if self._seen:
+            self._hand_out_states(arrived)
 
     @abstractmethod
     def _on_data(self, data: bytes, now: float) -> None:
@@ -172,30 +303,7 @@ class StreamBackend(Robot):
         """True when a read that started at `now` [s] started more than `timeout` s after the last valid data."""
         return now - self._last_rx > self.timeout
 
-    # -- reader thread -------------------------------------------------------------------
-    def _reader(self) -> None:
-        try:
-            while not self._stop.is_set():
-                started = time.perf_counter()
-                try:
-                    data = self._receive()
-                except ConnectionLost:
-                    if self._stop.is_set():
-                        return      # closing: the link went away under us on purpose
-                    raise
-                now = time.perf_counter()
-                self._on_data(data, now)
-                # silent only when reads that began after the limit brought nothing valid: a reader
-                # that could not run (the lock held elsewhere) finds the waiting data on its next read
-                self._quiet_reads = self._quiet_reads + 1 if self._silent(started) else 0
-                if self._quiet_reads >= 2:
-                    raise self._silence_error(now)
-        except RobotError as exc:
-            self._fail(exc)
-        except Exception as exc:     # a bug here must not leave read() waiting forever
-            log.exception("%s: reader thread failed", self.name)
-            self._fail(RobotError(f"{self.name}: reader thread failed at {self.address!r}: {exc!r}"))
-
+    # -- reader thread (StreamReader) ----------------------------------------------------
     def _fail(self, exc: RobotError) -> None:
         """Record the error for read() and the clock, and try once to stop the robot."""
         with self._cond:

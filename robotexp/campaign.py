@@ -42,6 +42,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from robotexp.campaign_robot import DEVICE_KEYS, Place, RobotDevices, check_starts, robot_devices, run_on_robots
 from robotexp.errors import ConfigError, PluginError, WorldError
 from robotexp.experiment import RunSpec
 from robotexp.record import EndReason, RunRecord
@@ -52,7 +53,7 @@ __all__ = ["Campaign", "RunKey", "load_campaign", "method_label", "run_campaign"
            "report_tables", "Table"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
-                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"}
+                  "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"} | DEVICE_KEYS
 _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep"}
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
@@ -70,10 +71,15 @@ class Campaign:
     runs: list[RunSpec]
     record: bool = False        # each run also written as a ROS 2 bag, <out>/bags/<run>.mcap (key `record`)
     sweeps: dict[int, dict[str, Any]] | None = None    # id(spec) -> swept parameter values
+    devices: dict[int, RobotDevices] | None = None     # id(spec) -> the robot it runs on (robotexp.campaign_robot)
 
     def sweep_of(self, spec: RunSpec) -> dict[str, Any]:
         """The swept parameter values of a run of this campaign ({} outside a sweep)."""
         return (self.sweeps or {}).get(id(spec), {})
+
+    def devices_of(self, spec: RunSpec) -> RobotDevices | None:
+        """The robot (and laser) a run of this campaign is made on (None: the embedded simulator)."""
+        return (self.devices or {}).get(id(spec))
 
     def key(self, spec: RunSpec) -> RunKey:
         """`run_key` of a run of this campaign."""
@@ -153,17 +159,21 @@ def load_campaign(path: str | Path) -> Campaign:
     methods_installed = available(EXPLORERS)
     runs: list[RunSpec] = []
     sweeps: dict[int, dict[str, Any]] = {}
+    devices: dict[int, RobotDevices] = {}
     for i, raw in enumerate(sets, start=1):
         where = f"[[set]] #{i}"
         if not isinstance(raw, dict):
             raise _fail(p, where, "must be a table")
         _check_keys(raw, _SET_KEYS, p, where)
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
+        robot = robot_devices(merged, lambda key, msg, kind=ConfigError, w=where: _fail(p, f"{w}.{key}", msg, kind))
         for world in _worlds(merged, p, where):
             for spec, sweep in _expand({**merged, "world": world}, p, where, methods_installed, load_world):
                 runs.append(spec)
                 if sweep:
                     sweeps[id(spec)] = sweep
+                if robot is not None:
+                    devices[id(spec)] = robot
     name = head.get("name", p.stem)
     if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", name)):
         raise _fail(p, "campaign.name", f"{str(name)[:60]!r} is not a folder name (letters, digits, '_', '.', "
@@ -177,7 +187,9 @@ def load_campaign(path: str | Path) -> Campaign:
                         f"{keys[key].speed * 1000:g} and {spec.speed * 1000:g} mm/s; a seed, speed or swept value "
                         "given twice?); give each run once")
         keys[key] = spec
-    return Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps)
+    campaign = Campaign(name, p, runs, _get(head, "record", False, bool, p, "[campaign]"), sweeps, devices)
+    check_starts(campaign)      # runs on a robot: every start pose planned before anything connects
+    return campaign
 
 
 def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
@@ -384,7 +396,7 @@ def _run_one(spec: RunSpec, out: str, record: bool = False, extra: dict[str, Any
 
 def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = False,
                  progress: Callable[[int, int, RunRecord | None], None] | None = None,
-                 cluster: str | None = None) -> list[RunRecord]:
+                 cluster: str | None = None, place: Place | None = None) -> list[RunRecord]:
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
     Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
 
@@ -393,24 +405,30 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     output folder is locked for the campaign (`robotexp.safefile.folder_lock`) and the workers die
     with this process.
 
+    A campaign with runs on a robot (`campaign.devices`) makes its runs one after another here, in the
+    file's order, whatever `jobs` (`robotexp.campaign_robot.run_on_robots`; `place` is its operator hook).
+
     Raises:
-        ConfigError: --jobs < 1, a bad cluster address or no scheduler there, or another campaign is
-            writing into `out`.
+        ConfigError: --jobs < 1, a bad cluster address or no scheduler there, another campaign is
+            writing into `out`, or a cluster for a campaign with runs on a robot.
     """
     if jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
+    if cluster is not None and campaign.devices:
+        raise ConfigError(f"{campaign.source}: runs on a robot (address in a [[set]]) are made here, one after "
+                          "another; run without --cluster")
     from robotexp.safefile import folder_lock
 
     if cluster is not None:
         from robotexp.cluster import check_cluster_address
         check_cluster_address(cluster)
     with folder_lock(out, f"campaign {campaign.name}"):
-        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster)
+        return _run_locked(campaign, out, jobs=jobs, resume=resume, progress=progress, cluster=cluster, place=place)
 
 
 def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
                 progress: Callable[[int, int, RunRecord | None], None] | None,
-                cluster: str | None = None) -> list[RunRecord]:
+                cluster: str | None = None, place: Place | None = None) -> list[RunRecord]:
     from robotexp.results import read_records
 
     results = out / "results.jsonl"
@@ -420,13 +438,17 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
     todo = [s for s in campaign.runs if campaign.key(s) not in done]
     # Likely-longest first, so that no process is left alone with a long run at the end: a run's robot
     # time grows with its time limit and falls with its speed (the order of the records does not matter).
-    todo.sort(key=lambda s: (-s.max_time, s.speed))
+    if not campaign.devices:        # on a robot: the file's order
+        todo.sort(key=lambda s: (-s.max_time, s.speed))
     total = len(todo)
     if progress:
         progress(0, total, None)
     if not todo:
         return []
     out.mkdir(parents=True, exist_ok=True)
+    if campaign.devices:
+        return run_on_robots(campaign, todo, out, progress=progress, place=place,
+                             extra=lambda spec: _record_extra(spec, campaign.sweep_of(spec)))
     records: list[RunRecord] = []
     if cluster is not None:
         from robotexp.cluster import run_on_cluster

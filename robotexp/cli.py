@@ -185,6 +185,16 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
     return out
 
 
+def _image_formats(text: str) -> tuple[str, ...]:
+    """--image-format: "png,svg" -> ("png", "svg"); ConfigError for anything else."""
+    from robotexp.figures import FORMATS
+
+    fmts = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    if not fmts or set(fmts) - set(FORMATS):
+        raise ConfigError(f"--image-format {text!r}: use png, svg, pdf (comma-separated)")
+    return fmts
+
+
 @main.command()
 @click.option("--world", "-w", default="dense", show_default=True,
               help="Built-in world name, or the path of a MobileSim .map or ROS .yaml map.")
@@ -224,14 +234,16 @@ def _params(items: tuple[str, ...]) -> dict[str, Any]:
 @click.option("--frames", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Save a PNG frame of the map (with the --show overlays) every --frame-every s of robot time in DIR.")
 @click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
+@click.option("--image-format", "image_format", default="png", show_default=True,
+              help="Formats of the run's map and coverage figures, comma-separated: png, svg, pdf.")
 @view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
             odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
-            record: Path | None, frames: Path | None, frame_every: float, view: bool, view_port: int,
-            view_host: str, view_speed: str | None) -> None:
+            record: Path | None, frames: Path | None, frame_every: float, image_format: str, view: bool,
+            view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import RunSpec, run_experiment, run_on_robot
     from robotexp.laser_mount import check_laser_options, connect_with_laser
@@ -249,6 +261,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                           "simulator has its own")
     check_laser_options(laser, laser_pose)
     overlays = tuple(s for s in show.split(",") if s)
+    formats = _image_formats(image_format)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
     if unknown:
         raise ConfigError(f"--show: unknown overlay(s) {', '.join(sorted(unknown))}; "
@@ -278,12 +291,12 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         watchers.append(recorder)
     try:
         if address is None:
-            result = run_experiment(spec, out, observers=watchers, show=overlays)
+            result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
             with connect_with_laser(robot, address, laser, laser_pose) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays)
+                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays, image=formats)
     except (WorldError, ConfigError) as exc:
         end_view(live, interrupted=True)
         if hint is not None:            # one line: the refusal and how the pose was read
@@ -421,6 +434,13 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     out = out or Path("out") / camp.name
     writable_folder(out)
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
+    place = None
+    if camp.devices:            # a robot: one run at a time, the operator places it between runs
+        from robotexp.campaign_robot import one_at_a_time, operator
+        click.echo(one_at_a_time(camp, jobs), err=True)
+        # on a terminal the line starts below the progress bar
+        n_jobs, place = 1, operator(sys.stdin.readline, lambda line: click.echo(
+            ("\n" if sys.stderr.isatty() else "") + line, err=True))
     t0 = time.monotonic()
     tty = sys.stderr.isatty()
     failed: list[str] = []
@@ -448,7 +468,8 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     where = f"cluster {cluster}" if cluster else f"{n_jobs} jobs"
     click.echo(f"campaign {camp.name}: {len(camp.runs)} runs, {where}, results in {out}", err=True)
     try:
-        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster)
+        records = run_campaign(camp, out, jobs=n_jobs, resume=resume, progress=progress, cluster=cluster,
+                               place=place)
     except BaseException:
         end_view(live, interrupted=True)
         raise

@@ -5,8 +5,10 @@ and overlaid trajectories.
 layout of Santos 2016's Table 8: one row per method with the number of runs, visited cells
 mean +- standard deviation, mean coverage and mean path length, then one row per pair of methods
 with the two-sided p-value of Welch's two-sample t-test on visited cells. `campaign_plots` draws
-`visited_cells.png` (a box per world and method) and `paths_<world>_<method>.png` (every run's
-trajectory, read from its `NAME.path.csv`, on the world's map).
+(on matplotlib, `robotexp.figures`) `visited_cells.png` (a box per world and method, every run a point),
+`coverage_<world>.png` (every run's coverage curve, one colour per method, from its `NAME.coverage.csv`)
+and `paths_<world>_<method>.png` (every run's trajectory, read from its `NAME.path.csv`, on the world's
+map).
 
 As in the thesis tables, runs cut short (not completed) are left out of the statistics unless
 `include_incomplete` is set; interrupted runs are always left out.
@@ -268,17 +270,19 @@ def _run_label(record: RunRecord, with_speed: bool) -> str:
 def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir: Path, out: Path, *,
                    include_incomplete: bool = False,
                    note: Callable[[str], None] | None = None) -> list[Path]:
-    """Write `visited_cells.png` and one `paths_<world>_<method>.png` per world and method into `out`.
+    """Write `visited_cells.png`, one `coverage_<world>.png` per world and one `paths_<world>_<method>.png`
+    per world and method into `out`.
 
-    The box plot has one box per (world, method) over the runs `comparison_tables` uses. The path
-    images show every run that was not interrupted (a run cut short is marked * in the legend), on
-    the static obstacles of the record's `world_spec` (else `world`); a run whose path file is
-    missing, or a world that cannot be loaded, is reported through `note` and skipped / drawn
-    without its map.
+    The box figure has one box per (world, method) over the runs `comparison_tables` uses, every run a
+    point, the cell size in the axis label (or under each box when a world has runs at several sizes).
+    The coverage and path figures show every run that was not interrupted (a run cut short is marked * in
+    the legend), the paths on the static obstacles of the record's `world_spec` (else `world`); a run
+    whose path or coverage file is missing, or a world that cannot be loaded, is reported through `note`
+    and skipped / drawn without its map.
 
     Args:
         records: results.jsonl records.
-        results_dir: the folder holding the runs' path files (that of results.jsonl).
+        results_dir: the folder holding the runs' path and coverage files (that of results.jsonl).
         out: output folder (created when missing).
         include_incomplete: also count the runs cut short in the box plot.
         note: called with a one-line message for each skipped run or world.
@@ -289,9 +293,9 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
     Raises:
         ConfigError: no run left to plot.
     """
-    from robotexp.plot import box_plot
-    from robotexp.render import save_png
-    from robotexp.trajectory import paths_image, read_path_csv
+    from robotexp.figures import PAGE_WIDTH, box_figure, curve_figure, figure_title, paths_figure, save_figure
+    from robotexp.results import read_curve_csv
+    from robotexp.trajectory import read_path_csv
     from robotexp.world.loader import load_world
 
     say = note or (lambda text: log.info("%s", text))
@@ -321,9 +325,33 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
         else:
             groups.append((f"{w} {m}", next(iter(by_cell.values()), [])))
     what = "all finished runs" if include_incomplete else "completed runs"
-    written = [save_png(box_plot(groups, ylabel="visited cells",
-                                 title=f"Visited cells per run, by world and method ({what})",
-                                 size=(max(900, 130 * len(groups)), 540)), out / "visited_cells.png")]
+    every = set().union(*sizes.values())
+    only = next(iter(every)) if len(every) == 1 else None
+    unit = f"[cells of {only * 1000:g} mm]" if only is not None else "[cells of each run's map]"
+    box = box_figure(groups, ylabel=f"visited cells {unit}",
+                     title=f"Visited cells per run, by world and method ({what})",
+                     width=max(PAGE_WIDTH, 1.1 * len(groups)))
+    written = save_figure(box, out / "visited_cells", ("png",))
+    for world in sorted(sizes):
+        curves = []
+        for (w, method) in keys:
+            for r in by_group[(w, method)] if w == world else ():
+                f = results_dir / f"{r.run}.coverage.csv"
+                if not f.is_file():
+                    say(f"{r.run}: no coverage file {f.name}; curve skipped")
+                    continue
+                curve = read_curve_csv(f)
+                if len(curve) and curve[-1, 2] >= 0:
+                    curves.append((method, curve[:, 0] / 60, curve[:, 2] * 100))
+        if curves:
+            methods = {c[0] for c in curves}
+            cells = " / ".join(f"{c * 1000:g}" for c in sorted(c for c in sizes[world] if c is not None))
+            fig = curve_figure(curves, xlabel="robot time [min]",
+                               ylabel="coverage [%]" + (f" ({cells} mm cells)" if cells else ""),
+                               title=f"{figure_title(world, methods.pop()) if len(methods) == 1 else world}: "
+                                     f"coverage of the explorable free space, {len(curves)} run(s)",
+                               hlines=(90, 95, 99), ylim=(0, 100))
+            written += save_figure(fig, out / f"coverage_{_safe(world)}", ("png",))
     worlds: dict[str, Any] = {}
     for world, method in keys:
         recs = sorted(by_group[(world, method)], key=lambda r: (str(r.pose), _speed(r), r.seed))
@@ -346,6 +374,6 @@ def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir
             continue
         title = f"{world} - {method}: {len(lines)} run(s)"
         notes = ["dot: start of a path"] + (["*: run cut short"] if any(not r.completed for r in recs) else [])
-        image = paths_image(worlds[spec], lines, title=title, notes=notes)
-        written.append(save_png(image, out / f"paths_{_safe(world)}_{_safe(method)}.png"))
+        fig = paths_figure(worlds[spec], lines, title=title, notes=notes)
+        written += save_figure(fig, out / f"paths_{_safe(world)}_{_safe(method)}", ("png",))
     return written

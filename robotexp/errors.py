@@ -42,3 +42,20 @@ class PluginError(RobotexpError):
 
 class ConfigError(RobotexpError, ValueError):
     """A parameter out of range."""
+
+
+def interrupt_behind(exc: BaseException) -> bool:
+    """True when a Ctrl-C is behind `exc`: a KeyboardInterrupt in its chain of causes and contexts.
+
+    A SIGINT that lands while a numba kernel's dispatcher is returning comes out as
+    ``SystemError: CPUDispatcher(...) returned a result with an exception set`` whose cause is the
+    KeyboardInterrupt; such an error is the user's Ctrl-C, not the plugin's fault.
+    """
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False

@@ -195,7 +195,7 @@ def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explore
 
 def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
                    on_sample: Callable[[float, float | None], None] | None = None,
-                   show: tuple[str, ...] = (), image: bool = True,
+                   show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
                    record_extra: dict[str, Any] | None = None,
                    on_run: Callable[[ExplorationRun], None] | None = None) -> RunOutput:
     """Run `spec` on the embedded simulator: the spec is planned (`plan_run`), then a `SimRobot`
@@ -203,7 +203,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     (nothing when `out` is None).
 
     `on_sample(t, coverage)` and `on_run(run)` are called after each coverage sample (an observer's
-    `on_sample` does the same; `on_run` may render frames or call `request_stop`).
+    `on_sample` does the same; `on_run` may render frames or call `request_stop`). `image`: write the map
+    and coverage figures (PNG; a tuple names the formats, e.g. ("png", "svg")) or not.
 
     Raises:
         WorldError, PluginError, ConfigError: bad input, before the robot moves.
@@ -222,7 +223,7 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
 def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
                  observers: Iterable[RunObserver] = (),
                  on_sample: Callable[[float, float | None], None] | None = None,
-                 show: tuple[str, ...] = (), image: bool = True, map_size: float = 20.0,
+                 show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True, map_size: float = 20.0,
                  record_extra: dict[str, Any] | None = None,
                  on_run: Callable[[ExplorationRun], None] | None = None,
                  plan: RunPlan | None = None) -> RunOutput:

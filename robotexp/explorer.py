@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, RobotError
+from robotexp.errors import ConfigError, RobotError, interrupt_behind
 from robotexp.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
@@ -100,6 +100,7 @@ class RunMetrics:
 
     path_length: float = 0.0                # [m] along the true path where known, else odometry
     path: list[tuple[float, float]] = field(default_factory=list)
+    estimated: list[tuple[float, float]] = field(default_factory=list)   # the explorer's pose, beside `path`
     visited: set[tuple[int, int]] = field(default_factory=set)
     curve: list[tuple[float, float, float]] = field(default_factory=list)  # (robot time, path, coverage)
     milestones: dict[float, tuple[float, float] | None] = field(
@@ -287,6 +288,8 @@ class ExplorationRun:
         except RobotError:          # the robot's fault, met by the explorer (an emergency stop seen in a state)
             raise
         except Exception as exc:
+            if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: an interruption, not a plugin error
+                raise KeyboardInterrupt from exc
             self.error = exc
             self.reason = f"plugin error: {where}: {method.__name__} raised {type(exc).__name__}: {exc}"
             self.end = EndReason.PLUGIN_ERROR
@@ -306,6 +309,8 @@ class ExplorationRun:
             x0, y0 = m.path[-1]
             m.path_length += math.hypot(p.x - x0, p.y - y0)
         m.path.append((p.x, p.y))
+        if state.true_pose is not None:        # the pose the explorer got (odometry or localized), for images
+            m.estimated.append((state.pose.x, state.pose.y))
         row, col = self.grid.geo.cell_of(p.x, p.y)
         m.visited.add((row, col))
         m.collisions = int(state.extra.get("collisions", 0)) - collisions0

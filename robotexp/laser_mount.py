@@ -3,8 +3,10 @@
 A laser (`robotexp.laser.Laser`) is a device beside the robot: its scans arrive on their own
 clock, stamped with the host's `time.monotonic()` when complete. `LaserMountedRobot` wraps any
 `Robot` and gives its states the laser's newest scan, re-expressed in the robot frame of the state
-it returns: the robot's pose when the scan was complete is interpolated between the states read
-around its stamp (`PoseHistory`), the sensor sits at `mount` on the robot, and every echo is moved
+it returns: the robot's pose when the scan was complete is interpolated between the robot's states
+around its stamp (`PoseHistory`: every state the robot sends, stamped as it arrived, when the robot
+offers `add_state_listener` as the stream backends do; else the states read), the sensor sits at
+`mount` on the robot, and every echo is moved
 to where it lies as seen from the robot's present pose (`scan_in_robot_frame`). So a map built from
 `state.pose` and `state.laser` puts each echo where the laser saw it, however old the scan. A laser
 that measures its beams one after the other (a turning RPLidar) says when, relative to the scan's
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import threading
 import time
 from collections import deque
 from dataclasses import replace
@@ -27,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.laser import Laser, LaserEmulator, ScanSource
+from robotexp.laser import Laser, LaserEmulator, ScanSource, StampedScan
 from robotexp.robot import Clock, LaserScan, Pose, Robot, RobotState, Twist, wrap_angle
 
 __all__ = ["PoseHistory", "LaserMountedRobot", "scan_in_robot_frame", "parse_laser_pose", "parse_laser_spec",
@@ -42,45 +45,64 @@ class PoseHistory:
         maxlen: how many (time, pose) samples to keep.
     """
 
-    def __init__(self, maxlen: int = 512) -> None:
+    def __init__(self, maxlen: int = 2048) -> None:
         self._t: deque[float] = deque(maxlen=maxlen)
         self._p: deque[Pose] = deque(maxlen=maxlen)
+        self._lock = threading.Lock()           # added to by a reader thread, read by the control loop
+        self._floor = -math.inf                 # poses at or before this time are from before `clear`
 
     def add(self, t: float, pose: Pose) -> None:
-        """Record `pose` at host time `t` [s]; a time not after the last one replaces nothing and is dropped."""
-        if self._t and t <= self._t[-1]:
-            return
-        self._t.append(t)
-        self._p.append(pose)
+        """Record `pose` at host time `t` [s]; a time not after the last one (or not after the last
+        `clear`) replaces nothing and is dropped."""
+        with self._lock:
+            if t <= self._floor or self._t and t <= self._t[-1]:
+                return
+            self._t.append(t)
+            self._p.append(pose)
+
+    def clear(self) -> None:
+        """Forget every pose (odometry jumped) and refuse any stamped before now."""
+        with self._lock:
+            self._floor = time.monotonic()
+            self._t.clear()
+            self._p.clear()
 
     def oldest(self) -> Pose | None:
         """The first pose kept (None when empty)."""
-        return self._p[0] if self._p else None
+        with self._lock:
+            return self._p[0] if self._p else None
 
     def at(self, t: float) -> Pose | None:
         """The pose at host time `t`: linear between the samples around it (the heading along the
         shorter arc), the newest pose after the last sample; None before the first or when empty."""
-        if not self._t or t < self._t[0]:
-            return None
-        i = bisect.bisect_right(self._t, t)
-        if i >= len(self._t):
-            return self._p[-1]
-        t0, t1 = self._t[i - 1], self._t[i]
-        p0, p1 = self._p[i - 1], self._p[i]
+        with self._lock:
+            if not self._t or t < self._t[0]:
+                return None
+            i = bisect.bisect_right(self._t, t)
+            if i >= len(self._t):
+                return self._p[-1]
+            t0, t1 = self._t[i - 1], self._t[i]
+            p0, p1 = self._p[i - 1], self._p[i]
         f = (t - t0) / (t1 - t0)
         return Pose(p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y),
                     wrap_angle(p0.theta + f * wrap_angle(p1.theta - p0.theta)))
+
+    def samples(self) -> tuple[list[float], list[Pose]]:
+        """A copy of the (times, poses) kept, oldest first."""
+        with self._lock:
+            return list(self._t), list(self._p)
 
 
 def _poses_at(history: PoseHistory, ts: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], ...] | None:
     """(x, y, theta) arrays of the poses at host times `ts` (clamped to the history's span: before the
     first sample the first pose), interpolated as `PoseHistory.at`; None when the history is empty."""
-    if not history._t:
+    times, poses = history.samples()
+    if not times:
         return None
-    t = np.fromiter(history._t, np.float64)
-    x = np.fromiter((p.x for p in history._p), np.float64)
-    y = np.fromiter((p.y for p in history._p), np.float64)
-    th = np.unwrap(np.fromiter((p.theta for p in history._p), np.float64))
+    t = np.asarray(times, np.float64)
+    x = np.fromiter((p.x for p in poses), np.float64, len(poses))
+    y = np.fromiter((p.y for p in poses), np.float64, len(poses))
+    th = np.unwrap(np.fromiter((p.theta for p in poses), np.float64, len(poses)))
     if t.size == 1:
         return np.full(ts.shape, x[0]), np.full(ts.shape, y[0]), np.full(ts.shape, th[0])
     return np.interp(ts, t, x), np.interp(ts, t, y), np.interp(ts, t, th)
@@ -158,6 +180,11 @@ class LaserMountedRobot(Robot):
         self.radius = robot.radius
         self.history = PoseHistory()
         self.paired = 0                                           # scans given with an interpolated pose
+        self.last_pair: tuple[StampedScan, Pose] | None = None   # the newest scan given and its robot pose
+        listen = getattr(robot, "add_state_listener", None)
+        self.streamed = listen is not None                        # every state, stamped as it arrived
+        if listen is not None:
+            listen(lambda stamp, _robot_time, pose: self.history.add(stamp, pose))
         super().__init__()
 
     @property
@@ -176,7 +203,7 @@ class LaserMountedRobot(Robot):
 
     def move_to(self, pose: Pose) -> None:
         self.robot.move_to(pose)
-        self.history = PoseHistory()         # odometry jumped: older poses no longer pair with scans
+        self.history.clear()                 # odometry jumped: older poses no longer pair with scans
 
     def set_max_speed(self, v_max: float) -> None:
         self.robot.set_max_speed(v_max)
@@ -184,8 +211,8 @@ class LaserMountedRobot(Robot):
 
     def _read(self) -> RobotState:
         state = self.robot.read()
-        now = time.monotonic()
-        self.history.add(now, state.pose)
+        if not self.streamed:
+            self.history.add(time.monotonic(), state.pose)
         # no state without a scan: an explorer given an empty first view would call the world explored
         stamped = self.laser.latest() or self.laser.wait_scan(-1, self.first_scan_timeout)
         at_scan = self.history.at(stamped.stamp)
@@ -193,6 +220,7 @@ class LaserMountedRobot(Robot):
             at_scan = self.history.oldest() or state.pose
         else:
             self.paired += 1
+        self.last_pair = (stamped, at_scan)
         sensor = _compose(at_scan, self.mount)
         beam_sensors = None
         offsets = getattr(self.laser, "beam_offsets", None)

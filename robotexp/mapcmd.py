@@ -65,7 +65,7 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
     from robotexp.localization.carmen import read_carmen
     from robotexp.localization.logmap import map_log, parse_noise
     from robotexp.localization.posegraph import LoopConfig
-    from robotexp.render import render_map, save_png
+    from robotexp.figures import apart, figure_title, map_figure, save_figure
     from robotexp.results import append_jsonl
     from robotexp.world.rosmap import save_ros_map
 
@@ -85,7 +85,11 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
     name = _stem(log)
     out.mkdir(parents=True, exist_ok=True)
     states, geo = crop_seen(result.grid.states(), result.grid.geo)
-    save_png(render_map(states, geo, max_size=1000), out / f"{name}.png")
+    est = result.estimate[:, :2] if apart(result.estimate, result.truth) else None
+    fig = map_figure(states, geo, path=result.truth[:, :2], est_path=est, labels=("logged path", "estimated path"),
+                     title=figure_title(name, localize),
+                     note=f"cell {cell * 1000:g} mm, {len(parsed.scans)} scans, ATE {result.ate_m:.3f} m")
+    save_figure(fig, out / name, ("png",))
     save_ros_map(out / f"{name}.yaml", states, geo)
     record = {
         "run": name,

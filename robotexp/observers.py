@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from robotexp.errors import interrupt_behind
 from robotexp.robot import RobotState, Twist
 
 if TYPE_CHECKING:
@@ -111,6 +112,8 @@ class Observers:
             try:
                 getattr(observer, hook)(*args)
             except Exception as exc:
+                if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
+                    raise KeyboardInterrupt from exc
                 log.error("run observer %s raised in %s (detached for the rest of the run): %s: %s",
                           type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
                 self.errors.append((observer, exc))

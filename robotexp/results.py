@@ -8,6 +8,7 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import math
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,7 +22,8 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
 
 __all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
-           "ResultsWriter", "save_run_images", "map_image", "RESULT_KEYS", "RunRecord", "EndReason"]
+           "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
+           "RunRecord", "EndReason"]
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
@@ -74,15 +76,17 @@ def make_record(run: ExplorationRun) -> RunRecord:
 class ResultsWriter(RunObserver):
     """The observer that writes a run's files under `out` at its end: the record appended to
     `results.jsonl` first (so it is never lost), then `<run>.coverage.csv`, `<run>.path.csv`,
-    `<run>.map.yaml` + `.pgm` and, with `image`, `<run>.png` and `<run>.coverage.png`.
+    `<run>.map.yaml` + `.pgm` and, with `image`, the figures `<run>.png` and `<run>.coverage.png`
+    (`robotexp.figures`; also as .svg / .pdf when `image` is a tuple of formats naming them).
 
     It is `critical`: when writing fails the caller of the run raises the error after the run.
     """
 
     critical = True
 
-    def __init__(self, out: Path, *, image: bool = True, show: tuple[str, ...] = ()) -> None:
-        self.out, self.image, self.show = out, image, show
+    def __init__(self, out: Path, *, image: bool | tuple[str, ...] = True, show: tuple[str, ...] = ()) -> None:
+        self.out, self.image, self.show = out, bool(image), show
+        self.formats: tuple[str, ...] = image if isinstance(image, tuple) else ("png",)
         self.image_path: Path | None = None
         self.plot_path: Path | None = None
 
@@ -98,45 +102,43 @@ class ResultsWriter(RunObserver):
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
         if self.image:
-            self.image_path, self.plot_path = save_run_images(run, out, name, record.world, record.method,
-                                                              self.show)
+            self.image_path, self.plot_path = save_run_images(run, out, name, self.show, self.formats)
 
 
-def save_run_images(run: ExplorationRun, out: Path, name: str, world_name: str, method: str,
-                    show: tuple[str, ...]) -> tuple[Path, Path]:
-    """The map image (grid, walls, path, start, end and the `show` overlays) and the coverage plot."""
-    from robotexp.plot import line_plot
-    from robotexp.render import save_png
+def save_run_images(run: ExplorationRun, out: Path, name: str, show: tuple[str, ...] = (),
+                    formats: tuple[str, ...] = ("png",)) -> tuple[Path, Path | None]:
+    """The map figure (grid, walls, path - true and estimated when they differ -, start, end and the `show`
+    overlays) and the coverage figure (None without ground truth), as `formats` (PNG first)."""
+    from robotexp.figures import save_run_figures
 
-    img_path = out / f"{name}.png"
-    save_png(map_image(run, f"{world_name} - {method} - {run.metrics.path_length:.1f} m", show), img_path)
-    curve = run.metrics.curve
-    plot_path = out / f"{name}.coverage.png"
-    if curve and curve[-1][2] >= 0:
-        ts = [c[0] / 60 for c in curve]
-        plot = line_plot([("coverage", ts, [c[2] for c in curve])], xlabel="robot time [min]",
-                         ylabel="coverage", title=f"{name}: coverage of the explorable free space",
-                         hlines=(0.9, 0.95, 0.99), ylim=(0.0, 1.0))
-        save_png(plot, plot_path)
-    return img_path, plot_path
+    fmts = ("png", *(f for f in formats if f != "png"))
+    return save_run_figures(run, out, name, fmts, show)
+
+
+def laser_hits(run: ExplorationRun) -> np.ndarray[Any, np.dtype[np.float64]] | None:
+    """(n, 2) world points [m] of the finite beams of the run's last scan, from the laser's place on the robot
+    at the pose the explorer got (the map's frame); None without a scan."""
+    state = run.state
+    if state is None or state.laser is None:
+        return None
+    p, sc = state.pose, state.laser
+    ok = np.isfinite(sc.ranges)
+    a = p.theta + sc.angles[ok]
+    sx, sy = p.x + sc.offset_x * math.cos(p.theta), p.y + sc.offset_x * math.sin(p.theta)
+    return np.column_stack([sx + sc.ranges[ok] * np.cos(a), sy + sc.ranges[ok] * np.sin(a)])
 
 
 def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, scale: int | None = None,
               path: bool = True) -> Any:
-    """The PIL image of a run's map with its path and the overlays named in `show`
-    (grid, laser, vectors, potential, truth); `scale` in pixels per cell (None: fit), `path` False
-    leaves the path out."""
+    """The fast raster image (PIL, `robotexp.render`) of a run's map with its path and the overlays named in
+    `show` (grid, laser, vectors, potential, truth), for frames; `scale` in pixels per cell (None: fit),
+    `path` False leaves the path out. The final images are figures (`save_run_images`)."""
     from robotexp.render import render_map
 
     m = run.metrics
     overlays = run.explorer.overlays()
     state = run.state
-    laser = None
-    if "laser" in show and state is not None and state.laser is not None:
-        p, sc = state.pose, state.laser
-        ok = np.isfinite(sc.ranges)
-        a = p.theta + sc.angles[ok]
-        laser = np.column_stack([p.x + sc.ranges[ok] * np.cos(a), p.y + sc.ranges[ok] * np.sin(a)])
+    laser = laser_hits(run) if "laser" in show else None
     end = None if state is None else (state.true_pose or state.pose)
     states = run.grid.states()
     content = states >= 0 if run.truth is None else (states >= 0) | run.truth.explorable
@@ -169,10 +171,32 @@ def read_records(path: Path) -> list[RunRecord]:
     return [RunRecord.from_dict(r) for r in read_jsonl(path) if isinstance(r, dict)]
 
 
+def read_curve_csv(path: Path) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """The (k, 3) float64 curve of a `write_curve_csv` file: robot time [s], path length [m], coverage.
+
+    Raises:
+        ConfigError: not a coverage file (wrong header, a line that is not three numbers).
+        OSError: the file cannot be read.
+    """
+    from robotexp.errors import ConfigError
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    if not rows or [c.strip() for c in rows[0]] != list(CURVE_HEADER):
+        raise ConfigError(f"{path}:1: not a coverage file: expected the header {','.join(CURVE_HEADER)}")
+    try:
+        return np.array([[float(v) for v in row] for row in rows[1:]], np.float64).reshape(-1, 3)
+    except ValueError:
+        raise ConfigError(f"{path}: expected three numbers per line after the header") from None
+
+
+CURVE_HEADER = ("robot_time_s", "path_length_m", "coverage")
+
+
 def write_curve_csv(path: Path, curve: list[tuple[float, float, float]]) -> None:
     """The coverage curve: robot time [s], path length [m], coverage (0..1, -1 when unknown)."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["robot_time_s", "path_length_m", "coverage"])
+        w.writerow(CURVE_HEADER)
         for t, s, c in curve:
             w.writerow([f"{t:.3f}", f"{s:.4f}", f"{c:.5f}"])

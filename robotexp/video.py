@@ -41,19 +41,16 @@ def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None
     `show`: the explorer's overlays to draw too ("potential", "vectors", "grid", as `explore --show`)."""
     from robotexp.render import render_map
 
+    from robotexp.figures import run_title
+    from robotexp.results import laser_hits
+
     state = run.state
-    laser = None
-    if state is not None and state.laser is not None:
-        p, sc = state.pose, state.laser
-        ok = np.isfinite(sc.ranges)
-        a = p.theta + sc.angles[ok]
-        sx, sy = p.x + sc.offset_x * math.cos(p.theta), p.y + sc.offset_x * math.sin(p.theta)
-        laser = np.column_stack([sx + sc.ranges[ok] * np.cos(a), sy + sc.ranges[ok] * np.sin(a)])
+    laser = laser_hits(run)
     path = np.array(run.metrics.path) if run.metrics.path else None
     if title is None:
         cov = run.coverage()
-        title = (f"{run.info.world} - {run.info.method} - {run.robot_time:.0f} s, {run.metrics.path_length:.1f} m"
-                 + ("" if cov is None else f", coverage {cov * 100:.1f}%"))
+        title = run_title(run, f"{run.robot_time:.0f} s, {run.metrics.path_length:.1f} m"
+                          + ("" if cov is None else f", coverage {cov * 100:.1f} %"))
     overlays = run.explorer.overlays() if ("potential" in show or "vectors" in show) else {}
     return render_map(run.grid.states(), run.grid.geo, truth=None if run.truth is None else run.truth.occupied,
                       path=path, start=run.start_pose,

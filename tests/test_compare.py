@@ -17,7 +17,7 @@ from PIL import Image
 from robotexp.cli import main
 from robotexp.compare import comparison_tables, load_results
 from robotexp.errors import ConfigError
-from robotexp.plot import PALETTE
+from robotexp.figures import DPI, PAGE_WIDTH, PALETTE
 
 
 def _rec(world: str, method: str, seed: int, cells: int, *, completed: bool = True, coverage: float | None = 0.9,
@@ -201,25 +201,16 @@ def test_plot_two_tiny_runs(tmp_path: Path) -> None:
                                   "--include-incomplete"])
     assert r.exit_code == 0, r.output
     with Image.open(pics / "visited_cells.png") as box:
-        assert box.size == (900, 540)
+        assert box.width == round(PAGE_WIDTH * DPI)                       # a page's width at 200 dpi
+    with Image.open(pics / "coverage_dense.png") as cov:
+        assert cov.width == round(PAGE_WIDTH * DPI)
+        cpx = np.asarray(cov.convert("RGB"))
+    assert _count(cpx, PALETTE[0]) > 100                                 # the frontier runs' curves
     with Image.open(pics / "paths_dense_frontier.png") as paths:
-        assert paths.width > 700 and 400 < paths.height <= 1000      # a 21 x 16 m map at most 1000 px
+        assert paths.width == round(PAGE_WIDTH * DPI) and 0.5 * paths.width < paths.height < 1.6 * paths.width
         px = np.asarray(paths.convert("RGB"))
-    first, second = (np.all(px == c, axis=2) for c in PALETTE[:2])
-    # both runs are drawn, in their own colours, and not on the same pixels
-    assert first.sum() > 100 and second.sum() > 100
-    assert (first & ~second).sum() > 100
-    # pose 1's start (the first point of its path file) is in the first colour
-    from robotexp.mapping.geometry import GridGeometry
-    from robotexp.render import map_layout
-    from robotexp.trajectory import MAP_CELL, MAP_MARGIN, read_path_csv
-    from robotexp.world.builtin import builtin_world
-
-    geo = GridGeometry.covering(*builtin_world("dense").bounds, cell=MAP_CELL, margin=MAP_MARGIN)
-    lay = map_layout(geo, title="x", max_size=1000)
-    start = read_path_csv(out / f"{records[0]['run']}.path.csv")[0]
-    u, v = lay.to_pixel(*start)
-    assert tuple(px[int(v), int(u)]) == PALETTE[0]
+    # both runs are drawn, in their own colours
+    assert _count(px, PALETTE[0]) > 100 and _count(px, PALETTE[1]) > 100
 
     # a missing path file: the run is skipped with a one-line note, the other still drawn
     (out / f"{records[1]['run']}.path.csv").unlink()
@@ -228,21 +219,28 @@ def test_plot_two_tiny_runs(tmp_path: Path) -> None:
     assert f"{records[1]['run']}: no path file" in r.output
     with Image.open(pics / "paths_dense_frontier.png") as again:
         px2 = np.asarray(again.convert("RGB"))
-    assert np.all(px2 == PALETTE[0], axis=2).sum() > 100 and not np.all(px2 == PALETTE[1], axis=2).any()
+    assert _count(px2, PALETTE[0]) > 100 and _count(px2, PALETTE[1]) == 0
+
+
+def _count(px: Any, hex_colour: str, tol: int = 30) -> int:
+    want = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)])
+    return int((np.abs(px.astype(int) - want).max(axis=2) <= tol).sum())
 
 
 def test_box_plot_separates_cell_sizes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import robotexp.plot
+    import robotexp.figures
     from robotexp.compare import campaign_plots
 
     seen: list[list[tuple[str, list[float]]]] = []
-    real = robotexp.plot.box_plot
+    labels: list[str] = []
+    real = robotexp.figures.box_figure
 
     def spy(groups: list[tuple[str, list[float]]], **kw: Any) -> Any:
         seen.append(groups)
+        labels.append(kw["ylabel"])
         return real(groups, **kw)
 
-    monkeypatch.setattr(robotexp.plot, "box_plot", spy)
+    monkeypatch.setattr(robotexp.figures, "box_figure", spy)
     recs = [{**_rec("dense", "srt-laser", i, 1700 + i), "cell_m": 0.1} for i in range(3)]
     recs += [{**_rec("dense", "meta-ga", i, 4124 + i), "cell_m": 0.05} for i in range(3)]
     recs += [{**_rec("sparse", "meta-ga", i, 900 + i), "cell_m": 0.05} for i in range(2)]
@@ -251,3 +249,7 @@ def test_box_plot_separates_cell_sizes(tmp_path: Path, monkeypatch: pytest.Monke
     assert [label for label, _ in groups] == ["dense meta-ga (cells of 0.05 m)", "dense srt-laser (cells of 0.1 m)",
                                               "sparse meta-ga"]
     assert groups[1][1] == [1700.0, 1701.0, 1702.0]
+    assert labels == ["visited cells [cells of each run's map]"]         # sizes differ: named under each box
+    labels.clear()
+    campaign_plots(recs[3:], tmp_path, tmp_path / "pics", note=lambda text: None)
+    assert labels == ["visited cells [cells of 50 mm]"]                   # one size: on the axis

@@ -160,6 +160,42 @@ def test_an_explorer_that_raises_ends_the_run_as_a_plugin_error() -> None:
     assert run.record is not None and run.record.end is EndReason.PLUGIN_ERROR
 
 
+def _ctrl_c_in_a_kernel() -> SystemError:
+    """What CPython makes of a SIGINT that lands while a numba dispatcher returns: a SystemError
+    caused by the KeyboardInterrupt."""
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise SystemError("CPUDispatcher(<function label8>) returned a result with an exception set") \
+                from interrupt
+    except SystemError as error:
+        return error
+
+
+def test_ctrl_c_inside_an_explorers_kernel_is_an_interruption_not_a_plugin_error() -> None:
+    with RecordingSim() as robot:
+        run = _run(robot, Straight(fail_at=4, fail=_ctrl_c_in_a_kernel()))
+        assert robot.commands[-1] == Twist.ZERO
+    assert run.end is EndReason.INTERRUPTED and run.error is None
+    assert run.record is not None and run.record.end is EndReason.INTERRUPTED and not run.record.completed
+
+
+def test_ctrl_c_inside_an_observers_kernel_interrupts_the_run() -> None:
+    class KernelInterrupted(RunObserver):
+        pressed = False
+
+        def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
+            if time >= 2.0 and not self.pressed:        # one Ctrl-C
+                self.pressed = True
+                raise _ctrl_c_in_a_kernel()
+
+    with RecordingSim() as robot:
+        run = _run(robot, Straight(x_end=3.0), KernelInterrupted())
+        assert robot.commands[-1] == Twist.ZERO
+    assert run.end is EndReason.INTERRUPTED and run.observer_errors == []
+
+
 def test_request_stop_ends_the_run_with_the_reason_given() -> None:
     class StopAt(RunObserver):
         def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:

@@ -1,18 +1,18 @@
-"""Path files (thinning, round trip, written by every run) and trajectories overlaid on a map."""
+"""Path files (thinning, round trip, written by every run) and trajectories overlaid on a map (matplotlib)."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from robotexp.errors import ConfigError
-from robotexp.mapping.geometry import GridGeometry
-from robotexp.plot import PALETTE
-from robotexp.render import map_layout
-from robotexp.trajectory import MAP_CELL, MAP_MARGIN, paths_image, read_path_csv, thin_path, write_path_csv
+from robotexp.figures import PALETTE, paths_figure, save_figure
+from robotexp.trajectory import read_path_csv, thin_path, write_path_csv
 from robotexp.world.model import World
 
 
@@ -68,33 +68,52 @@ def test_every_run_writes_its_path_file(tmp_path: Path) -> None:
     assert not any("path_file" in k or "path_csv" in k for k in res.record)
 
 
-def test_paths_image_draws_each_run_in_its_colour_over_the_obstacles() -> None:
+def _png_at(fig: Any, png: Path) -> Any:
+    """A function (x, y) [m] -> the RGB of the saved PNG's pixel there."""
+    from robotexp.figures import DPI
+
+    with Image.open(png) as im:
+        px = np.asarray(im.convert("RGB"))
+    ax = fig.axes[0]
+
+    def at(x: float, y: float) -> tuple[int, ...]:
+        u, v = ax.transData.transform((x, y)) * (DPI / fig.dpi)
+        return tuple(int(c) for c in px[px.shape[0] - 1 - int(v), int(u)])
+
+    return at
+
+
+def _near(rgb: tuple[int, ...], hex_colour: str, tol: int = 40) -> bool:
+    want = tuple(int(hex_colour[i:i + 2], 16) for i in (1, 3, 5))
+    return max(abs(a - b) for a, b in zip(rgb, want, strict=True)) <= tol
+
+
+def test_paths_figure_draws_each_run_in_its_colour_over_the_obstacles(tmp_path: Path) -> None:
     world = World("box", boxes=[[0.0, 0.0, 5.0, 0.05, 0.0], [0.0, 4.0, 5.0, 0.05, 0.0]])   # two walls
     a = [(-4.0, 1.0), (4.0, 1.0)]           # along y = 1
     b = [(-4.0, 3.0), (0.0, 2.0)]           # from y = 3 down to y = 2
-    img = paths_image(world, [("run a", a), ("run b", b)], title="t", max_size=600)
-    geo = GridGeometry.covering(*world.bounds, cell=MAP_CELL, margin=MAP_MARGIN)
-    lay = map_layout(geo, title="t", max_size=600)
-    assert img.height == lay.image_height and img.width > lay.image_width    # legend on the right
-    px = np.asarray(img)
-
-    def at(x: float, y: float) -> tuple[int, ...]:
-        u, v = lay.to_pixel(x, y)
-        return tuple(int(c) for c in px[int(v), int(u)])
-
-    assert at(1.0, 1.0) == PALETTE[0]
-    assert at(-2.0, 2.5) == PALETTE[1]           # halfway along b
-    assert at(2.0, 0.0) == (0, 0, 0)             # wall
-    assert at(2.0, 2.0) == (255, 255, 255)       # free, no path
-    # each legend swatch has its run's colour, in order
-    legend = px[:, lay.image_width:]
-    for colour in PALETTE[:2]:
-        assert np.all(legend == colour, axis=2).any()
+    fig = paths_figure(world, [("run a", a), ("run b", b)], title="t", notes=["dot: start of a path"])
+    (png, svg) = save_figure(fig, tmp_path / "paths", ("png", "svg"))
+    ax = fig.axes[0]
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    assert x0 <= -4.0 and x1 >= 4.0 and y0 <= 0.0 and y1 >= 4.0        # the world's bounds, in metres
+    assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"
+    at = _png_at(fig, png)
+    assert _near(at(1.0, 1.0), PALETTE[0])
+    assert _near(at(-2.0, 2.5), PALETTE[1])           # halfway along b
+    assert max(at(2.0, 0.0)) < 90                      # wall (dark grey)
+    assert min(at(2.0, 2.0)) > 240                     # free, no path
+    text = svg.read_text()
+    for words in ("run a", "run b", "dot: start of a path", "obstacles (50 mm cells)", " m<"):
+        assert words in text, words
 
 
-def test_paths_image_without_a_world_fits_the_paths() -> None:
-    img = paths_image(None, [("only", [(10.0, 10.0), (12.0, 11.0)])], title="t", max_size=400)
-    arr = np.asarray(img)
-    assert np.all(arr == PALETTE[0], axis=2).sum() > 50
+def test_paths_figure_without_a_world_fits_the_paths(tmp_path: Path) -> None:
+    fig = paths_figure(None, [("only", [(10.0, 10.0), (12.0, 11.0)])], title="t")
+    ax = fig.axes[0]
+    assert ax.get_xlim()[0] <= 10.0 and ax.get_xlim()[1] >= 12.0 and ax.get_xlim()[1] - ax.get_xlim()[0] < 4.0
+    (png,) = save_figure(fig, tmp_path / "one", ("png",))
+    assert _near(_png_at(fig, png)(11.0, 10.5), PALETTE[0])
     with pytest.raises(ConfigError, match="shape"):
-        paths_image(None, [("bad", [1.0, 2.0])], title="t")
+        paths_figure(None, [("bad", [1.0, 2.0])], title="t")

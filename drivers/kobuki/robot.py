@@ -266,6 +266,7 @@ class KobukiRobot(StreamBackend):
                 self._odometry(basic, inertial)
                 self._last_rx = self.frame_time = now
                 self._sensor_frames += 1
+                self._state_seen(self._time_ms / 1000.0, Pose(self._x, self._y, self._theta))
             self._cond.notify_all()
         return basic is not None
 

@@ -4,10 +4,15 @@ emulator base.
 - `LaserLink`: pyserial's `serial_for_url` (a device path, `socket://host:port`, "host:port") with
   a poll timeout, baud-rate changes (SICK switches 9600 -> 38400 -> 500 k) and every failure of the
   other side turned into `ConnectionLost`.
-- `StreamLaser`: a `Laser` whose device streams; a daemon reader thread hands received bytes to the
-  driver's `_on_data(data, now)`, which calls `_publish(scan, now)` for each complete scan. No valid
-  scan for `timeout` s, or the link ending, fails the laser: `latest()`/`wait_scan()` raise
-  `ConnectionLost` from then on.
+- `StreamLaser`: a `Laser` whose device streams; a daemon reader thread (the robot backends' loop,
+  `robotexp_drivers.backend.StreamReader`) hands received bytes to the
+  driver's `_on_data(data, now)`, which hands the scans one read completed to `_publish_read(scans,
+  now)`. A read may hold several scans (the reader waited for the interpreter, or the device streams
+  faster than it is read): they are stamped a scan period apart, the newest at `now` (less what
+  arrived after it: `after`), the period measured on this host (`scan_period`), so that each is
+  paired with the robot pose of its own time. No valid scan for `timeout` s (two reads that began
+  past it brought none: a reader starved of the interpreter's lock is not silent), or the link
+  ending, fails the laser: `latest()`/`wait_scan()` raise `ConnectionLost` from then on.
 - `LaserEmulatorBase`: a `StreamEmulator` (drivers/emulation.py: TCP or pseudo-terminal, serving
   thread, fault injection) that measures with a `ScanSource` instead of owning a simulator.
 """
@@ -26,10 +31,10 @@ import serial
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
 from robotexp.laser import Laser, ScanSource, StampedScan
 from robotexp.robot import LaserScan
-from robotexp_drivers.backend import read_waiting
+from robotexp_drivers.backend import StreamReader, read_waiting
 from robotexp_drivers.emulation import StreamEmulator
 
-__all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "laser_url"]
+__all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "ScanStamps", "laser_url"]
 
 log = logging.getLogger(__name__)
 
@@ -148,7 +153,37 @@ class LaserLink:
             sock.close()
 
 
-class StreamLaser(Laser):
+class ScanStamps:
+    """The stamps of the scans each read completes: the newest ended `after` s before the read's
+    time, each earlier one a scan period before the next, none before the previous read's newest;
+    the period is measured on this host (a decaying mean: recent reads weigh more).
+
+    Args:
+        period: [s] the scan period assumed until two reads have brought scans (the device's nominal one).
+    """
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.newest: float | None = None
+        self._sum = self._count = 0.0
+
+    def stamps(self, k: int, now: float, after: float = 0.0) -> list[float]:
+        """The stamps [s] of `k` scans completed by a read at `now` [s], in order (oldest first)."""
+        if k <= 0:
+            return []
+        newest = now - max(after, 0.0)
+        last = self.newest
+        if last is not None:
+            newest = max(newest, last + 1e-6)
+            self._sum = 0.9 * self._sum + (newest - last)
+            self._count = 0.9 * self._count + k
+            self.period = self._sum / self._count
+        step = self.period if last is None else min(self.period, (newest - last) / k)
+        self.newest = newest
+        return [newest - (k - 1 - i) * step for i in range(k)]
+
+
+class StreamLaser(StreamReader, Laser):
     """A `Laser` fed by a reader thread (see the module docstring).
 
     A driver's `__init__` opens `self._link`, does its handshake synchronously (reading with
@@ -171,6 +206,8 @@ class StreamLaser(Laser):
         self._error: RobotError | None = None
         self._stop = threading.Event()
         self._last_scan = time.monotonic()
+        self._quiet_reads = 0
+        self._stamps = ScanStamps(self.geometry.period)
         self._thread = threading.Thread(target=self._reader, name=f"{self.name} {self.address}", daemon=True)
         self._thread.start()
 
@@ -192,25 +229,33 @@ class StreamLaser(Laser):
             self._last_scan = time.monotonic()
             self._cond.notify_all()
 
-    def _reader(self) -> None:
-        try:
-            while not self._stop.is_set():
-                try:
-                    data = self._link.read_some()
-                except ConnectionLost:
-                    if self._stop.is_set():
-                        return
-                    raise
-                now = time.monotonic()
-                self._on_data(data, now)
-                if now - self._last_scan > self.timeout:
-                    raise ConnectionLost(f"{self.name}: no valid scan from {self.address!r} for "
-                                         f"{now - self._last_scan:.2f} s; check the cable and power")
-        except RobotError as exc:
-            self._fail(exc)
-        except Exception as exc:     # a bug here must not leave wait_scan() waiting forever
-            log.exception("%s: reader thread failed", self.name)
-            self._fail(RobotError(f"{self.name}: reader thread failed at {self.address!r}: {exc!r}"))
+    @property
+    def scan_period(self) -> float:
+        """[s] the time between scans as they arrive on this host (`ScanStamps`)."""
+        return self._stamps.period
+
+    def _publish_read(self, scans: list[LaserScan], now: float, after: float = 0.0) -> None:
+        """Publish the scans one read completed, in order, stamped by `ScanStamps.stamps` (`now`: the
+        read's time [s, time.monotonic()]; `after`: what arrived after the newest took that long [s])."""
+        for scan, stamp in zip(scans, self._stamps.stamps(len(scans), now, after), strict=True):
+            self._publish(scan, stamp)
+
+    # -- the reader loop's hooks (StreamReader) ---------------------------------------------
+    def _clock(self) -> float:
+        return time.monotonic()         # scans are stamped on it
+
+    def _receive(self) -> bytes:
+        return self._link.read_some()
+
+    def _on_read(self, data: bytes, now: float) -> None:
+        self._on_data(data, now)
+
+    def _silent(self, started: float) -> bool:
+        return started - self._last_scan > self.timeout
+
+    def _silence_error(self, now: float) -> RobotError:
+        return ConnectionLost(f"{self.name}: no valid scan from {self.address!r} for {now - self._last_scan:.2f} s; "
+                              "check the cable and power")
 
     def _fail(self, exc: RobotError) -> None:
         with self._cond:

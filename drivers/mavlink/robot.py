@@ -365,6 +365,8 @@ class MavlinkRobot(StreamBackend):
                     self._time_ms += (m.time_boot_ms - old.time_boot_ms) % (1 << 32)
                 self._position = m
                 self.state_time = now
+                if self._attitude is not None:
+                    self._state_seen(self._time_ms / 1000.0, self._anchored(self._raw_pose()))
             elif kind == "ATTITUDE":
                 self._attitude = m
             elif kind == "OBSTACLE_DISTANCE":

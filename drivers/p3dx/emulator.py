@@ -9,7 +9,11 @@ view and increment that 36..38 (or 231..233) asked for, as MobileSim does (ARIA 
 `min(start, end) + i * increment` and counts them as MobileSim does). Odometry restarts at 0, 0, 0
 with each client, as in MobileSim's new session.
 SIM_SET_POSE moves the robot without changing odometry (`SimRobot.move_to`), SIM_RESET goes back
-to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time / `speedup`.
+to the start. Robot time advances one SIP cycle per SIP sent, paced by wall time / `speedup`; within
+a cycle the world moves as wall time passes (each time the serving loop wakes, at least every
+`SUBSTEP_S` of robot time, the simulator catches up with the time due), so a laser emulator measuring
+it between two SIPs sees the robot where it is, and the SIP goes out at the cycle's end (lockstep:
+the whole cycle at once).
 Motion is ARCOS's (`ArcosMotion`): VEL / RVEL / VEL2 velocities, MOVE (distance) and HEAD / DHEAD /
 DCHEAD (heading) position control, each ramped by the SETA / SETRA accelerations and capped by
 SETV / SETRV / SETRVDIR; the session starts with the limits CONFIG reports. Sonar is cast from
@@ -40,6 +44,7 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, compose_pose, relative_pose, wrap_angle
 from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig
+from robotexp.sim.robot import _approach     # the simulator's own velocity ramp, applied per cycle
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase
 
@@ -50,6 +55,8 @@ from .motion import ArcosMotion, RotMode
 __all__ = ["P3DXEmulator", "reading_beams"]
 
 log = logging.getLogger(__name__)
+
+SUBSTEP_S = 0.02       # [s of robot time] longest step of the world within a SIP cycle (the Kobuki's frame)
 
 # commands after which a lockstep emulator may send the next SIP at once
 _VELOCITY_COMMANDS = frozenset({c.CMD_VEL, c.CMD_RVEL, c.CMD_ROTATE, c.CMD_VEL2, c.CMD_STOP, c.CMD_ESTOP,
@@ -198,6 +205,8 @@ class P3DXEmulator(EmulatorBase):
             self.start_pose, _ = resolve_pose(self.world, pose, robot_preset.radius)
         self.speedup, self.watchdog, self.lockstep = speedup, watchdog, lockstep
         self._stepped = False
+        self._cycle_wall: float | None = None      # wall time the cycle in progress began (None: none)
+        self._cycle_done = 0.0                     # [s of robot time] of it simulated so far
         self.robot_type, self.robot_subtype = robot_type, robot_subtype
         sh = robot_subtype.lower() == "p3dx-sh"
         self.dist_conv = c.DIST_CONV_FACTOR_SH if sh else c.DIST_CONV_FACTOR
@@ -317,6 +326,7 @@ class P3DXEmulator(EmulatorBase):
         self._simstat = c.SIM_STAT_STOP
         self._decoder = k.CommandDecoder(max_count=255)
         self._last_cmd_time = self.sim.time
+        self._cycle_wall = None
 
     def _end_session(self) -> None:
         self.sim.command(Twist.ZERO)
@@ -334,7 +344,7 @@ class P3DXEmulator(EmulatorBase):
                     self._handle(cmd, conn)
                 return
             now = time.monotonic()
-            wait = min(0.05, next_cycle - now) if self._open else 0.05
+            wait = min(0.05, next_cycle - now, SUBSTEP_S / self.speedup) if self._open else 0.05
             data = conn.recv(wait)
             if data:
                 for cmd in self._decoder.feed(data):
@@ -342,6 +352,8 @@ class P3DXEmulator(EmulatorBase):
                         return               # CLOSE
             while self._inject and not self._stall.is_set():
                 conn.send(self._inject.popleft())
+            if self._open and self._cycle_wall is not None:
+                self._advance_cycle(time.monotonic())
             if self._open and (time.monotonic() >= next_cycle or self._stepped):
                 self._stepped = False
                 self._cycle(conn)
@@ -494,20 +506,50 @@ class P3DXEmulator(EmulatorBase):
 
     # -- one SIP cycle ---------------------------------------------------------------
     def _cycle(self, conn: _TcpConn | _PtyConn) -> None:
+        """End the cycle in progress (none yet, or lockstep: begin one and simulate it whole), send its
+        SIP (and laser scan), and, unless lockstep, begin the next, simulated as wall time passes."""
+        if self._cycle_wall is None:
+            self._begin_cycle()
+        self._simulate(c.SIP_PERIOD_S - self._cycle_done)
+        self._cycle_wall = None
+        self._end_cycle(conn)
+        if not self.lockstep:
+            self._begin_cycle()
+            self._cycle_wall = time.monotonic()
+
+    def _simulate(self, dt: float) -> None:
+        if dt > 1e-9:
+            self.sim.advance(dt)
+            self._cycle_done += dt
+
+    def _advance_cycle(self, now: float) -> None:
+        """Simulate the cycle in progress up to the robot time due at wall time `now` (catch up, no more)."""
+        assert self._cycle_wall is not None
+        due = min(c.SIP_PERIOD_S, (now - self._cycle_wall) * self.speedup)
+        self._simulate(due - self._cycle_done)
+
+    def _begin_cycle(self) -> None:
+        """The velocity goals of a cycle, from the commands received so far."""
+        self._cycle_done = 0.0
         if self.watchdog is not None and self.sim.time - self._last_cmd_time > self.watchdog:
             self.motion.stop()
             self.commanded = (0, 0)
+        # the cycle's velocities, held through its sub-steps: ramped over the whole cycle as one simulator
+        # step would (the distance per cycle ARCOS's position control plans with)
+        twist = Twist.ZERO
         if self._estopped:               # at once: no ramp
-            v = w = 0.0
-            self.sim.limits = replace(self._sim_limits, a_max=math.inf, alpha_max=math.inf)
             self._estopped = False
-        else:                            # the goals of this cycle, ramped by the simulator (as `ArcosMotion.step`)
+        else:                            # the goals of this cycle, ramped (as `ArcosMotion.step`)
             now = self._velocity
             v, w = self.motion.targets(self._heading_deg(), c.SIP_PERIOD_S)
             accel, rot_accel = self.motion.ramp_rates(now.v * 1000.0, math.degrees(now.w), v, w)
-            self.sim.limits = replace(self._sim_limits, a_max=accel / 1000.0, alpha_max=math.radians(rot_accel))
-        self.sim.command(Twist(v / 1000.0, math.radians(w)))
-        self.sim.advance(c.SIP_PERIOD_S)
+            twist = Twist(_approach(now.v, v / 1000.0, accel / 1000.0 * c.SIP_PERIOD_S),
+                          _approach(now.w, math.radians(w), math.radians(rot_accel) * c.SIP_PERIOD_S))
+        self.sim.limits = replace(self._sim_limits, a_max=math.inf, alpha_max=math.inf)
+        self.sim.command(twist)
+
+    def _end_cycle(self, conn: _TcpConn | _PtyConn) -> None:
+        """Odometry and the packets of the cycle just simulated."""
         state = self.sim.read()
         self._velocity = state.velocity
         # odometry of our own: the sim's odometry jumps on move_to, MobileSim's does not

@@ -275,6 +275,7 @@ class P3DXRobot(StreamBackend):
         with self._cond:
             self._state = state
             self._cond.notify_all()
+        self._state_seen(state.time, state.pose)
 
     def _sip_state(self, sip: k.StandardSip) -> RobotState:
         dist = self.dist_conv

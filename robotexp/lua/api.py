@@ -59,6 +59,7 @@ P3DX_PORT = 8101        # MobileSim's and ARIA's default TCP port
 ROBOT_BACKEND = "p3dx"  # the `robotexp.robots` backend of a non-sim address (the P3-DX protocol) ...
 ADDRESS_MODELS = ("kobuki",)   # ... unless the robot model is one of these (its own backend)
 TRACK_WINDOW = (800, 600)       # [px] image size around the robot when tracking is on
+MIN_FIGURE_DPI = 100            # saveMapImage: a map drawn at fewer px/m keeps this resolution (text stays legible)
 MAX_IMAGE_PIXELS = 1e8          # a map image larger than 10000 x 10000 px is refused (memory, not a picture)
 _UPDATE_PARAMS = ("update_period",)   # explorer parameter names of the potential update interval [s]
 _NAME = {"n": "a number", "s": "a string", "b": "a boolean", "i": "an integer"}
@@ -377,13 +378,11 @@ class Session:
         if self.control.check() and self.control.reason == "timeout":
             run.request_stop(f"stopped: the script's --timeout of {self.control.timeout:g} s was reached")
 
-    def _image(self, run: ExplorationRun) -> Any:
-        from robotexp.results import map_image
+    def _scale(self, run: ExplorationRun, title: str) -> float:
+        """[px per cell] the scale the script asked for (mapView.setMapScaling, zoom; default: fit 1400 px),
+        refused when the image would be too large to be a picture."""
         from robotexp.render import map_layout
 
-        show = tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
-        place = self.spec.world if self.truth_world or not self.on_robot else f"{self.backend} {self.target[1]}"
-        title = f"{place} - {run.explorer.__class__.__name__} - {run.metrics.path_length:.1f} m"
         geo = run.grid.geo
         if self.scaling is None:
             base = float(map_layout(geo, scale=None, title=title).scale)
@@ -393,17 +392,43 @@ class Session:
         if not wanted * wanted * geo.rows * geo.cols <= MAX_IMAGE_PIXELS:     # inf and nan refused too
             raise ScriptError(f"mapView: the map image would be {geo.cols * wanted:.3g} x {geo.rows * wanted:.3g} px, "
                               f"more than {MAX_IMAGE_PIXELS:.0e} pixels; lower mapView.setMapScaling or zoomOut")
-        scale = max(1, round(wanted))
-        image = map_image(run, title, show, scale=scale, path=self.show["path"])
+        return wanted
+
+    def _show(self) -> tuple[str, ...]:
+        return tuple(k for k in ("grid", "laser", "vectors", "potential") if self.show[k])
+
+    def _image(self, run: ExplorationRun) -> Any:
+        """The fast raster image (frames, tracking view), titled by the figures' convention."""
+        from robotexp.figures import run_title
+        from robotexp.render import map_layout
+        from robotexp.results import map_image
+
+        title = run_title(run, f"{run.metrics.path_length:.1f} m")
+        scale = max(1, round(self._scale(run, title)))
+        image = map_image(run, title, self._show(), scale=scale, path=self.show["path"])
         state = run.state
         if self.show["tracking"] and state is not None:
             p = state.true_pose or state.pose
-            cx, cy = map_layout(geo, scale=scale, title=title).to_pixel(p.x, p.y)
+            cx, cy = map_layout(run.grid.geo, scale=scale, title=title).to_pixel(p.x, p.y)
             w, h = min(TRACK_WINDOW[0], image.width), min(TRACK_WINDOW[1], image.height)
             left = int(min(max(cx - w / 2, 0), image.width - w))
             top = int(min(max(cy - h / 2, 0), image.height - h))
             image = image.crop((left, top, left + w, top + h))
         return image
+
+    def _save_figure(self, run: ExplorationRun, target: Path) -> Path:
+        """The run's map figure (`robotexp.figures.run_map_figure`, as the CLI's) at the scale asked: the map
+        drawn at mapView's pixels per metre (at least MIN_FIGURE_DPI), PNG, or SVG / PDF by `target`'s suffix."""
+        from robotexp.figures import run_map_figure, run_title, write_figure
+
+        scale = self._scale(run, run_title(run))
+        fig = run_map_figure(run, show=self._show(), path=self.show["path"])
+        ax = fig.axes[0]
+        x0, x1 = ax.get_xlim()
+        axes_in = ax.get_position().width * fig.get_figwidth()
+        dpi = max(MIN_FIGURE_DPI, scale / run.grid.geo.cell * (x1 - x0) / axes_in)
+        fmt = target.suffix.lower().lstrip(".")
+        return write_figure(fig, target, fmt if fmt in ("svg", "pdf") else "png", dpi)
 
     def _last(self, fname: str) -> RunOutput:
         self.finish()
@@ -725,12 +750,15 @@ class Session:
                                                     "mapView.setFrameFolder")).parent
 
     def lua_mapView__saveMapImage(self, *args: Any) -> str:
-        """Save the last run's map as a PNG file; returns the path written."""
+        """Save the last run's map as a figure (legend, scale bar, axes in metres; PNG, or SVG / PDF by the
+        file's suffix; with tracking, the 800 x 600 px raster view around the robot); returns the path."""
         from robotexp.render import save_png
         (path,) = _args("mapView.saveMapImage", "path", args, "s")
         target = self.paths.resolve(path, "w", "mapView.saveMapImage")
         run = self._last("mapView.saveMapImage").run
-        return str(save_png(self._image(run), target))
+        if self.show["tracking"]:          # a window around the robot: the raster view, as the frames
+            return str(save_png(self._image(run), target))
+        return str(self._save_figure(run, Path(target)))
 
     def lua_robotView__setShowPath(self, *args: Any) -> None:
         """Draw the robot's path."""

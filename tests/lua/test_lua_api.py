@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import re
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,10 +13,8 @@ from PIL import Image
 
 from robotexp.errors import ScriptError
 from robotexp.lua import parse_address
-from robotexp.mapping.geometry import GridGeometry
 from robotexp.registry import EXPLORERS, available, lua_name
-from robotexp.render import COLORS, map_layout
-from robotexp.world.builtin import builtin_world
+from robotexp.render import COLORS
 
 SHORT = 'exploration.setWorld("ufmg-static")\nexploration.setMaxTime(6000)\n'
 
@@ -121,16 +121,32 @@ mapView.zoomOut()
 robotView.setTracking(false)
 print(mapView.saveMapImage("e.png"))
 """)
-    w = builtin_world("ufmg-static")
-    geo = GridGeometry.covering(*w.bounds, cell=0.1, margin=1.0)
     a, b, c, d, e = (load(lua.out / n) for n in ("a.png", "b.png", "sub/c.png", "d.png", "e.png"))
-    lay10, lay20 = map_layout(geo, scale=10, title="t"), map_layout(geo, scale=20, title="t")
-    assert a.size == (lay10.image_width, lay10.image_height) == e.size     # 0.1 px/mm x 100 mm = 10 px/cell
-    assert c.size == (lay20.image_width, lay20.image_height)
-    assert d.size == (800, 600)
-    blue = [int((np.asarray(img) == COLORS["path"]).all(axis=2).sum()) for img in (a, b)]
+    # figures (legend, axes): the map at 0.1 px/mm = 100 px/m, twice that zoomed in, the text with it
+    assert a.size == e.size and abs(c.width - 2 * a.width) <= 2 and abs(c.height - 2 * a.height) <= 2
+    assert d.size == (800, 600)                                  # tracking: the raster window around the robot
+    blue = [int((np.asarray(img.convert("RGB")) == COLORS["path"]).all(axis=2).sum()) for img in (a, b)]
     assert blue[0] > 50 and blue[1] == 0
     assert lua.lines == [str(lua.out / "e.png")]
+
+
+def test_map_figure_title_is_the_same_from_lua_and_the_cli(lua: Any) -> None:
+    from click.testing import CliRunner
+
+    from robotexp.cli import main
+
+    lua(SHORT + 'exploration.start(); exploration.wait()\nmapView.saveMapImage("lua.svg")')
+    svg = (lua.out / "lua.svg").read_text()
+    out = lua.out / "cli"
+    res = CliRunner().invoke(main, ["explore", "--world", "ufmg-static", "--method", "frontier", "--max-time", "6",
+                                    "--out", str(out), "--image-format", "png,svg"])
+    assert res.exit_code == 0, res.output
+    (cli_svg,) = out.glob("*_s0.svg")
+    title = re.compile(r"ufmg-static - frontier")
+    assert title.search(svg) and title.search(cli_svg.read_text())
+    assert "FrontierExplorer" not in svg
+    for words in ("free", "occupied", "unknown", "path", "start", "end", "x [m]", "cell 100 mm"):
+        assert words in svg and words in cli_svg.read_text(), words
 
 
 def test_frames_are_saved_every_redraw_interval(lua):

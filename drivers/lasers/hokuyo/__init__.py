@@ -125,8 +125,7 @@ class HokuyoLaser(StreamLaser):
         if self._buffer:
             data = bytes(self._buffer) + data
             self._buffer.clear()
-        for ranges in self._decoder.feed(data):
-            self._publish(self.geometry.scan(ranges), now)
+        self._publish_read([self.geometry.scan(ranges) for ranges in self._decoder.feed(data)], now)
 
     def _stop_device(self) -> None:
         self._link.write(command(C.CMD_QT))

@@ -182,8 +182,7 @@ class LMS2xxLaser(StreamLaser):
 
     # -- StreamLaser hooks ----------------------------------------------------------------------------------
     def _on_data(self, data: bytes, now: float) -> None:
-        for ranges in self._dec.feed(data):
-            self._publish(self.geometry.scan(ranges), now)
+        self._publish_read([self.geometry.scan(ranges) for ranges in self._dec.feed(data)], now)
 
     def _stop_device(self) -> None:
         """Stop the output (0x20 0x25) and, on a serial line, go back to 9600 baud (0x20 0x42)."""

@@ -82,7 +82,6 @@ class RPLidarLaser(StreamLaser):
         self.express = express
         self._decoder: ScanDecoder | ExpressDecoder = (ExpressDecoder(beams, range_min=range_min) if express
                                                        else ScanDecoder(beams, range_min=range_min))
-        self._last_turn: float | None = None
         self._start_reader(timeout)
 
     # -- handshake -----------------------------------------------------------------------------------
@@ -149,14 +148,15 @@ class RPLidarLaser(StreamLaser):
         if self._pending:
             data = bytes(self._pending) + data
             self._pending.clear()
-        for ranges in self._decoder.feed(data):
-            if self._last_turn is not None and now > self._last_turn:
-                # the turn rate as measured (smoothed), for the geometry's period
-                g = self.geometry
-                period = 0.8 * g.period + 0.2 * (now - self._last_turn)
-                self.geometry = geometry(g.beams, g.range_min, g.range_max, period)
-            self._last_turn = now
-            self._publish(self.geometry.scan(ranges), now)
+        turns = self._decoder.feed(data)
+        if not turns:
+            return
+        # the newest turn ended when the next one began: the samples since then took their share of a turn
+        dec = self._decoder
+        after = dec.open_samples / max(dec.turn_samples, 1) * self.scan_period
+        self._publish_read([self.geometry.scan(ranges) for ranges in turns], now, after)
+        g = self.geometry          # the turn period as measured on this host, for `beam_offsets`
+        self.geometry = geometry(g.beams, g.range_min, g.range_max, self.scan_period)
 
     def _stop_device(self) -> None:
         self._link.write(request(C.CMD_STOP))

@@ -282,6 +282,7 @@ class _Turns:
         self.scans = 0
         self.dropped_bytes = 0
         self.short_turns = 0
+        self.turn_samples = 0       # samples of the newest complete turn
 
     def _add(self, angles_q6: npt.NDArray[np.generic], dist_q2: npt.NDArray[np.int64], starts: npt.NDArray[np.intp],
              out: list[npt.NDArray[np.float64]]) -> None:
@@ -308,7 +309,13 @@ class _Turns:
             self.short_turns += 1
             return None
         self.scans += 1
+        self.turn_samples = int(angles.size)
         return bin_turn(angles, dist_q2, self.beams, self.range_min)
+
+    @property
+    def open_samples(self) -> int:
+        """Samples of the turn in progress (received after the newest complete turn ended)."""
+        return sum(len(a) for a in self._angles) if self._in_turn else 0
 
 
 class ScanDecoder(_Turns):

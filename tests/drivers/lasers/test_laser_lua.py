@@ -7,30 +7,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from robotexp.errors import ScriptError
 from robotexp.lua import run_script
-from robotexp.robot import Pose
-from robotexp.sim import mounted_source
-from robotexp.world.model import World
 from robotexp_drivers.kobuki.codec import BaseControl
-from robotexp_drivers.kobuki.emulator import KobukiEmulator
-from robotexp_drivers.lasers.rplidar.emulator import RPLidarEmulator
 
 CLI = [sys.executable, "-m", "robotexp.cli"]
-
-
-@pytest.fixture
-def devices(world: World, start: Pose) -> Iterator[tuple[KobukiEmulator, RPLidarEmulator]]:
-    """A Kobuki emulator of ufmg-static at path1 and an RPLidar emulator measuring from its robot,
-    each on a pseudo-terminal, 10x real time."""
-    with KobukiEmulator(world, pose=start, speedup=10.0, pty=True) as kobuki, \
-            RPLidarEmulator(mounted_source(kobuki.sim, lock=kobuki.lock), pty=True, speedup=10.0) as lidar:
-        yield kobuki, lidar
 
 
 def _explore(tmp_path: Path, kobuki: str, laser: str | None, max_time_ms: int) -> dict:

@@ -4,6 +4,8 @@ every scan comes from the LMS2xx emulator on its own pseudo-terminal."""
 
 from __future__ import annotations
 
+import time
+
 from robotexp.laser_mount import LaserMountedRobot, connect_with_laser, robot_options
 from robotexp.sim import mounted_source
 from robotexp_drivers.lasers.lms2xx.emulator import LMS2xxEmulator
@@ -20,7 +22,12 @@ def test_p3dx_with_an_lms2xx_gets_no_simulated_laser_packets() -> None:
             LMS2xxEmulator(mounted_source(p3dx.sim), pty=True, speedup=5.0) as lms:
         with connect_with_laser("p3dx", p3dx.address, f"lms2xx:{lms.address}", "0,0,0") as robot:
             assert isinstance(robot, LaserMountedRobot)
-            for _ in range(5):
+            # a scan is paired once the pose history (every SIP since the laser was mounted) spans its
+            # stamp; the scans taken before the mount are given the oldest pose
+            deadline = time.monotonic() + 3.0
+            state = robot.read()
+            while robot.paired < 1 and time.monotonic() < deadline:
+                time.sleep(0.01)
                 state = robot.read()
             assert state.laser is not None and robot.paired >= 1
             # the LMS200's 181 beams over 180 deg, as the driver reads them from its own link
