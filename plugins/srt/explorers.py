@@ -74,7 +74,7 @@ class _FrontierRescue(SRTExplorer):
 
     RESCUE_GAIN = 0.5       # [m2] newly known by a rescue for it to count as productive
     RESCUE_RADIUS = 1.0     # [m] around an unproductive rescue's aim, the frontier given up
-    RESCUE_MISSES = 2       # unproductive rescues in a row before rescues pause until the map grows
+    RESCUE_MISSES = 4       # unproductive rescues in a row before rescues pause until the map grows
 
     frontier: bool
     node_gap: float
@@ -140,9 +140,13 @@ class _FrontierRescue(SRTExplorer):
         it free, from (x, y) [m] (the disc clear of every occupied cell; as the run's honest ending counts
         frontier, `robotexp.watch.frontier_left`). The inside of a shelf whose outline the laser drew with
         gaps, or a wall's cells that grazing beams left unknown, is no such space: chasing them cost a
-        rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95)."""
+        rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95). The map's edge
+        counts as a wall: through a wall's unmarked cells the unknown strip outside a building (the
+        run's map has 0.5 m around the world) is no space a robot fits in (the sparse hall's walls)."""
         geo = grid.geo
-        open_space = np.ascontiguousarray(distance_transform(grid.occupied()) > self.ctx.radius / geo.cell)
+        occ = grid.occupied().copy()
+        occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True     # the map's edge is a wall to the robot too
+        open_space = np.ascontiguousarray(distance_transform(occ) > self.ctx.radius / geo.cell)
         r, c = geo.cell_of(x, y)
         if not geo.contains(r, c) or not open_space[r, c]:
             return np.ones(grid.shape, dtype=bool)       # the node itself is too near an obstacle: no filter
