@@ -13,13 +13,15 @@ plugin and the first rule broken:
 3. on a small generated world (a 5 x 4 m room with a crate, `make_room`) in the simulator, for a
    bounded robot time, `reset` accepts an `ExplorerContext` and every `step` returns a `Twist` of
    finite floats or a `Done` with a string reason; `result_fields` is a dict of JSON values keyed by
-   strings, `overlays` a dict of arrays;
+   strings, `overlays` a dict of arrays, `markers` a markers dict (`robotexp.markers`: kinds points,
+   circles, lines, polygons of finite numbers);
 4. it never reads a clock or sleeps (`time.time`, `monotonic`, `perf_counter`, `process_time`,
    `thread_time` and their `_ns` forms, `clock_gettime`, `sleep`, `datetime.now`/`utcnow`/`today`):
    while the plugin's code runs, a profile hook records the C functions called from frames of the
    plugin's own modules, however they were imported (``from time import monotonic as m`` too);
 5. with the same seed it decides the same: a second instance repeats the first steps bit for bit
-   (randomness comes from `ExplorerContext.rng` only).
+   (randomness comes from `ExplorerContext.rng` only), with `markers()` called after each of its steps
+   (as the live view and recordings do: drawing must not change decisions), each return checked.
 
 A clock read through a helper of another package (say a logging call) is that package's business,
 not the plugin's: only frames whose module is the plugin's module, or a module of its package, count.
@@ -43,6 +45,7 @@ import numpy as np
 
 from robotexp.errors import PluginError, RobotexpError
 from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.markers import markers_problem
 from robotexp.robot import Pose, Twist
 
 if TYPE_CHECKING:
@@ -263,6 +266,9 @@ def _trial(cls: type[Explorer], explorer: Explorer, label: str, watch: _ClockWat
             when = f"step {k + 1} (robot time {state.time - t0:.1f} s)"
             _check_decision(decision, label, when)
             decisions.append(decision)
+            if expect is not None:          # drawn between steps, as the live view and recordings do
+                with watch:
+                    _check_markers(_call(label, "markers", explorer.markers), label, f" after {when}")
             if expect is not None and decision != expect[k]:
                 raise PluginError(f"explorer {label}: with the same seed, {when} returned {decision!r} the first "
                                   f"time and {expect[k]!r} now; randomness must come from ExplorerContext.rng "
@@ -315,6 +321,13 @@ def _check_outputs(explorer: Explorer, label: str) -> None:
                                                  for k, v in overlays.items()):
         raise PluginError(f"explorer {label}: overlays() must return a dict of name -> numpy array, "
                           f"got {type(overlays).__name__}")
+    _check_markers(_call(label, "markers", explorer.markers), label, "")
+
+
+def _check_markers(value: object, label: str, when: str) -> None:
+    problem = markers_problem(value)
+    if problem is not None:
+        raise PluginError(f"explorer {label}: {problem}{when} (see robotexp.markers)")
 
 
 class _ClockWatch:

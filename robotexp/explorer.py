@@ -93,6 +93,13 @@ class Explorer(ABC):
         """Arrays to draw over the map image (e.g. `potential`, `vectors`), on the run's grid."""
         return {}
 
+    def markers(self) -> dict[str, dict[str, Any]]:
+        """Shapes to draw over the map in world coordinates [m] (a tree's nodes and edges, a target):
+        {"points" | "circles" | "lines" | "polygons": {name: numbers}}, see `robotexp.markers`. The live
+        view draws them and recordings hold them (visualization_msgs/MarkerArray). It is called between
+        steps, at a bounded rate, and must not change what the explorer decides. Default: {} (none)."""
+        return {}
+
 
 @dataclass
 class RunMetrics:

@@ -75,9 +75,10 @@ def make_record(run: ExplorationRun) -> RunRecord:
 
 class ResultsWriter(RunObserver):
     """The observer that writes a run's files under `out` at its end: the record appended to
-    `results.jsonl` first (so it is never lost), then `<run>.coverage.csv`, `<run>.path.csv`,
-    `<run>.map.yaml` + `.pgm` and, with `image`, the figures `<run>.png` and `<run>.coverage.png`
-    (`robotexp.figures`; also as .svg / .pdf when `image` is a tuple of formats naming them).
+    `results.jsonl` first (so it is never lost), then `<run>.coverage.csv`, `<run>.path.csv` (the true
+    path where known), `<run>.estimated_path.csv` (the pose the explorer got, when it differs: odometry
+    error, localization), `<run>.map.yaml` + `.pgm` and, with `image`, the figures `<run>.png` and
+    `<run>.coverage.png` (`robotexp.figures`; also as .svg / .pdf when `image` is a tuple of formats naming them).
 
     It is `critical`: when writing fails the caller of the run raises the error after the run.
     """
@@ -100,6 +101,9 @@ class ResultsWriter(RunObserver):
         append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
+        est = np.asarray(run.metrics.estimated, np.float64).reshape(-1, 2)
+        if len(est) and np.abs(est - np.asarray(run.metrics.path, np.float64)).max() > 1e-3:   # odometry error on
+            write_path_csv(out / f"{name}.estimated_path.csv", run.metrics.estimated)   # the explorer's pose
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
         if self.image:
             self.image_path, self.plot_path = save_run_images(run, out, name, self.show, self.formats)

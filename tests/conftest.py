@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import functools
+import re
+import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -48,3 +52,44 @@ def _robots_closed() -> Iterator[None]:
     if leaked:
         names = ", ".join(f"{type(r).__name__}({r.name})" for r in leaked)
         pytest.fail(f"the test left {len(leaked)} robot(s) open: {names}; close them (use `with`)")
+
+
+class ViewCli:
+    """`python -m robotexp.cli ARGS` processes that serve a live view (--view), for end-to-end tests."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen[str]] = []
+
+    def start(self, *args: str, first: bool = True) -> tuple[subprocess.Popen[str], str]:
+        """Start the command; returns it and the page's URL, read from its line "view: URL" (its first
+        line, unless `first` is False)."""
+        proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", *args], stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+        self.procs.append(proc)
+        assert proc.stdout is not None
+        while True:
+            line = proc.stdout.readline()
+            assert line, "the command ended without serving its view"
+            match = re.fullmatch(r"view: (http://127\.0\.0\.1:\d+/)\n", line)
+            assert match or not first, f"expected 'view: URL' first, got {line!r}"
+            if match:
+                return proc, match.group(1)
+
+    @staticmethod
+    def interrupt(proc: subprocess.Popen[str]) -> str:
+        """Ctrl-C the command (the view ends); returns the rest of its output after checking it exited 0."""
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=20)
+        assert proc.returncode == 0, rest
+        return rest
+
+
+@pytest.fixture
+def view_cli() -> Iterator[ViewCli]:
+    """Start live-view commands; any still running at the end of the test is killed."""
+    cli = ViewCli()
+    yield cli
+    for proc in cli.procs:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()

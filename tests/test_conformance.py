@@ -141,10 +141,55 @@ class BadGridModel(Spin):
     grid_model = "bayes"        # type: ignore[assignment]
 
 
+class Drawn(Spin):
+    """Draws a node and the target it turns towards (keeps every rule)."""
+
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"points": {"node": [1.0, 1.0]}, "lines": {"edge": [1.0, 1.0, 2.0, 1.5]},
+                "circles": {"reach": [1.0, 1.0, 0.5]}, "polygons": {"room": [[0, 0, 1, 0, 1, 1]]}}
+
+
+class MarkersNotADict(Spin):
+    def markers(self) -> dict[str, dict[str, object]]:
+        return [1.0, 2.0]       # type: ignore[return-value]
+
+
+class MarkersOddPoints(Spin):
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"points": {"target": [1.0, 2.0, 3.0]}}
+
+
+class MarkersUnknownKind(Spin):
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"arrows": {"way": [0.0, 0.0, 1.0, 1.0]}}
+
+
+class MarkersNan(Spin):
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"circles": {"reach": [0.0, 0.0, math.nan]}}
+
+
+class MarkersTwoPointPolygon(Spin):
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"polygons": {"region": [[0.0, 0.0, 1.0, 1.0]]}}
+
+
+class MarkersChangeDecisions(Spin):
+    """Draws a random target: drawing takes from the run's generator, so the steps after it change."""
+
+    def step(self, state: RobotState, grid: object) -> Twist | Done:
+        return Twist(0.0, float(self.ctx.rng.uniform(0.1, 0.5)))
+
+    def markers(self) -> dict[str, dict[str, object]]:
+        return {"points": {"target": [float(self.ctx.rng.uniform(0, 5)), 1.0]}}
+
+
 def test_a_plugin_that_keeps_the_rules_passes() -> None:
     report = check_explorer(Spin, name="spin")
     assert report.parameters == {"rate": 0.5, "laps": None}
     assert report.done == "enough" and report.steps == 31      # robot time 0.0, 0.1, .., 3.0 s
+    assert Spin().markers() == {}                               # the contract's default: nothing drawn
+    assert check_explorer(Drawn, name="drawn").done == "enough"
 
 
 @pytest.mark.parametrize(("cls", "expected"), [
@@ -163,6 +208,12 @@ def test_a_plugin_that_keeps_the_rules_passes() -> None:
     (RaisesInStep, "step() raised KeyError: 'pose'"),
     (NanTwist, "step returned Twist(v=nan, w=0.0) at step 1"),
     (BadGridModel, "grid_model must be 'logodds' or 'himm', got 'bayes'"),
+    (MarkersNotADict, "markers() must return a dict, got list"),
+    (MarkersOddPoints, "markers()['points']['target'] holds 3 numbers, not a multiple of 2"),
+    (MarkersUnknownKind, "markers() kind 'arrows' is none of points, circles, lines, polygons"),
+    (MarkersNan, "markers()['circles']['reach'] holds nan; only finite numbers [m]"),
+    (MarkersTwoPointPolygon, "markers()['polygons']['region'][0] has 2 points; an outline needs 3 or more"),
+    (MarkersChangeDecisions, "with the same seed, step 2 (robot time 0.1 s) returned"),
 ])
 def test_broken_plugins_are_refused_by_name_and_rule(cls: type, expected: str) -> None:
     with pytest.raises(PluginError) as info:

@@ -26,19 +26,24 @@ __all__ = ["replay", "video", "figure"]
 def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int, view_host: str,
            view_speed: str | None) -> None:
     """Rebuild the map and metrics of a recording (robotexp explore --record, or a ROS 2 robot's bag with
-    /scan and /odom) and write them as explore does (--view: watch the replay in the browser, at
-    --view-speed times its robot time, with pause, step and stop)."""
+    /scan and /odom) and write them as explore does (--view: then play the recording in the browser at
+    --view-speed times its robot time, with pause, step, stop and seeking to any time)."""
     from robotexp.bag.replay import read_bag, replay_bag
     from robotexp.cli import writable_folder
+    from robotexp.view.player import Checkpoints, ReplayPlayer
 
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
     writable_folder(out)
     data = read_bag(bag)
     live = start_view(view, view_host, view_port, view_speed)
+    checkpoints = None
     try:
+        if live is not None:
+            live.hub.set_status(state="waiting", reason="replaying the recording")
+            checkpoints = Checkpoints(duration=data.ticks[-1].time)
         run = replay_bag(data, out, cell=None if cell is None else cell / 1000,
-                         observers=() if live is None else (live.observer,))
+                         observers=() if checkpoints is None else (checkpoints,))
     except BaseException:
         end_view(live, interrupted=True)
         raise
@@ -50,7 +55,17 @@ def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int,
     click.echo(f"results: {out / 'results.jsonl'}")
     if r.coverage is None:
         click.echo("coverage n/a: no ground truth for this recording at this cell size", err=True)
-    end_view(live, r.end is EndReason.INTERRUPTED)
+    if live is None or r.end is EndReason.INTERRUPTED:
+        end_view(live, interrupted=True)
+        return
+    click.echo("view: playing the recording (pause, step, speed, seek on the page); Ctrl-C ends")
+    player = ReplayPlayer(live.hub, data, run, checkpoints, speed=live.observer.pacer.speed)
+    try:
+        player.play()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        live.close()
 
 
 @click.command()

@@ -12,6 +12,10 @@ plausible stamps; every tick of the run has one /odom and one /tf at the same st
     /ground_truth      nav_msgs/Odometry        every tick with a true pose (simulators): map -> base_link
     /map               nav_msgs/OccupancyGrid   every coverage sample (1 s of robot time) and at the end
     /ground_truth/map  nav_msgs/OccupancyGrid   once, with ground truth: 100 occupied, 0 explorable, -1 other
+    /robotexp/markers  visualization_msgs/MarkerArray  the explorer's markers (`Explorer.markers()`: tree
+                                                nodes and edges, safe regions, the target) at the coverage
+                                                samples where they changed (at most once a robot second;
+                                                `robotexp.bag.markers`)
 
 and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
 cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
@@ -25,6 +29,7 @@ wall time: `python benchmarks/bench_record.py`) and written with the `mcap` writ
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -32,8 +37,10 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from robotexp.bag import cdr
-from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, OCCUPANCY_GRID, ODOMETRY, TF_MESSAGE
+from robotexp.bag.markers import marker_array
+from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, MARKER_ARRAY, OCCUPANCY_GRID, ODOMETRY, TF_MESSAGE
 from robotexp.errors import ConfigError
+from robotexp.markers import markers_problem
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, RobotState
@@ -46,6 +53,8 @@ if TYPE_CHECKING:
     from robotexp.record import RunRecord
 
 __all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "check_record_path"]
+
+log = logging.getLogger(__name__)
 
 EPOCH = 1_700_000_000.0     # [s] added to robot time in message stamps (a plausible wall-clock time)
 FORMAT = 1                  # version of the `robotexp.run` metadata
@@ -143,6 +152,8 @@ class BagRecorder(RunObserver):
         self._closed = False
         self._started = False
         self._map_ns = -1
+        self._markers: dict[str, Any] | None = None
+        self._markers_warned = False
 
     def _open(self, path: Path) -> None:
         from mcap.writer import CompressionType, Writer
@@ -237,6 +248,22 @@ class BagRecorder(RunObserver):
         if ns != self._map_ns:
             self._map_ns = ns
             self._write_grid("/map", run.grid.geo, run.grid.states(), ns)
+            self._write_markers(run, ns)
+
+    def _write_markers(self, run: ExplorationRun, ns: int) -> None:
+        """The explorer's markers when they changed since the last ones written (malformed ones: skipped
+        with a warning, once)."""
+        markers = run.explorer.markers()
+        if markers == self._markers:
+            return
+        problem = markers_problem(markers)
+        if problem is not None:
+            if not self._markers_warned:
+                self._markers_warned = True
+                log.warning("recording %s: %s; markers not recorded", self.path, problem)
+            return
+        self._markers = markers
+        self._write("/robotexp/markers", MARKER_ARRAY, marker_array(ns, markers), ns)
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record as metadata and close the file."""

@@ -15,13 +15,14 @@ from __future__ import annotations
 import bisect
 import json
 import logging
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from robotexp.bag.markers import markers_of
 from robotexp.bag.recorder import yaw_of
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import ConfigError, WorldError
@@ -29,6 +30,7 @@ from robotexp.explorer import Done, Explorer, ExplorerContext, ExplorationRun, R
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.groundtruth import GroundTruth
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.markers import Markers
 from robotexp.observers import RunObserver
 from robotexp.record import EndReason
 from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotState, Twist
@@ -61,6 +63,7 @@ class Bag:
     record: dict[str, Any] | None = None        # the run's record (`robotexp.record` metadata)
     truth: GroundTruth | None = None            # the recorded ground truth
     topics: dict[str, str] = field(default_factory=dict)   # topic -> schema name
+    markers: list[tuple[float, Markers]] = field(default_factory=list)   # (time [s], the explorer's markers)
 
 
 def _pose(msg: Any) -> Pose:
@@ -125,6 +128,7 @@ def read_bag(path: Path) -> Bag:
     truths: dict[int, Pose] = {}
     statics: list[Any] = []
     truth_msg = None
+    marker_msgs: list[tuple[int, Markers]] = []
     meta = record = None
     topics: dict[str, str] = {}
     try:
@@ -137,7 +141,8 @@ def read_bag(path: Path) -> Bag:
                     record = json.loads(m.metadata["json"])
             f.seek(0)
             reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static", "/robotexp/scan"]
+            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static", "/robotexp/scan",
+                      "/robotexp/markers"]
             for schema, channel, message, msg in reader.iter_decoded_messages(topics=wanted, log_time_order=True):
                 topics[channel.topic] = schema.name if schema is not None else ""
                 t = message.log_time
@@ -154,6 +159,8 @@ def read_bag(path: Path) -> Bag:
                     truth_msg = msg
                 elif channel.topic == "/tf_static":
                     statics.extend(msg.transforms)
+                elif channel.topic == "/robotexp/markers":
+                    marker_msgs.append((t, markers_of(msg)))
     except (McapError, OSError, ValueError, KeyError) as exc:
         raise ConfigError(f"{path}: not a readable MCAP recording ({type(exc).__name__}: {exc})") from None
     if not odom or not scans:
@@ -187,7 +194,8 @@ def read_bag(path: Path) -> Bag:
             ticks.append(Tick((t - t0) / 1e9, pose, vel, _scan(msg, offset_x, yaw)))
         if not ticks:
             raise ConfigError(f"{path}: no /scan comes after the first /odom; nothing to replay")
-    return Bag(path, ticks, meta, record, truth, topics)
+    markers = [((t - odom[0][0]) / 1e9, m) for t, m in marker_msgs] if meta is not None else []
+    return Bag(path, ticks, meta, record, truth, topics, markers)
 
 
 class ReplayRobot(Robot):
@@ -238,10 +246,22 @@ class ReplayRobot(Robot):
 
 class ReplayExplorer(Explorer):
     """Drives nothing: returns the recorded velocity until the last tick, then Done when the recorded
-    run ended explored."""
+    run ended explored. Its markers are the recorded ones of the tick read last."""
 
-    def __init__(self, robot: ReplayRobot, done_reason: str | None) -> None:
+    def __init__(self, robot: ReplayRobot, done_reason: str | None,
+                 markers: Sequence[tuple[float, Markers]] = ()) -> None:
         self.robot, self.done_reason = robot, done_reason
+        self._markers = list(markers)
+        self._marker_times = [t for t, _ in self._markers]
+
+    def markers(self) -> Markers:
+        """The recorded markers newest at the robot time of the tick read last ({} before the first)."""
+        ticks = self.robot.ticks
+        if not self._markers or not ticks:
+            return {}
+        t = ticks[min(max(self.robot._i - 1, 0), len(ticks) - 1)].time
+        i = bisect.bisect_right(self._marker_times, t + 1e-9) - 1
+        return self._markers[i][1] if i >= 0 else {}
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Nothing to reset."""
@@ -322,7 +342,7 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
     extra = {"collisions": float(rec["collisions"])} if rec.get("collisions") else {}
     robot = ReplayRobot(bag.ticks, radius=meta.get("radius_m", 0.25), model=meta.get("robot") or "replay",
                         final_extra=extra, on_last=on_last)
-    explorer = ReplayExplorer(robot, reason if end is EndReason.EXPLORED else None)
+    explorer = ReplayExplorer(robot, reason if end is EndReason.EXPLORED else None, bag.markers)
     world = meta.get("world") or bag.path.stem
     method = meta.get("method") or "replay"
     pose = meta.get("pose") or "robot"

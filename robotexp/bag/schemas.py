@@ -2,12 +2,12 @@
 
 Each schema is the message's own definition followed by every message it uses, each after a line of
 80 `=` and `MSG: package/Type`, as rosbag2 writes them (the definitions are those of ROS 2 Humble's
-common_interfaces; `builtin_interfaces/Time` is a primitive to the MCAP ROS 2 codec).
+common_interfaces; `builtin_interfaces/Time` and `Duration` are primitives to the MCAP ROS 2 codec).
 """
 
 from __future__ import annotations
 
-__all__ = ["SCHEMAS", "LASER_SCAN", "ODOMETRY", "TF_MESSAGE", "OCCUPANCY_GRID", "EXACT_SCAN"]
+__all__ = ["SCHEMAS", "LASER_SCAN", "ODOMETRY", "TF_MESSAGE", "OCCUPANCY_GRID", "EXACT_SCAN", "MARKER_ARRAY"]
 
 _SEP = "=" * 80
 
@@ -41,6 +41,45 @@ _DEPS = {
     "geometry_msgs/PoseWithCovariance": "Pose pose\nfloat64[36] covariance",
     "geometry_msgs/TwistWithCovariance": "Twist twist\nfloat64[36] covariance",
     "geometry_msgs/TransformStamped": "std_msgs/Header header\nstring child_frame_id\nTransform transform",
+    "std_msgs/ColorRGBA": "float32 r\nfloat32 g\nfloat32 b\nfloat32 a",
+    "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data",
+    "visualization_msgs/UVCoordinate": "float64 u\nfloat64 v",
+    "visualization_msgs/MeshFile": "string filename\nuint8[] data",
+    "visualization_msgs/Marker": """int32 ARROW=0
+int32 CUBE=1
+int32 SPHERE=2
+int32 CYLINDER=3
+int32 LINE_STRIP=4
+int32 LINE_LIST=5
+int32 CUBE_LIST=6
+int32 SPHERE_LIST=7
+int32 POINTS=8
+int32 TEXT_VIEW_FACING=9
+int32 MESH_RESOURCE=10
+int32 TRIANGLE_LIST=11
+int32 ADD=0
+int32 MODIFY=0
+int32 DELETE=2
+int32 DELETEALL=3
+std_msgs/Header header
+string ns
+int32 id
+int32 type
+int32 action
+geometry_msgs/Pose pose
+geometry_msgs/Vector3 scale
+std_msgs/ColorRGBA color
+builtin_interfaces/Duration lifetime
+bool frame_locked
+geometry_msgs/Point[] points
+std_msgs/ColorRGBA[] colors
+string texture_resource
+sensor_msgs/CompressedImage texture
+UVCoordinate[] uv_coordinates
+string text
+string mesh_resource
+MeshFile mesh_file
+bool mesh_use_embedded_materials""",
     "nav_msgs/MapMetaData": ("builtin_interfaces/Time map_load_time\nfloat32 resolution\nuint32 width\n"
                              "uint32 height\ngeometry_msgs/Pose origin"),
 }
@@ -98,4 +137,12 @@ float64[] ranges
 float64 range_max
 float64 offset_x""", ("std_msgs/Header",)))
 
-SCHEMAS = {name: text for name, text in (LASER_SCAN, ODOMETRY, TF_MESSAGE, OCCUPANCY_GRID, EXACT_SCAN)}
+# visualization_msgs/MarkerArray as ROS 2 Humble defines it (Marker with its texture and mesh fields)
+MARKER_ARRAY = ("visualization_msgs/msg/MarkerArray", _schema(
+    "Marker[] markers",
+    ("visualization_msgs/Marker", "std_msgs/Header", "geometry_msgs/Pose", "geometry_msgs/Point",
+     "geometry_msgs/Quaternion", "geometry_msgs/Vector3", "std_msgs/ColorRGBA",
+     "sensor_msgs/CompressedImage", "visualization_msgs/UVCoordinate", "visualization_msgs/MeshFile")))
+
+SCHEMAS = {name: text for name, text in (LASER_SCAN, ODOMETRY, TF_MESSAGE, OCCUPANCY_GRID, EXACT_SCAN,
+                                         MARKER_ARRAY)}

@@ -10,35 +10,41 @@ watchdog stays stopped either way); on resume the loop reads the robot afresh an
 decides from there. On a real robot, robot time (the robot's clock) goes on while paused and counts
 against the run's time limit, and the speed control does nothing (a real robot runs in real time).
 
-`ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and laser at most `frame_rate`
-times per wall second, the path (points at least half a cell apart), the coverage samples, the map
-(at most `map_rate` per second, only when it changed) and the explorer's overlays
-(`Explorer.overlays()`: potential and vectors, and its `markers()` when it has them) at most
-`overlay_rate` per second. Its cost per tick when nothing is due is a clock read and a comparison.
+`ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and scan at most `frame_rate`
+times per wall second, the path (points at least half a cell apart), the coverage samples, and while
+a browser watches the map (at most `map_rate` per second, when the grid took a scan since) and the
+explorer's overlays (`Explorer.overlays()`: potential and vectors, and its `markers()`) at most
+`overlay_rate` per second. Its cost per tick when nothing is due is a clock read and a comparison;
+the work of a message (laser points, the map's changed tiles, JSON) is the server thread's, at the
+rate the browsers take messages (`robotexp.view.feed`, `robotexp.view.server`).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from robotexp.markers import markers_problem
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
-from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, laser_points, \
-    vector_arrows
+from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
 from robotexp.view.live import DEFAULT_SPEED
 
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
 
-__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels"]
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
+           "run_meta", "pacer_command", "new_path_points", "SpeedMeter"]
+
+log = logging.getLogger(__name__)
 
 STOP_REASON = "stopped from the live view"
 
@@ -61,6 +67,7 @@ class Pacer:
         self.paused = False
         self.stopped = False
         self._steps = 0
+        self._woken = False
         self._ref: tuple[float, float] | None = None   # (robot time, wall time) pacing starts from
 
     def set_speed(self, speed: float | None) -> None:
@@ -73,7 +80,7 @@ class Pacer:
     def pause(self) -> None:
         """Hold the loop at its next tick."""
         with self._cond:
-            self.paused = True
+            self.paused, self._woken = True, False
 
     def resume(self) -> None:
         """Let the loop go on."""
@@ -89,6 +96,17 @@ class Pacer:
             self.paused = True
             self._cond.notify_all()
 
+    def wake(self) -> None:
+        """Let a held `wait` return now without a step (a replay's seek while paused); the pause stays."""
+        with self._cond:
+            self._woken = True
+            self._cond.notify_all()
+
+    def unwake(self) -> None:
+        """Forget a `wake` not yet taken by `wait` (its reason was dealt with)."""
+        with self._cond:
+            self._woken = False
+
     def stop(self) -> None:
         """Release the loop for good (it ends the run at its next tick)."""
         with self._cond:
@@ -100,11 +118,16 @@ class Pacer:
         """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
         paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
         `on_hold(False)` when it ends), then sleep as pacing wants. Returns whether the loop was held."""
+        if not (self.paused or self.stopped) and self.speed is None:
+            return False            # as fast as it goes: nothing to hold or pace (no lock: read under the GIL)
         held = False
         with self._cond:
             while self.paused and not self.stopped:
                 if self._steps > 0:
                     self._steps -= 1
+                    break
+                if self._woken:
+                    self._woken = False
                     break
                 if not held:
                     held = True
@@ -134,6 +157,68 @@ class Pacer:
         return held
 
 
+class SpeedMeter:
+    """Robot time per wall time, measured over spans of at least a wall second."""
+
+    def __init__(self) -> None:
+        self._ref: tuple[float, float] | None = None
+
+    def reset(self) -> None:
+        """Start a new span at the next `update` (after a pause: the pause is no slowness)."""
+        self._ref = None
+
+    def update(self, t: float, now: float) -> float | None:
+        """Robot time `t` [s] at wall time `now` [s]: the speed-up over the span that ends here when it
+        lasted a second or more (a new span starts), else None."""
+        if self._ref is None:
+            self._ref = (t, now)
+            return None
+        t0, w0 = self._ref
+        if now - w0 < 1.0:
+            return None
+        self._ref = (t, now)
+        return (t - t0) / (now - w0)
+
+
+def pacer_command(pacer: Pacer, hub: ViewHub, msg: dict[str, Any]) -> bool:
+    """Apply a page's pause, resume, step or speed (value: a number or "max") command to `pacer` and show
+    it in `hub`'s status; whether `msg` was one of these (a bad speed is ignored)."""
+    cmd = msg.get("cmd")
+    if cmd == "pause":
+        pacer.pause()
+        hub.set_status(state="paused")
+    elif cmd == "step":
+        pacer.step()
+        hub.set_status(state="paused")
+    elif cmd == "resume":
+        pacer.resume()
+        if hub.status.get("state") != "ended":
+            hub.set_status(state="running")
+    elif cmd == "speed":
+        value = msg.get("value")
+        try:
+            speed = None if value in (None, "max") else float(value)
+            pacer.set_speed(speed)
+        except (TypeError, ValueError):
+            return True
+        hub.set_status(speed=speed)
+    else:
+        return False
+    return True
+
+
+def new_path_points(path: Sequence[tuple[float, float]], start: int, end: int, last: tuple[float, float] | None,
+                    spacing: float) -> tuple[list[float], tuple[float, float] | None]:
+    """The points of `path[start:end]` at least `spacing` [m] from the one kept before (`last`, None: keep
+    the first), as a flat list x, y, ... rounded to mm, and the last point kept."""
+    out: list[float] = []
+    for x, y in path[start:end]:
+        if last is None or math.hypot(x - last[0], y - last[1]) >= spacing:
+            out += [round(x, 3), round(y, 3)]
+            last = (x, y)
+    return out, last
+
+
 class ViewObserver(RunObserver):
     """Feeds a `ViewHub` from a run and holds the run for the view's controls.
 
@@ -145,7 +230,7 @@ class ViewObserver(RunObserver):
         clock: wall clock [s].
     """
 
-    def __init__(self, hub: ViewHub, *, speed: float | None = DEFAULT_SPEED, frame_rate: float = 25.0,
+    def __init__(self, hub: ViewHub, *, speed: float | None = DEFAULT_SPEED, frame_rate: float = 10.0,
                  map_rate: float = 4.0, overlay_rate: float = 2.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.hub = hub
@@ -162,40 +247,23 @@ class ViewObserver(RunObserver):
     def _reset(self) -> None:
         self._next_frame = self._next_map = self._next_overlay = -math.inf
         self._map_dirty = True
-        self._last_classes: Any = None
         self._path_sent = 0
         self._last_xy: tuple[float, float] | None = None
-        self._rate_ref: tuple[float, float] | None = None
+        self._speed = SpeedMeter()
         self._pending_curve: list[float] = []
         self._coverage: float | None = None
 
     # -- commands from the page (server thread) --
     def command(self, msg: dict[str, Any]) -> None:
         """Act on a page's command: pause, resume, step, stop, speed (value: a number or "max")."""
-        cmd = msg.get("cmd")
-        if cmd == "pause":
-            self.pacer.pause()
-            self.hub.set_status(state="paused")
-        elif cmd == "resume":
-            self.pacer.resume()
-            self.hub.set_status(state="running")
-        elif cmd == "step":
-            self.pacer.step()
-            self.hub.set_status(state="paused")
-        elif cmd == "stop":
+        if msg.get("cmd") == "stop":
             run = self.run
             if run is not None:
                 run.request_stop(STOP_REASON, EndReason.STOPPED)
                 self._stop_requested = True
             self.pacer.stop()
-        elif cmd == "speed" and self.simulated:
-            value = msg.get("value")
-            try:
-                speed = None if value in (None, "max") else float(value)
-                self.pacer.set_speed(speed)
-            except (TypeError, ValueError):
-                return
-            self.hub.set_status(speed=speed)
+        elif msg.get("cmd") != "speed" or self.simulated:
+            pacer_command(self.pacer, self.hub, msg)
 
     # -- the run (loop thread) --
     def on_start(self, run: ExplorationRun) -> None:
@@ -208,17 +276,8 @@ class ViewObserver(RunObserver):
         self._reset()
         self._stop_requested = False        # a stop from the view ended the previous run (of a script), not this one
         self.pacer.stopped = False
-        geo = run.grid.geo
-        info = run.info
-        start = run.start_pose
         self.hub.controls = ("pause", "step", "stop", "speed") if self.simulated else ("pause", "step", "stop")
-        self.hub.start({
-            "geo": {"origin_x": geo.origin_x, "origin_y": geo.origin_y, "cell": geo.cell, "rows": geo.rows,
-                    "cols": geo.cols},
-            "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
-            "method": info.method, "world": info.world, "robot": info.robot, "simulated": self.simulated,
-            "max_time": run.max_time, "truth": run.truth is not None,
-            "start": None if start is None else [start.x, start.y, start.theta]})
+        self.hub.start(run_meta(run, self.simulated))
         self.hub.set_status(state="paused" if self.pacer.paused else "running",
                             speed=self.pacer.speed if self.simulated else 1.0)
         self._send(run, run.robot_time, force=True)
@@ -232,18 +291,20 @@ class ViewObserver(RunObserver):
             self._send(run, step.time)
         if self._stop_requested:
             return
+        pacer = self.pacer
+        if pacer.speed is None and not (pacer.paused or pacer.stopped):
+            return                  # nothing to hold or pace
         # a simulated robot stands still while the loop waits; a real one is told to stop (and again
         # every halt_period) while paused
         halt = None if self.simulated else run.robot.stop
-        self.pacer.wait(step.time if self.simulated else None, halt,
-                        lambda holding: self._hold(run, step.time, holding))
+        pacer.wait(step.time if self.simulated else None, halt, lambda holding: self._hold(run, step.time, holding))
 
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:
             self._send(run, t, force=True)
             self.hub.set_status(state="paused")
         else:
-            self._rate_ref = None
+            self._speed.reset()
             if not self._stop_requested:
                 self.hub.set_status(state="paused" if self.pacer.paused else "running")
 
@@ -261,7 +322,9 @@ class ViewObserver(RunObserver):
                         else record.reason)
 
     def _send(self, run: ExplorationRun, t: float, force: bool = False) -> None:
-        """Publish the state of `run` at robot time `t` (the map and overlays when due or `force`)."""
+        """Publish the state of `run` at robot time `t`: the pose, the scan (the hub makes its points
+        when a browser takes them), the new path and curve points, and, while a browser watches (or
+        with `force`), the map and overlays when due."""
         now = self.clock()
         self._next_frame = now + self.frame_period
         state = run.state
@@ -269,38 +332,43 @@ class ViewObserver(RunObserver):
         if state is not None:
             p = state.pose
             frame.pose = (p.x, p.y, p.theta)
-            sc = state.laser
-            frame.laser = [] if sc is None else laser_points(p.x, p.y, p.theta, sc.angles, sc.ranges, sc.offset_x)
+            if state.laser is None:
+                frame.laser = []
+            else:
+                frame.scan = state.laser
         frame.path = self._new_path(run)
         frame.curve, self._pending_curve = self._pending_curve, []
         frame.coverage = self._coverage
-        if self._rate_ref is None:
-            self._rate_ref = (t, now)
-        elif now - self._rate_ref[1] >= 1.0:
-            frame.speedup = (t - self._rate_ref[0]) / (now - self._rate_ref[1])
-            self._rate_ref = (t, now)
-        if self._map_dirty and (force or now >= self._next_map):
+        frame.speedup = self._speed.update(t, now)
+        watched = force or self.hub.watched
+        if watched and self._map_dirty and (force or now >= self._next_map):
             self._next_map = now + self.map_period
             self._map_dirty = False
-            classes = classes_of_states(run.grid.states())
-            if self._last_classes is None or not np.array_equal(classes, self._last_classes):
-                self._last_classes = classes
-                frame.map = MapLayer(encode_classes(classes), *classes.shape)
-        if force or now >= self._next_overlay:
+            frame.map = classes_of_states(run.grid.states())
+        if watched and (force or now >= self._next_overlay):
             self._next_overlay = now + self.overlay_period
             frame.overlays = explorer_overlays(run)
         self.hub.publish(frame)
 
     def _new_path(self, run: ExplorationRun) -> list[float]:
         path = run.metrics.path
-        half = run.grid.geo.cell / 2
-        out: list[float] = []
-        for x, y in path[self._path_sent:]:
-            if self._last_xy is None or math.hypot(x - self._last_xy[0], y - self._last_xy[1]) >= half:
-                out += [round(x, 3), round(y, 3)]
-                self._last_xy = (x, y)
+        out, self._last_xy = new_path_points(path, self._path_sent, len(path), self._last_xy, run.grid.geo.cell / 2)
         self._path_sent = len(path)
         return out
+
+
+def run_meta(run: ExplorationRun, simulated: bool) -> dict[str, Any]:
+    """What the view's page is told about a run when it starts (`ViewHub.start`): its map geometry,
+    robot radius, names, time limit, whether coverage is known, and the start pose."""
+    geo = run.grid.geo
+    info = run.info
+    start = run.start_pose
+    return {"geo": {"origin_x": geo.origin_x, "origin_y": geo.origin_y, "cell": geo.cell, "rows": geo.rows,
+                    "cols": geo.cols},
+            "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
+            "method": info.method, "world": info.world, "robot": info.robot, "simulated": simulated,
+            "max_time": run.max_time, "truth": run.truth is not None,
+            "start": None if start is None else [start.x, start.y, start.theta]}
 
 
 def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:
@@ -324,7 +392,7 @@ def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bo
 
 def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
-    vectors as arrows on a lattice) and `Explorer.markers()` when the explorer has it."""
+    vectors as arrows on a lattice) and `Explorer.markers()` (left out, with a warning, when malformed)."""
     out: dict[str, Any] = {}
     geo = run.grid.geo
     overlays = run.explorer.overlays()
@@ -335,7 +403,11 @@ def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     if vec is not None and vec.shape == (geo.rows, geo.cols, 2):
         spacing, arrows = vector_arrows(vec, (geo.origin_x, geo.origin_y), geo.cell)
         out["vectors"] = {"spacing": spacing, "arrows": arrows}
-    markers = getattr(run.explorer, "markers", None)
-    if callable(markers):
-        out.update(markers())
+    markers = run.explorer.markers()
+    problem = markers_problem(markers)
+    if problem is None:
+        out.update(markers)
+    else:
+        log.warning("explorer %s: %s; its markers are not drawn", run.info.method or type(run.explorer).__name__,
+                    problem)
     return out

@@ -1,10 +1,11 @@
 """The live view's web server: aiohttp on its own asyncio loop in a background thread.
 
 `ViewServer(hub).start()` serves the page (static files of this package: index.html, view.js,
-view.css) and a websocket at /ws. Each websocket connection gets the hub's newest state whenever it
-changed and it is ready for more (`ViewHub.message_for`): a slow browser skips frames, a browser
-that goes away only ends its own connection; the run never waits for either. Commands a page sends
-({"cmd": ...}) go to `ViewHub.command`.
+view.css), a websocket at /ws and POST /command (a command as JSON, for scripts). Each websocket
+connection polls the hub at its rate and sends its newest state when it changed and the last send is
+done (`ViewHub.message_for`): a slow browser skips frames, a browser that goes away only ends its own
+connection; the run never waits for either, nor wakes this thread. Commands a page sends ({"cmd": ...}) go to
+`ViewHub.command`.
 """
 
 from __future__ import annotations
@@ -37,16 +38,23 @@ class ViewServer:
         host: the address to listen on (127.0.0.1: this machine only).
         port: the TCP port (0: a free one, see `port` after `start`).
         max_rate: [1/s] most messages per second to one browser (each redraws the page).
+        busy_rate: [1/s] most messages per second while the producer goes as fast as it can (a
+            simulated run at speed "max", status speed None): each page update costs the browser
+            8-11 ms of CPU whatever changed (headless Chromium, benchmarks/bench_view_page.py), which
+            on a busy machine is taken from the run; a paced run has that time to spare.
     """
 
-    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0) -> None:
+    def __init__(self, hub: ViewHub, host: str = "127.0.0.1", port: int = 0, max_rate: float = 10.0,
+                 busy_rate: float = 4.0) -> None:
         self.hub, self.host, self.port = hub, host, port
         self.min_interval = 1.0 / max_rate
+        self.busy_interval = 1.0 / min(busy_rate, max_rate)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
         self._sockets: set[web.WebSocketResponse] = set()
-        self.clients = 0
+        self.clients = 0           # browsers connected now
+        self.sent = 0              # messages sent to browsers so far
 
     @property
     def url(self) -> str:
@@ -98,6 +106,7 @@ class ViewServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
         app.router.add_get("/static/{name}", self._static)
+        app.router.add_post("/command", self._command)
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
@@ -147,19 +156,34 @@ class ViewServer:
             raise web.HTTPNotFound()
         return web.Response(body=body, content_type=_TYPES[suffix], headers={"Cache-Control": "no-store"})
 
-    async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
-        await ws.prepare(request)
-        loop = asyncio.get_running_loop()
-        changed = asyncio.Event()
+    async def _command(self, request: web.Request) -> web.Response:
+        """POST /command with a JSON command, as a page sends it on the websocket ({"cmd": "seek",
+        "value": 12.5}): 204 when handed over (commands the view does not offer are ignored), 400 when
+        the body is no JSON object."""
+        try:
+            data = await request.json()
+        except ValueError:
+            data = None
+        if not isinstance(data, dict) or not isinstance(data.get("cmd"), str):
+            raise web.HTTPBadRequest(text='expected a JSON object like {"cmd": "pause"}\n')
+        self.hub.command(data)
+        return web.Response(status=204)
 
-        def wake() -> None:           # called in the producer's thread
-            loop.call_soon_threadsafe(changed.set)
+    async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
+        # no permessage-deflate: the map tiles are compressed already, and deflating every frame would cost
+        # the run's process CPU for a few kB of laser and path
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16, compress=False)
+        await ws.prepare(request)
+        # the sender polls the hub at its rate: the producer never wakes this thread (each wake-up would
+        # take the GIL from the run's thread, and on a busy machine a thread that holds it may wait long
+        # for a CPU while the run waits for it); the listener only counts the browser as watching
+        def watching() -> None:
+            pass
 
         self._sockets.add(ws)
         self.clients += 1
-        self.hub.add_listener(wake)
-        sender = asyncio.create_task(self._send_loop(ws, changed))
+        self.hub.add_listener(watching)
+        sender = asyncio.create_task(self._send_loop(ws))
         try:
             async for msg in ws:
                 if msg.type == WSMsgType.TEXT:
@@ -172,22 +196,23 @@ class ViewServer:
                 elif msg.type == WSMsgType.ERROR:
                     break
         finally:
-            self.hub.remove_listener(wake)
+            self.hub.remove_listener(watching)
             sender.cancel()
             self._sockets.discard(ws)
             self.clients -= 1
         return ws
 
-    async def _send_loop(self, ws: web.WebSocketResponse, changed: asyncio.Event) -> None:
-        """Send the newest state whenever it changed and the last send is done (stale frames are skipped)."""
+    async def _send_loop(self, ws: web.WebSocketResponse) -> None:
+        """Send the newest state when it changed, at most `max_rate` times a second (`busy_rate` while the
+        run goes at max speed); stale frames are skipped, a slow browser delays only its own messages."""
         client = ViewClient()
         try:
             while not ws.closed:
                 msg = self.hub.message_for(client)
                 if msg is not None:
                     await ws.send_str(json.dumps(msg, separators=(",", ":")))
-                await changed.wait()
-                changed.clear()
-                await asyncio.sleep(self.min_interval)
+                    self.sent += 1
+                busy = self.hub.status.get("speed", 0) is None and self.hub.status.get("state") == "running"
+                await asyncio.sleep(self.busy_interval if busy else self.min_interval)
         except (ConnectionError, RuntimeError) as exc:
             log.debug("view client gone: %s", exc)

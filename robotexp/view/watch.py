@@ -10,7 +10,7 @@ from collections.abc import Callable
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import RobotState
-from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, laser_points
+from robotexp.view.feed import Frame, ViewHub, classes_of_states
 
 __all__ = ["StateFeed"]
 
@@ -60,15 +60,14 @@ class StateFeed:
         sc = state.laser
         if sc is not None:
             self.grid.update(p, sc)
-            frame.laser = laser_points(p.x, p.y, p.theta, sc.angles, sc.ranges, sc.offset_x)
+            frame.scan = sc
         if self._last_xy is None or math.hypot(p.x - self._last_xy[0], p.y - self._last_xy[1]) >= self.cell / 2:
             frame.path = [round(p.x, 3), round(p.y, 3)]
             self._last_xy = (p.x, p.y)
         now = self.clock()
         if now >= self._next_map:
             self._next_map = now + self.map_period
-            classes = classes_of_states(self.grid.states())
-            frame.map = MapLayer(encode_classes(classes), *classes.shape)
+            frame.map = classes_of_states(self.grid.states())
         self.hub.publish(frame)
 
     def finish(self, reason: str) -> None:

@@ -25,7 +25,7 @@ def _last(path: Path) -> dict[str, object]:
 TOPICS = {"/scan": "sensor_msgs/msg/LaserScan", "/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
           "/tf_static": "tf2_msgs/msg/TFMessage", "/map": "nav_msgs/msg/OccupancyGrid",
           "/ground_truth": "nav_msgs/msg/Odometry", "/ground_truth/map": "nav_msgs/msg/OccupancyGrid",
-          "/robotexp/scan": "robotexp_msgs/msg/ExactScan"}
+          "/robotexp/scan": "robotexp_msgs/msg/ExactScan", "/robotexp/markers": "visualization_msgs/msg/MarkerArray"}
 
 
 def test_recording_holds_ros2_topics(recorded: tuple[Path, dict[str, object]]) -> None:
@@ -205,6 +205,17 @@ def test_foreign_bag_replays(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     rec = _last(tmp_path / "out" / "results.jsonl")
     assert rec["coverage"] is None and rec["path_length_m"] == pytest.approx(0.98, abs=1e-4)
+    # the view's player seeks in it too: the map at the end is the replay's, at 2 s that of 21 scans
+    from robotexp.view.feed import ViewHub
+    from robotexp.view.player import Checkpoints, ReplayPlayer
+
+    checkpoints = Checkpoints(duration=data.ticks[-1].time)
+    run = replay_bag(data, None, cell=0.1, observers=(checkpoints,))
+    player = ReplayPlayer(ViewHub(), data, run, checkpoints, speed=None)
+    player.seek_to(10.0)
+    assert player.i == 50 and np.array_equal(player.grid.states(), run.grid.states())
+    player.seek_to(2.0)
+    assert player.i == 21 and player.grid.scans == 21
 
 
 def test_replay_bad_input(tmp_path: Path) -> None:
@@ -237,7 +248,7 @@ def test_replay_feeds_the_live_view(recorded: tuple[Path, dict[str, object]]) ->
     run = replay_bag(read_bag(bag), None, observers=(observer,))
     assert run.record is not None and run.record.coverage == record["coverage"]
     assert hub.meta["world"] == "ufmg-static" and hub.meta["simulated"] is True
-    assert hub.map is not None and len(hub.path) >= 4
+    assert hub.classes is not None and len(hub.path) >= 4
     # paced at 50x: 25 s of robot time take 0.5 s of (fake) wall time
     assert sum(sleeps) == pytest.approx(25.0 / 50.0, rel=0.05)
 

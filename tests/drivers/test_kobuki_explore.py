@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import pytest
 
@@ -26,9 +27,12 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, emula
     # ticks and the gyro 0.01 deg, and the loop is paced by the stream (commands land a frame or two
     # later than on the stepped simulator). So the routes differ; the explored space must not: the
     # final coverage agrees within 2 percentage points (cells at the very edge of free space).
+    # The protocol path against the stepped simulator, both on the exact odometry pose: --localize
+    # none on the robot (its default on a real robot is scan matching, which on the emulator's exact
+    # odometry can only add error: 0.98 coverage instead of 1.0; tests/localization covers that default).
     embedded = run_experiment(run_spec("kobuki", 300.0), None).record
     with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(run_spec("kobuki", 300.0), robot, None, world)
+        out = run_on_robot(replace(run_spec("kobuki", 300.0), localize="none"), robot, None, world)
     record = out.record
     assert embedded["completed"] and record["completed"], (embedded["reason"], record["reason"])
     assert embedded["coverage"] > 0.97

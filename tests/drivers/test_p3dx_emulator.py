@@ -10,6 +10,7 @@ import math
 import os
 import socket
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -125,7 +126,10 @@ def test_exploration_through_emulator_matches_embedded_sim() -> None:
     # and waits up to 1 s for each command (speedup 0.1), so a slow planning step does not count
     with P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=0.1, laser=LASER, lockstep=True) as emu:
         with P3DXRobot(emu.address, laser_range=3.0, laser_offset=0.0, watchdog=2.0, silence=3.0) as robot:
-            got = run_on_robot(spec, robot, None, "ufmg-static", image=False)
+            # the protocol path on the odometry pose, as the embedded run: --localize none (a real robot's
+            # default is scan matching, which on the emulator's exact odometry moved the pose by up to
+            # 3 cm and 0.9 deg in 30 s and the paths parted within 10 s; tests/localization covers it)
+            got = run_on_robot(replace(spec, localize="none"), robot, None, "ufmg-static", image=False)
     # The protocol quantises RVEL to whole deg/s, poses to 0.485 mm / 0.088 deg and ranges to 1 mm:
     # for the first 10 s the two paths agree within 6 cm (4.2 cm measured) ...
     path_ref, path = np.array(ref.run.metrics.path[:100]), np.array(got.run.metrics.path[:100])

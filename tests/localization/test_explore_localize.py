@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 from click.testing import CliRunner
 
 from robotexp.cli import main
@@ -23,6 +24,13 @@ def test_explore_records_ate_with_and_without_scan_matching(tmp_path: Path) -> N
     assert fixed["localize"] == "scan-match" and fixed["matches"]["matched"] > 0     # auto: on with the error
     assert exact["localize"] == "none" and exact["ate_m"] == 0.0                     # auto: off without it
     assert fixed["ate_m"] < 0.1 < raw["ate_m"]
+    # both paths are written: the true one, and the one the explorer got where it differs
+    runs = [r["run"] for r in (raw, fixed, exact)]
+    for name in runs[:2]:
+        true_path = np.loadtxt(tmp_path / f"{name}.path.csv", delimiter=",", skiprows=1)
+        est = np.loadtxt(tmp_path / f"{name}.estimated_path.csv", delimiter=",", skiprows=1)
+        assert len(true_path) > 10 and len(est) > 10
+    assert not (tmp_path / f"{runs[2]}.estimated_path.csv").exists()          # exact odometry: one path
     # the typed record keeps the new keys
     assert RunRecord.from_dict(fixed).as_dict() == fixed
 

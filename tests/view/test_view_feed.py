@@ -9,8 +9,10 @@ import zlib
 import numpy as np
 import pytest
 
-from robotexp.view.feed import FREE, OCCUPIED, UNKNOWN, Frame, MapLayer, ViewClient, ViewHub, classes_of_states, \
-    decode_classes, encode_classes, laser_points, vector_arrows
+from robotexp.robot import LaserScan
+from robotexp.view.feed import FREE, OCCUPIED, TILE, UNKNOWN, Frame, ViewClient, ViewHub, changed_tiles, \
+    classes_of_states, decode_classes, decode_tiles, encode_classes, encode_tiles, laser_points, packed_laser, \
+    unpack_laser, vector_arrows
 
 
 def test_classes_of_ros_states() -> None:
@@ -46,6 +48,18 @@ def test_laser_points_in_world_frame() -> None:
     assert len(many) // 2 == 100
 
 
+def test_packed_laser_is_the_points_to_the_cm() -> None:
+    rng = np.random.default_rng(2)
+    angles = np.linspace(-2.0, 2.0, 500)
+    ranges = rng.uniform(0.05, 30.0, 500)
+    ranges[::7] = np.inf
+    args = (-3.2, 14.7, 0.8, angles, ranges, 0.12)
+    packed = packed_laser(*args)
+    assert isinstance(packed["cm"], str) and len(packed["cm"]) < 4 * 360 * 4 / 3 + 4   # 4 bytes a point
+    assert unpack_laser(packed) == pytest.approx(laser_points(*args), abs=0.005 + 1e-9)
+    assert len(unpack_laser(packed)) == len(laser_points(*args)) == 2 * 214     # 428 finite beams: every 2nd
+
+
 def test_vector_arrows_lattice() -> None:
     vec = np.zeros((10, 20, 2))
     vec[..., 0] = 3.0                     # all pointing +x, not unit length
@@ -59,32 +73,79 @@ def test_vector_arrows_lattice() -> None:
     assert a[0, :2] == pytest.approx([-1.0 + 1.5 * 0.1, -2.0 + 1.5 * 0.1])
 
 
+def test_changed_tiles_and_their_encoding() -> None:
+    rng = np.random.default_rng(5)
+    old = rng.integers(0, 3, size=(70, 45)).astype(np.uint8)     # 3 x 2 tiles of 32, the last ones cut
+    assert changed_tiles(None, old).tolist() == [[True, True]] * 3
+    new = old.copy()
+    new[33, 40] = (new[33, 40] + 1) % 3                            # tile (1, 1)
+    new[69, 0] = (new[69, 0] + 1) % 3                              # tile (2, 0), the cut one
+    which = changed_tiles(old, new)
+    assert which.tolist() == [[False, False], [False, True], [True, False]]
+    msg = encode_tiles(new, which)
+    assert msg["tiles"] == [1, 1, 2, 0] and msg["tile"] == TILE
+    raw = zlib.decompress(__import__("base64").b64decode(msg["data"]))
+    assert raw == new[32:64, 32:45].tobytes() + new[64:70, 0:32].tobytes()      # row-major, tile after tile
+    painted = old.copy()
+    decode_tiles(msg, painted)
+    assert np.array_equal(painted, new)
+    whole = np.zeros_like(old)
+    decode_tiles(encode_tiles(new, changed_tiles(None, new)), whole)
+    assert np.array_equal(whole, new)
+    with pytest.raises(ValueError, match="tiles of a 70 x 45 map"):
+        decode_tiles(msg, np.zeros((45, 70), np.uint8))
+
+
+def _classes(rows: int, cols: int, free: tuple[int, int] | None = None) -> np.ndarray:
+    out = np.zeros((rows, cols), np.uint8)
+    if free is not None:
+        out[free] = FREE
+    return out
+
+
 def test_hub_sends_newest_state_and_points_once() -> None:
     hub = ViewHub()
     client = ViewClient()
     first = hub.message_for(client)
     assert first is not None and "meta" not in first            # nothing started yet
-    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.2})
-    hub.publish(Frame(time=0.1, pose=(0, 0, 0), path=[0.0, 0.0], map=MapLayer("A", 2, 2)))
+    hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 40, "cols": 40}, "radius": 0.2})
+    hub.publish(Frame(time=0.1, pose=(0, 0, 0), path=[0.0, 0.0], map=_classes(40, 40, (0, 0))))
     hub.publish(Frame(time=0.2, pose=(1, 0, 0), path=[1.0, 0.0], curve=[0.0, 0.5]))
-    hub.publish(Frame(time=0.3, pose=(2, 0, 0), path=[2.0, 0.0]))
+    hub.publish(Frame(time=0.3, pose=(2, 0, 0), path=[2.0, 0.0],
+                      scan=LaserScan(np.array([0.0, 1.0]), np.array([1.0, np.inf]), 4.0)))
     msg = hub.message_for(client)
     assert msg is not None
     assert msg["meta"]["radius"] == 0.2
     assert msg["t"] == 0.3 and msg["pose"] == (2, 0, 0)             # the stale poses were skipped
+    assert unpack_laser(msg["laser"]) == [3.0, 0.0]                  # the scan's points, made at the send
     assert msg["path_from"] == 0 and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0]
-    assert msg["curve"] == [0.0, 0.5] and msg["map"]["data"] == "A"
+    assert msg["curve"] == [0.0, 0.5] and msg["map"]["tiles"] == [0, 0, 0, 1, 1, 0, 1, 1]   # all of it
     assert hub.message_for(client) is None                          # nothing new
-    hub.publish(Frame(time=0.4, path=[3.0, 0.0]))
+    hub.publish(Frame(time=0.4, path=[3.0, 0.0], map=_classes(40, 40, (0, 0))))   # the same map: no tiles
     msg = hub.message_for(client)
     assert msg is not None and "meta" not in msg and "map" not in msg
     assert msg["path_from"] == 3 and msg["path"] == [3.0, 0.0] and msg["pose"] == (2, 0, 0)
+    hub.publish(Frame(time=0.5, map=_classes(40, 40, (35, 0))))     # cell (0, 0) back to unknown, (35, 0) free
+    msg = hub.message_for(client)
+    assert msg is not None and msg["map"]["tiles"] == [0, 0, 1, 0]  # only the tiles that changed
     late = ViewClient()                                             # a browser that joins now gets it all
     msg = hub.message_for(late)
-    assert msg is not None and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 3.0, 0.0] and msg["map"]["data"] == "A"
+    assert msg is not None and msg["path"] == [0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 3.0, 0.0]
+    assert len(msg["map"]["tiles"]) == 8
+    got = np.full((40, 40), 9, np.uint8)
+    decode_tiles(msg["map"], got)
+    assert np.array_equal(got, _classes(40, 40, (35, 0)))
+    hub.restart(0.2)                                                # a replay seeks back: path from scratch,
+    hub.publish(Frame(time=0.2, path=[1.0, 0.0], map=_classes(40, 40, (0, 0))))     # the map's changes only
+    msg = hub.message_for(client)
+    assert msg is not None and "meta" not in msg and msg["path_from"] == 0 and msg["path"] == [1.0, 0.0]
+    assert msg["map"]["tiles"] == [0, 0, 1, 0] and msg["t"] == 0.2
     hub.start({"geo": {"origin_x": 0, "origin_y": 0, "cell": 0.1, "rows": 2, "cols": 2}, "radius": 0.3})
     msg = hub.message_for(client)                                   # a new run: from scratch
     assert msg is not None and msg["meta"]["radius"] == 0.3 and msg["path"] == [] and "map" not in msg
+    hub.publish(Frame(time=0.1, map=_classes(2, 2)))
+    msg = hub.message_for(client)
+    assert msg is not None and msg["map"]["tiles"] == [0, 0] and msg["map"]["rows"] == 2
     hub.finish("stopped from the live view")
     msg = hub.message_for(client)
     assert msg is not None and msg["status"]["state"] == "ended"
@@ -150,3 +211,37 @@ def test_hub_sends_campaign_rows_once() -> None:
     hub.publish(Frame(time=4.0))
     msg = hub.message_for(client)
     assert msg is not None and "rows" not in msg
+
+
+def test_observer_skips_the_map_while_nobody_watches() -> None:
+    """Without a browser the observer publishes no maps (the run does not build them); one that connects
+    gets the run's current map at once."""
+    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.explorer import ExplorationRun
+    from robotexp.observers import RunObserver, StepEvent
+    from robotexp.view.observer import ViewObserver
+
+    hub = ViewHub()
+    versions: list[tuple[float, int]] = []
+
+    class Browser(RunObserver):
+        """Connects at 5 s of robot time; notes the hub's map version at every tick."""
+
+        def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
+            if step.time >= 5.0 and not hub.watched:
+                hub.add_listener(lambda: None)
+            versions.append((step.time, hub.map_version))
+
+    clock = [0.0]
+
+    def tick() -> float:              # a wall clock that moves 10 ms a call: maps fall due as they would
+        clock[0] += 0.01
+        return clock[0]
+
+    out = run_experiment(RunSpec(world="ufmg-static", method="frontier", max_time=10.0), None,
+                         observers=[Browser(), ViewObserver(hub, speed=None, clock=tick)], image=False)
+    before = {v for t, v in versions if t < 5.0}
+    after = [v for t, v in versions if t >= 5.2]
+    assert before == {1}                          # the map of the start only (sent with the run's meta)
+    assert after[-1] > 2                          # maps flow once watched
+    assert hub.classes is not None and np.array_equal(hub.classes, classes_of_states(out.run.grid.states()))

@@ -131,7 +131,7 @@ def test_observer_pauses_steps_and_stops_a_simulated_run(tmp_path: Path) -> None
         held = hub.time
         time.sleep(0.3)
         assert hub.time == held and hub.status["state"] == "paused"
-        assert hub.map is not None and len(hub.path) > 2 and hub.curve
+        assert hub.classes is not None and len(hub.path) > 2 and hub.curve
     finally:
         observer.command({"cmd": "stop"})
         thread.join(30)

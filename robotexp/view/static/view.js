@@ -2,10 +2,10 @@
 "use strict";
 (() => {
   const $ = (id) => document.getElementById(id);
-  const canvas = $("map"), ctx = canvas.getContext("2d");
+  const canvas = $("map"), dyn = $("dyn"), ctx = dyn.getContext("2d");
   const curveCanvas = $("curve"), cctx = curveCanvas.getContext("2d");
   const S = { meta: null, pose: null, laser: [], path: [], curve: [], overlays: {}, status: {},
-              mapCanvas: null, potCanvas: null, mapVersion: 0, t: 0, controls: [] };
+              mapVersion: 0, t: 0, controls: [] };
   const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
 
   function viridis(v) {
@@ -19,58 +19,103 @@
     return new Uint8Array(await new Response(stream).arrayBuffer());
   }
 
-  // a layer of rows x cols cells (row 0 = south) drawn north-up into an offscreen canvas
-  function layerCanvas(bytes, rows, cols, colour) {
-    const off = document.createElement("canvas");
-    off.width = cols; off.height = rows;
-    const img = off.getContext("2d").createImageData(cols, rows);
+  const CLASS_RGBA = [[205, 205, 205, 255], [255, 255, 255, 255], [0, 0, 0, 255]];
+
+  // The view is four stacked layers of the same size on the page (#stage): #map and #pot hold one
+  // pixel per cell (the browser scales them), #over the explorer's overlays and the path (redrawn when
+  // the overlays change; new path segments are added as they come), #dyn what moves (laser, robot),
+  // all a frame redraws. A map update paints only its changed tiles (robotexp/view/feed.py encode_tiles).
+  const mapx = canvas.getContext("2d"), pot = $("pot"), potx = pot.getContext("2d");
+  const over = $("over"), ox = over.getContext("2d");
+  let overDirty = true, overPath = 0, mapImg = null;
+
+  function sizeLayers() {
+    const g = S.meta.geo;
+    for (const c of [canvas, pot]) { if (c.width !== g.cols || c.height !== g.rows) { c.width = g.cols; c.height = g.rows; } }
+    mapImg = mapx.createImageData(g.cols, g.rows);
+    for (let i = 0; i < mapImg.data.length; i += 4) {
+      mapImg.data[i] = mapImg.data[i + 1] = mapImg.data[i + 2] = 205; mapImg.data[i + 3] = 255;
+    }
+    mapx.putImageData(mapImg, 0, 0);
+    potx.clearRect(0, 0, pot.width, pot.height); pot.hidden = true;
+  }
+
+  async function paintTiles(m) {
+    const bytes = await inflate(m.data), rows = m.rows, cols = m.cols, T = m.tile;
+    if (!mapImg || mapImg.width !== cols || mapImg.height !== rows) return;
+    const d = mapImg.data;
+    let at = 0;
+    for (let k = 0; k < m.tiles.length; k += 2) {
+      const r0 = m.tiles[k] * T, c0 = m.tiles[k + 1] * T, h = Math.min(T, rows - r0), w = Math.min(T, cols - c0);
+      for (let r = r0; r < r0 + h; r++) {
+        let o = ((rows - 1 - r) * cols + c0) * 4;
+        for (let c = 0; c < w; c++, o += 4) {
+          const rgba = CLASS_RGBA[bytes[at++]] || CLASS_RGBA[0];
+          d[o] = rgba[0]; d[o + 1] = rgba[1]; d[o + 2] = rgba[2];
+        }
+      }
+    }
+    mapx.putImageData(mapImg, 0, 0);
+  }
+
+  async function paintPotential(p) {
+    if (!p) { pot.hidden = true; return; }
+    const bytes = await inflate(p.data), rows = p.rows, cols = p.cols;
+    if (pot.width !== cols || pot.height !== rows) return;
+    const img = potx.createImageData(cols, rows);
     for (let r = 0; r < rows; r++) {
       const dst = (rows - 1 - r) * cols;
       for (let c = 0; c < cols; c++) {
-        const rgba = colour(bytes[r * cols + c]), o = (dst + c) * 4;
-        img.data[o] = rgba[0]; img.data[o + 1] = rgba[1]; img.data[o + 2] = rgba[2]; img.data[o + 3] = rgba[3];
+        const v = bytes[r * cols + c], o = (dst + c) * 4;
+        if (v === 255) continue;
+        const rgb = viridis(v / 254);
+        img.data[o] = rgb[0]; img.data[o + 1] = rgb[1]; img.data[o + 2] = rgb[2]; img.data[o + 3] = 255;
       }
     }
-    off.getContext("2d").putImageData(img, 0, 0);
-    return off;
+    potx.putImageData(img, 0, 0); pot.hidden = false;
   }
-  const CLASS_RGBA = [[205, 205, 205, 255], [255, 255, 255, 255], [0, 0, 0, 255]];
 
-  // world [m] -> canvas [px]
+  // laser points sent packed (robotexp/view/feed.py packed_laser): int16 cm offsets from the laser
+  function unpackLaser(p) {
+    const b = atob(p.cm), out = new Array(b.length / 2);
+    for (let i = 0; i < out.length; i++) {
+      let v = b.charCodeAt(2 * i) | (b.charCodeAt(2 * i + 1) << 8);
+      if (v >= 32768) v -= 65536;
+      out[i] = (i % 2 ? p.y : p.x) + v / 100;
+    }
+    return out;
+  }
+
+  // world [m] -> layer pixels (#over, #dyn)
   function transform() {
     const g = S.meta.geo, w = g.cols * g.cell, h = g.rows * g.cell;
-    const k = Math.min(canvas.width / w, canvas.height / h);
-    const ox = (canvas.width - w * k) / 2, oy = (canvas.height - h * k) / 2;
+    const k = Math.min(over.width / w, over.height / h);
+    const ox = (over.width - w * k) / 2, oy = (over.height - h * k) / 2;
     return { k, px: (x) => ox + (x - g.origin_x) * k, py: (y) => oy + h * k - (y - g.origin_y) * k, ox, oy, w, h };
   }
 
+  // the stage takes the map's aspect: as wide as the box allows, at most 82 % of the window's height
   function fitCanvas() {
-    if (!S.meta) return;
-    const g = S.meta.geo, box = $("mapbox").clientWidth - 16;
-    const aspect = g.rows / g.cols, width = Math.max(300, Math.min(box, 1600));
-    const height = Math.round(Math.min(width * aspect, window.innerHeight * 0.82));
-    const dpr = window.devicePixelRatio || 1;
-    canvas.width = Math.round(width * dpr); canvas.height = Math.round(height * dpr);
-    canvas.style.height = height + "px";
+    if (!S.meta || !S.meta.geo) return;
+    const g = S.meta.geo, box = $("mapbox").clientWidth - 16, aspect = g.rows / g.cols;
+    let width = Math.max(300, Math.min(box, 1600)), height = width * aspect;
+    const maxH = Math.max(200, window.innerHeight * 0.82);
+    if (height > maxH) { height = maxH; width = height / aspect; }
+    width = Math.round(width); height = Math.round(height);
+    const stage = $("stage"), dpr = window.devicePixelRatio || 1;
+    stage.style.width = width + "px"; stage.style.height = height + "px";
+    for (const c of [over, dyn]) { c.width = Math.round(width * dpr); c.height = Math.round(height * dpr); }
+    overDirty = true;
   }
 
-  // the background (map, overlays, path) is drawn into its own canvas when it changes, new path
-  // segments are added to it as they come; each frame copies it and draws the laser and the robot
-  const bg = document.createElement("canvas"), bgx = bg.getContext("2d");
-  let bgDirty = true, bgPath = 0;
+  function lineWidth() { return Math.max(1, over.width / 700); }
 
-  function drawBackground() {
-    if (bg.width !== canvas.width || bg.height !== canvas.height) { bg.width = canvas.width; bg.height = canvas.height; }
-    const ctx = bgx;
-    ctx.fillStyle = "#cdcdcd"; ctx.fillRect(0, 0, bg.width, bg.height);
-    bgDirty = false; bgPath = 0;
+  function drawOver() {
+    const ctx = ox;
+    ctx.clearRect(0, 0, over.width, over.height);
+    overDirty = false; overPath = 0;
     if (!S.meta) return;
-    const T = transform();
-    ctx.imageSmoothingEnabled = false;
-    if (S.mapCanvas) ctx.drawImage(S.mapCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
-    if (S.potCanvas) { ctx.globalAlpha = 0.7; ctx.drawImage(S.potCanvas, T.ox, T.oy, T.w * T.k, T.h * T.k);
-                       ctx.globalAlpha = 1; }
-    const lw = Math.max(1, canvas.width / 700);
+    const T = transform(), lw = lineWidth();
     const ov = S.overlays || {};
     if (ov.vectors) {
       const a = ov.vectors.arrows, half = 0.4 * ov.vectors.spacing * T.k;
@@ -116,22 +161,21 @@
   }
 
   function drawPath(T) {
-    const ctx = bgx, lw = Math.max(1, canvas.width / 700);
-    if (S.path.length < 4 || bgPath >= S.path.length - 2) return;
-    const from = Math.max(bgPath - 2, 0);
+    const ctx = ox, lw = lineWidth();
+    if (S.path.length < 4 || overPath >= S.path.length - 2) return;
+    const from = Math.max(overPath - 2, 0);
     ctx.strokeStyle = "#1e5adc"; ctx.lineWidth = lw * 1.6; ctx.lineJoin = "round"; ctx.lineCap = "round"; ctx.beginPath();
     ctx.moveTo(T.px(S.path[from]), T.py(S.path[from + 1]));
     for (let i = from + 2; i < S.path.length; i += 2) ctx.lineTo(T.px(S.path[i]), T.py(S.path[i + 1]));
     ctx.stroke();
-    bgPath = S.path.length;
+    overPath = S.path.length;
   }
 
   function draw() {
-    if (!S.meta) { ctx.fillStyle = "#cdcdcd"; ctx.fillRect(0, 0, canvas.width, canvas.height); return; }
-    const T = transform(), lw = Math.max(1, canvas.width / 700);
-    if (bgDirty || bg.width !== canvas.width || bg.height !== canvas.height) drawBackground(); else drawPath(T);
-    ctx.drawImage(bg, 0, 0);
-    // laser
+    if (!S.meta || !S.meta.geo) return;
+    const T = transform(), lw = lineWidth();
+    if (overDirty) drawOver(); else drawPath(T);
+    ctx.clearRect(0, 0, dyn.width, dyn.height);
     if (S.pose && S.laser.length) {
       ctx.fillStyle = "#ff8c00"; const d = Math.max(2, lw * 2.2);
       for (let i = 0; i < S.laser.length; i += 2) ctx.fillRect(T.px(S.laser[i]) - d / 2, T.py(S.laser[i + 1]) - d / 2, d, d);
@@ -191,32 +235,31 @@
     if (msg.meta && msg.meta.kind === "campaign") { S.meta = msg.meta; return campaign(msg, true); }
     if (S.meta && S.meta.kind === "campaign") return campaign(msg, false);
     if (msg.meta && msg.meta.geo) {
-      S.meta = msg.meta; S.path = []; S.curve = []; S.mapCanvas = S.potCanvas = null; S.overlays = {};
+      S.meta = msg.meta; S.path = []; S.curve = []; S.overlays = {};
       $("title").textContent = msg.meta.title || "robotexp live view";
       $("run").textContent = msg.meta.run || "-";
-      fitCanvas(); bgDirty = true; $("scale").textContent = scaleText(msg.meta.geo);
+      sizeLayers(); fitCanvas(); $("scale").textContent = scaleText(msg.meta.geo);
+      if (msg.meta.duration != null) {
+        $("seek").max = String(msg.meta.duration); $("seektime").max = String(msg.meta.duration);
+        $("duration").textContent = `of ${fmtTime(msg.meta.duration)}`;
+      }
     }
     S.t = msg.t; S.status = msg.status || {}; S.controls = msg.controls || [];
     if (msg.pose) S.pose = msg.pose;
-    if (msg.laser) S.laser = msg.laser;
-    if (msg.path && msg.path.length) {
-      if (msg.path_from * 2 < S.path.length) bgDirty = true;
-      S.path.length = msg.path_from * 2; S.path.push(...msg.path);
+    if (msg.laser) S.laser = Array.isArray(msg.laser) ? msg.laser : unpackLaser(msg.laser);
+    if (msg.path) {
+      if (msg.path_from * 2 < S.path.length) overDirty = true;
+      S.path.length = msg.path_from * 2; for (const v of msg.path) S.path.push(v);
     }
-    if (msg.curve && msg.curve.length) { S.curve.length = msg.curve_from * 2; S.curve.push(...msg.curve); }
+    if (msg.curve) { S.curve.length = msg.curve_from * 2; for (const v of msg.curve) S.curve.push(v); }
     if (msg.map) {
-      const bytes = await inflate(msg.map.data);
-      S.mapCanvas = layerCanvas(bytes, msg.map.rows, msg.map.cols, (v) => CLASS_RGBA[v] || CLASS_RGBA[0]);
-      S.mapVersion += 1; canvas.dataset.mapVersion = String(S.mapVersion); bgDirty = true;
+      await paintTiles(msg.map);
+      S.mapVersion += 1; canvas.dataset.mapVersion = String(S.mapVersion);
     }
     if (msg.overlays) {
-      S.overlays = msg.overlays; bgDirty = true;
+      S.overlays = msg.overlays; overDirty = true;
       const pot = msg.overlays.potential;
-      if (pot) {
-        const bytes = await inflate(pot.data);
-        S.potCanvas = layerCanvas(bytes, pot.rows, pot.cols,
-          (v) => (v === 255 ? [0, 0, 0, 0] : [...viridis(v / 254), 255]));
-      } else S.potCanvas = null;
+      await paintPotential(pot);
       const extra = [];
       if (pot) extra.push("potential (log scale): goal purple → far yellow");
       if (msg.overlays.points) extra.push(...Object.keys(msg.overlays.points));
@@ -229,6 +272,8 @@
     $("coverage").textContent = msg.coverage == null ? (S.meta && S.meta.truth === false ? "n/a" : "-")
                                                      : `${(msg.coverage * 100).toFixed(1)} %`;
     $("t").textContent = fmtTime(msg.t);
+    if (!seeking) $("seek").value = String(msg.t);
+    if (document.activeElement !== $("seektime")) $("seektime").value = msg.t.toFixed(1);
     $("pathlen").textContent = `${pathLength().toFixed(1)} m`;
     if (S.pose) $("pose").textContent =
       `${(S.pose[0]).toFixed(2)}, ${(S.pose[1]).toFixed(2)} m, ${(S.pose[2] * 180 / Math.PI).toFixed(0)}°`;
@@ -242,7 +287,7 @@
   function campaign(msg, fresh) {
     if (fresh) {
       $("title").textContent = msg.meta.title; $("run").textContent = msg.meta.run;
-      canvas.hidden = true; $("legend").hidden = true; $("campaign").hidden = false;
+      $("stage").hidden = true; $("legend").hidden = true; $("campaign").hidden = false;
       $("controls").hidden = true; $("poserow").hidden = true; $("curvebox").hidden = true;
       $("runs").tBodies[0].innerHTML = "";
       const th = document.querySelectorAll("#stats th");
@@ -283,6 +328,7 @@
     $("stop").disabled = ended || !S.controls.includes("stop");
     $("speedbox").style.display = S.controls.includes("speed") ? "" : "none";
     $("speed").disabled = ended;
+    $("seekbox").hidden = !S.controls.includes("seek");
     const sp = S.status.speed == null ? "max" : String(S.status.speed);
     if (document.activeElement !== $("speed")) {
       if (![...$("speed").options].some((o) => o.value === sp)) $("speed").add(new Option(`${sp}x`, sp));
@@ -305,10 +351,17 @@
   $("step").onclick = () => send({ cmd: "step" });
   $("stop").onclick = () => send({ cmd: "stop" });
   $("speed").onchange = () => send({ cmd: "speed", value: $("speed").value });
+  // seeking (a replay): the slider sends when let go, the time box on Enter or Go
+  let seeking = false;
+  const seekTo = (v) => { const t = Number(v); if (Number.isFinite(t)) send({ cmd: "seek", value: t }); };
+  $("seek").oninput = () => { seeking = true; $("seektime").value = Number($("seek").value).toFixed(1); };
+  $("seek").onchange = () => { seeking = false; seekTo($("seek").value); };
+  $("seekgo").onclick = () => seekTo($("seektime").value);
+  $("seektime").addEventListener("keydown", (ev) => { if (ev.key === "Enter") { ev.preventDefault(); seekTo($("seektime").value); } });
   document.addEventListener("keydown", (ev) => {
-    if (ev.target.tagName === "SELECT") return;
+    if (ev.target.tagName === "SELECT" || ev.target.tagName === "INPUT") return;
     if (ev.key === " ") { ev.preventDefault(); $("pause").click(); } else if (ev.key === "s") $("step").click();
   });
-  window.addEventListener("resize", () => { fitCanvas(); bgDirty = true; draw(); });
+  window.addEventListener("resize", () => { fitCanvas(); draw(); });
   connect();
 })();
