@@ -21,9 +21,11 @@ from typing import Any
 from robotexp.errors import ConfigError, WorldError
 from robotexp.experiment import RunSpec
 
-__all__ = ["SUCCESS_COVERAGE", "bench_specs", "bench_table", "expand_maps", "success"]
+__all__ = ["DONE_WHEN_METHODS", "SUCCESS_COVERAGE", "bench_specs", "bench_table", "done_when_maps", "expand_maps",
+           "failure_causes", "map_group", "success"]
 
 SUCCESS_COVERAGE = 0.95
+DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # issue 12's "Done when"
 _MAP_SUFFIXES = (".map", ".yaml", ".yml")
 COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
 
@@ -52,6 +54,14 @@ def expand_maps(items: Iterable[str]) -> list[str]:
         else:
             out.append(str(path.resolve()) if path.suffix.lower() in _MAP_SUFFIXES else item)
     return out
+
+
+def done_when_maps(maps: Iterable[str], seeds: str = "0-49") -> list[str]:
+    """Issue 12's "Done when" set: `maps` (the real maps: files or folders) then `generated:KIND:seeds`
+    for every generated kind (office, warehouse, cave)."""
+    from robotexp.world.generate import KINDS
+
+    return [*maps, *(f"generated:{kind}:{seeds}" for kind in KINDS)]
 
 
 def bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
@@ -90,9 +100,38 @@ def success(record: dict[str, Any]) -> bool:
     return own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
 
 
+def failure_causes(record: dict[str, Any]) -> list[str]:
+    """Why a run is no success, each rule it broke in words (empty for a success)."""
+    from robotexp.record import EndReason
+
+    if success(record):
+        return []
+    out = []
+    cov = record.get("coverage")
+    if cov is None or cov < SUCCESS_COVERAGE:
+        out.append("no coverage" if cov is None else f"coverage {cov:.3f} < {SUCCESS_COVERAGE}")
+    if record.get("collisions", 1) != 0:
+        out.append(f"{record.get('collisions')} collisions")
+    reason = str(record.get("reason", ""))
+    end = EndReason.classify(bool(record.get("completed")), reason)
+    if end not in (EndReason.EXPLORED, EndReason.STALLED, EndReason.STOPPED) or "left the exploration area" in reason:
+        out.append(f"did not end on its own ({end.value})")
+    return out
+
+
 def _map_name(record: dict[str, Any]) -> str:
     spec = str(record.get("world_spec") or record.get("world"))
     return spec if spec.startswith("generated:") else Path(spec).name
+
+
+def map_group(record: dict[str, Any]) -> str:
+    """The map's group in the summary: `generated:KIND` (plus its options but the seed) for a generated
+    world, `map files` for a file, else the built-in world's name."""
+    spec = str(record.get("world_spec") or record.get("world"))
+    if spec.startswith("generated:"):
+        parts = spec.split(":")
+        return ":".join(parts[:2] + parts[3:])
+    return "map files" if Path(spec).suffix.lower() in _MAP_SUFFIXES else spec
 
 
 def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
@@ -126,22 +165,51 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     for method, res in sorted(by_method.items()):
         ok, done = sum(a for a, _ in res), sum(b for _, b in res)
         lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
+    groups = sorted({map_group(r) for r in rows})
+    if len(groups) > 1:
+        lines.append("")
+        lines.append("success per method and group of maps (ok/runs)")
+        gw = max(len(g) for g in groups)
+        lines.append(f"  {'method':<12} " + " ".join(f"{g:>{gw}}" for g in groups))
+        for method in sorted(by_method):
+            cells = []
+            for g in groups:
+                runs = [r for r in rows if str(r.get("method")) == method and map_group(r) == g]
+                cells.append(f"{sum(success(r) for r in runs)}/{len(runs)}" if runs else "-")
+            lines.append(f"  {method:<12} " + " ".join(f"{c:>{gw}}" for c in cells))
+    failed = [r for r in rows if not success(r)]
+    lines.append("")
+    lines.append(f"failures: {len(failed)} of {len(rows)} runs" + (":" if failed else ""))
+    for r in failed:
+        lines.append(f"  {_map_name(r)} {r.get('method')}: {'; '.join(failure_causes(r))} - "
+                     f"end reason: {r.get('reason', '')}")
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
+def _no_load(spec: str) -> None:
+    """`bench_specs` without loading the maps (a report of runs already made)."""
+
+
 def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
-              max_time: float = 4 * 3600.0,
+              max_time: float = 4 * 3600.0, run: bool = True,
               progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
-    """Run every map x method (see `bench_specs`) through the campaign runner into `out`, write
-    `bench.txt` and `bench.csv` there from every record in `out/results.jsonl`, return (text, csv)."""
+    """Run every map x method (see `bench_specs`) through the campaign runner into `out` (`run` False:
+    none, only the table), write `bench.txt` and `bench.csv` there from the records of these runs in
+    `out/results.jsonl` (the text says how many have none), return (text, csv)."""
     from robotexp.campaign import Campaign, run_campaign
     from robotexp.results import read_jsonl
 
-    specs = bench_specs(expand_maps(maps), methods, max_time=max_time)
-    run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
+    specs = bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
+    if run:
+        run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
     wanted = {(s.world, s.method) for s in specs}
-    records = [r for r in read_jsonl(out / "results.jsonl") if (r.get("world_spec"), r.get("method")) in wanted]
+    path = out / "results.jsonl"
+    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
+        if path.is_file() else []
     text, table = bench_table(records)
+    missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
+    if missing:
+        text += f"not run: {missing} of {len(wanted)} map x method pairs (no record in {path})\n"
     (out / "bench.txt").write_text(text, encoding="utf-8")
     (out / "bench.csv").write_text(table, encoding="utf-8")
     return text, table

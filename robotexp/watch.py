@@ -159,6 +159,11 @@ class StallWatch:
         box = grid.touched_box()            # every cell outside it is unknown
         view = grid.window(*box) if box is not None else None
         known = 0 if view is None else int(view.values.size - np.count_nonzero(view.unknown()))
+        if getattr(explorer, "backtracking", False):
+            # an explorer on a way back it bounds itself (SRT's drive to the parent node: each one
+            # moves up a finite tree) gains nothing by design; the window starts when it is done
+            self.since = time
+            return None
         if known >= self.best + self._gain_cells or self.best < 0:
             self.best, self.since, self.strikes = known, time, 0
             return None

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import csv
+import json
 import io
 
 import pytest
 from click.testing import CliRunner
 
-from robotexp.bench import SUCCESS_COVERAGE, bench_table, expand_maps, success
+from robotexp.bench import SUCCESS_COVERAGE, bench_table, done_when_maps, expand_maps, failure_causes, success
 from robotexp.cli import main
 from robotexp.errors import WorldError
 from robotexp.world.generate import write_generated
@@ -70,3 +71,39 @@ def test_bench_runs_a_generated_world_end_to_end_and_writes_its_table(tmp_path):
     assert bad.exit_code == 2 and "unknown kind 'castle'" in bad.output
     bad = CliRunner().invoke(main, ["bench", "dense", "-m", "nosuch", "-o", str(out)])
     assert bad.exit_code == 2 and "nosuch" in bad.output
+
+
+def test_failures_are_listed_with_the_rules_they_broke_and_groups_are_tallied():
+    runs = [record("frontier", 0.99, True, reason="done"),
+            {**record("frontier", 0.97, False, reason="time limit of 9 s reached"), "world_spec": "/m/a.yaml"},
+            {**record("bvp", 0.5, True, collisions=2, reason="explored"), "world_spec": "generated:cave:3"}]
+    text, _ = bench_table(runs)
+    assert "failures: 2 of 3 runs:" in text
+    assert ("  a.yaml frontier: did not end on its own (time limit) - end reason: time limit of 9 s reached"
+            in text)
+    assert "  generated:cave:3 bvp: coverage 0.500 < 0.95; 2 collisions - end reason: explored" in text
+    header = next(line for line in text.splitlines() if line.startswith("  method  "))
+    assert header.split() == ["method", "generated:cave", "generated:office", "map", "files"]
+    assert next(line for line in text.splitlines() if line.startswith("  frontier ") and "/" in line
+                and "success" not in line).split() == ["frontier", "-", "1/1", "0/1"]
+    assert failure_causes(runs[0]) == []
+
+
+def test_done_when_names_the_real_maps_and_three_generated_kinds():
+    assert done_when_maps(["/maps"], "0-1") == ["/maps", "generated:office:0-1", "generated:warehouse:0-1",
+                                                "generated:cave:0-1"]
+    assert len(expand_maps(done_when_maps([], "0-49"))) == 150
+    result = CliRunner().invoke(main, ["bench"])
+    assert result.exit_code == 2 and "--done-when" in result.output
+
+
+def test_report_tables_the_recorded_runs_and_counts_the_missing(tmp_path):
+    out = tmp_path / "bench"
+    out.mkdir()
+    rec = {**record("frontier", 0.99, True, reason="done"), "world_spec": "generated:cave:0"}
+    (out / "results.jsonl").write_text(json.dumps(rec) + "\n")
+    result = CliRunner().invoke(main, ["bench", "generated:cave:0-1", "-m", "frontier", "-o", str(out), "--report"])
+    assert result.exit_code == 0, result.output
+    assert "frontier     success 1/1 = 100%" in result.output
+    assert "not run: 1 of 2 map x method pairs" in result.output
+    assert (out / "bench.csv").read_text().count("\n") == 2

@@ -13,7 +13,7 @@ import pytest
 
 from robotexp.errors import ConfigError
 from robotexp.experiment import make_explorer
-from robotexp.explorer import ExplorationRun
+from robotexp.explorer import Done, ExplorationRun, ExplorerContext
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import ground_truth
@@ -21,7 +21,7 @@ from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
 from robotexp.planning.metaheuristics import SearchResult
 from robotexp.planning.objective import INFEASIBLE
 from robotexp.planning.targets import usable_frontier
-from robotexp.robot import Pose
+from robotexp.robot import Limits, Pose, RobotState, Twist
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
 from robotexp_plugins.metaheuristic import (
@@ -58,7 +58,7 @@ def test_explores_two_rooms(method: str) -> None:
     explorer = make_explorer(method, {})
     assert isinstance(explorer, MetaheuristicExplorer) and explorer.preferred_cell == CELL
     run = explore(explorer)
-    assert run.completed and run.reason == "fewer than 20 usable frontier cells left"
+    assert run.completed and run.reason == "fewer than 20 usable frontier cells left, no opening as wide as the robot"
     cov = run.coverage()
     assert cov is not None and cov >= 0.95
     assert run.metrics.collisions == 0
@@ -92,7 +92,7 @@ class _LostSearch(MetaheuristicExplorer):
 def test_a_search_lost_far_from_the_frontier_falls_back_and_the_run_ends() -> None:
     # Without the fallback such a search sends the robot to frontier-less cells for ever.
     run = explore(_LostSearch())
-    assert run.completed and run.reason == "fewer than 20 usable frontier cells left"
+    assert run.completed and run.reason == "fewer than 20 usable frontier cells left, no opening as wide as the robot"
     fields = run.explorer.result_fields()
     assert fields["fallbacks"] == fields["targets"] >= 2
     cov = run.coverage()
@@ -153,3 +153,40 @@ def test_parameters_are_checked() -> None:
     with pytest.raises(ConfigError, match="GA"):
         GAExplorer(population=1)
     assert FireflyExplorer(objective="linear").params.rho == 10
+
+
+
+def door_grid() -> OccupancyGrid:
+    """A known 3 x 3 m room (walls one cell thick) whose east wall has a 0.9 m door onto unknown space:
+    the door is the only frontier, one line of 18 cells, 16 of them openings (no wall 8-neighbour)."""
+    geo = GridGeometry(0.0, 0.0, CELL, 80, 80)
+    room = np.zeros((80, 80), dtype=bool)
+    room[10:70, 10:70] = True                           # x, y in 0.5..3.5 m
+    wall = np.zeros((80, 80), dtype=bool)
+    wall[9:71, 9:71] = True
+    wall[10:70, 10:70] = False
+    wall[40:58, 70] = False                             # the door, 0.9 m, in the east wall (column 70)
+    room[40:58, 70] = True
+    grid = OccupancyGrid(geo, range_max=RANGE)
+    grid.mark_free(room)
+    grid.mark_occupied(wall)
+    return grid
+
+
+@pytest.mark.parametrize("min_opening", [None, 0])
+def test_a_door_as_wide_as_the_robot_is_a_target_below_min_frontier(min_opening: int | None) -> None:
+    # Santos's rule alone (min_opening=0) ends at 16 < 20 usable frontier cells with the room behind
+    # the door unseen (a real map's start facing away from a corridor ended so at 0.69); the opening
+    # rule (default: the robot's diameter, 10 cells) makes the door a target.
+    grid = door_grid()
+    ex = ExhaustiveExplorer(min_opening=min_opening)
+    ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
+                             laser_range=RANGE, rng=np.random.default_rng(0)))
+    ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
+    assert ex.frontier_left == 16
+    if min_opening is None:
+        assert ex.target is not None and 60 <= ex.target[1] <= 70 and 40 <= ex.target[0] < 58
+    else:
+        assert ex.target is None
+        done = ex.step(RobotState(0.1, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
+        assert isinstance(done, Done) and done.reason == "fewer than 20 usable frontier cells left"

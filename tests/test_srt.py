@@ -11,6 +11,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, ExplorationRun, ExplorerContext
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.groundtruth import ground_truth
 from robotexp.robot import Limits, Pose
 from robotexp.sim import SimRobot
 from robotexp.world.model import World, segment_box
@@ -217,7 +218,7 @@ def test_laser_candidates_need_an_open_frontier() -> None:
     assert cand is not None and 2.0 < cand[0] < 2.7 and abs(cand[1]) < 0.2
     # the same frontier inside another node's region: explored, nothing to do
     ex.tree.add(3.0, 0.0, BallRegion(3.0, 0.0, 1.0), 0)
-    assert ex.frontier(0).size == 0 and ex._candidate(0) is None
+    assert ex.frontier_vertices(0).size == 0 and ex._candidate(0) is None
 
 
 def test_region_mask_marks_the_cells_inside() -> None:
@@ -615,3 +616,34 @@ def test_ray_reach_decides_as_the_full_boundary_does() -> None:
             assert got == reference(star, theta, offset, escape)
             found += got is not None
     assert found > 20            # the cases are not all "no way"
+
+
+def shadow_room() -> World:
+    """A 3.5 x 3 m room with a 0.6 m box in the middle: from the start at (0.8, 1.5) every beam of a 3 m
+    laser ends on a wall (no frontier vertex), and the box hides the space behind it."""
+    t = 0.1
+    walls = [segment_box(0, 0, 3.5, 0, t), segment_box(0, 3, 3.5, 3, t), segment_box(0, 0, 0, 3, t),
+             segment_box(3.5, 0, 3.5, 3, t), [2.0, 1.5, 0.3, 0.3, 0.0]]
+    return World("shadow", np.array(walls, dtype=np.float64))
+
+
+@pytest.mark.parametrize("rescue", [True, False])
+def test_laser_rescue_looks_behind_an_obstacle_the_thesis_leaves_unseen(rescue: bool) -> None:
+    # The thesis's frontier vertices are beams at the maximum range only: here none, so the tree
+    # closes at once with the box's shadow unseen; the frontier rescue (an extension, frontier=False
+    # turns it off) drives round the box and comes home.
+    world, start = shadow_room(), Pose(0.8, 1.5, 0.0)
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)  # type: ignore[misc]
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
+    with SimRobot(world, pose=start, seed=0, max_speed=0.3, sonar=False) as robot:
+        run = ExplorationRun(robot, SRTLaserExplorer(frontier=rescue), OccupancyGrid(geo, range_max=3.0),
+                             truth=truth, max_time=900.0, seed=0).run()
+    cov = run.coverage()
+    fields = run.explorer.result_fields()
+    assert run.metrics.collisions == 0 and cov is not None
+    assert run.reason == "explored; back at the start" and run.completed
+    if rescue:
+        assert cov >= 0.98 and fields["rescues"] >= 1 and fields["nodes"] >= 2
+        assert max(x for x, _ in run.metrics.path) > 2.0           # drove up beside the box (1.7..2.3)
+    else:
+        assert cov < 0.95 and fields["rescues"] == 0 and fields["nodes"] == 1

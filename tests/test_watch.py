@@ -152,3 +152,17 @@ def test_bounds_parse_default_to_the_declared_area_and_become_walls():
     # the walls' inner faces lie on the area's edge: the cells just inside are free, just outside occupied
     assert not occ[10 + 5, 10 + 5] and occ[9, 15] and occ[15, 9]
     assert inside((0.0, 0.0, 10.0, 6.0), 10.05, 3.0, tol=0.1) and not inside((0.0, 0.0, 10.0, 6.0), 10.2, 3.0)
+
+
+def test_time_an_explorer_spends_backtracking_is_no_stall():
+    # SRT's drive back along its tree maps nothing by design: no strike while `backtracking`, and the
+    # window starts again when it ends
+    grid = room_grid(False)
+    watch, explorer = StallWatch(window=10.0), Giver(has_target=False)
+    watch.start(grid, 0.3)
+    assert watch.sample(0.0, grid, explorer) is None
+    explorer.backtracking = True  # type: ignore[attr-defined]
+    assert all(watch.sample(float(t), grid, explorer) is None for t in range(1, 60)) and watch.strikes == 0
+    explorer.backtracking = False  # type: ignore[attr-defined]
+    assert watch.sample(68.9, grid, explorer) is None and watch.strikes == 0
+    assert watch.sample(69.0, grid, explorer) is None and watch.strikes == 1

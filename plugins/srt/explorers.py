@@ -18,7 +18,8 @@ import numpy as np
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.grid_planner import line_of_sight
+from robotexp.mapping.kernels import flood8
+from robotexp.planning.grid_planner import distance_transform, line_of_sight
 from robotexp.planning.targets import frontier_targets
 from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
@@ -45,6 +46,197 @@ ESCAPE = 0.5     # srt-star: a way that starts near the star's edge must leave i
 def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, float]:
     """DISPLACE(q, theta, d): the point `distance` [m] from (x, y) [m] along world angle `theta` [rad]."""
     return x + distance * math.cos(theta), y + distance * math.sin(theta)
+
+
+class _FrontierRescue(SRTExplorer):
+    """The frontier rescue of srt-star and srt-laser (an extension of the thesis, switch `frontier`).
+
+    When VALIDATE finds no candidate at a node, before the robot goes back to the parent, the node
+    looks at the frontier of the run's map (`frontier_targets`: free cells next to unknown ones,
+    openings only, within the rescue view of the region), nearest first, and takes the point of its
+    region the robot reaches in a straight line (`_rescue_points`), at least `node_gap` from every
+    node, from which that cell is in sight through known-free cells within the rescue view. There the
+    robot perceives as at any new node; the frontier cells the rescue was for that are still frontier
+    then are given up (seen from beside them, they stay next to space the sensor cannot reach), so
+    every rescue opens new ground or retires frontier cells, and the node gap bounds the nodes.
+    A rescue that made less than `RESCUE_GAIN` of the map known (beyond the most it ever knew before
+    the rescue was chosen, to the end of its perception) gives up every cell within `RESCUE_RADIUS`
+    of its aim as a frontier: along a wall whose cells the grazing beams leave unknown, each
+    perception moved the frontier a cell and the next rescue chased it (a generated office: 30
+    rescues in one corridor, 720 s without new space, run stalled at 0.48). After `RESCUE_MISSES`
+    unproductive rescues in a row no rescue is tried until a node makes the map grow by
+    `RESCUE_GAIN`: in the sparse hall, rescues at the outer walls (wall cells left unknown) one after
+    another kept the map from growing for 720 s and the run stalled at 0.88, where the thesis's
+    tree alone completes. When the run's stall watch strikes (`give_up`), the frontier within the
+    rescue view of the robot is given up.
+    Subclasses set `frontier`, `node_gap`, `tries`, `bins` and define the view and the points.
+    """
+
+    RESCUE_GAIN = 0.5       # [m2] newly known by a rescue for it to count as productive
+    RESCUE_RADIUS = 1.0     # [m] around an unproductive rescue's aim, the frontier given up
+    RESCUE_MISSES = 4       # unproductive rescues in a row before rescues pause until the map grows
+
+    frontier: bool
+    node_gap: float
+    tries: int
+    bins: int
+
+    def reset(self, ctx: ExplorerContext) -> None:
+        """Start a new run: no rescue yet, nothing given up."""
+        super().reset(ctx)
+        self.rescues = 0
+        self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
+        self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
+        self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
+        self._known_at_rescue = 0                               # known cells when the pending rescue was chosen
+        self._known_best = 0                                    # the most cells the map has known (high water)
+        self._misses = 0                                        # unproductive rescues since the map last grew
+
+    def result_fields(self) -> dict[str, object]:
+        """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
+        return {**super().result_fields(), "rescues": self.rescues}
+
+    @abstractmethod
+    def _rescue_view(self) -> float:
+        """[m] the farthest a frontier cell may be from a rescue candidate (and from the region)."""
+
+    @abstractmethod
+    def _rescue_points(self, index: int) -> np.ndarray:
+        """The (k, 2) points [m] of node `index`'s region the robot may drive to in a straight line."""
+
+    def _skip_frontier(self, centres: np.ndarray, cell: float) -> np.ndarray:
+        """Bool (k,): frontier cells (centres [m]) that are no openings for this sensor (default: none)."""
+        return np.zeros(len(centres), dtype=bool)
+
+    def _rescue_allowed(self) -> bool:
+        """False after `RESCUE_MISSES` unproductive rescues in a row, until a node makes the map grow."""
+        return self.frontier and self._misses < self.RESCUE_MISSES
+
+    def frontier_cells(self, index: int) -> np.ndarray:
+        """The map's frontier cells (int (k, 2) rows and columns) within the rescue view of node `index`'s
+        region, nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
+        less the cells a rescue already failed to resolve and those `_skip_frontier` leaves out."""
+        grid = self._grid
+        if grid is None:
+            return np.zeros((0, 2), dtype=np.intp)
+        geo = grid.geo
+        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
+        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
+        node = self.tree.nodes[index]
+        centres = geo.centers_of(cells)
+        d = np.hypot(centres[:, 0] - node.x, centres[:, 1] - node.y)
+        near = d <= node.region.reach + self._rescue_view()
+        cells, centres, d = cells[near], centres[near], d[near]
+        if len(cells):
+            keep = self._open_beyond(grid, node.x, node.y)[cells[:, 0], cells[:, 1]]
+            cells, centres, d = cells[keep], centres[keep], d[keep]
+        if len(cells):
+            keep = ~self._skip_frontier(centres, geo.cell)
+            cells, d = cells[keep], d[keep]
+        return cells[np.argsort(d, kind="stable")]
+
+    def _open_beyond(self, grid: OccupancyGrid, x: float, y: float) -> np.ndarray:
+        """Bool (rows, cols): the cells within 1.5 cells of unknown space a robot disc could drive into were
+        it free, from (x, y) [m] (the disc clear of every occupied cell; as the run's honest ending counts
+        frontier, `robotexp.watch.frontier_left`). The inside of a shelf whose outline the laser drew with
+        gaps, or a wall's cells that grazing beams left unknown, is no such space: chasing them cost a
+        rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95). The map's edge
+        counts as a wall: through a wall's unmarked cells the unknown strip outside a building (the
+        run's map has 0.5 m around the world) is no space a robot fits in (the sparse hall's walls)."""
+        geo = grid.geo
+        occ = grid.occupied().copy()
+        occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True     # the map's edge is a wall to the robot too
+        open_space = np.ascontiguousarray(distance_transform(occ) > self.ctx.radius / geo.cell)
+        r, c = geo.cell_of(x, y)
+        if not geo.contains(r, c) or not open_space[r, c]:
+            return np.ones(grid.shape, dtype=bool)       # the node itself is too near an obstacle: no filter
+        beyond = grid.unknown() & flood8(open_space, r, c)
+        return np.asarray(distance_transform(beyond) <= 1.5)
+
+    def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
+        """The rescue: a point of the region, reachable in a straight line, from which a frontier cell of
+        the map is in sight (through known-free cells) within the rescue view."""
+        grid = self._grid
+        cells = self.frontier_cells(index)
+        if grid is None or len(cells) == 0:
+            return None
+        geo = grid.geo
+        view = self._rescue_view()
+        reach = self._rescue_points(index)
+        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
+        rc = geo.cells_of(reach)
+        inside = geo.contains_cells(rc)
+        _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
+        reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
+        if len(reach) == 0:
+            return None
+        free = grid.free()
+        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
+            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
+            for j in np.argsort(d, kind="stable")[:self.tries]:
+                if d[j] > view:
+                    break
+                # False also when either end is not free
+                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
+                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
+                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
+                    self._known_best = max(self._known_best, int(np.count_nonzero(~grid.unknown())))
+                    self._known_at_rescue = self._known_best
+                    self.rescues += 1
+                    return float(reach[j, 0]), float(reach[j, 1])
+        return None
+
+    def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
+        """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
+        if self._given_up.shape != grid.shape:
+            self._given_up = np.zeros(grid.shape, dtype=bool)
+        return self._given_up
+
+    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
+        """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
+        given up (perceived from beside them, they stay next to unknown space the sensor cannot reach)."""
+        super()._add_node(pose, region, grid)
+        known = int(np.count_nonzero(~grid.unknown()))
+        if (known - self._known_best) * grid.geo.cell ** 2 >= self.RESCUE_GAIN:
+            self._misses = 0                    # the map grew: rescues may be tried again
+        if len(self._aim) == 0:
+            self._known_best = max(self._known_best, known)
+            return
+        front = frontier_targets(grid, 1)
+        still = front[self._aim[:, 0], self._aim[:, 1]]
+        given_up = self._given_up_on(grid)
+        given_up[self._aim[still, 0], self._aim[still, 1]] = True
+        # against the most the map ever knew (as the stall watch counts): cells that flicker between
+        # free and unknown under grazing beams are no gain
+        gained = (known - self._known_at_rescue) * grid.geo.cell ** 2
+        self._known_best = max(self._known_best, known)
+        if gained < self.RESCUE_GAIN:
+            self._misses += 1
+            # every cell near the aim, frontier now or not: cells beside a wall flicker between free,
+            # unknown and wall face as beams graze them, and came back as frontier for the next rescue
+            centre = grid.geo.centers_of(self._aim).mean(axis=0)
+            self._give_up_near(grid, np.ones(grid.shape, dtype=bool), float(centre[0]), float(centre[1]),
+                               self.RESCUE_RADIUS)
+        self._aim = np.zeros((0, 2), dtype=np.intp)
+
+    def _give_up_near(self, grid: OccupancyGrid, front: np.ndarray, x: float, y: float, radius: float) -> int:
+        """Give up the cells of `front` (bool (rows, cols)) within `radius` [m] of (x, y) [m]; how many."""
+        cells = np.argwhere(front)
+        if len(cells) == 0:
+            return 0
+        c = grid.geo.centers_of(cells)
+        near = cells[np.hypot(c[:, 0] - x, c[:, 1] - y) <= radius]
+        self._given_up_on(grid)[near[:, 0], near[:, 1]] = True
+        return len(near)
+
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run's stall watch struck (no new space for a while): give up the frontier within the rescue
+        view of the robot's node. False when there was none to give up."""
+        if self.current is None or not self.frontier:
+            return False
+        node = self.tree.nodes[self.current]
+        front = frontier_targets(grid, 1, self._given_up_on(grid))
+        return self._give_up_near(grid, front, node.x, node.y, node.region.reach + self._rescue_view()) > 0
 
 
 class _SweepingSRT(SRTExplorer):
@@ -143,7 +335,7 @@ class SRTBallExplorer(_SweepingSRT):
         return float(pts[k, 0]), float(pts[k, 1])
 
 
-class SRTLaserExplorer(_SweepingSRT):
+class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     """SRT-Laser: the safe region is the polygon of the laser end points (thesis §3.2, §4.1.1).
 
     The boundary is split into frontier vertices (beams at the maximum range, not inside another
@@ -175,7 +367,7 @@ class SRTLaserExplorer(_SweepingSRT):
     name = "srt-laser"
 
     def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,
-                 tolerance: float = 0.1, node_gap: float = 0.3,
+                 tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
         super().__init__(sweep_rate=sweep_rate, bins=bins, max_nodes=max_nodes, stuck_timeout=stuck_timeout,
@@ -191,6 +383,7 @@ class SRTLaserExplorer(_SweepingSRT):
         if tolerance < 0 or node_gap < 0:
             raise ConfigError(f"srt-laser: tolerance and node_gap must be >= 0 m, got {tolerance} and {node_gap}")
         self.view, self.tries, self.tolerance, self.node_gap = view, tries, tolerance, node_gap
+        self.frontier = frontier
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
@@ -200,7 +393,7 @@ class SRTLaserExplorer(_SweepingSRT):
     def _region(self, x: float, y: float) -> SafeRegion:
         return self.sweep.polygon(x, y)
 
-    def frontier(self, index: int) -> np.ndarray:
+    def frontier_vertices(self, index: int) -> np.ndarray:
         """Indices of the frontier vertices of node `index` that no other node's region holds."""
         region = self.tree.nodes[index].region
         assert isinstance(region, PolygonRegion)
@@ -210,10 +403,26 @@ class SRTLaserExplorer(_SweepingSRT):
         return cand[~self.tree.inside_other(region.vertices()[cand], index, self.tolerance)]
 
     def _candidate(self, index: int) -> tuple[float, float] | None:
+        self._aim = np.zeros((0, 2), dtype=np.intp)
+        cand = self._vertex_candidate(index)
+        if cand is None and self._rescue_allowed():
+            cand = self._frontier_candidate(index)
+        return cand
+
+    def _rescue_view(self) -> float:
+        return self.view * self.ctx.laser_range
+
+    def _rescue_points(self, index: int) -> np.ndarray:
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        return reachable_points(self.tree.nodes[index].region, directions, self.offset, step=self.ray_step,
+                                min_step=max(self.d_min, self.ray_step))
+
+    def _vertex_candidate(self, index: int) -> tuple[float, float] | None:
+        """The thesis's candidate: a frontier vertex mapped onto the shrunk region (see the class)."""
         node = self.tree.nodes[index]
         region = node.region
         assert isinstance(region, PolygonRegion)
-        front = self.frontier(index)
+        front = self.frontier_vertices(index)
         if front.size == 0:
             return None
         directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
@@ -236,7 +445,7 @@ class SRTLaserExplorer(_SweepingSRT):
         return None
 
 
-class SRTStarExplorer(SRTExplorer):
+class SRTStarExplorer(_FrontierRescue):
     """SRT-Star: the safe region is a star of cones from the sonar ring (thesis §3.2, Fig. 3.7b).
 
     Perception: the P3-DX ring has 16 transducers whose axes are 20-40 deg apart, each hearing a
@@ -336,14 +545,6 @@ class SRTStarExplorer(SRTExplorer):
                               "sonar (e.g. --robot p3dx)")
         super().reset(ctx)
         self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * ctx.radius
-        self.rescues = 0
-        self._given_up = np.zeros((0, 0), dtype=bool)          # frontier cells a rescue did not resolve
-        self._aim = np.zeros((0, 2), dtype=np.intp)             # frontier cells the pending rescue is for
-        self._face: tuple[float, float] | None = None          # where the pending rescue looks on arrival
-
-    def result_fields(self) -> dict[str, object]:
-        """As `SRTExplorer`, plus `rescues`: candidates taken from the map's frontier (VALIDATE found none)."""
-        return {**super().result_fields(), "rescues": self.rescues}
 
     def _begin_sense(self) -> None:
         self._apexes: list[np.ndarray] = []
@@ -390,7 +591,7 @@ class SRTStarExplorer(SRTExplorer):
         self._aim = np.zeros((0, 2), dtype=np.intp)
         self._face = None
         cand = self._random_candidate(index)
-        if cand is None and self.frontier:
+        if cand is None and self._rescue_allowed():
             cand = self._frontier_candidate(index)
         return cand
 
@@ -410,26 +611,19 @@ class SRTStarExplorer(SRTExplorer):
             if reach is not None and reach >= dist[k] - 0.021:
                 return float(pts[k, 0]), float(pts[k, 1])
         return None
+    def _rescue_view(self) -> float:
+        return self.view
 
-    def frontier_cells(self, index: int) -> np.ndarray:
-        """The map's frontier cells (int (k, 2) rows and columns) within `view` of node `index`'s star,
-        nearest to the node first: `frontier_targets` of the run's grid (openings, not wall faces),
-        less the cells a rescue already failed to resolve and (`wall_faces`) those at a heard wall."""
-        grid = self._grid
-        if grid is None:
-            return np.zeros((0, 2), dtype=np.intp)
-        geo = grid.geo
-        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
-        cells = np.argwhere(frontier_targets(grid, min_cells, self._given_up_on(grid)))
-        node = self.tree.nodes[index]
-        centres = geo.centers_of(cells)
-        d = np.hypot(centres[:, 0] - node.x, centres[:, 1] - node.y)
-        near = d <= node.region.reach + self.view
-        cells, centres, d = cells[near], centres[near], d[near]
-        if self.wall_faces and len(cells):
-            keep = ~self.heard_wall(centres, geo.cell)
-            cells, d = cells[keep], d[keep]
-        return cells[np.argsort(d, kind="stable")]
+    def _rescue_points(self, index: int) -> np.ndarray:
+        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
+        return reachable_points(self.tree.nodes[index].region, directions, self.ctx.radius + self.margin,
+                                step=0.05, min_step=0.05, escape=ESCAPE)
+
+    def _skip_frontier(self, centres: np.ndarray, cell: float) -> np.ndarray:
+        """With `wall_faces`: the cells at a heard wall (`heard_wall`)."""
+        if not self.wall_faces:
+            return super()._skip_frontier(centres, cell)
+        return self.heard_wall(centres, cell)
 
     def heard_wall(self, points: np.ndarray, cell: float) -> np.ndarray:
         """Bool (k,): which of the (k, 2) world points [m] (cell centres of a grid of `cell` [m]) lie at
@@ -451,55 +645,6 @@ class SRTStarExplorer(SRTExplorer):
             out[np.flatnonzero(near)] |= region.walls[k] & (d[near] >= r - cell) & \
                 (d[near] <= r + self.margin + 1.5 * cell)
         return out
-
-    def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
-        """The rescue: a point of the star, reachable in a straight line with the robot's disc inside
-        it, from which a frontier cell of the map is in sight (through known-free cells) within `view`."""
-        grid = self._grid
-        cells = self.frontier_cells(index)
-        if grid is None or len(cells) == 0:
-            return None
-        node = self.tree.nodes[index]
-        geo = grid.geo
-        directions = np.linspace(-math.pi, math.pi, self.bins, endpoint=False)
-        reach = reachable_points(node.region, directions, self.ctx.radius + self.margin, step=0.05, min_step=0.05,
-                                 escape=ESCAPE)
-        reach = reach[~self._near_failed(index, reach) & ~self.tree.near_node(reach, self.node_gap)]
-        rc = geo.cells_of(reach)
-        inside = geo.contains_cells(rc)
-        _, first = np.unique(rc[inside, 0] * geo.cols + rc[inside, 1], return_index=True)
-        reach, rc = reach[inside][first], rc[inside][first]       # one reachable point per cell
-        if len(reach) == 0:
-            return None
-        free = grid.free()
-        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
-            d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
-            for j in np.argsort(d, kind="stable")[:self.tries]:
-                if d[j] > self.view:
-                    break
-                # False also when either end is not free
-                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
-                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
-                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
-                    self.rescues += 1
-                    return float(reach[j, 0]), float(reach[j, 1])
-        return None
-
-    def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
-        """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
-        if self._given_up.shape != grid.shape:
-            self._given_up = np.zeros(grid.shape, dtype=bool)
-        return self._given_up
-
-    def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
-        """As `SRTExplorer`; after a rescue, the frontier cells it was for that are still frontier are
-        given up (perceived from beside them, they stay next to unknown space the sonar cannot reach)."""
-        super()._add_node(pose, region, grid)
-        if len(self._aim) == 0:
-            return
-        still = frontier_targets(grid, 1)[self._aim[:, 0], self._aim[:, 1]]
-        self._given_up_on(grid)[self._aim[still, 0], self._aim[still, 1]] = True
-        self._aim = np.zeros((0, 2), dtype=np.intp)
 
 
 def largest_gap(axes: np.ndarray) -> float:
