@@ -7,7 +7,8 @@ without targets has nothing to give up) and the window starts again; a gain clea
 After `strikes` strikes in a row the run ends as stalled (`completed` false). The window grows with
 the map, so that a long transit across a large building to a far frontier is not taken for a stall:
 by default the time to drive `TRANSIT_FACTOR` times round the map's half perimeter at the robot's
-top speed, within `MIN_WINDOW`..`MAX_WINDOW`.
+top speed, within `MIN_WINDOW`..`MAX_WINDOW` (bounds stretched for a robot slower than `SLOW_SPEED`, so
+that they span the same distance).
 
 `frontier_left` counts the frontier a robot could still reach on its own map and never went near
 (openings of groups at least a robot wide, wall faces left out, within reach of the known-free
@@ -33,10 +34,14 @@ from robotexp.robot import Pose
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
 
-__all__ = ["MIN_WINDOW", "RunWatch", "STRIKES", "StallWatch", "TRANSIT_FACTOR", "frontier_left", "unexplored_left"]
+__all__ = ["MAX_WINDOW", "MIN_WINDOW", "RunWatch", "SLOW_SPEED", "STRIKES", "StallWatch", "TRANSIT_FACTOR",
+           "frontier_left", "unexplored_left"]
 
 MIN_WINDOW = 120.0          # [s] of robot time without a gain before a strike
-MAX_WINDOW = 240.0          # [s] the longest window, however large the map
+MAX_WINDOW = 240.0          # [s] the longest window, however large the map ...
+SLOW_SPEED = 0.1            # [m/s] ... for a robot this fast or faster; a slower one gets the bounds
+                            # stretched to the same distance (40 mm/s: 300..600 s), as it needs that
+                            # much longer to cross the same space
 TRANSIT_FACTOR = 1.5        # the window covers this many half perimeters of the map at top speed
 STRIKES = 3                 # strikes in a row that end a run as stalled
 MIN_GAIN = 0.5              # [m^2] newly known space that counts as progress
@@ -145,7 +150,8 @@ class StallWatch:
         geo = grid.geo
         if self.window_given is None:
             transit = TRANSIT_FACTOR * (geo.width + geo.height) / v_max if v_max > 0 else 0.0
-            self.window = min(max(MIN_WINDOW, transit), MAX_WINDOW)
+            slow = SLOW_SPEED / v_max if 0 < v_max < SLOW_SPEED else 1.0
+            self.window = min(max(MIN_WINDOW * slow, transit), MAX_WINDOW * slow)
         self._gain_cells = max(1, int(math.ceil(self.min_gain / geo.cell ** 2)))
         self.strikes = self.given_up = 0
         self.best, self.since = -1, 0.0

@@ -12,7 +12,7 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import LaserScan, Pose
-from robotexp.watch import MAX_WINDOW, MIN_WINDOW, StallWatch, frontier_left
+from robotexp.watch import MAX_WINDOW, MIN_WINDOW, SLOW_SPEED, StallWatch, frontier_left
 from robotexp.world.bounds import clip_scan, exploration_area, inside, parse_bounds, with_boundary_walls
 from robotexp.world.model import World
 
@@ -57,6 +57,14 @@ def test_the_window_grows_with_the_map_and_the_speed():
     assert watch.window == pytest.approx(1.5 * 140 / 1.0)
     watch.start(big, 0.3)
     assert watch.window == MAX_WINDOW
+    # a slow robot gets bounds that span the same distance as at SLOW_SPEED (the thesis's 40 mm/s runs
+    # crossed the sparse hall for longer than three 240 s windows without mapping anything new)
+    watch.start(big, 0.04)
+    assert watch.window == pytest.approx(MAX_WINDOW * SLOW_SPEED / 0.04)        # 600 s
+    watch.start(OccupancyGrid(GEO), 0.04)
+    assert watch.window == pytest.approx(1.5 * 16 / 0.04)                       # 600 s, within 300..600 s
+    watch.start(OccupancyGrid(GEO), SLOW_SPEED)
+    assert watch.window == pytest.approx(1.5 * 16 / SLOW_SPEED)                 # 240 s: as before
 
 
 def test_three_strikes_without_new_cells_end_the_run_and_each_gives_up_a_target():
