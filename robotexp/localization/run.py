@@ -36,7 +36,9 @@ def check_localize(mode: str) -> None:
         raise ConfigError(f"--localize must be one of {', '.join(LOCALIZE_MODES)}, got {mode!r}")
 
 
-def _wanted(spec: RunSpec, robot: Robot) -> bool:
+def wants_localizer(spec: RunSpec, robot: Robot) -> bool:
+    """True when a run of `spec` on `robot` gets the scan-matching localizer (`spec.localize`, "auto" as
+    the module says)."""
     from robotexp.sim import SimRobot, odometry_error
 
     if spec.localize != "auto":
@@ -84,7 +86,7 @@ def localized(spec: RunSpec, robot: Robot, geo: GridGeometry) -> tuple[Robot, Tr
     """The robot the run loop should read (`robot`, or it wrapped in a `LocalizedRobot` whose matching map
     covers `geo` in MATCH_CELL cells) and the observer that records the trajectory error."""
     check_localize(spec.localize)
-    if not _wanted(spec, robot):
+    if not wants_localizer(spec, robot):
         return robot, TrajectoryTracker("none", spec.odometry, None)
     mgeo = GridGeometry.covering(geo.origin_x, geo.origin_y, geo.origin_x + geo.width, geo.origin_y + geo.height,
                                  MATCH_CELL)
