@@ -640,8 +640,6 @@ def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: b
 
     from robotexp.laser_mount import emulate_devices
 
-    if port is not None and not 0 <= port <= 65535:
-        raise ConfigError(f"--port must be within 0..65535, got {port}")
     devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
                               laser=laser, laser_pose=laser_pose)
     try:

@@ -388,6 +388,8 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
     from robotexp.world.loader import load_world
     from robotexp.world.poses import resolve_pose
 
+    if port is not None and not 0 <= port <= 65535:
+        raise ConfigError(f"--port must be within 0..65535, got {port}")
     mount = parse_laser_pose(laser_pose) if laser_pose is not None else Pose(0.0, 0.0, 0.0)
     lasers = available(LASER_EMULATORS)
     started: list[tuple[str, Any]] = []
