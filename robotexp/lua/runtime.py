@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -99,11 +100,21 @@ def _sigint_sets(control: Control) -> Iterator[None]:
         control.reason = control.reason or "interrupted"
         raise KeyboardInterrupt
 
+    def unraisable(info: Any) -> None:
+        # the KeyboardInterrupt raised in a callback that cannot pass it on (llvmlite's object cache, called
+        # from C while numba compiles a kernel): Python would print it as "Exception ignored in"; the
+        # script is marked interrupted already and stops at its next check
+        if isinstance(info.exc_value, KeyboardInterrupt) and control.reason == "interrupted":
+            return
+        previous_hook(info)
+
     previous = signal.signal(signal.SIGINT, handler)
+    previous_hook, sys.unraisablehook = sys.unraisablehook, unraisable
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
 
 
 def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,

@@ -136,3 +136,34 @@ def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
 
 if os.name != "posix":   # pragma: no cover
     pytestmark = pytest.mark.skip("SIGINT tests need POSIX")
+
+
+def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_interrupted(monkeypatch):
+    """Ctrl-C raised inside a callback Python cannot raise from (llvmlite's object cache while numba
+    compiles: met in CI on a fresh install) goes to sys.unraisablehook, which prints "Exception ignored
+    in" and a traceback; once the script is marked interrupted it is dropped, anything else still
+    reaches the hook that was there before."""
+    import gc
+
+    from robotexp.lua.runtime import Control, _sigint_sets
+
+    reached: list[type] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda info: reached.append(type(info.exc_value)))
+
+    class RaisesOnDel:
+        def __init__(self, exc: BaseException) -> None:
+            self.exc = exc
+
+        def __del__(self) -> None:
+            raise self.exc
+
+    control = Control(None, time.monotonic)
+    with _sigint_sets(control):
+        RaisesOnDel(KeyboardInterrupt())          # not interrupted yet: passed on
+        control.reason = "interrupted"
+        RaisesOnDel(KeyboardInterrupt())          # dropped
+        RaisesOnDel(ValueError("other"))          # passed on
+        gc.collect()
+    RaisesOnDel(KeyboardInterrupt())              # outside: the hook from before again
+    gc.collect()
+    assert reached == [KeyboardInterrupt, ValueError, KeyboardInterrupt]
