@@ -7,6 +7,7 @@ Ctrl-C, and refuses bad keys before any run (one line naming the file and the ke
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -84,9 +85,16 @@ def test_ctrl_c_ends_a_campaign_on_a_robot_with_the_robot_stopped(devices, tmp_p
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
-        while not (kobuki.last_base_control and kobuki.last_base_control.speed_mm_s > 0):   # exploring
+        with kobuki.lock:
+            origin = kobuki.sim.true_pose
+        while True:                  # exploring: the robot has driven 5 cm (a forward command alone is not
+            with kobuki.lock:        # travel yet; under load the record could be taken before it moved)
+                here = kobuki.sim.true_pose
+            if math.hypot(here.x - origin.x, here.y - origin.y) > 0.05:
+                break
             assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
             time.sleep(0.05)
+        time.sleep(0.3)              # a few odometry frames reach the campaign process
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
