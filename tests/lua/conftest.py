@@ -20,11 +20,19 @@ class Runner:
         self.lines: list[str] = []
         self.notices: list[str] = []
 
-    def __call__(self, code: str, name: str = "script.lua", **kwargs: Any) -> ScriptResult:
+    def __call__(self, code: str, name: str = "script.lua", on_print: Callable[[str], None] | None = None,
+                 **kwargs: Any) -> ScriptResult:
+        """Run `code`; `on_print(line)` is called (in the script's thread, which it holds) after each printed line."""
         path = self.tmp / name
         path.write_text(code)
         kwargs.setdefault("out", self.out)
-        return run_script(path, emit=self.lines.append, notice=self.notices.append, **kwargs)
+
+        def emit(line: str) -> None:
+            self.lines.append(line)
+            if on_print is not None:
+                on_print(line)
+
+        return run_script(path, emit=emit, notice=self.notices.append, **kwargs)
 
 
 @pytest.fixture

@@ -49,6 +49,20 @@ def _robot_time(page: object) -> float:
     return float(page.evaluate("Number(document.body.dataset.t || -1)"))  # type: ignore[attr-defined]
 
 
+def _settled_time(page: object, timeout: float = 30.0) -> float:
+    """The page's robot time once it has kept its value for 0.5 s (paused: the loop may still be inside its
+    tick and the page a frame behind); fails when it still changes after `timeout` s."""
+    end = time.monotonic() + timeout
+    t = _robot_time(page)
+    while True:
+        time.sleep(0.5)
+        now = _robot_time(page)
+        if now == t:
+            return now
+        assert time.monotonic() < end, f"robot time still runs while paused: {t} -> {now}"
+        t = now
+
+
 @contextmanager
 def _page(url: str, **options: Any) -> Iterator[Any]:
     """A page of Debian's headless Chromium (through playwright) showing `url`."""
@@ -73,22 +87,21 @@ def test_explore_view_in_chromium(tmp_path: Path, view_cli: Any) -> None:
         page.wait_for_function("Number(document.getElementById('map').dataset.mapVersion) >= 1", timeout=30_000)
         before = page.evaluate(HASH_JS)
         page.wait_for_function("Number(document.body.dataset.t) > 4", timeout=30_000)
-        page.wait_for_function(f"({HASH_JS})() !== {before}", timeout=10_000)   # the map canvas changed
+        page.wait_for_function(f"({HASH_JS})() !== {before}", timeout=30_000)   # the map canvas changed
         assert int(page.evaluate("Number(document.getElementById('map').dataset.mapVersion)")) >= 2
 
         page.click("#pause")
-        page.wait_for_function("document.body.dataset.state === 'paused'", timeout=10_000)
-        time.sleep(0.3)
-        held = _robot_time(page)
+        page.wait_for_function("document.body.dataset.state === 'paused'", timeout=30_000)
+        held = _settled_time(page)             # the loop held, its last frame shown (under load: seconds)
         time.sleep(1.5)                        # 7.5 s of robot time at 5x, were it running
         assert _robot_time(page) == held
         assert page.inner_text("#pause") == "Resume"
 
         page.click("#pause")                   # resume
-        page.wait_for_function(f"Number(document.body.dataset.t) > {held + 1}", timeout=10_000)
+        page.wait_for_function(f"Number(document.body.dataset.t) > {held + 1}", timeout=30_000)
 
         page.click("#stop")
-        page.wait_for_function("document.body.dataset.state === 'ended'", timeout=10_000)
+        page.wait_for_function("document.body.dataset.state === 'ended'", timeout=30_000)
         assert STOP_REASON in page.inner_text("#reason")
         assert page.is_disabled("#pause") and page.is_disabled("#stop")
     # the run is over and written; the page stays up until Ctrl-C
@@ -157,18 +170,18 @@ def test_replay_seek_in_chromium(tmp_path: Path, view_cli: Any) -> None:
         page.wait_for_selector("#seekbox:not([hidden])", timeout=30_000)
         assert page.get_attribute("#seek", "max") == "12"
         page.click("#pause")
-        page.wait_for_function("document.body.dataset.state === 'paused'", timeout=10_000)
+        page.wait_for_function("document.body.dataset.state === 'paused'", timeout=30_000)
         page.fill("#seektime", "9")
         page.press("#seektime", "Enter")
-        page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 9) < 0.05", timeout=10_000)
+        page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 9) < 0.05", timeout=30_000)
         page.wait_for_timeout(300)
         late = page.evaluate(FREE_PIXELS_JS)
         page.eval_on_selector("#seek", "s => { s.value = '1'; s.dispatchEvent(new Event('change')); }")
-        page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 1) < 0.05", timeout=10_000)
+        page.wait_for_function("Math.abs(Number(document.body.dataset.t) - 1) < 0.05", timeout=30_000)
         page.wait_for_timeout(300)
         early = page.evaluate(FREE_PIXELS_JS)
         assert 0 < early < late                     # the map of 1 s: less seen than at 9 s
         assert page.inner_text("#state") == "paused" and _robot_time(page) == pytest.approx(1.0, abs=0.05)
         page.click("#pause")                        # resume: plays on from 1 s
-        page.wait_for_function("Number(document.body.dataset.t) > 1.5", timeout=10_000)
+        page.wait_for_function("Number(document.body.dataset.t) > 1.5", timeout=30_000)
     view_cli.interrupt(proc)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,7 @@ import pytest
 from robotexp.experiment import RunOutput, RunSpec, run_experiment
 from robotexp.record import EndReason
 from robotexp.results import read_records
+from robotexp.robot import Pose
 from robotexp.view.feed import ViewHub
 from robotexp.view.observer import STOP_REASON, Pacer, ViewObserver
 
@@ -67,24 +69,32 @@ def test_pacer_pause_step_resume_stop_and_halt() -> None:
                 return
             time.sleep(0.001)
 
+    def holding(times: int) -> bool:
+        """The loop is held (for the `times`-th time since it started)."""
+        return holds.count(True) == times and holds[-1] is True
+
+    # every wait below is on the loop's own signals (a loaded machine can leave the thread unscheduled
+    # for long); the sleeps only give a wrong loop the time to show itself
     pacer.pause()
     t = threading.Thread(target=loop)
     t.start()
-    time.sleep(0.2)
-    assert passed == []                  # held at the first tick
-    assert len(halts) >= 3               # halt at once and every halt_period while held
+    _wait(lambda: len(halts) >= 3)       # halt at once and every halt_period while held
+    assert passed == [] and holding(1)   # held at the first tick
     pacer.step()
-    time.sleep(0.1)
+    _wait(lambda: holding(2))            # one tick, then held again
+    time.sleep(0.05)
     assert passed == [0]                 # exactly one tick
     pacer.step()
     pacer.step()
-    time.sleep(0.1)
+    # two ticks, held again (a third or, had the loop taken the first step between the two calls, a fourth time)
+    _wait(lambda: len(passed) >= 3 and (holding(3) or holding(4)))
+    time.sleep(0.05)
     assert passed == [0, 1, 2]
     pacer.resume()
-    time.sleep(0.1)
-    assert len(passed) > 10
+    _wait(lambda: len(passed) > 10)
+    assert holds[-1] is False            # not held while running
     pacer.pause()
-    time.sleep(0.05)
+    _wait(lambda: holds[-1] is True)
     n = len(passed)
     time.sleep(0.1)
     assert len(passed) == n
@@ -109,6 +119,24 @@ def _wait(cond: object, timeout: float = 30.0) -> None:
         time.sleep(0.01)
 
 
+def _rounded(pose: Pose) -> tuple[float, float, float]:
+    return round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)
+
+
+def _settled(read: Callable[[], object], timeout: float = 30.0, quiet: float = 0.3) -> object:
+    """`read()` once it has kept its value for `quiet` s (a held loop: under load the loop may still be inside
+    its tick, or decelerating, well after the command); fails after `timeout` s of change."""
+    end = time.monotonic() + timeout
+    value = read()
+    while True:
+        time.sleep(quiet)
+        now = read()
+        if now == value:
+            return now
+        assert time.monotonic() < end, f"still changing after {timeout} s: {value!r} -> {now!r}"
+        value = now
+
+
 def test_observer_pauses_steps_and_stops_a_simulated_run(tmp_path: Path) -> None:
     hub = ViewHub()
     observer = ViewObserver(hub, speed=None, frame_rate=200)
@@ -127,8 +155,7 @@ def test_observer_pauses_steps_and_stops_a_simulated_run(tmp_path: Path) -> None
         observer.command({"cmd": "resume"})
         _wait(lambda: hub.time > 3.0)
         observer.command({"cmd": "pause"})
-        time.sleep(0.1)
-        held = hub.time
+        held = _settled(lambda: hub.time)            # the loop reached its hold (it may be mid-tick)
         time.sleep(0.3)
         assert hub.time == held and hub.status["state"] == "paused"
         assert hub.classes is not None and len(hub.path) > 2 and hub.curve
@@ -184,12 +211,12 @@ def test_pause_stops_a_real_robot_until_resumed(tmp_path: Path) -> None:
             assert hub.controls == ("pause", "step", "stop")
             _wait(lambda: emu.last_base_control not in (None, BaseControl(0, 0)))     # driving
             observer.command({"cmd": "pause"})
-            _wait(lambda: emu.last_base_control == BaseControl(0, 0), 2.0)
-            time.sleep(0.3)                       # decelerating (9 s of robot time at 30x)
-            p0 = emu.sim.true_pose
+            _wait(lambda: emu.last_base_control == BaseControl(0, 0), 10.0)
+            # decelerating (0.3 s wall is 9 s of robot time at 30x), then it stands still while paused
+            p0 = _settled(lambda: _rounded(emu.sim.true_pose))
             time.sleep(0.3)
             p1 = emu.sim.true_pose
-            assert (p0.x, p0.y, p0.theta) == pytest.approx((p1.x, p1.y, p1.theta), abs=1e-4)
+            assert p0 == pytest.approx((p1.x, p1.y, p1.theta), abs=1e-4)
             assert emu.last_base_control == BaseControl(0, 0)
             observer.command({"cmd": "resume"})
             _wait(lambda: emu.last_base_control != BaseControl(0, 0), 10.0)
