@@ -7,7 +7,9 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import os
@@ -93,3 +95,75 @@ def view_cli() -> Iterator[ViewCli]:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
+
+
+def _task_waits(pid: int, into: dict[tuple[int, int], int]) -> None:
+    """Put the run-queue wait [ns] of every thread of process `pid` and of its descendants into `into`, by
+    (pid, thread id) (Linux: the second field of /proc/PID/task/TID/schedstat)."""
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return
+    for tid in tids:
+        try:
+            into[(pid, int(tid))] = int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[1])
+            children = Path(f"/proc/{pid}/task/{tid}/children").read_text().split()
+        except (OSError, IndexError, ValueError):
+            continue
+        for child in children:
+            _task_waits(int(child), into)
+
+
+class CpuWait:
+    """How long the threads of the test process and of the processes it started waited for a CPU (runnable but
+    not running), summed over the threads, sampled every `period` s by a thread of its own.
+
+    A test that bounds a delay in wall time (a silence limit, a watchdog, a Ctrl-C reaching a worker) adds to
+    its bound what was waited over that interval: about 0 on an idle machine, where the bound stays as tight
+    as written; a loaded machine that kept the threads off the CPUs moves it by that time, not more than
+    that (waits that overlapped count once per thread: generous under load). 0 where Linux does not say.
+    """
+
+    def __init__(self, period: float = 0.05) -> None:
+        self._last: dict[tuple[int, int], int] = {}
+        self._total = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._period = period
+        self._sample()
+        self._thread = threading.Thread(target=self._run, name="cpu-wait", daemon=True)
+        self._thread.start()
+
+    def _sample(self) -> None:
+        now: dict[tuple[int, int], int] = {}
+        _task_waits(os.getpid(), now)
+        with self._lock:
+            for key, ns in now.items():
+                self._total += max(0, ns - self._last.get(key, ns))    # a new thread counts from now on
+            self._last = now
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._period):
+            self._sample()
+
+    def total(self) -> float:
+        """Seconds waited so far (a mark for `since`)."""
+        self._sample()
+        with self._lock:
+            return self._total / 1e9
+
+    def since(self, mark: float) -> float:
+        """Seconds waited since `mark` (a `total()`)."""
+        return self.total() - mark
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
+@pytest.fixture
+def cpu_wait() -> Iterator[CpuWait]:
+    """A `CpuWait` measuring while the test runs: add `cpu_wait.since(mark)` to a wall-time bound."""
+    meter = CpuWait()
+    yield meter
+    meter.close()

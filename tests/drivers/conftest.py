@@ -19,7 +19,7 @@ from robotexp_drivers.mavlink.robot import ROVER_RADIUS
 WaitFor = Callable[..., bool]
 
 
-def _wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
+def _wait_for(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if cond():
@@ -30,7 +30,9 @@ def _wait_for(cond: Callable[[], bool], timeout: float = 2.0) -> bool:
 
 @pytest.fixture
 def wait_for() -> WaitFor:
-    """`wait_for(cond, timeout=2.0)`: poll `cond` until it holds (True) or `timeout` s pass (its last value)."""
+    """`wait_for(cond, timeout=10.0)`: poll `cond` until it holds (True) or `timeout` s pass (its last value).
+    The default is generous on purpose: a loaded machine can starve an emulator's thread for seconds, and a
+    condition met early costs nothing; a test that bounds a delay passes its own `timeout`."""
     return _wait_for
 
 
