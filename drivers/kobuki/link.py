@@ -15,6 +15,7 @@ import serial
 
 from robotexp.errors import ConnectionLost
 from robotexp_drivers.kobuki import constants as K
+from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 
 __all__ = ["KobukiLink", "READ_CHUNK", "POLL_TIMEOUT"]
 
@@ -42,7 +43,7 @@ class KobukiLink:
         try:
             self._port = serial.serial_for_url(address, baudrate=baudrate, bytesize=serial.EIGHTBITS,
                                                parity=serial.PARITY_NONE, stopbits=serial.STOPBITS_ONE,
-                                               timeout=poll, write_timeout=1.0)
+                                               timeout=poll, write_timeout=WRITE_TIMEOUT)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"kobuki: cannot open {address!r}: {exc}; check the device path or "
                                  "that the robot (or `robotexp emulate kobuki`) is running") from exc
@@ -82,7 +83,7 @@ class KobukiLink:
         """
         with self._write_lock:
             try:
-                self._port.write(data)
+                write_all(self._port, data)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 raise ConnectionLost(f"kobuki: cannot write to {self.address!r} ({exc}); "
                                      "the robot or emulator went away") from exc

@@ -33,6 +33,7 @@ from robotexp.laser import Laser, ScanSource, StampedScan
 from robotexp.robot import LaserScan
 from robotexp_drivers.backend import StreamReader, read_waiting
 from robotexp_drivers.emulation import StreamEmulator
+from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 
 __all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "ScanStamps", "laser_url"]
 
@@ -76,7 +77,7 @@ class LaserLink:
         self.poll = poll
         self._write_lock = threading.Lock()
         try:
-            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=poll, write_timeout=1.0)
+            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=poll, write_timeout=WRITE_TIMEOUT)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"{who}: cannot open {self.url!r}: {exc}; check the address, that the "
                                  "laser (or its emulator) is on and that the port is not in use") from exc
@@ -104,7 +105,7 @@ class LaserLink:
             if self.closed:
                 raise ConnectionLost(f"{self.who}: link {self.url!r} is closed")
             try:
-                self._port.write(data)
+                write_all(self._port, data)
                 self._port.flush()
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 raise ConnectionLost(f"{self.who}: link {self.url!r} lost while writing: {exc}") from exc

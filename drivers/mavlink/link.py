@@ -26,6 +26,7 @@ import serial
 
 from robotexp.errors import ConfigError, ConnectionLost
 from robotexp_drivers.mavlink import constants as C
+from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 
 __all__ = ["Link", "SerialLink", "UdpLink", "open_link", "parse_address", "POLL_TIMEOUT"]
 
@@ -117,7 +118,7 @@ class SerialLink:
         self.address = address
         self._lock = threading.Lock()
         try:
-            self._port = serial.serial_for_url(url, baudrate=baudrate, timeout=poll, write_timeout=1.0)
+            self._port = serial.serial_for_url(url, baudrate=baudrate, timeout=poll, write_timeout=WRITE_TIMEOUT)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"mavlink: cannot open {address!r} ({url}): {exc}; check the device or that "
                                  "the vehicle (or `robotexp emulate mavlink`) is running") from exc
@@ -146,7 +147,7 @@ class SerialLink:
         """
         with self._lock:
             try:
-                self._port.write(data)
+                write_all(self._port, data)
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 raise ConnectionLost(f"mavlink: cannot write to {self.address!r} ({exc})") from exc
         self.bytes_out += len(data)

@@ -15,6 +15,7 @@ import serial
 
 from robotexp.errors import ConfigError, ConnectionLost
 from robotexp_drivers.backend import read_waiting
+from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 
 from . import constants as c
 
@@ -73,7 +74,8 @@ class SerialLink:
         self.timeout = timeout
         self._write_lock = threading.Lock()
         try:
-            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=timeout, write_timeout=1.0)
+            self._port = serial.serial_for_url(self.url, baudrate=baudrate, timeout=timeout,
+                                               write_timeout=WRITE_TIMEOUT)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise ConnectionLost(f"p3dx: cannot open {self.url!r}: {exc}; check the address, that the "
                                  "robot or emulator is running and that the port is not in use") from exc
@@ -102,7 +104,7 @@ class SerialLink:
             if self.closed:
                 raise ConnectionLost(f"p3dx: link {self.url!r} is closed")
             try:
-                self._port.write(data)
+                write_all(self._port, data)
                 self._port.flush()
             except (serial.SerialException, OSError) as exc:
                 raise ConnectionLost(f"p3dx: link {self.url!r} lost while writing: {exc}") from exc
