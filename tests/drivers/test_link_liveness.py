@@ -5,6 +5,7 @@ through a proxy that can turn its stream into garbage."""
 
 from __future__ import annotations
 
+import re
 import socket
 import sys
 import threading
@@ -141,6 +142,20 @@ def test_a_reader_starved_by_the_main_thread_keeps_its_robot(emulator):
     assert after >= t + 0.5
 
 
+def _lost(robot, error, match=None, timeout=30.0):
+    """`robot.read()` raises `error` once garbage alone has come for its silence limit (0.5 s): polled, since a
+    loaded machine may run the reader late (it judges silence on its own reads), never longer than `timeout`."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            robot.read()
+        except error as exc:
+            assert match is None or re.search(match, str(exc)), exc
+            return
+        assert time.monotonic() < deadline, f"still connected {timeout} s after the garbage began"
+        time.sleep(0.05)
+
+
 def test_a_reader_starved_for_longer_than_silence_then_fed_nothing_is_still_lost(emulator):
     # the other side of the rule: once the reader runs again and nothing comes, the robot is lost
     proxy = GarbageProxy(("127.0.0.1", _port(emulator)))
@@ -148,9 +163,7 @@ def test_a_reader_starved_for_longer_than_silence_then_fed_nothing_is_still_lost
     try:
         robot.wait_until(0.2)
         proxy.garbage.set()
-        time.sleep(1.0)
-        with pytest.raises(ProtocolError):
-            robot.read()
+        _lost(robot, ProtocolError)
     finally:
         robot.close()
         proxy.close()
@@ -182,9 +195,7 @@ def test_mavlink_garbage_after_the_handshake_loses_the_vehicle():
         try:
             robot.read()
             proxy.garbage.set()
-            time.sleep(0.5 + 0.6)
-            with pytest.raises(ProtocolError, match="no valid message from the vehicle"):
-                robot.read()
+            _lost(robot, ProtocolError, match="no valid message from the vehicle")
         finally:
             robot.close()
             proxy.close()
