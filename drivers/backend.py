@@ -45,7 +45,7 @@ import math
 import threading
 import time
 from abc import abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, ClassVar, Protocol
 
 from robotexp.clock import Clock, PacedClock
@@ -79,6 +79,18 @@ class StreamLink(Protocol):
     def close(self) -> None:
         """Release the link; safe to call twice."""
         ...
+
+
+def reads_until(deadline: float, clock: Callable[[], float] = time.monotonic) -> Iterator[None]:
+    """The turns of a loop that reads until `deadline` [s, `clock`]: one more turn while the last one started
+    before the deadline, so the last read always starts after it. A thread kept from the interpreter's lock
+    until past the deadline (a loaded machine, numba compiling in another thread) still reads once what
+    arrived meanwhile, as the reader's silence rule does, instead of giving up on a reply that is there."""
+    while True:
+        started = clock()
+        yield
+        if started >= deadline:
+            return
 
 
 def read_waiting(port: Any, timeout: float) -> bytes:

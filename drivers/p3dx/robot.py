@@ -22,7 +22,7 @@ import numpy as np
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
 from robotexp.robot import (Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, compose_pose,
                             relative_pose, wrap_angle)
-from robotexp_drivers.backend import StreamBackend, require_positive
+from robotexp_drivers.backend import StreamBackend, reads_until, require_positive
 
 from . import codec as k
 from . import constants as c
@@ -156,7 +156,7 @@ class P3DXRobot(StreamBackend):
 
     def _next_packet(self, deadline: float, kinds: tuple[type, ...]) -> k.Packet | None:
         """Read until a packet of one of `kinds` arrives (others are dropped) or `deadline` passes."""
-        while time.monotonic() < deadline:
+        for _ in reads_until(deadline):
             data = self.link.read()
             packets = self.decoder.feed(data) if data else self.decoder.flush()
             for pkt in packets:

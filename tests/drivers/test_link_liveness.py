@@ -199,3 +199,22 @@ def test_mavlink_garbage_after_the_handshake_loses_the_vehicle():
         finally:
             robot.close()
             proxy.close()
+
+
+def test_a_handshake_read_starved_past_its_deadline_still_reads_once():
+    # the handshakes (lms2xx, hokuyo, rplidar, p3dx) read for their replies in `reads_until` turns: a thread that
+    # only runs again after the deadline (the loop `while time.monotonic() < deadline` then read nothing and
+    # failed with the reply waiting: the LMS2xx test under load) reads once more
+    from robotexp_drivers.backend import reads_until
+
+    now = [10.0]
+    starts = []
+    for _ in reads_until(1.0, clock=lambda: now[0]):
+        starts.append(now[0])
+    assert starts == [10.0]                      # woke up 9 s late: one read, started after the deadline
+    now[0] = 0.0
+    starts.clear()
+    for _ in reads_until(1.0, clock=lambda: now[0]):
+        starts.append(now[0])
+        now[0] += 0.4
+    assert starts == pytest.approx([0.0, 0.4, 0.8, 1.2])   # while before the deadline, then one after it

@@ -15,6 +15,7 @@ import time
 from typing import ClassVar
 
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
+from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.hokuyo import constants as C
 from robotexp_drivers.lasers.hokuyo.codec import (
@@ -76,8 +77,7 @@ class HokuyoLaser(StreamLaser):
         """Send a command line and return its reply (other replies and scans are skipped)."""
         self._link.write(line)
         echo = line.rstrip(b"\r\n")
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+        for _ in reads_until(time.monotonic() + timeout):
             self._buffer += self._link.read_some()
             blocks, _ = split_blocks(self._buffer)
             for i, block in enumerate(blocks):

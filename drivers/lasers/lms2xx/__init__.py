@@ -15,6 +15,7 @@ import time
 
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
 from robotexp.laser import LaserGeometry
+from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.lms2xx import codec as k
 from robotexp_drivers.lasers.lms2xx import constants as c
@@ -109,8 +110,7 @@ class LMS2xxLaser(StreamLaser):
         naks = self._dec.telegrams.naks
         self._link.write(frame)
         resent = False
-        deadline = time.monotonic() + wait
-        while time.monotonic() < deadline:
+        for _ in reads_until(time.monotonic() + wait):
             self._dec.feed(self._link.read_some())
             for t in self._dec.others:
                 if t.command == expect:

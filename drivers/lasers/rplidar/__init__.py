@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
+from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.rplidar import constants as C
 from robotexp_drivers.lasers.rplidar.codec import (
@@ -86,11 +87,13 @@ class RPLidarLaser(StreamLaser):
 
     # -- handshake -----------------------------------------------------------------------------------
     def _fill(self, n: int, deadline: float, what: str) -> None:
-        while len(self._pending) < n:
-            if time.monotonic() > deadline:
-                raise ConnectionLost(f"rplidar: no {what} from {self.address!r}; check the cable, the baud rate "
-                                     "and that the device is powered")
+        for _ in reads_until(deadline):
+            if len(self._pending) >= n:
+                return
             self._pending += self._link.read_some()
+        if len(self._pending) < n:
+            raise ConnectionLost(f"rplidar: no {what} from {self.address!r}; check the cable, the baud rate "
+                                 "and that the device is powered")
 
     def _read_exact(self, n: int, deadline: float, what: str) -> bytes:
         self._fill(n, deadline, what)

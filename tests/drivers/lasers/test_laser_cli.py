@@ -43,7 +43,7 @@ def test_emulate_a_laser_alone_on_a_pty() -> None:
     with _serving("rplidar", "--world", "ufmg-static", "--pose", "path1", "--pty", lines=1) as served:
         assert served["laser"].startswith("/dev/")
         with RPLidarLaser(served["laser"]) as laser:
-            scan = laser.wait_scan(-1, 2.0).scan
+            scan = laser.wait_scan(-1, 10.0).scan
             assert scan.ranges.shape == (360,) and 0.1 < scan.nearest() < 5.0
 
 
