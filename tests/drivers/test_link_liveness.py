@@ -22,15 +22,22 @@ from robotexp.experiment import make_emulator
 from robotexp_drivers.p3dx.robot import P3DXRobot
 
 
+VEL_HEADER = b"\xfa\xfb\x06\x0b"      # an ARCOS VEL command: header, byte count 6, command 11
+
+
 class GarbageProxy:
     """TCP proxy to `target`; once `garbage` is set, the robot's bytes are replaced by bytes that
     never form a valid packet (all byte values but `no_byte`, ARCOS's 0xFA header by default; MAVLink
-    frames that start in them fail their CRC) at about 20 kB/s."""
+    frames that start in them fail their CRC) at about 20 kB/s; `garbage_after_vel`: set once the client has
+    sent that many ARCOS VEL commands (a run under way: 10 a second of robot time)."""
 
-    def __init__(self, target: tuple[str, int], garbage_after: float | None = None, no_byte: int = 0xFA) -> None:
+    def __init__(self, target: tuple[str, int], garbage_after: float | None = None, no_byte: int = 0xFA,
+                 garbage_after_vel: int | None = None) -> None:
         self.target = target
         self.no_byte = no_byte
         self.garbage_after = garbage_after
+        self.garbage_after_vel = garbage_after_vel
+        self.vel_commands = 0
         self.server = socket.create_server(("127.0.0.1", 0))
         self.port = self.server.getsockname()[1]
         self.garbage = threading.Event()
@@ -43,7 +50,7 @@ class GarbageProxy:
         robot = socket.create_connection(self.target)
         if self.garbage_after is not None:
             threading.Timer(self.garbage_after, self.garbage.set).start()
-        threading.Thread(target=self._pump, args=(client, robot), daemon=True).start()
+        threading.Thread(target=self._pump_commands, args=(client, robot), daemon=True).start()
         robot.settimeout(0.01)
         filler = bytes(b for b in range(256) if b != self.no_byte) * 4
         try:
@@ -65,10 +72,12 @@ class GarbageProxy:
             client.close()
             robot.close()
 
-    @staticmethod
-    def _pump(src: socket.socket, dst: socket.socket) -> None:
+    def _pump_commands(self, src: socket.socket, dst: socket.socket) -> None:
         try:
             while data := src.recv(4096):
+                self.vel_commands += data.count(VEL_HEADER)
+                if self.garbage_after_vel is not None and self.vel_commands >= self.garbage_after_vel:
+                    self.garbage.set()
                 dst.sendall(data)
         except OSError:
             pass
@@ -170,7 +179,9 @@ def test_a_reader_starved_for_longer_than_silence_then_fed_nothing_is_still_lost
 
 
 def test_a_run_ended_by_a_robot_error_exits_1_with_its_record(emulator, tmp_path):
-    proxy = GarbageProxy(("127.0.0.1", _port(emulator)), garbage_after=2.0)
+    # the garbage begins 2 s into the run (20 VEL commands), not 2 s after connecting: on a loaded machine the
+    # kernels' warm-up before the robot moves may take longer, and a link lost before the run has no record
+    proxy = GarbageProxy(("127.0.0.1", _port(emulator)), garbage_after_vel=20)
     try:
         result = CliRunner().invoke(main, ["explore", "--address", f"127.0.0.1:{proxy.port}", "--world", "dense",
                                            "--max-time", "600", "--out", str(tmp_path)])

@@ -94,7 +94,12 @@ def test_ctrl_c_ends_a_campaign_on_a_robot_with_the_robot_stopped(devices, tmp_p
                 break
             assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
             time.sleep(0.05)
-        time.sleep(0.3)              # a few odometry frames reach the campaign process
+        # then the campaign's control loop decides anew (a command other than the one in force: the reader only
+        # repeats that one), so it has read states since the robot moved, not stalled (a kernel compiling)
+        driving = kobuki.last_base_control
+        while kobuki.last_base_control in (driving, BaseControl(0, 0)):
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.02)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
