@@ -11,6 +11,8 @@ import math
 import socket
 import time
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -213,17 +215,17 @@ def test_laser_reaches_as_mobilesims_lms200() -> None:
     assert ahead == pytest.approx(13.0 - 0.018, abs=0.006)       # +-5 mm noise, from LaserX 18 mm
 
 
-def test_first_session_is_as_quick_as_the_next() -> None:
+def test_first_session_is_as_quick_as_the_next(cpu_wait: Any) -> None:
     with P3DXEmulator("ufmg-static", port=0, speedup=1.0) as emu:
         waits = []
         for _ in range(2):
-            t0 = time.monotonic()
+            t0, mark = time.monotonic(), cpu_wait.total()
             sock = _session(emu)
             dec = k.PacketDecoder(max_count=255)
             got: list[k.Packet] = []
             while not any(isinstance(p, k.StandardSip) for p in got):
                 got += dec.feed(sock.recv(65536))
-            waits.append(time.monotonic() - t0)
+            waits.append(time.monotonic() - t0 - cpu_wait.since(mark))     # a loaded machine's CPU waits aside
             assert any(isinstance(p, k.ConfigPacket) for p in got)
             sock.sendall(k.cmd_close())
             sock.close()
