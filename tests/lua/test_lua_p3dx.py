@@ -43,6 +43,12 @@ def stopped_then_closed(emu):
     assert emu.sessions == 1                      # one connection for the whole script
 
 
+def nearest(trail, x, y, theta):
+    """The pose of `trail` nearest (x [m], y [m], theta [rad]): a robot turning in place has many
+    poses at one point, so a radian counts as a metre."""
+    return min(trail, key=lambda p: math.hypot(x - p.x, y - p.y) + abs(math.remainder(theta - p.theta, 2 * math.pi)))
+
+
 def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -66,6 +72,13 @@ def at_rest(emu, timeout=30.0):
 
 
 def test_script_explores_through_the_emulator(lua, emu):
+    trail = []                                  # every true pose of the emulated robot, in order
+    advance = emu.sim.advance
+
+    def advance_and_note(dt):
+        advance(dt)
+        trail.append(emu.sim.true_pose)
+    emu.sim.advance = advance_and_note
     script = f"""
 robot.setAddress("{emu.address}")
 robot.setMaxSpeed(400)
@@ -103,6 +116,7 @@ print(robot.getPose())
     assert abs(math.remainder(math.radians(th2) - truth.theta, 2 * math.pi)) < 0.05
     assert first["start_pose"] == pytest.approx([4.2, 4.2, math.radians(-135)], abs=2e-3)
     assert math.hypot(truth.x - 4.2, truth.y - 4.2) > 0.3       # it explored from there
+    assert min(math.hypot(p.x - 4.2, p.y - 4.2) for p in trail) < 0.01   # the SimRobot was put there
     # the record: the robot's, no ground truth, the script's settings applied
     assert first["world"] == "p3dx" and first["robot"] == "p3dx" and first["address"] == emu.address
     assert first["coverage"] is None and first["map_iou"] is None and lua.lines[2] == "30000\tnil"
@@ -115,6 +129,10 @@ print(robot.getPose())
     assert second["world"] == "ufmg-static" and second["coverage"] is not None and second["coverage"] > 0
     assert math.dist(second["start_pose"][:2], (x / 1000, y / 1000)) < 0.02
     assert abs(math.remainder(second["start_pose"][2] - math.radians(th), 2 * math.pi)) < 0.05
+    sx, sy, sth = second["start_pose"]                          # a pose the SimRobot really had
+    was = nearest(trail, sx, sy, sth)
+    assert math.hypot(sx - was.x, sy - was.y) < 0.05
+    assert abs(math.remainder(sth - was.theta, 2 * math.pi)) < 0.1
     stopped_then_closed(emu)
 
 
