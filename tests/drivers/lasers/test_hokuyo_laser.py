@@ -7,11 +7,10 @@ from __future__ import annotations
 import math
 import socket
 import time
-from collections.abc import Iterator
-
-import numpy as np
+from collections.abc import Callable, Iterator
 from typing import Any
 
+import numpy as np
 import pytest
 from scan_sources import BoxSource, seconds_until_lost
 
@@ -134,14 +133,23 @@ def test_emulator_replies_as_scip_2_0() -> None:
                           "ARES": "1024", "AMIN": "44", "AMAX": "725", "AFRT": "384", "SCAN": "600"}
 
 
+def _soon(cond: Callable[[], bool], timeout: float = 10.0) -> bool:
+    """`cond()` once it holds, polled for up to `timeout` s (the emulator's thread may run late under load)."""
+    deadline = time.monotonic() + timeout
+    while not cond() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return cond()
+
+
 def test_driver_takes_over_a_sensor_left_streaming() -> None:
     import serial
     with HokuyoEmulator(BoxSource(), pty=True) as emu:
         with serial.Serial(emu.address, timeout=0.2) as port:      # a previous program's unlimited MD
             port.write(k.md_command(44, 725))
             port.read(4000)
-        assert emu.streaming
+            assert _soon(lambda: emu.streaming)
         time.sleep(0.25)                                            # scans pile up unread
         with HokuyoLaser(emu.address) as laser:
             assert laser.wait_scan(-1, 10.0).scan.ranges.shape == (682,)
+        assert _soon(lambda: emu.commands.count(b"QT") == 2)        # the takeover's and the close's
         assert emu.commands.count(b"QT") == 2

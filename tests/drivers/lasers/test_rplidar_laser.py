@@ -7,9 +7,9 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
-from typing import Any
 
 import pytest
 from scan_sources import BoxSource, seconds_until_lost
