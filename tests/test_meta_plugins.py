@@ -92,7 +92,7 @@ class _LostSearch(MetaheuristicExplorer):
 
 def test_a_search_lost_far_from_the_frontier_falls_back_and_the_run_ends() -> None:
     # Without the fallback such a search sends the robot to frontier-less cells for ever.
-    run = explore(_LostSearch())
+    run = explore(_LostSearch(near_frontier=False))      # Santos's domain: every reachable cell
     assert run.completed and run.reason == "fewer than 20 usable frontier cells left, no opening as wide as the robot"
     fields = run.explorer.result_fields()
     assert fields["fallbacks"] == fields["targets"] >= 2
