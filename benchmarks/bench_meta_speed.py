@@ -9,7 +9,8 @@ whether the two records agree (every field but wall times, and the SHA-256 of th
 the true path).
 
     python benchmarks/bench_meta_speed.py --before /tmp/before \\
-        --case generated:office:0:meta-ga --case generated:warehouse:0:meta-firefly --max-time 600
+        --case generated:office:0:meta-ga --case generated:warehouse:0:meta-firefly --max-time 600 \
+        [--after-param near_frontier=false --after-param population=20 --after-param iterations=100]
 
 The machine is shared: CPU seconds are the steadier figure; the load average is printed with each run.
 """
@@ -31,11 +32,11 @@ IGNORED = {"wall_time_s"}
 HERE = Path(__file__).resolve().parent.parent
 
 
-def _child(world: str, method: str, max_time: float) -> None:
+def _child(world: str, method: str, max_time: float, params: dict[str, Any]) -> None:
     """Run one case in this process and print its record, wall and CPU time as one JSON line."""
     from robotexp.experiment import RunSpec, run_experiment
 
-    spec = RunSpec(world=world, method=method)
+    spec = RunSpec(world=world, method=method, params=params)
     spec.max_time = max_time
     with tempfile.TemporaryDirectory() as tmp:
         t0, c0 = time.perf_counter(), time.process_time()
@@ -51,7 +52,7 @@ def _child(world: str, method: str, max_time: float) -> None:
                       "plugins": str(Path(robotexp_plugins.__file__).resolve().parent.parent)}))
 
 
-def _run(tree: Path, world: str, method: str, max_time: float) -> dict[str, Any]:
+def _run(tree: Path, world: str, method: str, max_time: float, params: dict[str, Any] | None = None) -> dict[str, Any]:
     # the plugins and drivers are imported as robotexp_plugins / robotexp_drivers (pyproject's package-dir):
     # names linked to the tree's plugins/ and drivers/ in a directory ahead of the installed ones
     links = Path(tempfile.gettempdir()) / f"bench_meta_speed_{abs(hash(str(tree.resolve())))}"
@@ -60,7 +61,8 @@ def _run(tree: Path, world: str, method: str, max_time: float) -> dict[str, Any]
         if not (links / name).is_symlink():
             (links / name).symlink_to(tree.resolve() / folder)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), str(links)]))
-    out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", world, method, str(max_time)],
+    out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", world, method, str(max_time),
+                          json.dumps(params or {})],
                          env=env, cwd=tempfile.gettempdir(), capture_output=True, text=True, check=False)
     if out.returncode:
         sys.exit(f"bench_meta_speed: the run of {world} {method} with {tree} failed:\n{out.stderr[-2000:]}")
@@ -84,7 +86,19 @@ def main() -> None:
     ap.add_argument("--before", type=Path, required=True, help="source tree of the code to compare with")
     ap.add_argument("--case", action="append", default=[], help="WORLD:METHOD (repeatable)")
     ap.add_argument("--max-time", type=float, default=600.0, help="[s] robot time per run (default 600)")
+    ap.add_argument("--after-param", action="append", default=[], metavar="KEY=JSON",
+                    help="explorer parameter of the runs with this tree (repeatable), e.g. near_frontier=false "
+                         "to run code that changed behaviour as the code before")
     args = ap.parse_args()
+    after: dict[str, Any] = {}
+    for item in args.after_param:
+        key, sep, value = item.partition("=")
+        try:
+            after[key] = json.loads(value)
+        except json.JSONDecodeError:
+            sep = ""
+        if not key or not sep:
+            sys.exit(f"bench_meta_speed: --after-param must be KEY=JSON (e.g. population=20), got {item!r}")
     if not (args.before / "robotexp" / "__init__.py").is_file():
         sys.exit(f"bench_meta_speed: --before {args.before} holds no robotexp package; give a source tree")
     cases = [_split(c) for c in (args.case or ["generated:office:0:meta-ga"])]
@@ -95,7 +109,7 @@ def main() -> None:
         res = {}
         for label, tree in trees.items():
             load = os.getloadavg()[0]
-            res[label] = r = _run(tree, world, method, args.max_time)
+            res[label] = r = _run(tree, world, method, args.max_time, after if label == "after" else None)
             robot = float(r["record"]["robot_time_s"])
             print(f"{world} {method} {label:6s}: {robot:8.1f} s robot, {r['wall']:7.1f} s wall, {r['cpu']:7.1f} s CPU"
                   f" -> {robot / r['wall']:6.1f}x wall, {robot / r['cpu']:6.1f}x CPU (load {load:.1f}); "
@@ -110,7 +124,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) == 5 and sys.argv[1] == "--child":
-        _child(sys.argv[2], sys.argv[3], float(sys.argv[4]))
+    if len(sys.argv) == 6 and sys.argv[1] == "--child":
+        _child(sys.argv[2], sys.argv[3], float(sys.argv[4]), json.loads(sys.argv[5]))
     else:
         main()

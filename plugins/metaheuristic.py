@@ -54,7 +54,7 @@ from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objectiv
 from robotexp.planning.targets import PlanCosts, known_window, passable_cell, usable_frontier
 from robotexp.robot import Pose, RobotState, Twist
 
-__all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer"]
+__all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer", "search_domain"]
 
 WINDOW_MARGIN = 2       # [cells] kept around the scanned part of the map, where every plan is made
 Offset = tuple[int, int]
@@ -258,11 +258,8 @@ class MetaheuristicExplorer(Explorer):
         objective = Objective(self.params, frontier, view.occupied(), self.visited[window],
                               ((pose.x - geo.origin_x) / geo.cell, (pose.y - geo.origin_y) / geo.cell),
                               reachable, cell=geo.cell, origin=off)
-        surface = objective.surface
-        if self.near_frontier:
-            near = reachable & (distance_transform(frontier) <= reach)
-            pull = near & (surface < 0)
-            surface = np.where(pull if pull.any() else near, surface, INFEASIBLE)
+        surface = search_domain(objective.surface, reachable, frontier, reach) if self.near_frontier \
+            else objective.surface
         found = self.search(surface, off, grid.shape)
         if found.value >= INFEASIBLE:
             return False
@@ -295,6 +292,16 @@ class MetaheuristicExplorer(Explorer):
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
                 grid: OccupancyGrid, off: Offset) -> None:
         self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y), off)
+
+
+def search_domain(surface: npt.NDArray[np.float64], reachable: npt.NDArray[np.bool_], frontier: npt.NDArray[np.bool_],
+                  reach: float) -> npt.NDArray[np.float64]:
+    """`surface` left only on the cells a target should be searched among (`near_frontier`): the reachable
+    cells with a `frontier` cell within `reach` [cells] where the surface is negative, or all those near
+    cells when none is negative; INFEASIBLE elsewhere. All arrays (rows, cols) of one grid or window."""
+    near = reachable & (distance_transform(frontier) <= reach)
+    pull = near & (surface < 0)
+    return np.where(pull if pull.any() else near, surface, INFEASIBLE)
 
 
 def _shifted(found: SearchResult, origin: Offset) -> SearchResult:

@@ -229,3 +229,36 @@ def test_plans_are_made_on_the_explored_window_not_the_map(monkeypatch: pytest.M
     # the scans reach at most RANGE beyond the 6 x 4 m building (+ a cell of slack and the margin)
     most = (int((4 + 2 * RANGE) / CELL) + 8, int((6 + 2 * RANGE) / CELL) + 8)
     assert shapes and all(s[0] <= most[0] and s[1] <= most[1] for s in shapes), (max(shapes), most, geo.shape)
+
+
+def test_firefly_targets_the_near_opening_not_a_weak_frontier_across_the_map() -> None:
+    # A door 2 m from the robot and ten short stretches of frontier 6-9 m away (a 20 x 20 m map at 5 cm):
+    # the optimum is at the door. Santos's 20 fireflies over every reachable cell gathered on whichever
+    # stretch their first population met (the 13-17 % of far targets traced on the generated warehouse
+    # and cave); meta-firefly's defaults (40 fireflies x 25 sweeps over `search_domain`) find the door.
+    from robotexp.planning.metaheuristics import FireflyConfig, exhaustive, firefly_search
+    from robotexp.planning.objective import PRESETS, Objective
+    from robotexp_plugins.metaheuristic import search_domain
+    n = 400
+    rng = np.random.default_rng(7)
+    fr, oc, vi = (np.zeros((n, n), bool) for _ in range(3))
+    oc[0, :] = oc[-1, :] = oc[:, 0] = oc[:, -1] = True
+    fr[160, 195:207] = True
+    for _ in range(10):
+        a, d = rng.uniform(0, 2 * math.pi), rng.uniform(120, 185)
+        r, c = int(200 + d * math.sin(a)), int(200 + d * math.cos(a))
+        fr[r, c - 6:c + 6] = True
+    vi[200, 120:201] = True
+    reachable = ~oc
+    objective = Objective(PRESETS["proportional"], fr, oc, vi, (200.5, 200.5), reachable)
+    door = exhaustive(objective.surface).cell
+    assert math.dist(door, (160, 200)) <= 2
+
+    def hits(surface: np.ndarray, cfg: FireflyConfig) -> int:
+        return sum(math.dist(firefly_search(surface, np.random.default_rng(s), cfg).cell, door) <= 20
+                   for s in range(60))
+
+    ours = FireflyExplorer().config
+    assert (ours.population, ours.iterations) == (40, 25)
+    assert hits(search_domain(objective.surface, reachable, fr, 3 * 1.5 + 1), ours) >= 45
+    assert hits(objective.surface, FireflyConfig(population=20, iterations=100)) <= 10
