@@ -41,7 +41,7 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.kernels import flood, label8
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, distance_transform
+from robotexp.planning.grid_planner import astar
 from robotexp.planning.metaheuristics import (
     FireflyConfig,
     GAConfig,
@@ -51,6 +51,7 @@ from robotexp.planning.metaheuristics import (
     genetic_search,
 )
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
+from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import PlanCosts, known_window, passable_cell, usable_frontier
 from robotexp.robot import Pose, RobotState, Twist
 
@@ -272,7 +273,7 @@ class MetaheuristicExplorer(Explorer):
             # The search stopped where no frontier cell is within reach (its C_f is ~0): driving there
             # resolves nothing, and with that frontier never looked at the run would not end. Take the
             # optimum over the cells that have a frontier cell within reach instead (counted).
-            near = distance_transform(frontier) <= reach
+            near = near_cells(frontier, reach)
             found = _shifted(exhaustive(np.where(near, objective.surface, INFEASIBLE)), off)
             if found.value >= INFEASIBLE:
                 return False
@@ -299,7 +300,7 @@ def search_domain(surface: npt.NDArray[np.float64], reachable: npt.NDArray[np.bo
     """`surface` left only on the cells a target should be searched among (`near_frontier`): the reachable
     cells with a `frontier` cell within `reach` [cells] where the surface is negative, or all those near
     cells when none is negative; INFEASIBLE elsewhere. All arrays (rows, cols) of one grid or window."""
-    near = reachable & (distance_transform(frontier) <= reach)
+    near = reachable & near_cells(frontier, reach)
     pull = near & (surface < 0)
     return np.where(pull if pull.any() else near, surface, INFEASIBLE)
 

@@ -246,12 +246,15 @@ class Objective:
         co = gaussian_sum(np.asarray(occupied), s[1])
         cv = gaussian_sum(np.asarray(visited), s[2])
         self.components = (cf, co, cv)
-        rows, cols = shape
-        y, x = np.mgrid[0:rows, 0:cols]
-        surface = self._combine(cf, co, cv, (x + self.origin[1]) + 0.5, (y + self.origin[0]) + 0.5)
-        if feasible is not None:
-            surface[~np.asarray(feasible)] = INFEASIBLE
-        self.surface = surface
+        if feasible is None:
+            rows, cols = shape
+            y, x = np.mgrid[0:rows, 0:cols]
+            self.surface = self._combine(cf, co, cv, (x + self.origin[1]) + 0.5, (y + self.origin[0]) + 0.5)
+        else:       # the same values, computed at the feasible cells only
+            r, c = np.nonzero(np.asarray(feasible))
+            self.surface = np.full(shape, INFEASIBLE)
+            self.surface[r, c] = self._combine(cf[r, c], co[r, c], cv[r, c], (c + self.origin[1]) + 0.5,
+                                               (r + self.origin[0]) + 0.5)
 
     def _sigmas(self) -> tuple[float, float, float]:
         p = self.params

@@ -17,6 +17,7 @@ import numpy.typing as npt
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import cost_grid, distance_transform
+from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance"]
@@ -254,4 +255,4 @@ def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach
         front &= ~blacklist
     if not front.any() or not reachable.any():
         return np.zeros_like(front)
-    return front & (distance_transform(reachable) <= reach_cells)
+    return probe_cells(reachable, front, reach_cells)      # front & (distance_transform(reachable) <= reach)
