@@ -36,6 +36,7 @@ covers [c, c+1) x [r, r+1), its centre is (c + 0.5, r + 0.5)); decoding is floor
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -240,7 +241,7 @@ class Objective:
         self.unit = cell / SANTOS_CELL          # [5 cm] per cell
         self.robot = (float(robot[0]), float(robot[1]))
         self.origin = (int(origin[0]), int(origin[1]))
-        self.lists = tuple(np.argwhere(np.asarray(m)) + self.origin for m in (frontier, occupied, visited))
+        self._masks = tuple(np.array(m, dtype=bool) for m in (frontier, occupied, visited))   # for `lists`
         s = self._sigmas()
         cf = -gaussian_sum(np.asarray(frontier), s[0])
         co = gaussian_sum(np.asarray(occupied), s[1])
@@ -253,8 +254,15 @@ class Objective:
         else:       # the same values, computed at the feasible cells only
             r, c = np.nonzero(np.asarray(feasible))
             self.surface = np.full(shape, INFEASIBLE)
-            self.surface[r, c] = self._combine(cf[r, c], co[r, c], cv[r, c], (c + self.origin[1]) + 0.5,
-                                               (r + self.origin[0]) + 0.5)
+            x = np.asarray((c + self.origin[1]) + 0.5, dtype=np.float64)
+            y = np.asarray((r + self.origin[0]) + 0.5, dtype=np.float64)
+            self.surface[r, c] = self._combine(cf[r, c], co[r, c], cv[r, c], x, y)
+
+    @functools.cached_property
+    def lists(self) -> tuple[npt.NDArray[np.int64], ...]:
+        """The (row, col) cells of FRONTIER, OCCUPIED and VISITED (in the larger grid's cells), each (k, 2),
+        made when first asked for (`exact` needs them; the surface does not)."""
+        return tuple(np.argwhere(m) + self.origin for m in self._masks)
 
     def _sigmas(self) -> tuple[float, float, float]:
         p = self.params
