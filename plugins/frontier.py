@@ -30,6 +30,10 @@ class FrontierExplorer(Explorer):
     is not an opening) and those whose unknown neighbours all lie within `face_reach` of an occupied
     cell: beams grazing a wall clear stretches of its face, and the unknown behind them is the wall's
     inside (a robot that drove to them looked, saw nothing new and dithered on warehouse rack faces).
+    Both tests ask the cells the map has ever shown occupied (`WallMemory`), not the map's walls of
+    the moment: in a log-odds map a beam passing through a wall cell cancels a hit, so grazing beams
+    wear faces down to unknown or free cells, and a shelf's face worn over a metre looked like an
+    opening into its unseen inside (generated warehouses: a long tail of trips to worn rack faces).
     Paths are planned on known-free cells with the robot radius (plus a 5 cm
     margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
     nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
@@ -51,7 +55,8 @@ class FrontierExplorer(Explorer):
         clearance: [m] width of the costly zone beyond the robot radius.
         return_home: drive back to the start pose when exploration is done.
         face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
-            occupied cell (0: no such test, the explorer of session 4).
+            cell ever occupied, and no such cell as 8-neighbour (0: neither test, nor the memory of
+            walls: the explorer of session 4).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
