@@ -15,6 +15,7 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.kernels import label8
 from robotexp.planning.follower import blocked_ahead
 from robotexp.planning.targets import WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
@@ -99,6 +100,11 @@ class BVPExplorer(Explorer):
       heading phi; before any heading is known, head for the nearest goal cell (a free region
       bounded only by unknown cells - no obstacle in view - has a constant potential), or turn in
       place while there is no goal yet (`flat_gradient_steps` counts these steps).
+    - Stall (beyond the thesis; the run's stall watch, `give_up`): when the map gains nothing for a while,
+      goal cells the robot's region touches become walls - the groups smaller than the robot (a few
+      unknown cells in a corner no beam reaches drew the robot across a generated office for 700 s
+      of robot time, its field near zero everywhere), else the nearest group. The thesis's runs never
+      strike, so they are unchanged.
     - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
       robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
@@ -161,6 +167,9 @@ class BVPExplorer(Explorer):
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
         self.walls = WallDistance(0.0)
         self._goal_off = (0, 0)
+        self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at the stall watch's strikes
+        self.given_up_cells = 0
+        self._xy = (ctx.start.x, ctx.start.y)
 
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
@@ -172,6 +181,7 @@ class BVPExplorer(Explorer):
             self.q[0, :] = self.q[-1, :] = 0.0
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
+            self.given_up = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
             self.walls = WallDistance(self._inflate_cells(grid))
 
@@ -212,7 +222,8 @@ class BVPExplorer(Explorer):
                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """The Dirichlet cells of the current map: (wall, goal), each (rows, cols) bool.
 
-        wall: occupied (HIMM > 2) or within the inflation of an occupied cell (potential 1);
+        wall: occupied (HIMM > 2), within the inflation of an occupied cell, or a goal cell given up
+        (`give_up`; none unless the run's stall watch struck) (potential 1);
         goal: unknown, not covered by the robot and not a wall (potential 0).
 
         Args:
@@ -226,6 +237,8 @@ class BVPExplorer(Explorer):
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
         wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
+        if self.given_up_cells:
+            wall |= self.given_up[off[0]:off[0] + rows, off[1]:off[1] + cols]
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
@@ -266,6 +279,15 @@ class BVPExplorer(Explorer):
 
         `wall` and `goal` are `boundary`'s, of the whole map or of a window of it whose cell (0, 0) is
         the map's `off`."""
+        region = self._region(grid, wall, goal, x, y, off)
+        if region is None:
+            return False        # squeezed against a wall: keep going (the gradient leads out)
+        return not touches(region, goal)
+
+    def _region(self, grid: OccupancyGrid, wall: npt.NDArray[np.bool_], goal: npt.NDArray[np.bool_],
+                x: float, y: float, off: tuple[int, int]) -> npt.NDArray[np.bool_] | None:
+        """The stop test's region: the passable cells 4-connected to (x, y) [m] (or to the nearest passable
+        cell within 0.5 m), on `boundary`'s window; None when no passable cell is that near."""
         rows, cols = wall.shape
         view = grid if (rows, cols) == grid.shape else grid.window(off[0], off[0] + rows, off[1], off[1] + cols)
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
@@ -278,22 +300,61 @@ class BVPExplorer(Explorer):
             r0, c0 = max(r - reach, 0), max(c - reach, 0)
             cand = np.argwhere(passable[r0:r + reach + 1, c0:c + reach + 1])
             if cand.size == 0:
-                return False        # squeezed against a wall: keep going (the gradient leads out)
+                return None
             cand += (r0, c0)
             best = int(np.argmin((cand[:, 0] - r) ** 2 + (cand[:, 1] - c) ** 2))
             r, c = int(cand[best, 0]), int(cand[best, 1])
-        return not touches(flood4(passable, r, c), goal)
+        return flood4(passable, r, c)
+
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run's stall watch struck (nothing newly known for a while): give up goal cells, which are
+        walls from now on. The goal cells the robot's region touches, grouped 8-connected: every group
+        smaller than the robot's diameter (a few unknown cells in a corner that no beam reaches: the
+        field draws the robot to them, from across the building, for ever), else the group nearest the
+        robot. False when the region touches no goal.
+        """
+        self._ensure(grid)
+        view, off = self.window(grid)
+        wall, goal = self.boundary(grid, (view, off))
+        region = self._region(grid, wall, goal, self._xy[0], self._xy[1], off)
+        if region is None:
+            return False
+        near = np.zeros_like(region)
+        near[1:, :] |= region[:-1, :]
+        near[:-1, :] |= region[1:, :]
+        near[:, 1:] |= region[:, :-1]
+        near[:, :-1] |= region[:, 1:]
+        labels, k = label8(np.ascontiguousarray(near & goal))
+        if k == 0:
+            return False
+        sizes = np.bincount(labels.ravel())
+        small = max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
+        chosen = [i for i in range(1, k + 1) if sizes[i] < small]
+        if not chosen:
+            cells = np.argwhere(labels > 0)
+            r, c = grid.geo.cell_of(*self._xy)
+            nearest = int(np.argmin((cells[:, 0] + off[0] - r) ** 2 + (cells[:, 1] + off[1] - c) ** 2))
+            chosen = [int(labels[cells[nearest, 0], cells[nearest, 1]])]
+        cells = np.argwhere(np.isin(labels, chosen)) + off
+        self.given_up[cells[:, 0], cells[:, 1]] = True
+        self.given_up_cells += len(cells)
+        self.next_update = -math.inf        # the field without them at the next step
+        return True
 
     # -- the decision ----------------------------------------------------------------
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """Update the potential when due, then steer along its descent (eqs. 3.2-3.5)."""
         pose = state.pose
+        self._xy = (pose.x, pose.y)
         self._ensure(grid)
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:
             wall, goal, off = self.update_potential(grid)
             self._goal, self._goal_off = goal, off
             if self.explored(grid, wall, goal, pose.x, pose.y, off):
+                if self.given_up_cells:
+                    return Done(f"explored: no reachable free cell touches an unknown cell but the "
+                                f"{self.given_up_cells} given up")
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
         r, c = grid.geo.cell_of(pose.x, pose.y)
@@ -350,5 +411,9 @@ class BVPExplorer(Explorer):
         return 1.0 - self.q[1:-1, 1:-1]
 
     def result_fields(self) -> dict[str, object]:
-        """`potential_updates` and `flat_gradient_steps` (steps with a vanished gradient)."""
-        return {"potential_updates": self.updates, "flat_gradient_steps": self.flat_steps}
+        """`potential_updates`, `flat_gradient_steps` (steps with a vanished gradient) and, when the stall
+        watch made it give up goal cells, `given_up_cells`."""
+        out: dict[str, object] = {"potential_updates": self.updates, "flat_gradient_steps": self.flat_steps}
+        if self.given_up_cells:
+            out["given_up_cells"] = self.given_up_cells
+        return out

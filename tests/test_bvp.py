@@ -201,3 +201,33 @@ def test_registered_and_explores_a_small_world() -> None:
     rec = out.record
     assert rec["completed"] and rec["reason"].startswith("explored")
     assert rec["coverage"] >= 0.95 and rec["collisions"] == 0
+
+
+# -- the stall watch's strikes ---------------------------------------------------------------------
+def test_give_up_small_goal_groups_first_then_the_nearest() -> None:
+    """At a strike (the run's stall watch), the goal cells the robot's region touches in groups smaller
+    than the robot become walls; with none small, the nearest group; with none, nothing is given up."""
+    g = _room(opening=True)
+    pocket = np.zeros(g.shape, bool)
+    pocket[25, 20:22] = True                # two unknown cells 0.9 m west of the robot: no beam saw them
+    g.stamp[pocket] = 0
+    ex = _explorer()
+    out = ex.step(_state(3.0, 2.5, 0.0, scan=_empty_scan()), g)
+    assert isinstance(out, Twist)
+    wall, goal = ex.boundary(g)
+    assert goal[pocket].all() and not ex.explored(g, wall, goal, 3.0, 2.5)
+    assert ex.give_up(g)
+    assert (ex.given_up == pocket).all() and ex.given_up_cells == 2
+    wall, goal = ex.boundary(g)
+    assert wall[pocket].all() and not goal[pocket].any()
+    assert not ex.explored(g, wall, goal, 3.0, 2.5)      # the opening to the east is still a goal
+    # a second strike: no small group is left, the nearest one (the corridor's unknown end) goes
+    assert ex.give_up(g)
+    assert ex.given_up_cells > 2 and ex.given_up[19:31, 55].sum() >= 5
+    assert (ex.given_up[:, :50] == pocket[:, :50]).all()     # inside the room: the pocket only
+    out = ex.step(_state(3.0, 2.5, 0.0, t=5.0, scan=_empty_scan()), g)
+    assert isinstance(out, Done) and "given up" in out.reason
+    assert ex.result_fields()["given_up_cells"] == ex.given_up_cells
+    # nothing to give up in a closed room
+    closed = _explorer()
+    assert not closed.give_up(_room(opening=False)) and "given_up_cells" not in closed.result_fields()
