@@ -25,6 +25,7 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
+STUCK_TIME = 60.0       # [s] of robot time: a robot that moved less than its diameter in this time is held
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -101,10 +102,10 @@ class BVPExplorer(Explorer):
       bounded only by unknown cells - no obstacle in view - has a constant potential), or turn in
       place while there is no goal yet (`flat_gradient_steps` counts these steps).
     - Stall (beyond the thesis; the run's stall watch, `give_up`): when the map gains nothing for a while,
-      goal cells the robot's region touches in groups smaller than the robot become walls (a few
-      unknown cells in a corner no beam reaches drew the robot across a generated office for 700 s
-      of robot time, its field near zero everywhere). The thesis's runs strike at times, but never
-      with such a group.
+      if the robot is held (it moved less than its diameter in the last minute), the goal cells its
+      region touches in groups smaller than the robot become walls (two unknown cells no beam reached
+      held the robot still in a generated office until the run stalled, its field near zero). The
+      thesis's runs strike at times, with the robot on the move: they are unchanged.
     - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
       robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
@@ -170,6 +171,7 @@ class BVPExplorer(Explorer):
         self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at the stall watch's strikes
         self.given_up_cells = 0
         self._xy = (ctx.start.x, ctx.start.y)
+        self._track: list[tuple[float, float, float]] = []   # (t, x, y) once a second, the last STUCK_TIME
 
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
@@ -307,13 +309,20 @@ class BVPExplorer(Explorer):
         return flood4(passable, r, c)
 
     def give_up(self, grid: OccupancyGrid) -> bool:
-        """The run's stall watch struck (nothing newly known for a while): give up goal cells, which are
-        walls from now on: of the goal cells the robot's region touches, grouped 8-connected, every group
-        smaller than the robot's diameter (a few unknown cells in a corner that no beam reaches: the
-        field draws the robot to them, from across the building, for ever). Larger groups are openings
-        the field leads to in its own time: giving up the nearest one lost 2.5 % of a generated
-        warehouse's coverage. False when nothing was given up.
+        """The run's stall watch struck (nothing newly known for a while) and the robot is held (it moved
+        less than its diameter in the last `STUCK_TIME` s): give up goal cells, which are walls from now
+        on: of the goal cells the robot's region touches, grouped 8-connected, every group smaller than
+        the robot's diameter (a few unknown cells no beam reaches: their field, faint across a building,
+        held the robot still for minutes). Larger groups are openings the field leads to in its own time
+        (giving up the nearest one lost 2.5 % of a generated warehouse's coverage), and a robot that
+        moves is on its way (the thesis's sparse hall: a 4-cell group, struck at while the robot drove
+        to it, was seen 34 s later). False when nothing was given up.
         """
+        if not self._track or self._track[-1][0] - self._track[0][0] < STUCK_TIME - 1.0:
+            return False
+        xy = np.array([(x, y) for _, x, y in self._track])
+        if float(np.hypot(*(xy.max(axis=0) - xy.min(axis=0)))) >= 2 * self.ctx.radius:
+            return False
         self._ensure(grid)
         view, off = self.window(grid)
         wall, goal = self.boundary(grid, (view, off))
@@ -344,6 +353,10 @@ class BVPExplorer(Explorer):
         """Update the potential when due, then steer along its descent (eqs. 3.2-3.5)."""
         pose = state.pose
         self._xy = (pose.x, pose.y)
+        if not self._track or state.time >= self._track[-1][0] + 1.0:
+            self._track.append((state.time, pose.x, pose.y))
+            while self._track[0][0] < state.time - STUCK_TIME:
+                self._track.pop(0)
         self._ensure(grid)
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:

@@ -204,16 +204,29 @@ def test_registered_and_explores_a_small_world() -> None:
 
 
 # -- the stall watch's strikes ---------------------------------------------------------------------
-def test_give_up_only_goal_groups_smaller_than_the_robot() -> None:
-    """At a strike (the run's stall watch), the goal cells the robot's region touches in groups smaller
-    than the robot become walls; larger groups (openings) are never given up."""
+def _hold(ex: BVPExplorer, grid: OccupancyGrid, xs: list[float], t0: float = 0.0) -> float:
+    """Step `ex` once a second with the robot at x = xs[k] (y = 2.5 m); return the time after."""
+    for k, x in enumerate(xs):
+        out = ex.step(_state(x, 2.5, 0.0, t=t0 + k, scan=_empty_scan()), grid)
+        assert isinstance(out, Twist)
+    return t0 + len(xs)
+
+
+def test_give_up_only_goal_groups_smaller_than_the_robot_when_held() -> None:
+    """At a strike (the run's stall watch) with the robot held for a minute, the goal cells its region
+    touches in groups smaller than the robot become walls; larger groups (openings) never do, and a
+    robot on the move gives up nothing."""
     g = _room(opening=True)
     pocket = np.zeros(g.shape, bool)
     pocket[25, 20:22] = True                # two unknown cells 0.9 m west of the robot: no beam saw them
     g.stamp[pocket] = 0
     ex = _explorer()
-    out = ex.step(_state(3.0, 2.5, 0.0, scan=_empty_scan()), g)
-    assert isinstance(out, Twist)
+    t = _hold(ex, g, [3.0] * 30)
+    assert not ex.give_up(g)                # held for 30 s only
+    moving = _explorer()
+    _hold(moving, g, [2.6 + 0.02 * k for k in range(62)])       # 1.2 m in a minute: on its way
+    assert not moving.give_up(g) and moving.given_up_cells == 0
+    t = _hold(ex, g, [3.0 + 0.001 * k for k in range(32)], t)   # a minute within 3 cm
     wall, goal = ex.boundary(g)
     assert goal[pocket].all() and not ex.explored(g, wall, goal, 3.0, 2.5)
     assert ex.give_up(g)
@@ -226,11 +239,11 @@ def test_give_up_only_goal_groups_smaller_than_the_robot() -> None:
     closed = _room(opening=False)
     closed.stamp[pocket] = 0
     ex2 = _explorer()
-    assert isinstance(ex2.step(_state(3.0, 2.5, 0.0, scan=_empty_scan()), closed), Twist)
+    t = _hold(ex2, closed, [3.0] * 62)
     assert ex2.give_up(closed)
-    out = ex2.step(_state(3.0, 2.5, 0.0, t=5.0, scan=_empty_scan()), closed)
+    out = ex2.step(_state(3.0, 2.5, 0.0, t=t, scan=_empty_scan()), closed)
     assert isinstance(out, Done) and out.reason.endswith("but the 2 given up")
     assert ex2.result_fields()["given_up_cells"] == 2
     # nothing to give up in a closed room
-    closed = _explorer()
-    assert not closed.give_up(_room(opening=False)) and "given_up_cells" not in closed.result_fields()
+    ex3 = _explorer()
+    assert not ex3.give_up(_room(opening=False)) and "given_up_cells" not in ex3.result_fields()
