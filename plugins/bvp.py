@@ -311,10 +311,10 @@ class BVPExplorer(Explorer):
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run's stall watch struck (nothing newly known for a while) and the robot is held (it moved
         less than its diameter in the last `STUCK_TIME` s): give up goal cells, which are walls from now
-        on: of the goal cells the robot's region touches, grouped 8-connected, every group smaller than
-        the robot's diameter (a few unknown cells no beam reaches: their field, faint across a building,
-        held the robot still for minutes). Larger groups are openings the field leads to in its own time
-        (giving up the nearest one lost 2.5 % of a generated warehouse's coverage), and a robot that
+        on: every 8-connected group of goal cells that the robot's region touches and that is smaller
+        than the robot's diameter (a few unknown cells no beam reaches: their field, faint across a
+        building, held the robot still for minutes). Larger groups are openings the field leads to in its
+        own time (giving up the nearest one lost 2.5 % of a generated warehouse's coverage), and a robot that
         moves is on its way (the thesis's sparse hall: a 4-cell group, struck at while the robot drove
         to it, was seen 34 s later). False when nothing was given up.
         """
@@ -334,12 +334,14 @@ class BVPExplorer(Explorer):
         near[:-1, :] |= region[1:, :]
         near[:, 1:] |= region[:, :-1]
         near[:, :-1] |= region[:, 1:]
-        labels, k = label8(np.ascontiguousarray(near & goal))
-        if k == 0:
+        # whole groups of goal cells (a door's far side touches the region with a few cells only)
+        labels, k = label8(np.ascontiguousarray(goal))
+        touched = np.unique(labels[near & goal])
+        if k == 0 or touched.size == 0:
             return False
         sizes = np.bincount(labels.ravel())
         small = max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
-        chosen = [i for i in range(1, k + 1) if sizes[i] < small]
+        chosen = [int(i) for i in touched if sizes[i] < small]
         if not chosen:
             return False
         cells = np.argwhere(np.isin(labels, chosen)) + off

@@ -247,3 +247,22 @@ def test_give_up_only_goal_groups_smaller_than_the_robot_when_held() -> None:
     # nothing to give up in a closed room
     ex3 = _explorer()
     assert not ex3.give_up(_room(opening=False)) and "given_up_cells" not in ex3.result_fields()
+
+
+def test_give_up_keeps_a_large_unknown_group_seen_through_a_narrow_gap() -> None:
+    """A closet of 7 x 7 unknown cells whose wall has a one-cell gap: the region touches one of its
+    cells only, but the group is larger than the robot: not given up (it is no pocket of a few cells)."""
+    g = _room(opening=False)
+    ring = np.zeros(g.shape, bool)
+    ring[21:30, 19:28] = True
+    ring[22:29, 20:27] = False
+    ring[25, 19] = False                    # the gap
+    g.mark_occupied(ring)
+    closet = np.zeros(g.shape, bool)
+    closet[22:29, 20:27] = True
+    g.stamp[closet] = 0
+    ex = _explorer(inflate=0.0)
+    _hold(ex, g, [4.0] * 62)
+    wall, goal = ex.boundary(g)
+    assert goal[closet].all() and not ex.explored(g, wall, goal, 4.0, 2.5)
+    assert not ex.give_up(g) and ex.given_up_cells == 0
