@@ -15,7 +15,6 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.kernels import label8
 from robotexp.planning.follower import blocked_ahead
 from robotexp.planning.targets import WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
@@ -25,7 +24,6 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
-STUCK_TIME = 60.0       # [s] of robot time: a robot that moved less than its diameter in this time is held
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -101,11 +99,6 @@ class BVPExplorer(Explorer):
       heading phi; before any heading is known, head for the nearest goal cell (a free region
       bounded only by unknown cells - no obstacle in view - has a constant potential), or turn in
       place while there is no goal yet (`flat_gradient_steps` counts these steps).
-    - Stall (beyond the thesis; the run's stall watch, `give_up`): when the map gains nothing for a while,
-      if the robot is held (it moved less than its diameter in the last minute), the goal cells its
-      region touches in groups smaller than the robot become walls (two unknown cells no beam reached
-      held the robot still in a generated office until the run stalled, its field near zero). The
-      thesis's runs strike at times, with the robot on the move: they are unchanged.
     - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
       robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
@@ -168,10 +161,6 @@ class BVPExplorer(Explorer):
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
         self.walls = WallDistance(0.0)
         self._goal_off = (0, 0)
-        self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at the stall watch's strikes
-        self.given_up_cells = 0
-        self._xy = (ctx.start.x, ctx.start.y)
-        self._track: list[tuple[float, float, float]] = []   # (t, x, y) once a second, the last STUCK_TIME
 
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
@@ -183,7 +172,6 @@ class BVPExplorer(Explorer):
             self.q[0, :] = self.q[-1, :] = 0.0
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
-            self.given_up = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
             self.walls = WallDistance(self._inflate_cells(grid))
 
@@ -224,8 +212,7 @@ class BVPExplorer(Explorer):
                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """The Dirichlet cells of the current map: (wall, goal), each (rows, cols) bool.
 
-        wall: occupied (HIMM > 2), within the inflation of an occupied cell, or a goal cell given up
-        (`give_up`; none unless the run's stall watch struck) (potential 1);
+        wall: occupied (HIMM > 2) or within the inflation of an occupied cell (potential 1);
         goal: unknown, not covered by the robot and not a wall (potential 0).
 
         Args:
@@ -239,8 +226,6 @@ class BVPExplorer(Explorer):
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
         wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
-        if self.given_up_cells:
-            wall |= self.given_up[off[0]:off[0] + rows, off[1]:off[1] + cols]
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
@@ -281,15 +266,6 @@ class BVPExplorer(Explorer):
 
         `wall` and `goal` are `boundary`'s, of the whole map or of a window of it whose cell (0, 0) is
         the map's `off`."""
-        region = self._region(grid, wall, goal, x, y, off)
-        if region is None:
-            return False        # squeezed against a wall: keep going (the gradient leads out)
-        return not touches(region, goal)
-
-    def _region(self, grid: OccupancyGrid, wall: npt.NDArray[np.bool_], goal: npt.NDArray[np.bool_],
-                x: float, y: float, off: tuple[int, int]) -> npt.NDArray[np.bool_] | None:
-        """The stop test's region: the passable cells 4-connected to (x, y) [m] (or to the nearest passable
-        cell within 0.5 m), on `boundary`'s window; None when no passable cell is that near."""
         rows, cols = wall.shape
         view = grid if (rows, cols) == grid.shape else grid.window(off[0], off[0] + rows, off[1], off[1] + cols)
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
@@ -302,72 +278,22 @@ class BVPExplorer(Explorer):
             r0, c0 = max(r - reach, 0), max(c - reach, 0)
             cand = np.argwhere(passable[r0:r + reach + 1, c0:c + reach + 1])
             if cand.size == 0:
-                return None
+                return False        # squeezed against a wall: keep going (the gradient leads out)
             cand += (r0, c0)
             best = int(np.argmin((cand[:, 0] - r) ** 2 + (cand[:, 1] - c) ** 2))
             r, c = int(cand[best, 0]), int(cand[best, 1])
-        return flood4(passable, r, c)
-
-    def give_up(self, grid: OccupancyGrid) -> bool:
-        """The run's stall watch struck (nothing newly known for a while) and the robot is held (it moved
-        less than its diameter in the last `STUCK_TIME` s): give up goal cells, which are walls from now
-        on: every 8-connected group of goal cells that the robot's region touches and that is smaller
-        than the robot's diameter (a few unknown cells no beam reaches: their field, faint across a
-        building, held the robot still for minutes). Larger groups are openings the field leads to in its
-        own time (giving up the nearest one lost 2.5 % of a generated warehouse's coverage), and a robot that
-        moves is on its way (the thesis's sparse hall: a 4-cell group, struck at while the robot drove
-        to it, was seen 34 s later). False when nothing was given up.
-        """
-        if not self._track or self._track[-1][0] - self._track[0][0] < STUCK_TIME - 1.0:
-            return False
-        xy = np.array([(x, y) for _, x, y in self._track])
-        if float(np.hypot(*(xy.max(axis=0) - xy.min(axis=0)))) >= 2 * self.ctx.radius:
-            return False
-        self._ensure(grid)
-        view, off = self.window(grid)
-        wall, goal = self.boundary(grid, (view, off))
-        region = self._region(grid, wall, goal, self._xy[0], self._xy[1], off)
-        if region is None:
-            return False
-        near = np.zeros_like(region)
-        near[1:, :] |= region[:-1, :]
-        near[:-1, :] |= region[1:, :]
-        near[:, 1:] |= region[:, :-1]
-        near[:, :-1] |= region[:, 1:]
-        # whole groups of goal cells (a door's far side touches the region with a few cells only)
-        labels, k = label8(np.ascontiguousarray(goal))
-        touched = np.unique(labels[near & goal])
-        if k == 0 or touched.size == 0:
-            return False
-        sizes = np.bincount(labels.ravel())
-        small = max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
-        chosen = [int(i) for i in touched if sizes[i] < small]
-        if not chosen:
-            return False
-        cells = np.argwhere(np.isin(labels, chosen)) + off
-        self.given_up[cells[:, 0], cells[:, 1]] = True
-        self.given_up_cells += len(cells)
-        self.next_update = -math.inf        # the field without them at the next step
-        return True
+        return not touches(flood4(passable, r, c), goal)
 
     # -- the decision ----------------------------------------------------------------
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """Update the potential when due, then steer along its descent (eqs. 3.2-3.5)."""
         pose = state.pose
-        self._xy = (pose.x, pose.y)
-        if not self._track or state.time >= self._track[-1][0] + 1.0:
-            self._track.append((state.time, pose.x, pose.y))
-            while self._track[0][0] < state.time - STUCK_TIME:
-                self._track.pop(0)
         self._ensure(grid)
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:
             wall, goal, off = self.update_potential(grid)
             self._goal, self._goal_off = goal, off
             if self.explored(grid, wall, goal, pose.x, pose.y, off):
-                if self.given_up_cells:
-                    return Done(f"explored: no reachable free cell touches an unknown cell but the "
-                                f"{self.given_up_cells} given up")
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
         r, c = grid.geo.cell_of(pose.x, pose.y)
@@ -424,9 +350,5 @@ class BVPExplorer(Explorer):
         return 1.0 - self.q[1:-1, 1:-1]
 
     def result_fields(self) -> dict[str, object]:
-        """`potential_updates`, `flat_gradient_steps` (steps with a vanished gradient) and, when the stall
-        watch made it give up goal cells, `given_up_cells`."""
-        out: dict[str, object] = {"potential_updates": self.updates, "flat_gradient_steps": self.flat_steps}
-        if self.given_up_cells:
-            out["given_up_cells"] = self.given_up_cells
-        return out
+        """`potential_updates` and `flat_gradient_steps` (steps with a vanished gradient)."""
+        return {"potential_updates": self.updates, "flat_gradient_steps": self.flat_steps}
