@@ -39,6 +39,9 @@ __all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "sear
 
 kernel = numba.njit(cache=True, nogil=True)
 
+# `hit_points`: (index of the occupied cells (rows, cols) int32, their wall segments (n, 6) float64)
+HitSegments = tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]
+
 DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace (the least Levenberg-Marquardt damping)
 RETRIES = 4        # tries of a step with ten times more damping each before Gauss-Newton stops
 
@@ -198,69 +201,82 @@ def _clip(h: float, u: float, lo: float, hi: float) -> tuple[float, float]:
 
 @kernel
 def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]
-               ) -> npt.NDArray[np.float64]:
+               ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]:
     """The hit point of every occupied cell in grid coordinates [cells] (cell (r, c) spans [c, c + 1) in x)
-    and the wall segment through it, as a (6, rows, cols) array of x, y, ux, uy, t0, t1 (NaN x where the
-    cell is not occupied): the segment is the points (x, y) + t (ux, uy), t0 <= t <= t1, the line through
-    the hit point clipped to the cell (OVERLAP wider), so that the segments of a wall's cells join up
-    with neither gap nor overhang. A cell's hit point lies (off_x, off_y) [cells] from its centre (as in
-    `splat_field`); the direction is the principal axis of the hit points of the occupied cells of the
-    3 x 3 block around it when they lie along a line (smaller / larger eigenvalue of their scatter below
-    LINE_RATIO, at least two of them), else (0, 0) and t0 = t1 = 0: a lone point."""
+    and the wall segment through it, as (index, segments): index (rows, cols) int32 numbers the occupied
+    cells in row order (-1 elsewhere), segments (n, 6) holds each one's x, y, ux, uy, t0, t1.
+
+    The segment is the points (x, y) + t (ux, uy), t0 <= t <= t1: the line through the hit point clipped
+    to the cell (OVERLAP wider), so that the segments of a wall's cells join up with neither gap nor
+    overhang. A cell's hit point lies (off_x, off_y) [cells] from its centre (as in `splat_field`); the
+    direction is the principal axis of the hit points of the occupied cells of the 3 x 3 block around it
+    when they lie along a line (smaller / larger eigenvalue of their scatter below LINE_RATIO, at least
+    two of them), else (0, 0) and t0 = t1 = 0: a lone point."""
     rows, cols = occ.shape
-    out = np.full((6, rows, cols), np.nan)
+    index = np.full((rows, cols), -1, np.int32)
+    n = 0
     for r in range(rows):
         for c in range(cols):
             if occ[r, c]:
-                out[0, r, c] = c + 0.5 + float(off_x[r, c])      # in float64, as compiled
-                out[1, r, c] = r + 0.5 + float(off_y[r, c])
+                index[r, c] = n
+                n += 1
+    seg = np.empty((n, 6))
     for r in range(rows):
         for c in range(cols):
-            if not occ[r, c]:
+            i = index[r, c]
+            if i >= 0:
+                seg[i, 0] = c + 0.5 + float(off_x[r, c])      # in float64, as compiled
+                seg[i, 1] = r + 0.5 + float(off_y[r, c])
+    for r in range(rows):
+        for c in range(cols):
+            i = index[r, c]
+            if i < 0:
                 continue
-            n = 0
+            m = 0
             sx = sy = 0.0
             for rr in range(max(r - 1, 0), min(r + 2, rows)):
                 for cc in range(max(c - 1, 0), min(c + 2, cols)):
-                    if occ[rr, cc]:
-                        n += 1
-                        sx += out[0, rr, cc]
-                        sy += out[1, rr, cc]
+                    j = index[rr, cc]
+                    if j >= 0:
+                        m += 1
+                        sx += seg[j, 0]
+                        sy += seg[j, 1]
             ux = uy = t0 = t1 = 0.0
-            if n >= 2:
-                mx, my = sx / n, sy / n
+            if m >= 2:
+                mx, my = sx / m, sy / m
                 a = b = d = 0.0
                 for rr in range(max(r - 1, 0), min(r + 2, rows)):
                     for cc in range(max(c - 1, 0), min(c + 2, cols)):
-                        if occ[rr, cc]:
-                            ex = out[0, rr, cc] - mx
-                            ey = out[1, rr, cc] - my
+                        j = index[rr, cc]
+                        if j >= 0:
+                            ex = seg[j, 0] - mx
+                            ey = seg[j, 1] - my
                             a += ex * ex
                             b += ex * ey
                             d += ey * ey
-                m = (a + d) / 2.0
+                half = (a + d) / 2.0
                 q = math.sqrt((a - d) * (a - d) / 4.0 + b * b)
-                if m + q > 0.0 and m - q < LINE_RATIO * (m + q):
+                if half + q > 0.0 and half - q < LINE_RATIO * (half + q):
                     # the larger eigenvalue's eigenvector: (b, big - a) or (big - d, b), the better conditioned
-                    big = m + q
+                    big = half + q
                     vx, vy = (b, big - a) if abs(big - a) >= abs(big - d) else (big - d, b)
                     norm = math.sqrt(vx * vx + vy * vy)
                     if norm > 0.0:
                         ux, uy = vx / norm, vy / norm
                     else:
                         ux, uy = (1.0, 0.0) if a >= d else (0.0, 1.0)
-                    lx, hx = _clip(out[0, r, c], ux, c - OVERLAP, c + 1.0 + OVERLAP)
-                    ly, hy = _clip(out[1, r, c], uy, r - OVERLAP, r + 1.0 + OVERLAP)
+                    lx, hx = _clip(seg[i, 0], ux, c - OVERLAP, c + 1.0 + OVERLAP)
+                    ly, hy = _clip(seg[i, 1], uy, r - OVERLAP, r + 1.0 + OVERLAP)
                     t0, t1 = max(lx, ly), min(hx, hy)
-            out[2, r, c] = ux
-            out[3, r, c] = uy
-            out[4, r, c] = t0
-            out[5, r, c] = t1
-    return out
+            seg[i, 2] = ux
+            seg[i, 3] = uy
+            seg[i, 4] = t0
+            seg[i, 5] = t1
+    return index, seg
 
 
 @kernel
-def wall_offset(hits: npt.NDArray[np.float64], gx: float, gy: float, reach: int
+def wall_offset(hits: HitSegments, gx: float, gy: float, reach: int
                 ) -> tuple[float, float, float, float, float]:
     """The nearest wall segment of `hits` (`hit_points`: the line through a cell's hit point clipped to the cell,
     the point itself without a direction) to grid coordinates (gx, gy) [cells], among the cells within
@@ -272,41 +288,52 @@ def wall_offset(hits: npt.NDArray[np.float64], gx: float, gy: float, reach: int
         the segment's direction where that point lies inside it ((0, 0) at an end or a lone point: the
         offset then moves with (gx, gy) in both directions). Ties go to the first cell in row order.
     """
-    rows, cols = hits.shape[1], hits.shape[2]
+    index, seg = hits
+    rows, cols = index.shape
     c0 = math.floor(gx)
     r0 = math.floor(gy)
     if c0 < 0 or r0 < 0 or c0 >= cols or r0 >= rows:
         return math.inf, 0.0, 0.0, 0.0, 0.0
     best = (reach + 0.5) * (reach + 0.5)
     bx = by = bux = buy = 0.0
-    found = False
-    for r in range(max(r0 - reach, 0), min(r0 + reach + 1, rows)):
-        for c in range(max(c0 - reach, 0), min(c0 + reach + 1, cols)):
-            hx = hits[0, r, c]
-            if hx != hx:            # NaN: not occupied
-                continue
-            dx = gx - hx
-            dy = gy - hits[1, r, c]
-            ux = hits[2, r, c]
-            uy = hits[3, r, c]
-            t = dx * ux + dy * uy
-            inside = hits[4, r, c] < t < hits[5, r, c]
-            t = min(max(t, hits[4, r, c]), hits[5, r, c])
-            dx -= t * ux
-            dy -= t * uy
-            q = dx * dx + dy * dy
-            if q < best or (q == best and not found):
-                best = q
-                bx, by = dx, dy
-                bux, buy = (ux, uy) if inside else (0.0, 0.0)
-                found = True
+    br = bc = -1
+    # rings of cells around (r0, c0), nearest first: a cell k rings out is at least k - 1 - OVERLAP cells away,
+    # so once that exceeds the best distance no farther cell can win (the result is the row-order scan's)
+    for k in range(reach + 1):
+        if k >= 2 and (k - 1 - OVERLAP) * (k - 1 - OVERLAP) > best:
+            break
+        for r in range(max(r0 - k, 0), min(r0 + k + 1, rows)):
+            edge = r == r0 - k or r == r0 + k
+            step = 1 if edge else 2 * k
+            for c in range(c0 - k, c0 + k + 1, max(step, 1)):
+                if c < 0 or c >= cols:
+                    continue
+                i = index[r, c]
+                if i < 0:
+                    continue
+                dx = gx - seg[i, 0]
+                dy = gy - seg[i, 1]
+                ux = seg[i, 2]
+                uy = seg[i, 3]
+                t = dx * ux + dy * uy
+                inside = seg[i, 4] < t < seg[i, 5]
+                t = min(max(t, seg[i, 4]), seg[i, 5])
+                dx -= t * ux
+                dy -= t * uy
+                q = dx * dx + dy * dy
+                if q < best or (q == best and (br < 0 or r < br or (r == br and c < bc))):
+                    best = q
+                    bx, by = dx, dy
+                    bux, buy = (ux, uy) if inside else (0.0, 0.0)
+                    br, bc = r, c
+    found = br >= 0
     if not found:
         return math.inf, 0.0, 0.0, 0.0, 0.0
     return best, bx, by, bux, buy
 
 
 @kernel
-def hit_value(hits: npt.NDArray[np.float64], gx: float, gy: float, reach: int, k: float) -> float:
+def hit_value(hits: HitSegments, gx: float, gy: float, reach: int, k: float) -> float:
     """The likelihood field of `hits` at grid coordinates (gx, gy) [cells], evaluated there: exp(k q) with q
     [cells^2] the squared distance to the nearest wall segment (`wall_offset`), 0 when none is near.
     Unlike the nearest hit point's, the nearest segment's field has no ripple along a wall: the points
@@ -316,7 +343,7 @@ def hit_value(hits: npt.NDArray[np.float64], gx: float, gy: float, reach: int, k
 
 
 @kernel
-def _hit_sums(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, reach: int, k: float,
+def _hit_sums(hits: HitSegments, ox: float, oy: float, cell: float, reach: int, k: float,
               px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
     """Sum of `hit_value` under the points placed at (x, y, th)."""
     c, s = math.cos(th), math.sin(th)
@@ -328,7 +355,7 @@ def _hit_sums(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, 
 
 
 @kernel
-def objective_hits(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, sigma: float, reach: int,
+def objective_hits(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
                    px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float,
                    cx: float, cy: float, cth: float, wxy: float, wth: float) -> float:
     """What `refine_hits` minimises: sum_i (1 - M(S_i)) with M = `hit_value`, plus the motion prior."""
@@ -338,7 +365,7 @@ def objective_hits(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: fl
 
 
 @kernel
-def mean_hits(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, sigma: float, reach: int,
+def mean_hits(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
               px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
     """The mean of `hit_value` under the points placed at (x, y, th)."""
     k = -cell * cell / (2.0 * sigma * sigma)
@@ -346,7 +373,7 @@ def mean_hits(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, 
 
 
 @kernel
-def refine_hits(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, sigma: float, reach: int,
+def refine_hits(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
                 px: npt.NDArray[np.float64], py: npt.NDArray[np.float64],
                 x: float, y: float, th: float, iterations: int,
                 cx: float, cy: float, cth: float, wxy: float, wth: float,

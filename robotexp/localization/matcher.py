@@ -33,7 +33,7 @@ FLAT = 0.01   # a corridor's correction along it is dropped only if the mean fie
 
 Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
 # a likelihood field over a box: (field, origin_x [m], origin_y [m], hit points or None; see `ScanMatcher.field`)
-Field = tuple[npt.NDArray[np.float64], float, float, npt.NDArray[np.float64] | None]
+Field = tuple[npt.NDArray[np.float64], float, float, K.HitSegments | None]
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES
+from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES, HitSegments
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
            "wall_offset_ref", "refine_hits_ref"]
@@ -140,9 +140,9 @@ def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
 
 
 def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]
-                   ) -> npt.NDArray[np.float64]:
+                   ) -> HitSegments:
     """Hit points as arrays; each cell's direction from np.linalg.eigh of its 3 x 3 block's scatter, its
-    segment from the line's crossings of the cell's four sides."""
+    segment from the line's crossings of the cell's four sides; then the occupied cells in row order."""
     rows, cols = occ.shape
     out = np.full((6, rows, cols), np.nan)
     rr, cc = np.nonzero(occ)
@@ -166,14 +166,17 @@ def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], o
                 span = np.array([a.max(), b.min()])
         out[2, r, c], out[3, r, c] = u
         out[4, r, c], out[5, r, c] = span
-    return out
+    index = np.full((rows, cols), -1, np.int32)
+    index[rr, cc] = np.arange(len(rr), dtype=np.int32)          # np.nonzero: row order
+    return index, np.ascontiguousarray(out[:, rr, cc].T)
 
 
-def wall_offset_ref(hits: npt.NDArray[np.float64], gx: npt.NDArray[np.float64], gy: npt.NDArray[np.float64],
+def wall_offset_ref(hits: HitSegments, gx: npt.NDArray[np.float64], gy: npt.NDArray[np.float64],
                     reach: int) -> tuple[npt.NDArray[np.float64], ...]:
     """`wall_offset` at arrays of grid coordinates: every cell of the neighbourhood at once, the first nearest."""
     gx, gy = np.asarray(gx, np.float64), np.asarray(gy, np.float64)
-    rows, cols = hits.shape[1:]
+    index, seg = hits
+    rows, cols = index.shape
     c0, r0 = np.floor(gx).astype(np.int64), np.floor(gy).astype(np.int64)
     inside = (c0 >= 0) & (r0 >= 0) & (c0 < cols) & (r0 < rows)
     offs = np.arange(-reach, reach + 1)
@@ -182,8 +185,9 @@ def wall_offset_ref(hits: npt.NDArray[np.float64], gx: npt.NDArray[np.float64], 
     c = c0[:, None] + dc.ravel()[None, :]
     ok = inside[:, None] & (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
     rc, cc = np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)
-    hx, hy, ux, uy, t0, t1 = (hits[k][rc, cc] for k in range(6))
-    ok &= ~np.isnan(hx)
+    idx = index[rc, cc]
+    ok &= idx >= 0
+    hx, hy, ux, uy, t0, t1 = (seg[np.maximum(idx, 0), k] for k in range(6))
     dx, dy = gx[:, None] - hx, gy[:, None] - hy
     t = dx * ux + dy * uy
     interior = (t0 < t) & (t < t1)
@@ -200,7 +204,7 @@ def wall_offset_ref(hits: npt.NDArray[np.float64], gx: npt.NDArray[np.float64], 
             np.where(keep, ux[i, j], 0.0), np.where(keep, uy[i, j], 0.0))
 
 
-def _hits_cost_ref(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, sigma: float, reach: int,
+def _hits_cost_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
                    px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float
                    ) -> tuple[float, float]:
     c, s = math.cos(th), math.sin(th)
@@ -209,7 +213,7 @@ def _hits_cost_ref(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: fl
     return float(np.sum(1.0 - m)), float(m.mean()) if len(m) else 0.0
 
 
-def refine_hits_ref(hits: npt.NDArray[np.float64], ox: float, oy: float, cell: float, sigma: float, reach: int,
+def refine_hits_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
                     px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float,
                     iterations: int, cx: float, cy: float, cth: float, wxy: float, wth: float
                     ) -> tuple[float, float, float, float, npt.NDArray[np.float64]]:

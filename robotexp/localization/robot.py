@@ -22,20 +22,17 @@ from robotexp.robot import Pose, Robot, RobotState, Twist
 
 __all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE", "MAX_TURN_RATE"]
 
-# The motion prior between matches: 1 cm + 2 % of the distance, 0.25 deg + 1 deg/m + 2 % of the turn.
-# Wheel odometry over 0.1 m or 5 deg, calibrated online, is better than that (the P3-DX preset: 0.17 deg/m
-# of curve); a loose prior let the matcher turn the map by 1 deg while the robot spun in place in a
-# corridor, and twice this one (session 6) left dense runs 2-6 cm off (see docs/localization).
-MOTION_NOISE = (0.01, 0.02, math.radians(0.25), math.radians(1.0), 0.02)
+# The motion prior between matches: 2 cm + 5 % of the distance, 0.5 deg + 2 deg/m + 5 % of the turn.
+# Wheel odometry over 0.1 m or 5 deg is better than that (the P3-DX preset: 0.17 deg/m of curve); a
+# loose prior let the matcher turn the map by 1 deg while the robot spun in place in a corridor.
+MOTION_NOISE = (0.02, 0.05, math.radians(0.5), math.radians(2.0), 0.05)
 GATE = 4.0      # a match farther than this many sigmas of the motion prior is refused
 # The matcher of whole runs: never-seen points left out of the search too (see `MatcherConfig.drop_unseen`).
 # (A field of sigma 0.1 m instead of 0.05 m matched a scan against its own map better, 0.964 of the field
 # against 0.865, but corrected the P3-DX's heading less: 3.9 deg off after 3.5 m of corridor.)
 RUN_MATCHER = MatcherConfig(drop_unseen=True)
 MAP_UNCERTAIN = 1.0     # [m] the `Localizer` option: unmatched scans leave the matching map alone after this
-# [m], [rad]: the `Localizer`'s map update thresholds (Hector SLAM's 0.3 m and 15 deg put twice as many scans,
-# each with its few mm of error, into the matching map: dense runs ended 1-3 cm further off)
-MAP_TRAVEL, MAP_TURN = 0.6, math.radians(30.0)
+MAP_TRAVEL, MAP_TURN = 0.3, math.radians(15.0)   # [m], [rad]: the `Localizer`'s map update thresholds
 MAX_TURN_RATE = 0.5     # [rad/s] no matching while turning faster (see `Localizer`)
 
 
@@ -63,6 +60,8 @@ class LocalizedRobot(Robot):
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
         track: (corrected, true) poses of every new state, where the true pose is known.
+        odometry: beside each `track` entry, the inner robot's own pose (to replay the localizer:
+            `benchmarks/bench_localized_iou.py`).
         steps: beside each `track` entry: (robot time [s], the localizer's status, the scan's echoes,
             the odometry calibration's heading bias k [rad/m]); `benchmarks/bench_localized_explore.py
             --trace` writes them with the errors.
@@ -86,6 +85,7 @@ class LocalizedRobot(Robot):
                                    max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
                                    map_travel=MAP_TRAVEL, map_turn=MAP_TURN)
         self.track: list[tuple[Pose, Pose]] = []
+        self.odometry: list[Pose] = []
         self.steps: list[tuple[float, str, int, float]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
@@ -105,6 +105,7 @@ class LocalizedRobot(Robot):
         out = replace(state, pose=pose)
         if state.true_pose is not None:
             self.track.append((pose, state.true_pose))
+            self.odometry.append(state.pose)
             cal = self.localizer.calibration
             hits = 0 if state.laser is None else int(np.count_nonzero(np.isfinite(state.laser.ranges)))
             self.steps.append((state.time, self.localizer.status, hits, 0.0 if cal is None else cal.k))

@@ -54,21 +54,21 @@ def occ_and_offsets(seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def test_hit_points_and_wall_offsets_match_numpy() -> None:
     occ, off_x, off_y = occ_and_offsets()
-    got, ref = K.hit_points(occ, off_x, off_y), hit_points_ref(occ, off_x, off_y)
-    assert np.array_equal(np.isnan(got[0]), ~occ)
-    assert np.allclose(got[:2][:, occ], ref[:2][:, occ], atol=1e-12)
+    hits = K.hit_points(occ, off_x, off_y)
+    (index, got), (ref_index, ref) = hits, hit_points_ref(occ, off_x, off_y)
+    assert np.array_equal(index, ref_index) and np.array_equal(index >= 0, occ) and len(got) == occ.sum()
+    assert np.allclose(got[:, :2], ref[:, :2], atol=1e-12)
     # directions: the same line (an eigenvector's sign is free: the segment's ends then swap sign)
-    sign = np.where(got[2] * ref[2] + got[3] * ref[3] < 0, -1.0, 1.0)[occ]
-    assert np.allclose(got[2][occ], sign * ref[2][occ], atol=1e-9)
-    assert np.allclose(got[3][occ], sign * ref[3][occ], atol=1e-9)
-    ends = np.where(sign > 0, ref[4][occ], -ref[5][occ]), np.where(sign > 0, ref[5][occ], -ref[4][occ])
-    assert np.allclose(got[4][occ], ends[0], atol=1e-9) and np.allclose(got[5][occ], ends[1], atol=1e-9)
+    sign = np.where(got[:, 2] * ref[:, 2] + got[:, 3] * ref[:, 3] < 0, -1.0, 1.0)
+    assert np.allclose(got[:, 2:4], sign[:, None] * ref[:, 2:4], atol=1e-9)
+    assert np.allclose(got[:, 4], np.where(sign > 0, ref[:, 4], -ref[:, 5]), atol=1e-9)
+    assert np.allclose(got[:, 5], np.where(sign > 0, ref[:, 5], -ref[:, 4]), atol=1e-9)
     # inside the straight x wall: direction along x; a lone scattered point: none
-    assert abs(got[2, 10, 20]) == pytest.approx(1.0) and got[3, 10, 20] == pytest.approx(0.0, abs=1e-12)
+    assert abs(got[index[10, 20], 2]) == pytest.approx(1.0) and got[index[10, 20], 3] == pytest.approx(0.0, abs=1e-12)
     rng = np.random.default_rng(4)
     gx, gy = rng.uniform(-2, 52, 3000), rng.uniform(-2, 42, 3000)
-    ref_off = wall_offset_ref(got, gx, gy, 3)
-    got_off = np.array([K.wall_offset(got, a, b, 3) for a, b in zip(gx, gy, strict=True)]).T
+    ref_off = wall_offset_ref(hits, gx, gy, 3)
+    got_off = np.array([K.wall_offset(hits, a, b, 3) for a, b in zip(gx, gy, strict=True)]).T
     assert np.array_equal(np.isinf(got_off[0]), np.isinf(ref_off[0]))
     fin = np.isfinite(got_off[0])
     assert fin.sum() > 500
