@@ -4,12 +4,11 @@ exactly at each point, Welsch's cost, and hits counted in the cell the occupancy
 from __future__ import annotations
 
 import math
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from robotexp.localization import HitMap, Localizer, ScanMatcher, scan_points
+from robotexp.localization.matcher import MatcherConfig
 from robotexp.localization import kernels as K
 from robotexp.localization.reference import hit_points_ref, refine_hits_ref, wall_offset_ref
 from robotexp.mapping.geometry import GridGeometry
@@ -95,7 +94,7 @@ def test_refine_hits_matches_numpy() -> None:
     world = bordered_room()
     geo = GridGeometry.covering(*world.bounds, CELL)          # type: ignore[misc]
     truth = Pose(3.0, 2.0, 0.4)
-    loc = Localizer(geo, ScanMatcher())
+    loc = Localizer(geo, ScanMatcher(MatcherConfig(exact_field=True)))
     loc.integrate(truth, cast(world, truth))
     f = loc.matcher.field(loc.grid.values, geo, (0.0, 0.0, 6.0, 4.0), loc.hits)
     assert f is not None and f[3] is not None
@@ -121,7 +120,7 @@ def test_a_scan_against_a_map_of_itself_is_matched_to_a_millimetre(truth: Pose) 
     px, py = scan_points(scan)
     errors = {}
     for exact in (True, False):
-        loc = Localizer(geo, ScanMatcher(replace(ScanMatcher().config, exact_field=exact)))
+        loc = Localizer(geo, ScanMatcher(MatcherConfig(exact_field=exact)))
         loc.integrate(truth, scan)
         worst = 0.0
         for dx, dy, dth in ((0.0, 0.0, 0.0), (0.02, 0.0, 0.0), (0.0, -0.03, 0.0), (0.015, 0.015, 0.5),
