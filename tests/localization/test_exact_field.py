@@ -9,11 +9,14 @@ import pytest
 
 from robotexp.localization import HitMap, Localizer, ScanMatcher, scan_points
 from robotexp.localization.matcher import MatcherConfig
+from robotexp.localization.robot import LocalizedRobot
 from robotexp.localization import kernels as K
 from robotexp.localization.reference import hit_points_ref, refine_hits_ref, wall_offset_ref
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.robot import LaserScan, Pose
+from robotexp.robot import LaserScan, Pose, Twist
+from robotexp.sim import SimRobot, odometry_error
 from robotexp.sim.raycast import RayIndex
+from robotexp.world.builtin import builtin_world
 from robotexp.world.model import World, segment_box
 
 CELL = 0.05
@@ -150,3 +153,24 @@ def test_hits_on_a_cell_border_count_in_the_cell_the_grid_marks() -> None:
         ox, _ = hits.offsets(0, 10, 0, 20)
         # the hit point sits on the face: half a cell from the obstacle cell's centre, towards the robot
         assert ox[5, col] == pytest.approx(0.5 if angle else -0.5, abs=1e-2)
+
+
+def test_a_spin_in_place_at_the_start_leaves_no_offset_across_the_corridor() -> None:
+    # issue 14 (b): the first turn in place of a dense run, in the corridor, while the matching map holds a
+    # few scans. Session 5's localizer ended (-12, +25) mm off: 2.5 cm across the corridor, an offset every
+    # later scan was mapped with. Along the corridor the scan fixes little (a corridor match keeps the
+    # prediction there) and the P3-DX's servoed wheels move the centre during a spin: that part may stay.
+    world = builtin_world("dense")
+    assert world.bounds is not None
+    sim = SimRobot(world, pose=Pose(-5.0, 7.5, 0.0), odometry=odometry_error("p3dx"), seed=0, sonar=False)
+    robot = LocalizedRobot(sim, GridGeometry.covering(*world.bounds, cell=0.05, margin=1.0), range_max=3.0)
+    with robot:
+        for _ in range(120):                         # 12 s at 1 rad/s: two turns
+            robot.read()
+            robot.command(Twist(0.0, 1.0))
+            sim.advance(0.1)
+        state = robot.read()
+    assert state.true_pose is not None
+    assert abs(state.pose.y - state.true_pose.y) < 0.005
+    assert abs(math.degrees(math.remainder(state.pose.theta - state.true_pose.theta, 2 * math.pi))) < 0.25
+    assert robot.localizer.counts.get("matched", 0) > 10
