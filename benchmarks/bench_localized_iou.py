@@ -8,8 +8,9 @@ One `--localize scan-match` run under the P3-DX odometry preset (the `robotexp e
 every step's scan, estimated pose, true pose and odometry. Printed, each as map IoU (the record's
 `map_iou`, mean of the two parts) / occupied IoU / free IoU, for the explorer's map model:
 
-- the run's own map, and the same scans integrated again at the estimated poses (equal: the map got
-  the pose the localizer returned for that scan, nothing older);
+- the run's own map, and the same scans integrated again at the estimated poses (equal when the map
+  got the pose the localizer returned for each scan, nothing older, and the explorer marks no cells
+  itself: srt-laser marks its safe regions, 0.003 of IoU);
 - the same scans at the true poses (what the run would have mapped with a perfect pose, along the
   same path), and at the true poses moved by constant offsets (`--offsets`, metres in x and -y);
 - the localizer replayed on the run's odometry and scans with an oracle matching map (each scan put
