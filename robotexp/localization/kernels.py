@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "search", "refine", "bilinear",
-           "hit_points", "wall_offset", "hit_value", "refine_hits", "objective_hits", "mean_hits"]
+           "hit_points", "wall_offset", "hit_value", "refine_hits", "objective_hits", "mean_hits", "warm"]
 
 kernel = numba.njit(cache=True, nogil=True)
 
@@ -613,3 +613,34 @@ def mean_field(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
                px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float) -> float:
     """The mean bilinear field value under the points placed at (x, y, th)."""
     return _sums(field, ox, oy, cell, px, py, x, y, th)[0] / max(px.shape[0], 1)
+
+
+_warmed = False
+
+
+def warm() -> None:
+    """Call every kernel of the scan matcher once, on a few cells, with the argument types `ScanMatcher.match`
+    passes: numba compiles (or loads from its cache) each at its first call, and a real robot's run must
+    not wait for that mid-run (`LocalizedRobot` calls this before the run starts; once per process).
+    The correlative search, for one, runs only where Gauss-Newton from the prediction fits poorly,
+    which a short warm-up run may never meet."""
+    global _warmed
+    if _warmed:
+        return
+    occ = np.zeros((8, 8), np.bool_)
+    occ[2, 1:7] = True
+    occ[2:7, 6] = True
+    off = np.zeros((8, 8), np.float32)
+    px = np.ascontiguousarray(np.linspace(0.05, 0.3, 6))
+    py = np.ascontiguousarray(np.full(6, 0.1))
+    f = splat_field(occ, off, off, 0.05, 0.05, 3)
+    coarse = pool_max(f, 2)
+    search(coarse, 0.0, 0.0, 0.1, px, py, 0.0, 0.0, 0.0, 1, 1, 1, 0.01, 0.0, 0.0, 0.0, 1.0, 1.0)
+    refine(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0, 2, 0.0, 0.0, 0.0, 1.0, 1.0)
+    objective(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
+    mean_field(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0)
+    hits = hit_points(occ, off, off)
+    refine_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 2, 0.0, 0.0, 0.0, 1.0, 1.0)
+    objective_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
+    mean_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0)
+    _warmed = True

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from robotexp.clock import Clock
+from robotexp.localization import kernels as K
 from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, MatcherConfig, ScanMatcher
 from robotexp.localization.metrics import ate
@@ -86,6 +87,7 @@ class LocalizedRobot(Robot):
                                    gate=gate, calibration=OdometryCalibration() if calibrate else None,
                                    max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
                                    map_travel=MAP_TRAVEL, map_turn=MAP_TURN)
+        K.warm()                                        # every matcher kernel compiled before the run starts
         self.track: list[tuple[Pose, Pose]] = []
         self.odometry: list[Pose] = []
         self.steps: list[tuple[float, str, int, float]] = []
