@@ -31,7 +31,7 @@ CALIBRATION_POINTS = 60   # matches with fewer points do not calibrate odometry 
 CACHE_MARGIN = 1.0   # [m] a cached likelihood field reaches this much beyond the box a match needs
 FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
 
-Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
+Status = Literal["matched", "degenerate", "few-points", "no-map", "unseen", "poor"]
 
 
 @dataclass(frozen=True)
@@ -60,9 +60,14 @@ class MatcherConfig:
         accept_score: Gauss-Newton from the prediction that ends at a mean field value at least this
             is the match (no correlative search); > 1: always search.
         drop_unseen: with `known` (see `match`), the points on never-seen cells are left out of the
-            correlative search too, whatever their number (fewer than min_points left: "few-points").
+            correlative search too, whatever their number (fewer than min_points left: "few-points", or
+            "unseen" when at least min_points were left out: the map has not seen where the scan falls).
             They carry no information, and where a robot turning in a corridor saw new parts of it,
             the search fitted them to the mapped walls: 8-18 cm off along the corridor.
+        weak_pose: also look for weak directions of the whole pose (x, y and heading, the heading
+            scaled by the points' RMS range): a scan of one pillar fits as well after a turn of the
+            robot about the pillar (heading and sideways position together); the correction along
+            such a direction is dropped as along a corridor ("degenerate"), leaving it to odometry.
     """
 
     sigma: float = 0.05
@@ -79,6 +84,7 @@ class MatcherConfig:
     motion_sigma_theta: float = math.radians(3.0)
     accept_score: float = 0.9
     drop_unseen: bool = False
+    weak_pose: bool = False
 
     def __post_init__(self) -> None:
         if not (self.motion_sigma_xy > 0 and self.motion_sigma_theta > 0):
@@ -160,6 +166,26 @@ def _eig2(a: float, b: float, c: float) -> tuple[tuple[float, float], npt.NDArra
     return (lo, m + r), vec
 
 
+def _weak_pose_out(h: npt.NDArray[np.float64], prediction: Pose, pose: Pose, lever: float, ratio: float
+                   ) -> Pose | None:
+    """`pose` with its correction from `prediction` along the weak directions of the normal matrix `h`
+    (x, y [m], theta [rad]) removed, or None when it has none. The heading is scaled by `lever` [m]
+    (the points' RMS range) so that the three axes compare in metres; a direction is weak when its
+    eigenvalue is below `ratio` times the largest."""
+    scale = np.array([1.0, 1.0, max(lever, 1e-3)])
+    hs = h / np.outer(scale, scale)
+    vals, vecs = np.linalg.eigh(hs)
+    if vals[-1] <= 0:
+        return None
+    weak = vecs[:, vals < ratio * vals[-1]]
+    if weak.shape[1] == 0:
+        return None
+    d = np.array([pose.x - prediction.x, pose.y - prediction.y, wrap_angle(pose.theta - prediction.theta)]) * scale
+    d -= weak @ (weak.T @ d)
+    d /= scale
+    return Pose(prediction.x + d[0], prediction.y + d[1], wrap_angle(prediction.theta + d[2]))
+
+
 class ScanMatcher:
     """Aligns scans with occupancy maps (see the module docstring)."""
 
@@ -226,8 +252,11 @@ class ScanMatcher:
             keep = np.zeros(len(px), np.bool_)
             keep[inside] = known[row[inside], col[inside]] > 0
             if cfg.drop_unseen:
+                unseen = len(px) - int(np.count_nonzero(keep))
                 px, py = np.ascontiguousarray(px[keep]), np.ascontiguousarray(py[keep])
                 gx, gy = px, py
+                if len(px) < cfg.min_points and unseen > len(px):
+                    return Match(prediction, 0.0, len(px), "unseen")
             elif np.count_nonzero(keep) >= max(cfg.min_points, len(px) // 2):
                 gx, gy = np.ascontiguousarray(px[keep]), np.ascontiguousarray(py[keep])
             else:
@@ -311,6 +340,11 @@ class ScanMatcher:
             if K.mean_field(f, ox, oy, cell, gx, gy, kept.x, kept.y, kept.theta) >= score - FLAT:
                 pose = kept
                 status = "degenerate"
+        if cfg.weak_pose and status == "matched":
+            kept = _weak_pose_out(h, prediction, pose, float(np.sqrt(np.mean(gx * gx + gy * gy))),
+                                  cfg.degenerate_ratio)
+            if kept is not None and K.mean_field(f, ox, oy, cell, gx, gy, kept.x, kept.y, kept.theta) >= score - FLAT:
+                pose, status = kept, "degenerate"
         return Match(pose, score, n, status, float(max(eig[0], 0.0) / eig[1]) if eig[1] > 0 else 0.0)
 
 
@@ -473,8 +507,8 @@ class Localizer:
                 self._free = (0.0, 0.0)
             since = relative(self._mapped, odom) if self._mapped is not None else None
             due = since is None or math.hypot(since.x, since.y) >= self.map_travel or \
-                abs(since.theta) >= self.map_turn or status == "no-map"
-            if due and (status in ("matched", "degenerate", "no-map") or self._free[0] < self.map_uncertain):
+                abs(since.theta) >= self.map_turn or status in ("no-map", "unseen")
+            if due and (status in ("matched", "degenerate", "no-map", "unseen") or self._free[0] < self.map_uncertain):
                 self.integrate(pose, scan)
                 self._mapped = odom
         self.counts[status] = self.counts.get(status, 0) + 1
