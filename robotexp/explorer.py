@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable
@@ -184,6 +186,7 @@ class ExplorationRun:
         self.record: RunRecord | None = None
         self.error: Exception | None = None
         self._stop: tuple[str, EndReason] | None = None
+        self._sigint = False                # a SIGINT arrived during run() (see _watch_sigint)
         self.area = area
 
     @property
@@ -213,6 +216,7 @@ class ExplorationRun:
         `completed` False; the robot is stopped in every case, then the observers get `on_end` with
         the record. Returns self (read `record`, `end`, `reason`, `metrics`)."""
         wall0 = time.perf_counter()
+        previous = self._watch_sigint()
         try:
             self._loop()
         except KeyboardInterrupt:
@@ -222,11 +226,32 @@ class ExplorationRun:
         finally:
             self._safe_stop()
             self.wall_time = time.perf_counter() - wall0
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         self._sample()
         from robotexp.results import make_record
         self.record = make_record(self)
         self.observers.end(self, self.record)
         return self
+
+    def _watch_sigint(self) -> Any:
+        """Note every SIGINT of the run before the handler in place raises KeyboardInterrupt (or
+        does what it does), so that a Ctrl-C whose exception was swallowed where Python cannot raise
+        (a callback of C code: llvmlite's object cache while numba compiles prints "Exception
+        ignored" and goes on) or by a plugin's `except` still ends the run at the next step. Gives
+        the handler to put back (None: nothing installed, not the main thread or SIGINT not
+        handled by Python)."""
+        if threading.current_thread() is not threading.main_thread():
+            return None
+        previous = signal.getsignal(signal.SIGINT)
+        if not callable(previous):
+            return None
+
+        def noted(signum: int, frame: Any) -> None:
+            self._sigint = True
+            previous(signum, frame)
+        signal.signal(signal.SIGINT, noted)
+        return previous
 
     def _loop(self) -> None:
         """The control loop, up to the end of the run (the caller stops the robot)."""
@@ -249,6 +274,8 @@ class ExplorationRun:
         notify("on_start", self)
         collisions0 = int(state.extra.get("collisions", 0))
         while True:
+            if self._sigint:                # a Ctrl-C whose KeyboardInterrupt was swallowed on its way
+                raise KeyboardInterrupt
             self.state = state
             self.robot_time = state.time - t0
             self._track(state, collisions0)

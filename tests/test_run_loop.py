@@ -8,6 +8,7 @@ subclasses that record what the run does with them (a real backend, not a method
 from __future__ import annotations
 
 import math
+import signal
 from collections.abc import Iterator
 
 import numpy as np
@@ -149,6 +150,29 @@ def test_ctrl_c_ends_the_run_and_stops(robot: RecordingSim, truth: GroundTruth) 
     run = ExplorationRun(robot, Straight(fail_at=10, fail=KeyboardInterrupt()), new_grid(), truth=truth).run()
     assert not run.completed and run.reason == "interrupted (Ctrl-C)"
     assert robot.commands[-1] == Twist.ZERO
+
+
+class SwallowsCtrlC(Straight):
+    """At step 10 a SIGINT reaches the process while the step runs, and the step swallows the
+    KeyboardInterrupt (as C code's callbacks do: llvmlite's object cache while numba compiles)."""
+
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        if self.steps == 9:
+            try:
+                signal.raise_signal(signal.SIGINT)
+            except KeyboardInterrupt:
+                pass
+        return super().step(state, grid)
+
+
+def test_a_ctrl_c_swallowed_inside_a_step_still_ends_the_run(robot: RecordingSim, truth: GroundTruth) -> None:
+    before = signal.getsignal(signal.SIGINT)
+    explorer = SwallowsCtrlC()
+    run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+    assert run.reason == "interrupted (Ctrl-C)" and not run.completed
+    assert explorer.steps == 10 and len(robot.commands) == 11      # ten steps commanded, then the stop
+    assert robot.commands[-1] == Twist.ZERO
+    assert signal.getsignal(signal.SIGINT) is before                # the run's handler is put back
 
 
 def test_bad_run_settings(robot: RecordingSim) -> None:
