@@ -36,7 +36,7 @@ def test_driving_carries_a_heading_bias_into_heading_and_sideways_position() -> 
     assert p[0, 0] == pytest.approx(q_xy * d) and p[0, 2] == pytest.approx(0.0, abs=1e-15)
 
 
-def test_a_match_that_fixes_only_the_position_corrects_heading_and_bias_through_the_covariance() -> None:
+def test_a_match_that_fixes_only_the_position_corrects_the_heading_through_the_covariance() -> None:
     cal = OdometryCalibration()
     loc = Localizer(GEO, calibration=cal, covariance=(1e-4, 2e-5, 0.05, 1e-7))
     cov = np.zeros((4, 4))
@@ -49,11 +49,13 @@ def test_a_match_that_fixes_only_the_position_corrects_heading_and_bias_through_
     prediction = Pose(0.0, 0.0, 0.0)
     m = Match(Pose(0.0, 0.1, 0.0), 0.9, 30, "matched", 1.0, info, 2.0)
     pose = loc._fuse(prediction, m)
-    # the position is the match's; the heading and k follow the y correction by their covariance with y
+    # the position is the match's; the heading follows the y correction by its covariance with y
     # (Kalman gain cov[., y] / (cov[y, y] + 1 / h); the heading's RMS-range scale cancels)
     assert pose.x == pytest.approx(0.0, abs=1e-12) and pose.y == pytest.approx(0.1)
     assert pose.theta == pytest.approx(0.002 / (0.01 + 1 / h) * 0.1)
-    assert cal.k == pytest.approx(0.0005 / (0.01 + 1 / h) * 0.1)
+    assert cal.k == 0.0                                  # k's estimate stays the calibration's
+    # ... the kernel's update of k, by the same gain
+    assert C.fuse(cov.copy(), info, 2.0, 0.03, 0.0, 0.1, 0.0)[3] == pytest.approx(0.0005 / (0.01 + 1 / h) * 0.1)
     # the covariance shrinks: y to about the scan's own, the heading by what y told of it
     assert loc.cov[1, 1] == pytest.approx(0.01 - 0.01 ** 2 / (0.01 + 1 / h))
     assert loc.cov[2, 2] == pytest.approx(0.001 - 0.002 ** 2 / (0.01 + 1 / h))
