@@ -33,19 +33,7 @@ def propagate(cov: npt.NDArray[np.float64], dx: float, dy: float, dist: float, q
     f[0, 3] = -dy * dist / 2
     f[1, 3] = dx * dist / 2
     f[2, 3] = dist
-    t = np.zeros((4, 4))
-    for i in range(4):
-        for j in range(4):
-            s = 0.0
-            for k in range(4):
-                s += f[i, k] * cov[k, j]
-            t[i, j] = s
-    for i in range(4):
-        for j in range(4):
-            s = 0.0
-            for k in range(4):
-                s += t[i, k] * f[j, k]
-            cov[i, j] = s
+    cov[:, :] = f @ cov @ np.ascontiguousarray(f.T)
     cov[0, 0] += q_xy * dist
     cov[1, 1] += q_xy * dist
     cov[2, 2] += q_th * dist
