@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from robotexp.localization.kernels import kernel
 
-__all__ = ["propagate", "propagate_ref", "fuse", "fuse_ref"]
+__all__ = ["propagate", "propagate_ref", "fuse", "fuse_ref", "warm"]
 
 
 @kernel
@@ -121,3 +121,18 @@ def fuse_ref(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever:
     cov[:, :] = (ps - gain @ s4.T @ ps) / np.outer(scale4, scale4)
     step = (s3 @ innovation + w3 @ (w3.T @ delta[:3])) / scale
     return float(step[0]), float(step[1]), float(step[2]), float(delta[3])
+
+
+_warmed = False
+
+
+def warm() -> None:
+    """Call `propagate` and `fuse` once with the argument types the `Localizer` passes, so that numba
+    compiles (or loads) them before a run starts, not mid-run on a real robot (once per process)."""
+    global _warmed
+    if _warmed:
+        return
+    cov = np.eye(4) * 1e-4
+    propagate(cov, 0.01, 0.0, 0.01, 1e-4, 1e-5, 1e-7)
+    fuse(cov, np.eye(3), 1.0, 0.03, 0.0, 0.0, 0.0)
+    _warmed = True
