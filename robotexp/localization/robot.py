@@ -39,7 +39,8 @@ RUN_MATCHER = MatcherConfig(drop_unseen=True, exact_field=True)
 # heading random walk (the P3-DX preset's slip, 0.2 % per wheel and step, makes (0.09 deg)^2 per metre), the
 # heading bias k [rad/m] uncertain by 0.05 rad/m (2.9 deg/m: the preset's 1.74 deg/m within 0.6 sigma) at the
 # start (so that the heading's uncertainty grows with the distance driven), drifting by 1e-7 rad^2/m^3. In
-# sparse (3 m laser, seeds 0-3) it took frontier's ATE from 2.7-15.2 m to 3.3-5.5 m (docs/localization).
+# sparse (3 m laser, seeds 0-3, before main's sub-cell matcher) it took frontier's ATE from 2.7-15.2 m to 3.3-5.5 m
+# (docs/localization, "The sparse hall").
 COVARIANCE = (1e-4, math.radians(0.3) ** 2, 0.05, 1e-7)
 MAP_UNCERTAIN = 1.0     # [m] the `Localizer` option: unmatched scans leave the matching map alone after this
 MAP_TRAVEL, MAP_TURN = 0.3, math.radians(15.0)   # [m], [rad]: the `Localizer`'s map update thresholds
