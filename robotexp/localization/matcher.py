@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
+from robotexp.localization import covariance as C
 from robotexp.localization import kernels as K
 from robotexp.localization.calibration import OdometryCalibration
 from robotexp.mapping.geometry import GridGeometry
@@ -31,7 +32,7 @@ CALIBRATION_POINTS = 60   # matches with fewer points do not calibrate odometry 
 CACHE_MARGIN = 1.0   # [m] a cached likelihood field reaches this much beyond the box a match needs
 FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
 
-Status = Literal["matched", "degenerate", "few-points", "no-map", "poor"]
+Status = Literal["matched", "degenerate", "few-points", "no-map", "unseen", "poor"]
 # a likelihood field over a box: (field, origin_x [m], origin_y [m], hit points or None; see `ScanMatcher.field`)
 Field = tuple[npt.NDArray[np.float64], float, float, K.HitSegments | None]
 
@@ -72,7 +73,8 @@ class MatcherConfig:
             without it); off by default: on the three CARMEN logs (range noise, loop closure) the
             bilinear field did better (ATE 0.090 / 0.119 / 0.067 m against 0.136 / 0.227 / 0.100 m).
         drop_unseen: with `known` (see `match`), the points on never-seen cells are left out of the
-            correlative search too, whatever their number (fewer than min_points left: "few-points").
+            correlative search too, whatever their number (fewer than min_points left: "few-points", or
+            "unseen" when more were left out than kept: the map has not seen where the scan falls).
             They carry no information, and where a robot turning in a corridor saw new parts of it,
             the search fitted them to the mapped walls: 8-18 cm off along the corridor.
     """
@@ -114,6 +116,8 @@ class Match:
     points: int
     status: Status
     conditioning: float = 0.0      # smallest / largest eigenvalue of the fit's translation information
+    info: npt.NDArray[np.float64] | None = None   # the fit's 3x3 normal matrix (x, y [m], theta [rad])
+    lever: float = 0.0             # [m] the matched points' RMS range
 
 
 # the pose algebra of the whole project, under the short names this module has always used
@@ -249,8 +253,11 @@ class ScanMatcher:
             keep = np.zeros(len(px), np.bool_)
             keep[inside] = known[row[inside], col[inside]] > 0
             if cfg.drop_unseen:
+                unseen = len(px) - int(np.count_nonzero(keep))
                 px, py = np.ascontiguousarray(px[keep]), np.ascontiguousarray(py[keep])
                 gx, gy = px, py
+                if len(px) < cfg.min_points and unseen > len(px):
+                    return Match(prediction, 0.0, len(px), "unseen")
             elif np.count_nonzero(keep) >= max(cfg.min_points, len(px) // 2):
                 gx, gy = np.ascontiguousarray(px[keep]), np.ascontiguousarray(py[keep])
             else:
@@ -358,7 +365,8 @@ class ScanMatcher:
             if mean(kept.x, kept.y, kept.theta) >= score - FLAT:
                 pose = kept
                 status = "degenerate"
-        return Match(pose, score, n, status, float(max(eig[0], 0.0) / eig[1]) if eig[1] > 0 else 0.0)
+        lever = float(np.sqrt(np.mean(gx * gx + gy * gy)))
+        return Match(pose, score, n, status, float(max(eig[0], 0.0) / eig[1]) if eig[1] > 0 else 0.0, h, lever)
 
 
 class Localizer:
@@ -402,19 +410,31 @@ class Localizer:
             place better than that.
         map_uncertain: [m] once odometry has gone this far since the last match, an unmatched scan
             ("few-points", "poor", "gated") no longer goes into the matching map (where nothing is
-            mapped yet, "no-map", it still does): mapped at a drifting pose, the walls of an open hall
-            seen by a few beams made a second, turned copy of the map that later scans matched.
+            mapped yet, "no-map", or the scan falls mostly on never-seen cells, "unseen", it still does):
+            mapped at a drifting pose, the walls of an open hall seen by a few beams made a second,
+            turned copy of the map that later scans matched. (Without the "unseen" exception the map
+            froze in `sparse` once the pose was uncertain: every later scan of new ground was
+            "few-points" with `drop_unseen`, and the localizer never matched again.)
         map_travel: [m] a matched scan goes into the matching map only once odometry has moved this far
             since the last one that did ...
         map_turn: [rad] ... or turned this much (or where nothing is mapped yet): Hector SLAM's map
             update thresholds; the scans between are matched against the same map (and its cached
             likelihood field, `ScanMatcher.match`'s `version`).
+        covariance: (q_xy [m^2/m], q_th [rad^2/m], k0 [rad/m], q_k [rad^2/m^3]): keep a covariance of
+            (x, y, theta, k), k the odometry heading bias per metre of `calibration` (without it, k is
+            left out), carried along odometry (position and heading random walks of q_xy and q_th per
+            metre, k's of q_k; k uncertain by k0 at the start: the heading's uncertainty grows with
+            the distance driven since the calibration's k may be off), and update it by each match
+            (`_fuse`): the match's correction stands where its scan fixes the pose, and where it does
+            not (a lone pillar fixes the position, not the turn about itself) the correction follows
+            from the covariance. None: no covariance (matches as they are).
 
     Attributes:
         grid: the matching map.
         hits: where the hits fell in its cells.
         counts: how many scans ended in each `Match.status` (and "no-scan", "odometry", "turning", "gated").
         status: the last `locate`'s outcome.
+        cov: the 4x4 covariance of (x, y [m], theta [rad], k [rad/m]) with `covariance`.
     """
 
     def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,
@@ -422,7 +442,8 @@ class Localizer:
                  skip_unseen: bool = False, min_travel: float = 0.0, min_turn: float = 0.0,
                  motion_noise: tuple[float, float, float, float, float] | None = None, gate: float = 0.0,
                  calibration: OdometryCalibration | None = None, max_turn_rate: float = math.inf,
-                 map_uncertain: float = math.inf, map_travel: float = 0.0, map_turn: float = 0.0) -> None:
+                 map_uncertain: float = math.inf, map_travel: float = 0.0, map_turn: float = 0.0,
+                 covariance: tuple[float, float, float, float] | None = None) -> None:
         if min_travel < 0 or min_turn < 0:
             raise ConfigError(f"localizer: min_travel and min_turn must be >= 0, got {min_travel} and {min_turn}")
         self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
@@ -446,6 +467,8 @@ class Localizer:
         self._free = (0.0, 0.0)    # odometry's distance [m] and turn [rad] since the last correction
         self._odom: Pose | None = None
         self._pose: Pose | None = None
+        self.covariance = covariance
+        self.cov = self._cov0()
 
     def reset(self, odom: Pose, pose: Pose) -> None:
         """Restart from `pose` (the corrected pose) with odometry reading `odom` there."""
@@ -453,6 +476,34 @@ class Localizer:
         self._last_status = ""
         self._mapped = None
         self._free = (0.0, 0.0)
+        self.cov = self._cov0()
+
+    def _cov0(self) -> npt.NDArray[np.float64]:
+        k0 = 0.0 if self.covariance is None or self.calibration is None else self.covariance[2]
+        return np.diag([1e-4, 1e-4, math.radians(0.5) ** 2, k0 * k0])
+
+    def _propagate(self, prediction: Pose, distance: float) -> None:
+        """Carry the covariance of (x, y, theta, k) from the last pose to `prediction`, `distance` [m] of
+        odometry on (`robotexp.localization.covariance.propagate`)."""
+        if self.covariance is None or self._pose is None:
+            return
+        q_xy, q_th, _, q_k = self.covariance
+        C.propagate(self.cov, prediction.x - self._pose.x, prediction.y - self._pose.y, distance, q_xy, q_th,
+                    q_k if self.calibration is not None else 0.0)
+
+    def _fuse(self, prediction: Pose, m: Match) -> Pose:
+        """The match's pose after a Kalman update of (x, y, theta, k) by it
+        (`robotexp.localization.covariance.fuse`): its correction where its scan fixes the pose, the
+        update's where it does not (a lone pillar: the turn about itself). k's estimate stays the
+        odometry calibration's: taking the update's k as well moved it by 0.2-0.3 deg/m in the sparse
+        hall (a pillar's heading error taken for bias), and the update's k alone, without the
+        calibration's fit, made frontier's ATE 10.6-13.0 m there (3.3-5.5 m without it)."""
+        if m.info is None:
+            return m.pose
+        sx, sy, sth, _ = C.fuse(self.cov, m.info, m.lever, self.matcher.config.degenerate_ratio,
+                                m.pose.x - prediction.x, m.pose.y - prediction.y,
+                                wrap_angle(m.pose.theta - prediction.theta))
+        return Pose(prediction.x + sx, prediction.y + sy, wrap_angle(prediction.theta + sth))
 
     def integrate(self, pose: Pose, scan: LaserScan) -> None:
         """Put `scan`, taken at `pose`, into the matching map (`locate` does this itself)."""
@@ -480,6 +531,7 @@ class Localizer:
         if self._odom is not None:
             step = relative(self._odom, odom)
             self._free = (self._free[0] + math.hypot(step.x, step.y), self._free[1] + abs(step.theta))
+            self._propagate(prediction, math.hypot(step.x, step.y))
         if scan is None:
             status, pose = "no-scan", prediction
         elif abs(turn_rate) > self.max_turn_rate:
@@ -512,6 +564,8 @@ class Localizer:
                     # a jump beyond the usual window (after a stretch without matches) needs a scan that
                     # fixes the pose well: a few points on a wall in an open hall turned the pose by 15 deg
                     status, pose = "gated", prediction
+            if self.covariance is not None and status in ("matched", "degenerate"):
+                pose = self._fuse(prediction, m)
             if self.calibration is not None and moved is not None and status == "matched" \
                     and m.points >= CALIBRATION_POINTS and self._last_status in ("matched", "degenerate"):
                 self.calibration.observe(moved.x, moved.theta, wrap_angle(pose.theta - prediction.theta))
@@ -520,8 +574,8 @@ class Localizer:
                 self._free = (0.0, 0.0)
             since = relative(self._mapped, odom) if self._mapped is not None else None
             due = since is None or math.hypot(since.x, since.y) >= self.map_travel or \
-                abs(since.theta) >= self.map_turn or status == "no-map"
-            if due and (status in ("matched", "degenerate", "no-map") or self._free[0] < self.map_uncertain):
+                abs(since.theta) >= self.map_turn or status in ("no-map", "unseen")
+            if due and (status in ("matched", "degenerate", "no-map", "unseen") or self._free[0] < self.map_uncertain):
                 self.integrate(pose, scan)
                 self._mapped = odom
         self.counts[status] = self.counts.get(status, 0) + 1
