@@ -6,10 +6,10 @@ Target (issue 14): scan matching <= 2 ms per 181-beam scan at 5 cm cells.
 Scans are cast exactly (the simulator's ray caster) from random free poses. The map is built from
 --map-scans of them at their true poses (log-odds grid and hit points, as the Localizer keeps it);
 each of the other --scans is matched from a prediction off by up to 0.15 m and 3 deg. Printed, in
-one run: the whole `ScanMatcher.match` (the
-likelihood field of the window around the robot, coarse and fine correlative search, Gauss-Newton),
-and its parts; the same steps with the numpy references; and how often the pose was recovered within
-one cell and 0.5 deg.
+one run: the whole `ScanMatcher.match` (the likelihood field of the window around the robot, coarse
+and fine correlative search, Gauss-Newton) with the default bilinear field and with the exact field
+of whole runs (`RUN_MATCHER`), and its parts; the same steps with the numpy references; and how often
+the pose was recovered within one cell and 0.5 deg.
 """
 
 from __future__ import annotations
@@ -21,8 +21,16 @@ import time
 import numpy as np
 
 from robotexp.localization import HitMap, ScanMatcher, scan_points
+from robotexp.localization.matcher import MatcherConfig
 from robotexp.localization import kernels as K
-from robotexp.localization.reference import pool_max_ref, refine_ref, search_ref, splat_field_ref
+from robotexp.localization.reference import (
+    hit_points_ref,
+    pool_max_ref,
+    refine_hits_ref,
+    refine_ref,
+    search_ref,
+    splat_field_ref,
+)
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import occupancy
@@ -74,19 +82,22 @@ def main() -> None:
         cases.append((truth, pred, px, py))
     cases = cases[args.map_scans:]
     walls = grid.occupied()
-    sm = ScanMatcher()
+    results = {}
+    for exact in (False, True):       # the default (logs) and the whole runs' (`RUN_MATCHER`: exact field)
+        sm = ScanMatcher(MatcherConfig(exact_field=exact))
+        sm.match(walls, geo, cases[0][2], cases[0][3], cases[0][1], hits)    # compile (cached after the first run)
+        ok = 0
+        t_all = time.perf_counter()
+        for truth, pred, px, py in cases:
+            m = sm.match(walls, geo, px, py, pred, hits)
+            ok += math.hypot(m.pose.x - truth.x, m.pose.y - truth.y) <= args.cell and \
+                abs(math.remainder(m.pose.theta - truth.theta, 2 * math.pi)) <= math.radians(0.5)
+        results[exact] = ((time.perf_counter() - t_all) / len(cases) * 1e3, ok)
     cfg = sm.config
-    sm.match(walls, geo, cases[0][2], cases[0][3], cases[0][1], hits)    # compile (cached after the first run)
-    ok = 0
-    t_all = time.perf_counter()
-    for truth, pred, px, py in cases:
-        m = sm.match(walls, geo, px, py, pred, hits)
-        ok += math.hypot(m.pose.x - truth.x, m.pose.y - truth.y) <= args.cell and \
-            abs(math.remainder(m.pose.theta - truth.theta, 2 * math.pi)) <= math.radians(0.5)
-    t_all = (time.perf_counter() - t_all) / len(cases) * 1e3
     # the parts, numba and numpy, on the same fields and windows
     reach = math.ceil(3 * cfg.sigma / args.cell)
-    parts = {"field": [0.0, 0.0], "search": [0.0, 0.0], "refine": [0.0, 0.0]}
+    parts = {"field": [0.0, 0.0], "search": [0.0, 0.0], "refine (bilinear field)": [0.0, 0.0],
+             "hit points (exact field)": [0.0, 0.0], "refine_hits (exact field, whole runs)": [0.0, 0.0]}
     n_ref = min(args.ref_scans, len(cases))
     for _truth, pred, px, py in cases[:n_ref]:
         radius = float(np.hypot(px, py).max()) + cfg.window_xy + 4 * cfg.sigma + args.cell
@@ -101,8 +112,9 @@ def main() -> None:
         nxy = math.ceil(cfg.window_xy / (args.cell * cfg.coarse))
         prior = (pred.x, pred.y, pred.theta, cfg.prior * len(px) / cfg.window_xy ** 2,
                  cfg.prior * len(px) / cfg.window_theta ** 2)
-        for impl, (fld, pool, srch, ref) in enumerate(((K.splat_field, K.pool_max, K.search, K.refine),
-                                                       (splat_field_ref, pool_max_ref, search_ref, refine_ref))):
+        for impl, (fld, pool, srch, ref, pts, ref_hits) in enumerate((
+                (K.splat_field, K.pool_max, K.search, K.refine, K.hit_points, K.refine_hits),
+                (splat_field_ref, pool_max_ref, search_ref, refine_ref, hit_points_ref, refine_hits_ref))):
             t = time.perf_counter()
             f = fld(sub, off_x, off_y, args.cell, cfg.sigma, reach)
             coarse = pool(f, cfg.coarse)
@@ -114,14 +126,23 @@ def main() -> None:
             t = time.perf_counter()
             ref(f, ox, oy, args.cell, px, py, x, y, th, cfg.iterations, pred.x, pred.y, pred.theta,
                 cfg.motion_sigma_xy ** -2, cfg.motion_sigma_theta ** -2)
-            parts["refine"][impl] += time.perf_counter() - t
+            parts["refine (bilinear field)"][impl] += time.perf_counter() - t
+            t = time.perf_counter()
+            points = pts(sub, off_x, off_y)
+            parts["hit points (exact field)"][impl] += time.perf_counter() - t
+            t = time.perf_counter()
+            ref_hits(points, ox, oy, args.cell, cfg.sigma, reach, px, py, x, y, th, cfg.iterations, pred.x, pred.y,
+                     pred.theta, cfg.motion_sigma_xy ** -2, cfg.motion_sigma_theta ** -2)
+            parts["refine_hits (exact field, whole runs)"][impl] += time.perf_counter() - t
     print(f"world {args.world}, {geo.cols} x {geo.rows} cells of {args.cell} m, 181 beams to {args.reach} m, "
           f"{len(cases)} scans, mean {np.mean([len(c[2]) for c in cases]):.0f} hits a scan")
-    print(f"ScanMatcher.match (numba): {t_all:.3f} ms per scan; recovered within one cell and 0.5 deg: "
-          f"{ok}/{len(cases)}")
-    print(f"parts over {n_ref} scans (ms per scan)     numba      numpy   numpy/numba")
+    for exact, name in ((False, "bilinear field (the default)"), (True, "exact field (whole runs)")):
+        t_all, ok = results[exact]
+        print(f"ScanMatcher.match (numba), {name}: {t_all:.3f} ms per scan; recovered within one cell and "
+              f"0.5 deg: {ok}/{len(cases)}")
+    print(f"parts over {n_ref} scans (ms per scan)              numba      numpy   numpy/numba")
     for name, (nb, ref_t) in parts.items():
-        print(f"  {name:34s} {nb / n_ref * 1e3:8.3f}   {ref_t / n_ref * 1e3:8.3f}   {ref_t / max(nb, 1e-12):8.1f}x")
+        print(f"  {name:43s} {nb / n_ref * 1e3:8.3f}   {ref_t / n_ref * 1e3:8.3f}   {ref_t / max(nb, 1e-12):8.1f}x")
 
 
 if __name__ == "__main__":

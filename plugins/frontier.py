@@ -12,7 +12,7 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
-from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, passable_cell
+from robotexp.planning.targets import PlanCosts, WallMemory, frontier_targets, known_window, passable_cell
 from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["FrontierExplorer"]
@@ -30,6 +30,10 @@ class FrontierExplorer(Explorer):
     is not an opening) and those whose unknown neighbours all lie within `face_reach` of an occupied
     cell: beams grazing a wall clear stretches of its face, and the unknown behind them is the wall's
     inside (a robot that drove to them looked, saw nothing new and dithered on warehouse rack faces).
+    Both tests ask the cells the map has ever shown occupied (`WallMemory`), not the map's walls of
+    the moment: in a log-odds map a beam passing through a wall cell cancels a hit, so grazing beams
+    wear faces down to unknown or free cells, and a shelf's face worn over a metre looked like an
+    opening into its unseen inside (generated warehouses: a long tail of trips to worn rack faces).
     Paths are planned on known-free cells with the robot radius (plus a 5 cm
     margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
     nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
@@ -51,7 +55,8 @@ class FrontierExplorer(Explorer):
         clearance: [m] width of the costly zone beyond the robot radius.
         return_home: drive back to the start pose when exploration is done.
         face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
-            occupied cell (0: no such test, the explorer of session 4).
+            cell ever occupied, and no such cell as 8-neighbour (0: neither test, nor the memory of
+            walls: the explorer of session 4).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
@@ -92,6 +97,7 @@ class FrontierExplorer(Explorer):
         self._pose_xy = (ctx.start.x, ctx.start.y)
         self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
+        self.walls_seen: WallMemory | None = None     # cells ever occupied (with face_reach > 0)
 
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
@@ -104,6 +110,8 @@ class FrontierExplorer(Explorer):
         """Follow the current plan, re-planning when due; Done when no reachable frontier is left."""
         pose, now = state.pose, state.time
         self._now = now
+        if self.face_reach > 0:
+            self._memory(grid).note(grid)
         self._pose_xy = (pose.x, pose.y)
         if self.homing:
             if self.follower.done:
@@ -244,7 +252,12 @@ class FrontierExplorer(Explorer):
         key = (id(grid), grid.scans, self.blacklist_events, off, view.shape)
         if self._targets is not None and self._targets[0] == key:
             return self._targets[1]
-        targets = frontier_targets(view, min_cells, self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols])
+        skip = self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        if self.face_reach > 0:
+            # a cell beside a wall that grazing beams wore away is still a wall face
+            near = self._memory(grid).distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols] < 1.5
+            skip = skip | near
+        targets = frontier_targets(view, min_cells, skip)
         if self.face_reach > 0 and targets.any():
             targets &= self._opening(grid, view, off)
         targets.flags.writeable = False
@@ -256,15 +269,19 @@ class FrontierExplorer(Explorer):
         rows, cols = view.shape
         return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
 
+    def _memory(self, grid: OccupancyGrid) -> WallMemory:
+        """The cells ever occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""
+        if self.walls_seen is None:
+            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
+        return self.walls_seen
+
     def _opening(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
-        """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every occupied
-        cell. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the wall's
-        inside, a cell or two from the hits on either face; an opening leads into unknown space away
-        from walls."""
+        """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every cell
+        ever occupied. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the
+        wall's inside, a cell or two from the hits on either face, and wear the face's cells down to
+        unknown or free (log-odds); an opening leads into unknown space away from walls."""
         rows, cols = view.shape
-        self.costs.update(grid)
-        assert self.costs.walls is not None
-        dist = self.costs.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        dist = self._memory(grid).distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
         deep = view.unknown() & (dist > self.face_reach / grid.geo.cell)
         out = np.zeros_like(deep)
         out[1:, :] |= deep[:-1, :]

@@ -255,3 +255,64 @@ def test_grazed_wall_face_is_no_frontier_but_an_opening_is() -> None:
     assert (new & opening).sum() >= 20 and not (new & ~old).any()
     with pytest.raises(ConfigError, match="face_reach"):
         FrontierExplorer(face_reach=-1.0)
+
+
+def test_worn_face_of_a_deep_shelf_is_no_frontier() -> None:
+    """A shelf 1 m deep whose face was seen (occupied) and then worn free over 1.1 m by grazing beams
+    (log-odds: a pass cancels a hit): its unknown inside lies 0.5 m from the walls left on the map, but
+    one cell from walls the explorer saw; no target there. The room's open east end stays a target."""
+    from robotexp.planning.targets import WallMemory, distance_transform
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[31:45, 5:40] = True        # aisles either side of the shelf (rows 20-30)
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[30, 5:40] = True             # the shelf's faces; rows 21-29 never seen
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    old, new = FrontierExplorer(face_reach=0.0), FrontierExplorer()
+    _frontier_of(old, grid)
+    _frontier_of(new, grid)
+    new.step(_state(), grid)        # the explorer notes the walls the map shows (after every scan)
+    worn = np.zeros(grid.shape, bool)
+    worn[30, 10:21] = True
+    grid.mark_free(worn)            # grazing beams wore 11 face cells down to free
+    face = np.zeros(grid.shape, bool)
+    face[30, 10:21] = True
+    opening = np.zeros(grid.shape, bool)
+    opening[6:19, 39] = opening[32:44, 39] = True      # the aisles' east ends, unknown beyond
+    got_old, got_new = _targets_now(old, grid), _targets_now(new, grid)
+    # the map's own walls no longer explain the worn face: the session-5 explorer (and face_reach on
+    # the map's walls) sends the robot there
+    assert (got_old & face).sum() >= 5
+    assert not (got_new & face).any()
+    assert (got_new & opening).sum() >= 20 and not (got_new & ~got_old).any()
+    # the memory against its definition: the distance to every cell ever occupied, from scratch
+    assert new.walls_seen is not None and (new.walls_seen.ever == wall).all()
+    mem = WallMemory(3.0)
+    mem.note(grid)
+    assert (mem.ever == (wall & ~worn)).all()        # a fresh memory knows only the walls the map shows now
+    want = distance_transform(wall)
+    got = new.walls_seen.distance(grid)
+    near = want <= 2.5
+    assert np.allclose(got[near], want[near]) and (got[~near] > 2.5).all()
+
+
+def _state() -> object:
+    from robotexp.robot import RobotState, Twist
+
+    return RobotState(time=0.0, pose=Pose(1.0, 1.0, 0.0), velocity=Twist.ZERO)
+
+
+def _targets_now(explorer: FrontierExplorer, grid: OccupancyGrid) -> np.ndarray:
+    """The explorer's targets on `grid` now, without resetting it (its memory kept)."""
+    from robotexp.planning.targets import known_window
+
+    memory = getattr(explorer, "walls_seen", None)
+    if memory is not None:
+        memory.note(grid)
+    view, off = known_window(grid, 2)
+    out = np.zeros(grid.shape, bool)
+    rows, cols = view.shape
+    out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier_targets(grid, view, off)
+    return out

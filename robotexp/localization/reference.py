@@ -8,9 +8,10 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.localization.kernels import DAMPING, RETRIES
+from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES, HitSegments
 
-__all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref"]
+__all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
+           "wall_offset_ref", "refine_hits_ref"]
 
 
 def splat_field_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
@@ -136,3 +137,132 @@ def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
             break
     _, mean = _cost_ref(field, ox, oy, cell, px, py, x, y, th)
     return x, y, th, mean, h
+
+
+def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]
+                   ) -> HitSegments:
+    """Hit points as arrays; each cell's direction from np.linalg.eigh of its 3 x 3 block's scatter, its
+    segment from the line's crossings of the cell's four sides; then the occupied cells in row order."""
+    rows, cols = occ.shape
+    out = np.full((6, rows, cols), np.nan)
+    rr, cc = np.nonzero(occ)
+    out[0, rr, cc] = cc + 0.5 + off_x[rr, cc].astype(np.float64)
+    out[1, rr, cc] = rr + 0.5 + off_y[rr, cc].astype(np.float64)
+    for r, c in zip(rr, cc, strict=True):
+        block = (slice(max(r - 1, 0), r + 2), slice(max(c - 1, 0), c + 2))
+        sel = occ[block]
+        u, span = np.zeros(2), np.zeros(2)
+        if np.count_nonzero(sel) >= 2:
+            pts = np.column_stack([out[0][block][sel], out[1][block][sel]])
+            scatter = (pts - pts.mean(axis=0)).T @ (pts - pts.mean(axis=0))
+            vals, vecs = np.linalg.eigh(scatter)
+            if vals[1] > 0 and vals[0] < LINE_RATIO * vals[1]:
+                u = vecs[:, 1]
+                h = np.array([out[0, r, c], out[1, r, c]])
+                lo, hi = np.array([c, r]) - OVERLAP, np.array([c, r]) + 1.0 + OVERLAP
+                with np.errstate(divide="ignore"):
+                    a, b = (lo - h) / u, (hi - h) / u
+                a, b = np.where(u == 0, -np.inf, np.minimum(a, b)), np.where(u == 0, np.inf, np.maximum(a, b))
+                span = np.array([a.max(), b.min()])
+        out[2, r, c], out[3, r, c] = u
+        out[4, r, c], out[5, r, c] = span
+    index = np.full((rows, cols), -1, np.int32)
+    index[rr, cc] = np.arange(len(rr), dtype=np.int32)          # np.nonzero: row order
+    return index, np.ascontiguousarray(out[:, rr, cc].T)
+
+
+def wall_offset_ref(hits: HitSegments, gx: npt.NDArray[np.float64], gy: npt.NDArray[np.float64],
+                    reach: int) -> tuple[npt.NDArray[np.float64], ...]:
+    """`wall_offset` at arrays of grid coordinates: every cell of the neighbourhood at once, the first nearest."""
+    gx, gy = np.asarray(gx, np.float64), np.asarray(gy, np.float64)
+    index, seg = hits
+    rows, cols = index.shape
+    c0, r0 = np.floor(gx).astype(np.int64), np.floor(gy).astype(np.int64)
+    inside = (c0 >= 0) & (r0 >= 0) & (c0 < cols) & (r0 < rows)
+    offs = np.arange(-reach, reach + 1)
+    dr, dc = np.meshgrid(offs, offs, indexing="ij")                      # row order, as the kernel scans
+    r = r0[:, None] + dr.ravel()[None, :]
+    c = c0[:, None] + dc.ravel()[None, :]
+    ok = inside[:, None] & (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
+    rc, cc = np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)
+    idx = index[rc, cc]
+    ok &= idx >= 0
+    hx, hy, ux, uy, t0, t1 = (seg[np.maximum(idx, 0), k] for k in range(6))
+    dx, dy = gx[:, None] - hx, gy[:, None] - hy
+    t = dx * ux + dy * uy
+    interior = (t0 < t) & (t < t1)
+    t = np.clip(t, t0, t1)
+    dx, dy = dx - t * ux, dy - t * uy
+    q = np.where(ok, dx * dx + dy * dy, np.inf)
+    q = np.where(q <= (reach + 0.5) ** 2, q, np.inf)
+    j = np.argmin(q, axis=1)
+    i = np.arange(len(gx))
+    qb = q[i, j]
+    found = np.isfinite(qb)
+    keep = found & interior[i, j]
+    return (qb, np.where(found, dx[i, j], 0.0), np.where(found, dy[i, j], 0.0),
+            np.where(keep, ux[i, j], 0.0), np.where(keep, uy[i, j], 0.0))
+
+
+def _hits_cost_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
+                   px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float
+                   ) -> tuple[float, float]:
+    c, s = math.cos(th), math.sin(th)
+    q = wall_offset_ref(hits, (x + c * px - s * py - ox) / cell, (y + s * px + c * py - oy) / cell, reach)[0]
+    m = np.exp(-q * cell * cell / (2.0 * sigma * sigma))
+    return float(np.sum(1.0 - m)), float(m.mean()) if len(m) else 0.0
+
+
+def refine_hits_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma: float, reach: int,
+                    px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], x: float, y: float, th: float,
+                    iterations: int, cx: float, cy: float, cth: float, wxy: float, wth: float
+                    ) -> tuple[float, float, float, float, npt.NDArray[np.float64]]:
+    """Reweighted Gauss-Newton with the kernel's acceptance and stopping rules, Jacobians as (n, 2, 3) arrays."""
+    w = np.array([wxy, wxy, wth])
+    centre = np.array([cx, cy, cth])
+    half = 0.5 / (sigma * sigma)
+
+    def total(v: npt.NDArray[np.float64]) -> float:
+        return _hits_cost_ref(hits, ox, oy, cell, sigma, reach, px, py, *v)[0] + float(np.sum(w * (v - centre) ** 2))
+
+    v = np.array([x, y, th])
+    cost = total(v)
+    h = np.zeros((3, 3))
+    lam = DAMPING
+    for _ in range(iterations):
+        c, s = math.cos(v[2]), math.sin(v[2])
+        q, ex, ey, ux, uy = wall_offset_ref(hits, (v[0] + c * px - s * py - ox) / cell,
+                                            (v[1] + s * px + c * py - oy) / cell, reach)
+        near = np.isfinite(q)
+        m = np.where(near, np.exp(-np.where(near, q, 0.0) * cell * cell / (2.0 * sigma * sigma)), 0.0)
+        dpose = np.zeros((len(px), 2, 3))
+        dpose[:, 0, 0] = dpose[:, 1, 1] = 1.0
+        dpose[:, 0, 2] = -s * px - c * py
+        dpose[:, 1, 2] = c * px - s * py
+        u = np.stack([ux, uy], axis=1)
+        proj = np.eye(2)[None] - u[:, :, None] * u[:, None, :]              # I - u u^T
+        jac = proj @ dpose                                                   # (n, 2, 3)
+        e = np.stack([ex, ey], axis=1) * cell
+        h = np.einsum("n,nki,nkj->ij", m, jac, jac)
+        g = -half * np.einsum("n,nki,nk->i", m, jac, e) - w * (v - centre)
+        hp = half * h + np.diag(w)
+        trace = np.trace(hp)
+        if trace == 0.0:
+            break
+        step = None
+        new_cost = cost
+        for _retry in range(RETRIES):
+            trial = np.linalg.solve(hp + lam * trace * np.eye(3), g)
+            new_cost = total(v + trial)
+            if new_cost < cost:
+                step = trial
+                break
+            lam *= 10.0
+        if step is None:
+            break
+        v, cost = v + step, new_cost
+        lam = max(lam / 10.0, DAMPING)
+        if np.all(np.abs(step) < 1e-5):
+            break
+    _, mean = _hits_cost_ref(hits, ox, oy, cell, sigma, reach, px, py, *v)
+    return float(v[0]), float(v[1]), float(v[2]), mean, h

@@ -14,6 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from robotexp.clock import Clock
+from robotexp.localization import covariance as C
+from robotexp.localization import kernels as K
 from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, MatcherConfig, ScanMatcher
 from robotexp.localization.metrics import ate
@@ -30,7 +32,16 @@ GATE = 4.0      # a match farther than this many sigmas of the motion prior is r
 # The matcher of whole runs: never-seen points left out of the search too (see `MatcherConfig.drop_unseen`).
 # (A field of sigma 0.1 m instead of 0.05 m matched a scan against its own map better, 0.964 of the field
 # against 0.865, but corrected the P3-DX's heading less: 3.9 deg off after 3.5 m of corridor.)
-RUN_MATCHER = MatcherConfig(drop_unseen=True)
+# ... and Gauss-Newton on the exact field of the hit points' wall segments (sub-millimetre against a right map;
+# see `MatcherConfig.exact_field` and docs/localization, "The dense map IoU gap").
+RUN_MATCHER = MatcherConfig(drop_unseen=True, exact_field=True)
+# The `Localizer`'s covariance of (x, y, theta, k): per metre driven, (1 cm)^2 of position and (0.3 deg)^2 of
+# heading random walk (the P3-DX preset's slip, 0.2 % per wheel and step, makes (0.09 deg)^2 per metre), the
+# heading bias k [rad/m] uncertain by 0.05 rad/m (2.9 deg/m: the preset's 1.74 deg/m within 0.6 sigma) at the
+# start (so that the heading's uncertainty grows with the distance driven), drifting by 1e-7 rad^2/m^3. In
+# sparse (3 m laser, seeds 0-3, before main's sub-cell matcher) it took frontier's ATE from 2.7-15.2 m to 3.3-5.5 m
+# (docs/localization, "The sparse hall").
+COVARIANCE = (1e-4, math.radians(0.3) ** 2, 0.05, 1e-7)
 MAP_UNCERTAIN = 1.0     # [m] the `Localizer` option: unmatched scans leave the matching map alone after this
 MAP_TRAVEL, MAP_TURN = 0.3, math.radians(15.0)   # [m], [rad]: the `Localizer`'s map update thresholds
 MAX_TURN_RATE = 0.5     # [rad/s] no matching while turning faster (see `Localizer`)
@@ -60,6 +71,8 @@ class LocalizedRobot(Robot):
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
         track: (corrected, true) poses of every new state, where the true pose is known.
+        odometry: beside each `track` entry, the inner robot's own pose (to replay the localizer:
+            `benchmarks/bench_localized_iou.py`).
         steps: beside each `track` entry: (robot time [s], the localizer's status, the scan's echoes,
             the odometry calibration's heading bias k [rad/m]); `benchmarks/bench_localized_explore.py
             --trace` writes them with the errors.
@@ -81,8 +94,11 @@ class LocalizedRobot(Robot):
                                    motion_noise=motion_noise,
                                    gate=gate, calibration=OdometryCalibration() if calibrate else None,
                                    max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
-                                   map_travel=MAP_TRAVEL, map_turn=MAP_TURN)
+                                   map_travel=MAP_TRAVEL, map_turn=MAP_TURN, covariance=COVARIANCE)
+        K.warm()                                        # every matcher kernel compiled before the run starts
+        C.warm()                                        # ... and the covariance's
         self.track: list[tuple[Pose, Pose]] = []
+        self.odometry: list[Pose] = []
         self.steps: list[tuple[float, str, int, float]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
@@ -102,6 +118,7 @@ class LocalizedRobot(Robot):
         out = replace(state, pose=pose)
         if state.true_pose is not None:
             self.track.append((pose, state.true_pose))
+            self.odometry.append(state.pose)
             cal = self.localizer.calibration
             hits = 0 if state.laser is None else int(np.count_nonzero(np.isfinite(state.laser.ranges)))
             self.steps.append((state.time, self.localizer.status, hits, 0.0 if cal is None else cal.k))

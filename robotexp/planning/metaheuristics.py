@@ -119,16 +119,26 @@ def _result(point: npt.NDArray[np.float64], value: float, evaluations: int) -> S
     return SearchResult((x, y), (int(math.floor(y)), int(math.floor(x))), float(value), int(evaluations))
 
 
-def initial_population(surface: npt.NDArray[np.float64], n: int, rng: np.random.Generator) -> Points:
+def initial_population(surface: npt.NDArray[np.float64], n: int, rng: np.random.Generator,
+                       origin: tuple[int, int] = (0, 0), shape: tuple[int, int] | None = None) -> Points:
     """n points drawn uniformly over the feasible cells of `surface` (uniformly within each cell).
 
     Without feasible cells, uniformly over the whole grid. Returns (n, 2) float64 (x, y) [cells].
+    `surface` may be a window of a larger grid of `shape` (None: the surface's own) whose cell (0, 0) is
+    `origin` there, every cell outside it infeasible: the points, in the larger grid's cells, are then
+    the ones drawn on the whole grid, bit for bit (the feasible cells keep their order).
     """
+    rows, cols = shape if shape is not None else surface.shape
+    wcols = surface.shape[1]
     cells = np.flatnonzero(surface.ravel() < INFEASIBLE)
-    cols = surface.shape[1]
-    k = rng.choice(cells, size=n) if cells.size else rng.integers(0, surface.size, size=n)
+    if cells.size:
+        k = rng.choice(cells, size=n)
+        col, row = k % wcols + origin[1], k // wcols + origin[0]
+    else:
+        k = rng.integers(0, rows * cols, size=n)
+        col, row = k % cols, k // cols
     jitter = rng.random((n, 2))
-    return np.column_stack([k % cols + jitter[:, 0], k // cols + jitter[:, 1]])
+    return np.column_stack([col + jitter[:, 0], row + jitter[:, 1]])
 
 
 def exhaustive(surface: npt.NDArray[np.float64]) -> SearchResult:
@@ -205,19 +215,22 @@ def nonuniform_mutation(x: Points, t: int, horizon: int, lo: npt.NDArray[np.floa
 
 
 def genetic_search(surface: npt.NDArray[np.float64], rng: np.random.Generator,
-                   config: GAConfig | None = None) -> SearchResult:
+                   config: GAConfig | None = None, origin: tuple[int, int] = (0, 0),
+                   shape: tuple[int, int] | None = None) -> SearchResult:
     """Steady-state real-coded GA (roulette, BLX-alpha, non-uniform mutation) on `surface`.
 
     Each generation draws `children` / 2 pairs of parents by roulette, crosses each pair with
     probability p_crossover (BLX), mutates the children, evaluates them and lets them replace the
     members of the population that are worse than them (the best `population` of the union stay).
+    Genes range over the grid of `shape` (None: the surface's); `surface` may be its window at
+    `origin` (see `initial_population`): the same search as on the whole grid, at the window's cost.
     """
     cfg = config or GAConfig()
-    rows, cols = surface.shape
+    rows, cols = shape if shape is not None else surface.shape
     lo = np.zeros(2)
     hi = np.array([np.nextafter(cols, 0), np.nextafter(rows, 0)])
-    pop = initial_population(surface, cfg.population, rng)
-    val = lookup(surface, pop)
+    pop = initial_population(surface, cfg.population, rng, origin, (rows, cols))
+    val = lookup(surface, pop, origin)
     evaluations = len(pop)
     half = cfg.children // 2
     for t in range(cfg.generations):
@@ -228,7 +241,7 @@ def genetic_search(surface: npt.NDArray[np.float64], rng: np.random.Generator,
         c1[keep], c2[keep] = p1[keep], p2[keep]
         kids = nonuniform_mutation(np.vstack([c1, c2]), t, cfg.generations, lo, hi, cfg.p_mutation,
                                    cfg.mutation_b, rng)
-        kval = lookup(surface, kids)
+        kval = lookup(surface, kids, origin)
         evaluations += len(kids)
         allp = np.vstack([pop, kids])
         allv = np.concatenate([val, kval])
@@ -252,22 +265,31 @@ def firefly_move(xi: Points, xj: Points, beta0: float, gamma: float, alpha: floa
 
 
 @kernel
+def _window_value(surface: npt.NDArray[np.float64], r: int, c: int) -> float:
+    """surface[r, c], INFEASIBLE outside it."""
+    if 0 <= r < surface.shape[0] and 0 <= c < surface.shape[1]:
+        return float(surface[r, c])
+    return INFEASIBLE
+
+
+@kernel
 def _firefly_kernel(surface: npt.NDArray[np.float64], pos: npt.NDArray[np.float64],
                     eps: npt.NDArray[np.float64], alphas: npt.NDArray[np.float64], beta0: float, gamma: float,
-                    best: npt.NDArray[np.float64]) -> int:
+                    best: npt.NDArray[np.float64], r0: int, c0: int, rows: int, cols: int) -> int:
     """Run the firefly sweeps in place on `pos` (n, 2) [units of L]; write (x, y, f) of the best to `best`.
 
-    eps (iterations, n, n, 2) holds the random vectors, alphas (iterations,) the step sizes.
+    eps (iterations, n, n, 2) holds the random vectors, alphas (iterations,) the step sizes. The grid
+    has rows x cols cells; `surface` is its window from cell (r0, c0), every cell outside infeasible.
     Returns the number of evaluations.
     """
-    rows, cols = surface.shape
     scale = float(max(rows, cols))
     xmax = np.nextafter(cols / scale, 0.0)
     ymax = np.nextafter(rows / scale, 0.0)
     n = pos.shape[0]
     val = np.empty(n)
     for i in range(n):
-        val[i] = surface[min(int(pos[i, 1] * scale), rows - 1), min(int(pos[i, 0] * scale), cols - 1)]
+        val[i] = _window_value(surface, min(int(pos[i, 1] * scale), rows - 1) - r0,
+                               min(int(pos[i, 0] * scale), cols - 1) - c0)
     evals = n
     k = int(np.argmin(val))
     best[0], best[1], best[2] = pos[k, 0], pos[k, 1], val[k]
@@ -283,7 +305,8 @@ def _firefly_kernel(surface: npt.NDArray[np.float64], pos: npt.NDArray[np.float6
                     y = min(max(pos[i, 1] + b * dy + a * eps[t, i, j, 1], 0.0), ymax)
                     pos[i, 0] = x
                     pos[i, 1] = y
-                    val[i] = surface[min(int(y * scale), rows - 1), min(int(x * scale), cols - 1)]
+                    val[i] = _window_value(surface, min(int(y * scale), rows - 1) - r0,
+                                           min(int(x * scale), cols - 1) - c0)
                     evals += 1
                     if val[i] < best[2]:
                         best[0], best[1], best[2] = x, y, val[i]
@@ -291,20 +314,24 @@ def _firefly_kernel(surface: npt.NDArray[np.float64], pos: npt.NDArray[np.float6
 
 
 def firefly_search(surface: npt.NDArray[np.float64], rng: np.random.Generator,
-                   config: FireflyConfig | None = None) -> SearchResult:
+                   config: FireflyConfig | None = None, origin: tuple[int, int] = (0, 0),
+                   shape: tuple[int, int] | None = None) -> SearchResult:
     """Firefly algorithm (Yang 2009; Santos Algorithm 2) on `surface`; returns the best point seen.
 
     Each iteration, every firefly i moves towards every brighter firefly j in turn (`firefly_move`
     in units of L, clipped to the map) and is re-evaluated; the brightest one stays put. Random
     vectors eps are uniform in [-0.5, 0.5]^2, drawn all at once after the initial population.
+    The map is the grid of `shape` (None: the surface's), L its longer side; `surface` may be its
+    window at `origin` (see `initial_population`): the same search as on the whole grid.
     """
     cfg = config or FireflyConfig()
-    rows, cols = surface.shape
+    rows, cols = shape if shape is not None else surface.shape
     scale = float(max(rows, cols))
-    pos = initial_population(surface, cfg.population, rng) / scale
+    pos = initial_population(surface, cfg.population, rng, origin, (rows, cols)) / scale
     eps = rng.random((cfg.iterations, cfg.population, cfg.population, 2)) - 0.5
     alphas = cfg.alpha * cfg.decay ** np.arange(cfg.iterations, dtype=np.float64)
     best = np.empty(3)
     evals = _firefly_kernel(np.ascontiguousarray(surface, dtype=np.float64), pos, eps, alphas,
-                            float(cfg.beta0), float(cfg.gamma), best)
+                            float(cfg.beta0), float(cfg.gamma), best, int(origin[0]), int(origin[1]),
+                            int(rows), int(cols))
     return _result(best[:2] * scale, float(best[2]), int(evals))

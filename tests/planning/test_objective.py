@@ -158,3 +158,30 @@ def test_bad_input() -> None:
                   (0.0, 0.0))
     with pytest.raises(ConfigError, match="unknown form"):
         params_for("cubic")
+
+
+def test_a_window_gives_the_whole_grids_surface_bit_for_bit() -> None:
+    # The plugins build the objective on the window of the explored cells (outside it no list cell and
+    # nothing feasible); with `origin` the surface, lists and exact values are the whole grid's.
+    rng = np.random.default_rng(5)
+    shape, (r0, r1, c0, c1) = (90, 120), (20, 70, 30, 100)
+    masks = []
+    for p in (0.02, 0.05, 0.03, 0.6):
+        m = np.zeros(shape, dtype=bool)
+        m[r0 + 2:r1 - 2, c0 + 2:c1 - 2] = rng.random((r1 - r0 - 4, c1 - c0 - 4)) < p
+        masks.append(m)
+    fr, oc, vi, feasible = masks
+    robot = (61.37, 44.81)
+    for form in ("proportional", "conditional", "linear"):
+        whole = Objective(PRESETS[form], fr, oc, vi, robot, feasible, cell=0.1)
+        win = (slice(r0, r1), slice(c0, c1))
+        part = Objective(PRESETS[form], fr[win], oc[win], vi[win], robot, feasible[win], cell=0.1, origin=(r0, c0))
+        assert np.array_equal(part.surface, whole.surface[win])
+        assert (whole.surface[~np.pad(np.ones((r1 - r0, c1 - c0), bool), ((r0, 90 - r1), (c0, 120 - c1)))]
+                == INFEASIBLE).all()
+        assert part.optimum() == whole.optimum()
+        pts = rng.random((40, 2)) * (c1 - c0, r1 - r0) + (c0, r0)
+        assert np.array_equal(part(pts), whole(pts))
+        assert np.array_equal(part.exact(pts), whole.exact(pts))
+        for a, b in zip(part.lists, whole.lists, strict=True):
+            assert np.array_equal(a, b)
