@@ -253,6 +253,8 @@ def warm_kernels(spec: RunSpec, robot: Robot) -> None:
     log.info("warming the kernels of %s (%s) on the embedded simulator before the robot moves", spec.method,
              "with scan matching" if localize == "scan-match" else "no localizer")
     run_experiment(warm, None, image=False)
+    from robotexp.planning.grid_planner import warm as warm_planning
+    warm_planning()                  # the planners' kernels a 5 s run may not reach (A* once a target is chosen)
     _WARMED.add(key)
 
 

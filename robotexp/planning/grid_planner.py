@@ -41,6 +41,7 @@ __all__ = [
     "path_cost",
     "path_from_parents",
     "simplify",
+    "warm",
 ]
 
 Cell = tuple[int, int]
@@ -365,3 +366,28 @@ def simplify(path: npt.ArrayLike, passable: npt.ArrayLike) -> Path:
     keep = np.empty(p.shape[0], dtype=np.bool_)
     _k.simplify_kernel(p, m, keep)
     return p[keep]
+
+
+_warmed = False
+
+
+def warm() -> None:
+    """Call every planning kernel once, through the functions above, on an 8 x 8 grid: numba compiles
+    (or loads from its cache) each at its first call, and a real robot's run must not wait for that
+    mid-run, blind (`robotexp.experiment.warm_kernels` calls this; once per process). A short warm-up
+    run may never need some of them: A* is only called once a target is chosen."""
+    global _warmed
+    if _warmed:
+        return
+    occ = np.zeros((8, 8), np.bool_)
+    occ[4, 1:6] = True
+    dist = distance_transform(occ)
+    cost = cost_grid(dist, robot_radius_cells=0.5, danger_radius_cells=1.0, danger_cost=1.0).astype(np.float64)
+    dijkstra(cost, (0, 0))
+    dijkstra(cost, (0, 0), ~occ, max_dist=50.0)
+    nearest_goal(cost, (0, 0), ~occ)
+    path = astar(cost, (0, 0), (7, 7))
+    if path is not None:
+        simplify(path, ~occ)
+    line_of_sight(~occ, (0, 0), (7, 7))
+    _warmed = True
