@@ -30,11 +30,13 @@ cp "$OUT"/localized/dense_frontier_1_300mms_s0.png docs/figures/dense_frontier_p
 robotexp figure docs/santos/results.jsonl -o "$OUT/santos-box" --format png,svg
 cp "$OUT"/santos-box/box_visited_cells_{dense,sparse}.{png,svg} docs/santos/
 
-# 5. The five meta-ga runs of that campaign in dense made again with its settings (seeds 0-4, 5 cm cells,
+# 5. The five meta-ga runs of that campaign in dense made again with its settings (seeds 0-4, 5 cm cells, his
+#    search domain and stopping rule: near_frontier off, min_opening 0 as campaigns/santos.toml sets them,
 #    pose 1, 300 mm/s; three of five give the recorded visited cells exactly, seeds 2 and 3 differ by 3-4 %),
 #    their trajectories and coverage curves, as `robotexp campaign plot` of the whole campaign draws them.
 for seed in 0 1 2 3 4; do
-    robotexp explore --world dense --method meta-ga --pose 1 --seed "$seed" --cell 50 --out "$OUT/santos-ga"
+    robotexp explore --world dense --method meta-ga --pose 1 --seed "$seed" --cell 50 -p near_frontier=false -p min_opening=0 \
+        --out "$OUT/santos-ga"
 done
 robotexp campaign plot "$OUT/santos-ga/results.jsonl" --out "$OUT/santos-ga/plots"
 cp "$OUT"/santos-ga/plots/paths_dense_meta-ga.png docs/santos/paths_dense_meta-ga.png
