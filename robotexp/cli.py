@@ -156,9 +156,17 @@ def writable_folder(out: Path, option: str = "--out") -> None:
 
     made = [d for d in (out, *out.parents) if not d.exists()]     # removed again: nothing is left behind
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
-            pass
+        for attempt in range(5):
+            out.mkdir(parents=True, exist_ok=True)
+            try:
+                with tempfile.NamedTemporaryFile(dir=out, prefix=".robotexp-check-"):
+                    pass
+                break
+            except FileNotFoundError:
+                # another robotexp checking the same new folder removed it between our mkdir and the
+                # probe (both saw it missing): make it again; a folder that keeps vanishing is an error
+                if attempt == 4:
+                    raise
     except OSError as exc:
         raise ConfigError(f"{option} {out}: cannot write there ({exc.strerror or exc}); give a folder you can "
                           "create and write") from None

@@ -191,3 +191,25 @@ def test_short_explore_writes_results(tmp_path: Path) -> None:
     assert times == sorted(times) and times[0] == 0.0 and times[-1] == pytest.approx(r["robot_time_s"])
     assert float(rows[-1][2]) == pytest.approx(r["coverage"], abs=1e-5)
     assert name in result.output and "results.jsonl" in result.output
+
+
+def test_an_out_folder_removed_by_a_concurrent_check_is_made_again(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # two robotexp processes checking the same new --out at once: the other one's clean-up can remove the folder
+    # between this one's mkdir and its probe file (the clean-clone CI met it once: "cannot write there (No such
+    # file or directory)" for a folder that could be written)
+    import tempfile
+
+    from robotexp.cli import writable_folder
+
+    out = tmp_path / "new" / "out"
+    real = tempfile.NamedTemporaryFile
+    calls = []
+
+    def probe(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) == 1:
+            out.rmdir()                       # the other process's clean-up, at the worst moment
+        return real(*args, **kwargs)
+    monkeypatch.setattr(tempfile, "NamedTemporaryFile", probe)
+    writable_folder(out)
+    assert len(calls) == 2 and not out.exists() and not out.parent.exists()   # checked, nothing left behind
