@@ -36,7 +36,7 @@ from robotexp.explorer import ExplorationRun
 from robotexp.localization.matcher import Localizer
 from robotexp.localization.robot import LocalizedRobot
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.groundtruth import GroundTruth, map_iou
+from robotexp.mapping.groundtruth import GroundTruth, map_iou, map_iou_parts
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose
 
@@ -73,15 +73,7 @@ class Recorder(RunObserver):
 
 def iou_parts(states: np.ndarray, gt: GroundTruth) -> tuple[float, float, float]:
     """(map IoU, occupied IoU, free IoU): `robotexp.mapping.groundtruth.map_iou` and its two halves."""
-    m_occ, m_free = states == 100, states == 0
-    near = np.pad(gt.explorable, 1, constant_values=False)
-    rows, cols = gt.explorable.shape
-    touch = np.zeros_like(gt.explorable)
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            touch |= near[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
-    occ = np.count_nonzero(m_occ & gt.occupied) / max(np.count_nonzero(m_occ | (gt.occupied & touch)), 1)
-    free = np.count_nonzero(m_free & ~gt.occupied) / max(np.count_nonzero(m_free | gt.explorable), 1)
+    occ, free = map_iou_parts(states, gt)
     mean = map_iou(states, gt)
     assert abs(mean - (occ + free) / 2) < 1e-12      # the same definition as the record's
     return mean, occ, free

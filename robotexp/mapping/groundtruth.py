@@ -26,7 +26,8 @@ from robotexp.world.model import World
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
 
-__all__ = ["GroundTruth", "coverage", "grid_coverage", "ground_truth", "map_iou", "occupancy", "ray_tree"]
+__all__ = ["GroundTruth", "coverage", "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
+           "ray_tree"]
 
 
 @dataclass(frozen=True)
@@ -301,6 +302,16 @@ def map_iou(grid_states: npt.NDArray[np.int8], gt: GroundTruth) -> float:
     Raises:
         ConfigError: the shapes differ.
     """
+    iou_occ, iou_free = map_iou_parts(grid_states, gt)
+    return 0.5 * (iou_occ + iou_free)
+
+
+def map_iou_parts(grid_states: npt.NDArray[np.int8], gt: GroundTruth) -> tuple[float, float]:
+    """The two halves of `map_iou`: (IoU_occ, IoU_free), as defined there.
+
+    Raises:
+        ConfigError: the shapes differ.
+    """
     _check_shape("map_iou", grid_states, gt)
     m_occ = grid_states == 100
     m_free = grid_states == 0
@@ -314,5 +325,5 @@ def map_iou(grid_states: npt.NDArray[np.int8], gt: GroundTruth) -> float:
     iou_occ = _iou(int(np.count_nonzero(m_occ & gt.occupied)), int(np.count_nonzero(m_occ | target_occ)))
     iou_free = _iou(int(np.count_nonzero(m_free & ~gt.occupied)),
                     int(np.count_nonzero(m_free | gt.explorable)))
-    return 0.5 * (iou_occ + iou_free)
+    return iou_occ, iou_free
 
