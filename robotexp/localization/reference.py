@@ -3,6 +3,7 @@ and the benchmark only: the same results computed with whole-array numpy operati
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import math
 
 import numpy as np
@@ -95,6 +96,21 @@ def _cost_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float,
     return float(np.sum((1.0 - m) ** 2)), float(m.mean()) if len(m) else 0.0
 
 
+def _damped_step(hp: npt.NDArray[np.float64], trace: float, g: npt.NDArray[np.float64], lam: float, cost: float,
+                 v: npt.NDArray[np.float64], total: Callable[[npt.NDArray[np.float64]], float]
+                 ) -> tuple[npt.NDArray[np.float64] | None, float, float]:
+    """One Levenberg-Marquardt step from pose `v` as the kernels take it: solve (hp + lam trace I) s = g and
+    multiply the damping by ten until `total(v + s)` falls below `cost`, at most RETRIES times. Returns
+    (the step or None, its cost, the damping it was taken with)."""
+    for _retry in range(RETRIES):
+        trial = np.asarray(np.linalg.solve(hp + lam * trace * np.eye(3), g), dtype=np.float64)
+        new_cost = total(v + trial)
+        if new_cost < cost:
+            return trial, new_cost, lam
+        lam *= 10.0
+    return None, cost, lam
+
+
 def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float, px: npt.NDArray[np.float64],
                py: npt.NDArray[np.float64], x: float, y: float, th: float, iterations: int, cx: float,
                cy: float, cth: float, wxy: float, wth: float
@@ -103,10 +119,10 @@ def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
     w = np.array([wxy, wxy, wth])
     centre = np.array([cx, cy, cth])
 
-    def prior(v: npt.NDArray[np.float64]) -> float:
-        return float(np.sum(w * (v - centre) ** 2))
+    def total(v: npt.NDArray[np.float64]) -> float:
+        return _cost_ref(field, ox, oy, cell, px, py, *v)[0] + float(np.sum(w * (v - centre) ** 2))
 
-    cost = _cost_ref(field, ox, oy, cell, px, py, x, y, th)[0] + prior(np.array([x, y, th]))
+    cost = total(np.array([x, y, th]))
     h = np.zeros((3, 3))
     lam = DAMPING
     for _ in range(iterations):
@@ -120,15 +136,7 @@ def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
         if trace == 0.0:
             break
         g = jac.T @ (1.0 - m) - w * (np.array([x, y, th]) - centre)
-        step = None
-        for _retry in range(RETRIES):
-            trial = np.linalg.solve(hp + lam * trace * np.eye(3), g)
-            v = np.array([x, y, th]) + trial
-            new_cost = _cost_ref(field, ox, oy, cell, px, py, *v)[0] + prior(v)
-            if new_cost < cost:
-                step = trial
-                break
-            lam *= 10.0
+        step, new_cost, lam = _damped_step(hp, trace, g, lam, cost, np.array([x, y, th]), total)
         if step is None:
             break
         x, y, th, cost = x + step[0], y + step[1], th + step[2], new_cost
@@ -249,15 +257,7 @@ def refine_hits_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma:
         trace = np.trace(hp)
         if trace == 0.0:
             break
-        step = None
-        new_cost = cost
-        for _retry in range(RETRIES):
-            trial = np.linalg.solve(hp + lam * trace * np.eye(3), g)
-            new_cost = total(v + trial)
-            if new_cost < cost:
-                step = trial
-                break
-            lam *= 10.0
+        step, new_cost, lam = _damped_step(hp, trace, g, lam, cost, v, total)
         if step is None:
             break
         v, cost = v + step, new_cost
