@@ -55,8 +55,8 @@ class FrontierExplorer(Explorer):
         clearance: [m] width of the costly zone beyond the robot radius.
         return_home: drive back to the start pose when exploration is done.
         face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
-            cell ever occupied, and no such cell as 8-neighbour (0: neither test, nor the memory of
-            walls: the explorer of session 4).
+            cell ever firmly occupied (hit twice more than crossed: `WallMemory`), and no such cell
+            as 8-neighbour (0: neither test, nor the memory of walls: the explorer of session 4).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
@@ -97,7 +97,7 @@ class FrontierExplorer(Explorer):
         self._pose_xy = (ctx.start.x, ctx.start.y)
         self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
-        self.walls_seen: WallMemory | None = None     # cells ever occupied (with face_reach > 0)
+        self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
 
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
@@ -270,14 +270,14 @@ class FrontierExplorer(Explorer):
         return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
 
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
-        """The cells ever occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""
+        """The cells ever firmly occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""
         if self.walls_seen is None:
             self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
         return self.walls_seen
 
     def _opening(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
         """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every cell
-        ever occupied. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the
+        ever firmly occupied. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the
         wall's inside, a cell or two from the hits on either face, and wear the face's cells down to
         unknown or free (log-odds); an opening leads into unknown space away from walls."""
         rows, cols = view.shape

@@ -316,3 +316,49 @@ def _targets_now(explorer: FrontierExplorer, grid: OccupancyGrid) -> np.ndarray:
     rows, cols = view.shape
     out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier_targets(grid, view, off)
     return out
+
+
+@pytest.mark.parametrize("model", ["logodds", "himm"])
+def test_wall_memory_keeps_walls_seen_twice_not_a_stray_hit(model: str) -> None:
+    """A scan taken from a slightly wrong pose (a heading a packet old) puts one hit 0.6 m short of the
+    wall, in free space; the next scans cross that cell. It must not stay a wall in the memory (a stray
+    hit beside a doorway would hide the opening for the rest of the run), while the wall, hit by two
+    scans and then worn down by grazing beams, stays one."""
+    from robotexp.planning.targets import WallMemory
+    from robotexp.robot import LaserScan
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 40, 40), model=model)   # type: ignore[arg-type]
+    beam = LaserScan(np.array([0.0]), np.array([2.0]), 5.0)      # from (0.55, 2.05) east: hits x = 2.55
+    short = LaserScan(np.array([0.0]), np.array([1.4]), 5.0)     # the stray hit at x = 1.95
+    pose = Pose(0.55, 2.05, 0.0)
+    wall, stray = (20, 25), (20, 19)
+    mem = WallMemory(3.0)
+    grid.update(pose, short)            # the stray scan comes first, onto unknown cells
+    mem.note(grid)
+    assert grid.occupied()[stray] and not mem.ever[stray]
+    grid.update(pose, beam)
+    mem.note(grid)
+    assert grid.occupied()[wall] and not grid.firmly_occupied()[wall]     # one hit: occupied, not firm
+    grid.update(pose, beam)             # the next scans cross the stray cell and hit the wall again
+    mem.note(grid)
+    assert grid.firmly_occupied()[wall] and mem.ever[wall]
+    assert grid.free()[stray] and not mem.ever[stray]
+    grid.mark_free(np.pad(np.ones((1, 1), bool), ((20, 19), (25, 14))))    # grazing beams wear the wall
+    mem.note(grid)
+    assert not grid.occupied()[wall] and mem.ever[wall]
+    assert mem.ever.sum() == 1
+
+
+def test_firmly_occupied_thresholds() -> None:
+    """Log-odds: two hits (2 logit(0.9) = 4.39, clamped to l_clamp) are firm, one (2.20) is not, and
+    with a larger clamp two hits still are; HIMM: two hits (+3 each = 6) are, one (3) is not."""
+    geo = GridGeometry(0.0, 0.0, 0.1, 1, 4)
+    grid = OccupancyGrid(geo)
+    grid.values[0] = [2.1972246, 3.5, 3.4, -3.5]
+    assert grid.firmly_occupied()[0].tolist() == [False, True, False, False]
+    wide = OccupancyGrid(geo, l_clamp=10.0)
+    wide.values[0] = [2.1972246, 4.3944492, 4.3, 10.0]
+    assert wide.firmly_occupied()[0].tolist() == [False, True, False, True]
+    himm = OccupancyGrid(geo, model="himm")
+    himm.values[0] = [3, 5, 6, 15]
+    assert himm.firmly_occupied()[0].tolist() == [False, False, True, True]

@@ -66,7 +66,7 @@ class WallDistance:
         reach: [cells] how far the distance must be exact.
         occupied: the cells to measure from, as a function of a box of the grid (rows r0..r1, cols
             c0..c1, half-open) giving its bool mask; None: the grid's occupied cells. It must change
-            only where the scans changed the map (e.g. `WallMemory`'s cells ever occupied).
+            only where the scans changed the map (e.g. `WallMemory`'s cells ever firmly occupied).
     """
 
     def __init__(self, reach: float,
@@ -98,15 +98,18 @@ class WallDistance:
 
 
 class WallMemory:
-    """The cells a growing log-odds map has ever shown occupied, and the distance to them.
+    """The cells a growing log-odds map has ever shown firmly occupied, and the distance to them.
 
     A wall stays a wall: beams that graze it (a full-circle scan, a robot driving along it) pass
     through its cells and wear their log-odds down to unknown or free, and the unknown inside of a
     shelf or a thick wall then borders free cells - frontier that no trip resolves (every look wears
     the face again). Explorers that ask what an opening is ask this memory instead of the map's
-    current walls. Call `note` after every scan the map integrates (it reads only the box the scans
-    since the last call changed, so no occupied state is missed); `distance` brings the distance to
-    the remembered cells up to date, recomputing only near what changed (`WallDistance`).
+    current walls. Only cells hit at least twice more than crossed count (`firmly_occupied`): a scan
+    taken from a slightly wrong pose (real odometry, a pose a packet old) puts single hits beside the
+    walls, which the next beams undo, and a memory of those would hide openings for good. Call `note`
+    after every scan the map integrates (it reads only the box the scans since the last call changed,
+    so no occupied state is missed); `distance` brings the distance to the remembered cells up to
+    date, recomputing only near what changed (`WallDistance`).
 
     Args:
         reach: [cells] how far the distance must be exact (beyond: some larger value, or inf).
@@ -119,8 +122,8 @@ class WallMemory:
         self._synced = 0
 
     def note(self, grid: OccupancyGrid) -> None:
-        """Remember the cells of `grid` occupied now among those the scans since the last call changed (a
-        grid other than the last one, or with fewer scans, is started afresh)."""
+        """Remember the cells of `grid` firmly occupied now among those the scans since the last call
+        changed (a grid other than the last one, or with fewer scans, is started afresh)."""
         if self._grid is not grid or self.ever.shape != grid.shape or grid.scans < self._synced:
             self.ever = np.zeros(grid.shape, np.bool_)
             self._grid, self._synced = grid, 0
@@ -128,10 +131,10 @@ class WallMemory:
         self._synced = grid.scans
         if box is not None:
             r0, r1, c0, c1 = box
-            self.ever[r0:r1, c0:c1] |= grid.window(r0, r1, c0, c1).occupied()
+            self.ever[r0:r1, c0:c1] |= grid.window(r0, r1, c0, c1).firmly_occupied()
 
     def distance(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
-        """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever occupied
+        """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever firmly occupied
         (exact up to `reach`; the memory's own array: do not write to it)."""
         self.note(grid)
         self.walls.update(grid)
