@@ -11,9 +11,11 @@ top speed, within `MIN_WINDOW`..`MAX_WINDOW` (bounds stretched for a robot slowe
 that they span the same distance).
 
 `frontier_left` counts the frontier a robot could still reach on its own map and never went near
-(openings of groups at least a robot wide, wall faces left out, within reach of the known-free
-space the robot can drive through from where it stands, farther than `APPROACHED` from its path,
-bordering unknown space a robot's disc could enter if it were free) and that unknown space: when an
+(openings of groups at least a robot wide, wall faces left out - the faces of every wall the map
+ever showed firmly occupied, which beams grazing it may have worn down since (`WallMemory`) -
+within reach of the known-free space the robot can drive through from where it stands, farther
+than `APPROACHED` from its path, bordering unknown space a robot's disc could enter if it were
+free) and that unknown space: when an
 explorer says it is done while some is left and what lies behind it is more than shadows
 (`LEFT_AREA`, `LEFT_SHARE`), the run records that it stopped with reachable frontier left, not that
 the building was explored.
@@ -33,6 +35,7 @@ from robotexp.robot import Pose
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.planning.targets import WallMemory
 
 __all__ = ["MAX_WINDOW", "MIN_WINDOW", "RunWatch", "SLOW_SPEED", "STRIKES", "StallWatch", "TRANSIT_FACTOR",
            "frontier_left", "unexplored_left"]
@@ -52,7 +55,8 @@ LEFT_REACH = 2.0            # [m] how far behind the frontier left the unknown s
 
 
 def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
-                  path: npt.NDArray[np.float64] | None = None) -> tuple[int, float]:
+                  path: npt.NDArray[np.float64] | None = None,
+                  walls: npt.NDArray[np.bool_] | None = None) -> tuple[int, float]:
     """The frontier a robot at `pose` could still go to and never went near, and the unknown space
     behind it.
 
@@ -60,7 +64,9 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     radius and a cell and a half of the known-free cells the robot can drive through from `pose`
     (`plan_costs` passable, 8-connected to its cell), leaving out those within `APPROACHED` of the
     robot's `path` (k, 2) [m] (the robot went there and looked: they stay frontier because no laser
-    sees behind them from anywhere near, as inside a shelf).
+    sees behind them from anywhere near, as inside a shelf). `walls` (rows, cols) bool, the cells the
+    map ever showed firmly occupied (`WallMemory`), are walls too: a face that grazing beams wore
+    down to free is still a face, not an opening, and the unknown behind it is the wall's inside.
 
     Returns:
         (cells, area): how many such frontier cells, and the area [m^2] of the unknown space
@@ -75,7 +81,12 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     start = passable_cell(geo, passable, pose.x, pose.y)
     if start is None:
         return 0, 0.0
-    targets = frontier_targets(grid, max(1, int(math.ceil(2 * radius / geo.cell))))
+    occupied = grid.occupied()
+    faces = None
+    if walls is not None and walls.any():
+        occupied = occupied | walls
+        faces = distance_transform(walls) < 1.5      # the remembered walls' 8-neighbours
+    targets = frontier_targets(grid, max(1, int(math.ceil(2 * radius / geo.cell))), faces)
     if not targets.any():
         return 0, 0.0
     reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
@@ -83,7 +94,7 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     # the unknown space a robot could drive into were it free: a disc of `radius` clear of every
     # occupied cell, connected to the robot. A gap in a wall narrower than the robot (grazing beams
     # that freed a wall cell) opens no way to the unknown space beyond it, nor does a shelf's inside.
-    open_space = np.ascontiguousarray(distance_transform(grid.occupied()) > radius / geo.cell)
+    open_space = np.ascontiguousarray(distance_transform(occupied) > radius / geo.cell)
     beyond = grid.unknown() & flood8(open_space, start[0], start[1]) if open_space[start] else None
     if beyond is None or not beyond.any():
         return 0, 0.0
@@ -108,11 +119,11 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     return n, float(sum(int(sizes[k]) for k in touched)) * geo.cell ** 2
 
 
-def unexplored_left(grid: OccupancyGrid, pose: Pose, radius: float, path: npt.NDArray[np.float64] | None = None
-                    ) -> tuple[int, float] | None:
+def unexplored_left(grid: OccupancyGrid, pose: Pose, radius: float, path: npt.NDArray[np.float64] | None = None,
+                    walls: npt.NDArray[np.bool_] | None = None) -> tuple[int, float] | None:
     """`frontier_left` when what lies behind that frontier matters: at least `LEFT_AREA` [m^2] and
     `LEFT_SHARE` of the known free area (shadows behind furniture do not); else None."""
-    n, area = frontier_left(grid, pose, radius, path)
+    n, area = frontier_left(grid, pose, radius, path, walls)
     free = float(np.count_nonzero(grid.free())) * grid.geo.cell ** 2
     if n and area >= max(LEFT_AREA, LEFT_SHARE * free):
         return n, area
@@ -204,11 +215,15 @@ class RunWatch(RunObserver):
     def __init__(self, stall: StallWatch | None = None, area: tuple[float, float, float, float] | None = None,
                  check_done: bool = True) -> None:
         self.stall, self.area, self.check_done = stall, area, check_done
+        self.walls: WallMemory | None = None
 
     def on_start(self, run: Any) -> None:
-        """Size the stall window for the run's grid and robot."""
+        """Size the stall window for the run's grid and robot; start the memory of walls."""
+        from robotexp.planning.targets import WallMemory
+
         if self.stall is not None:
             self.stall.start(run.grid, run.robot.limits.v_max)
+        self.walls = WallMemory(1.5) if self.check_done else None
 
     def on_step(self, run: Any, step: Any) -> None:
         """Bounds and Done checks."""
@@ -221,8 +236,12 @@ class RunWatch(RunObserver):
             x0, y0, x1, y1 = self.area
             run.request_stop(f"the robot left the exploration area at ({p.x:.2f}, {p.y:.2f}) m "
                              f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)", EndReason.STOPPED)
+        if self.walls is not None:
+            self.walls.note(run.grid)
         if self.check_done and isinstance(step.decision, Done) and step.decision.explored:
-            left = unexplored_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path))
+            walls = self.walls.ever if self.walls is not None else None
+            left = unexplored_left(run.grid, step.state.pose, run.robot.radius, np.asarray(run.metrics.path),
+                                   walls)
             if left is not None:
                 run.completed = False
                 run.end = EndReason.STOPPED

@@ -82,6 +82,36 @@ def test_done_with_reachable_frontier_left_is_not_a_completed_run():
     assert r.completed and r.reason == "explored"
 
 
+class WearTheFaceThenQuit(Explorer):
+    """Turns on the spot for 2 s (the scans hit the east wall's face again and again), then wears the
+    face down to free as beams grazing it would, and says it has explored everything."""
+
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        if state.time < 2.0:
+            return Twist(0.0, 0.2)
+        face = np.zeros(grid.shape, bool)
+        rows, cols = grid.geo.cells_of(np.array([[3.55, 0.6], [3.55, 2.4]])).T
+        face[rows[0]:rows[1] + 1, cols[0]] = True
+        grid.mark_free(face & grid.occupied())
+        return Done("explored")
+
+
+def test_a_worn_face_of_a_thick_wall_is_no_frontier_left():
+    """A closed room whose east wall is 1 m thick: the robot sees its face, grazing beams then wear the
+    face down to free, so the unknown inside of the wall borders free cells. The watch remembers the
+    walls it saw (`WallMemory`): the explorer's "explored" stands. Asked of the worn map alone, the
+    wall's inside is 2 m2 and more of unknown space behind reachable frontier."""
+    from robotexp.watch import unexplored_left
+
+    room = World("thick", np.array([segment_box(0, 0, 4, 0, T), segment_box(4, 0, 4, 3, 1.0),
+                                    segment_box(4, 3, 0, 3, T), segment_box(0, 3, 0, 0, T)]))
+    geo = GridGeometry.covering(*room.bounds, cell=0.1, margin=0.5)
+    r = run(WearTheFaceThenQuit(), RunWatch(StallWatch()), Pose(1.5, 1.5, 0.0), world=room, geo=geo)
+    assert r.completed and r.reason == "explored", r.reason
+    left = unexplored_left(r.grid, Pose(1.5, 1.5, 0.0), 0.25, np.asarray(r.metrics.path))
+    assert left is not None and left[1] >= 2.0
+
+
 def test_scans_clipped_at_the_area_keep_a_scan_driven_explorer_inside_it():
     area = (0.5, 0.5, 3.5, 5.5)                  # the west room less 0.5 m: its edge is no wall
     r = run(Wander(), RunWatch(None, area), Pose(2.0, 3.0, 0.0), area=area, max_time=240.0)

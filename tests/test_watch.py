@@ -109,6 +109,10 @@ def test_frontier_left_counts_a_reachable_opening_and_nothing_in_a_closed_room()
     near = np.array([[2.0 + 0.1 * k, 3.0] for k in range(30)])         # up to x = 4.9 m, by the gap
     assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, far)[0] >= 5
     assert frontier_left(room_grid(True), Pose(2.5, 3.0, 0.0), 0.25, near)[0] == 0
+    # remembered walls (the same walls, here) leave a real opening an opening
+    grid = room_grid(True)
+    assert frontier_left(grid, Pose(2.5, 3.0, 0.0), 0.25, walls=grid.occupied()) == \
+        frontier_left(grid, Pose(2.5, 3.0, 0.0), 0.25)
 
 
 def test_the_unknown_behind_the_frontier_left_decides_whether_it_matters():
