@@ -273,15 +273,20 @@ class ExplorationRun:
             return
         notify("on_start", self)
         collisions0 = int(state.extra.get("collisions", 0))
+        mapped: float | None = None         # the stamp of the last scan mapped
         while True:
             if self._sigint:                # a Ctrl-C whose KeyboardInterrupt was swallowed on its way
                 raise KeyboardInterrupt
             self.state = state
             self.robot_time = state.time - t0
             self._track(state, collisions0)
-            updated = state.laser is not None
-            if state.laser is not None:
+            # a scan is evidence once: a backend whose loop outruns its laser hands the same scan
+            # (same stamp) out again, and mapping it twice would count its hits twice
+            updated = state.laser is not None and (state.laser.stamp is None or state.laser.stamp != mapped)
+            if updated:
+                assert state.laser is not None
                 self.grid.update(state.pose, state.laser)
+                mapped = state.laser.stamp
             # half a period of slack: robot time summed from float periods reads 0.99999 s at
             # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
             if self.robot_time >= next_sample - slack:

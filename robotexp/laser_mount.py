@@ -231,7 +231,8 @@ class LaserMountedRobot(Robot):
                 x, y, th = poses
                 beam_sensors = (x + np.cos(th) * m.x - np.sin(th) * m.y, y + np.sin(th) * m.x + np.cos(th) * m.y,
                                 th + m.theta)
-        return replace(state, laser=scan_in_robot_frame(stamped.scan, sensor, state.pose, beam_sensors))
+        return replace(state, laser=replace(scan_in_robot_frame(stamped.scan, sensor, state.pose, beam_sensors),
+                                            stamp=stamped.stamp))
 
     def _command(self, twist: Twist) -> None:
         self.robot.command(twist)

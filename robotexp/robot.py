@@ -99,13 +99,17 @@ class LaserScan:
     """One planar laser scan in the robot frame.
 
     `angles` and `ranges` are float64 arrays of shape (n,): beam angle [rad] relative to the
-    robot heading and measured range [m]; a beam that hit nothing reads `inf`.
+    robot heading and measured range [m]; a beam that hit nothing reads `inf`. `stamp` tells one
+    measurement from another: a backend that hands the same scan out in several states (its loop
+    runs faster than the laser) gives them one stamp [s, any clock of its own], and the run loop maps
+    each stamp once; None (a new scan in every state, as on the simulator) is always mapped.
     """
 
     angles: npt.NDArray[np.float64]
     ranges: npt.NDArray[np.float64]
     range_max: float        # [m]
     offset_x: float = 0.0   # [m] sensor position ahead of the robot centre
+    stamp: float | None = None  # [s] when measured (equal stamps: the same measurement)
 
     def nearest(self) -> float:
         """The smallest finite range [m], or `inf` when no beam hit."""

@@ -279,3 +279,43 @@ def test_collisions_are_counted(truth: GroundTruth) -> None:
     assert run.reason == "time limit of 8 s reached"
     # stopped with its edge at the wall's face (x = 9.95 m): centre at 9.7 m
     assert run.metrics.path[-1][0] == pytest.approx(9.95 - 0.25, abs=0.02)
+
+
+class SlowLaserSim(RecordingSim):
+    """A SimRobot whose laser is half as fast as its states: every scan comes in two states, with
+    its stamp (as a driver's newest scan does until the next one)."""
+
+    def __init__(self) -> None:
+        self.last: object = None
+        super().__init__()
+
+    def _read(self) -> RobotState:
+        from dataclasses import replace
+
+        state = super()._read()
+        assert state.laser is not None
+        if self.reads % 2 == 1:
+            self.last = replace(state.laser, stamp=float(self.reads))
+        return replace(state, laser=self.last)
+
+
+def test_a_scan_handed_out_twice_is_mapped_once(truth: GroundTruth) -> None:
+    """Mapping a repeated scan again would count its hits twice (one stray hit would look like a wall
+    seen twice): the loop maps each stamp once, and says so in its step events."""
+    from robotexp.observers import RunObserver
+
+    class Steps(RunObserver):
+        def __init__(self) -> None:
+            self.updated: list[bool] = []
+
+        def on_step(self, run: ExplorationRun, step: object) -> None:
+            self.updated.append(step.map_updated)           # type: ignore[attr-defined]
+
+    steps = Steps()
+    with SlowLaserSim() as robot:
+        grid = new_grid()
+        r = ExplorationRun(robot, Straight(x_end=3.0), grid, truth=truth, max_time=60.0, observers=[steps]).run()
+    assert r.reason == "scripted end"
+    n = len(steps.updated)
+    assert n >= 40 and grid.scans == sum(steps.updated) == (n + 1) // 2
+    assert steps.updated[:4] == [True, False, True, False]

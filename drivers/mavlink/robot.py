@@ -17,7 +17,13 @@ SET_POSITION_TARGET_LOCAL_NED in MAV_FRAME_BODY_NED with type mask 1511 (velocit
 "turn rate and speed"): ``vx = v``, ``yaw_rate = -w``. OBSTACLE_DISTANCE (cm, clockwise sectors from
 the nose in BODY_FRD, or from north in GLOBAL / LOCAL_NED frames) becomes a `LaserScan`: one beam per
 element at the sector's direction; UINT16_MAX and readings below `min_distance` are left out,
-readings above `max_distance` are "nothing hit" (inf). Without OBSTACLE_DISTANCE, the horizontal
+readings above `max_distance` are "nothing hit" (inf). The scan is taken where the vehicle was at its
+`time_usec` when that reads as the vehicle's boot clock (within `PAIR_SPAN` before the newest
+LOCAL_POSITION_NED): the pose then is interpolated between the LOCAL_POSITION_NED (and ATTITUDE)
+messages around it and every echo is moved to where it lies as seen from the newest pose (the scan
+stream is slower than the pose stream, so a state's newest scan is often a pose or two old: taken
+as from the newest pose, a turning rover would map its walls turned). Its stamp is `time_usec`, so
+a run maps each scan once. Without OBSTACLE_DISTANCE, the horizontal
 DISTANCE_SENSOR readings (orientation 0..7: 45-degree sectors clockwise from the nose, as ArduPilot
 reports its proximity sectors and rangefinders) heard within the last second make the scan, one
 beam per sensor; with neither, the state has no laser (a laser driver can be paired with the robot).
@@ -38,10 +44,12 @@ import logging
 import math
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
+from robotexp.laser_mount import PoseHistory, scan_in_robot_frame
 from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C
@@ -52,6 +60,9 @@ __all__ = ["MavlinkRobot", "ROVER_LIMITS", "ROVER_RADIUS", "scan_from_obstacle_d
            "ned_to_enu"]
 
 DISTANCE_SENSOR_FRESH = 1.0   # [s] DISTANCE_SENSOR readings older than this are left out of the scan
+PAIR_SPAN = 1.0               # [s] an OBSTACLE_DISTANCE stamped this much before the newest pose, or less,
+                              # is placed from the pose at its stamp (else: other clock, newest pose)
+POSE_SAMPLES = 64             # poses kept for that (3 s at 20 Hz)
 
 log = logging.getLogger(__name__)
 
@@ -159,6 +170,8 @@ class MavlinkRobot(StreamBackend):
         self._position: Message | None = None
         self._attitude: Message | None = None
         self._scan_msg: Message | None = None
+        self._poses = PoseHistory(POSE_SAMPLES)   # vehicle boot time [s] -> our pose, at each LOCAL_POSITION_NED
+        self._pose_t = -math.inf               # [s] vehicle boot time of the newest one
         self._ranges: dict[int, tuple[float, Message]] = {}   # DISTANCE_SENSOR id -> (perf_counter, message)
         self._origin: Message | None = None    # the vehicle's GPS_GLOBAL_ORIGIN
         self.origin_set = False                # we set the EKF origin
@@ -300,6 +313,7 @@ class MavlinkRobot(StreamBackend):
             dth = wrap_angle(pose.theta - raw.theta)
             c, s = math.cos(dth), math.sin(dth)
             self._anchor = (pose.x - (c * raw.x - s * raw.y), pose.y - (s * raw.x + c * raw.y), dth)
+            self._poses = PoseHistory(POSE_SAMPLES)    # poses in the old frame
 
     def move_to(self, pose: Pose) -> None:
         """Tell the robot it stands at `pose`: poses are reported from there on (the vehicle is stopped
@@ -366,7 +380,13 @@ class MavlinkRobot(StreamBackend):
                 self._position = m
                 self.state_time = now
                 if self._attitude is not None:
-                    self._state_seen(self._time_ms / 1000.0, self._anchored(self._raw_pose()))
+                    pose = self._anchored(self._raw_pose())
+                    self._state_seen(self._time_ms / 1000.0, pose)
+                    t = m.time_boot_ms / 1000.0
+                    if t < self._pose_t:            # the vehicle rebooted (or its clock wrapped)
+                        self._poses = PoseHistory(POSE_SAMPLES)
+                    self._pose_t = t
+                    self._poses.add(t, pose)
             elif kind == "ATTITUDE":
                 self._attitude = m
             elif kind == "OBSTACLE_DISTANCE":
@@ -405,7 +425,7 @@ class MavlinkRobot(StreamBackend):
             v = p.vx * math.cos(a.yaw) + p.vy * math.sin(a.yaw)
             scan = self._scan_msg
             if scan is not None:
-                laser: LaserScan | None = scan_from_obstacle_distance(scan, a.yaw)
+                laser: LaserScan | None = self._placed_scan(scan, a.yaw, pose)
             else:
                 fresh = time.perf_counter() - DISTANCE_SENSOR_FRESH
                 laser = scan_from_distance_sensors([m for t, m in self._ranges.values() if t >= fresh])
@@ -416,6 +436,18 @@ class MavlinkRobot(StreamBackend):
                        "frames": float(self._codec.frames), "bad_frames": float(self._codec.bad_frames),
                        "dropped_bytes": float(self._codec.dropped_bytes),
                        "watchdog_stops": float(self.watchdog_stops)})
+
+    def _placed_scan(self, msg: Message, yaw_ned: float, pose: Pose) -> LaserScan:
+        """OBSTACLE_DISTANCE `msg` as the robot at `pose` (the newest) sees it, placed from where the
+        vehicle was at its stamp when that is on the vehicle's boot clock (see the module); under
+        `_cond`."""
+        t = msg.time_usec / 1e6
+        at = self._poses.at(t) if 0.0 <= self._pose_t - t <= PAIR_SPAN else None
+        if at is None:
+            return replace(scan_from_obstacle_distance(msg, yaw_ned), stamp=t)
+        raw_theta = wrap_angle(at.theta - self._anchor[2])
+        scan = scan_from_obstacle_distance(msg, wrap_angle(math.pi / 2 - raw_theta))   # the yaw at the stamp
+        return replace(scan_in_robot_frame(scan, at, pose), stamp=t)
 
     def _close(self) -> None:
         try:

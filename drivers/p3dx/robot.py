@@ -100,6 +100,7 @@ class P3DXRobot(StreamBackend):
         self._collisions = 0
         self._sonar = np.full(c.SONAR_NUM, np.inf)
         self._scan: LaserScan | None = None
+        self._scans = 0                 # laser scans completed
         self._scan_buf: np.ndarray | None = None
         self._laser_active = False
         self._laser_cfg = (c.LASER_DEFAULT_START_DEG, c.LASER_DEFAULT_END_DEG)
@@ -330,7 +331,9 @@ class P3DXRobot(StreamBackend):
         ranges[(ranges >= self.laser_range) | (ranges >= c.LASER_NO_HIT_MM / 1000.0)] = np.inf
         lo, hi = sorted(self._laser_cfg)
         angles = np.radians(np.linspace(lo, hi, len(ranges))) if len(ranges) > 1 else np.zeros(1)
-        self._scan = LaserScan(angles, ranges, min(self.laser_range, c.LASER_NO_HIT_MM / 1000.0), self.laser_offset)
+        self._scans += 1                # every SIP until the next scan repeats this one: its number tells
+        self._scan = LaserScan(angles, ranges, min(self.laser_range, c.LASER_NO_HIT_MM / 1000.0), self.laser_offset,
+                               stamp=float(self._scans))
         self._laser_active = True
         if self._pending is not None:
             self._publish(replace(self._pending, laser=self._scan))

@@ -102,6 +102,7 @@ class LocalizedRobot(Robot):
         self.steps: list[tuple[float, str, int, float]] = []
         self._start = start
         self._last: tuple[float, RobotState] | None = None
+        self._matched: float | None = None                  # the stamp of the last scan matched
         super().__init__()
 
     def _read(self) -> RobotState:
@@ -114,7 +115,12 @@ class LocalizedRobot(Robot):
             if state.laser is not None:
                 self.localizer.integrate(pose, state.laser)
         else:
-            pose = self.localizer.locate(state.pose, state.laser, state.velocity.w)
+            scan = state.laser
+            if scan is not None and scan.stamp is not None and scan.stamp == self._matched:
+                scan = None                             # a scan handed out again: matched once
+            pose = self.localizer.locate(state.pose, scan, state.velocity.w)
+        if state.laser is not None:
+            self._matched = state.laser.stamp
         out = replace(state, pose=pose)
         if state.true_pose is not None:
             self.track.append((pose, state.true_pose))

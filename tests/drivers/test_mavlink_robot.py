@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import pytest
 
 from robotexp.errors import ConnectionLost
@@ -120,3 +121,58 @@ def test_garbage_burst_and_wrong_checksums_are_survived(emu: MavlinkEmulator, wa
 def test_no_vehicle_is_connection_lost() -> None:
     with pytest.raises(ConnectionLost, match="no vehicle HEARTBEAT"):
         MavlinkRobot("udp:127.0.0.1:0", connect_timeout=0.3)
+
+
+def _echo_errors(world: World, states: list[Any]) -> np.ndarray:
+    """[m] distance from each echo of `states` (placed from the state's pose) to the world's walls."""
+    from robotexp.mapping.geometry import GridGeometry
+    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.planning.grid_planner import distance_transform
+
+    geo = GridGeometry.covering(*world.bounds, cell=0.01, margin=0.5)
+    dist = distance_transform(occupancy(world, geo)) * geo.cell
+    out = []
+    for s in states:
+        scan, p = s.laser, s.pose
+        hit = np.isfinite(scan.ranges) & (scan.ranges < scan.range_max)
+        bx = scan.offset_x + scan.ranges[hit] * np.cos(scan.angles[hit])
+        by = scan.ranges[hit] * np.sin(scan.angles[hit])
+        c, sn = math.cos(p.theta), math.sin(p.theta)
+        cells = geo.cells_of(np.column_stack([p.x + c * bx - sn * by, p.y + sn * bx + c * by]))
+        out.append(dist[cells[:, 0], cells[:, 1]])
+    return np.concatenate(out)
+
+
+@pytest.mark.parametrize("paired", [True, False])
+def test_a_scan_is_placed_from_the_pose_at_its_stamp(world: World, paired: bool,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """OBSTACLE_DISTANCE comes at 10 Hz, poses at 20 Hz: while the rover turns at 90 deg/s, half the
+    states carry a scan a pose old (4.5 deg). Placed from the pose at its stamp, every echo lies on a
+    wall (whole cm, 1 cm raster); placed from the newest pose (a stamp on another clock than the
+    vehicle's boot clock), echoes at a few metres miss the walls by decimetres. Each scan keeps its
+    stamp in every state that carries it (the run loop maps it once)."""
+    import robotexp_drivers.mavlink.robot as mr
+
+    if not paired:
+        monkeypatch.setattr(mr, "PAIR_SPAN", -1.0)
+    start = resolve_pose(world, "path1", 0.25)[0]
+    states: list[Any] = []
+    with MavlinkEmulator(world, pose=start, speedup=5.0, obstacle_distance=True) as e:
+        with MavlinkRobot(e.address) as robot:
+            deadline = time.perf_counter() + 1.5
+            while time.perf_counter() < deadline:
+                robot.command(Twist(0.0, math.radians(90)))
+                s = robot.read()
+                if s.laser is not None and abs(s.velocity.w) > math.radians(80) and \
+                        (not states or s.time != states[-1].time):
+                    states.append(s)
+                time.sleep(0.002)
+    stamps = [s.laser.stamp for s in states]
+    assert len(states) >= 20
+    assert len(set(stamps)) < len(stamps)                 # scans repeated in several states ...
+    assert len(set(stamps)) >= len(stamps) // 3           # ... each one two states or so
+    err = _echo_errors(world, states)
+    if paired:
+        assert np.percentile(err, 95) < 0.03, np.percentile(err, [50, 95])
+    else:
+        assert np.percentile(err, 95) > 0.08, np.percentile(err, [50, 95])
