@@ -177,7 +177,11 @@ class OccupancyGrid:
         A consumer that keeps something derived from the map (costs, an inflation) remembers `scans`
         and recomputes only near this box at its next update.
         """
-        a = self._changes[max(since, 0):self.scans]
+        since = max(since, 0)
+        if since == self.scans - 1:         # one scan (every step of a run): no array reductions
+            r0, r1, c0, c1 = self._changes[since].tolist()
+            return (r0, r1, c0, c1) if r1 > r0 else None
+        a = self._changes[since:self.scans]
         a = a[a[:, 1] > a[:, 0]]
         if len(a) == 0:
             return None
@@ -245,13 +249,15 @@ class OccupancyGrid:
             return self.values > 0
         return self.values > HIMM_OCCUPIED
 
-    def firmly_occupied(self) -> npt.NDArray[np.bool_]:
+    def firmly_occupied(self, box: tuple[int, int, int, int] | None = None) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): cells occupied by at least two hits more than crossing beams
         (log-odds >= min(2 l_occ, l_clamp); HIMM certainty >= 6). A hit that a scan taken from a
-        slightly wrong pose put beside a wall is one hit, which the next beams through it undo."""
+        slightly wrong pose put beside a wall is one hit, which the next beams through it undo.
+        With `box` = (r0, r1, c0, c1) (half-open), only those rows and columns."""
+        v = self.values if box is None else self.values[box[0]:box[1], box[2]:box[3]]
         if self.model == "logodds":
-            return self.values >= np.float32(min(2.0 * self.l_occ, self.l_clamp))
-        return self.values >= 2 * 3
+            return v >= np.float32(min(2.0 * self.l_occ, self.l_clamp))
+        return v >= 2 * 3
 
     def near_occupied(self) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): occupied cells and their 8-neighbours (a frontier cell here is the face

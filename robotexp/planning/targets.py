@@ -127,11 +127,13 @@ class WallMemory:
         if self._grid is not grid or self.ever.shape != grid.shape or grid.scans < self._synced:
             self.ever = np.zeros(grid.shape, np.bool_)
             self._grid, self._synced = grid, 0
+        if grid.scans == self._synced:
+            return
         box = grid.changed_box(self._synced)
         self._synced = grid.scans
         if box is not None:
             r0, r1, c0, c1 = box
-            self.ever[r0:r1, c0:c1] |= grid.window(r0, r1, c0, c1).firmly_occupied()
+            self.ever[r0:r1, c0:c1] |= grid.firmly_occupied(box)
 
     def distance(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
         """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever firmly occupied
