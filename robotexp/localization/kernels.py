@@ -63,8 +63,8 @@ def splat_field(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_
         for c in range(cols):
             if not occ[r, c]:
                 continue
-            hx = c + off_x[r, c]
-            hy = r + off_y[r, c]
+            hx = c + float(off_x[r, c])      # in float64, as compiled
+            hy = r + float(off_y[r, c])
             for rr in range(max(r - reach, 0), min(r + reach + 1, rows)):
                 dy = rr - hy
                 for cc in range(max(c - reach, 0), min(c + reach + 1, cols)):
