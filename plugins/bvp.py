@@ -101,6 +101,13 @@ class BVPExplorer(Explorer):
       place while there is no goal yet (`flat_gradient_steps` counts these steps).
     - Guard beyond the thesis: no forward motion while a laser return lies in the corridor the
       robot would sweep (`blocked_ahead`, `clearance`); the smoothed speed restarts from 0 then.
+    - Stalls (beyond the thesis): 30 sweeps a second carry a change about a cell per sweep against
+      the sweep order, so on a large window the field under the robot still shows goals long gone
+      (a room it has just explored keeps pulling it back while the unknown lies 20 m away). When the
+      run's stall watch sees no progress (`give_up`), the next update starts the free cells over at
+      p = 1 and runs `flush_sweeps` per cell of the window's rows + columns (information crosses it a
+      few times over): relaxed from below, the field has no stale bump, so the descent leads to the
+      goals. Then the thesis's sweeps again. A run that never stalls is the thesis's, bit for bit.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
@@ -118,6 +125,7 @@ class BVPExplorer(Explorer):
         epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
         direction: [rad] the preferred direction v of eq. 3.6.
         epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
+        flush_sweeps: after a stall, sweeps per cell of the window's rows + columns (>= 0; 0: none).
     """
 
     grid_model = "himm"
@@ -125,9 +133,12 @@ class BVPExplorer(Explorer):
 
     def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,
                  k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.05,
-                 epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0) -> None:
+                 epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0,
+                 flush_sweeps: int = 4) -> None:
         if not (isinstance(sweeps, int) and sweeps >= 1):
             raise ConfigError(f"bvp: sweeps must be an integer >= 1, got {sweeps!r}")
+        if not (isinstance(flush_sweeps, int) and flush_sweeps >= 0):
+            raise ConfigError(f"bvp: flush_sweeps must be an integer >= 0, got {flush_sweeps!r}")
         for name, value in (("update_period", update_period), ("r_max", r_max), ("k_turn", k_turn)):
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"bvp: {name} must be > 0, got {value}")
@@ -146,6 +157,7 @@ class BVPExplorer(Explorer):
         self.sweeps, self.update_period, self.r_max, self.eta = sweeps, update_period, r_max, eta
         self.k_turn, self.inflate, self.clearance = k_turn, inflate, clearance
         self.epsilon, self.direction, self.epsilon_grad = epsilon, direction, epsilon_grad
+        self.flush_sweeps = flush_sweeps
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run: empty potential, no heading, speed 0."""
@@ -161,6 +173,8 @@ class BVPExplorer(Explorer):
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
         self.walls = WallDistance(0.0)
         self._goal_off = (0, 0)
+        self.flush = False          # the next update relaxes the field to convergence (`give_up`)
+        self.flushes = 0
 
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
@@ -254,7 +268,15 @@ class BVPExplorer(Explorer):
         e = self.epsilon
         # in q = 1 - p eq. 3.6 keeps its sign and eq. 3.7 flips it; the window with its ring of the
         # padded field (fixed cells or the map's border) is all the sweeps read
-        relax(self.q, self.fixed, self.sweeps,
+        sweeps = self.sweeps
+        if self.flush:
+            # start over from p = 1 on the free cells: relaxed from below, the field has no stale
+            # bump (no interior extremum) anywhere, and every cell's value comes from the goals now
+            inner[~(wall | goal)] = 0.0
+            sweeps += self.flush_sweeps * (rows + cols)
+            self.flush = False
+            self.flushes += 1
+        relax(self.q, self.fixed, sweeps,
               preferred=(e * math.cos(self.direction), e * math.sin(self.direction)), eps_abs=-self.epsilon_grad,
               window=(off[0], off[0] + rows + 2, off[1], off[1] + cols + 2))
         self.updates += 1
@@ -321,6 +343,16 @@ class BVPExplorer(Explorer):
             v = 0.0
         self.v = v
         return Twist(v, w)
+
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """The run saw no progress for a while (its stall watch): the field under the robot may still
+        show goals that are gone. Relax it to convergence now (see the class); False when that
+        cannot help (`flush_sweeps` 0, or no field yet)."""
+        if self.flush_sweeps == 0 or self.updates == 0:
+            return False
+        self.flush = True
+        self.next_update = -math.inf
+        return True
 
     def _toward_nearest_goal(self, grid: OccupancyGrid, r: int, c: int) -> float | None:
         """Heading [rad] to the nearest goal (unknown) cell, or None when there is none.
