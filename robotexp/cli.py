@@ -749,6 +749,7 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
                    f"capabilities: {', '.join(sorted(robot.capabilities)) or 'none'}")
         end, next_line = time.monotonic() + duration, 0.0
         t0: float | None = None
+        written: float | None = None        # the stamp of the last scan written (each measurement once)
         try:
             while True:
                 now = time.monotonic()
@@ -760,7 +761,12 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
                     feed.publish(state)
                 if recorder is not None and state is not None:
                     t0 = state.time if t0 is None else t0
-                    recorder.write_state(state.time - t0, state)
+                    scan = state.laser
+                    fresh = scan is not None and (scan.stamp is None or scan.stamp != written)
+                    recorder.write_state(state.time - t0, state, fresh)
+                    if fresh:
+                        assert scan is not None
+                        written = scan.stamp
                 if due:
                     line = _status_line(state)
                     click.echo(f"\r{line}" if tty else line, nl=not tty)
