@@ -22,8 +22,9 @@ readings above `max_distance` are "nothing hit" (inf). The scan is taken where t
 LOCAL_POSITION_NED): the pose then is interpolated between the LOCAL_POSITION_NED (and ATTITUDE)
 messages around it and every echo is moved to where it lies as seen from the newest pose (the scan
 stream is slower than the pose stream, so a state's newest scan is often a pose or two old: taken
-as from the newest pose, a turning rover would map its walls turned). Its stamp is `time_usec`, so
-a run maps each scan once. Without OBSTACLE_DISTANCE, the horizontal
+as from the newest pose, a turning rover would map its walls turned). Its stamp is its number
+among the OBSTACLE_DISTANCE messages received (senders that leave `time_usec` 0 included), so a
+run maps each scan once. Without OBSTACLE_DISTANCE, the horizontal
 DISTANCE_SENSOR readings (orientation 0..7: 45-degree sectors clockwise from the nose, as ArduPilot
 reports its proximity sectors and rangefinders) heard within the last second make the scan, one
 beam per sensor; with neither, the state has no laser (a laser driver can be paired with the robot).
@@ -170,6 +171,7 @@ class MavlinkRobot(StreamBackend):
         self._position: Message | None = None
         self._attitude: Message | None = None
         self._scan_msg: Message | None = None
+        self._scans = 0                        # OBSTACLE_DISTANCE messages received
         self._poses = PoseHistory(POSE_SAMPLES)   # vehicle boot time [s] -> our pose, at each LOCAL_POSITION_NED
         self._pose_t = -math.inf               # [s] vehicle boot time of the newest one
         self._ranges: dict[int, tuple[float, Message]] = {}   # DISTANCE_SENSOR id -> (perf_counter, message)
@@ -391,6 +393,7 @@ class MavlinkRobot(StreamBackend):
                 self._attitude = m
             elif kind == "OBSTACLE_DISTANCE":
                 self._scan_msg = m
+                self._scans += 1                # the scan's stamp: whatever its time_usec holds (0, a repeat)
             elif kind == "DISTANCE_SENSOR":
                 self._ranges[m.id] = (now, m)
             elif kind == "GPS_GLOBAL_ORIGIN":
@@ -444,10 +447,10 @@ class MavlinkRobot(StreamBackend):
         t = msg.time_usec / 1e6
         at = self._poses.at(t) if 0.0 <= self._pose_t - t <= PAIR_SPAN else None
         if at is None:
-            return replace(scan_from_obstacle_distance(msg, yaw_ned), stamp=t)
+            return replace(scan_from_obstacle_distance(msg, yaw_ned), stamp=float(self._scans))
         raw_theta = wrap_angle(at.theta - self._anchor[2])
         scan = scan_from_obstacle_distance(msg, wrap_angle(math.pi / 2 - raw_theta))   # the yaw at the stamp
-        return replace(scan_in_robot_frame(scan, at, pose), stamp=t)
+        return replace(scan_in_robot_frame(scan, at, pose), stamp=float(self._scans))
 
     def _close(self) -> None:
         try:

@@ -176,3 +176,30 @@ def test_a_scan_is_placed_from_the_pose_at_its_stamp(world: World, paired: bool,
         assert np.percentile(err, 95) < 0.03, np.percentile(err, [50, 95])
     else:
         assert np.percentile(err, 95) > 0.08, np.percentile(err, [50, 95])
+
+
+def test_a_sender_that_leaves_time_usec_zero_still_gets_every_scan_mapped(world: World,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """OBSTACLE_DISTANCE's time_usec may be 0 (a companion computer that does not stamp): such scans
+    cannot be placed from the pose at their time, but each still gets a stamp of its own, so the run
+    loop maps every scan once instead of the first one for ever."""
+    orig = MavlinkEmulator._obstacle_distance
+
+    def unstamped(self: MavlinkEmulator, t: float, scan: object) -> Any:
+        msg = orig(self, t, scan)
+        msg.time_usec = 0
+        return msg
+
+    monkeypatch.setattr(MavlinkEmulator, "_obstacle_distance", unstamped)
+    start = resolve_pose(world, "path1", 0.25)[0]
+    stamps: list[float] = []
+    with MavlinkEmulator(world, pose=start, speedup=5.0, obstacle_distance=True) as e:
+        with MavlinkRobot(e.address) as robot:
+            deadline = time.perf_counter() + 1.0
+            while time.perf_counter() < deadline:
+                s = robot.read()
+                if s.laser is not None and (not stamps or s.laser.stamp != stamps[-1]):
+                    assert s.laser.stamp is not None
+                    stamps.append(s.laser.stamp)
+                time.sleep(0.005)
+    assert len(stamps) >= 20 and stamps == sorted(set(stamps))     # a new stamp for every scan
