@@ -143,6 +143,24 @@ def _echo_errors(world: World, states: list[Any]) -> np.ndarray:
     return np.concatenate(out)
 
 
+def _laser_states(world: World, seconds: float, twist: Twist | None) -> list[Any]:
+    """The states with a scan, one per robot time, that a MavlinkRobot reads for `seconds` of wall time
+    from the emulator (OBSTACLE_DISTANCE, 5x real time) at path1, commanding `twist` (None: none)."""
+    start = resolve_pose(world, "path1", 0.25)[0]
+    states: list[Any] = []
+    with MavlinkEmulator(world, pose=start, speedup=5.0, obstacle_distance=True) as e:
+        with MavlinkRobot(e.address) as robot:
+            deadline = time.perf_counter() + seconds
+            while time.perf_counter() < deadline:
+                if twist is not None:
+                    robot.command(twist)
+                s = robot.read()
+                if s.laser is not None and (not states or s.time != states[-1].time):
+                    states.append(s)
+                time.sleep(0.002)
+    return states
+
+
 @pytest.mark.parametrize("paired", [True, False])
 def test_a_scan_is_placed_from_the_pose_at_its_stamp(world: World, paired: bool,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
@@ -155,18 +173,8 @@ def test_a_scan_is_placed_from_the_pose_at_its_stamp(world: World, paired: bool,
 
     if not paired:
         monkeypatch.setattr(mr, "PAIR_SPAN", -1.0)
-    start = resolve_pose(world, "path1", 0.25)[0]
-    states: list[Any] = []
-    with MavlinkEmulator(world, pose=start, speedup=5.0, obstacle_distance=True) as e:
-        with MavlinkRobot(e.address) as robot:
-            deadline = time.perf_counter() + 1.5
-            while time.perf_counter() < deadline:
-                robot.command(Twist(0.0, math.radians(90)))
-                s = robot.read()
-                if s.laser is not None and abs(s.velocity.w) > math.radians(80) and \
-                        (not states or s.time != states[-1].time):
-                    states.append(s)
-                time.sleep(0.002)
+    states = [s for s in _laser_states(world, 1.5, Twist(0.0, math.radians(90)))
+              if abs(s.velocity.w) > math.radians(80)]
     stamps = [s.laser.stamp for s in states]
     assert len(states) >= 20
     assert len(set(stamps)) < len(stamps)                 # scans repeated in several states ...
@@ -191,15 +199,9 @@ def test_a_sender_that_leaves_time_usec_zero_still_gets_every_scan_mapped(world:
         return msg
 
     monkeypatch.setattr(MavlinkEmulator, "_obstacle_distance", unstamped)
-    start = resolve_pose(world, "path1", 0.25)[0]
     stamps: list[float] = []
-    with MavlinkEmulator(world, pose=start, speedup=5.0, obstacle_distance=True) as e:
-        with MavlinkRobot(e.address) as robot:
-            deadline = time.perf_counter() + 1.0
-            while time.perf_counter() < deadline:
-                s = robot.read()
-                if s.laser is not None and (not stamps or s.laser.stamp != stamps[-1]):
-                    assert s.laser.stamp is not None
-                    stamps.append(s.laser.stamp)
-                time.sleep(0.005)
+    for s in _laser_states(world, 1.0, None):
+        if not stamps or s.laser.stamp != stamps[-1]:
+            assert s.laser.stamp is not None
+            stamps.append(s.laser.stamp)
     assert len(stamps) >= 20 and stamps == sorted(set(stamps))     # a new stamp for every scan
