@@ -173,7 +173,7 @@ class BVPExplorer(Explorer):
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
         self.walls = WallDistance(0.0)
         self._goal_off = (0, 0)
-        self.flush = False          # the next update relaxes the field to convergence (`give_up`)
+        self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
 
     # -- the potential ---------------------------------------------------------------
@@ -346,7 +346,7 @@ class BVPExplorer(Explorer):
 
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run saw no progress for a while (its stall watch): the field under the robot may still
-        show goals that are gone. Relax it to convergence now (see the class); False when that
+        show goals that are gone. Relax it anew at the next update (see the class); False when that
         cannot help (`flush_sweeps` 0, or no field yet)."""
         if self.flush_sweeps == 0 or self.updates == 0:
             return False

@@ -738,6 +738,7 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
     import time
 
     from robotexp.laser_mount import connect_with_laser
+    from robotexp.robot import new_scan
     from robotexp.view.watch import StateFeed
 
     with connect_with_laser(backend, address, laser, laser_pose) as robot:
@@ -761,12 +762,11 @@ def _connect_watch(backend: str, address: str, twist: Any, duration: float, tty:
                     feed.publish(state)
                 if recorder is not None and state is not None:
                     t0 = state.time if t0 is None else t0
-                    scan = state.laser
-                    fresh = scan is not None and (scan.stamp is None or scan.stamp != written)
+                    fresh = new_scan(state.laser, written)
                     recorder.write_state(state.time - t0, state, fresh)
                     if fresh:
-                        assert scan is not None
-                        written = scan.stamp
+                        assert state.laser is not None
+                        written = state.laser.stamp
                 if due:
                     line = _status_line(state)
                     click.echo(f"\r{line}" if tty else line, nl=not tty)

@@ -27,7 +27,7 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError, RobotError, interrupt_behind
 from robotexp.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.record import COVERAGE_MILESTONES, EndReason, RunRecord
-from robotexp.robot import Limits, Pose, Robot, RobotState, Twist
+from robotexp.robot import Limits, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.world.bounds import clip_scan
 
 if TYPE_CHECKING:
@@ -282,7 +282,7 @@ class ExplorationRun:
             self._track(state, collisions0)
             # a scan is evidence once: a backend whose loop outruns its laser hands the same scan
             # (same stamp) out again, and mapping it twice would count its hits twice
-            updated = state.laser is not None and (state.laser.stamp is None or state.laser.stamp != mapped)
+            updated = new_scan(state.laser, mapped)
             if updated:
                 assert state.laser is not None
                 self.grid.update(state.pose, state.laser)

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Pose", "Twist", "Limits", "LaserScan", "SonarScan", "RobotState", "Robot", "Capability", "RobotEmulator",
-    "wrap_angle",
+    "wrap_angle", "new_scan",
 ]
 
 
@@ -101,20 +101,27 @@ class LaserScan:
     `angles` and `ranges` are float64 arrays of shape (n,): beam angle [rad] relative to the
     robot heading and measured range [m]; a beam that hit nothing reads `inf`. `stamp` tells one
     measurement from another: a backend that hands the same scan out in several states (its loop
-    runs faster than the laser) gives them one stamp [s, any clock of its own], and the run loop maps
-    each stamp once; None (a new scan in every state, as on the simulator) is always mapped.
+    runs faster than the laser) gives them one stamp (a time or a count of its own), and the run loop
+    maps each stamp once (`new_scan`); None (a new scan in every state, as on the simulator) is always
+    mapped.
     """
 
     angles: npt.NDArray[np.float64]
     ranges: npt.NDArray[np.float64]
     range_max: float        # [m]
     offset_x: float = 0.0   # [m] sensor position ahead of the robot centre
-    stamp: float | None = None  # [s] when measured (equal stamps: the same measurement)
+    stamp: float | None = None  # which measurement (equal stamps: the same one); None: a new one
 
     def nearest(self) -> float:
         """The smallest finite range [m], or `inf` when no beam hit."""
         finite = self.ranges[np.isfinite(self.ranges)]
         return float(finite.min()) if finite.size else math.inf
+
+
+def new_scan(scan: LaserScan | None, last: float | None) -> bool:
+    """Whether `scan` is a measurement not used yet, `last` being the stamp of the last one used: a
+    scan without a stamp always is; no scan is not."""
+    return scan is not None and (scan.stamp is None or scan.stamp != last)
 
 
 @dataclass(frozen=True)

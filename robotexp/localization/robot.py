@@ -20,7 +20,7 @@ from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, MatcherConfig, ScanMatcher
 from robotexp.localization.metrics import ate
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.robot import Pose, Robot, RobotState, Twist
+from robotexp.robot import Pose, Robot, RobotState, Twist, new_scan
 
 __all__ = ["LocalizedRobot", "MOTION_NOISE", "GATE", "MAX_TURN_RATE"]
 
@@ -115,9 +115,7 @@ class LocalizedRobot(Robot):
             if state.laser is not None:
                 self.localizer.integrate(pose, state.laser)
         else:
-            scan = state.laser
-            if scan is not None and scan.stamp is not None and scan.stamp == self._matched:
-                scan = None                             # a scan handed out again: matched once
+            scan = state.laser if new_scan(state.laser, self._matched) else None    # each scan matched once
             pose = self.localizer.locate(state.pose, scan, state.velocity.w)
         if state.laser is not None:
             self._matched = state.laser.stamp
