@@ -3,8 +3,10 @@
 `ground_truth()` rasterises a `World` and derives the reachable and explorable cells; `coverage()`
 and `map_iou()` score an occupancy grid against it. A cell is reachable when the robot, a disc of
 `robot_radius` centred on the cell centre, overlaps no occupied cell and connects to the start
-cell through such cells (8-connectivity). A cell is explorable when it is free and a laser of
-`laser_range` sees it from some reachable position (see `ground_truth` for the sampling).
+cell through such cells (8-connectivity), or through a passage the robot fits through on a finer
+grid (`FIT_CELL`, with `FIT_MARGIN` to spare: see `ground_truth`). A cell is explorable when it is
+free and a laser of `laser_range` sees it from some reachable position (see `ground_truth` for the
+sampling).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
-from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
 from robotexp.mapping.kernels import clearance_mask, flood8, rasterize, traverse, view_free
 from robotexp.robot import Pose
 from robotexp.world.model import World
@@ -26,8 +28,13 @@ from robotexp.world.model import World
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
 
-__all__ = ["GroundTruth", "coverage", "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
+__all__ = ["FIT_CELL", "FIT_MARGIN", "GroundTruth", "coverage",
+           "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
            "ray_tree"]
+
+
+FIT_CELL = 0.05             # [m] the finest cell on which passages are looked for (as the default start's)
+FIT_MARGIN = 0.05           # [m] room to spare beyond the robot radius in such a passage (`START_MARGIN`)
 
 
 @dataclass(frozen=True)
@@ -136,7 +143,14 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
 
     C-free is the set of cells whose centre is farther than `robot_radius` from every point of
     every occupied cell (exact; a distance equal to the radius blocks). Reachable is the
-    8-connected part of C-free holding the start cell. Explorable is the reachable cells plus the
+    8-connected part of C-free holding the start cell, and every other part joined to it by a
+    passage the robot fits through: on a grid of cells of `FIT_CELL` (or `geo`'s cells split in
+    k x k, k = ceil(cell / FIT_CELL), fewer when that grid would exceed `MAX_CELLS`), the places
+    where the robot fits with `FIT_MARGIN` to spare, 8-connected to those inside the start's part.
+    On the coarse grid alone, every occupied cell spans up to a cell more than its obstacle, so a
+    door a robot passes with 10 cm to spare can hold no C-free cell at 10 cm cells: the rooms behind
+    it would not count as reachable although the robot drives there (Stage's hospital map at 10 cm
+    cells: 12 m2 reachable of the 285 m2 the robot explored). Explorable is the reachable cells plus the
     free cells seen by `n_rays` rays over 360 deg, each stopped by the first occupied cell or at
     `laser_range`, cast from the centres of the viewpoints: the reachable cells whose row and
     column are multiples of k = max(1, round(sample_step / cell)), every reachable cell with a
@@ -183,7 +197,7 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
     sight = (step, int(n_rays), float(laser_range))
     part = next((c for c in base.components if c.sight == sight and c.reachable[row, col]), None)
     if part is None:
-        reachable = flood8(base.cfree, row, col)
+        reachable = _joined(world, geo, float(robot_radius), base, flood8(base.cfree, row, col))
         views = _border(reachable)
         views[::step, ::step] |= reachable[::step, ::step]
         part = _Component(sight, reachable, views, view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip))
@@ -207,11 +221,42 @@ class _Component:
 
 @dataclass
 class _WorldGrid:
-    """A world rasterised on a grid for one robot radius, and its reachable regions found so far."""
+    """A world rasterised on a grid for one robot radius, and its reachable regions found so far;
+    `parts` the 8-connected parts of C-free and `fits` the places where the robot fits on the finer
+    grid (`_joined`), both labelled once they are needed."""
 
     occupied: npt.NDArray[np.bool_]
     cfree: npt.NDArray[np.bool_]
     components: list[_Component]
+    parts: npt.NDArray[np.int32] | None = None
+    fits: npt.NDArray[np.int32] | None = None
+
+
+def _joined(world: World, geo: GridGeometry, radius: float, base: _WorldGrid,
+            start_part: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """`start_part`, the start's part of C-free, with every other part of it that the places where the
+    robot fits on the finer grid (see `ground_truth`) join to it."""
+    from robotexp.mapping.kernels import label8
+
+    k = max(1, math.ceil(geo.cell / FIT_CELL - 1e-9))
+    while k > 1 and geo.rows * geo.cols * k * k > MAX_CELLS:
+        k -= 1
+    if k == 1:                  # no finer grid: its places, with the margin, lie inside C-free's parts
+        return start_part
+    if base.parts is None:
+        base.parts, _ = label8(base.cfree)
+    if base.fits is None:
+        fine = GridGeometry(geo.origin_x, geo.origin_y, geo.cell / k, geo.rows * k, geo.cols * k)
+        base.fits, _ = label8(clearance_mask(occupancy(world, fine), (radius + FIT_MARGIN) / fine.cell))
+    fits = base.fits
+    # the finer grid's places inside the start's part, and every place connected to them
+    seeds = np.unique(fits[np.repeat(np.repeat(start_part, k, axis=0), k, axis=1)])
+    seeds = seeds[seeds > 0]
+    if len(seeds) == 0:
+        return start_part
+    reached = np.isin(fits, seeds).reshape(geo.rows, k, geo.cols, k).any(axis=(1, 3))
+    parts = np.unique(base.parts[reached & base.cfree])
+    return np.isin(base.parts, parts[parts > 0]) | start_part
 
 
 _GRIDS: dict[tuple[object, ...], _WorldGrid] = {}

@@ -158,3 +158,37 @@ def test_ground_truth_is_a_frozen_record():
     gt = _gt(_room(1.5))
     assert isinstance(gt, GroundTruth) and gt.geo == GEO
     np.testing.assert_array_equal(gt.free, ~gt.occupied)
+
+
+def _two_rooms(door_right: float) -> World:
+    """3 x 5 m, walls on cell borders; a wall across at y 2.4..2.5 m with a door from x = 1.02 m to
+    `door_right` [m] (faces off the 10 cm cell borders)."""
+    boxes = [(1.5, 0.05, 1.5, 0.05, 0.0), (1.5, 4.95, 1.5, 0.05, 0.0),
+             (0.05, 2.5, 0.05, 2.5, 0.0), (2.95, 2.5, 0.05, 2.5, 0.0),
+             ((0.1 + 1.02) / 2, 2.45, (1.02 - 0.1) / 2, 0.05, 0.0),
+             ((door_right + 2.9) / 2, 2.45, (2.9 - door_right) / 2, 0.05, 0.0)]
+    return World("two rooms", np.array(boxes))
+
+
+def test_a_door_closed_at_the_grid_s_cells_but_open_to_the_robot_joins_the_rooms():
+    geo = GridGeometry(0.0, 0.0, 0.1, 50, 30)
+    above = geo.cell_of(1.5, 3.8)
+    # A 0.71 m door for a 0.5 m robot. At 10 cm its wall ends fill the cells [1.0, 1.1) and [1.7, 1.8):
+    # the best centre in between (1.35 or 1.45 m) is exactly 0.25 m from one of them, and equality
+    # blocks - the grid's C-free alone holds no cell in the doorway.
+    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.mapping.kernels import clearance_mask, flood8
+    world = _two_rooms(1.73)
+    cfree = clearance_mask(occupancy(world, geo), 0.25 / 0.1)
+    assert not flood8(cfree, *geo.cell_of(1.5, 1.2))[above]
+    # At 5 cm the ends fill [1.0, 1.05) and [1.7, 1.75): the centre 1.375 m is 0.325 m from both,
+    # more than the radius plus FIT_MARGIN (0.30 m), so the robot passes and the room above counts.
+    gt = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=Pose(1.5, 1.2))
+    assert gt.reachable[above]
+    assert gt.reachable.sum() == cfree.sum()            # both rooms' C-free, nothing else
+    assert not (gt.reachable & ~cfree).any()
+    # A 0.60 m door (fine ends [1.0, 1.05) and [1.6, 1.65)): at most 0.275 m from a side at 5 cm,
+    # less than 0.30 m: a robot with under 5 cm to spare does not count as passing.
+    gt = ground_truth(_two_rooms(1.62), geo, robot_radius=0.25, laser_range=3.0, start=Pose(1.5, 1.2))
+    assert not gt.reachable[above]
+    assert not gt.reachable[geo.cell_of(1.5, 2.7)]
