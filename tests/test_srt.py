@@ -647,3 +647,35 @@ def test_laser_rescue_looks_behind_an_obstacle_the_thesis_leaves_unseen(rescue: 
         assert max(x for x, _ in run.metrics.path) > 2.0           # drove up beside the box (1.7..2.3)
     else:
         assert cov < 0.95 and fields["rescues"] == 0 and fields["nodes"] == 1
+
+
+def test_laser_rescue_finds_the_point_that_sees_a_room_through_its_door() -> None:
+    # A corridor (y 0.5..2.0 m) and, above its wall (y 2.0..2.1), a room seen only through a door at
+    # x 4.0..4.9: free cells up to y 3.0, unknown beyond. The frontier cell (3.35, 2.95) m lies 1.2 m
+    # above the corridor, but every corridor point near it is behind the wall; the points that see it
+    # through the door (1.7 m away, within the rescue view of 2.4 m) are the rescue.
+    geo = GridGeometry(0.0, 0.0, 0.1, 40, 60)
+    gx, gy = np.meshgrid(geo.origin_x + (np.arange(60) + 0.5) * 0.1, geo.origin_y + (np.arange(40) + 0.5) * 0.1)
+    grid = OccupancyGrid(geo)
+    corridor = (gx > 0.5) & (gx < 5.5) & (gy > 0.5) & (gy < 2.0)
+    door = (gx > 4.0) & (gx < 4.9) & (gy > 2.0) & (gy < 2.1)
+    room = (gx > 2.0) & (gx < 4.9) & (gy > 2.1) & (gy < 3.0)
+    grid.mark_free(corridor | door | room)
+    grid.mark_occupied((gx > 0.5) & (gx < 5.5) & (gy > 2.0) & (gy < 2.1) & ~door)
+    ex = SRTLaserExplorer()
+    ex.reset(ctx(FixedRng([])))
+    ex._grid = grid
+    ex.tree.add(1.5, 1.2, BallRegion(1.5, 1.2, 1.0), None)
+    cell = np.array([geo.cell_of(3.35, 2.95)])
+    points = geo.centers_of(np.argwhere(corridor & (gx > 0.75) & (gx < 5.25) & (gy > 0.75) & (gy < 1.75)))
+    ex.frontier_cells = lambda index: cell                   # type: ignore[method-assign]
+    ex._rescue_points = lambda index: points                 # type: ignore[method-assign]
+    # the `tries` nearest points (all the rule looked at before) lie left of the door: none sees the cell
+    from robotexp.planning.grid_planner import line_of_sight
+    near = points[np.argsort(np.hypot(*(points - (3.35, 2.95)).T), kind="stable")[:ex.tries]]
+    assert near[:, 0].max() < 4.0
+    assert not any(line_of_sight(grid.free(), geo.cell_of(*p), tuple(cell[0])) for p in near)
+    x, y = ex._frontier_candidate(0)                        # type: ignore[misc]
+    assert 3.9 < x < 5.0 and y < 1.8                        # in front of the door
+    assert math.hypot(x - 3.35, y - 2.95) <= ex._rescue_view()
+    assert ex.rescues == 1 and ex._face == pytest.approx((3.35, 2.95))

@@ -18,7 +18,8 @@ import numpy as np
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.kernels import flood8
+from robotexp.mapping.groundtruth import ray_tree
+from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight
 from robotexp.planning.targets import frontier_targets
 from robotexp.robot import Pose, RobotState, Twist, wrap_angle
@@ -41,6 +42,7 @@ __all__ = ["SRTBallExplorer", "SRTStarExplorer", "SRTLaserExplorer", "displace",
 
 TAU = 2.0 * math.pi
 ESCAPE = 0.5     # srt-star: a way that starts near the star's edge must leave it at >= 0.5 m per m (ray_reach)
+RESCUE_RAYS = 360  # rays from a frontier cell when the rescue looks for the points that see it
 
 
 def displace(x: float, y: float, theta: float, distance: float) -> tuple[float, float]:
@@ -171,20 +173,51 @@ class _FrontierRescue(SRTExplorer):
         if len(reach) == 0:
             return None
         free = grid.free()
-        for (r, c), f in zip(cells, geo.centers_of(cells), strict=True):
+        centres = geo.centers_of(cells)
+        for (r, c), f in zip(cells, centres, strict=True):
             d = np.hypot(reach[:, 0] - f[0], reach[:, 1] - f[1])
-            for j in np.argsort(d, kind="stable")[:self.tries]:
-                if d[j] > view:
-                    break
-                # False also when either end is not free
-                if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), (int(r), int(c))):
-                    near = np.hypot(cells[:, 0] - r, cells[:, 1] - c) * geo.cell <= self.ctx.radius + geo.cell
-                    self._aim, self._face = cells[near], (float(f[0]), float(f[1]))
-                    self._known_best = max(self._known_best, int(np.count_nonzero(~grid.unknown())))
-                    self._known_at_rescue = self._known_best
-                    self.rescues += 1
-                    return float(reach[j, 0]), float(reach[j, 1])
+            order = np.argsort(d, kind="stable")[:self.tries]
+            j = self._in_sight(free, rc, order[d[order] <= view], (int(r), int(c)))
+            if j is not None:
+                return self._take_rescue(grid, cells, (int(r), int(c)), f, reach[j])
+        # None of the nearest points sees its cell: a frontier inside a room, seen through its door from
+        # the corridor, has its nearest points beside the door, behind the wall (a generated office: two
+        # rooms never entered, "explored; back at the start" at 0.904). Then the points each cell sees:
+        # rays from it through known-free cells within the view, nearest first.
+        offsets, skip = ray_tree(RESCUE_RAYS, view / geo.cell)
+        span = int(math.ceil(view / geo.cell)) + 2
+        for (r, c), f in zip(cells, centres, strict=True):
+            r0, c0 = max(int(r) - span, 0), max(int(c) - span, 0)
+            window = np.ascontiguousarray(~free[r0:int(r) + span + 1, c0:int(c) + span + 1])
+            seen = view_free(window, np.array([[r - r0, c - c0]], np.int64), offsets, skip)
+            local = rc - (r0, c0)
+            cand = np.flatnonzero(((local >= 0) & (local < window.shape)).all(axis=1))
+            cand = cand[seen[local[cand, 0], local[cand, 1]]]
+            d = np.hypot(reach[cand, 0] - f[0], reach[cand, 1] - f[1])
+            order = np.argsort(d, kind="stable")[:self.tries]
+            j = self._in_sight(free, rc, cand[order[d[order] <= view]], (int(r), int(c)))
+            if j is not None:
+                return self._take_rescue(grid, cells, (int(r), int(c)), f, reach[j])
         return None
+
+    @staticmethod
+    def _in_sight(free: np.ndarray, rc: np.ndarray, order: np.ndarray, cell: tuple[int, int]) -> int | None:
+        """The first of the points `order` (indices into `rc`, cells) with `cell` in sight through
+        known-free cells (`line_of_sight`: False also when either end is not free), or None."""
+        for j in order:
+            if line_of_sight(free, (int(rc[j, 0]), int(rc[j, 1])), cell):
+                return int(j)
+        return None
+
+    def _take_rescue(self, grid: OccupancyGrid, cells: np.ndarray, cell: tuple[int, int], face: np.ndarray,
+                     point: np.ndarray) -> tuple[float, float]:
+        """Choose `point` [m] as the rescue for frontier `cell` (centre `face`) and its neighbours in `cells`."""
+        near = np.hypot(cells[:, 0] - cell[0], cells[:, 1] - cell[1]) * grid.geo.cell <= self.ctx.radius + grid.geo.cell
+        self._aim, self._face = cells[near], (float(face[0]), float(face[1]))
+        self._known_best = max(self._known_best, int(np.count_nonzero(~grid.unknown())))
+        self._known_at_rescue = self._known_best
+        self.rescues += 1
+        return float(point[0]), float(point[1])
 
     def _given_up_on(self, grid: OccupancyGrid) -> np.ndarray:
         """The bool (rows, cols) mask of the frontier cells given up, sized to `grid`."""
