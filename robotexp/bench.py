@@ -5,8 +5,9 @@ parallel processes, `--resume`), then a row per run (coverage, path, robot time,
 success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
 A run succeeds (issue 12's "Done when") when it reached `SUCCESS_COVERAGE` of the explorable space
 with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
-leaving the exploration area. A `stalled` end (the loop's stall watch) is on its own and counts
-when its coverage does; the table shows every end reason, and the summary counts the runs whose
+leaving the exploration area - and when no point of its path (`RUN.path.csv` in the output folder)
+lies outside the map's exploration area. A `stalled` end (the loop's stall watch) is on its own and
+counts when its coverage does; the table shows every end reason, and the summary counts the runs whose
 explorer said it was done (`completed`) apart.
 """
 
@@ -21,12 +22,13 @@ from typing import Any
 from robotexp.errors import ConfigError, WorldError
 from robotexp.experiment import RunSpec
 
-__all__ = ["DONE_WHEN_METHODS", "SUCCESS_COVERAGE", "bench_specs", "bench_table", "done_when_maps", "expand_maps",
-           "failure_causes", "map_group", "success"]
+__all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_specs", "bench_table", "done_when_maps",
+           "expand_maps", "failure_causes", "map_group", "mark_outside", "success"]
 
 SUCCESS_COVERAGE = 0.95
 DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # issue 12's "Done when"
 _MAP_SUFFIXES = (".map", ".yaml", ".yml")
+OUTSIDE = "path_points_outside"     # added to a record by `run_bench` from its path file (None: not checked)
 COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
 
 
@@ -97,7 +99,8 @@ def success(record: dict[str, Any]) -> bool:
     end = EndReason.classify(bool(record.get("completed")), str(record.get("reason", "")))
     own = end in (EndReason.EXPLORED, EndReason.STALLED) or (
         end is EndReason.STOPPED and "left the exploration area" not in str(record.get("reason", "")))
-    return own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
+    return (own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
+            and not record.get(OUTSIDE))
 
 
 def failure_causes(record: dict[str, Any]) -> list[str]:
@@ -112,6 +115,8 @@ def failure_causes(record: dict[str, Any]) -> list[str]:
         out.append("no coverage" if cov is None else f"coverage {cov:.3f} < {SUCCESS_COVERAGE}")
     if record.get("collisions", 1) != 0:
         out.append(f"{record.get('collisions')} collisions")
+    if record.get(OUTSIDE):
+        out.append(f"{record[OUTSIDE]} path points outside the exploration area")
     reason = str(record.get("reason", ""))
     end = EndReason.classify(bool(record.get("completed")), reason)
     if end not in (EndReason.EXPLORED, EndReason.STALLED, EndReason.STOPPED) or "left the exploration area" in reason:
@@ -177,6 +182,12 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
                 runs = [r for r in rows if str(r.get("method")) == method and map_group(r) == g]
                 cells.append(f"{sum(success(r) for r in runs)}/{len(runs)}" if runs else "-")
             lines.append(f"  {method:<12} " + " ".join(f"{c:>{gw}}" for c in cells))
+    checked = [r for r in rows if r.get(OUTSIDE) is not None]
+    if checked:
+        lines.append("")
+        lines.append(f"path points outside the exploration area: {sum(int(r[OUTSIDE]) for r in checked)} "
+                     f"(paths of {len(checked)} of {len(rows)} runs checked: the others have no path file "
+                     "or their map declares no area)")
     failed = [r for r in rows if not success(r)]
     lines.append("")
     lines.append(f"failures: {len(failed)} of {len(rows)} runs" + (":" if failed else ""))
@@ -184,6 +195,37 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
         lines.append(f"  {_map_name(r)} {r.get('method')}: {'; '.join(failure_causes(r))} - "
                      f"end reason: {r.get('reason', '')}")
     return "\n".join(lines) + "\n", buf.getvalue()
+
+
+def mark_outside(records: list[dict[str, Any]], out: Path) -> None:
+    """Set each record's `OUTSIDE`: how many points of its path (`out/RUN.path.csv`) lie outside the
+    exploration area its map declares (None: no path file, or no area)."""
+    import numpy as np
+
+    from robotexp.world.bounds import exploration_area
+    from robotexp.world.loader import load_world
+
+    areas: dict[str, tuple[float, float, float, float] | None] = {}
+    for r in records:
+        path = out / f"{r.get('run')}.path.csv"
+        spec = str(r.get("world_spec") or r.get("world"))
+        r[OUTSIDE] = None
+        if not path.is_file():
+            continue
+        if spec not in areas:
+            try:
+                areas[spec] = exploration_area(load_world(spec), None)
+            except (ConfigError, WorldError):
+                areas[spec] = None
+        area = areas[spec]
+        if area is None:
+            continue
+        xy = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        if xy.size == 0:
+            r[OUTSIDE] = 0
+            continue
+        x0, y0, x1, y1 = area
+        r[OUTSIDE] = int(np.count_nonzero((xy[:, 0] < x0) | (xy[:, 0] > x1) | (xy[:, 1] < y0) | (xy[:, 1] > y1)))
 
 
 def _no_load(spec: str) -> None:
@@ -206,6 +248,7 @@ def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resu
     path = out / "results.jsonl"
     records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
         if path.is_file() else []
+    mark_outside(records, out)
     text, table = bench_table(records)
     missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
     if missing:

@@ -67,6 +67,7 @@ def test_bench_runs_a_generated_world_end_to_end_and_writes_its_table(tmp_path):
     assert len(rows) == 1 and rows[0]["method"] == "frontier" and rows[0]["map"] == "generated:office:0:10x8"
     assert float(rows[0]["coverage"]) > 0.5 and rows[0]["collisions"] == "0"
     assert (out / "bench.txt").read_text() in result.output
+    assert "path points outside the exploration area: 0 (paths of 1 of 1 runs checked" in result.output
     bad = CliRunner().invoke(main, ["bench", "generated:castle:0", "-o", str(out)])
     assert bad.exit_code == 2 and "unknown kind 'castle'" in bad.output
     bad = CliRunner().invoke(main, ["bench", "dense", "-m", "nosuch", "-o", str(out)])
@@ -107,3 +108,20 @@ def test_report_tables_the_recorded_runs_and_counts_the_missing(tmp_path):
     assert "frontier     success 1/1 = 100%" in result.output
     assert "not run: 1 of 2 map x method pairs" in result.output
     assert (out / "bench.csv").read_text().count("\n") == 2
+
+
+def test_report_counts_the_path_points_outside_the_exploration_area(tmp_path):
+    # generated worlds declare their area (the map with its 0.5 m band); a run's path file is checked
+    # against it: a point outside makes the run a failure, and the summary counts the points
+    out = tmp_path / "bench"
+    out.mkdir()
+    recs = [{**record("frontier", 0.99, True, reason="done"), "world_spec": "generated:cave:0", "run": "in"},
+            {**record("bvp", 0.99, True, reason="done"), "world_spec": "generated:cave:0", "run": "out"}]
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    (out / "in.path.csv").write_text("x_m,y_m\n1.0,1.0\n2.5,3.0\n")
+    (out / "out.path.csv").write_text("x_m,y_m\n1.0,1.0\n-0.6,3.0\n1.0,-2.0\n")     # area x, y from -0.5
+    result = CliRunner().invoke(main, ["bench", "generated:cave:0", "-m", "frontier,bvp", "-o", str(out), "--report"])
+    assert result.exit_code == 0, result.output
+    assert "path points outside the exploration area: 2 (paths of 2 of 2 runs checked" in result.output
+    assert "frontier     success 1/1 = 100%" in result.output and "bvp          success 0/1 = 0%" in result.output
+    assert "generated:cave:0 bvp: 2 path points outside the exploration area" in result.output
