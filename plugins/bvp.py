@@ -24,6 +24,7 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
+INFLATE_MARGIN = 0.05   # [m] the walls grow by the robot radius plus this (default inflate: the planners' MARGIN)
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -74,10 +75,14 @@ class BVPExplorer(Explorer):
       within 1e-16 of 1 and rounds to a flat 1.0 in float64 (a robot in an explored room behind a
       door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
       to 1e-308, so the gradient keeps its direction.
-    - Configuration space (`inflate`, default the robot radius): cells whose centre lies within
-      inflate + half a cell of an occupied cell's centre are obstacles (potential 1) too, as in
-      Connolly & Grupen's planner, so the descent never leads into a gap the robot cannot pass and
-      unknown cells right by walls (their unseen faces) are not goals. `inflate=0` is the bare map.
+    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 5 cm the
+      planners keep): cells whose centre lies within inflate + half a cell of an occupied cell's
+      centre are obstacles (potential 1) too, as in Connolly & Grupen's planner, so the descent never
+      leads into a gap the robot cannot pass and unknown cells right by walls (their unseen faces)
+      are not goals. With the radius alone the field led into channels of the configuration space
+      one cell wide that the laser guard would not enter, and the robot stood at their mouths until
+      the run stalled (6 of bvp's 7 failures in issue 12's 770-run benchmark, cave 9 at 0.309).
+      `inflate=0` is the bare map; `campaigns/thesis.toml` sets the radius (the thesis's runs).
     - The robot's cell: cells the robot's footprint has covered count as free even if the laser
       (180 degrees, ahead) never saw them, so the robot is not drawn to the floor under itself.
       Eq. 3.2 does not use the cell's own value, so a robot cell on the inflated margin still has a
@@ -120,7 +125,8 @@ class BVPExplorer(Explorer):
         r_max: [m] radius of the collision region of eq. 3.5.
         eta: smoothing factor of eq. 3.4, in (0, 1].
         k_turn: [1/s] turn rate per radian of heading error.
-        inflate: [m] obstacle growth for the potential and the stop test (None: the robot radius).
+        inflate: [m] obstacle growth for the potential and the stop test (None: the robot radius
+            plus INFLATE_MARGIN).
         clearance: [m] kept ahead of the robot by the guard.
         epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
         direction: [rad] the preferred direction v of eq. 3.6.
@@ -213,7 +219,7 @@ class BVPExplorer(Explorer):
         boxes = [b for b in (grid.touched_box(), self.cover_box) if b is not None]
         if not boxes:
             return grid, (0, 0)
-        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
         m = int(math.ceil(inflate / grid.geo.cell + 0.5)) + WINDOW_MARGIN
         r0 = min(b[0] for b in boxes) - m
         c0 = min(b[2] for b in boxes) - m
@@ -246,7 +252,7 @@ class BVPExplorer(Explorer):
 
     def _inflate_cells(self, grid: OccupancyGrid) -> float:
         """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
-        inflate = self.ctx.radius if self.inflate is None else self.inflate
+        inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
         return inflate / grid.geo.cell + 0.5
 
     def update_potential(self, grid: OccupancyGrid
