@@ -16,7 +16,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
-from robotexp.planning.targets import WallDistance
+from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
@@ -24,7 +24,7 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
-INFLATE_MARGIN = 0.05   # [m] the walls grow by the robot radius plus this (default inflate: the planners' MARGIN)
+INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -219,8 +219,7 @@ class BVPExplorer(Explorer):
         boxes = [b for b in (grid.touched_box(), self.cover_box) if b is not None]
         if not boxes:
             return grid, (0, 0)
-        inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
-        m = int(math.ceil(inflate / grid.geo.cell + 0.5)) + WINDOW_MARGIN
+        m = int(math.ceil(self._inflate_cells(grid))) + WINDOW_MARGIN
         r0 = min(b[0] for b in boxes) - m
         c0 = min(b[2] for b in boxes) - m
         r1 = max(b[1] for b in boxes) + m

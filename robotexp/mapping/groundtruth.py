@@ -24,6 +24,7 @@ from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
 from robotexp.mapping.kernels import clearance_mask, flood8, rasterize, traverse, view_free
 from robotexp.robot import Pose
 from robotexp.world.model import World
+from robotexp.world.start import START_MARGIN
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
@@ -34,7 +35,7 @@ __all__ = ["FIT_CELL", "FIT_MARGIN", "GroundTruth", "coverage",
 
 
 FIT_CELL = 0.05             # [m] the finest cell on which passages are looked for (as the default start's)
-FIT_MARGIN = 0.05           # [m] room to spare beyond the robot radius in such a passage (`START_MARGIN`)
+FIT_MARGIN = START_MARGIN   # [m] room to spare beyond the robot radius in such a passage (the default start's)
 
 
 @dataclass(frozen=True)
