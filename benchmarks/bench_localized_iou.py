@@ -2,7 +2,7 @@
 its occupied and free parts (issue 14: dense, P3-DX preset, scan matching).
 
 Run: python benchmarks/bench_localized_iou.py [--world dense] [--method frontier] [--max-time 3600]
-         [--speed 300] [--seed 0] [--offsets 0.002,0.02]
+         [--speed 300] [--seed 0] [--offsets 0.002,0.02] [--loop-closure]
 
 One `--localize scan-match` run under the P3-DX odometry preset (the `robotexp explore` path), keeping
 every step's scan, estimated pose, true pose and odometry. Printed, each as map IoU (the record's
@@ -15,6 +15,12 @@ every step's scan, estimated pose, true pose and odometry. Printed, each as map 
   same path), and at the true poses moved by constant offsets (`--offsets`, metres in x and -y);
 - the localizer replayed on the run's odometry and scans with an oracle matching map (each scan put
   into the matching map at its true pose): the matcher's own accuracy, without its map's drift;
+
+- with `--loop-closure`, the optional stage of `robotexp map` on the run: keyframes every 0.3 m or 15 deg of
+  the estimated path (the localizer's map updates), loop edges from `posegraph.find_loops` with the run's
+  matcher (`RUN_MATCHER`, a 0.3 m / 3 deg window), each loop edge's error against the true relative pose,
+  the keyframes' error before and after `posegraph.optimize`, and the scans rebuilt at the corrected poses
+  (each step moved with its keyframe);
 
 and the pose error at the integrated scans (median, 90th percentile; heading while turning faster
 than 0.5 rad/s and slower), and the error after the first 10 s (the first turn in place).
@@ -33,12 +39,16 @@ import numpy as np
 
 from robotexp.experiment import RunSpec, run_experiment
 from robotexp.explorer import ExplorationRun
-from robotexp.localization.matcher import Localizer
-from robotexp.localization.robot import LocalizedRobot
+from robotexp.localization import posegraph as PG
+from robotexp.localization.matcher import Localizer, compose, relative
+from robotexp.localization.robot import RUN_MATCHER, LocalizedRobot
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import GroundTruth, map_iou, map_iou_parts
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose
+
+
+KEY_TRAVEL, KEY_TURN = 0.3, math.radians(15.0)      # [m], [rad]: keyframes as the localizer's map updates
 
 
 @dataclass
@@ -115,6 +125,39 @@ def errors(poses: list[Pose], steps: list[Step]) -> dict[str, Any]:
             "heading_slow": float(th[~fast].mean())}
 
 
+def loop_closure(steps: list[Step]) -> tuple[list[Pose], str]:
+    """`--loop-closure`: the run's keyframes through the pose graph; every step's pose corrected with its
+    keyframe, and a line on the loop edges and the keyframes' error."""
+    kf = [0]
+    for i, s in enumerate(steps):
+        d = relative(steps[kf[-1]].pose, s.pose)
+        if math.hypot(d.x, d.y) >= KEY_TRAVEL or abs(d.theta) >= KEY_TURN:
+            kf.append(i)
+    est = np.array([[steps[i].pose.x, steps[i].pose.y, steps[i].pose.theta] for i in kf])
+    truth = [steps[i].truth for i in kf]
+    cfg = PG.LoopConfig(window_xy=0.3, window_theta=math.radians(3.0))
+    loops = PG.find_loops(est, [steps[i].scan for i in kf], 0.05, RUN_MATCHER, cfg)
+    chain = [PG.Edge(k, k + 1, relative(Pose(*est[k]), Pose(*est[k + 1])), np.diag([0.005 ** -2, 0.005 ** -2,
+                                                                                    math.radians(0.1) ** -2]))
+             for k in range(len(est) - 1)]
+    wrong = np.array([math.hypot(e.z.x - t.x, e.z.y - t.y) for e in loops
+                      for t in [relative(truth[e.i], truth[e.j])]]) * 100
+    out = PG.optimize(est, chain + loops, iterations=cfg.iterations, cauchy=cfg.cauchy)
+    poses, j = [], 0
+    for i, s in enumerate(steps):
+        while j + 1 < len(kf) and kf[j + 1] <= i:
+            j += 1
+        poses.append(compose(Pose(*out[j]), relative(Pose(*est[j]), s.pose)))
+
+    def rmse(p: np.ndarray) -> float:
+        return float(np.sqrt(np.mean([(a[0] - t.x) ** 2 + (a[1] - t.y) ** 2 for a, t in zip(p, truth, strict=True)])))
+    note = (f"{len(kf)} keyframes, {len(loops)} loop edges (error against the true relative pose: median "
+            f"{np.median(wrong):.2f} cm, p90 {np.percentile(wrong, 90):.2f} cm, max {wrong.max():.1f} cm); "
+            f"keyframe ATE {rmse(est) * 100:.2f} cm before, {rmse(out) * 100:.2f} cm after") if loops else \
+        f"{len(kf)} keyframes, no loop edge"
+    return poses, note
+
+
 def main() -> None:
     """Run, rebuild, print."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -126,6 +169,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec")
     ap.add_argument("--offsets", default="0.002,0.02", help="constant offsets [m] of the true poses, comma-separated")
+    ap.add_argument("--loop-closure", action="store_true", help="also the run's keyframes through the pose graph")
     args = ap.parse_args()
     offsets = [float(v) for v in args.offsets.split(",") if v]
     rec = Recorder()
@@ -153,6 +197,11 @@ def main() -> None:
     oracle = replay(rec.start, steps, oracle=True)
     line("localizer replayed with an oracle matching map", rebuild(run.grid, [(p, s.scan) for p, s in
                                                                               zip(oracle, steps, strict=True)]))
+    if args.loop_closure:
+        closed, note = loop_closure(steps)
+        line("keyframes through the pose graph (--loop-closure)",
+             rebuild(run.grid, [(p, s.scan) for p, s in zip(closed, steps, strict=True)]))
+        print(f"  {note}")
     first = next((i for i, s in enumerate(steps) if s.time >= 10.0), len(steps) - 1)
     for name, poses in (("run", [s.pose for s in steps]), ("oracle-map replay", oracle)):
         e = errors(poses, steps)

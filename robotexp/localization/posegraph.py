@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -167,11 +167,8 @@ def find_loops(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], cell:
     """Loop edges: for every `cfg.every`-th scan, the nearest earlier scan at least `min_gap` before it
     within `radius`; the scan is matched against that scan's submap and kept when the fit is good."""
     out: list[Edge] = []
-    mcfg = MatcherConfig(sigma=matcher.sigma, window_xy=cfg.window_xy, window_theta=cfg.window_theta,
-                         coarse=matcher.coarse, iterations=matcher.iterations, range_max=matcher.range_max,
-                         min_points=matcher.min_points, min_score=cfg.min_score,
-                         degenerate_ratio=matcher.degenerate_ratio, prior=0.0,
-                         motion_sigma_xy=cfg.window_xy, motion_sigma_theta=cfg.window_theta)
+    mcfg = replace(matcher, window_xy=cfg.window_xy, window_theta=cfg.window_theta, min_score=cfg.min_score, prior=0.0,
+                   motion_sigma_xy=cfg.window_xy, motion_sigma_theta=cfg.window_theta)
     sm = ScanMatcher(mcfg)
     xy = poses[:, :2]
     for i in range(cfg.min_gap, len(poses), cfg.every):

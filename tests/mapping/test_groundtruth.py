@@ -9,7 +9,7 @@ import pytest
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import GroundTruth, coverage, ground_truth, map_iou, ray_tree
+from robotexp.mapping.groundtruth import GroundTruth, coverage, ground_truth, map_iou, map_iou_tolerant, ray_tree
 from robotexp.mapping.kernels import view_free
 from robotexp.mapping.reference import beam_cells
 from robotexp.robot import Pose
@@ -152,6 +152,36 @@ def test_coverage_and_iou():
         coverage(np.zeros((3, 3), bool), gt)
     with pytest.raises(ConfigError):
         map_iou(np.zeros((3, 3), np.int8), gt)
+
+
+def test_tolerant_iou_forgives_a_face_one_cell_off_and_nothing_farther():
+    gt = _gt(_room(2.3))
+    n_expl = int(gt.explorable.sum())
+    observable = np.where(gt.explorable, 0, -1).astype(np.int8)
+    observable[:, [0, 11]] = 100
+    observable[[0, 23], 1:11] = 100
+    # The inner wall's face lies on the border of cols 10 and 11: a pose 2 mm west puts its hits in
+    # col 10, the free cell in front of it (rows 1..22), and leaves col 11 unseen.
+    shifted = observable.copy()
+    shifted[:, 11] = -1
+    shifted[1:23, 10] = 100
+    # map_iou: 66 occupied marks, 44 of them right, the 24 cells of col 11 missed; 22 free cells lost.
+    strict = 0.5 * (44 / 90 + (n_expl - 22) / n_expl)
+    assert map_iou(shifted, gt) == pytest.approx(strict)
+    assert map_iou_tolerant(shifted, gt, 0) == pytest.approx((strict, 44 / 90, (n_expl - 22) / n_expl))
+    # one cell of tolerance: every mark lies next to its truth and every target next to a mark
+    assert map_iou_tolerant(shifted, gt, 1) == (1.0, 1.0, 1.0)
+    # a free cell five cells from any wall mapped occupied stays wrong (114 occupied cells, all mapped)
+    states = np.full((24, 24), -1, np.int8)
+    states[gt.explorable] = 0
+    states[gt.occupied] = 100
+    states[5, 5] = 100
+    assert map_iou_tolerant(states, gt, 1) == pytest.approx((0.5 * (114 / 115 + 1.0), 114 / 115, 1.0))
+    assert map_iou_tolerant(states, gt, 0)[0] == pytest.approx(map_iou(states, gt))
+    with pytest.raises(ConfigError, match="cells must be >= 0"):
+        map_iou_tolerant(states, gt, -1)
+    with pytest.raises(ConfigError):
+        map_iou_tolerant(np.zeros((3, 3), np.int8), gt)
 
 
 def test_ground_truth_is_a_frozen_record():
