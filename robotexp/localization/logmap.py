@@ -117,7 +117,8 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
         seed: seed of the noise.
         range_max: [m] readings beyond this are free up to it and mark no hit.
         matcher: scan matcher settings (default `MatcherConfig()`).
-        margin: [m] beyond the odometry path's bounds plus `range_max`, the grid's extent.
+        margin: [m] beyond the logged path's bounds (and the perturbed odometry's with `localize="none"`)
+            plus `range_max`, the grid's extent.
         loops: with scan matching, also close loops (`robotexp.localization.posegraph`) with these
             settings, then build the map on the corrected path; None: no loop closure.
 
@@ -132,7 +133,10 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
         raise ConfigError(f"--localize must be 'none' or 'scan-match', got {localize!r}")
     truth = [s.pose for s in log.scans]
     odom = perturb_path(truth, noise or OdometryNoise(), seed)
-    xy = np.array([[p.x, p.y] for p in odom + truth])
+    # the logged path bounds the map, and odometry's too where the map is built on it: with scan matching a
+    # perturbed path that drifts tens of metres away (Freiburg campus: 614 x 445 m against 216 x 180 m)
+    # would only make the grid larger than the memory limit
+    xy = np.array([[p.x, p.y] for p in (odom + truth if localize == "none" else truth)])
     reach = range_max + margin
     geo = GridGeometry.covering(float(xy[:, 0].min()), float(xy[:, 1].min()), float(xy[:, 0].max()),
                                 float(xy[:, 1].max()), cell, margin=reach)

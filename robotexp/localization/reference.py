@@ -3,16 +3,18 @@ and the benchmark only: the same results computed with whole-array numpy operati
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 import math
 
 import numpy as np
 import numpy.typing as npt
 
+from robotexp.errors import ConfigError
 from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES, HitSegments
+from robotexp.localization.posegraph import Edge, _wrap
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
-           "wall_offset_ref", "refine_hits_ref"]
+           "wall_offset_ref", "refine_hits_ref", "optimize_ref"]
 
 
 def splat_field_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
@@ -266,3 +268,68 @@ def refine_hits_ref(hits: HitSegments, ox: float, oy: float, cell: float, sigma:
             break
     _, mean = _hits_cost_ref(hits, ox, oy, cell, sigma, reach, px, py, *v)
     return float(v[0]), float(v[1]), float(v[2]), mean, h
+
+
+def optimize_ref(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int = 10, cauchy: float = 3.0
+                 ) -> npt.NDArray[np.float64]:
+    """`robotexp.localization.posegraph.optimize` edge by edge with a dense system: Gauss-Newton on the pose
+    graph, node 0 held fixed; loop edges weighted by a Cauchy kernel of scale `cauchy` (in units of their
+    standard deviation) by iterative reweighting.
+
+    Args:
+        poses: (n, 3) initial [x, y, theta].
+        edges: the constraints.
+        iterations: at most this many steps (stops when the step is below 1e-6).
+        cauchy: the kernel's scale.
+
+    Returns:
+        (n, 3) optimised poses.
+
+    Raises:
+        ConfigError: an edge names a node outside 0..n-1.
+    """
+    x = np.array(poses, np.float64, copy=True)
+    n = len(x)
+    for e in edges:
+        if not (0 <= e.i < n and 0 <= e.j < n):
+            raise ConfigError(f"pose graph: edge {e.i} -> {e.j} outside the {n} nodes")
+    for _ in range(iterations):
+        h = np.zeros((3 * n, 3 * n))
+        b = np.zeros(3 * n)
+        for e in edges:
+            xi, xj = x[e.i], x[e.j]
+            ci, si = math.cos(xi[2]), math.sin(xi[2])
+            cz, sz = math.cos(e.z.theta), math.sin(e.z.theta)
+            ri_t = np.array([[ci, si], [-si, ci]])
+            rz_t = np.array([[cz, sz], [-sz, cz]])
+            dt = xj[:2] - xi[:2]
+            err = np.empty(3)
+            err[:2] = rz_t @ (ri_t @ dt - np.array([e.z.x, e.z.y]))
+            err[2] = _wrap(xj[2] - xi[2] - e.z.theta)
+            dri_t = np.array([[-si, ci], [-ci, -si]])
+            a = np.zeros((3, 3))
+            a[:2, :2] = -rz_t @ ri_t
+            a[:2, 2] = rz_t @ dri_t @ dt
+            a[2, 2] = -1.0
+            bj = np.zeros((3, 3))
+            bj[:2, :2] = rz_t @ ri_t
+            bj[2, 2] = 1.0
+            omega = e.info
+            if e.loop:
+                chi2 = float(err @ omega @ err)
+                omega = omega / (1.0 + chi2 / (cauchy * cauchy))
+            si_, sj_ = slice(3 * e.i, 3 * e.i + 3), slice(3 * e.j, 3 * e.j + 3)
+            h[si_, si_] += a.T @ omega @ a
+            h[si_, sj_] += a.T @ omega @ bj
+            h[sj_, si_] += bj.T @ omega @ a
+            h[sj_, sj_] += bj.T @ omega @ bj
+            b[si_] += a.T @ omega @ err
+            b[sj_] += bj.T @ omega @ err
+        h[:3, :3] += np.eye(3) * 1e12          # hold node 0
+        h += np.eye(3 * n) * 1e-9
+        step = np.linalg.solve(h, -b)
+        x += step.reshape(n, 3)
+        x[:, 2] = _wrap(x[:, 2])
+        if np.abs(step).max() < 1e-6:
+            break
+    return x
