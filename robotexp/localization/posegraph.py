@@ -116,8 +116,8 @@ def optimize(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int = 1
     Raises:
         ConfigError: an edge names a node outside 0..n-1.
     """
-    from scipy.sparse import coo_matrix             # scipy: a dependency already (statistics)
-    from scipy.sparse.linalg import spsolve
+    from scipy.sparse import coo_matrix  # type: ignore[import-untyped]  # scipy: a dependency (statistics)
+    from scipy.sparse.linalg import spsolve  # type: ignore[import-untyped]
 
     x = np.array(poses, np.float64, copy=True).reshape(-1, 3)
     n = len(x)

@@ -379,7 +379,7 @@ def _grow(mask: npt.NDArray[np.bool_], cells: int) -> npt.NDArray[np.bool_]:
     """`mask` grown by `cells` in the chessboard metric (a (2 cells + 1)-square around each cell)."""
     if cells == 0:
         return mask
-    from scipy.ndimage import binary_dilation       # scipy: the project's dependency for statistics already
+    from scipy.ndimage import binary_dilation  # type: ignore[import-untyped]  # scipy: a dependency (statistics)
     return np.asarray(binary_dilation(mask, structure=np.ones((2 * cells + 1, 2 * cells + 1), bool)))
 
 
