@@ -99,6 +99,14 @@ class LogMap:
         return ate(self.odometry, self.truth)
 
 
+def _fits(box: tuple[float, float, float, float], cell: float, margin: float) -> bool:
+    try:
+        GridGeometry.covering(*box, cell, margin=margin)
+    except ConfigError:
+        return False
+    return True
+
+
 def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None = None,
             localize: Literal["none", "scan-match"] = "scan-match", seed: int = 0, range_max: float = 20.0,
             matcher: MatcherConfig | None = None, margin: float = 2.0,
@@ -138,8 +146,15 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
     # would only make the grid larger than the memory limit
     xy = np.array([[p.x, p.y] for p in (odom + truth if localize == "none" else truth)])
     reach = range_max + margin
-    geo = GridGeometry.covering(float(xy[:, 0].min()), float(xy[:, 1].min()), float(xy[:, 0].max()),
-                                float(xy[:, 1].max()), cell, margin=reach)
+    box = (float(xy[:, 0].min()), float(xy[:, 1].min()), float(xy[:, 0].max()), float(xy[:, 1].max()))
+    try:
+        geo = GridGeometry.covering(*box, cell, margin=reach)
+    except ConfigError as e:
+        fits = next((c for c in (0.1, 0.2, 0.5, 1.0) if c > cell and _fits(box, c, reach)), None)
+        msg = str(e)
+        if fits is not None:
+            msg = msg.replace("use a larger cell or smaller bounds", f"use a larger --cell ({fits:g} m fits)")
+        raise ConfigError(f"{log.path}: {msg}") from None
     if geo.rows * geo.cols > 200_000_000:
         raise ConfigError(f"{log.path}: the map would have {geo.rows} x {geo.cols} cells: use a larger --cell")
     grid = OccupancyGrid(geo, range_max=range_max)

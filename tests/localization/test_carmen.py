@@ -152,3 +152,10 @@ def test_map_command_rejects_bad_input(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "no FLASER or ROBOTLASER1 line" in res.output
     assert not (tmp_path / "o" / "results.jsonl").exists()
     assert ate([[0.0, 0.0]], [[0.0, 0.0]]) == 0.0
+    # a path 280 x 240 m across: too many 5 cm cells, and the command names the cell that fits
+    far = tmp_path / "campus.log"
+    far.write_text("".join(format_flaser(np.full(181, 5.0), p, p, float(k)) + "\n"
+                           for k, p in enumerate([Pose(0.0, 0.0, 0.0), Pose(280.0, 240.0, 0.0)])))
+    res = runner.invoke(main, ["map", str(far), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "campus.log" in res.output and "use a larger --cell (0.1 m fits)" in res.output
+    assert not (tmp_path / "o" / "results.jsonl").exists()
