@@ -319,8 +319,12 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             recorder.close()            # a run that never started leaves no file
     r = result.record
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
+    ate = r.extra.get("ate_m")          # with an odometry error: how far the pose the explorer got was off
+    if r.extra.get("odometry_error") in (None, "none") and r.extra.get("localize") in (None, "none"):
+        ate = None                      # exact odometry: nothing to say
+    extra = ("" if r.map_iou is None else f", map IoU {r.map_iou:.3f}") + ("" if ate is None else f", ATE {ate:.3f} m")
     click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
-               f"(wall {r.wall_time_s:.1f} s), coverage {cov}, collisions {r.collisions}")
+               f"(wall {r.wall_time_s:.1f} s), coverage {cov}{extra}, collisions {r.collisions}")
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     end_view(live, result.interrupted)
     if result.interrupted:

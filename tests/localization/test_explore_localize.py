@@ -16,10 +16,17 @@ def test_explore_records_ate_with_and_without_scan_matching(tmp_path: Path) -> N
     runner = CliRunner()
     base = ["explore", "-w", "dense", "-m", "srt-laser", "--max-time", "60", "--odometry-error", "p3dx",
             "--out", str(tmp_path)]
+    summaries = []
     for extra in (["--localize", "none"], [], ["--odometry-error", "none"]):
         res = runner.invoke(main, base + extra)
         assert res.exit_code == 0, res.output
+        summaries.append(res.output.splitlines()[-2])
     raw, fixed, exact = (json.loads(line) for line in (tmp_path / "results.jsonl").read_text().splitlines())
+    # the summary line says what the record says: map IoU always, ATE where the odometry erred
+    for line, rec in zip(summaries, (raw, fixed, exact), strict=True):
+        assert f"map IoU {rec['map_iou']:.3f}" in line, line
+    assert f"ATE {raw['ate_m']:.3f} m" in summaries[0] and f"ATE {fixed['ate_m']:.3f} m" in summaries[1]
+    assert "ATE" not in summaries[2]
     assert raw["localize"] == "none" and raw["odometry_error"] == "p3dx"
     assert fixed["localize"] == "scan-match" and fixed["matches"]["matched"] > 0     # auto: on with the error
     assert exact["localize"] == "none" and exact["ate_m"] == 0.0                     # auto: off without it
