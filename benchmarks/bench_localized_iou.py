@@ -3,6 +3,7 @@ its occupied and free parts (issue 14: dense, P3-DX preset, scan matching).
 
 Run: python benchmarks/bench_localized_iou.py [--world dense] [--method frontier] [--max-time 3600]
          [--speed 300] [--seed 0] [--offsets 0.002,0.02] [--loop-closure]
+         [--window T0,T1]
 
 One `--localize scan-match` run under the P3-DX odometry preset (the `robotexp explore` path), keeping
 every step's scan, estimated pose, true pose and odometry. Printed, each as map IoU (the record's
@@ -22,6 +23,11 @@ every step's scan, estimated pose, true pose and odometry. Printed, each as map 
   the keyframes' error before and after `posegraph.optimize`, and the scans rebuilt at the corrected poses
   (each step moved with its keyframe);
 
+- with `--window T0,T1` [s], each match between those times replayed three ways: the run's (prediction and
+  result), the same scan matched from the true pose against the localizer's own map (where that map puts
+  the pose: its offset there), and from the prediction against an oracle map (each scan put in at its true
+  pose: what the scan itself fixes);
+
 and the pose error at the integrated scans (median, 90th percentile; heading while turning faster
 than 0.5 rad/s and slower), and the error after the first 10 s (the first turn in place).
 """
@@ -40,7 +46,7 @@ import numpy as np
 from robotexp.experiment import RunSpec, run_experiment
 from robotexp.explorer import ExplorationRun
 from robotexp.localization import posegraph as PG
-from robotexp.localization.matcher import Localizer, compose, relative
+from robotexp.localization.matcher import Localizer, compose, relative, scan_points
 from robotexp.localization.robot import RUN_MATCHER, LocalizedRobot
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.groundtruth import GroundTruth, map_iou, map_iou_parts
@@ -158,6 +164,39 @@ def loop_closure(steps: list[Step]) -> tuple[list[Pose], str]:
     return poses, note
 
 
+def window(start: Localizer, steps: list[Step], t0: float, t1: float) -> None:
+    """`--window`: the matches between t0 and t1 [s] replayed three ways (see the module docstring)."""
+    loc, oracle = copy.deepcopy(start), copy.deepcopy(start)
+    truth: list[Pose] = [steps[0].truth]
+
+    def integrate(self: Localizer, pose: Pose, scan: LaserScan) -> None:
+        Localizer.integrate(self, truth[0], scan)
+    oracle.integrate = types.MethodType(integrate, oracle)          # type: ignore[method-assign]
+    prior = (0.02, math.radians(0.5))
+    print(f"matches between {t0:g} and {t1:g} s: errors against the true pose, (x, y) mm and heading deg")
+    for s in steps[1:]:
+        if s.time > t1:
+            break
+        truth[0] = s.truth
+        before = copy.deepcopy(loc) if s.time >= t0 else None
+        pose = loc.locate(s.odometry, s.scan, s.turn_rate)
+        pred = oracle.predict(s.odometry) if before is None else before.predict(s.odometry)
+        oracle_before = copy.deepcopy(oracle) if before is not None else None
+        oracle.locate(s.odometry, s.scan, s.turn_rate)
+        if before is None or oracle_before is None or loc.status not in ("matched", "degenerate"):
+            continue
+        px, py = scan_points(s.scan, before.matcher.config.range_max)
+        own = before.matcher.match(before.grid.values, before.grid.geo, px, py, s.truth, before.hits,
+                                   before.grid.stamp, prior).pose
+        ora = oracle_before.matcher.match(oracle_before.grid.values, oracle_before.grid.geo, px, py, pred,
+                                          oracle_before.hits, oracle_before.grid.stamp, prior).pose
+
+        def off(q: Pose, t: Pose = s.truth) -> str:
+            return f"({(q.x - t.x) * 1000:+6.1f}, {(q.y - t.y) * 1000:+6.1f}) {math.degrees(q.theta - t.theta):+.2f}"
+        print(f"  {s.time:6.1f} s {loc.status:10s} prediction {off(pred)} -> run {off(pose)} | own map from the truth "
+              f"{off(own)} | oracle map from the prediction {off(ora)}")
+
+
 def main() -> None:
     """Run, rebuild, print."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -170,6 +209,7 @@ def main() -> None:
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec")
     ap.add_argument("--offsets", default="0.002,0.02", help="constant offsets [m] of the true poses, comma-separated")
     ap.add_argument("--loop-closure", action="store_true", help="also the run's keyframes through the pose graph")
+    ap.add_argument("--window", default=None, metavar="T0,T1", help="[s] replay the matches between these times")
     args = ap.parse_args()
     offsets = [float(v) for v in args.offsets.split(",") if v]
     rec = Recorder()
@@ -197,6 +237,9 @@ def main() -> None:
     oracle = replay(rec.start, steps, oracle=True)
     line("localizer replayed with an oracle matching map", rebuild(run.grid, [(p, s.scan) for p, s in
                                                                               zip(oracle, steps, strict=True)]))
+    if args.window:
+        t0, t1 = (float(v) for v in args.window.split(","))
+        window(rec.start, steps, t0, t1)
     if args.loop_closure:
         closed, note = loop_closure(steps)
         line("keyframes through the pose graph (--loop-closure)",
