@@ -59,7 +59,8 @@ def _stem(path: Path) -> str:
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the odometry noise.")
 def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize: str, loop_closure: bool,
                 range_max: float, seed: int) -> None:
-    """Build a map (PNG, ROS YAML + PGM) from a CARMEN log (FLASER, ROBOTLASER1, ODOM; .gz accepted);
+    """Build a map (PNG, ROS YAML + PGM) from a CARMEN log (FLASER, ROBOTLASER1, or RAWLASER1 placed by
+    ODOM; .gz accepted);
     append a record with ate_m, the RMSE [m] of the estimated path against the logged poses (no
     alignment: both start at the first logged pose), to OUT/results.jsonl and print ATE."""
     from robotexp.localization.carmen import read_carmen
@@ -79,7 +80,10 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
     if len(parsed.problems) > MAX_PROBLEMS_SHOWN:
         click.echo(f"robotexp: ... and {len(parsed.problems) - MAX_PROBLEMS_SHOWN} more malformed lines", err=True)
     if not parsed.scans:
-        raise ConfigError(f"{log}: no FLASER or ROBOTLASER1 line: nothing to map (is it a CARMEN log?)")
+        if parsed.raw:
+            raise ConfigError(f"{log}: {len(parsed.raw)} RAWLASER1 readings but no ODOM line to place them: nothing "
+                              "to map (a log with neither FLASER nor ROBOTLASER1 lines needs ODOM lines)")
+        raise ConfigError(f"{log}: no FLASER, ROBOTLASER1 or RAWLASER1 line: nothing to map (is it a CARMEN log?)")
     result = map_log(parsed, cell=cell, noise=noise, localize=localize, seed=seed,  # type: ignore[arg-type]
                      range_max=range_max, loops=LoopConfig() if loop_closure else None)
     name = _stem(log)

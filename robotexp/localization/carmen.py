@@ -1,4 +1,4 @@
-"""CARMEN laser logs: FLASER, ROBOTLASER1 and ODOM lines, plain or gzip-compressed.
+"""CARMEN laser logs: FLASER, ROBOTLASER1, RAWLASER1 and ODOM lines, plain or gzip-compressed.
 
 Line formats (CARMEN logger; lengths in m, angles in rad):
 
@@ -11,12 +11,21 @@ Line formats (CARMEN logger; lengths in m, angles in rad):
   timestamp host logger_timestamp`.
 - `ODOM x y theta tv rv accel timestamp host logger_timestamp`.
 
-Other lines (PARAM, NEFF, RAWLASER without a pose, comments) are ignored. A malformed line of a known
-kind is reported as `file:line: what` in `CarmenLog.problems` and skipped.
+- `RAWLASER1 type start_angle fov resolution max_range accuracy remission_mode n r_1 .. r_n m e_1 .. e_m
+  timestamp host logger_timestamp`: the front laser without a pose. Used only in a log with no FLASER
+  or ROBOTLASER1 line (newer CARMEN logs write both for the same laser): each reading is placed at the
+  ODOM pose interpolated at its timestamp, moved forward by the `robot_frontlaser_offset` PARAM [m]
+  when the log gives it; a reading outside the ODOM lines' time span is left out (and counted in
+  `CarmenLog.problems`).
+
+Other lines (PARAM, NEFF, RAWLASER2-4 (rear and other lasers: their mounting is not in the line),
+comments) are ignored. A malformed line of a known kind is reported as `file:line: what` in
+`CarmenLog.problems` and skipped.
 """
 
 from __future__ import annotations
 
+import bisect
 import gzip
 import math
 import os
@@ -29,7 +38,7 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.robot import LaserScan, Pose
 
-__all__ = ["LogScan", "CarmenLog", "read_carmen", "flaser_angles", "format_flaser"]
+__all__ = ["LogScan", "CarmenLog", "read_carmen", "flaser_angles", "format_flaser", "odometry_at"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,7 @@ class CarmenLog:
     odometry: list[tuple[float, Pose]] = field(default_factory=list)
     params: dict[str, str] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
+    raw: list[LogScan] = field(default_factory=list)    # RAWLASER1 readings (pose: none yet, zeros)
 
     def no_echo(self) -> float:
         """[m] the range that means "no echo": the `robot_front_laser_max` PARAM when given; otherwise the
@@ -123,7 +133,45 @@ def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
         raise ConfigError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     except EOFError:
         raise ConfigError(f"{p}: the gzip stream ends early: the file is truncated") from None
+    if not log.scans and log.raw:
+        _place_raw(log)
     return log
+
+
+def odometry_at(odometry: list[tuple[float, Pose]], stamp: float) -> Pose | None:
+    """The pose of `odometry` ((timestamp, pose) in time order) interpolated at `stamp`: linear in x and y,
+    along the shorter way round in heading; None outside its time span."""
+    if not odometry or not odometry[0][0] <= stamp <= odometry[-1][0]:
+        return None
+    times = [t for t, _ in odometry]
+    k = bisect.bisect_left(times, stamp)
+    t1, b = odometry[k]
+    if t1 == stamp or k == 0:
+        return b
+    t0, a = odometry[k - 1]
+    f = (stamp - t0) / (t1 - t0)
+    dth = math.remainder(b.theta - a.theta, 2 * math.pi)
+    return Pose(a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), math.remainder(a.theta + f * dth, 2 * math.pi))
+
+
+def _place_raw(log: CarmenLog) -> None:
+    """RAWLASER1 readings as scans at the interpolated ODOM pose (see the module docstring)."""
+    odometry = sorted(log.odometry, key=lambda tp: tp[0])
+    try:
+        offset = float(log.params.get("robot_frontlaser_offset", "0"))
+    except ValueError:
+        offset = 0.0
+    outside = 0
+    for r in log.raw:
+        pose = odometry_at(odometry, r.stamp)
+        if pose is None:
+            outside += 1
+            continue
+        laser = Pose(pose.x + offset * math.cos(pose.theta), pose.y + offset * math.sin(pose.theta), pose.theta)
+        log.scans.append(LogScan(r.stamp, r.angles, r.ranges, laser, pose, r.range_max, r.line))
+    if outside:
+        log.problems.append(f"{log.path}: {outside} of {len(log.raw)} RAWLASER1 readings lie outside the ODOM lines' "
+                            "time span (no pose for them): left out")
 
 
 def _floats(fields: list[str], start: int, count: int) -> list[float]:
@@ -165,6 +213,14 @@ def _line(log: CarmenLog, number: int, text: str) -> None:
             (stamp,) = _floats(fields, k + 11, 1)
             angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
             log.scans.append(LogScan(stamp, angles, ranges, Pose(lx, ly, lth), Pose(rx, ry, rth), rmax, number))
+        elif kind == "RAWLASER1":
+            start, _fov, res, rmax, _acc, _mode = _floats(fields, 2, 6)
+            n = _count(fields, 8, "beam count")
+            ranges = np.array(_floats(fields, 9, n))
+            m = _count(fields, 9 + n, "remission count")
+            (stamp,) = _floats(fields, 10 + n + m, 1)
+            angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
+            log.raw.append(LogScan(stamp, angles, ranges, Pose(0.0, 0.0, 0.0), Pose(0.0, 0.0, 0.0), rmax, number))
         elif kind == "ODOM":
             x, y, th, _tv, _rv, _acc, stamp = _floats(fields, 1, 7)
             log.odometry.append((stamp, Pose(x, y, th)))

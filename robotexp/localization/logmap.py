@@ -134,7 +134,7 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
         ConfigError: no laser reading, or a parameter out of range.
     """
     if not log.scans:
-        raise ConfigError(f"{log.path}: no FLASER or ROBOTLASER1 line: nothing to map")
+        raise ConfigError(f"{log.path}: no FLASER, ROBOTLASER1 or RAWLASER1 line: nothing to map")
     if not (cell > 0 and range_max > 0):
         raise ConfigError(f"map_log: cell and range_max must be > 0 m, got {cell} and {range_max}")
     if localize not in ("none", "scan-match"):

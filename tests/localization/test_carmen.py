@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from robotexp.cli import main
 from robotexp.errors import ConfigError
 from robotexp.localization import ate
-from robotexp.localization.carmen import flaser_angles, format_flaser, read_carmen
+from robotexp.localization.carmen import flaser_angles, format_flaser, odometry_at, read_carmen
 from robotexp.localization.logmap import OdometryNoise, perturb_path
 from robotexp.robot import Pose
 from robotexp.sim.raycast import RayIndex
@@ -87,6 +87,69 @@ def test_reader_parses_flaser_robotlaser_and_odom(tmp_path: Path) -> None:
     assert np.allclose(np.degrees(flaser_angles(361))[[0, 1, -1]], [-90.0, -89.5, 90.0])
 
 
+def _rawlaser(ranges: np.ndarray, stamp: float) -> str:
+    """A RAWLASER1 line: 181 beams from -90 deg, 1 deg apart, 8 m, no remissions."""
+    values = " ".join(f"{v:.3f}" for v in ranges)
+    return (f"RAWLASER1 0 -1.570796 3.141593 0.017453 8.0 0.01 0 {len(ranges)} {values} 0 "
+            f"{stamp:.6f} robotexp {stamp:.6f}")
+
+
+def test_rawlaser_readings_are_placed_by_interpolated_odometry(tmp_path: Path) -> None:
+    odom = [(10.0, Pose(0.0, 0.0, 3.0)), (12.0, Pose(2.0, -1.0, -3.0))]
+    # halfway: x, y halfway; the heading the short way round (3 -> -3 rad through pi, not through 0)
+    mid = odometry_at(odom, 11.0)
+    assert mid is not None and (mid.x, mid.y) == (1.0, -0.5)
+    assert mid.theta == pytest.approx(math.remainder(3.0 + (2 * math.pi - 6.0) / 2, 2 * math.pi))
+    assert odometry_at(odom, 12.0) == odom[1][1] and odometry_at(odom, 9.9) is None and odometry_at([], 1.0) is None
+    log = tmp_path / "raw.log"
+    log.write_text("PARAM robot_frontlaser_offset 0.2 nohost 0\n"
+                   "ODOM 0.0 0.0 0.0 0 0 0 10.0 host 10.0\n"
+                   "ODOM 2.0 0.0 1.0 0 0 0 12.0 host 12.0\n"
+                   + _rawlaser(np.full(181, 3.0), 11.0) + "\n"
+                   + _rawlaser(np.full(181, 3.0), 13.0) + "\n")
+    parsed = read_carmen(log)
+    (scan,) = parsed.scans                      # the reading at 13 s lies after the last ODOM line
+    assert scan.odom == Pose(1.0, 0.0, 0.5) and scan.range_max == 8.0 and scan.stamp == 11.0
+    assert scan.pose.x == pytest.approx(1.0 + 0.2 * math.cos(0.5))          # 0.2 m ahead: the laser's offset
+    assert scan.pose.y == pytest.approx(0.2 * math.sin(0.5))
+    assert np.allclose(np.degrees(scan.angles)[[0, 90, 180]], [-90.0, 0.0, 90.0], atol=0.01)   # 6 decimals
+    assert parsed.problems == [f"{log}: 1 of 2 RAWLASER1 readings lie outside the ODOM lines' time span "
+                               "(no pose for them): left out"]
+    # without ODOM lines nothing can be placed: one line, exit 2, nothing written
+    bare = tmp_path / "bare.log"
+    bare.write_text(_rawlaser(np.full(181, 3.0), 11.0) + "\n")
+    res = CliRunner().invoke(main, ["map", str(bare), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "1 RAWLASER1 readings but no ODOM line to place them" in res.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_map_command_maps_a_rawlaser_log_placed_by_odometry(tmp_path: Path) -> None:
+    """RAWLASER1 readings halfway between ODOM lines along the corridor of `dense`: mapped where the world
+    has its walls, and scan matching recovers the perturbed path as it does for FLASER logs."""
+    world = builtin_world("dense")
+    index = RayIndex(world.boxes, world.discs, 2.0)
+    angles = flaser_angles(181)
+    truth = loop_path()
+    lines = []
+    for k, p in enumerate(truth):
+        lines.append(f"ODOM {p.x:.6f} {p.y:.6f} {p.theta:.6f} 0 0 0 {k:.3f} robotexp {k:.3f}")
+        if k + 1 < len(truth):
+            q = odometry_at([(float(k), p), (k + 1.0, truth[k + 1])], k + 0.5)
+            assert q is not None
+            frac = index.cast(np.tile([q.x, q.y], (181, 1)), q.theta + angles, REACH, 0.3)
+            lines.append(_rawlaser(np.where(frac >= 1.0, 81.91, frac * REACH), k + 0.5))
+    log = tmp_path / "raw-sim.log"
+    log.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["map", str(log), "--out", str(out), "--odometry-noise", "0.02,1"])
+    assert res.exit_code == 0, res.output
+    rec = json.loads((out / "results.jsonl").read_text())
+    assert rec["scans"] == len(truth) - 1 and rec["odometry_ate_m"] > 2.0 and rec["ate_m"] < 0.3
+    values, geo = load_ros_grid(out / "raw-sim.yaml")
+    r, c = geo.cell_of(0.0, 8.5)                                     # the north wall's face at x = 0
+    assert (values[r - 3:r + 4, c - 3:c + 4] == 100).any()
+
+
 def test_malformed_lines_are_reported_with_file_and_line_and_skipped(tmp_path: Path) -> None:
     log = tmp_path / "bad.log.gz"
     simulated_log(log, gz=True, junk=True)
@@ -149,7 +212,7 @@ def test_map_command_rejects_bad_input(tmp_path: Path) -> None:
     res = runner.invoke(main, ["map", str(log), "--out", str(tmp_path / "o"), "--odometry-noise", "2%"])
     assert res.exit_code == 2 and "DIST,DEG_PER_M" in res.output
     res = runner.invoke(main, ["map", str(log), "--out", str(tmp_path / "o")])
-    assert res.exit_code == 2 and "no FLASER or ROBOTLASER1 line" in res.output
+    assert res.exit_code == 2 and "no FLASER, ROBOTLASER1 or RAWLASER1 line" in res.output
     assert not (tmp_path / "o" / "results.jsonl").exists()
     assert ate([[0.0, 0.0]], [[0.0, 0.0]]) == 0.0
     # a path 280 x 240 m across: too many 5 cm cells, and the command names the cell that fits
