@@ -177,7 +177,9 @@ class HokuyoEmulator(LaserEmulatorBase):
         if line == C.CMD_PP:
             return encode_reply(line, C.STATUS_OK, p.pp_lines())
         if line == C.CMD_II:
-            stamp = encode_values([self._now_ms()], C.TIMESTAMP_CHARS).decode("ascii")
+            # the 24-bit millisecond counter as 6 hex digits, as a URG's II reply gives it ("TIME:081615;N");
+            # in the 4-character encoding of scans it may hold ':' or ';', which parsers split lines on
+            stamp = f"{self._now_ms():06X}"
             return encode_reply(line, C.STATUS_OK, [
                 param_line("MODL", p.model), param_line("LASR", "ON" if self.laser_on else "OFF"),
                 param_line("SCSP", f"Initial({p.scan_rpm}[rpm])"),

@@ -29,6 +29,7 @@ def test_sums_of_documented_lines() -> None:
     assert k.param_line("PROT", "SCIP 2.0") == b"PROT:SCIP 2.0;N"
     assert k.param_line("SERI", "H1510998") == b"SERI:H1510998;V"
     assert k.param_line("FIRM", "3.4.03(17/Dec./2012)") == b"FIRM:3.4.03(17/Dec./2012);T"
+    assert k.param_line("TIME", "081615") == b"TIME:081615;N"          # a URG-04LX's II reply
 
 
 def test_real_vv_reply_parses() -> None:

@@ -128,6 +128,11 @@ def test_emulator_replies_as_scip_2_0() -> None:
             assert _talk(sock, b"", blocks=1, timeout=0.3) == []
             assert not emu.streaming
             assert _talk(sock, b"QT\n") == [b"QT\n00P"]
+            # II: TIME is the millisecond counter in hex; 10 ms, in the scans' encoding "000:", would
+            # break every parser that splits KEY:value (hokuyolx failed on it)
+            emu._now_ms = lambda: 10            # type: ignore[method-assign]  # (QT above: the laser is off)
+            ii = k.parse_params(k.parse_reply(_talk(sock, b"II\n")[0]))
+            assert ii["TIME"] == "00000A" and ii["LASR"] == "OFF" and ii["MODL"].startswith("URG-04LX")
             pp = k.parse_params(k.parse_reply(_talk(sock, b"PP\n")[0]))
             assert pp == {"MODL": "URG-04LX(Hokuyo Automatic Co.,Ltd.)", "DMIN": "20", "DMAX": "5600",
                           "ARES": "1024", "AMIN": "44", "AMAX": "725", "AFRT": "384", "SCAN": "600"}
