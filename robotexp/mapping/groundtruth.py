@@ -358,29 +358,33 @@ def map_iou_parts(grid_states: npt.NDArray[np.int8], gt: GroundTruth) -> tuple[f
     Raises:
         ConfigError: the shapes differ.
     """
-    _check_shape("map_iou", grid_states, gt)
-    m_occ = grid_states == 100
-    m_free = grid_states == 0
-    near = np.pad(gt.explorable, 1, constant_values=False)
-    rows, cols = gt.explorable.shape
-    touch = np.zeros_like(gt.explorable)
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            touch |= near[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
-    target_occ = gt.occupied & touch
-    iou_occ = _iou(int(np.count_nonzero(m_occ & gt.occupied)), int(np.count_nonzero(m_occ | target_occ)))
-    iou_free = _iou(int(np.count_nonzero(m_free & ~gt.occupied)),
-                    int(np.count_nonzero(m_free | gt.explorable)))
-    return iou_occ, iou_free
-
+    return _parts(grid_states, gt, 0, "map_iou")
 
 
 def _grow(mask: npt.NDArray[np.bool_], cells: int) -> npt.NDArray[np.bool_]:
     """`mask` grown by `cells` in the chessboard metric (a (2 cells + 1)-square around each cell)."""
     if cells == 0:
         return mask
-    from scipy.ndimage import binary_dilation  # type: ignore[import-untyped]  # scipy: a dependency (statistics)
-    return np.asarray(binary_dilation(mask, structure=np.ones((2 * cells + 1, 2 * cells + 1), bool)))
+    padded = np.pad(mask, cells, constant_values=False)
+    rows, cols = mask.shape
+    out = np.zeros_like(mask)
+    for dr in range(2 * cells + 1):
+        for dc in range(2 * cells + 1):
+            out |= padded[dr:dr + rows, dc:dc + cols]
+    return out
+
+
+def _parts(grid_states: npt.NDArray[np.int8], gt: GroundTruth, cells: int, name: str) -> tuple[float, float]:
+    """(IoU_occ, IoU_free) with a tolerance of `cells` cells (`map_iou_tolerant`; 0: `map_iou`'s)."""
+    _check_shape(name, grid_states, gt)
+    m_occ = grid_states == 100
+    m_free = grid_states == 0
+    target_occ = gt.occupied & _grow(gt.explorable, 1)     # occupied cells with an explorable 8-neighbour
+    iou_occ = _iou(int(np.count_nonzero(m_occ & _grow(gt.occupied, cells))),
+                   int(np.count_nonzero(m_occ)) + int(np.count_nonzero(target_occ & ~_grow(m_occ, cells))))
+    iou_free = _iou(int(np.count_nonzero(m_free & _grow(~gt.occupied, cells))),
+                    int(np.count_nonzero(m_free)) + int(np.count_nonzero(gt.explorable & ~_grow(m_free, cells))))
+    return iou_occ, iou_free
 
 
 def map_iou_tolerant(grid_states: npt.NDArray[np.int8], gt: GroundTruth, cells: int = 1) -> tuple[float, float, float]:
@@ -396,7 +400,7 @@ def map_iou_tolerant(grid_states: npt.NDArray[np.int8], gt: GroundTruth, cells: 
         IoU_occ  = |M_occ ∩ D(G)|  / (|M_occ|  + |O \ D(M_occ)|)
         IoU_free = |M_free ∩ D(~G)| / (|M_free| + |F \ D(M_free)|)
 
-    With `cells` = 0 these are `map_iou_parts` exactly (|A ∪ B| = |A| + |B \ A|).
+    With `cells` = 0 these are `map_iou_parts` (|A ∪ B| = |A| + |B \ A|): both are `_parts`.
 
     Returns:
         (mean, IoU_occ, IoU_free), each in [0, 1].
@@ -407,12 +411,5 @@ def map_iou_tolerant(grid_states: npt.NDArray[np.int8], gt: GroundTruth, cells: 
     _check_shape("map_iou_tolerant", grid_states, gt)
     if cells < 0:
         raise ConfigError(f"map_iou_tolerant: cells must be >= 0, got {cells}")
-    m_occ = grid_states == 100
-    m_free = grid_states == 0
-    near = _grow(gt.explorable, 1)                  # the observable occupied target, as in map_iou_parts
-    target_occ = gt.occupied & near
-    iou_occ = _iou(int(np.count_nonzero(m_occ & _grow(gt.occupied, cells))),
-                   int(np.count_nonzero(m_occ)) + int(np.count_nonzero(target_occ & ~_grow(m_occ, cells))))
-    iou_free = _iou(int(np.count_nonzero(m_free & _grow(~gt.occupied, cells))),
-                    int(np.count_nonzero(m_free)) + int(np.count_nonzero(gt.explorable & ~_grow(m_free, cells))))
+    iou_occ, iou_free = _parts(grid_states, gt, cells, "map_iou_tolerant")
     return 0.5 * (iou_occ + iou_free), iou_occ, iou_free
