@@ -84,6 +84,13 @@ def _wrap(a: npt.NDArray[np.float64] | float) -> npt.NDArray[np.float64] | float
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+def check_edges(edges: Sequence[Edge], n: int) -> None:
+    """Raise ConfigError when an edge names a node outside 0..n-1."""
+    for e in edges:
+        if not (0 <= e.i < n and 0 <= e.j < n):
+            raise ConfigError(f"pose graph: edge {e.i} -> {e.j} outside the {n} nodes")
+
+
 def _edge_arrays(edges: Sequence[Edge]) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.float64],
                                                   npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
     i = np.array([e.i for e in edges], np.intp)
@@ -121,17 +128,16 @@ def optimize(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int = 1
 
     x = np.array(poses, np.float64, copy=True).reshape(-1, 3)
     n = len(x)
-    for e in edges:
-        if not (0 <= e.i < n and 0 <= e.j < n):
-            raise ConfigError(f"pose graph: edge {e.i} -> {e.j} outside the {n} nodes")
+    check_edges(edges, n)
     if not edges or n == 0:
         return x
     ei, ej, z, info, loop = _edge_arrays(edges)
     m = len(ei)
     k = np.arange(3)
     # the (row, col) of each 3x3 block's entries: blocks (i, i), (i, j), (j, i), (j, j) of every edge
-    rr = np.concatenate([(3 * a)[:, None, None] + k[None, :, None] + 0 * k[None, None, :] for a in (ei, ei, ej, ej)])
-    cc = np.concatenate([(3 * a)[:, None, None] + 0 * k[None, :, None] + k[None, None, :] for a in (ei, ej, ei, ej)])
+    rows = [np.broadcast_to((3 * a)[:, None, None] + k[None, :, None], (m, 3, 3)) for a in (ei, ei, ej, ej)]
+    cols = [np.broadcast_to((3 * a)[:, None, None] + k[None, None, :], (m, 3, 3)) for a in (ei, ej, ei, ej)]
+    rr, cc = np.concatenate(rows), np.concatenate(cols)
     diag = np.arange(3 * n)
     for _ in range(iterations):
         xi, xj = x[ei], x[ej]

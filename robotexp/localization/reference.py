@@ -9,9 +9,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
 from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES, HitSegments
-from robotexp.localization.posegraph import Edge, _wrap
+from robotexp.localization.posegraph import Edge, _wrap, check_edges
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
            "wall_offset_ref", "refine_hits_ref", "optimize_ref"]
@@ -290,9 +289,7 @@ def optimize_ref(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int
     """
     x = np.array(poses, np.float64, copy=True)
     n = len(x)
-    for e in edges:
-        if not (0 <= e.i < n and 0 <= e.j < n):
-            raise ConfigError(f"pose graph: edge {e.i} -> {e.j} outside the {n} nodes")
+    check_edges(edges, n)
     for _ in range(iterations):
         h = np.zeros((3 * n, 3 * n))
         b = np.zeros(3 * n)
