@@ -141,9 +141,13 @@ def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
 def odometry_at(odometry: list[tuple[float, Pose]], stamp: float) -> Pose | None:
     """The pose of `odometry` ((timestamp, pose) in time order) interpolated at `stamp`: linear in x and y,
     along the shorter way round in heading; None outside its time span."""
+    return _interpolate(odometry, [t for t, _ in odometry], stamp)
+
+
+def _interpolate(odometry: list[tuple[float, Pose]], times: list[float], stamp: float) -> Pose | None:
+    """`odometry_at` with the timestamps of `odometry` given (`times`: built once for a whole log)."""
     if not odometry or not odometry[0][0] <= stamp <= odometry[-1][0]:
         return None
-    times = [t for t, _ in odometry]
     k = bisect.bisect_left(times, stamp)
     t1, b = odometry[k]
     if t1 == stamp or k == 0:
@@ -161,9 +165,10 @@ def _place_raw(log: CarmenLog) -> None:
         offset = float(log.params.get("robot_frontlaser_offset", "0"))
     except ValueError:
         offset = 0.0
+    times = [t for t, _ in odometry]
     outside = 0
     for r in log.raw:
-        pose = odometry_at(odometry, r.stamp)
+        pose = _interpolate(odometry, times, r.stamp)
         if pose is None:
             outside += 1
             continue
@@ -192,6 +197,17 @@ def _count(fields: list[str], i: int, what: str) -> int:
     return n
 
 
+def _laser_head(fields: list[str]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float, int]:
+    """The fields ROBOTLASER1 and RAWLASER1 share (`type start_angle fov resolution max_range accuracy
+    remission_mode n r_1 .. r_n m e_1 .. e_m`): beam angles, ranges, max range, and the index of the
+    field after the remissions."""
+    start, _fov, res, rmax, _acc, _mode = _floats(fields, 2, 6)
+    n = _count(fields, 8, "beam count")
+    ranges = np.array(_floats(fields, 9, n))
+    m = _count(fields, 9 + n, "remission count")
+    return np.asarray(start + res * np.arange(n), dtype=np.float64), ranges, rmax, 10 + n + m
+
+
 def _line(log: CarmenLog, number: int, text: str) -> None:
     fields = text.split()
     if not fields or fields[0].startswith("#"):
@@ -204,22 +220,13 @@ def _line(log: CarmenLog, number: int, text: str) -> None:
             x, y, th, ox, oy, oth, stamp = _floats(fields, 2 + n, 7)
             log.scans.append(LogScan(stamp, flaser_angles(n), ranges, Pose(x, y, th), Pose(ox, oy, oth), None, number))
         elif kind == "ROBOTLASER1":
-            start, _fov, res, rmax, _acc, _mode = _floats(fields, 2, 6)
-            n = _count(fields, 8, "beam count")
-            ranges = np.array(_floats(fields, 9, n))
-            m = _count(fields, 9 + n, "remission count")
-            k = 10 + n + m
+            angles, ranges, rmax, k = _laser_head(fields)
             lx, ly, lth, rx, ry, rth = _floats(fields, k, 6)
             (stamp,) = _floats(fields, k + 11, 1)
-            angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
             log.scans.append(LogScan(stamp, angles, ranges, Pose(lx, ly, lth), Pose(rx, ry, rth), rmax, number))
         elif kind == "RAWLASER1":
-            start, _fov, res, rmax, _acc, _mode = _floats(fields, 2, 6)
-            n = _count(fields, 8, "beam count")
-            ranges = np.array(_floats(fields, 9, n))
-            m = _count(fields, 9 + n, "remission count")
-            (stamp,) = _floats(fields, 10 + n + m, 1)
-            angles = np.asarray(start + res * np.arange(n), dtype=np.float64)
+            angles, ranges, rmax, k = _laser_head(fields)
+            (stamp,) = _floats(fields, k, 1)
             log.raw.append(LogScan(stamp, angles, ranges, Pose(0.0, 0.0, 0.0), Pose(0.0, 0.0, 0.0), rmax, number))
         elif kind == "ODOM":
             x, y, th, _tv, _rv, _acc, stamp = _floats(fields, 1, 7)
