@@ -99,6 +99,9 @@ class LogMap:
         return ate(self.odometry, self.truth)
 
 
+COARSER_CELLS = (0.1, 0.2, 0.5, 1.0)   # [m] the cells a log too large for its --cell is offered (and benchmarked at)
+
+
 def _fits(box: tuple[float, float, float, float], cell: float, margin: float) -> bool:
     try:
         GridGeometry.covering(*box, cell, margin=margin)
@@ -150,7 +153,7 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
     try:
         geo = GridGeometry.covering(*box, cell, margin=reach)
     except ConfigError as e:
-        fits = next((c for c in (0.1, 0.2, 0.5, 1.0) if c > cell and _fits(box, c, reach)), None)
+        fits = next((c for c in COARSER_CELLS if c > cell and _fits(box, c, reach)), None)
         msg = str(e)
         if fits is not None:
             msg = msg.replace("use a larger cell or smaller bounds", f"use a larger --cell ({fits:g} m fits)")
