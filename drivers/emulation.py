@@ -28,11 +28,23 @@ from abc import ABC, abstractmethod
 from typing import ClassVar, Self
 
 from robotexp.robot import Twist
-from robotexp.sim import SimRobot
+from robotexp.sim import OdometryError, SimRobot, odometry_error
 
-__all__ = ["EmulatorBase", "StreamEmulator"]
+__all__ = ["EmulatorBase", "StreamEmulator", "odometry_model"]
 
 log = logging.getLogger(__name__)
+
+
+def odometry_model(odometry: OdometryError | str | None) -> OdometryError | None:
+    """The odometry error an emulator's simulated encoders get: a model, an `--odometry-error` text
+    (`p3dx`, `kobuki`, `p3dx:drift=0.5`, `mismatch=0.01,...`) or None (error-free).
+
+    Raises:
+        ConfigError: a text that is not an odometry-error spec.
+    """
+    if odometry is None or isinstance(odometry, OdometryError):
+        return odometry
+    return odometry_error(odometry)
 
 
 class EmulatorBase(ABC):

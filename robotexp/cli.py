@@ -643,17 +643,21 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
 @click.option("--udp", default=None, help="mavlink: send to a ground station at HOST:PORT (e.g. 127.0.0.1:14550).")
 @click.option("--laser", default=None, help="Serve a laser on the simulated robot too (rplidar, hokuyo, lms2xx).")
 @click.option("--laser-pose", default=None, help="Where that laser sits on the robot: X,Y,THETA [mm, mm, deg].")
+@click.option("--odometry-error", default="none", show_default=True,
+              help="Odometry error of the emulated robot's encoders, as explore's --odometry-error: none, p3dx, "
+                   "kobuki, or key=value,... (the robot reports drifting odometry; its laser sees the truth).")
 @handle_errors
 def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
-            udp: str | None, laser: str | None, laser_pose: str | None) -> None:
+            udp: str | None, laser: str | None, laser_pose: str | None, odometry_error: str) -> None:
     """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim), or
     a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world."""
     import time
 
     from robotexp.laser_mount import emulate_devices
 
+    odometry = None if odometry_error.strip().lower() in ("", "none") else odometry_error
     devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
-                              laser=laser, laser_pose=laser_pose)
+                              laser=laser, laser_pose=laser_pose, odometry=odometry)
     try:
         served = [(label, device) for label, device in devices if label != "simulator"]
         if [label for label, _ in served] == ["robot"]:

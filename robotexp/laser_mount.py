@@ -398,8 +398,10 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
         if backend in lasers and backend not in available(EMULATORS):
             if laser is not None:
                 raise ConfigError(f"{backend!r} is a laser: --laser adds a laser to a robot emulator")
-            if options.get("udp") is not None:
-                raise ConfigError(f"--udp is not an option of the {backend!r} laser emulator")
+            for key in ("udp", "odometry"):
+                if options.get(key) is not None:
+                    flag = "--odometry-error" if key == "odometry" else f"--{key}"
+                    raise ConfigError(f"{flag} is not an option of the {backend!r} laser emulator")
             w = load_world(world)
             robot = preset("kobuki")
             start, _ = resolve_pose(w, pose, robot.radius)

@@ -248,7 +248,8 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
     given = {key: value for key, value in options.items() if value is not None}
     for key in given:
         if key not in accepted:
-            raise ConfigError(f"--{key.replace('_', '-')} is not an option of the {backend!r} emulator "
+            flag = "--odometry-error" if key == "odometry" else f"--{key.replace('_', '-')}"
+            raise ConfigError(f"{flag} is not an option of the {backend!r} emulator "
                               f"(its options: {', '.join(sorted(accepted)) or 'none'})")
     w = load_world(world)
     start, _ = resolve_pose(w, pose, float(radius))

@@ -53,7 +53,7 @@ from robotexp_drivers.kobuki.codec import (
     encode_messages,
     twist_from_base_control,
 )
-from robotexp_drivers.emulation import StreamEmulator
+from robotexp_drivers.emulation import StreamEmulator, odometry_model
 from robotexp_drivers.kobuki.robot import KOBUKI_RADIUS
 
 __all__ = ["KobukiEmulator", "EmulatorLaser", "HARDWARE_VERSION", "FIRMWARE_VERSION"]
@@ -91,11 +91,11 @@ class KobukiEmulator(StreamEmulator):
 
     label = "kobuki emulator"
     radius = KOBUKI_RADIUS                       # robotexp.robot.RobotEmulator: the simulated footprint [m]
-    options: frozenset[str] = frozenset()        # no keyword options beyond the protocol's
+    options = frozenset({"odometry"})            # `robotexp emulate kobuki --odometry-error SPEC`
 
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  pty: bool = False, speedup: float = 1.0, seed: int = 0, laser: LaserConfig | None = None,
-                 odometry: OdometryError | None = None, command_timeout: float | None = 1.0,
+                 odometry: OdometryError | str | None = None, command_timeout: float | None = 1.0,
                  battery_dv: int = 165) -> None:
         if not (speedup > 0 and math.isfinite(speedup)):
             raise ConfigError(f"kobuki emulator: speedup must be > 0, got {speedup}")
@@ -104,7 +104,7 @@ class KobukiEmulator(StreamEmulator):
         self._init_stream(speedup)
         self.command_timeout = command_timeout
         self.battery_dv = battery_dv
-        self.sim = SimRobot(world, robot="kobuki", pose=pose, seed=seed, laser=laser, odometry=odometry,
+        self.sim = SimRobot(world, robot="kobuki", pose=pose, seed=seed, laser=laser, odometry=odometry_model(odometry),
                             sonar=False, laser_in_state=False)
         self.last_base_control: BaseControl | None = None
         self.last_command: Message | None = None

@@ -55,10 +55,10 @@ from dataclasses import replace
 
 from robotexp.errors import ConfigError
 from robotexp.robot import Pose, Twist, wrap_angle
-from robotexp.sim import LaserConfig, SimRobot, preset
+from robotexp.sim import LaserConfig, OdometryError, SimRobot, preset
 from robotexp.world.model import World
 from robotexp_drivers.backend import require_positive
-from robotexp_drivers.emulation import StreamEmulator
+from robotexp_drivers.emulation import StreamEmulator, odometry_model
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
 from robotexp_drivers.mavlink.robot import ROVER_LIMITS, ROVER_RADIUS
@@ -128,13 +128,14 @@ class MavlinkEmulator(StreamEmulator):
 
     label = "mavlink emulator"
     radius = ROVER_RADIUS                        # robotexp.robot.RobotEmulator: the simulated footprint [m]
-    options = frozenset({"udp"})                 # `robotexp emulate mavlink --udp HOST:PORT`
+    options = frozenset({"udp", "odometry"})     # `robotexp emulate mavlink --udp HOST:PORT --odometry-error SPEC`
 
     def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
                  udp: str | None = None, tcp: bool = False, pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  tick: float = 0.05, scan_range: float = 3.0, guid_timeout: float = C.GUID_TIMEOUT,
                  battery_mv: int = 12600, origin: tuple[float, float, float] | None = None,
-                 proximity: bool = True, obstacle_distance: bool = False) -> None:
+                 proximity: bool = True, obstacle_distance: bool = False,
+                 odometry: OdometryError | str | None = None) -> None:
         require_positive("mavlink emulator", speedup=speedup, tick=tick, scan_range=scan_range,
                          guid_timeout=guid_timeout)
         if origin is not None and not (-90 <= origin[0] <= 90 and -180 <= origin[1] <= 180):
@@ -145,7 +146,8 @@ class MavlinkEmulator(StreamEmulator):
         self.obstacle_distance = obstacle_distance
         rover = replace(preset("p3dx"), name="rover", radius=ROVER_RADIUS, limits=ROVER_LIMITS, sonar=None,
                        laser=LaserConfig(beams=C.OBSTACLE_SECTORS, fov=2 * math.pi, range_max=scan_range))
-        self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False)
+        self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False,
+                            odometry=odometry_model(odometry))
         self.codec = MavlinkCodec(C.VEHICLE_SYSTEM_ID, C.VEHICLE_COMPONENT_ID)
         self.mode, self.armed = C.ROVER_MODE_HOLD, False
         self.params: dict[str, list[float]] = {name: [float(value), float(kind)] for name, kind, value in ROVER_PARAMS}

@@ -43,10 +43,10 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.robot import Pose, Twist, compose_pose, relative_pose, wrap_angle
-from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig
+from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig, OdometryError
 from robotexp.sim.robot import _approach     # the simulator's own velocity ramp, applied per cycle
 from robotexp.world.model import World
-from robotexp_drivers.emulation import EmulatorBase
+from robotexp_drivers.emulation import EmulatorBase, odometry_model
 
 from . import codec as k
 from . import constants as c
@@ -180,13 +180,13 @@ class P3DXEmulator(EmulatorBase):
     label = "p3dx emulator"
     join_timeout = 5.0
     radius = c.ROBOT_RADIUS_MM / 1000.0          # robotexp.robot.RobotEmulator: the simulated footprint [m]
-    options: frozenset[str] = frozenset()        # no keyword options beyond the protocol's
+    options = frozenset({"odometry"})            # `robotexp emulate p3dx --odometry-error SPEC`
 
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
                  robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,
-                 lockstep: bool = False) -> None:
+                 lockstep: bool = False, odometry: OdometryError | str | None = None) -> None:
         from robotexp.world.poses import resolve_pose
         from robotexp.sim import SimRobot, preset
         from robotexp.world.loader import load_world
@@ -195,6 +195,7 @@ class P3DXEmulator(EmulatorBase):
             raise ConfigError(f"p3dx emulator: speedup must be > 0, got {speedup}")
         if watchdog is not None and not watchdog > 0:
             raise ConfigError(f"p3dx emulator: watchdog must be > 0 s or None, got {watchdog}")
+        odometry_err = odometry_model(odometry)
         self.world = load_world(world) if isinstance(world, str) else world
         robot_preset = preset(robot)
         if robot_preset.sonar == P3DX_SONAR:       # cast from the transducers where ARIA (p3dx.p) puts them
@@ -226,7 +227,7 @@ class P3DXEmulator(EmulatorBase):
         self._server: socket.socket | None = None
         self._pty: _PtyConn | None = None
         self.sim = SimRobot(self.world, robot=robot_preset, pose=self.start_pose, seed=seed,
-                            laser=laser, sonar=False)
+                            laser=laser, sonar=False, odometry=odometry_err)
         try:
             lim = self.sim.limits
             self.config = replace(k.mobilesim_config(robot_type, robot_subtype),

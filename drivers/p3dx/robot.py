@@ -57,6 +57,9 @@ class P3DXRobot(StreamBackend):
         watchdog: [s] stop the robot when no command came from the control loop for this long.
         silence: [s] the link counts as lost after this long without a packet from the robot.
         connect_timeout: [s] longest handshake, and longest wait for the first SIP after it.
+        ground_truth: on a simulator (MobileSim, our emulator), ask for a SIMSTAT packet before every
+            SIP and report the simulator's true pose as `RobotState.true_pose`, so a run's path,
+            coverage and ATE are measured against the truth while the explorer sees odometry.
 
     Raises:
         ConnectionLost: the port cannot be opened, or the robot stops answering.
@@ -74,7 +77,7 @@ class P3DXRobot(StreamBackend):
     def __init__(self, address: str, *, baudrate: int = c.SERIAL_BAUD, laser: bool = True,
                  laser_range: float = c.LASER_NO_HIT_MM / 1000.0, laser_offset: float = c.LASER_X_MM / 1000.0,
                  max_speed: float | None = None, watchdog: float = 0.5, silence: float = 1.0,
-                 connect_timeout: float = 5.0) -> None:
+                 connect_timeout: float = 5.0, ground_truth: bool = True) -> None:
         require_positive("p3dx", watchdog=watchdog, silence=silence, connect_timeout=connect_timeout,
                          laser_range=laser_range)
         self._init_stream(silence, watchdog)
@@ -94,6 +97,8 @@ class P3DXRobot(StreamBackend):
         self._odom_mm = [0.0, 0.0]
         self._odom = Pose(0.0, 0.0)
         self._frame = (Pose(0.0, 0.0), Pose(0.0, 0.0))    # (reported pose, odometry) at the anchor
+        self._ground_truth = ground_truth
+        self._truth: Pose | None = None     # the simulator's true pose (SIMSTAT), in the world's frame
         self._distance = 0.0
         self._sips = 0
         self._stalled = False
@@ -195,6 +200,8 @@ class P3DXRobot(StreamBackend):
         cfg = self._next_packet(min(deadline, time.monotonic() + c.CONFIG_WAIT_S), (k.ConfigPacket,))
         self.config = cfg if isinstance(cfg, k.ConfigPacket) else None
         self._write(k.cmd_enable(True) + k.cmd_sonar(True))
+        if self._ground_truth and self.is_simulator:
+            self._write(k.cmd_sim_stat(c.SIM_STAT_EVERY_SIP))
         if laser and self.is_simulator:
             start, end = self._laser_cfg
             self._write(k.cmd_sim_laser(start, end, c.LASER_DEFAULT_RES_CDEG, c.LRF_EXTENDED))
@@ -270,6 +277,9 @@ class P3DXRobot(StreamBackend):
             self._laser_packet(pkt)
         elif isinstance(pkt, k.ConfigPacket):
             self.config = pkt
+        elif isinstance(pkt, k.SimStat) and self._ground_truth:
+            self._truth = Pose(pkt.true_x_mm / 1000.0, pkt.true_y_mm / 1000.0,
+                               wrap_angle(math.radians(pkt.true_th_deg)))
 
     def _publish(self, state: RobotState) -> None:
         self._pending = None
@@ -315,7 +325,7 @@ class P3DXRobot(StreamBackend):
         return RobotState(time=self._sips * self.cycle, pose=pose, velocity=Twist(v, w), laser=self._scan,
                           sonar=SonarScan(_SONAR_ANGLES, self._sonar.copy(), _SONAR_RANGE_MAX, _SONAR_POSITIONS),
                           stalled=stalled, bumpers=front + rear, battery=battery, distance=self._distance,
-                          extra=extra)
+                          extra=extra, true_pose=self._truth)
 
     def _laser_packet(self, pkt: k.SimLaserPacket) -> None:
         if pkt.total <= 0:
