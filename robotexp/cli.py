@@ -303,6 +303,9 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         else:
             given = click.get_current_context().get_parameter_source("world")
             truth_world = None if given == click.core.ParameterSource.DEFAULT else world
+            if localize == "auto":
+                click.echo("robotexp: --localize auto: scan matching corrects the robot's odometry before the map "
+                           "and the explorer see it (--localize none turns it off)", err=True)
             with connect_with_laser(robot, address, laser, laser_pose) as bot:
                 result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays, image=formats)
     except (WorldError, ConfigError) as exc:

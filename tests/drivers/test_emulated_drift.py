@@ -93,3 +93,14 @@ def test_bad_odometry_errors_are_one_line_and_exit_2(args: list[str], words: str
     assert result.exit_code == 2, result.output
     assert words in result.output
     assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1
+
+
+def test_explore_on_a_robot_says_auto_localization_is_on(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    world = builtin_world("ufmg-static")
+    with P3DXEmulator(world, pose=world.poses["path1"], port=0, speedup=8.0, odometry="p3dx") as emu:
+        result = CliRunner().invoke(main, ["explore", "--robot", "p3dx", "--address", emu.address, "--world",
+                                           "ufmg-static", "--max-time", "3", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "--localize auto: scan matching corrects the robot's odometry" in result.output
+    record = (tmp_path / "results.jsonl").read_text().splitlines()[-1]
+    assert '"localize": "scan-match"' in record and '"ate_m": null' not in record   # SIMSTAT gives the truth
