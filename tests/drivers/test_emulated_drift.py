@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -95,7 +96,7 @@ def test_bad_odometry_errors_are_one_line_and_exit_2(args: list[str], words: str
     assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1
 
 
-def test_explore_on_a_robot_says_auto_localization_is_on(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_explore_on_a_robot_says_auto_localization_is_on(tmp_path: Path) -> None:
     world = builtin_world("ufmg-static")
     with P3DXEmulator(world, pose=world.poses["path1"], port=0, speedup=8.0, odometry="p3dx") as emu:
         result = CliRunner().invoke(main, ["explore", "--robot", "p3dx", "--address", emu.address, "--world",
