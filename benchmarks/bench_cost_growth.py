@@ -9,7 +9,7 @@ the run's robot time. The machine is shared, so CPU time, not wall time; the rat
 figure to quote.
 
 Run: python benchmarks/bench_cost_growth.py [--methods frontier,bvp] [--tiles 1,2,3] [--speed 300]
-Target (issue 12): 3x3 / 1x1 within 1.5x for frontier and bvp.
+Target: 3x3 / 1x1 within 1.5x for frontier and bvp.
 """
 
 from __future__ import annotations

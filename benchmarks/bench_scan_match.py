@@ -1,7 +1,7 @@
 """Time per scan of the scan matcher: 181-beam scans at 5 cm cells, numba kernels against the numpy references.
 
 Run: python benchmarks/bench_scan_match.py [--world dense] [--scans 200] [--reach 8] [--cell 0.05]
-Target (issue 14): scan matching <= 2 ms per 181-beam scan at 5 cm cells.
+Target: scan matching <= 2 ms per 181-beam scan at 5 cm cells.
 
 Scans are cast exactly (the simulator's ray caster) from random free poses. The map is built from
 --map-scans of them at their true poses (log-odds grid and hit points, as the Localizer keeps it);

@@ -1,4 +1,4 @@
-"""What the live view costs a simulated run (issue 16, item 1: at most 10 % of its speed with a browser
+"""What the live view costs a simulated run (target: at most 10 % of its speed with a browser
 watching): robot time / wall time of the run loop (the record's wall time: planning and world loading
 left out) of the same run (a world, an explorer, a robot-time limit) without the view, with the view at
 --view-speed max and no browser, and with the view and headless Chromium watching the page, in one

@@ -1,4 +1,4 @@
-"""Sweep of the SRT explorers over the start poses of the built-in worlds (issue 3, task L).
+"""Sweep of the SRT explorers over the start poses of the built-in worlds.
 
 For each (world, pose, method) one run (default 100 mm/s, seed 0) on the embedded simulator: coverage,
 collisions, distance [m] of the robot's true end position from its start, path length [m], nodes,
