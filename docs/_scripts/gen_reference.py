@@ -100,7 +100,7 @@ def explorers_page() -> str:
             continue
         out += ["| parameter | type | default | meaning |", "| --- | --- | --- | --- |"]
         for p in params:
-            out.append(f"| `{p.name}` | `{cell(p.kind)}` | `{cell(p.default)}` | {cell(p.doc)} |")
+            out.append(f"| `{p.name}` | {cell(p.kind)} | {cell(p.default)} | {cell(p.doc)} |")   # no code span: `\|` shows
         out.append("")
     return "\n".join(out)
 
