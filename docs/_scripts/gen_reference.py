@@ -63,7 +63,7 @@ RESULT_KEYS = {
                      "written after the milestones",
     "extra": "not a key itself: what the caller adds after `robot` (`script`, `address`, `laser`, `sweep`, "
              "`ate_m`, `localize`, `odometry_error`, `matches`, ...)",
-    "end": "the end reason (`EndReason`): `explored`, `time limit`, `interrupted`, `robot error`, `stalled`, "
+    "end": "why the run ended, an `EndReason` value: `explored`, `time limit`, `interrupted`, `robot error`, `stalled`, "
            "`stopped`, `plugin error`",
     "schema_version": "the version of the record's schema",
 }
