@@ -63,8 +63,8 @@ RESULT_KEYS = {
                      "written after the milestones",
     "extra": "not a key itself: what the caller adds after `robot` (`script`, `address`, `laser`, `sweep`, "
              "`ate_m`, `localize`, `odometry_error`, `matches`, ...)",
-    "end": "why the run ended, an `EndReason` value: `explored`, `time limit`, `interrupted`, `robot error`, `stalled`, "
-           "`stopped`, `plugin error`",
+    "end": "why the run ended, an `EndReason` value: `explored`, `time limit`, `interrupted`, `robot error`, "
+           "`stalled`, `stopped`, `plugin error`",
     "schema_version": "the version of the record's schema",
 }
 
@@ -100,7 +100,8 @@ def explorers_page() -> str:
             continue
         out += ["| parameter | type | default | meaning |", "| --- | --- | --- | --- |"]
         for p in params:
-            out.append(f"| `{p.name}` | {cell(p.kind)} | {cell(p.default)} | {cell(p.doc)} |")   # no code span: `\|` shows
+            # type and default outside code spans, where an escaped `|` would show its backslash
+            out.append(f"| `{p.name}` | {cell(p.kind)} | {cell(p.default)} | {cell(p.doc)} |")
         out.append("")
     return "\n".join(out)
 
