@@ -1,6 +1,6 @@
 """Generated reference pages (mkdocs-gen-files), read from the code so they cannot drift from it.
 
-- reference/explorers.md: every installed explorer plugin (entry point group `robotexp.explorers`)
+- reference/explorers.md (at its marker): every installed explorer plugin (entry point group `robotexp.explorers`)
   with the parameters of its `__init__`, as `robotexp explore -m METHOD -p help` prints them;
 - reference/lua.md (at its marker): every function of the Lua tables (`robot`, `exploration`, `mapView`,
   `robotView`), its arguments and its docstring, from the Lua API's `Session.lua_<table>__<name>` methods;
@@ -85,11 +85,7 @@ def cell(text: str) -> str:
 def explorers_page() -> str:
     explorer_parameters = find_module("paramhelp").explorer_parameters
     eps = sorted(entry_points(group=EXPLORER_GROUP), key=lambda ep: ep.name)
-    out = ["# Explorer parameters", "",
-           "Every explorer installed in the environment that built this site, with the keyword parameters of its "
-           "class (its `__init__`). Set one with `robotexp explore -m METHOD -p NAME=VALUE`, "
-           "`exploration.setParameter(NAME, VALUE)` in Lua, or `[set.params.METHOD]` in a campaign file; "
-           "`robotexp explore -m METHOD -p help` prints the same table. Units are SI, in brackets.", ""]
+    out: list[str] = []
     for ep in eps:
         cls: Any = ep.load()
         summary = (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " ")
@@ -152,11 +148,9 @@ def results_page() -> str:
     return "\n".join(out) + "\n"
 
 
-with mkdocs_gen_files.open("reference/explorers.md", "w") as fh:
-    fh.write(explorers_page())
-
 # the hand-written pages carry a marker where the generated table goes
-for path, marker, make in (("reference/lua.md", "<!-- generated: lua functions -->", lua_page),
+for path, marker, make in (("reference/explorers.md", "<!-- generated: explorer parameters -->", explorers_page),
+                           ("reference/lua.md", "<!-- generated: lua functions -->", lua_page),
                            ("reference/results.md", "<!-- generated: record keys -->", results_page)):
     with mkdocs_gen_files.open(path, "r") as fh:
         text = fh.read()
