@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerate every map image and plot README.md shows (except the live view's screenshot, docs/view/, taken by
+# Regenerate every map image and plot the documentation (docs/) shows (except the live view's screenshot, docs/view/, taken by
 # hand from a browser), with the commands that make them. Run from the repository root, venv active:
 #     bash benchmarks/make_figures.sh [OUT]        # OUT: scratch folder for the runs (default out/readme)
 # About 3 minutes on 2 cores. The figures land in docs/figures/ and docs/santos/.
@@ -8,7 +8,7 @@ OUT="${1:-out/readme}"
 rm -rf "$OUT"
 mkdir -p "$OUT" docs/figures
 
-# 1. One run's map and coverage figures, as `robotexp explore` writes them (README "Exploring from the command line").
+# 1. One run's map and coverage figures, as `robotexp explore` writes them (docs/reference/results.md).
 robotexp explore --world dense --method frontier --out "$OUT/frontier" --image-format png,svg
 cp "$OUT"/frontier/dense_frontier_1_300mms_s0.png docs/figures/dense_frontier.png
 cp "$OUT"/frontier/dense_frontier_1_300mms_s0.coverage.png docs/figures/dense_frontier.coverage.png
@@ -26,7 +26,7 @@ robotexp explore --world dense --method frontier --max-time 300 --odometry-error
 cp "$OUT"/localized/dense_frontier_1_300mms_s0.png docs/figures/dense_frontier_p3dx_scan_match.png
 
 # 4. Santos's Table 8 box figures, from the campaign's records in docs/santos/results.jsonl (`robotexp figure`
-#    draws coverage, path length and robot time too; README shows the visited cells).
+#    draws coverage, path length and robot time too; docs/explanation/santos.md shows the visited cells).
 robotexp figure docs/santos/results.jsonl -o "$OUT/santos-box" --format png,svg
 cp "$OUT"/santos-box/box_visited_cells_{dense,sparse}.{png,svg} docs/santos/
 

@@ -81,7 +81,7 @@ class BVPExplorer(Explorer):
       leads into a gap the robot cannot pass and unknown cells right by walls (their unseen faces)
       are not goals. With the radius alone the field led into channels of the configuration space
       one cell wide that the laser guard would not enter, and the robot stood at their mouths until
-      the run stalled (6 of bvp's 7 failures in issue 12's 770-run benchmark, cave 9 at 0.309).
+      the run stalled (6 of bvp's 7 failures in the 770-run Done-when benchmark, cave 9 at 0.309).
       `inflate=0` is the bare map; `campaigns/thesis.toml` sets the radius (the thesis's runs).
     - The robot's cell: cells the robot's footprint has covered count as free even if the laser
       (180 degrees, ahead) never saw them, so the robot is not drawn to the floor under itself.

@@ -3,7 +3,7 @@
 Every map is run from its default start pose with every method (through the campaign runner:
 parallel processes, `--resume`), then a row per run (coverage, path, robot time, end reason,
 success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
-A run succeeds (issue 12's "Done when") when it reached `SUCCESS_COVERAGE` of the explorable space
+A run succeeds (the Done-when benchmark's rule) when it reached `SUCCESS_COVERAGE` of the explorable space
 with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
 leaving the exploration area - and when no point of its path (`RUN.path.csv` in the output folder)
 lies outside the map's exploration area. A `stalled` end (the loop's stall watch) is on its own and
@@ -26,7 +26,7 @@ __all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_specs", "b
            "expand_maps", "failure_causes", "map_group", "mark_outside", "success"]
 
 SUCCESS_COVERAGE = 0.95
-DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # issue 12's "Done when"
+DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # the Done-when benchmark
 _MAP_SUFFIXES = (".map", ".yaml", ".yml")
 OUTSIDE = "path_points_outside"     # added to a record by `run_bench` from its path file (None: not checked)
 COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
@@ -59,7 +59,7 @@ def expand_maps(items: Iterable[str]) -> list[str]:
 
 
 def done_when_maps(maps: Iterable[str], seeds: str = "0-49") -> list[str]:
-    """Issue 12's "Done when" set: `maps` (the real maps: files or folders) then `generated:KIND:seeds`
+    """The Done-when benchmark's set: `maps` (the real maps: files or folders) then `generated:KIND:seeds`
     for every generated kind (office, warehouse, cave)."""
     from robotexp.world.generate import KINDS
 

@@ -19,7 +19,7 @@ __all__ = ["bench"]
 @click.argument("maps", nargs=-1)
 @click.option("--methods", "-m", default=None, help="Comma-separated explorers [default: frontier,bvp; with "
               "--done-when: frontier,bvp,srt-laser,meta-ga,meta-firefly].")
-@click.option("--done-when", is_flag=True, help="Issue 12's measurement: MAPS (the real maps) plus "
+@click.option("--done-when", is_flag=True, help="The Done-when benchmark: MAPS (the real maps) plus "
               "generated:office|warehouse|cave:SEEDS, with the five methods unless --methods.")
 @click.option("--seeds", default="0-49", show_default=True, help="With --done-when: the generated worlds' seeds, A-B.")
 @click.option("--jobs", "-j", type=click.IntRange(min=1), default=None, help="Parallel runs (default: all cores).")

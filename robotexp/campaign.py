@@ -485,7 +485,7 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
     """Run every run of `campaign` not yet recorded (with `resume`) in `jobs` processes, or on the
     Dask cluster at `cluster` (`robotexp.cluster`: tcp://HOST:PORT or local:N; `jobs` is then unused).
     The runs start longest expected first (`run_order`); with `timings`, each finished run's
-    `RunTiming` is appended to it (benchmarks/bench_thesis_campaign.py reads them).
+    `RunTiming` is appended to it (benchmarks/speed/bench_thesis_campaign.py reads them).
 
     Returns the records of the runs made now. Ctrl-C stops the workers (each stops its robot and
     writes its partial run), cancels the queued runs at once and re-raises KeyboardInterrupt. The

@@ -174,7 +174,7 @@ def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecor
 
 
 # Dask settings of a local:N cluster (its scheduler, nannies and worker processes). Each was measured to cost
-# CPU that a 2-core machine takes from the runs (benchmarks/bench_thesis_campaign.py --cluster local:2):
+# CPU that a 2-core machine takes from the runs (benchmarks/speed/bench_thesis_campaign.py --cluster local:2):
 LOCAL_CONFIG: dict[str, Any] = {
     # the nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which also freezes glibc's mmap threshold
     # at 128 KiB: every large numpy temporary of a step is then mmapped and page-faulted afresh (a bvp run

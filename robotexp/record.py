@@ -1,6 +1,6 @@
 """The typed record of one run (`RunRecord`) and why a run ended (`EndReason`).
 
-A record has exactly the keys of README "Results" as fields, plus `extra` for what an explorer or a
+A record has exactly the keys of docs/reference/results.md as fields, plus `extra` for what an explorer or a
 caller adds (`targets`, `script`, `address`, ...). `as_dict()` gives the JSON object appended to
 `results.jsonl`, with the same keys and order as ever, and `RunRecord.from_dict` reads any such
 object back, also one written before records were typed (their end reason is read from
@@ -59,12 +59,12 @@ _HEAD = ("run", "method", "world", "start_pose", "max_speed_m_s", "path_length_m
          "wall_time_s", "coverage", "collisions", "nodes", "visited_cells", "seed", "completed", "reason",
          "map_iou", "cell_m")
 _TAIL = ("pose", "laser_range_m", "robot")
-RESULT_KEYS = _HEAD[:-1]     # the keys every record has, README "Results"
+RESULT_KEYS = _HEAD[:-1]     # the keys every record has, docs/reference/results.md
 
 
 @dataclass(eq=True)
 class RunRecord(Mapping[str, Any]):
-    """One run's results (SI units; README "Results" describes each field).
+    """One run's results (SI units; docs/reference/results.md describes each field).
 
     `end` is not a JSON key: it is derived from `completed` and `reason` when a record is read.
     `pose`, `laser_range_m` and `robot` are None in records written without an output folder
@@ -107,7 +107,7 @@ class RunRecord(Mapping[str, Any]):
 
     # -- JSON ----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, Any]:
-        """The JSON object of README "Results", keys in the order they have always been written:
+        """The JSON object of docs/reference/results.md, keys in the order they have always been written:
         the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`."""
         out: dict[str, Any] = {key: getattr(self, key) for key in _HEAD}
         for level in COVERAGE_MILESTONES:

@@ -37,7 +37,7 @@ def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Pat
 
 
 def make_record(run: ExplorationRun) -> RunRecord:
-    """The record of a run that ended (SI units; see README "Results" for every key), named by
+    """The record of a run that ended (SI units; docs/reference/results.md has every key), named by
     `run.info`."""
     from robotexp.mapping.groundtruth import map_iou
 

@@ -1,4 +1,4 @@
-"""Bad input is one line and exit 2, checked before any run starts (issue 15): no traceback, no
+"""Bad input is one line and exit 2, checked before any run starts: no traceback, no
 results written."""
 
 from __future__ import annotations

@@ -282,7 +282,7 @@ def test_worn_face_of_a_deep_shelf_is_no_frontier() -> None:
     opening = np.zeros(grid.shape, bool)
     opening[6:19, 39] = opening[32:44, 39] = True      # the aisles' east ends, unknown beyond
     got_old, got_new = _targets_now(old, grid), _targets_now(new, grid)
-    # the map's own walls no longer explain the worn face: the session-5 explorer (and face_reach on
+    # the map's own walls no longer explain the worn face: the explorer without wall memory (and face_reach on
     # the map's walls) sends the robot there
     assert (got_old & face).sum() >= 5
     assert not (got_new & face).any()

@@ -1,4 +1,4 @@
-"""What a newcomer trips on (issue 16, item 5): `explore -p help` lists an explorer's parameters with types,
+"""What a newcomer trips on: `explore -p help` lists an explorer's parameters with types,
 defaults and units (from its signature and docstring, nothing run); a --pose in x,y without heading or
 with metre-sized numbers is said how it is read; pose names match whatever their case."""
 

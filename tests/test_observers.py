@@ -1,4 +1,4 @@
-"""Run observers, end reasons and the loop's checks of a plugin (issue 11, items 2-4), on the SimRobot
+"""Run observers, end reasons and the loop's checks of a plugin, on the SimRobot
 in the corridor of test_run_loop: what observers are told and when, that one that raises never keeps
 the robot from being stopped nor loses the record, and that a `step` returning something other than
 a Twist or Done ends the run with one line naming the plugin."""

@@ -1,4 +1,4 @@
-"""The typed run record and end reasons (issue 11, item 3), typed capabilities and the factories that
+"""The typed run record and end reasons, typed capabilities and the factories that
 need no list of backend names (item 1)."""
 
 from __future__ import annotations

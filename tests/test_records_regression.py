@@ -1,8 +1,8 @@
 """Records regression: two built-in explorers give, through the public entry point, the records they
-gave before the core restructure (issue 11), to the last digit; wall times aside.
+gave before the core restructure, to the last digit; wall times aside.
 
 The expected figures were recorded with the code before the restructure (commit 064b793), by
-`benchmarks/records_regression.py` (the full list of explorers and worlds is run there; this is the
+`benchmarks/regression/records_regression.py` (the full list of explorers and worlds is run there; this is the
 fast part). A change of the run loop, the mapping, the planners or these explorers that alters a
 run shows here.
 """
@@ -19,7 +19,7 @@ from robotexp.record import EndReason, RunRecord
 from robotexp.results import read_records
 
 EXPECTED = {
-    # dense, frontier, cut at 60 s of robot time; frontier as it was (session 5 made it skip grazed wall
+    # dense, frontier, cut at 60 s of robot time; frontier as it was (before it skipped grazed wall
     # faces, `face_reach`, which changes its runs on purpose): the run loop, the mapping and the planners
     # still give the same records to the last digit
     ("dense", "frontier", 60.0): {

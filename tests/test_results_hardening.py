@@ -1,4 +1,4 @@
-"""Results survive faults (issue 15): a failed append leaves no half line, a torn line is repaired
+"""Results survive faults: a failed append leaves no half line, a torn line is repaired
 before the next append and skipped by readers, one campaign per output folder, workers die with the
 campaign, Ctrl-C drops queued runs, --resume never duplicates, run keys are unique."""
 

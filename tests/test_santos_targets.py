@@ -12,7 +12,7 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.objective import INFEASIBLE
 from robotexp.render import map_layout, viridis
 
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "santos_targets.py"
+PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "santos_targets.py"
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ Usage:
     python benchmarks/peers/mavlink_peers.py VENV [--speedup 1]
 
 VENV is a virtual environment with MAVProxy and pymavlink installed (outside this repository, e.g.
-`python3 -m venv /work/ext/mavproxy/venv && /work/ext/mavproxy/venv/bin/pip install mavproxy pymavlink`).
+`python3 -m venv VENV && VENV/bin/pip install mavproxy pymavlink`).
 The emulator runs here, on UDP; the peers run as VENV's programs:
 
 1. a pymavlink (mavutil) ground station: heartbeat, PARAM_REQUEST_LIST once (every parameter must

@@ -5,7 +5,7 @@ and generated office, warehouse and cave worlds (--seeds), from the run's defaul
 default 10 cm cell: the counts of reachable and explorable cells and a hash of each grid, as JSON
 lines. Run it under each tree's robotexp and compare:
 
-    python benchmarks/regression/ground_truth_digest.py /work/shared/maps --seeds 0-49 > new.jsonl
+    python benchmarks/regression/ground_truth_digest.py MAPS_DIR --seeds 0-49 > new.jsonl
     python benchmarks/regression/ground_truth_digest.py --compare old.jsonl new.jsonl
 
 Coverage's denominator is the explorable cells: where their hash is equal, every coverage is.

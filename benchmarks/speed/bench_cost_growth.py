@@ -9,7 +9,7 @@ the run's robot time. The machine is shared, so CPU time, not wall time; the rat
 figure to quote.
 
 Run: python benchmarks/speed/bench_cost_growth.py [--methods frontier,bvp] [--tiles 1,2,3] [--speed 300]
-Target (issue 12): 3x3 / 1x1 within 1.5x for frontier and bvp.
+Target: 3x3 / 1x1 within 1.5x for frontier and bvp.
 """
 
 from __future__ import annotations
@@ -28,9 +28,6 @@ from robotexp.mapping.groundtruth import occupancy
 from robotexp.observers import RunObserver
 from robotexp.world.builtin import builtin_world
 from robotexp.world.rosmap import save_ros_map
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
-from perflog import Figure, record  # noqa: E402
 
 MAP_CELL = 0.05     # [m] the ROS map's resolution
 
@@ -149,15 +146,6 @@ def main() -> None:
             per = {n: float(results[method, n]["cpu"]) / float(results[method, n]["robot"]) for n in tiles}
             ratios = ", ".join(f"{n}x{n}/{base}x{base} {per[n] / per[base]:.2f}" for n in tiles if n != base)
             print(f"{method}: {ratios}")
-        record("cost-growth" + ("-connected" if args.connect else ""), [
-            Figure(f"{method}, {n}x{n} tiles: CPU per robot-second / {base}x{base}",
-                   float(results[method, n]["cpu"]) / float(results[method, n]["robot"])
-                   / (float(results[method, base]["cpu"]) / float(results[method, base]["robot"])), "x",
-                   f"{1e3 * float(results[method, n]['cpu']) / float(results[method, n]['robot']):.2f} ms per robot-s")
-            for method in methods for n in tiles if n != base
-        ], title="Cost per robot-second as the building grows (" + args.world + " tiled)"
-           + (", tiles joined by doors" if args.connect else ", closed tiles"),
-            parameters={"speed": f"{args.speed:g} mm/s", "robot time": f"{args.max_time:g} s"})
 
 
 if __name__ == "__main__":

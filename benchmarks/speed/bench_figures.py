@@ -1,7 +1,7 @@
 """Cost of the images a run writes at its end (robotexp.figures, matplotlib) against the raster frame path.
 
 Run: python benchmarks/speed/bench_figures.py [--world dense] [--method frontier] [--max-time 600] [--repeats 5]
-Target (issue 16 follow-up): the map image of a 600 s dense run in about 1 s or less.
+Target: the map image of a 600 s dense run in about 1 s or less.
 
 One run is made (no images), then, in this process: the first map figure (it imports matplotlib and loads
 its fonts, as the first run of a process does), then --repeats times each of: the map figure written as PNG

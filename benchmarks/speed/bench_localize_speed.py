@@ -7,7 +7,7 @@ Each repeat runs, one after the other in this process, the same spec (P3-DX odom
 with `--localize none` and with `--localize scan-match`, and the best robot time / wall time of the
 control loop of each is printed (best of the repeats: the machine is shared), with the localizer's
 share of the wall time and its match counts. `--profile N` adds a cProfile of one localized run (the
-N functions of most own time). Target (issue 14): a simulated run with localization >= 200x real
+N functions of most own time). Target: a simulated run with localization >= 200x real
 time on one core.
 """
 

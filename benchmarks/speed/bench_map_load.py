@@ -9,7 +9,7 @@ and the ground truth on the 5 cm run grid. Prints seconds per stage and the chil
     python benchmarks/speed/bench_map_load.py [--points 60000] [--ros-size 50] [--map FILE ...]
 
 `--map` adds existing map files (e.g. AriaCoda's maps/columbia.map: 63 k points).
-Target (issue 12): a 60 k-point map in < 3 s and < 300 MB; a 50 x 50 m ROS map in seconds.
+Target: a 60 k-point map in < 3 s and < 300 MB; a 50 x 50 m ROS map in seconds.
 """
 
 from __future__ import annotations

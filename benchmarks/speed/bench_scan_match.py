@@ -1,7 +1,7 @@
 """Time per scan of the scan matcher: 181-beam scans at 5 cm cells, numba kernels against the numpy references.
 
 Run: python benchmarks/speed/bench_scan_match.py [--world dense] [--scans 200] [--reach 8] [--cell 0.05]
-Target (issue 14): scan matching <= 2 ms per 181-beam scan at 5 cm cells.
+Target: scan matching <= 2 ms per 181-beam scan at 5 cm cells.
 
 Scans are cast exactly (the simulator's ray caster) from random free poses. The map is built from
 --map-scans of them at their true poses (log-odds grid and hit points, as the Localizer keeps it);
@@ -37,11 +37,6 @@ from robotexp.mapping.groundtruth import occupancy
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim.raycast import RayIndex
 from robotexp.world.builtin import builtin_world
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
-from perflog import Figure, record  # noqa: E402
 
 
 def main() -> None:
@@ -148,13 +143,6 @@ def main() -> None:
     print(f"parts over {n_ref} scans (ms per scan)              numba      numpy   numpy/numba")
     for name, (nb, ref_t) in parts.items():
         print(f"  {name:43s} {nb / n_ref * 1e3:8.3f}   {ref_t / n_ref * 1e3:8.3f}   {ref_t / max(nb, 1e-12):8.1f}x")
-    figures = [Figure(f"ScanMatcher.match, {name}", results[exact][0], "ms per scan",
-                      f"{results[exact][1]}/{len(cases)} recovered within one cell and 0.5 deg")
-               for exact, name in ((False, "bilinear field"), (True, "exact field"))]
-    figures += [Figure(f"{name}: numpy / numba", ref_t / max(nb, 1e-12), "x") for name, (nb, ref_t) in parts.items()]
-    record("scan-match", figures, title="The scan matcher, per 181-beam scan",
-           parameters={"world": args.world, "cell": f"{args.cell} m", "laser range": f"{args.reach} m",
-                       "scans": len(cases)})
 
 
 if __name__ == "__main__":

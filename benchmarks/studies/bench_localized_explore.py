@@ -13,12 +13,12 @@ drop against the exact run of the same world, method and speed, the same with on
 the pose the explorer used against the true pose, sampled every second of robot time, no alignment),
 robot time, robot time / wall time (noisy with --jobs > 1 or a busy machine), the localizer's outcome
 counts. `--trace DIR` writes each scan-match run's per-step errors (heading error against time, where
-the matcher fell back: few points, corridors) as CSV. The issue 14 speed table (item 5):
+the matcher fell back: few points, corridors) as CSV. The speed table:
 `--worlds dense --methods bvp,srt-laser --speeds 40,100,300 --modes odometry,scan-match --max-time 7200`.
 `--known-bias` is a diagnostic: the localizer's odometry calibration starts at the odometry error's
 true heading bias (wheel mismatch / wheel base, less the heading drift; a robot calibrated before the
 run) instead of 0, to tell what the bias learned online costs from what is left.
-Targets (issue 14): with scan matching ATE <= 0.10 m and map IoU within 0.03 of the exact run.
+Targets: with scan matching ATE <= 0.10 m and map IoU within 0.03 of the exact run.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Where a localized run's map IoU goes: the map rebuilt from the same scans at other poses, split into
-its occupied and free parts (issue 14: dense, P3-DX preset, scan matching).
+its occupied and free parts (dense, P3-DX preset, scan matching).
 
 Run: python benchmarks/studies/bench_localized_iou.py [--world dense] [--method frontier] [--max-time 3600]
          [--speed 300] [--seed 0] [--offsets 0.002,0.02] [--loop-closure]

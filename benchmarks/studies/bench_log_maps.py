@@ -9,7 +9,7 @@ is them perturbed by the noise, scan matching and loop closure recover them); a 
 `--cell` is mapped at the first of `logmap.COARSER_CELLS` (0.1, 0.2, 0.5, 1 m) that fits, and says so.
 Printed: scans, the cell, the odometry's ATE, the estimate's ATE (no alignment) and after a rigid
 alignment, loop edges, wall time.
-Issue 14's target on the three logs of ../shared/datasets: ATE <= 0.3 m with 0.02,1.
+Target on the Intel, ACES and CSAIL logs: ATE <= 0.3 m with 0.02,1.
 """
 
 from __future__ import annotations

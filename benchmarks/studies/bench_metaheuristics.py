@@ -5,7 +5,7 @@ x -10..10 m, y 0..15 m (400 x 300 cells), sampled evenly over the run. For each 
 objective is built as the metaheuristic plugins build it (targets on reachable cells) and the GA and
 firefly targets are compared with the exhaustive optimum.
 
-Run: /work/venv/bin/python benchmarks/studies/bench_metaheuristics.py [--states 100]
+Run: python benchmarks/studies/bench_metaheuristics.py [--states 100]
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ Outputs in --out (default out/santos-targets/):
   distances.png                 box plot of the distances per state, proportional form
   distances_by_form.png         box plot of the distances per form, all states pooled
 
-Run: /work/venv/bin/python benchmarks/studies/santos_targets.py [--seeds 10] [--quick] [--out DIR]
+Run: python benchmarks/studies/santos_targets.py [--seeds 10] [--quick] [--out DIR]
 """
 
 from __future__ import annotations

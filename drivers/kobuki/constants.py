@@ -1,6 +1,6 @@
 """Every number of the Yujin Kobuki serial protocol, once, with its source.
 
-Sources (see /work/shared/protocols/kobuki.md for the full list):
+Sources:
 
 - [dox] kobuki_core 0.7.12 `kobuki_driver/doxygen/english/en_appendix_protocol.dox` and
   `en_appendix_parameters.dox` (framing, tables, geometry constants).

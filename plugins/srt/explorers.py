@@ -519,7 +519,7 @@ class SRTStarExplorer(_FrontierRescue):
     the thesis uses for SRT-Laser): a sonar cone reaches through a doorway only when the robot
     stands close to the door and faces it, and a random candidate rarely puts it there; the fans
     that the cones cast into the rooms beyond then make VALIDATE (b) call everything there
-    explored, and the tree closes with rooms unseen (see README for the coverage without it). So
+    explored, and the tree closes with rooms unseen (docs/explanation/srt-star.md gives the coverage without it). So
     when no random candidate is valid, before going back to the parent, the node looks at the
     frontier of the run's map (`frontier_targets`: free cells next to unknown ones, openings only,
     within `view` of the star), nearest first, and takes the point of its star nearest to a

@@ -23,7 +23,7 @@ cap, the run's names, period and robot radius; JSON text under the key `json`) a
 
 The recorder only exists when asked for (`--record`): a run without it does no work for it. Messages
 are encoded by `robotexp.bag.cdr` (numpy; recording a 300 s run on `dense` costs about 10 % of its
-wall time: `python benchmarks/bench_record.py`) and written with the `mcap` writer (zstd chunks).
+wall time: `python benchmarks/speed/bench_record.py`) and written with the `mcap` writer (zstd chunks).
 """
 
 from __future__ import annotations

@@ -72,9 +72,9 @@ class LocalizedRobot(Robot):
         localizer: the localizer (its `counts` say how the matches went).
         track: (corrected, true) poses of every new state, where the true pose is known.
         odometry: beside each `track` entry, the inner robot's own pose (to replay the localizer:
-            `benchmarks/bench_localized_iou.py`).
+            `benchmarks/studies/bench_localized_iou.py`).
         steps: beside each `track` entry: (robot time [s], the localizer's status, the scan's echoes,
-            the odometry calibration's heading bias k [rad/m]); `benchmarks/bench_localized_explore.py
+            the odometry calibration's heading bias k [rad/m]); `benchmarks/studies/bench_localized_explore.py
             --trace` writes them with the errors.
     """
 

@@ -675,7 +675,7 @@ class Session:
         return round(self._last("exploration.elapsedTime").record["robot_time_s"] * 1000.0)
 
     def lua_exploration__results(self, *args: Any) -> dict[str, Any]:
-        """Every metric of the last run (README "Results"; SI units; null values are nil)."""
+        """Every metric of the last run (the keys of docs/reference/results.md; SI units; null values are nil)."""
         _args("exploration.results", "", args, "")
         return dict(self._last("exploration.results").record)
 

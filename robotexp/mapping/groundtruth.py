@@ -392,7 +392,7 @@ def map_iou_tolerant(grid_states: npt.NDArray[np.int8], gt: GroundTruth, cells: 
     `cells` cells of it (chessboard distance), and a target is found when a mark of its kind lies that
     close. A diagnostic for maps made at an estimated pose: on a world whose faces lie on cell borders
     a pose a few millimetres off moves a face's hits into the free cell in front of it, which `map_iou`
-    counts twice (a wrong mark, a missed target) however small the error (issue 14, docs/localization).
+    counts twice (a wrong mark, a missed target) however small the error (docs/localization).
 
     With M_occ, M_free, O and F as in `map_iou`, G the occupied cells and D(X) the cells within `cells`
     of X:

@@ -96,7 +96,7 @@ def gauss_seidel(p: npt.NDArray[np.float64], fixed: npt.NDArray[np.bool_], sweep
     computed four rows at a time on a skewed front: row r + k is at column c - k while row r is at
     column c, so each cell still reads the new values below and to its left and the old ones above
     and to its right, and the four updates of a step are independent (four dependency chains in
-    flight instead of one: 4.9x the one-row sweep in `benchmarks/bench_gauss_seidel.py`).
+    flight instead of one: 4.9x the one-row sweep in `benchmarks/speed/bench_gauss_seidel.py`).
     """
     r0, r1, c0, c1 = free_box(fixed)
     gauss_seidel_box(p, fixed, sweeps, r0, r1, c0, c1)

@@ -12,7 +12,7 @@ land in unknown space, where every point is worth M and a 20-firefly swarm could
 Stopping rules: Santos stops both at "the maximum number of generations / iterations" without
 giving the numbers (Tables 6-7 give only P_crossover 1, P_mutation 0.1, P_size 1024 for the GA and
 beta_0 1, alpha_t 0.3, gamma 0.4, P_size 20 for the firefly). Ours, chosen by
-`benchmarks/bench_metaheuristics.py` (distance to the exhaustive optimum against time): the GA
+`benchmarks/studies/bench_metaheuristics.py` (distance to the exhaustive optimum against time): the GA
 runs 60 generations of 64 children each (6 % of the population per generation, steady state); the
 firefly runs 100 iterations.
 """

@@ -40,7 +40,7 @@ class ViewServer:
         max_rate: [1/s] most messages per second to one browser (each redraws the page).
         busy_rate: [1/s] most messages per second while the producer goes as fast as it can (a
             simulated run at speed "max", status speed None): each page update costs the browser
-            8-11 ms of CPU whatever changed (headless Chromium, benchmarks/bench_view_page.py), which
+            8-11 ms of CPU whatever changed (headless Chromium, benchmarks/speed/bench_view_page.py), which
             on a busy machine is taken from the run; a paced run has that time to spare.
     """
 

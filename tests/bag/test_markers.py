@@ -1,4 +1,4 @@
-"""Explorer markers in recordings (issue 16): an SRT run recorded as a bag holds /robotexp/markers as
+"""Explorer markers in recordings: an SRT run recorded as a bag holds /robotexp/markers as
 visualization_msgs/MarkerArray (ROS 2 schema, decoded by mcap-ros2-support): a DELETEALL first, then
 the tree's nodes, edges and safe regions, the numbers the explorer gave; a replay gives them back to
 the live view's overlays."""

@@ -1,4 +1,4 @@
-"""Seeking in a replay (issue 16, item 2): `robotexp replay BAG --view` shows the recording at any robot
+"""Seeking in a replay: `robotexp replay BAG --view` shows the recording at any robot
 time asked for, with the map rebuilt to that tick (from a checkpoint or from the start) equal to the
 map a straight pass integrates up to it; through the player directly, and end to end through the real
 aiohttp server (websocket commands and POST /command) of a `robotexp replay --view` process."""

@@ -1,4 +1,4 @@
-"""A robot link is alive only while valid packets come (issue 15): bytes that are never a packet
+"""A robot link is alive only while valid packets come: bytes that are never a packet
 lose the robot within its silence time, and a reader thread starved of the interpreter's lock by
 our own main thread does not (the data waits in the link). Against the real P3-DX emulator on TCP,
 through a proxy that can turn its stream into garbage."""

@@ -25,8 +25,8 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_
     # placed from the pose at its stamp and mapped once. Mid-run coverage depends on the chaotic order
     # in which frontiers are visited, so both runs may go on to 300 s (both end on their own at
     # ~110-170 s): the final coverage agrees within 2 percentage points. Measured
-    # (`python benchmarks/mavlink_explore.py --runs 15`, and `--runs 10 --busy 2`): 0.9998 embedded vs
-    # 0.9932-1.0000 (median 0.998); before session 7, with scans taken as from the newest pose,
+    # (`python benchmarks/studies/mavlink_explore.py --runs 15`, and `--runs 10 --busy 2`): 0.9998 embedded vs
+    # 0.9932-1.0000 (median 0.998); with scans taken as from the newest pose,
     # mapped twice, and frontier remembering their stray hits as walls, a CI run was 2.1 points off.
     # The map itself is coarser (map IoU ~0.84 vs ~0.99): 5-degree beams leave gaps at range.
     embedded = run_experiment(run_spec("p3dx", 300.0), None).record

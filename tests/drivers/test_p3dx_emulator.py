@@ -243,7 +243,7 @@ def test_cli_connect_and_emulate_help() -> None:
     assert result.exit_code == 2
 
 
-# --- checked against AriaCoda's clients (issue 5) ---------------------------------------------------
+# --- checked against AriaCoda's clients ---------------------------------------------------
 # Hand-framed commands (checksum = sum of big-endian words of ID + DATA): what ArSimulatedLaser sends
 # for "-laserDegrees 100 -laserIncrement half": 36 -50, 37 50, 38 50 (1/100 deg), then 35 2.
 ARIA_LASER_100_HALF = bytes.fromhex("FAFB06241B3200561B" "FAFB06253B3200573B" "FAFB06263B3200583B"

@@ -1,4 +1,4 @@
-"""Sub-cell scan matching (issue 14, dense map IoU): the field of the hit points' wall segments evaluated
+"""Sub-cell scan matching (dense map IoU): the field of the hit points' wall segments evaluated
 exactly at each point, Welsch's cost, and hits counted in the cell the occupancy grid marks."""
 
 from __future__ import annotations
@@ -156,8 +156,8 @@ def test_hits_on_a_cell_border_count_in_the_cell_the_grid_marks() -> None:
 
 
 def test_a_spin_in_place_at_the_start_leaves_no_offset_across_the_corridor() -> None:
-    # issue 14 (b): the first turn in place of a dense run, in the corridor, while the matching map holds a
-    # few scans. Session 5's localizer ended (-12, +25) mm off: 2.5 cm across the corridor, an offset every
+    # the first turn in place of a dense run, in the corridor, while the matching map holds a
+    # few scans. A localizer without it ended (-12, +25) mm off: 2.5 cm across the corridor, an offset every
     # later scan was mapped with. Along the corridor the scan fixes little (a corridor match keeps the
     # prediction there) and the P3-DX's servoed wheels move the centre during a spin: that part may stay.
     world = builtin_world("dense")

@@ -1,5 +1,5 @@
 """The localizer's covariance of (x, y, theta, k): carried along odometry and updated by matches, against
-hand-computed values (issue 14, sparse: a lone pillar fixes the position, not the turn about itself)."""
+hand-computed values (sparse: a lone pillar fixes the position, not the turn about itself)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Scans that fall where the localizer's matching map has seen nothing: they extend the map even once
-the pose is uncertain (issue 14, sparse: the map froze and the localizer never matched again)."""
+the pose is uncertain (sparse: the map froze and the localizer never matched again)."""
 
 from __future__ import annotations
 

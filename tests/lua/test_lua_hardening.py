@@ -1,4 +1,4 @@
-"""The sandbox has no way out and every script stops (issue 15): pyserial URLs, a map's image
+"""The sandbox has no way out and every script stops: pyserial URLs, a map's image
 outside the output folder, constructs the interrupt hook cannot see, the memory limit, exit codes
 and error messages."""
 

@@ -1,4 +1,4 @@
-"""`robotexp explore --view` watched in headless Chromium (issue 16, item 1, "Done when"): the page's map
+"""`robotexp explore --view` watched in headless Chromium: the page's map
 canvas changes as the run goes, pause holds robot time, resume lets it go on, stop ends the run and
 its record says it was stopped from the view (end reason STOPPED). Debian's chromium, driven by
 playwright (never a downloaded browser). Skipped only off CI when chromium is missing; on CI

@@ -1,4 +1,4 @@
-"""The live view's frame feed (issue 16, item 1): map encoding, laser points, arrows, and what the hub
+"""The live view's frame feed: map encoding, laser points, arrows, and what the hub
 sends each browser (the newest state, path and curve points once, a new run from scratch)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Pacing, pause, step and stop of the live view (issue 16, item 1) without a browser: the `Pacer` on a
+"""Pacing, pause, step and stop of the live view without a browser: the `Pacer` on a
 fake clock, then `ViewObserver` holding a real simulated run (robot time stands still while paused,
 one tick per step, a stop from the view ends the run as STOPPED with its reason)."""
 

@@ -1,4 +1,4 @@
-"""The live view's server (issue 16, item 1) through real sockets: the page and its files, the websocket's
+"""The live view's server through real sockets: the page and its files, the websocket's
 frames and commands, a port in use as one clear error, and a browser that never reads (or goes
 away) never slowing the producer while another browser keeps getting the newest state."""
 
