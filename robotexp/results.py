@@ -21,14 +21,26 @@ from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunReco
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
 
-__all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
+__all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "safe_name", "write_curve_csv",
            "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
            "RunRecord", "EndReason"]
 
 
+MAX_NAME = 120      # [characters] longest run name (a file name holds 255 bytes, the run's suffixes included)
+
+
+def safe_name(text: object) -> str:
+    """`text` as a run name that is one plain file name: letters, digits, "_", "-" and single dots between
+    them; every other character, and ".." (a way out of the folder), becomes "-"; no leading or trailing
+    "-" or "." (no hidden file), at most MAX_NAME characters; "run" when nothing is left. What names a run's
+    files (`run_id`, a recording's `run` in `robotexp.bag.replay`) goes through here."""
+    name = re.sub(r"\.\.+", "-", re.sub(r"[^A-Za-z0-9_.-]+", "-", str(text))).strip("-.")
+    return name[:MAX_NAME].rstrip("-.") or "run"
+
+
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
-    """A file-name-safe run name, unique in `out` (a numeric suffix is added when taken)."""
-    base = re.sub(r"[^A-Za-z0-9_.-]+", "-", f"{world}_{method}_{pose}_{speed * 1000:.0f}mms_s{seed}").strip("-")
+    """A file-name-safe run name (`safe_name`), unique in `out` (a numeric suffix is added when taken)."""
+    base = safe_name(f"{world}_{method}_{pose}_{speed * 1000:.0f}mms_s{seed}")
     name, k = base, 1
     while (out / f"{name}.png").exists() or (out / f"{name}.coverage.csv").exists():
         k += 1
