@@ -41,7 +41,7 @@ __all__ = ["ViewServer", "Guard"]
 log = logging.getLogger(__name__)
 
 _TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css", ".png": "image/png"}
-_HOST = re.compile(r"(?:\[([0-9a-f:.]+)\]|([a-z0-9.-]+))(?::([0-9]{1,5}))?")
+_HOST = re.compile(r"(?:\[([0-9a-f:.]+)\]|([a-z0-9_.-]+))(?::([0-9]{1,5}))?")
 _WILDCARD = ("0.0.0.0", "::", "")
 # every response: no page of another site may frame the view (and click its buttons)
 _HEADERS = {"X-Frame-Options": "DENY", "Content-Security-Policy": "frame-ancestors 'none'",
@@ -207,6 +207,7 @@ class ViewServer:
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
         self._listener: asyncio.AbstractServer | None = None
+        self._sweeper: asyncio.Task[None] | None = None
         self._sockets: set[web.WebSocketResponse] = set()
         self._conns: set[_Conn] = set()         # counted from their protocol's making (before connection_made)
         self._by_transport: dict[asyncio.BaseTransport, _Conn] = {}
@@ -294,8 +295,8 @@ class ViewServer:
         sockets = self._listener.sockets or ()
         if sockets:                  # the port the system chose for port 0
             self.port = sockets[0].getsockname()[1]
-        self.guard = Guard(self.host, self.port)
-        loop.create_task(self._close_idle())
+        self.guard.port = self.port
+        self._sweeper = loop.create_task(self._close_idle())
 
     def _accept(self) -> asyncio.Protocol:
         """A new connection's protocol: aiohttp's behind a counter, or a 503 when `max_clients` are open and
@@ -323,6 +324,8 @@ class ViewServer:
                     conn.close()            # (one never connected is dropped too)
 
     async def _shutdown(self) -> None:
+        if self._sweeper is not None:
+            self._sweeper.cancel()
         if self._listener is not None:
             self._listener.close()
         for ws in list(self._sockets):
