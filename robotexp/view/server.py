@@ -65,10 +65,12 @@ class Guard:
             name of this machine).
         port: its TCP port.
 
-    A Host header is taken when it names `port` and either an IP address (no DNS name, so nothing to rebind;
-    on a loopback server a loopback address) or a name of this server: "localhost", the name it listens
-    on, and with 0.0.0.0 / :: / a non-loopback address also this machine's host name and its fully
-    qualified name. Anything else (evil.example, a name that only resolves here) is refused.
+    A Host header is taken when it names an IP address (no DNS name, so nothing to rebind; on a loopback
+    server a loopback address) or a name of this server: "localhost", the name it listens on, and with
+    0.0.0.0 / :: / a non-loopback address also this machine's host name and its fully qualified name.
+    Anything else (evil.example, a name that only resolves here) is refused. Its port is not checked: a
+    rebinding page names its own host, whatever the port, and a port forwarded under another number (ssh -L
+    9000:127.0.0.1:PORT) still reaches the page; the Origin check compares the whole host:port.
     """
 
     def __init__(self, host: str, port: int) -> None:
@@ -89,9 +91,7 @@ class Guard:
         match = _HOST.fullmatch((value or "").strip().lower())
         if match is None:
             return False
-        literal, name, port = match.groups()
-        if int(port or 80) != self.port:
-            return False
+        literal, name, _ = match.groups()
         ip = _ip(literal if literal is not None else name)
         if literal is not None and ip is None:
             return False
