@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import http.client
 import json
+import re
 import socket
 import time
 from typing import Any
@@ -146,6 +147,13 @@ def test_malformed_bodies_are_400_and_silent(capfd: pytest.CaptureFixture[str]) 
         status, _, _ = _request(p, "POST", "/command", b'{"cmd": "pause", "pad": "' + b" " * 5000 + b'"}',
                                 headers=json_type)
         assert status == 413
+
+        for raw in (b"GARBAGE\r\n\r\n", b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX: " + b"a" * 20000 + b"\r\n\r\n",
+                    b"POST /command HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: -5\r\n\r\n",
+                    b"GET /\x00 HTTP/1.1\r\n\r\n"):
+            with socket.create_connection(("127.0.0.1", p), timeout=5) as raw_sock:
+                raw_sock.sendall(raw)
+                assert re.match(rb"HTTP/1\.[01] 4", raw_sock.recv(100)), raw[:20]
 
         async def ws_junk() -> dict[str, Any]:
             async with aiohttp.ClientSession() as session, session.ws_connect(server.url + "ws") as ws:
