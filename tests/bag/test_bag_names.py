@@ -1,5 +1,6 @@
 """A recording names its run in its metadata; what a command writes from it stays in the folder it was given
-(`robotexp figure`, `robotexp replay`): a name like "../../x" or "/tmp/x" is made a plain file name."""
+(`robotexp figure`, `robotexp replay`), and so does what a results file names its worlds (box figures): a name
+like "../../x" or "/tmp/x" is made a plain file name."""
 
 from __future__ import annotations
 
@@ -151,3 +152,24 @@ def test_safe_name() -> None:
         assert safe_name(bad) == "run"
     assert len(safe_name("x" * 1000)) <= 120
     assert os.sep not in safe_name("a" + os.sep + "b")
+
+
+def test_campaign_figures_name_worlds_safely(tmp_path: Path) -> None:
+    """A results file's world names its box figures: "../../x" or an absolute path stays a file name."""
+    figs = tmp_path / "a" / "b" / "figs"
+    figs.mkdir(parents=True)
+    results = figs / "results.jsonl"
+    lines = []
+    for i, world in enumerate(["../../../x", "../../../x", "/tmp/abs", "/tmp/abs"]):
+        lines.append(json.dumps({"run": f"r{i}", "method": "frontier", "world": world, "start_pose": [0, 0, 0],
+                                 "max_speed_m_s": 0.3, "path_length_m": 10.0 + i, "robot_time_s": 100.0 + i,
+                                 "wall_time_s": 1.0, "coverage": 0.5, "collisions": 0, "nodes": None,
+                                 "visited_cells": 10, "seed": i, "completed": True, "reason": "explored",
+                                 "map_iou": 0.5, "cell_m": 0.1}))
+    results.write_text("\n".join(lines) + "\n")
+    before = _files(tmp_path)
+    res = CliRunner().invoke(main, ["figure", str(results), "--format", "svg"])
+    assert res.exit_code == 0, res.output
+    new = _files(tmp_path) - before
+    assert new and all(Path(p).parent == figs.relative_to(tmp_path) for p in new), new
+    assert {Path(p).name for p in new} >= {"box_coverage_x.svg", "box_coverage_tmp-abs.svg"}
