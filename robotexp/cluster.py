@@ -152,13 +152,10 @@ def _store(out: Path, data: dict[str, Any], files: dict[str, bytes]) -> RunRecor
     """In the client: write a finished run into `out`, the record first (appended to results.jsonl),
     then its files. The run is renamed (suffix _2, _3, ...) when its name is taken in `out` (a run
     made again after an interrupted one)."""
-    from robotexp.results import append_jsonl
+    from robotexp.results import append_jsonl, take_name
 
-    name = str(data["run"])
-    base, k = name, 1
-    while (out / f"{name}.png").exists() or (out / f"{name}.coverage.csv").exists():
-        k += 1
-        name = f"{base}_{k}"
+    base = str(data["run"])
+    name = take_name(out, base)            # taken: a run of another process in `out` cannot get it too
     record = RunRecord.from_dict({**data, "run": name})
     append_jsonl(out / "results.jsonl", record)            # first: the record is never lost
     for rel, blob in files.items():

@@ -575,12 +575,14 @@ METRICS = (("coverage", "coverage [%]", 100.0), ("path_length_m", "path length [
 
 def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] = FORMATS) -> list[Path]:
     """Box figures of a campaign's records: per world (and cell size), one per metric of `METRICS`,
-    one box per method; written as out/box_<metric>_<world>.<format>. Returns the paths.
+    one box per method; written as out/box_<metric>_<world>.<format> (the world as `safe_name` makes it a
+    file name). Returns the paths.
 
     Raises:
         ConfigError: no record.
     """
     from robotexp.record import RunRecord
+    from robotexp.results import safe_name
 
     recs = [r if isinstance(r, RunRecord) else RunRecord.from_dict(r) for r in records]
     if not recs:
@@ -598,5 +600,5 @@ def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] =
                 continue
             title = f"{world} - {label.split(' [')[0]}" + (f" (cell {cell * 1000:g} mm)" if cell else "")
             fig = box_figure(groups, ylabel=label, title=title)
-            written += save_figure(fig, out / f"box_{key}_{world}", formats)
+            written += save_figure(fig, out / f"box_{key}_{safe_name(world)}", formats)   # a world: one file name
     return written

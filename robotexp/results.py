@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,19 +22,55 @@ from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunReco
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
 
-__all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
-           "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
-           "RunRecord", "EndReason"]
+__all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "safe_name", "take_name",
+           "write_curve_csv", "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv",
+           "RESULT_KEYS", "RunRecord", "EndReason"]
+
+
+MAX_NAME = 120      # [characters] longest run name (a file name holds 255 bytes, the run's suffixes included)
+
+
+def safe_name(text: object) -> str:
+    """`text` as a run name that is one plain file name: letters, digits, "_", "-" and single dots between
+    them; every other character, and ".." (a way out of the folder), becomes "-"; no leading or trailing
+    "-" or "." (no hidden file), at most MAX_NAME characters; "run" when nothing is left. What names a run's
+    files (`run_id`, a recording's `run` in `robotexp.bag.replay`) goes through here."""
+    name = re.sub(r"\.\.+", "-", re.sub(r"[^A-Za-z0-9_.-]+", "-", str(text))).strip("-.")
+    return name[:MAX_NAME].rstrip("-.") or "run"
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
-    """A file-name-safe run name, unique in `out` (a numeric suffix is added when taken)."""
-    base = re.sub(r"[^A-Za-z0-9_.-]+", "-", f"{world}_{method}_{pose}_{speed * 1000:.0f}mms_s{seed}").strip("-")
+    """A file-name-safe run name (`safe_name`), unique in `out` (a numeric suffix is added when taken), and
+    taken: its `<name>.coverage.csv` is created exclusively (O_EXCL, with the header only until the run
+    writes its samples), so runs that start at once in one folder, in other processes too, never get one
+    name, and no run's files overwrite another's.
+
+    Raises:
+        OSError: `out` cannot be written.
+    """
+    return take_name(out, safe_name(f"{world}_{method}_{pose}_{speed * 1000:.0f}mms_s{seed}"))
+
+
+def take_name(out: Path, base: str) -> str:
+    """`base`, or `base_2`, `base_3`, ... the first that no run in `out` has, taken for the caller by an
+    exclusive create of its `<name>.coverage.csv` (the header only; see `run_id`).
+
+    Raises:
+        OSError: `out` cannot be written.
+    """
     name, k = base, 1
-    while (out / f"{name}.png").exists() or (out / f"{name}.coverage.csv").exists():
+    while True:
+        if not (out / f"{name}.png").exists():
+            try:
+                fd = os.open(out / f"{name}.coverage.csv", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                pass
+            else:
+                with os.fdopen(fd, "w", encoding="utf-8") as f:
+                    f.write(",".join(CURVE_HEADER) + "\n")
+                return name
         k += 1
         name = f"{base}_{k}"
-    return name
 
 
 def make_record(run: ExplorationRun) -> RunRecord:

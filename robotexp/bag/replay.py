@@ -308,7 +308,7 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
         ConfigError: a cell size out of range.
         OSError: the results could not be written.
     """
-    from robotexp.results import ResultsWriter, run_id
+    from robotexp.results import ResultsWriter, run_id, safe_name
 
     if cell is not None and not 0.005 <= cell <= 2.0:
         raise ConfigError(f"cell size must be within 5..2000 mm, got {cell * 1000:g} mm")
@@ -349,7 +349,7 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
     speed = meta.get("max_speed_m_s") or 0.0
     info_extra: dict[str, Any] = {"replay_of": str(bag.path)}
     if out is None:
-        name = meta.get("run") or f"{world}_{method}_{pose}"
+        name = safe_name(meta.get("run") or f"{world}_{method}_{pose}")    # the recording's word: one file name
     else:
         out.mkdir(parents=True, exist_ok=True)
         name = run_id(world, method, pose, speed, int(meta.get("seed", 0)), out)

@@ -38,10 +38,33 @@ if TYPE_CHECKING:
 
 __all__ = ["UNKNOWN", "FREE", "OCCUPIED", "TILE", "Frame", "MapLayer", "ViewClient", "ViewHub", "classes_of_states",
            "encode_classes", "decode_classes", "changed_tiles", "encode_tiles", "decode_tiles", "laser_points",
-           "packed_laser", "unpack_laser", "vector_arrows"]
+           "packed_laser", "unpack_laser", "vector_arrows", "command_problem", "COMMANDS"]
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 TILE = 32           # [cells] side of the map tiles sent to browsers
+COMMANDS = ("pause", "resume", "step", "stop", "speed", "seek")     # what a page may send
+
+
+def command_problem(msg: object) -> str | None:
+    """Why `msg` is not a command a page may send (None: it is one): a JSON object {"cmd": one of COMMANDS},
+    a speed's "value" within MIN_SPEED..MAX_SPEED or "max", a seek's a finite number of seconds."""
+    from robotexp.view.live import speed_value
+
+    if not isinstance(msg, dict) or not isinstance(msg.get("cmd"), str):
+        return 'expected a JSON object like {"cmd": "pause"}'
+    cmd = msg["cmd"]
+    if cmd not in COMMANDS:
+        return f"unknown command {cmd[:40]!r}; the view takes {', '.join(COMMANDS)}"
+    value = msg.get("value")
+    if cmd == "speed":
+        try:
+            speed_value(value)
+        except ValueError as exc:
+            return str(exc)[:200]
+    elif cmd == "seek" and not (isinstance(value, (int, float)) and not isinstance(value, bool)
+                                and math.isfinite(value)):
+        return "seek: expected a robot time in seconds as a number, like {\"cmd\": \"seek\", \"value\": 12.5}"
+    return None
 
 
 def classes_of_states(states: npt.NDArray[np.int8]) -> npt.NDArray[np.uint8]:

@@ -10,28 +10,46 @@ import click
 
 from robotexp.errors import ConfigError
 
-__all__ = ["LiveView", "view_options", "parse_speed", "start_view", "end_view", "DEFAULT_SPEED"]
+__all__ = ["LiveView", "view_options", "parse_speed", "speed_value", "start_view", "end_view", "DEFAULT_SPEED",
+           "MIN_SPEED", "MAX_SPEED", "SPEEDS"]
 
 DEFAULT_SPEED = 10.0        # robot time per wall time of a simulated run watched in the view (observer.py too)
+MIN_SPEED, MAX_SPEED = 0.01, 1000.0     # the speeds the view takes (a tick of 0.1 s: at most 10 s of wall time)
+SPEEDS = f"a number within {MIN_SPEED:g}..{MAX_SPEED:g} (times real time) or 'max'"
+
+
+def speed_value(value: object) -> float | None:
+    """A view speed as the CLI or a page gives it: a number within MIN_SPEED..MAX_SPEED (robot time per wall
+    time; a number's text too) or "max" / None (as fast as it goes: None).
+
+    Raises:
+        ValueError: anything else (says what is taken).
+    """
+    if value is None or (isinstance(value, str) and value.strip().lower() == "max"):
+        return None
+    speed = math.nan
+    if isinstance(value, (int, float, str)) and not isinstance(value, bool):
+        try:
+            speed = float(value)
+        except ValueError:
+            pass
+    if not MIN_SPEED <= speed <= MAX_SPEED:         # NaN too
+        raise ValueError(f"speed {value!r}: expected {SPEEDS}")
+    return speed
 
 
 def parse_speed(text: str | None) -> float | None:
-    """`--view-speed`: a number > 0 (robot time per wall time) or "max" (None). Default: DEFAULT_SPEED.
+    """`--view-speed`: `speed_value` of the text; default DEFAULT_SPEED.
 
     Raises:
         ConfigError: anything else.
     """
     if text is None:
         return DEFAULT_SPEED
-    if text.strip().lower() == "max":
-        return None
     try:
-        value = float(text)
+        return speed_value(text)
     except ValueError:
-        value = math.nan
-    if not (value > 0 and math.isfinite(value)):
-        raise ConfigError(f"--view-speed {text!r}: expected a number > 0 (times real time) or 'max'")
-    return value
+        raise ConfigError(f"--view-speed {text!r}: expected {SPEEDS}") from None
 
 
 class LiveView:
@@ -81,10 +99,11 @@ class LiveView:
 def view_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The --view, --view-port, --view-host and --view-speed options of a command."""
     func = click.option("--view-speed", default=None, metavar="X|max",
-                        help=f"With --view: simulated robot time per wall time (default {DEFAULT_SPEED:g}; "
-                             "max: as fast as it goes).")(func)
+                        help=f"With --view: simulated robot time per wall time, {MIN_SPEED:g}..{MAX_SPEED:g} "
+                             f"(default {DEFAULT_SPEED:g}; max: as fast as it goes).")(func)
     func = click.option("--view-host", default="127.0.0.1", show_default=True,
-                        help="With --view: the address to serve on (0.0.0.0 exposes the view to the network).")(func)
+                        help="With --view: the address to serve on (0.0.0.0: every address of this machine; "
+                             "the page then answers to an IP address or this machine's name).")(func)
     func = click.option("--view-port", type=int, default=0,
                         help="With --view: the TCP port of the page (default: a free one).")(func)
     func = click.option("--view", is_flag=True,

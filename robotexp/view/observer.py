@@ -1,13 +1,14 @@
 """The run observer that feeds the live view, and the pacer that holds a run's loop for it.
 
-`Pacer` lives in the loop's thread (its `wait` is called at every control tick): it sleeps so that a
-simulated run goes at `speed` times real time (None: as fast as it can), and holds the loop while
-the view is paused. A simulated robot's time only passes in `clock.tick()`, so no robot time passes
-while paused and the run's results do not change. A real robot keeps moving under the last command
-unless told otherwise: while paused the pacer calls `halt()` (the observer's: `robot.stop()`, a
-zero Twist) at once and again every `halt_period` seconds (a robot whose driver has a command
-watchdog stays stopped either way); on resume the loop reads the robot afresh and the explorer
-decides from there. On a real robot, robot time (the robot's clock) goes on while paused and counts
+`Pacer` lives in the loop's thread (its `wait` is called at every control tick): it waits so that a
+simulated run goes at `speed` times real time (MIN_SPEED..MAX_SPEED; None: as fast as it can), and holds
+the loop while the view is paused. Its waits end early when the view is stopped, paused, resumed or given
+another speed (a slow speed never keeps a Stop waiting). A simulated robot's time only passes in
+`clock.tick()`, so no robot time passes while paused and the run's results do not change. A real robot
+keeps moving under the last command unless told otherwise: while paused the pacer calls `halt()` (the
+observer's: `robot.stop()`, a zero Twist) at once and again every `halt_period` seconds (a robot whose
+driver has a command watchdog stays stopped either way); on resume the loop reads the robot afresh and
+the explorer decides from there. On a real robot, robot time (the robot's clock) goes on while paused and counts
 against the run's time limit, and the speed control does nothing (a real robot runs in real time).
 
 `ViewObserver` turns a run into `Frame`s for a `ViewHub`: the pose and scan at most `frame_rate`
@@ -35,7 +36,7 @@ from robotexp.markers import markers_problem
 from robotexp.observers import RunObserver, StepEvent
 from robotexp.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
-from robotexp.view.live import DEFAULT_SPEED
+from robotexp.view.live import DEFAULT_SPEED, speed_value
 
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
@@ -55,15 +56,20 @@ class Pacer:
     Args:
         speed: robot time per wall time (None: no pacing).
         clock: wall clock [s] (monotonic).
-        sleep: sleeps [s] (pacing only; pauses wait on a condition).
+        sleep: sleeps [s] for pacing, instead of waiting on the pacer's condition (which a stop, pause,
+            resume or speed change ends early); for a fake clock.
         halt_period: [s] between `halt()` calls while paused.
+
+    Raises:
+        ValueError: a speed outside MIN_SPEED..MAX_SPEED (`robotexp.view.live`).
     """
 
     def __init__(self, speed: float | None = DEFAULT_SPEED, *, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep, halt_period: float = 0.5) -> None:
+                 sleep: Callable[[float], None] | None = None, halt_period: float = 0.5) -> None:
         self._cond = threading.Condition()
         self.clock, self.sleep, self.halt_period = clock, sleep, halt_period
-        self.speed = speed
+        self.speed = speed_value(speed)
+        self._changes = 0           # stops, pauses, resumes, steps, wakes and speed changes so far
         self.paused = False
         self.stopped = False
         self._steps = 0
@@ -71,22 +77,32 @@ class Pacer:
         self._ref: tuple[float, float] | None = None   # (robot time, wall time) pacing starts from
 
     def set_speed(self, speed: float | None) -> None:
-        """Robot time per wall time from now on (None: as fast as possible)."""
-        if speed is not None and not (speed > 0 and math.isfinite(speed)):
-            raise ValueError(f"speed must be > 0, got {speed}")
+        """Robot time per wall time from now on (None: as fast as possible); a pacing wait ends now.
+
+        Raises:
+            ValueError: outside MIN_SPEED..MAX_SPEED.
+        """
+        speed = speed_value(speed)
         with self._cond:
             self.speed, self._ref = speed, None
+            self._changed()
+
+    def _changed(self) -> None:
+        """(Under the lock.) End the loop's pacing wait: something it waits for changed."""
+        self._changes += 1
+        self._cond.notify_all()
 
     def pause(self) -> None:
         """Hold the loop at its next tick."""
         with self._cond:
             self.paused, self._woken = True, False
+            self._changed()
 
     def resume(self) -> None:
         """Let the loop go on."""
         with self._cond:
             self.paused, self._steps = False, 0
-            self._cond.notify_all()
+            self._changed()
 
     def step(self) -> None:
         """Paused: let exactly one more tick pass (then hold again). Running: pause."""
@@ -94,13 +110,13 @@ class Pacer:
             if self.paused:
                 self._steps += 1
             self.paused = True
-            self._cond.notify_all()
+            self._changed()
 
     def wake(self) -> None:
         """Let a held `wait` return now without a step (a replay's seek while paused); the pause stays."""
         with self._cond:
             self._woken = True
-            self._cond.notify_all()
+            self._changed()
 
     def unwake(self) -> None:
         """Forget a `wake` not yet taken by `wait` (its reason was dealt with)."""
@@ -111,13 +127,14 @@ class Pacer:
         """Release the loop for good (it ends the run at its next tick)."""
         with self._cond:
             self.stopped, self.paused = True, False
-            self._cond.notify_all()
+            self._changed()
 
     def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,
              on_hold: Callable[[bool], None] | None = None) -> bool:
         """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
         paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
-        `on_hold(False)` when it ends), then sleep as pacing wants. Returns whether the loop was held."""
+        `on_hold(False)` when it ends), then wait as pacing wants (until due, or a stop, pause, resume,
+        step or speed change). Returns whether the loop was held."""
         if not (self.paused or self.stopped) and self.speed is None:
             return False            # as fast as it goes: nothing to hold or pace (no lock: read under the GIL)
         held = False
@@ -148,9 +165,15 @@ class Pacer:
                 self._ref = (robot_time, now)
                 return held
             t0, w0 = self._ref
+            changes = self._changes
         due = w0 + (robot_time - t0) / speed
         if due > now:
-            self.sleep(due - now)
+            if self.sleep is not None:
+                self.sleep(due - now)
+            else:
+                with self._cond:
+                    while self._changes == changes and (left := due - self.clock()) > 0:
+                        self._cond.wait(left)
         elif now - due > 0.5:           # far behind (a slow tick): pace from here, no burst to catch up
             with self._cond:
                 self._ref = (robot_time, now)
@@ -181,8 +204,9 @@ class SpeedMeter:
 
 
 def pacer_command(pacer: Pacer, hub: ViewHub, msg: dict[str, Any]) -> bool:
-    """Apply a page's pause, resume, step or speed (value: a number or "max") command to `pacer` and show
-    it in `hub`'s status; whether `msg` was one of these (a bad speed is ignored)."""
+    """Apply a page's pause, resume, step or speed (value: `speed_value`'s: a number within MIN_SPEED..MAX_SPEED
+    or "max") command to `pacer` and show it in `hub`'s status; whether `msg` was one of these (a speed out
+    of range is refused: nothing changes; the server tells the page why, `command_problem`)."""
     cmd = msg.get("cmd")
     if cmd == "pause":
         pacer.pause()
@@ -195,12 +219,11 @@ def pacer_command(pacer: Pacer, hub: ViewHub, msg: dict[str, Any]) -> bool:
         if hub.status.get("state") != "ended":
             hub.set_status(state="running")
     elif cmd == "speed":
-        value = msg.get("value")
         try:
-            speed = None if value in (None, "max") else float(value)
-            pacer.set_speed(speed)
-        except (TypeError, ValueError):
+            speed = speed_value(msg.get("value"))
+        except ValueError:
             return True
+        pacer.set_speed(speed)
         hub.set_status(speed=speed)
     else:
         return False

@@ -232,6 +232,7 @@
 
   let pending = Promise.resolve();
   async function handle(msg) {
+    if (msg.type === "refused") { $("reason").textContent = `refused: ${msg.reason}`; return; }
     if (msg.meta && msg.meta.kind === "campaign") { S.meta = msg.meta; return campaign(msg, true); }
     if (S.meta && S.meta.kind === "campaign") return campaign(msg, false);
     if (msg.meta && msg.meta.geo) {
