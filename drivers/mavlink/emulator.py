@@ -10,29 +10,48 @@ Transports (one client at a time):
 
 Every `tick` (50 ms) of robot time, paced by wall time / `speedup`, it advances the `SimRobot` and
 sends what is due: HEARTBEAT at 1 Hz (type GROUND_ROVER, autopilot ARDUPILOTMEGA, custom_mode the
-Rover mode, 0x80 when armed), and per message the requested rate (REQUEST_DATA_STREAM groups
-EXTENDED_STATUS: SYS_STATUS, POSITION: LOCAL_POSITION_NED, EXTRA1: ATTITUDE, EXTRA3: DISTANCE_SENSOR
-and OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at most 1 / `tick`).
+Rover mode, base_mode as Rover's base_mode(): CUSTOM_MODE_ENABLED, MANUAL_INPUT_ENABLED in MANUAL,
+ACRO and STEERING, GUIDED_ENABLED in the autopilot modes, SAFETY_ARMED when armed; system_status
+STANDBY in HOLD, else ACTIVE), and per message the requested rate (REQUEST_DATA_STREAM groups
+EXTENDED_STATUS: SYS_STATUS, POSITION: GLOBAL_POSITION_INT and LOCAL_POSITION_NED, EXTRA1: ATTITUDE,
+EXTRA3: DISTANCE_SENSOR and OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at
+most 1 / `tick`).
 
-As ArduPilot Rover (GCS_Common.cpp, Rover GCS_Mavlink.cpp, mode_guided.cpp):
+As ArduPilot Rover (GCS_Common.cpp, Rover GCS_Mavlink.cpp, mode.cpp, mode_guided.cpp, AP_Arming.cpp):
 
-- the EKF has no origin indoors (`origin` None): no LOCAL_POSITION_NED and local position targets
-  ignored until a SET_GPS_GLOBAL_ORIGIN (answered with GPS_GLOBAL_ORIGIN); home is then set where
-  the rover stands (GET_HOME_POSITION / REQUEST_MESSAGE 242 -> HOME_POSITION; FAILED before);
+- it boots in MANUAL (INITIAL_MODE 0), disarmed;
+- the EKF has no origin indoors (`origin` None): no position estimate, so no LOCAL_POSITION_NED
+  (GLOBAL_POSITION_INT is sent, latitude/longitude 0), local position targets ignored, arming
+  refused in the modes that need a position (all but MANUAL, ACRO, STEERING, HOLD: "Need Position
+  Estimate", FAILED) and, armed, switching to them FAILED; never armable in RTL / SMART_RTL. A
+  SET_GPS_GLOBAL_ORIGIN (answered with GPS_GLOBAL_ORIGIN) gives it one; home is then set where the
+  rover stands (GET_HOME_POSITION / REQUEST_MESSAGE 242 -> HOME_POSITION; FAILED before);
 - parameters (`ROVER_PARAMS`, names and types of Rover's) over PARAM_REQUEST_LIST (all at once),
   PARAM_REQUEST_READ (by name or index) and PARAM_SET (answered with the new PARAM_VALUE); GUID_TIMEOUT,
-  WP_PIVOT_ANGLE, ATC_STR_ANG_P, ATC_STR_RAT_MAX and PRX1_TYPE act on the emulated rover;
+  WP_PIVOT_ANGLE, ATC_STR_ANG_P, ATC_STR_RAT_MAX, CRUISE_SPEED, WP_SPEED and PRX1_TYPE act on the
+  emulated rover;
 - modes: DO_SET_MODE / SET_MODE need the CUSTOM_MODE_ENABLED base-mode flag (else DENIED), an
   unknown or unsettable mode FAILS; SET_MODE is acked with command 11; every COMMAND_ACK carries
   the sender's ids as target; messages for another system id are ignored;
-- SET_POSITION_TARGET_LOCAL_NED in GUIDED, armed, with an origin: velocity + yaw rate (mask 1511:
-  speed |vx, vy| signed by vx, turn rate -yaw_rate), yaw rate only (turn in place), velocity only
-  (masks 3559, 4039: turn to face the vector - atan2(vy, vx), from the heading in BODY frames - at
-  the speed |vx, vy|, pivoting in place while the heading error exceeds WP_PIVOT_ANGLE until within
-  10 deg, steering at ATC_STR_ANG_P x error up to ATC_STR_RAT_MAX); position targets are ignored
-  (not emulated). The rover stops on entering GUIDED or HOLD, on disarming, and when no target
-  came for GUID_TIMEOUT s of robot time;
-- SYS_STATUS reports its sensors present, enabled (motor outputs only when armed) and healthy;
+- SET_POSITION_TARGET_LOCAL_NED in GUIDED with an origin, in LOCAL_NED, LOCAL_OFFSET_NED, BODY_NED or
+  BODY_OFFSET_NED (other frames, MAV_FRAME_GLOBAL included, ignored); the type mask is read as
+  Rover reads it (a group is ignored when its x or y bit is set; z never looked at): a position
+  (mask 3576: from the origin, from the rover, or rotated by its heading in body frames) is driven
+  to and stopped at (within 5 cm; MISSION_ITEM_REACHED 0 on arrival; no GUID_TIMEOUT); velocity
+  only (3559, 4039) or velocity + heading (2503): turn to the heading - atan2(vy, vx) or `yaw`,
+  plus the heading in body frames - at the speed |vx, vy| (capped at WP_SPEED, else CRUISE_SPEED;
+  negative with vx < 0 when a heading or rate is given); heading only (2559): turn in place;
+  velocity + yaw rate (1511) and yaw rate only (1535): that speed and turn rate. Heading control
+  pivots in place while the error exceeds WP_PIVOT_ANGLE until within 10 deg, steering at
+  ATC_STR_ANG_P x error up to ATC_STR_RAT_MAX. Heading and turn-rate targets stop after GUID_TIMEOUT
+  s of robot time without a new one. A disarmed rover does not move; any mode change stops it;
+- COMMAND_INT (and COMMAND_LONG) MAV_CMD_DO_REPOSITION: outside GUIDED DENIED unless the CHANGE_MODE
+  flag switches to GUIDED; latitude/longitude out of range or 0, 0 DENIED; param1 > 0 sets the speed;
+  then driven to like a position target (FAILED without an origin). MISSION_ITEM_INT with current 2
+  (a guided waypoint) likewise, answered with MISSION_ACK (ERROR outside GUIDED); other COMMAND_INTs
+  as their COMMAND_LONG;
+- SYS_STATUS reports its sensors present, enabled (motor outputs only when armed) and healthy, and
+  the geofence healthy though not present (no fence: a ground station sees no breach);
 - range data only when configured: `proximity` (PRX1_TYPE 10, SITL) sends one DISTANCE_SENSOR per
   45-degree sector (ids 10..17, orientation 0..7 clockwise from the nose, the nearest echo in the
   sector in cm, max_distance + 1 when none), as ArduPilot reports a proximity sensor;
