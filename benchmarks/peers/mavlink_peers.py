@@ -100,13 +100,14 @@ def check_pymavlink(python: Path, emu: MavlinkEmulator) -> bool:
         and got["param_indexes_ok"] and emu.received["PARAM_REQUEST_LIST"] == 1,
         "DO_SET_MODE base mode 0 DENIED, ids filled": got["set_mode_base0"] == [C.MAV_RESULT_DENIED, 255, 190],
         "DO_SET_MODE GUIDED ACCEPTED": got["set_mode_guided"] == [C.MAV_RESULT_ACCEPTED, 255, 190],
-        "arm ACCEPTED": got["arm"] == [C.MAV_RESULT_ACCEPTED, 255, 190],
+        "arm FAILED in GUIDED without a position estimate": got["arm"] == [C.MAV_RESULT_FAILED, 255, 190],
         "GET_HOME_POSITION FAILED without an origin": got["home_before_origin"] == [C.MAV_RESULT_FAILED, 255, 190],
         "SET_GPS_GLOBAL_ORIGIN answered": got["origin"] == [-198697000, -439637000, 800000],
         "HOME_POSITION after the origin": got["home_after_origin"] == [C.MAV_RESULT_ACCEPTED, 255, 190]
         and got["home"] is not None,
-        "SYS_STATUS present == healthy, nothing failing": got["sys_status"] is not None
-        and got["sys_status"][0] == got["sys_status"][2] and got["sys_status"][0] != 0,
+        "SYS_STATUS: every sensor present is healthy, geofence healthy (no breach)": got["sys_status"] is not None
+        and got["sys_status"][0] & got["sys_status"][2] == got["sys_status"][0] != 0
+        and got["sys_status"][2] & C.MAV_SYS_STATUS_GEOFENCE,
     }
     for what, ok in checks.items():
         print(f"  pymavlink {got['pymavlink']}: {what}: {'PASS' if ok else 'FAIL'}")

@@ -10,29 +10,48 @@ Transports (one client at a time):
 
 Every `tick` (50 ms) of robot time, paced by wall time / `speedup`, it advances the `SimRobot` and
 sends what is due: HEARTBEAT at 1 Hz (type GROUND_ROVER, autopilot ARDUPILOTMEGA, custom_mode the
-Rover mode, 0x80 when armed), and per message the requested rate (REQUEST_DATA_STREAM groups
-EXTENDED_STATUS: SYS_STATUS, POSITION: LOCAL_POSITION_NED, EXTRA1: ATTITUDE, EXTRA3: DISTANCE_SENSOR
-and OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at most 1 / `tick`).
+Rover mode, base_mode as Rover's base_mode(): CUSTOM_MODE_ENABLED, MANUAL_INPUT_ENABLED in MANUAL,
+ACRO and STEERING, GUIDED_ENABLED in the autopilot modes, SAFETY_ARMED when armed; system_status
+STANDBY in HOLD, else ACTIVE), and per message the requested rate (REQUEST_DATA_STREAM groups
+EXTENDED_STATUS: SYS_STATUS, POSITION: GLOBAL_POSITION_INT and LOCAL_POSITION_NED, EXTRA1: ATTITUDE,
+EXTRA3: DISTANCE_SENSOR and OBSTACLE_DISTANCE; or SET_MESSAGE_INTERVAL; 1 Hz each by default, at
+most 1 / `tick`).
 
-As ArduPilot Rover (GCS_Common.cpp, Rover GCS_Mavlink.cpp, mode_guided.cpp):
+As ArduPilot Rover (GCS_Common.cpp, Rover GCS_Mavlink.cpp, mode.cpp, mode_guided.cpp, AP_Arming.cpp):
 
-- the EKF has no origin indoors (`origin` None): no LOCAL_POSITION_NED and local position targets
-  ignored until a SET_GPS_GLOBAL_ORIGIN (answered with GPS_GLOBAL_ORIGIN); home is then set where
-  the rover stands (GET_HOME_POSITION / REQUEST_MESSAGE 242 -> HOME_POSITION; FAILED before);
+- it boots in MANUAL (INITIAL_MODE 0), disarmed;
+- the EKF has no origin indoors (`origin` None): no position estimate, so no LOCAL_POSITION_NED
+  (GLOBAL_POSITION_INT is sent, latitude/longitude 0), local position targets ignored, arming
+  refused in the modes that need a position (all but MANUAL, ACRO, STEERING, HOLD: "Need Position
+  Estimate", FAILED) and, armed, switching to them FAILED; never armable in RTL / SMART_RTL. A
+  SET_GPS_GLOBAL_ORIGIN (answered with GPS_GLOBAL_ORIGIN) gives it one; home is then set where the
+  rover stands (GET_HOME_POSITION / REQUEST_MESSAGE 242 -> HOME_POSITION; FAILED before);
 - parameters (`ROVER_PARAMS`, names and types of Rover's) over PARAM_REQUEST_LIST (all at once),
   PARAM_REQUEST_READ (by name or index) and PARAM_SET (answered with the new PARAM_VALUE); GUID_TIMEOUT,
-  WP_PIVOT_ANGLE, ATC_STR_ANG_P, ATC_STR_RAT_MAX and PRX1_TYPE act on the emulated rover;
+  WP_PIVOT_ANGLE, ATC_STR_ANG_P, ATC_STR_RAT_MAX, CRUISE_SPEED, WP_SPEED and PRX1_TYPE act on the
+  emulated rover;
 - modes: DO_SET_MODE / SET_MODE need the CUSTOM_MODE_ENABLED base-mode flag (else DENIED), an
   unknown or unsettable mode FAILS; SET_MODE is acked with command 11; every COMMAND_ACK carries
   the sender's ids as target; messages for another system id are ignored;
-- SET_POSITION_TARGET_LOCAL_NED in GUIDED, armed, with an origin: velocity + yaw rate (mask 1511:
-  speed |vx, vy| signed by vx, turn rate -yaw_rate), yaw rate only (turn in place), velocity only
-  (masks 3559, 4039: turn to face the vector - atan2(vy, vx), from the heading in BODY frames - at
-  the speed |vx, vy|, pivoting in place while the heading error exceeds WP_PIVOT_ANGLE until within
-  10 deg, steering at ATC_STR_ANG_P x error up to ATC_STR_RAT_MAX); position targets are ignored
-  (not emulated). The rover stops on entering GUIDED or HOLD, on disarming, and when no target
-  came for GUID_TIMEOUT s of robot time;
-- SYS_STATUS reports its sensors present, enabled (motor outputs only when armed) and healthy;
+- SET_POSITION_TARGET_LOCAL_NED in GUIDED with an origin, in LOCAL_NED, LOCAL_OFFSET_NED, BODY_NED or
+  BODY_OFFSET_NED (other frames, MAV_FRAME_GLOBAL included, ignored); the type mask is read as
+  Rover reads it (a group is ignored when its x or y bit is set; z never looked at): a position
+  (mask 3576: from the origin, from the rover, or rotated by its heading in body frames) is driven
+  to and stopped at (within 5 cm; MISSION_ITEM_REACHED 0 on arrival; no GUID_TIMEOUT); velocity
+  only (3559, 4039) or velocity + heading (2503): turn to the heading - atan2(vy, vx) or `yaw`,
+  plus the heading in body frames - at the speed |vx, vy| (capped at WP_SPEED, else CRUISE_SPEED;
+  negative with vx < 0 when a heading or rate is given); heading only (2559): turn in place;
+  velocity + yaw rate (1511) and yaw rate only (1535): that speed and turn rate. Heading control
+  pivots in place while the error exceeds WP_PIVOT_ANGLE until within 10 deg, steering at
+  ATC_STR_ANG_P x error up to ATC_STR_RAT_MAX. Heading and turn-rate targets stop after GUID_TIMEOUT
+  s of robot time without a new one. A disarmed rover does not move; any mode change stops it;
+- COMMAND_INT (and COMMAND_LONG) MAV_CMD_DO_REPOSITION: outside GUIDED DENIED unless the CHANGE_MODE
+  flag switches to GUIDED; latitude/longitude out of range or 0, 0 DENIED; param1 > 0 sets the speed;
+  then driven to like a position target (FAILED without an origin). MISSION_ITEM_INT with current 2
+  (a guided waypoint) likewise, answered with MISSION_ACK (ERROR outside GUIDED); other COMMAND_INTs
+  as their COMMAND_LONG;
+- SYS_STATUS reports its sensors present, enabled (motor outputs only when armed) and healthy, and
+  the geofence healthy though not present (no fence: a ground station sees no breach);
 - range data only when configured: `proximity` (PRX1_TYPE 10, SITL) sends one DISTANCE_SENSOR per
   45-degree sector (ids 10..17, orientation 0..7 clockwise from the nose, the nearest echo in the
   sector in cm, max_distance + 1 when none), as ArduPilot reports a proximity sensor;
@@ -68,11 +87,15 @@ __all__ = ["MavlinkEmulator", "ROVER_PARAMS", "STREAM_MESSAGES"]
 log = logging.getLogger(__name__)
 
 STREAM_MESSAGES = {C.MAV_DATA_STREAM_EXTENDED_STATUS: (C.MAVLINK_MSG_ID_SYS_STATUS,),
-                   C.MAV_DATA_STREAM_POSITION: (C.MAVLINK_MSG_ID_LOCAL_POSITION_NED,),
+                   C.MAV_DATA_STREAM_POSITION: (C.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                                                C.MAVLINK_MSG_ID_LOCAL_POSITION_NED),
                    C.MAV_DATA_STREAM_EXTRA1: (C.MAVLINK_MSG_ID_ATTITUDE,),
                    C.MAV_DATA_STREAM_EXTRA3: (C.MAVLINK_MSG_ID_DISTANCE_SENSOR, C.MAVLINK_MSG_ID_OBSTACLE_DISTANCE)}
-# modes with the GUIDED_ENABLED flag
-_AUTO_MODES = {C.ROVER_MODE_GUIDED, C.ROVER_MODE_AUTO, C.ROVER_MODE_RTL, C.ROVER_MODE_SMART_RTL}
+# SET_POSITION_TARGET_LOCAL_NED frames Rover accepts (GCS_Mavlink.cpp handle_set_position_target_local_ned)
+_TARGET_FRAMES = {C.MAV_FRAME_LOCAL_NED, C.MAV_FRAME_LOCAL_OFFSET_NED, C.MAV_FRAME_BODY_NED,
+                  C.MAV_FRAME_BODY_OFFSET_NED}
+_BODY_FRAMES = {C.MAV_FRAME_BODY_NED, C.MAV_FRAME_BODY_OFFSET_NED}
+_ARRIVED = 0.05                      # [m] a position target counts as reached this close
 _INT_TYPES = {C.MAV_PARAM_TYPE_INT8, C.MAV_PARAM_TYPE_INT16, C.MAV_PARAM_TYPE_INT32}
 _PIVOT_EXIT = math.radians(10.0)     # Rover leaves a pivot turn within 10 deg of the heading
 _EARTH_RADIUS = 6378137.0            # [m] WGS84 semi-major axis (ArduPilot's LATLON_TO_M scale)
@@ -149,7 +172,7 @@ class MavlinkEmulator(StreamEmulator):
         self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False,
                             odometry=odometry_model(odometry))
         self.codec = MavlinkCodec(C.VEHICLE_SYSTEM_ID, C.VEHICLE_COMPONENT_ID)
-        self.mode, self.armed = C.ROVER_MODE_HOLD, False
+        self.mode, self.armed = C.ROVER_MODE_MANUAL, False         # Rover boots in MANUAL (INITIAL_MODE 0)
         self.params: dict[str, list[float]] = {name: [float(value), float(kind)] for name, kind, value in ROVER_PARAMS}
         self.params["GUID_TIMEOUT"][0] = float(guid_timeout)
         self.params["PRX1_TYPE"][0] = float(C.PRX_TYPE_SITL if proximity else C.PRX_TYPE_NONE)
@@ -163,7 +186,10 @@ class MavlinkEmulator(StreamEmulator):
         self._once: set[int] = set()
         self._next_heartbeat = 0.0
         self._last_cmd_time = 0.0
-        self._heading_goal: tuple[float, float] | None = None   # (yaw NED [rad], speed [m/s]) of a velocity target
+        # the GUIDED submode (Rover mode_guided.cpp): None (stop), ("heading", yaw NED [rad], speed [m/s]),
+        # ("rate", turn rate NED [rad/s], speed), ("wp", north, east [m from the origin], speed)
+        self._guided: tuple[str, float, float, float] | None = None
+        self._wp_speed: float | None = None       # DO_REPOSITION's ground speed [m/s] (None: the default)
         self._pivoting = False
         self.last_target: Message | None = None
         self.last_command: Message | None = None
@@ -248,6 +274,7 @@ class MavlinkEmulator(StreamEmulator):
         """Message type -> handler (messages of other types are ignored, as by a vehicle)."""
         return {"SET_POSITION_TARGET_LOCAL_NED": self._on_target, "SET_MODE": self._on_set_mode,
                 "REQUEST_DATA_STREAM": self._on_request_data_stream, "COMMAND_LONG": self._on_command_long,
+                "COMMAND_INT": self._on_command_int, "MISSION_ITEM_INT": self._on_mission_item_int,
                 "PARAM_REQUEST_LIST": self._on_param_request_list, "PARAM_REQUEST_READ": self._on_param_request_read,
                 "PARAM_SET": self._on_param_set, "SET_GPS_GLOBAL_ORIGIN": self._on_set_gps_global_origin}
 
@@ -258,6 +285,12 @@ class MavlinkEmulator(StreamEmulator):
                 C.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
                 C.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
                 C.MAV_CMD_GET_HOME_POSITION: self._cmd_get_home_position}
+
+    @property
+    def _heading_goal(self) -> tuple[float, float] | None:
+        """(yaw NED [rad], speed [m/s]) of a heading target in force (None otherwise)."""
+        g = self._guided
+        return (g[1], g[2]) if g is not None and g[0] == "heading" else None
 
     def _handle(self, m: Message) -> None:
         kind = m.get_type()
@@ -283,25 +316,79 @@ class MavlinkEmulator(StreamEmulator):
 
     # -- commands -----------------------------------------------------------------------------
     def _on_command_long(self, m: Message) -> None:
+        if m.command == C.MAV_CMD_DO_REPOSITION:    # GCS_Common: a location command, handled as COMMAND_INT
+            result = self._do_reposition(m.param1, m.param2, round(m.param5 * C.DEG_E7), round(m.param6 * C.DEG_E7))
+            self._ack(m, m.command, result)
+            return
         handler = self._commands.get(m.command)
         self._ack(m, m.command, C.MAV_RESULT_UNSUPPORTED if handler is None else handler(m))
+
+    def _on_command_int(self, m: Message) -> None:
+        """COMMAND_INT: DO_REPOSITION (Rover handle_command_int_do_reposition); the other commands as
+        COMMAND_LONG's (GCS_Common handles both alike)."""
+        if m.command == C.MAV_CMD_DO_REPOSITION:
+            self._ack(m, m.command, self._do_reposition(m.param1, m.param2, m.x, m.y))
+            return
+        handler = self._commands.get(m.command)
+        self._ack(m, m.command, C.MAV_RESULT_UNSUPPORTED if handler is None else handler(m))
+
+    def _do_reposition(self, speed: float, flags: float, lat_e7: int, lon_e7: int) -> int:
+        """Drive to a latitude/longitude in GUIDED (switching to it when the CHANGE_MODE flag is set)."""
+        change = int(flags) & C.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE if math.isfinite(flags) else 0
+        if self.mode != C.ROVER_MODE_GUIDED and not change:
+            return C.MAV_RESULT_DENIED
+        if not (abs(lat_e7) <= 90 * C.DEG_E7 and abs(lon_e7) <= 180 * C.DEG_E7) or (lat_e7 == 0 and lon_e7 == 0):
+            return C.MAV_RESULT_DENIED
+        if self.mode != C.ROVER_MODE_GUIDED and self._set_mode(C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                                               C.ROVER_MODE_GUIDED) != C.MAV_RESULT_ACCEPTED:
+            return C.MAV_RESULT_FAILED
+        if self.origin is None:
+            return C.MAV_RESULT_FAILED           # no EKF origin: the location cannot be placed
+        north, east = self._ned(lat_e7 / C.DEG_E7, lon_e7 / C.DEG_E7)
+        if math.isfinite(speed) and speed > 0:
+            self._wp_speed = float(speed)
+        self._go_to(north, east)
+        return C.MAV_RESULT_ACCEPTED
+
+    def _on_mission_item_int(self, m: Message) -> None:
+        """A guided-mode waypoint (current == 2; GCS_Common handle_mission_item -> handle_guided_request),
+        answered with MISSION_ACK; mission upload is not emulated (ignored)."""
+        if m.current != 2:
+            return
+        ok = (self.mode == C.ROVER_MODE_GUIDED and self.origin is not None and m.command == C.MAV_CMD_NAV_WAYPOINT
+              and abs(m.x) <= 90 * C.DEG_E7 and abs(m.y) <= 180 * C.DEG_E7)
+        if ok:
+            self._go_to(*self._ned(m.x / C.DEG_E7, m.y / C.DEG_E7))
+        ack = self.codec.mav.mission_ack_encode(m.get_srcSystem(), m.get_srcComponent(),
+                                                C.MAV_MISSION_ACCEPTED if ok else C.MAV_MISSION_ERROR)
+        self._raw.append(self._pack(ack))
 
     def _on_set_mode(self, m: Message) -> None:
         self._ack(m, C.MAVLINK_MSG_ID_SET_MODE, self._set_mode(m.base_mode, m.custom_mode))
 
     def _set_mode(self, base_mode: int, mode: int) -> int:
-        """ArduPilot's _set_mode_common: custom modes only (DENIED otherwise); unknown ones FAIL."""
+        """ArduPilot's _set_mode_common: custom modes only (DENIED otherwise); unknown ones FAIL, and so
+        does a mode that needs a position estimate while armed without one (Rover Mode::enter)."""
         if not base_mode & C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             return C.MAV_RESULT_DENIED
         if mode not in C.ROVER_MODES or mode == C.ROVER_MODE_INITIALIZING:
             return C.MAV_RESULT_FAILED
+        if self.armed and not self._position_ok(mode):
+            return C.MAV_RESULT_FAILED
         self.mode = mode
-        if mode in (C.ROVER_MODE_GUIDED, C.ROVER_MODE_HOLD):
-            self._halt_rover()
+        self._wp_speed = None
+        self._halt_rover()                   # GUIDED starts stopped; no RC input in the manual modes
         return C.MAV_RESULT_ACCEPTED
+
+    def _position_ok(self, mode: int) -> bool:
+        """Mode `mode` can run: it needs no position estimate, or the EKF has one (it has an origin)."""
+        return mode in C.ROVER_NO_POSITION_MODES or self.origin is not None
 
     def _cmd_arm_disarm(self, m: Message) -> int:
         if m.param1 == 1:
+            # Rover AP_Arming: mode_checks (allows_arming) and gps_checks ("Need Position Estimate")
+            if self.mode in C.ROVER_UNARMABLE_MODES or not self._position_ok(self.mode):
+                return C.MAV_RESULT_FAILED
             self.armed = True
         elif m.param1 == 0:
             self.armed = False
@@ -373,6 +460,13 @@ class MavlinkEmulator(StreamEmulator):
         self._set_origin((lat, lon, m.altitude / 1000.0))
         self._once.add(C.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN)
 
+    def _ned(self, lat: float, lon: float) -> tuple[float, float]:
+        """North, east [m] of a latitude/longitude [deg] from the origin (inverse of `_latlon`)."""
+        assert self.origin is not None
+        lat0, lon0, _ = self.origin
+        return (math.radians(lat - lat0) * _EARTH_RADIUS,
+                math.radians(lon - lon0) * _EARTH_RADIUS * math.cos(math.radians(lat0)))
+
     def _set_origin(self, origin: tuple[float, float, float]) -> None:
         self.origin = origin
         if self.home is None:                # home: where the rover stands once it knows where that is
@@ -388,38 +482,74 @@ class MavlinkEmulator(StreamEmulator):
 
     # -- guided targets ---------------------------------------------------------------------------
     def _halt_rover(self) -> None:
-        self._heading_goal = None
+        self._guided = None
         self.sim.command(Twist.ZERO)
 
+    def _speed_default(self) -> float:
+        """WP_SPEED, or CRUISE_SPEED when it is 0 (Rover Mode::get_speed_default)."""
+        wp = self.param("WP_SPEED")
+        return wp if wp > 0 else self.param("CRUISE_SPEED")
+
+    def _go_to(self, north: float, east: float) -> None:
+        self._guided = ("wp", north, east, self._wp_speed or self._speed_default())
+        self._pivoting = False
+
     def _on_target(self, m: Message) -> None:
+        """Rover's handle_set_position_target_local_ned: GUIDED only, with an EKF origin, in a local or
+        body frame; the type mask picks position, velocity (+ heading or turn rate), heading or turn
+        rate. Armed or not, the target is taken (a disarmed rover does not move)."""
         self.last_target = m
-        if self.mode != C.ROVER_MODE_GUIDED or not self.armed or self.origin is None:
+        if self.mode != C.ROVER_MODE_GUIDED or self.origin is None or m.coordinate_frame not in _TARGET_FRAMES:
             self.ignored_targets += 1
             return
         mask = m.type_mask
-        use_pos = not mask & (C.POSITION_TARGET_TYPEMASK_X_IGNORE | C.POSITION_TARGET_TYPEMASK_Y_IGNORE)
-        use_vel = (not mask & (C.POSITION_TARGET_TYPEMASK_VX_IGNORE | C.POSITION_TARGET_TYPEMASK_VY_IGNORE)
-                   and mask & (C.POSITION_TARGET_TYPEMASK_AX_IGNORE | C.POSITION_TARGET_TYPEMASK_AY_IGNORE))
-        use_yaw = not mask & C.POSITION_TARGET_TYPEMASK_YAW_IGNORE
-        use_rate = not mask & C.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-        if use_pos or not (use_vel or use_rate) or (use_yaw and not use_rate):
-            self.ignored_targets += 1       # position and yaw targets: not emulated
+        pos_ignore = bool(mask & C.ROVER_POS_IGNORE)
+        vel_ignore = bool(mask & C.ROVER_VEL_IGNORE)
+        acc_ignore = bool(mask & C.ROVER_ACC_IGNORE)
+        yaw_ignore = bool(mask & C.POSITION_TARGET_TYPEMASK_YAW_IGNORE)
+        rate_ignore = bool(mask & C.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+        values = (m.x, m.y, m.vx, m.vy, m.yaw, m.yaw_rate)
+        if not all(map(math.isfinite, values)):
+            self.ignored_targets += 1
+            return
+        pose = self.sim.read().pose
+        yaw_now = math.pi / 2 - pose.theta                 # NED yaw
+        body = m.coordinate_frame in _BODY_FRAMES
+        speed, yaw = 0.0, 0.0
+        if not vel_ignore:
+            speed = min(math.hypot(m.vx, m.vy), self._speed_default())
+            yaw = math.atan2(m.vy, m.vx) + (yaw_now if body else 0.0)
+        if not yaw_ignore:
+            yaw = m.yaw + (yaw_now if body else 0.0)
+        direction = -1.0 if not vel_ignore and (not yaw_ignore or not rate_ignore) and m.vx < 0 else 1.0
+        if not pos_ignore:
+            here_n, here_e = pose.y, pose.x
+            if m.coordinate_frame == C.MAV_FRAME_LOCAL_NED:
+                north, east = m.x, m.y                      # from the EKF origin
+            elif m.coordinate_frame == C.MAV_FRAME_LOCAL_OFFSET_NED:
+                north, east = here_n + m.x, here_e + m.y
+            else:                                           # body frames: rotated by the heading
+                c, s_ = math.cos(yaw_now), math.sin(yaw_now)
+                north, east = here_n + m.x * c - m.y * s_, here_e + m.x * s_ + m.y * c
+            self._go_to(north, east)
+        elif not vel_ignore and acc_ignore and rate_ignore:        # velocity, or velocity and heading
+            self._guided = ("heading", wrap_angle(yaw), direction * speed, 0.0)
+        elif not vel_ignore and acc_ignore and yaw_ignore:         # velocity and turn rate
+            self._guided = ("rate", m.yaw_rate, direction * speed, 0.0)
+        elif vel_ignore and acc_ignore and not yaw_ignore and rate_ignore:   # heading only
+            self._guided = ("heading", wrap_angle(yaw), 0.0, 0.0)
+        elif vel_ignore and acc_ignore and yaw_ignore and not rate_ignore:   # turn rate only
+            self._guided = ("rate", m.yaw_rate, 0.0, 0.0)
+        else:
+            self.ignored_targets += 1
             return
         self._last_cmd_time = self.sim.time
-        if use_vel and not use_rate:        # velocity only: turn to face the vector at its speed
-            yaw = math.atan2(m.vy, m.vx)
-            if m.coordinate_frame in (C.MAV_FRAME_BODY_NED, C.MAV_FRAME_BODY_OFFSET_NED):
-                yaw += math.pi / 2 - self.sim.read().pose.theta      # relative to the heading (NED yaw)
-            self._heading_goal = (wrap_angle(yaw), math.hypot(m.vx, m.vy))
-            return
-        self._heading_goal = None
-        v = math.copysign(math.hypot(m.vx, m.vy), m.vx) if use_vel else 0.0
-        self.sim.command(Twist(v, -m.yaw_rate))
+        g = self._guided
+        if g is not None and g[0] == "rate" and self.armed:
+            self.sim.command(Twist(g[2], -g[1]))
 
-    def _steer(self) -> None:
-        """Heading-and-speed control of a velocity-only target (pivot turns as a skid-steer Rover)."""
-        assert self._heading_goal is not None
-        yaw_goal, speed = self._heading_goal
+    def _steer(self, yaw_goal: float, speed: float) -> None:
+        """Heading-and-speed control (pivot turns as a skid-steer Rover)."""
         err = wrap_angle(yaw_goal - (math.pi / 2 - self.sim.read().pose.theta))   # NED: clockwise
         pivot_deg = self.param("WP_PIVOT_ANGLE")
         if pivot_deg > 0 and abs(err) > math.radians(pivot_deg):
@@ -430,6 +560,31 @@ class MavlinkEmulator(StreamEmulator):
         rate = max(-rate_max, min(rate_max, self.param("ATC_STR_ANG_P") * err))
         self.sim.command(Twist(0.0 if self._pivoting else speed, -rate))
 
+    def _guide(self) -> bool:
+        """One tick of the GUIDED submode (under the lock); True when a position target was reached now."""
+        g = self._guided
+        if g is None:
+            return False
+        if self.mode != C.ROVER_MODE_GUIDED or not self.armed:
+            self._halt_rover()
+            return False
+        kind, a, b, speed = g
+        if kind != "wp":
+            if self.sim.time - self._last_cmd_time > self.param("GUID_TIMEOUT") - 1e-9:
+                self._halt_rover()               # heading / turn-rate targets time out (GUID_TIMEOUT)
+            elif kind == "heading":
+                self._steer(a, b)
+            return False
+        pose = self.sim.read().pose
+        d_north, d_east = a - pose.y, b - pose.x
+        dist = math.hypot(d_north, d_east)
+        if dist < _ARRIVED:
+            self._halt_rover()
+            return True
+        # slow down to stop at the point: v^2 = 2 a d
+        self._steer(math.atan2(d_east, d_north), min(speed, math.sqrt(2.0 * ROVER_LIMITS.a_max * dist)))
+        return False
+
     # -- one tick -------------------------------------------------------------------------------
     def _pack(self, message: Message) -> bytes:
         self.packets_sent += 1
@@ -437,21 +592,20 @@ class MavlinkEmulator(StreamEmulator):
 
     def _sensors(self) -> tuple[int, int, int]:
         """SYS_STATUS present, enabled, healthy bits."""
+        # GCS_Common.cpp update_sensor_status_flags: no fence configured, so the geofence is neither present
+        # nor enabled, but healthy (not breached): a ground station reads "unhealthy" as a fence breach
         present = (C.MAV_SYS_STATUS_SENSOR_3D_GYRO | C.MAV_SYS_STATUS_SENSOR_3D_ACCEL | C.MAV_SYS_STATUS_SENSOR_3D_MAG
                    | C.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | C.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | C.MAV_SYS_STATUS_AHRS | C.MAV_SYS_STATUS_SENSOR_BATTERY | C.MAV_SYS_STATUS_PREARM_CHECK
                    | (C.MAV_SYS_STATUS_SENSOR_PROXIMITY if self.param("PRX1_TYPE") else 0))
         enabled = present if self.armed else present & ~C.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-        return present, enabled, present
+        return present, enabled, present | C.MAV_SYS_STATUS_GEOFENCE
 
     def _step(self) -> bytes:
         """Advance the robot by one tick; the bytes of the messages then due."""
         mav = self.codec.mav
         with self.lock:
-            if self.sim.time - self._last_cmd_time > self.param("GUID_TIMEOUT") - 1e-9:
-                self._halt_rover()
-            elif self._heading_goal is not None:
-                self._steer()
+            reached = self._guide()
             self.sim.advance(self.tick)
             t = self.sim.time
             state = self.sim.read()
@@ -469,13 +623,17 @@ class MavlinkEmulator(StreamEmulator):
         out: list[bytes] = []
         if t >= self._next_heartbeat - 1e-9:
             self._next_heartbeat += C.HEARTBEAT_PERIOD
+            # Rover GCS_Mavlink.cpp base_mode(): manual input in MANUAL/ACRO/STEERING, guided in autopilot modes
             base = (C.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (C.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
-                    | (C.MAV_MODE_FLAG_GUIDED_ENABLED if self.mode in _AUTO_MODES else 0))
+                    | (C.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED if self.mode in C.ROVER_MANUAL_INPUT_MODES else 0)
+                    | (C.MAV_MODE_FLAG_GUIDED_ENABLED if self.mode in C.ROVER_AUTOPILOT_MODES else 0))
             status = C.MAV_STATE_STANDBY if self.mode == C.ROVER_MODE_HOLD else C.MAV_STATE_ACTIVE
             out.append(self._pack(mav.heartbeat_encode(C.MAV_TYPE_GROUND_ROVER, C.MAV_AUTOPILOT_ARDUPILOTMEGA, base,
                                                        self.mode, status, C.MAVLINK_VERSION)))
         p, vel = state.pose, state.velocity
         yaw_ned = wrap_angle(math.pi / 2 - p.theta)
+        if reached:                                  # Rover ModeGuided::update: send_mission_item_reached_message(0)
+            out.append(self._pack(mav.mission_item_reached_encode(0)))
         for i in sorted(due):
             msgs: list[Message] = []
             if i == C.MAVLINK_MSG_ID_SYS_STATUS:
@@ -483,6 +641,8 @@ class MavlinkEmulator(StreamEmulator):
             elif i == C.MAVLINK_MSG_ID_LOCAL_POSITION_NED and self.origin is not None:
                 msgs = [mav.local_position_ned_encode(ms, p.y, p.x, 0.0, vel.v * math.sin(p.theta),
                                                       vel.v * math.cos(p.theta), 0.0)]
+            elif i == C.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+                msgs = [self._global_position(ms, p, vel, yaw_ned)]
             elif i == C.MAVLINK_MSG_ID_ATTITUDE:
                 msgs = [mav.attitude_encode(ms, 0.0, 0.0, yaw_ned, 0.0, 0.0, -vel.w)]
             elif i == C.MAVLINK_MSG_ID_DISTANCE_SENSOR and scan is not None and self.param("PRX1_TYPE"):
@@ -499,6 +659,19 @@ class MavlinkEmulator(StreamEmulator):
                                                      round(t * 1e6))]
             out.extend(self._pack(msg) for msg in msgs)
         return b"".join(out)
+
+    def _global_position(self, ms: int, p: Pose, vel: Twist, yaw_ned: float) -> Message:
+        """GLOBAL_POSITION_INT as GCS_Common's send_global_position_int: sent with or without a position
+        (then latitude/longitude 0), altitude [mm], velocity NED [cm/s], heading [cdeg, 0..35999]."""
+        lat = lon = 0.0
+        alt = 0.0
+        if self.origin is not None:
+            lat, lon = self._latlon(p.y, p.x)
+            alt = self.origin[2]
+        return self.codec.mav.global_position_int_encode(
+            ms, round(lat * C.DEG_E7), round(lon * C.DEG_E7), round(alt * 1000), 0,
+            round(vel.v * math.sin(p.theta) * 100), round(vel.v * math.cos(p.theta) * 100), 0,
+            round(math.degrees(yaw_ned) * 100) % 36000)
 
     def _distance_sensors(self, ms: int, scan: object) -> list[Message]:
         """One DISTANCE_SENSOR per 45-degree sector (ArduPilot's send_proximity): the nearest echo [cm]."""

@@ -2,14 +2,17 @@
 
 | address                                   | link                                                  |
 | ----------------------------------------- | ----------------------------------------------------- |
-| ``udp:HOST:PORT``, ``udpin:HOST:PORT``,   | `UdpLink` bound to HOST:PORT; the peer is learned     |
-| ``HOST:PORT``                             | from the first datagram (the vehicle sends first)     |
+| ``udp:HOST:PORT``, ``udpin:HOST:PORT``,   | `UdpLink` bound to HOST:PORT; the backend locks it to |
+| ``HOST:PORT``                             | the address of the vehicle's first HEARTBEAT          |
 | ``udpout:HOST:PORT``                      | `UdpLink` sending to HOST:PORT from an ephemeral port |
 | ``tcp:HOST:PORT``                         | `SerialLink` on pyserial ``socket://HOST:PORT``       |
 | ``/dev/ttyACM0``, ``/dev/ttyUSB0,57600``, | `SerialLink` on the device (baud after a comma),      |
 | ``COM3``, any pyserial URL                | or any `serial.serial_for_url` URL as is              |
 
 UDP is not a pyserial URL, hence `UdpLink` with the same `read_some` / `write` / `close` interface.
+A listening `UdpLink` sends nothing until `lock(address)` names its one peer; from then on datagrams
+from any other address are dropped unread (counted in `refused`, the first one logged), so a second
+sender can neither receive our commands nor feed us data.
 Every OS or pyserial failure, and a TCP end of file, becomes a `ConnectionLost` naming the address.
 """
 
@@ -171,9 +174,10 @@ class UdpLink:
     Args:
         address: the address as given (for messages).
         endpoint: (host, port) to bind (`listen`) or to send to.
-        listen: bind `endpoint` and reply to whoever sent the newest datagram (pymavlink ``udpin``);
-            else send to `endpoint` from an ephemeral port (``udpout``), which then reports an ICMP
-            "port unreachable" as a `ConnectionLost`.
+        listen: bind `endpoint`; the address of each datagram read is `source`, and nothing is sent
+            until `lock` fixes the one peer (whose datagrams alone are read from then on); else send
+            to `endpoint` from an ephemeral port (``udpout``: the kernel delivers only its datagrams),
+            which then reports an ICMP "port unreachable" as a `ConnectionLost`.
         poll: read timeout [s].
 
     Raises:
@@ -184,8 +188,10 @@ class UdpLink:
         self.address = address
         self.poll = poll
         self.peer: tuple[str, int] | None = None if listen else endpoint
+        self.source: tuple[str, int] | None = None   # where the datagram last read came from
         self._lock = threading.Lock()
         self.bytes_in = self.bytes_out = self.unsent = 0
+        self.refused = 0                              # datagrams from other addresses than the locked peer
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             if listen:
@@ -196,6 +202,12 @@ class UdpLink:
             self._sock.close()
             raise ConnectionLost(f"mavlink: cannot {'bind' if listen else 'reach'} {address!r}: {exc}") from exc
         self._listen = listen
+
+    def lock(self, peer: tuple[str, int]) -> None:
+        """Talk to `peer` only from now on (a listening link; the first lock holds)."""
+        if self._listen and self.peer is None:
+            self.peer = peer
+            log.info("mavlink: %s: the vehicle is at %s:%d; other senders are ignored", self.address, *peer)
 
     @property
     def local_port(self) -> int:
@@ -217,12 +229,18 @@ class UdpLink:
             raise ConnectionLost(f"mavlink: the UDP link {self.address!r} failed ({exc}); "
                                  "is the vehicle or emulator still running?") from exc
         if self._listen:
-            self.peer = peer
+            if self.peer is not None and peer != self.peer:
+                self.refused += 1
+                if self.refused == 1:
+                    log.warning("mavlink: %s: ignoring datagrams from %s:%d (the vehicle is at %s:%d); "
+                                "further ones are counted, not logged", self.address, *peer, *self.peer)
+                return b""
+            self.source = peer
         self.bytes_in += len(data)
         return data
 
     def write(self, data: bytes) -> None:
-        """Send one datagram (dropped, and counted in `unsent`, while a listening link knows no peer).
+        """Send one datagram (dropped, and counted in `unsent`, while a listening link is not locked).
 
         Raises:
             ConnectionLost: the socket failed.

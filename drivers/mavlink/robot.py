@@ -1,7 +1,13 @@
 """`MavlinkRobot`: the `Robot` backend of a MAVLink ground rover (ArduPilot Rover in GUIDED mode).
 
 The only place where MAVLink units and frames become ours. Connecting waits for the vehicle's
-HEARTBEAT (its ids become the targets), requests the streams (REQUEST_DATA_STREAM for ArduPilot and
+HEARTBEAT: the first valid one from a rover (MAV_TYPE_GROUND_ROVER, or SURFACE_BOAT as Rover reports
+a boat frame, from a real autopilot) locks the run to its system and component ids and, on a
+listening UDP link, to the address it came from (`UdpLink.lock`: commands go there only, datagrams
+from elsewhere are dropped). Messages from other ids are refused (the vehicle's own other components
+may still send OBSTACLE_DISTANCE / DISTANCE_SENSOR): counted in `refused` (state extra "refused"),
+the first one logged. A non-finite position, velocity or attitude ends the run with a
+`ProtocolError`. It then requests the streams (REQUEST_DATA_STREAM for ArduPilot and
 SET_MESSAGE_INTERVAL for PX4-style autopilots), asks for the EKF origin (REQUEST_MESSAGE
 GPS_GLOBAL_ORIGIN) and, when the vehicle has none within `ORIGIN_WAIT` and sends no local position
 (indoors, no GPS: ArduPilot then ignores local position targets), sets one with
@@ -64,6 +70,8 @@ DISTANCE_SENSOR_FRESH = 1.0   # [s] DISTANCE_SENSOR readings older than this are
 PAIR_SPAN = 1.0               # [s] an OBSTACLE_DISTANCE stamped this much before the newest pose, or less,
                               # is placed from the pose at its stamp (else: other clock, newest pose)
 POSE_SAMPLES = 64             # poses kept for that (3 s at 20 Hz)
+# range messages a vehicle's other components (a companion computer) may send under its system id
+_COMPANION_MESSAGES = frozenset({"OBSTACLE_DISTANCE", "DISTANCE_SENSOR"})
 
 log = logging.getLogger(__name__)
 
@@ -124,8 +132,10 @@ class MavlinkRobot(StreamBackend):
     """A MAVLink ground rover (ArduPilot Rover, GUIDED mode) over UDP, TCP or a serial port.
 
     Args:
-        address: a pymavlink-style address (`robotexp_drivers.mavlink.link`): ``udp:0.0.0.0:14550``
-            (bind, the vehicle sends first), ``udpout:HOST:PORT``, ``tcp:HOST:PORT``, ``/dev/ttyACM0``.
+        address: a pymavlink-style address (`robotexp_drivers.mavlink.link`): ``udp:127.0.0.1:14550``
+            (bind, the vehicle sends first; the default listens on loopback only: give the interface's
+            address, or ``udp:0.0.0.0:14550``, for a vehicle on the network), ``udpout:HOST:PORT``,
+            ``tcp:HOST:PORT``, ``/dev/ttyACM0``.
         pose: where our frame puts the vehicle once connected (default: as it reports).
         limits: speed limits of the vehicle.
         radius: footprint radius [m].
@@ -151,7 +161,7 @@ class MavlinkRobot(StreamBackend):
     name = "mavlink"
     capabilities = frozenset({Capability.MOVE_TO, Capability.BATTERY, Capability.PACED_CLOCK})
 
-    def __init__(self, address: str = f"udp:0.0.0.0:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,
+    def __init__(self, address: str = f"udp:127.0.0.1:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,
                  limits: Limits = ROVER_LIMITS, radius: float = ROVER_RADIUS, timeout: float = 1.0,
                  watchdog: float = 0.5, connect_timeout: float = 5.0, rate: float = 20.0,
                  scan_rate: float = 10.0, resend: float = 0.25, arm: bool = True,
@@ -185,6 +195,7 @@ class MavlinkRobot(StreamBackend):
         self._distance = 0.0
         self._anchor = (0.0, 0.0, 0.0)         # (dx, dy, dtheta): our frame = R(dtheta) * vehicle ENU + d
         self._bad_mark = (0, 0)
+        self.refused = 0                       # messages from other ids than the vehicle's
         self._sent_wall = self._hb_wall = 0.0
         self.state_time = 0.0                  # [s] perf_counter() of the newest LOCAL_POSITION_NED
         self._boot = time.perf_counter()
@@ -358,18 +369,38 @@ class MavlinkRobot(StreamBackend):
         return ConnectionLost(f"mavlink: no message from the vehicle at {self.address!r} for {quiet:.2f} s "
                               f"(timeout {self.timeout:g} s): the vehicle or emulator stopped sending")
 
+    def _refuse(self, m: Message, src: tuple[int, int]) -> None:
+        self.refused += 1
+        if self.refused == 1:
+            log.warning("mavlink: %s: ignoring %s from system %d component %d (the vehicle is %d/%d); further "
+                        "messages from other sources are counted, not logged", self.address, m.get_type(), *src,
+                        *(self._target or (0, 0)))
+
     def _on_message(self, m: Message, now: float) -> None:
         kind = m.get_type()
         src = (m.get_srcSystem(), m.get_srcComponent())
         with self._cond:
             if self._target is None:
-                if (kind == "HEARTBEAT" and m.type not in C.NOT_A_VEHICLE
+                if (kind == "HEARTBEAT" and m.type in C.ROVER_TYPES
                         and m.autopilot != C.MAV_AUTOPILOT_INVALID):
                     self._target = src
+                    lock = getattr(self._link, "lock", None)
+                    source = getattr(self._link, "source", None)
+                    if lock is not None and source is not None:
+                        lock(source)
                 else:
                     return
-            if src[0] != self._target[0]:
+            if src != self._target and (src[0] != self._target[0] or kind not in _COMPANION_MESSAGES):
+                self._refuse(m, src)
                 return
+            if kind == "LOCAL_POSITION_NED" and not all(map(math.isfinite, (m.x, m.y, m.vx, m.vy))):
+                raise ProtocolError(f"mavlink: the vehicle at {self.address!r} sent a position that is not a number "
+                                    f"(x {m.x}, y {m.y}, vx {m.vx}, vy {m.vy}): its position estimate failed; "
+                                    "stopping the run")
+            if kind == "ATTITUDE" and not all(map(math.isfinite, (m.yaw, m.yawspeed))):
+                raise ProtocolError(f"mavlink: the vehicle at {self.address!r} sent an attitude that is not a number "
+                                    f"(yaw {m.yaw}, yawspeed {m.yawspeed}): its attitude estimate failed; "
+                                    "stopping the run")
             self._last_rx = now
             self._bad_mark = (self._codec.bad_frames, self._codec.dropped_bytes)
             if kind == "HEARTBEAT" and src == self._target:
@@ -438,6 +469,7 @@ class MavlinkRobot(StreamBackend):
                 extra={"mode": float(hb.custom_mode), "armed": float(bool(hb.base_mode & C.MAV_MODE_FLAG_SAFETY_ARMED)),
                        "frames": float(self._codec.frames), "bad_frames": float(self._codec.bad_frames),
                        "dropped_bytes": float(self._codec.dropped_bytes),
+                       "refused": float(self.refused + getattr(self._link, "refused", 0)),
                        "watchdog_stops": float(self.watchdog_stops)})
 
     def _placed_scan(self, msg: Message, yaw_ned: float, pose: Pose) -> LaserScan:

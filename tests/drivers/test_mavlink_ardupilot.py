@@ -154,8 +154,8 @@ def test_parameters_on_the_first_request(rover: MavlinkEmulator) -> None:
 
 def test_modes_acks_and_denials_as_ardupilot(rover: MavlinkEmulator) -> None:
     with Gcs(rover) as gcs:
-        ack = gcs.command(C.MAV_CMD_DO_SET_MODE, 0, C.ROVER_MODE_MANUAL)    # no CUSTOM_MODE_ENABLED flag
-        assert ack.result == C.MAV_RESULT_DENIED and rover.mode == C.ROVER_MODE_HOLD
+        ack = gcs.command(C.MAV_CMD_DO_SET_MODE, 0, C.ROVER_MODE_HOLD)      # no CUSTOM_MODE_ENABLED flag
+        assert ack.result == C.MAV_RESULT_DENIED and rover.mode == C.ROVER_MODE_MANUAL     # booted in MANUAL
         assert (ack.target_system, ack.target_component) == GCS
         assert gcs.command(C.MAV_CMD_DO_SET_MODE, 1, 99).result == C.MAV_RESULT_FAILED
         assert gcs.command(C.MAV_CMD_DO_SET_MODE, 1, C.ROVER_MODE_INITIALIZING).result == C.MAV_RESULT_FAILED
@@ -178,7 +178,8 @@ def test_origin_home_and_targets_need_an_origin(rover: MavlinkEmulator, wait_for
         assert gcs.recv("ATTITUDE") and gcs.none_of("LOCAL_POSITION_NED", 0.6)       # no origin indoors
         assert gcs.command(C.MAV_CMD_GET_HOME_POSITION).result == C.MAV_RESULT_FAILED
         gcs.command(C.MAV_CMD_DO_SET_MODE, 1, C.ROVER_MODE_GUIDED)
-        gcs.command(C.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        # GUIDED needs a position estimate to arm (Rover AP_Arming gps_checks)
+        assert gcs.command(C.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == C.MAV_RESULT_FAILED
         target = gcs.codec.mav.set_position_target_local_ned_encode(0, 1, 1, C.MAV_FRAME_BODY_NED,
                                                                     C.MASK_VELOCITY_YAW_RATE, 0, 0, 0, 0.3, 0, 0,
                                                                     0, 0, 0, 0, 0)
@@ -193,6 +194,7 @@ def test_origin_home_and_targets_need_an_origin(rover: MavlinkEmulator, wait_for
         assert gcs.recv("LOCAL_POSITION_NED")
         assert gcs.command(C.MAV_CMD_GET_HOME_POSITION).result == C.MAV_RESULT_ACCEPTED
         home = gcs.recv("HOME_POSITION")
+        assert gcs.command(C.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == C.MAV_RESULT_ACCEPTED
         p = rover.home
         assert p is not None and (home.x, home.y) == pytest.approx((p[3], p[4]), abs=1e-4)
         # home latitude: origin + x_ned / R (rad), within the int32 degE7 rounding
@@ -208,8 +210,9 @@ def test_sys_status_health_bits(rover: MavlinkEmulator) -> None:
         must = (C.MAV_SYS_STATUS_SENSOR_3D_GYRO | C.MAV_SYS_STATUS_SENSOR_3D_ACCEL | C.MAV_SYS_STATUS_SENSOR_3D_MAG
                 | C.MAV_SYS_STATUS_AHRS | C.MAV_SYS_STATUS_SENSOR_BATTERY | C.MAV_SYS_STATUS_SENSOR_PROXIMITY)
         assert s.onboard_control_sensors_present & must == must
-        assert s.onboard_control_sensors_health == s.onboard_control_sensors_present       # nothing failing
-        assert not s.onboard_control_sensors_present & C.MAV_SYS_STATUS_GEOFENCE             # no fence, no "breach"
+        assert s.onboard_control_sensors_health & must == must                             # nothing failing
+        assert not s.onboard_control_sensors_present & C.MAV_SYS_STATUS_GEOFENCE             # no fence...
+        assert s.onboard_control_sensors_health & C.MAV_SYS_STATUS_GEOFENCE                  # ...and no breach
         assert not s.onboard_control_sensors_enabled & C.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS  # disarmed
         gcs.command(C.MAV_CMD_COMPONENT_ARM_DISARM, 1)
         s = gcs.recv("SYS_STATUS",

@@ -7,8 +7,9 @@ remaining-scans counter counting down (00 throughout for an unlimited stream) an
 interval honoured. Time stamps count milliseconds since start-up (or RS), modulo 2**24.
 
 Emulation choices (not the firmware's, documented): beams are measured at the middle of their
-cluster (the sensor keeps the nearest of the cluster's steps); no echo within the model's rated
-range (4 m / 30 m) is sent as error code 1; "SCIP2.0" is acknowledged with 00; a start step
+cluster (the sensor keeps the nearest of the cluster's steps); echoes are measured out to the DMAX
+its PP reply states (URG-04LX 5.6 m, beyond its rated 4 m, as a real one returns them; UTM-30LX 60 m),
+no echo within DMAX is sent as error code 1; "SCIP2.0" is acknowledged with 00; a start step
 outside AMIN..AMAX is refused with 04 like an end step; GD/GS with the laser off are refused with
 10. Serving, transports and fault injection are `robotexp_drivers.emulation.StreamEmulator`'s.
 """
@@ -45,7 +46,12 @@ class HokuyoModel:
     params: ScanParams
     prod: str           # VV PROD
     firm: str           # VV FIRM
-    rated: float        # [m] echoes beyond are reported as none
+    rated: float        # [m] the range the maker guarantees (the driver's range_max)
+
+    @property
+    def reach(self) -> float:
+        """[m] how far the emulated sensor measures: PP's DMAX (echoes beyond are reported as none)."""
+        return self.params.dmax_mm / 1000.0
 
 
 MODELS: dict[str, HokuyoModel] = {
@@ -83,7 +89,8 @@ class HokuyoEmulator(LaserEmulatorBase):
         pty: serve on a pseudo-terminal (as a USB-ACM port) instead of TCP.
         port: TCP port on `host` (None or 0: any free one; read `address`). Ignored with `pty`.
         host: interface to listen on.
-        model: "URG-04LX" (240 deg, 0.35 deg, 4 m, 10 Hz) or "UTM-30LX" (270 deg, 0.25 deg, 30 m, 40 Hz).
+        model: "URG-04LX" (240 deg, 0.35 deg, rated 4 m, echoes to 5.6 m, 10 Hz) or "UTM-30LX" (270 deg,
+            0.25 deg, rated 30 m, echoes to 60 m, 40 Hz).
         speedup: sensor seconds per wall second.
         serial: the serial number VV reports.
 
@@ -146,7 +153,7 @@ class HokuyoEmulator(LaserEmulatorBase):
             s.left -= 1
             if s.left <= 0:
                 self._stream = None
-        ranges = self.source(s.angles, self.model.rated)
+        ranges = self.source(s.angles, self.model.reach)
         self.scans_sent += 1
         return encode_scan(ranges, start=s.start, end=s.end, cluster=s.cluster, encoding=s.encoding,
                            interval=s.interval, remaining=0 if s.left is None else s.left,
@@ -266,6 +273,6 @@ class HokuyoEmulator(LaserEmulatorBase):
         if not self.laser_on:
             return encode_reply(line, C.STATUS_DENIED)
         _, string, (start, end, cluster) = req
-        ranges = self.source(self._angles(start, end, cluster), self.model.rated)
+        ranges = self.source(self._angles(start, end, cluster), self.model.reach)
         return encode_scan(ranges, start=start, end=end, cluster=cluster, encoding=name,
                            timestamp_ms=self._now_ms(), string=string)

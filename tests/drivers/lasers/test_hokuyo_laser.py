@@ -39,7 +39,7 @@ def test_driver_reads_the_emulated_urg04lx(served: tuple[HokuyoEmulator, BoxSour
         later = laser.wait_scan(first.seq + 4, 10.0)
         # 10 Hz: 5 scans in ~0.5 s
         assert 0.35 < later.stamp - first.stamp < 0.65      # loose: 2 shared cores
-        want = src.ranges(g.angles(), 4.0)
+        want = src.ranges(g.angles(), 5.6)                # echoes out to PP's DMAX, past the rated 4 m
         got = later.scan.ranges
         assert np.array_equal(np.isfinite(got), np.isfinite(want))
         fin = np.isfinite(want)
@@ -47,6 +47,17 @@ def test_driver_reads_the_emulated_urg04lx(served: tuple[HokuyoEmulator, BoxSour
         np.testing.assert_array_equal(later.scan.angles, g.angles())
     assert emu.commands[-1] == b"QT"
     assert not emu.streaming and not emu.laser_on
+
+
+def test_driver_reads_a_wall_at_5_m_from_the_urg04lx() -> None:
+    # rated 4 m, PP DMAX 5600 mm: a real URG-04LX returns the echoes of 4.0-5.6 m, and so does the emulator
+    src = BoxSource(-1.0, 5.0, -3.0, 3.0)
+    with HokuyoEmulator(src) as emu, HokuyoLaser(emu.address) as laser:
+        scan = laser.wait_scan(laser.wait_scan().seq, 10.0).scan
+    ahead = np.abs(scan.angles) < math.radians(2.0)
+    assert ahead.sum() == 11
+    assert scan.ranges[ahead].tolist() == pytest.approx((5.0 / np.cos(scan.angles[ahead])).tolist(), abs=0.0005 + 1e-9)
+    assert scan.ranges[ahead].min() == pytest.approx(5.0, abs=0.0005)
 
 
 def test_driver_reads_the_emulated_utm30lx_with_clusters() -> None:
