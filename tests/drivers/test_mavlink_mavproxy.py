@@ -7,6 +7,7 @@ as a subprocess, commands written to its standard input."""
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import subprocess
 import sys
@@ -22,7 +23,13 @@ from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.emulator import MavlinkEmulator
 from test_mavlink_ardupilot_checks import HALL
 
-pytest.importorskip("MAVProxy", reason="MAVProxy is not installed (pip install MAVProxy, in the test extra)")
+try:
+    import MAVProxy  # noqa: F401  (the third-party ground station these tests drive)
+except ImportError:
+    if os.environ.get("CI"):      # .ci/run installs it: there a missing peer is a failure, not a skip
+        raise
+    pytest.skip("MAVProxy is not installed: pip install --no-deps MAVProxy pynmeagps defusedxml",
+                allow_module_level=True)
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) or shutil.which("mavproxy.py")
 
 
@@ -38,6 +45,8 @@ def _wait(cond: Callable[[], bool], timeout: float) -> bool:
 @pytest.fixture
 def mavproxy(tmp_path: Path) -> Iterator[tuple[MavlinkEmulator, Callable[[str], None], Callable[[], str]]]:
     if MAVPROXY is None:
+        if os.environ.get("CI"):
+            pytest.fail("mavproxy.py is not on the PATH of this environment")
         pytest.skip("mavproxy.py is not on the PATH of this environment")
     with MavlinkEmulator(HALL, pose=Pose(0.0, 0.0, 0.0), speedup=10.0, origin=C.DEFAULT_ORIGIN) as emu:
         port = emu.address.rsplit(":", 1)[1]
