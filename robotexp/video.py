@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
 
-__all__ = ["FrameObserver", "frame_image", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path"]
+__all__ = ["FrameObserver", "frame_image", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path",
+           "check_fps"]
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 FRAME_SIZE = 800        # [px] frames fit this square unless the grid has more cells than that
@@ -124,6 +125,15 @@ def check_video_path(path: Path) -> None:
         raise ConfigError(f"-o {path}: folder {path.parent} does not exist; create it first")
 
 
+MIN_FPS, MAX_FPS = 0.1, 120.0   # [frames/s] a video's frame rate (a frame at most every 10 s)
+
+
+def check_fps(fps: float) -> None:
+    """Raise ConfigError unless `fps` is within MIN_FPS..MAX_FPS."""
+    if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise ConfigError(f"--fps must be within {MIN_FPS:g}..{MAX_FPS:g} frames per second, got {fps:g}")
+
+
 def _padded(image: Image.Image) -> npt.NDArray[np.uint8]:
     """The image's pixels, padded with white to multiples of BLOCK (so ffmpeg never rescales)."""
     px = np.asarray(image.convert("RGB"), np.uint8)
@@ -139,8 +149,7 @@ class VideoWriter:
 
     def __init__(self, path: Path, fps: float = 10.0) -> None:
         check_video_path(path)
-        if not (0 < fps <= 120):
-            raise ConfigError(f"--fps must be within 0..120, got {fps:g}")
+        check_fps(fps)
         self.path, self.fps = path, fps
         self.count = 0
         self.gif = path.suffix.lower() == ".gif"

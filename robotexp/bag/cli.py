@@ -79,9 +79,10 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
     """Render a recording (robotexp explore --record, or a ROS 2 robot's /scan + /odom bag) as a video:
     the map as it grew, the path, the laser and the robot, a frame every --every seconds of robot time."""
     from robotexp.bag.replay import read_bag, replay_bag
-    from robotexp.video import FrameObserver, VideoWriter, check_video_path
+    from robotexp.video import FrameObserver, VideoWriter, check_fps, check_video_path
 
     check_video_path(output)
+    check_fps(fps)
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
     if not (every > 0 and math.isfinite(every)):

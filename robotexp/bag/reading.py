@@ -9,6 +9,7 @@ recording without a summary (a run that was killed) reads as well as a finished 
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import struct
@@ -234,7 +235,12 @@ class _Reader:
                              "'cdr' with 'ros2msg'")
         from mcap.records import Schema
 
-        made = self.factory.decoder_for(encoding, Schema(id=sid, name=name, encoding=schema_encoding, data=text))
+        try:
+            with contextlib.redirect_stderr(io.StringIO()):     # the schema parser prints what it refuses
+                made = self.factory.decoder_for(encoding, Schema(id=sid, name=name, encoding=schema_encoding,
+                                                                 data=text))
+        except Exception as exc:        # the vendored rosidl parser raises several kinds of its own
+            raise ValueError(f"{topic}: its {name} schema does not parse ({exc})") from None
         if made is None:
             raise ValueError(f"{topic}: no decoder for {encoding!r}")
         decoder = self.decoders[cid] = made
