@@ -20,13 +20,14 @@ from typing import IO, Any
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import MAX_CELLS
 
-__all__ = ["MAX_RECORD_BYTES", "MAX_CHUNK_BYTES", "MAX_MESSAGE_BYTES", "MAX_POSITION", "TOPIC_TYPES",
+__all__ = ["MAX_RECORD_BYTES", "MAX_CHUNK_BYTES", "MAX_MESSAGE_BYTES", "MAX_READ_BYTES", "MAX_POSITION", "TOPIC_TYPES",
            "Record", "read_records", "finite"]
 
 MAX_RECORD_BYTES = 128 * 2**20     # a record as stored (a compressed chunk, a message, a metadata record)
 MAX_CHUNK_BYTES = 128 * 2**20      # a chunk once decompressed
 MAX_MESSAGE_BYTES = 16 * 2**20     # a message of any topic but the maps (a scan of 2 M beams)
 MAX_MAP_BYTES = MAX_CELLS + 4096    # an OccupancyGrid: MAX_CELLS cells and its header
+MAX_READ_BYTES = 2 * 2**30       # all the messages a replay reads, together (what it keeps is about as much)
 MAX_POSITION = 1e6                 # [m] a recorded position farther from the origin is refused
 
 # the type each topic a replay reads must have (the ROS 2 type names; "pkg/Type" accepted too)
@@ -147,6 +148,7 @@ class _Reader:
         self.channels: dict[int, tuple[str, str, int]] = {}
         self.decoders: dict[int, Callable[[bytes], Any]] = {}
         self.factory = DecoderFactory()
+        self.total = 0
 
     def records(self, f: IO[bytes]) -> Iterator[Record]:
         if _read_exact(f, 8) != _MAGIC:
@@ -215,6 +217,9 @@ class _Reader:
             limit = MAX_MAP_BYTES if topic in _MAPS else MAX_MESSAGE_BYTES
             if size > limit:
                 raise ValueError(f"a {topic} message of {size} bytes (limit {limit} bytes)")
+            self.total += size
+            if self.total > MAX_READ_BYTES:
+                raise ValueError(f"its messages hold more than {MAX_READ_BYTES} bytes (the limit of a replay)")
             return Record(topic, t, self._decoder(cid, channel)(bytes(body.take(size))))
         return None
 
