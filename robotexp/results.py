@@ -8,6 +8,7 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import re
 from pathlib import Path
@@ -24,6 +25,8 @@ if TYPE_CHECKING:
 __all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
            "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
            "RunRecord", "EndReason"]
+
+log = logging.getLogger(__name__)
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
@@ -50,7 +53,14 @@ def make_record(run: ExplorationRun) -> RunRecord:
         t_key, p_key = milestone_keys(level)
         milestones[t_key] = None if hit is None else round(hit[0], 3)
         milestones[p_key] = None if hit is None else round(hit[1], 4)
-    method_fields = dict(run.explorer.result_fields())
+    try:
+        method_fields = dict(run.explorer.result_fields())
+    except Exception as exc:        # a plugin's fault: the record is still written, the fault in it
+        method_fields = {}
+        what = f"result_fields raised {type(exc).__name__}: {exc}"
+        log.error("explorer %r: %s", info.method, what, exc_info=True)
+        if run.end is not EndReason.PLUGIN_ERROR:      # an earlier plugin error is the one the record names
+            run.reason, run.end = f"plugin error: explorer {info.method!r}: {what}", EndReason.PLUGIN_ERROR
     nodes = method_fields.pop("nodes", None)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
