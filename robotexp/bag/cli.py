@@ -104,7 +104,7 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
     scale bar and axes in metres; a results.jsonl gives box plots of coverage, path length and robot
     time per world and method."""
     from robotexp.cli import writable_folder
-    from robotexp.figures import FORMATS, campaign_figures, run_map_figure, save_figure
+    from robotexp.figures import FORMATS, campaign_figures, displayable, run_map_figure, save_figure
 
     fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
     bad = sorted(set(fmts) - set(FORMATS))
@@ -127,4 +127,4 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
     else:
         raise ConfigError(f"{source}: give a recording (.mcap) or a results file (.jsonl)")
     for path in written:
-        click.echo(f"written: {path}")
+        click.echo(f"written: {displayable(str(path))}")     # a world named by a non-UTF-8 file name
