@@ -8,6 +8,7 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import errno
 import logging
 import math
 import re
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robotexp.errors import RobotexpError
 from robotexp.observers import RunObserver
 from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunRecord, milestone_keys
 
@@ -103,12 +105,28 @@ class ResultsWriter(RunObserver):
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record and the run's files."""
+
+        out, name = self.out, record.run
+        results = out / "results.jsonl"
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            append_jsonl(results, record)      # first: the record is never lost
+        except OSError as exc:      # a full disk: append_jsonl left no half line
+            raise OSError(exc.errno, f"{exc.strerror or exc}: the record of run {name} was not written to "
+                          f"{results}") from exc
+        try:
+            self._files(run, name)
+        except (OSError, RobotexpError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            raise OSError(getattr(exc, "errno", None) or errno.EIO, f"{why}: the record of run {name} is in "
+                          f"{results}, but its other files in {out} (CSVs, map, figures) are incomplete") from exc
+
+    def _files(self, run: ExplorationRun, name: str) -> None:
+        """The run's files beside its record."""
         from robotexp.trajectory import write_path_csv
         from robotexp.world.rosmap import save_ros_map
 
-        out, name = self.out, record.run
-        out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
+        out = self.out
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         est = np.asarray(run.metrics.estimated, np.float64).reshape(-1, 2)
