@@ -126,7 +126,7 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
         with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
             out = reader.read(size + 1)
     elif compression == "lz4":
-        import lz4.frame
+        import lz4.frame  # type: ignore[import-untyped]
 
         out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
     else:

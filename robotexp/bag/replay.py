@@ -116,9 +116,9 @@ def _scan(msg: _RawScan, offset_x: float, yaw: float) -> LaserScan:
 def _exact_scan(msg: Any) -> LaserScan:
     """The LaserScan of a robotexp_msgs/ExactScan, exactly as it was recorded."""
     ranges = np.asarray(msg.ranges, np.float64)
-    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else \
-        finite(msg.angle_min, "a scan's angle_min", 1e3) + np.arange(len(ranges)) * \
-        finite(msg.angle_increment, "a scan's angle_increment", 1e3)
+    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else np.asarray(
+        finite(msg.angle_min, "a scan's angle_min", 1e3) + np.arange(len(ranges), dtype=np.float64)
+        * finite(msg.angle_increment, "a scan's angle_increment", 1e3), np.float64)
     if angles.shape != ranges.shape or ranges.ndim != 1:
         raise ValueError(f"a /robotexp/scan has {angles.size} angles for {ranges.size} ranges")
     if not np.isfinite(angles).all():
@@ -193,7 +193,8 @@ def _check_meta(meta: Any) -> dict[str, Any]:
                 raise ValueError(f"robotexp.run metadata: grid {key} is {v!r}, expected a finite number"
                                  + (" > 0" if key == "cell" else ""))
         rows, cols = g.get("rows"), g.get("cols")
-        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in (rows, cols)):
+        if not (isinstance(rows, int) and isinstance(cols, int) and not isinstance(rows, bool)
+                and not isinstance(cols, bool) and rows >= 1 and cols >= 1):
             raise ValueError(f"robotexp.run metadata: grid rows/cols {rows!r} x {cols!r}, expected integers >= 1")
         if rows * cols > MAX_CELLS:
             raise ValueError(f"robotexp.run metadata: a grid of {cols} x {rows} cells (limit {MAX_CELLS:.3g} cells)")
