@@ -118,19 +118,24 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
     """A chunk's records, decompressed to exactly `size` bytes (never more than MAX_CHUNK_BYTES read)."""
     if size > MAX_CHUNK_BYTES:
         raise ValueError(f"a chunk of {size} bytes decompressed (limit {MAX_CHUNK_BYTES} bytes)")
-    if compression == "":
-        out = bytes(data)
-    elif compression == "zstd":
-        import zstandard
+    try:
+        if compression == "":
+            out = bytes(data)
+        elif compression == "zstd":
+            import zstandard
 
-        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
-            out = reader.read(size + 1)
-    elif compression == "lz4":
-        import lz4.frame  # type: ignore[import-untyped]
+            with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
+                out = reader.read(size + 1)
+        elif compression == "lz4":
+            import lz4.frame  # type: ignore[import-untyped]
 
-        out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
-    else:
-        raise ValueError(f"chunk compression {compression!r} is not supported (zstd, lz4 or none)")
+            out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
+        else:
+            raise ValueError(f"chunk compression {compression!r} is not supported (zstd, lz4 or none)")
+    except (ValueError, MemoryError):
+        raise
+    except Exception as exc:        # zstandard.ZstdError, lz4's RuntimeError: a damaged chunk
+        raise ValueError(f"a {compression} chunk does not decompress ({exc})") from None
     if len(out) != size:
         raise ValueError(f"a chunk decompresses to {'more than ' if len(out) > size else ''}{min(len(out), size + 1)}"
                          f" bytes, not the {size} its header says")

@@ -52,10 +52,13 @@ def _zeros_zstd(n: int) -> bytes:
     return b"".join(parts), len(head) + n
 
 
-def _bomb(path: Path, n: int, claimed: int | None = None) -> Path:
+def _bomb(path: Path, n: int, claimed: int | None = None, damage: bool = False) -> Path:
     """An MCAP file: header, the /odom schema and channel, one zstd chunk holding a message of `n` zero
-    bytes whose header claims `claimed` bytes decompressed (None: the truth), footer."""
+    bytes whose header claims `claimed` bytes decompressed (None: the truth), footer; `damage`: the
+    compressed data's middle overwritten."""
     data, size = _zeros_zstd(n)
+    if damage:
+        data = data[:len(data) // 2] + b"\xff" * 64 + data[len(data) // 2 + 64:]
     name, text = ODOMETRY
     chunk = struct.pack("<QQQI", 1, 1, size if claimed is None else claimed, 0) + _str("zstd") + \
         struct.pack("<Q", len(data)) + data
@@ -73,12 +76,14 @@ def _bomb(path: Path, n: int, claimed: int | None = None) -> Path:
 def bombs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     tmp = tmp_path_factory.mktemp("bombs")
     return {"honest": _bomb(tmp / "honest.mcap", BOMB), "lying": _bomb(tmp / "lying.mcap", BOMB, 1000),
-            "message": _bomb(tmp / "message.mcap", MAX_MESSAGE_BYTES + 1000)}
+            "message": _bomb(tmp / "message.mcap", MAX_MESSAGE_BYTES + 1000),
+            "damaged": _bomb(tmp / "damaged.mcap", 4 * 2**20, damage=True)}
 
 
 @pytest.mark.parametrize("kind, says", [("honest", f"limit {MAX_CHUNK_BYTES} bytes"),
                                         ("lying", "not the 1000 its header says"),
-                                        ("message", f"limit {MAX_MESSAGE_BYTES} bytes")])
+                                        ("message", f"limit {MAX_MESSAGE_BYTES} bytes"),
+                                        ("damaged", "a zstd chunk does not decompress")])
 @pytest.mark.parametrize("command", ["replay", "figure"])
 def test_bomb_refused_in_bounded_memory(bombs: dict[str, Path], kind: str, says: str, command: str,
                                         tmp_path: Path) -> None:
