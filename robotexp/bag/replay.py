@@ -157,6 +157,9 @@ def _grid_of(msg: Any) -> tuple[GridGeometry, np.ndarray[Any, Any]]:
 
 _NUMBERS = ("max_speed_m_s", "laser_range_m", "radius_m", "period_s", "sample_period_s", "max_time_s", "epoch_s")
 _TEXTS = ("run", "method", "world", "world_source", "pose", "robot")
+# what a replay's loop and ground truth can work with (a sample period of 1e-300 s would never end)
+_RANGES = {"period_s": (1e-4, 10.0), "sample_period_s": (1e-3, 3600.0), "radius_m": (0.0, 10.0),
+           "laser_range_m": (0.0, 1000.0), "max_speed_m_s": (0.0, 100.0)}
 
 
 def _check_meta(meta: Any) -> dict[str, Any]:
@@ -171,9 +174,9 @@ def _check_meta(meta: Any) -> dict[str, Any]:
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
                               or v < 0 or (key != "epoch_s" and v > 1e9)):
             raise ValueError(f"robotexp.run metadata: {key} is {v!r}, expected a finite number >= 0")
-    for key in ("period_s", "sample_period_s"):
-        if meta.get(key) is not None and not meta[key] > 0:
-            raise ValueError(f"robotexp.run metadata: {key} is {meta[key]!r}, expected > 0")
+    for key, (low, high) in _RANGES.items():
+        if meta.get(key) is not None and not low <= meta[key] <= high:
+            raise ValueError(f"robotexp.run metadata: {key} is {meta[key]!r}, expected {low:g}..{high:g}")
     seed = meta.get("seed")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or abs(seed) >= 2**63):
         raise ValueError(f"robotexp.run metadata: seed is {seed!r}, expected an integer")

@@ -45,6 +45,8 @@ CASES: dict[str, tuple[Callable[[Path], Path], str]] = {
     "grid cell 0": (lambda p: crafted.write(p, run_meta=_meta(grid_cell=0)), "grid cell"),
     "grid 200000 x 200000": (lambda p: crafted.write(p, run_meta=_meta(grid_rows=200000, grid_cols=200000)),
                              "limit"),
+    "sample period 1e-300 s": (lambda p: crafted.write(p, run_meta=_meta(sample_period_s=1e-300)),
+                               "sample_period_s"),
     "radius as text": (lambda p: crafted.write(p, run_meta=_meta(radius_m="big")), "radius_m"),
     "start NaN": (lambda p: crafted.write(p, run_meta=_meta(start=[math.nan, 0, 0])), "start"),
     "record not an object": (lambda p: crafted.write(p, run_record="done"), "robotexp.record"),
