@@ -23,7 +23,8 @@ try:
     load_ros_grid(sys.argv[1])
 except WorldError as exc:
     print(exc)
-    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)      # [kB]
+    # [kB] this process's peak resident memory (VmHWM: ru_maxrss would count the parent's before exec)
+    print(open("/proc/self/status").read().split("VmHWM:")[1].split()[0])
     sys.exit(2)
 """
 
