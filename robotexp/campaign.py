@@ -55,6 +55,7 @@ __all__ = ["Campaign", "RunKey", "RunTiming", "expected_robot_time", "load_campa
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
                   "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"} | DEVICE_KEYS
+MAX_RUNS = 100_000      # runs of one campaign (checked before any list of them is made)
 _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep"}
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
@@ -179,7 +180,11 @@ def load_campaign(path: str | Path) -> Campaign:
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
         robot = robot_devices(merged, lambda key, msg, kind=ConfigError, w=where: _fail(p, f"{w}.{key}", msg, kind))
         for world in _worlds(merged, p, where):
-            for spec, sweep in _expand({**merged, "world": world}, p, where, methods_installed, world_of):
+            expanded = _expand({**merged, "world": world}, p, where, methods_installed, world_of)
+            if len(runs) + len(expanded) > MAX_RUNS:
+                raise _fail(p, where, f"the campaign reaches {len(runs) + len(expanded)} runs here; a campaign "
+                            f"has at most {MAX_RUNS} runs")
+            for spec, sweep in expanded:
                 runs.append(spec)
                 if sweep:
                     sweeps[id(spec)] = sweep
@@ -261,6 +266,10 @@ def _sweeps(s: dict[str, Any], methods: list[str], params: dict[str, Any], p: Pa
             raise _fail(p, f"{where}.sweep.{m}.{both[0]}", "set in both params and sweep; give it once")
         names = sorted(table)
         values = [_sweep_values(table[n], p, f"{where}.sweep.{m}.{n}") for n in names]
+        count = math.prod(len(v) for v in values)
+        if count > MAX_RUNS:
+            raise _fail(p, f"{where}.sweep.{m}", f"{' x '.join(str(len(v)) for v in values)} values give {count:.3g} "
+                        f"combinations; a campaign has at most {MAX_RUNS} runs: sweep fewer values")
         out[m] = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*values)]
         for combo in out[m]:
             try:
@@ -332,6 +341,10 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
         bounds = parse_bounds(",".join(str(v) for v in bounds), f"{where}.bounds_mm")
     bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
     swept = _sweeps(s, methods, params, p, where)
+    count = sum(len(swept[m]) for m in methods) * len(pose_names) * len(speeds) * len(seeds)
+    if count > MAX_RUNS:
+        raise _fail(p, where, f"{count:.3g} runs (methods and swept values x {len(pose_names)} poses x "
+                    f"{len(speeds)} speeds x {len(seeds)} seeds); a campaign has at most {MAX_RUNS} runs")
     runs = []
     for method in methods:
         for sweep, pose, speed, seed in itertools.product(swept[method], pose_names, speeds, seeds):

@@ -47,6 +47,8 @@ DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
 MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
 MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
 MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
+MAX_LASER_NOISE = 1.0   # [m] laser noise (uniform half-width or sigma): real scanners err by 10-30 mm, 1 m
+#                         already buries a room's walls; more is a unit mistake (metres given as mm)
 MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
 MAX_MAP_CELLS = 1e8     # cells of a map given by limits (1e8 cells: 10 km x 10 km at 1 m, 1 km x 1 km at 10 cm)
 
@@ -87,9 +89,10 @@ class RunSpec:
             raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
         if not self.max_time > 0:
             raise ConfigError(f"max time must be > 0 s, got {self.max_time}")
-        if self.laser_sigma < 0 or self.laser_uniform < 0:
-            raise ConfigError(f"laser noise must be >= 0 mm, got uniform {self.laser_uniform * 1000:g}, "
-                              f"sigma {self.laser_sigma * 1000:g}")
+        for what, noise in (("uniform", self.laser_uniform), ("sigma", self.laser_sigma)):
+            if not 0 <= noise <= MAX_LASER_NOISE:       # NaN and inf refused too
+                raise ConfigError(f"laser noise {what} must be within 0..{MAX_LASER_NOISE * 1000:g} mm, got "
+                                  f"{noise * 1000:g} mm")
         from robotexp.localization.run import check_localize
         from robotexp.sim.presets import odometry_error
 

@@ -553,9 +553,36 @@ def write_figure(fig: Figure, path: Path, fmt: str = "png", dpi: float = DPI) ->
     if fmt not in FORMATS:
         raise ConfigError(f"figure format {fmt!r} unknown; use {', '.join(FORMATS)}")
     path.parent.mkdir(parents=True, exist_ok=True)
+    _displayable_texts(fig)
     with _style():
         fig.savefig(path, dpi=dpi, format=fmt)
     return path
+
+
+def displayable(text: str) -> str:
+    """`text` with the lone surrogates a file name that is not UTF-8 decodes to (os.fsdecode of
+    b"map\xff") as U+FFFD: no font draws them, and SVG and PDF cannot encode them."""
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        try:
+            raw = text.encode("utf-8", "surrogateescape")
+        except UnicodeEncodeError:
+            raw = text.encode("utf-8", "replace")
+        return raw.decode("utf-8", "replace")
+
+
+def _displayable_texts(fig: Figure) -> None:
+    """Every text of `fig` (titles, labels, ticks, legends) made `displayable`."""
+    from matplotlib.text import Text
+
+    for artist in fig.findobj(Text):
+        assert isinstance(artist, Text)
+        text = artist.get_text()
+        shown = displayable(text)
+        if shown != text:
+            artist.set_text(shown)
 
 
 def save_run_figures(run: ExplorationRun, out: Path, name: str, formats: Sequence[str] = ("png",),

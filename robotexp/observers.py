@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from robotexp.errors import interrupt_behind
+from robotexp.errors import RobotexpError, interrupt_behind
 from robotexp.robot import RobotState, Twist
 
 if TYPE_CHECKING:
@@ -114,8 +114,12 @@ class Observers:
             except Exception as exc:
                 if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
                     raise KeyboardInterrupt from exc
-                log.error("run observer %s raised in %s (detached for the rest of the run): %s: %s",
-                          type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
+                # a critical observer's error is raised by the run's caller as one line (a full disk):
+                # its traceback only at debug level; any other observer's is a bug, shown whole
+                expected = getattr(observer, "critical", False) and isinstance(exc, (OSError, RobotexpError))
+                log.log(logging.DEBUG if expected else logging.ERROR,
+                        "run observer %s raised in %s (detached for the rest of the run): %s: %s",
+                        type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
                 self._listening.clear()

@@ -8,6 +8,8 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import errno
+import logging
 import math
 import os
 import re
@@ -16,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robotexp.errors import RobotexpError
 from robotexp.observers import RunObserver
 from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunRecord, milestone_keys
 
@@ -37,6 +40,8 @@ def safe_name(text: object) -> str:
     files (`run_id`, a recording's `run` in `robotexp.bag.replay`) goes through here."""
     name = re.sub(r"\.\.+", "-", re.sub(r"[^A-Za-z0-9_.-]+", "-", str(text))).strip("-.")
     return name[:MAX_NAME].rstrip("-.") or "run"
+
+log = logging.getLogger(__name__)
 
 
 def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Path) -> str:
@@ -87,7 +92,14 @@ def make_record(run: ExplorationRun) -> RunRecord:
         t_key, p_key = milestone_keys(level)
         milestones[t_key] = None if hit is None else round(hit[0], 3)
         milestones[p_key] = None if hit is None else round(hit[1], 4)
-    method_fields = dict(run.explorer.result_fields())
+    try:
+        method_fields = dict(run.explorer.result_fields())
+    except Exception as exc:        # a plugin's fault: the record is still written, the fault in it
+        method_fields = {}
+        what = f"result_fields raised {type(exc).__name__}: {exc}"
+        log.error("explorer %r: %s", info.method, what, exc_info=True)
+        if run.end is not EndReason.PLUGIN_ERROR:      # an earlier plugin error is the one the record names
+            run.reason, run.end = f"plugin error: explorer {info.method!r}: {what}", EndReason.PLUGIN_ERROR
     nodes = method_fields.pop("nodes", None)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
@@ -130,12 +142,28 @@ class ResultsWriter(RunObserver):
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record and the run's files."""
+
+        out, name = self.out, record.run
+        results = out / "results.jsonl"
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            append_jsonl(results, record)      # first: the record is never lost
+        except OSError as exc:      # a full disk: append_jsonl left no half line
+            raise OSError(exc.errno, f"{exc.strerror or exc}: the record of run {name} was not written to "
+                          f"{results}") from exc
+        try:
+            self._files(run, name)
+        except (OSError, RobotexpError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            raise OSError(getattr(exc, "errno", None) or errno.EIO, f"{why}: the record of run {name} is in "
+                          f"{results}, but its other files in {out} (CSVs, map, figures) are incomplete") from exc
+
+    def _files(self, run: ExplorationRun, name: str) -> None:
+        """The run's files beside its record."""
         from robotexp.trajectory import write_path_csv
         from robotexp.world.rosmap import save_ros_map
 
-        out, name = self.out, record.run
-        out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
+        out = self.out
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         est = np.asarray(run.metrics.estimated, np.float64).reshape(-1, 2)

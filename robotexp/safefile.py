@@ -32,6 +32,8 @@ __all__ = ["append_line", "read_records", "repair_tail", "folder_lock", "LOCK_NA
 log = logging.getLogger(__name__)
 
 LOCK_NAME = ".robotexp.lock"
+MAX_LINE = 16 * 2**20       # [bytes] a longer line of a results file is not a record: skipped unread
+_BLOCK = 1 << 20            # [bytes] what a long line or a torn tail is read by
 
 
 def warn(text: str) -> None:
@@ -59,13 +61,18 @@ def _repair_locked(fd: int, path: Path, note: Callable[[str], None]) -> bool:
             start = begin + i + 1
             break
         end = begin
-    os.lseek(fd, start, os.SEEK_SET)
-    torn = os.read(fd, size - start)
-    with open(f"{path}.torn", "ab") as keep:
-        keep.write(torn + b"\n")
+    with open(f"{path}.torn", "ab") as keep:      # copied in blocks: a torn tail may be of any size
+        at = start
+        while at < size:
+            block_data = os.pread(fd, min(_BLOCK, size - at), at)
+            if not block_data:
+                break
+            keep.write(block_data)
+            at += len(block_data)
+        keep.write(b"\n")
     os.ftruncate(fd, start)
     line = 1 + _count_newlines(fd, start)
-    note(f"{path}:{line}: a torn last line ({len(torn)} bytes, a run cut off while it was written) was moved "
+    note(f"{path}:{line}: a torn last line ({size - start} bytes, a run cut off while it was written) was moved "
          f"to {path}.torn before appending")
     return True
 
@@ -127,6 +134,16 @@ def append_line(path: Path, record: dict[str, Any], note: Callable[[str], None] 
         os.close(fd)
 
 
+def _skip_line(f: Any) -> int:
+    """Read past the rest of a line in blocks; the number of bytes skipped (its newline included)."""
+    n = 0
+    while True:
+        block = f.readline(_BLOCK)
+        n += len(block)
+        if not block or block.endswith(b"\n"):
+            return n
+
+
 def read_records(path: Path, note: Callable[[str], None] = warn) -> list[dict[str, Any]]:
     """Every JSON object (one per line) of `path`; each other non-empty line is reported and skipped.
 
@@ -135,7 +152,16 @@ def read_records(path: Path, note: Callable[[str], None] = warn) -> list[dict[st
     """
     records: list[dict[str, Any]] = []
     with open(path, "rb") as f:
-        for number, raw in enumerate(f, start=1):
+        number = 0
+        while True:
+            raw = f.readline(MAX_LINE + 1)
+            if not raw:
+                break
+            number += 1
+            if len(raw) > MAX_LINE and not raw.endswith(b"\n"):
+                skipped = len(raw) + _skip_line(f)
+                note(f"{path}:{number}: line of {skipped} bytes skipped (a record is at most {MAX_LINE} bytes)")
+                continue
             line = raw.strip()
             if not line:
                 continue

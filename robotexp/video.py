@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.record import RunRecord
 
-__all__ = ["FrameObserver", "frame_image", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path"]
+__all__ = ["FrameObserver", "frame_image", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path",
+           "check_fps"]
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 FRAME_SIZE = 800        # [px] frames fit this square unless the grid has more cells than that
@@ -124,6 +125,15 @@ def check_video_path(path: Path) -> None:
         raise ConfigError(f"-o {path}: folder {path.parent} does not exist; create it first")
 
 
+MIN_FPS, MAX_FPS = 0.1, 120.0   # [frames/s] a video's frame rate (a frame at most every 10 s)
+
+
+def check_fps(fps: float) -> None:
+    """Raise ConfigError unless `fps` is within MIN_FPS..MAX_FPS."""
+    if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise ConfigError(f"--fps must be within {MIN_FPS:g}..{MAX_FPS:g} frames per second, got {fps:g}")
+
+
 def _padded(image: Image.Image) -> npt.NDArray[np.uint8]:
     """The image's pixels, padded with white to multiples of BLOCK (so ffmpeg never rescales)."""
     px = np.asarray(image.convert("RGB"), np.uint8)
@@ -133,18 +143,45 @@ def _padded(image: Image.Image) -> npt.NDArray[np.uint8]:
     return out
 
 
+class _GifStream:
+    """A GIF written frame by frame (a local palette each, looping forever): only the frame at hand
+    is in memory, however long the video."""
+
+    def __init__(self, path: Path, duration_ms: float) -> None:
+        self.file = open(path, "wb")
+        self.duration = duration_ms
+        self.started = False
+
+    def append(self, px: npt.NDArray[np.uint8]) -> None:
+        from PIL import GifImagePlugin, Image
+
+        frame = Image.fromarray(px, "RGB").quantize(256, method=Image.Quantize.MEDIANCUT)
+        if not self.started:
+            header, _ = GifImagePlugin.getheader(frame.copy(), info={"loop": 0, "duration": self.duration})
+            self.file.write(b"".join(header))
+            self.started = True
+        for part in GifImagePlugin.getdata(frame, (0, 0), duration=self.duration, include_color_table=True):
+            self.file.write(part)
+
+    def close(self) -> None:
+        try:
+            if self.started:
+                self.file.write(b";")
+        finally:
+            self.file.close()
+
+
 class VideoWriter:
-    """A frame sink encoding an MP4 (H.264 through imageio-ffmpeg's own ffmpeg) or a GIF (Pillow,
-    frames kept until `close`), at `fps` frames per second. Use it as a context manager."""
+    """A frame sink encoding an MP4 (H.264 through imageio-ffmpeg's own ffmpeg) or a GIF (Pillow's GIF
+    encoder, frame by frame), at `fps` frames per second; each frame is written as it comes. Use it as
+    a context manager."""
 
     def __init__(self, path: Path, fps: float = 10.0) -> None:
         check_video_path(path)
-        if not (0 < fps <= 120):
-            raise ConfigError(f"--fps must be within 0..120, got {fps:g}")
+        check_fps(fps)
         self.path, self.fps = path, fps
         self.count = 0
         self.gif = path.suffix.lower() == ".gif"
-        self._frames: list[npt.NDArray[np.uint8]] = []
         self._writer: Any = None
         self._size: tuple[int, int] | None = None
 
@@ -156,25 +193,22 @@ class VideoWriter:
             raise ConfigError(f"video {self.path}: frame of {px.shape[1]} x {px.shape[0]} px after "
                               f"{self._size[0]} x {self._size[1]}; every frame must have one size")
         self.count += 1
-        if self.gif:
-            self._frames.append(px)
-            return
         if self._writer is None:
-            import imageio.v2 as iio
+            if self.gif:
+                self._writer = _GifStream(self.path, 1000.0 / self.fps)
+            else:
+                import imageio.v2 as iio
 
-            self._writer = iio.get_writer(self.path, format="FFMPEG", fps=self.fps, codec="libx264",
-                                          quality=7, macro_block_size=BLOCK, ffmpeg_log_level="error")
-        self._writer.append_data(px)
+                self._writer = iio.get_writer(self.path, format="FFMPEG", fps=self.fps, codec="libx264",
+                                              quality=7, macro_block_size=BLOCK, ffmpeg_log_level="error")
+        if self.gif:
+            self._writer.append(px)
+        else:
+            self._writer.append_data(px)
 
     def close(self) -> None:
         """Finish the file. Raises ConfigError when no frame came."""
-        if self.gif:
-            frames, self._frames = self._frames, []
-            if frames:
-                import imageio.v3 as iio3
-
-                iio3.imwrite(self.path, frames, plugin="pillow", duration=1000.0 / self.fps, loop=0)
-        elif self._writer is not None:
+        if self._writer is not None:
             writer, self._writer = self._writer, None
             writer.close()
         if self.count == 0:

@@ -79,9 +79,10 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
     """Render a recording (robotexp explore --record, or a ROS 2 robot's /scan + /odom bag) as a video:
     the map as it grew, the path, the laser and the robot, a frame every --every seconds of robot time."""
     from robotexp.bag.replay import read_bag, replay_bag
-    from robotexp.video import FrameObserver, VideoWriter, check_video_path
+    from robotexp.video import FrameObserver, VideoWriter, check_fps, check_video_path
 
     check_video_path(output)
+    check_fps(fps)
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
     if not (every > 0 and math.isfinite(every)):
@@ -103,7 +104,7 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
     scale bar and axes in metres; a results.jsonl gives box plots of coverage, path length and robot
     time per world and method."""
     from robotexp.cli import writable_folder
-    from robotexp.figures import FORMATS, campaign_figures, run_map_figure, save_figure
+    from robotexp.figures import FORMATS, campaign_figures, displayable, run_map_figure, save_figure
 
     fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
     bad = sorted(set(fmts) - set(FORMATS))
@@ -126,4 +127,4 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
     else:
         raise ConfigError(f"{source}: give a recording (.mcap) or a results file (.jsonl)")
     for path in written:
-        click.echo(f"written: {path}")
+        click.echo(f"written: {displayable(str(path))}")     # a world named by a non-UTF-8 file name

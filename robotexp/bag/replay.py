@@ -15,6 +15,7 @@ from __future__ import annotations
 import bisect
 import json
 import logging
+import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,11 +24,12 @@ from typing import Any
 import numpy as np
 
 from robotexp.bag.markers import markers_of
+from robotexp.bag.reading import MAX_POSITION, TOPIC_TYPES, decode_errors, finite, read_records, refuse
 from robotexp.bag.recorder import yaw_of
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import ConfigError, WorldError
 from robotexp.explorer import Done, Explorer, ExplorerContext, ExplorationRun, RunInfo
-from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
 from robotexp.mapping.groundtruth import GroundTruth
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.markers import Markers
@@ -68,13 +70,41 @@ class Bag:
 
 def _pose(msg: Any) -> Pose:
     p = msg.pose.pose
-    return Pose(float(p.position.x), float(p.position.y), yaw_of(p.orientation))
+    return Pose(finite(p.position.x, "a position", MAX_POSITION), finite(p.position.y, "a position", MAX_POSITION),
+                _yaw(p.orientation))
 
 
-def _scan(msg: Any, offset_x: float, yaw: float) -> LaserScan:
+def _yaw(q: Any) -> float:
+    for v in (q.x, q.y, q.z, q.w):
+        finite(v, "a quaternion component", 1e6)
+    return yaw_of(q)
+
+
+@dataclass
+class _RawScan:
+    """A sensor_msgs/LaserScan as numbers (the decoded message's Python lists are not kept)."""
+
+    frame: str
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    ranges: np.ndarray[Any, Any]
+
+
+def _raw_scan(msg: Any) -> _RawScan:
+    ranges = np.asarray(msg.ranges, np.float32)
+    if ranges.ndim != 1:
+        raise ValueError("a /scan's ranges are not a sequence")
+    return _RawScan(str(msg.header.frame_id), finite(msg.angle_min, "a /scan's angle_min", 1e3),
+                    finite(msg.angle_increment, "a /scan's angle_increment", 1e3),
+                    float(msg.range_min), finite(msg.range_max, "a /scan's range_max", 1e6), ranges)
+
+
+def _scan(msg: _RawScan, offset_x: float, yaw: float) -> LaserScan:
     """A LaserScan of a sensor_msgs/LaserScan: NaN and readings below range_min dropped, readings
     beyond range_max read as no echo (inf)."""
-    ranges = np.asarray(msg.ranges, np.float64)
+    ranges = msg.ranges.astype(np.float64)
     n = len(ranges)
     angles = msg.angle_min + np.arange(n, dtype=np.float64) * msg.angle_increment + yaw
     rmax = float(msg.range_max)
@@ -86,9 +116,15 @@ def _scan(msg: Any, offset_x: float, yaw: float) -> LaserScan:
 def _exact_scan(msg: Any) -> LaserScan:
     """The LaserScan of a robotexp_msgs/ExactScan, exactly as it was recorded."""
     ranges = np.asarray(msg.ranges, np.float64)
-    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else \
-        msg.angle_min + np.arange(len(ranges)) * msg.angle_increment
-    return LaserScan(angles, ranges, float(msg.range_max), float(msg.offset_x))
+    angles = np.asarray(msg.angles, np.float64) if len(msg.angles) else np.asarray(
+        finite(msg.angle_min, "a scan's angle_min", 1e3) + np.arange(len(ranges), dtype=np.float64)
+        * finite(msg.angle_increment, "a scan's angle_increment", 1e3), np.float64)
+    if angles.shape != ranges.shape or ranges.ndim != 1:
+        raise ValueError(f"a /robotexp/scan has {angles.size} angles for {ranges.size} ranges")
+    if not np.isfinite(angles).all():
+        raise ValueError("a /robotexp/scan has angles that are not finite")
+    return LaserScan(angles, ranges, finite(msg.range_max, "a scan's range_max", 1e6),
+                     finite(msg.offset_x, "a scan's offset_x", 100.0))
 
 
 def _mount(transforms: list[Any], frame: str) -> tuple[float, float]:
@@ -99,101 +135,180 @@ def _mount(transforms: list[Any], frame: str) -> tuple[float, float]:
             t = tf.transform.translation
             if abs(t.y) > 0.001:
                 log.warning("laser frame %r sits %.3f m sideways on the robot: replayed as if centred", frame, t.y)
-            return float(t.x), yaw_of(tf.transform.rotation)
+            return finite(t.x, "the laser's mount offset", 100.0), _yaw(tf.transform.rotation)
     return 0.0, 0.0
 
 
 def _grid_of(msg: Any) -> tuple[GridGeometry, np.ndarray[Any, Any]]:
     info = msg.info
-    geo = GridGeometry(float(info.origin.position.x), float(info.origin.position.y), float(info.resolution),
-                       int(info.height), int(info.width))
-    return geo, np.asarray(msg.data, np.int8).reshape(geo.rows, geo.cols)
+    rows, cols = int(info.height), int(info.width)
+    if rows < 1 or cols < 1 or rows * cols > MAX_CELLS:
+        raise ValueError(f"a map of {cols} x {rows} cells (limit {MAX_CELLS} cells)")
+    cell = finite(info.resolution, "a map's resolution", 100.0)
+    if not cell > 0:
+        raise ValueError(f"a map's resolution is {cell:g} m, expected > 0")
+    geo = GridGeometry(finite(info.origin.position.x, "a map's origin", MAX_POSITION),
+                       finite(info.origin.position.y, "a map's origin", MAX_POSITION), cell, rows, cols)
+    data = np.asarray(msg.data, np.int8)
+    if data.size != rows * cols:
+        raise ValueError(f"a map of {cols} x {rows} cells holds {data.size} values")
+    return geo, data.reshape(geo.rows, geo.cols)
+
+
+_NUMBERS = ("max_speed_m_s", "laser_range_m", "radius_m", "period_s", "sample_period_s", "max_time_s", "epoch_s")
+_TEXTS = ("run", "method", "world", "world_source", "pose", "robot")
+# what a replay's loop and ground truth can work with (a sample period of 1e-300 s would never end)
+_RANGES = {"period_s": (1e-4, 10.0), "sample_period_s": (1e-3, 3600.0), "radius_m": (0.0, 10.0),
+           "laser_range_m": (0.0, 1000.0), "max_speed_m_s": (0.0, 100.0)}
+
+
+def _check_meta(meta: Any) -> dict[str, Any]:
+    """The `robotexp.run` metadata, its fields checked (ValueError naming the first wrong one)."""
+    if not isinstance(meta, dict):
+        raise ValueError(f"robotexp.run metadata is a {type(meta).__name__}, expected a JSON object")
+    for key in _TEXTS:
+        if meta.get(key) is not None and not isinstance(meta[key], str):
+            raise ValueError(f"robotexp.run metadata: {key} is {meta[key]!r}, expected text")
+    for key in _NUMBERS:
+        v = meta.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                              or v < 0 or (key != "epoch_s" and v > 1e9)):
+            raise ValueError(f"robotexp.run metadata: {key} is {v!r}, expected a finite number >= 0")
+    for key, (low, high) in _RANGES.items():
+        if meta.get(key) is not None and not low <= meta[key] <= high:
+            raise ValueError(f"robotexp.run metadata: {key} is {meta[key]!r}, expected {low:g}..{high:g}")
+    seed = meta.get("seed")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or abs(seed) >= 2**63):
+        raise ValueError(f"robotexp.run metadata: seed is {seed!r}, expected an integer")
+    start = meta.get("start")
+    if start is not None and not (isinstance(start, list) and len(start) == 3 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= MAX_POSITION
+            for v in start)):
+        raise ValueError(f"robotexp.run metadata: start is {start!r}, expected [x, y, theta] of finite numbers")
+    g = meta.get("grid")
+    if g is not None:
+        if not isinstance(g, dict):
+            raise ValueError(f"robotexp.run metadata: grid is {g!r}, expected a JSON object")
+        for key in ("origin_x", "origin_y", "cell"):
+            v = g.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
+                    abs(v) > MAX_POSITION or (key == "cell" and not v > 0):
+                raise ValueError(f"robotexp.run metadata: grid {key} is {v!r}, expected a finite number"
+                                 + (" > 0" if key == "cell" else ""))
+        rows, cols = g.get("rows"), g.get("cols")
+        if not (isinstance(rows, int) and isinstance(cols, int) and not isinstance(rows, bool)
+                and not isinstance(cols, bool) and rows >= 1 and cols >= 1):
+            raise ValueError(f"robotexp.run metadata: grid rows/cols {rows!r} x {cols!r}, expected integers >= 1")
+        if rows * cols > MAX_CELLS:
+            raise ValueError(f"robotexp.run metadata: a grid of {cols} x {rows} cells (limit {MAX_CELLS:.3g} cells)")
+        if g.get("model") not in ("logodds", "himm"):
+            raise ValueError(f"robotexp.run metadata: grid model is {g.get('model')!r}, expected logodds or himm")
+        rm = g.get("range_max")
+        if rm is not None and (isinstance(rm, bool) or not isinstance(rm, (int, float)) or not math.isfinite(rm)
+                               or not rm > 0):
+            raise ValueError(f"robotexp.run metadata: grid range_max is {rm!r}, expected a number > 0")
+    return meta
+
+
+def _check_record(record: Any) -> dict[str, Any]:
+    """The `robotexp.record` metadata, the fields a replay reads checked."""
+    if not isinstance(record, dict):
+        raise ValueError(f"robotexp.record metadata is a {type(record).__name__}, expected a JSON object")
+    if record.get("reason") is not None and not isinstance(record["reason"], str):
+        raise ValueError(f"robotexp.record metadata: reason is {record['reason']!r}, expected text")
+    c = record.get("collisions")
+    if c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c)):
+        raise ValueError(f"robotexp.record metadata: collisions is {c!r}, expected a number")
+    return record
 
 
 def read_bag(path: Path) -> Bag:
-    """Read a recording (see the module's docstring).
+    """Read a recording (see the module's docstring), within the limits of `robotexp.bag.reading`.
 
     Raises:
-        ConfigError: the file is missing, is not MCAP, or holds no /scan with /odom.
+        ConfigError: the file is missing, is not MCAP, holds no /scan with /odom, a record or message
+            over its size limit, a message that is not of its topic's type, malformed metadata.
     """
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from mcap_ros2.decoder import DecoderFactory
-
     if not path.is_file():
         raise ConfigError(f"{path}: no such recording; give an .mcap file (robotexp explore --record FILE.mcap)")
     odom: list[tuple[int, Pose, Twist]] = []
-    scans: list[tuple[int, Any]] = []
+    scans: list[tuple[int, _RawScan]] = []
     exact: dict[int, LaserScan] = {}
     truths: dict[int, Pose] = {}
     statics: list[Any] = []
-    truth_msg = None
+    truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None = None
     marker_msgs: list[tuple[int, Markers]] = []
     meta = record = None
     topics: dict[str, str] = {}
     try:
         with open(path, "rb") as f:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            for m in reader.iter_metadata():
-                if m.name == "robotexp.run":
-                    meta = json.loads(m.metadata["json"])
-                elif m.name == "robotexp.record":
-                    record = json.loads(m.metadata["json"])
-            f.seek(0)
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            wanted = ["/odom", "/scan", "/ground_truth", "/ground_truth/map", "/tf_static", "/robotexp/scan",
-                      "/robotexp/markers"]
-            for schema, channel, message, msg in reader.iter_decoded_messages(topics=wanted, log_time_order=True):
-                topics[channel.topic] = schema.name if schema is not None else ""
-                t = message.log_time
-                if channel.topic == "/odom":
+            for r in read_records(f):
+                if r.topic is None:
+                    text = (r.metadata or {}).get("json")
+                    if r.name == "robotexp.run":
+                        meta = _check_meta(json.loads(text or "null"))
+                    elif r.name == "robotexp.record":
+                        record = _check_record(json.loads(text or "null"))
+                    continue
+                topics[r.topic] = TOPIC_TYPES[r.topic]
+                t, msg = r.time, r.msg
+                if r.topic == "/odom":
                     v = msg.twist.twist
-                    odom.append((t, _pose(msg), Twist(float(v.linear.x), float(v.angular.z))))
-                elif channel.topic == "/scan":
-                    scans.append((t, msg))
-                elif channel.topic == "/robotexp/scan":
+                    odom.append((t, _pose(msg), Twist(finite(v.linear.x, "a velocity", 1e3),
+                                                      finite(v.angular.z, "a turn rate", 1e3))))
+                elif r.topic == "/scan":
+                    scans.append((t, _raw_scan(msg)))
+                elif r.topic == "/robotexp/scan":
                     exact[t] = _exact_scan(msg)
-                elif channel.topic == "/ground_truth":
+                elif r.topic == "/ground_truth":
                     truths[t] = _pose(msg)
-                elif channel.topic == "/ground_truth/map":
-                    truth_msg = msg
-                elif channel.topic == "/tf_static":
+                elif r.topic == "/ground_truth/map":
+                    truth_grid = _grid_of(msg)
+                elif r.topic == "/tf_static":
                     statics.extend(msg.transforms)
-                elif channel.topic == "/robotexp/markers":
+                elif r.topic == "/robotexp/markers":
                     marker_msgs.append((t, markers_of(msg)))
-    except (McapError, OSError, ValueError, KeyError) as exc:
-        raise ConfigError(f"{path}: not a readable MCAP recording ({type(exc).__name__}: {exc})") from None
+        odom.sort(key=lambda o: o[0])
+        scans.sort(key=lambda s: s[0])
+        marker_msgs.sort(key=lambda m: m[0])
+        if odom and scans:
+            offset_x, yaw = _mount(statics, scans[0][1].frame)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    except decode_errors() as exc:
+        raise refuse(path, exc) from None
     if not odom or not scans:
         raise ConfigError(f"{path}: a replay needs /scan (sensor_msgs/LaserScan) and /odom (nav_msgs/Odometry); "
                           f"this recording has {', '.join(sorted(topics)) or 'neither'}")
-    offset_x, yaw = _mount(statics, scans[0][1].header.frame_id)
     truth = None
-    if truth_msg is not None:
-        geo, states = _grid_of(truth_msg)
+    if truth_grid is not None:
+        geo, states = truth_grid
         occupied = states == 100
         explorable = states == 0
         truth = GroundTruth(geo, occupied, explorable, explorable)
     ticks: list[Tick] = []
     if meta is not None:        # robotexp's own: one /odom per tick, scans and true poses at the same stamps
-        by_time = {t: msg for t, msg in scans}
+        by_time = {t: msg for t, msg in scans if t not in exact}
         t0 = odom[0][0]
         for t, pose, vel in odom:
-            msg = by_time.get(t)
-            scan = exact.get(t) or (None if msg is None else _scan(msg, offset_x, yaw))
+            raw = by_time.get(t)
+            scan = exact.get(t) or (None if raw is None else _scan(raw, offset_x, yaw))
             ticks.append(Tick((t - t0) / 1e9, pose, vel, scan, truths.get(t)))
     else:                       # a robot's: one tick per scan, at the newest odometry up to its stamp
         stamps = [t for t, _, _ in odom]
         t0 = None
-        for t, msg in scans:
+        for t, raw in scans:
             i = bisect.bisect_right(stamps, t) - 1
             if i < 0:
                 continue
             if t0 is None:
                 t0 = t
             _, pose, vel = odom[i]
-            ticks.append(Tick((t - t0) / 1e9, pose, vel, _scan(msg, offset_x, yaw)))
+            ticks.append(Tick((t - t0) / 1e9, pose, vel, _scan(raw, offset_x, yaw)))
         if not ticks:
             raise ConfigError(f"{path}: no /scan comes after the first /odom; nothing to replay")
+    scans.clear()
+    exact.clear()
     markers = [((t - odom[0][0]) / 1e9, m) for t, m in marker_msgs] if meta is not None else []
     return Bag(path, ticks, meta, record, truth, topics, markers)
 

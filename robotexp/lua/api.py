@@ -499,8 +499,11 @@ class Session:
         """Simulated laser noise: uniform +-`uniform_mm` and, optionally, gaussian `sigma_mm` [mm] (>= 0)."""
         usage = "uniform_mm[, sigma_mm]"
         values = _args("robot.setLaserNoise", usage, args, "nn" if len(args) == 2 else "n")
-        if not all(math.isfinite(v) and v >= 0 for v in values):
-            raise ScriptError(f"robot.setLaserNoise({', '.join(f'{v:g}' for v in values)}): expected noise >= 0 mm")
+        from robotexp.experiment import MAX_LASER_NOISE
+
+        if not all(0 <= v <= MAX_LASER_NOISE * 1000 for v in values):
+            raise ScriptError(f"robot.setLaserNoise({', '.join(f'{v:g}' for v in values)}): expected noise within "
+                              f"0..{MAX_LASER_NOISE * 1000:g} mm")
         self.spec.laser_uniform = values[0] / 1000.0
         self.spec.laser_sigma = values[1] / 1000.0 if len(values) == 2 else 0.0
 

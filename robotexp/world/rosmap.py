@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
-from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
 from robotexp.world.model import World
 
 __all__ = ["load_ros_grid", "load_ros_world", "merge_cells", "save_ros_map", "world_from_grid"]
@@ -411,7 +411,11 @@ def _read_image(path: Path, mode: str, where: str
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            with Image.open(path) as img:
+            with Image.open(path) as img:       # reads the header only: the size is known before decoding
+                width, height = img.size
+                if width * height > MAX_CELLS:
+                    raise WorldError(f"{where}: image {str(path)!r} is {width} x {height} pixels, more than "
+                                     f"the {MAX_CELLS:.3g} cells a map may have; use a smaller image")
                 img.load()
                 if img.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
                     # 16-bit PGM/PNG: pillow scales samples to 0..65535, so shade = v / 257
