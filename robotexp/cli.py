@@ -28,6 +28,18 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _quiet_stdout() -> None:
+    """The reader of stdout went away (`robotexp plugins | head -1`): point stdout at the null device,
+    so that nothing more (not even the flush at exit) fails on the closed pipe."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
 def handle_errors(func: F) -> F:
     """Turn our errors into one line and an exit code (a traceback only with --debug)."""
     @functools.wraps(func)
@@ -46,6 +58,9 @@ def handle_errors(func: F) -> F:
         except KeyboardInterrupt:
             click.echo("robotexp: interrupted", err=True)
             sys.exit(130)
+        except BrokenPipeError:
+            _quiet_stdout()
+            sys.exit(0)
         except OSError as exc:
             if debug:
                 raise
@@ -119,8 +134,8 @@ class Progress(RunObserver):
                 parts.append(f"no gain for {t - self.best[1]:.0f} s")
         parts.append(f"robot time {t:7.0f} s, wall {wall:5.0f} s")
         if self.max_time is not None and t > 0 and wall > 1.0:
-            left = (self.max_time - t) * wall / t
-            parts.append(f"<= {left:.0f} s left (time limit)")
+            left = max(0.0, (self.max_time - t) * wall / t)     # a run's last sample may pass its limit
+            parts.append(f"<= {round(left):d} s left (time limit)")
         return "  ".join(parts)
 
     def __call__(self, t: float, coverage: float | None) -> None:

@@ -115,7 +115,8 @@ class Observers:
                 if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
                     raise KeyboardInterrupt from exc
                 log.error("run observer %s raised in %s (detached for the rest of the run): %s: %s",
-                          type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
+                          type(observer).__name__, hook, type(exc).__name__, exc,
+                          exc_info=log.isEnabledFor(logging.DEBUG))     # the traceback with robotexp --debug
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
                 self._listening.clear()

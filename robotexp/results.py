@@ -8,6 +8,7 @@ flushed to disk at once, so an interrupted campaign keeps every run already writ
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import re
 from pathlib import Path
@@ -20,6 +21,8 @@ from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunReco
 
 if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
+
+log = logging.getLogger(__name__)
 
 __all__ = ["make_record", "append_jsonl", "read_jsonl", "read_records", "run_id", "write_curve_csv",
            "ResultsWriter", "save_run_images", "map_image", "laser_hits", "read_curve_csv", "RESULT_KEYS",
@@ -50,7 +53,7 @@ def make_record(run: ExplorationRun) -> RunRecord:
         t_key, p_key = milestone_keys(level)
         milestones[t_key] = None if hit is None else round(hit[0], 3)
         milestones[p_key] = None if hit is None else round(hit[1], 4)
-    method_fields = dict(run.explorer.result_fields())
+    method_fields = _result_fields(run)
     nodes = method_fields.pop("nodes", None)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
@@ -71,6 +74,18 @@ def make_record(run: ExplorationRun) -> RunRecord:
         **milestones,
         pose=info.pose, laser_range_m=info.laser_range, robot=info.robot,
         method_fields=method_fields, extra=dict(info.extra), end=run.end)
+
+
+def _result_fields(run: ExplorationRun) -> dict[str, Any]:
+    """The explorer's `result_fields()`; none when it raises (an explorer whose `reset` failed has
+    not set up what they count): the run's own plugin error stays what the record says."""
+    try:
+        return dict(run.explorer.result_fields())
+    except Exception as exc:
+        if run.end is not EndReason.PLUGIN_ERROR:
+            log.error("explorer %r: result_fields raised %s: %s (the record has none of its fields)",
+                      run.info.method, type(exc).__name__, exc, exc_info=log.isEnabledFor(logging.DEBUG))
+        return {}
 
 
 class ResultsWriter(RunObserver):

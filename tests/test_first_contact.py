@@ -1,0 +1,78 @@
+"""What a first-time user meets on the command line: an explorer that cannot start is one line and exit 2,
+plugin errors name the plugin without a traceback (the traceback only with --debug), a closed stdout ends
+quietly, output folders are created, the progress line never counts below zero."""
+
+from __future__ import annotations
+
+import logging
+import subprocess
+import sys
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from robotexp.cli import Progress, main
+from robotexp.errors import ConfigError, PluginError
+
+
+def test_waypoints_without_goals_is_one_line_exit_2_saying_what_to_pass(tmp_path: Path) -> None:
+    result = CliRunner().invoke(main, ["explore", "--world", "dense", "--method", "waypoints", "--out",
+                                       str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert "Traceback" not in result.output and "AttributeError" not in result.output
+    line = lines[0]
+    assert line.startswith("robotexp: error: plugin error: explorer 'waypoints'")
+    assert "reset raised ConfigError" in line and "-p 'goals=[[" in line and "-p path=NAME" in line
+
+
+def test_plugin_error_traceback_only_with_debug(tmp_path: Path) -> None:
+    result = CliRunner().invoke(main, ["--debug", "explore", "--world", "dense", "--method", "waypoints",
+                                       "--out", str(tmp_path / "out")])
+    assert isinstance(result.exception, PluginError)         # raised on to Python: the traceback shows
+    assert isinstance(result.exception.__cause__, ConfigError)
+
+
+def test_the_run_loop_logs_a_plugin_error_without_traceback_unless_debugging(caplog, tmp_path: Path) -> None:
+    from robotexp.experiment import RunSpec, run_experiment
+
+    spec = RunSpec(world="dense", method="waypoints", max_time=5.0)
+    with caplog.at_level(logging.INFO, logger="robotexp"):
+        try:
+            run_experiment(spec, None, image=False)
+        except PluginError:
+            pass
+    mine = [r for r in caplog.records if "plugin error" in r.getMessage()]
+    assert mine and all(r.exc_info is None for r in mine)
+    assert all(r.levelno < logging.WARNING for r in mine)     # the caller reports it, once
+    caplog.clear()
+    with caplog.at_level(logging.DEBUG, logger="robotexp"):
+        try:
+            run_experiment(spec, None, image=False)
+        except PluginError:
+            pass
+    mine = [r for r in caplog.records if "plugin error" in r.getMessage()]
+    assert mine and mine[0].exc_info is not None
+
+
+def test_progress_never_says_negative_time_left() -> None:
+    now = [0.0]
+    p = Progress("x", enabled=False, clock=lambda: now[0])
+
+    class Run:
+        max_time = 100.0
+    p.on_start(Run())
+    now[0] = 10.0
+    for t in (99.9, 100.0, 100.04):
+        text = p.line(t, 0.5)
+        assert "-0 s" not in text and "<= -" not in text, text
+    assert "<= 0 s left" in p.line(100.04, 0.5)
+
+
+def test_a_closed_stdout_ends_quietly() -> None:
+    robotexp = Path(sys.executable).with_name("robotexp")
+    done = subprocess.run(f"'{robotexp}' plugins | head -1", shell=True, capture_output=True, text=True,
+                          timeout=60)
+    assert done.stdout.strip(), done.stderr
+    assert "Broken pipe" not in done.stderr and "Traceback" not in done.stderr, done.stderr
