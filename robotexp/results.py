@@ -42,7 +42,7 @@ def run_id(world: str, method: str, pose: str, speed: float, seed: int, out: Pat
 def make_record(run: ExplorationRun) -> RunRecord:
     """The record of a run that ended (SI units; see README "Results" for every key), named by
     `run.info`."""
-    from robotexp.mapping.groundtruth import map_iou
+    from robotexp.mapping.groundtruth import map_iou, map_iou_tolerant
 
     m = run.metrics
     info = run.info
@@ -55,6 +55,12 @@ def make_record(run: ExplorationRun) -> RunRecord:
         milestones[p_key] = None if hit is None else round(hit[1], 4)
     method_fields = _result_fields(run)
     nodes = method_fields.pop("nodes", None)
+    iou: float | None = None
+    iou_tolerant: float | None = None       # within one cell: a face a few millimetres off is not missed
+    if run.truth is not None:
+        states = run.grid.states()
+        iou = round(map_iou(states, run.truth), 5)
+        iou_tolerant = round(map_iou_tolerant(states, run.truth, 1)[0], 5)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
         start_pose=run.start_pose.as_list() if run.start_pose else None,
@@ -69,7 +75,8 @@ def make_record(run: ExplorationRun) -> RunRecord:
         seed=run.seed,
         completed=run.completed,
         reason=run.reason,
-        map_iou=None if run.truth is None else round(map_iou(run.grid.states(), run.truth), 5),
+        map_iou=iou,
+        map_iou_tolerant=iou_tolerant,
         cell_m=run.grid.geo.cell,
         **milestones,
         pose=info.pose, laser_range_m=info.laser_range, robot=info.robot,
