@@ -83,7 +83,7 @@ class Progress(RunObserver):
     A run observer (`on_sample`), or called as `progress(t, coverage)`.
 
     Args:
-        label: what the line starts with.
+        label: what the line starts with (None: the world and method of each run, at its start).
         enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
         every: [s] wall time between lines without a terminal.
         clock: wall clock [s].
@@ -93,11 +93,12 @@ class Progress(RunObserver):
     STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
     GAIN = 0.001        # coverage
 
-    def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
+    def __init__(self, label: str | None, enabled: bool | None = None, every: float = 60.0,
                  clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
         import time
 
-        self.label = label
+        self.fixed = label
+        self.label = label or ""
         self.notice = notice
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
@@ -115,6 +116,13 @@ class Progress(RunObserver):
         self.max_time = run.max_time
         self.wall0 = self.clock()
         self.next_line = self.wall0 + self.every
+        self.best = (-1.0, 0.0)
+        if self.fixed is None:
+            self.label = f"{Path(run.info.world or '').stem} {run.info.method}".strip()
+
+    def on_end(self, run: Any, record: Any) -> None:
+        """End the run's line (the next run of a script starts its own)."""
+        self.close()
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """Show the sample."""
@@ -151,6 +159,7 @@ class Progress(RunObserver):
         """End the progress line."""
         if self.shown:
             click.echo("", err=True)
+            self.shown = False
 
 
 def _mm(value: float | None, what: str) -> float | None:
@@ -586,13 +595,15 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
 @click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
+@click.option("--tty-progress", is_flag=True, hidden=True,
+              help="Redraw the progress line (the child's stderr is a pipe to a terminal).")
 @click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Record each run of the script as a ROS 2 bag, DIR/<run>.mcap.")
 @view_options
 @handle_errors
 def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
-            max_memory: float | None, timeout: float | None, child: bool, record: Path | None, view: bool,
-            view_port: int, view_host: str, view_speed: str | None) -> None:
+            max_memory: float | None, timeout: float | None, child: bool, tty_progress: bool, record: Path | None,
+            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
 
     The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
@@ -627,20 +638,25 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
             args += [f"--view-speed={view_speed}"] if view_speed is not None else []
         if click.get_current_context().find_root().params.get("debug", False):
             args.append("--debug")
+        if sys.stderr.isatty():         # the child writes to a pipe, relayed here: it redraws for a terminal
+            args.append("--tty-progress")
         sys.exit(supervise(args, script=script.name, out=out, timeout=timeout))
 
     from robotexp.lua import run_script
 
     live = start_view(view, view_host, view_port, view_speed)
+    progress = Progress(None, enabled=True if tty_progress else None)      # each run of the script
     try:
         result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
                             emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
                             max_memory=None if memory is None else int(memory * 2**20),
                             allow_addresses=allow_address, retire=True,
-                            observers=() if live is None else (live.observer,), record=record)
+                            observers=(progress,) if live is None else (progress, live.observer), record=record)
     except BaseException:
         end_view(live, interrupted=True)
         raise
+    finally:
+        progress.close()
     click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
     end_view(live, interrupted=False)
     if result.exit_code:

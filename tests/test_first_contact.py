@@ -76,3 +76,26 @@ def test_a_closed_stdout_ends_quietly() -> None:
                           timeout=60)
     assert done.stdout.strip(), done.stderr
     assert "Broken pipe" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+
+
+def test_worlds_generate_makes_the_folders_it_names(tmp_path: Path) -> None:
+    out = tmp_path / "new" / "dir" / "x.yaml"
+    result = CliRunner().invoke(main, ["worlds", "generate", "--kind", "cave", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.is_file() and out.with_suffix(".pgm").is_file()
+    (tmp_path / "afile").write_text("")
+    result = CliRunner().invoke(main, ["worlds", "generate", "--kind", "cave", "--out",
+                                       str(tmp_path / "afile" / "x.map")])
+    assert result.exit_code == 2 and len(result.output.strip().splitlines()) == 1, result.output
+
+
+def test_run_shows_the_progress_of_each_run_of_the_script(tmp_path: Path) -> None:
+    script = tmp_path / "two.lua"
+    script.write_text('exploration.setWorld("dense")\nexploration.setMaxTime(3000)\n'
+                      'exploration.setMethod(ExplorationMethod.FRONTIER)\nexploration.start()\nexploration.wait()\n'
+                      'exploration.setMethod(ExplorationMethod.BVP)\nexploration.start()\nexploration.wait()\n')
+    result = CliRunner().invoke(main, ["run", "--child", "--tty-progress", str(script), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    lines = [line.split("\r")[-1] for line in result.stderr.split("\n") if "\r" in line]   # each run's last redraw
+    assert [line.split("[")[0].split() for line in lines] == [["dense", "frontier"], ["dense", "bvp"]], result.stderr
+    assert all("robot time       3 s" in line for line in lines), lines
