@@ -4,6 +4,7 @@ quietly, output folders are created, the progress line never counts below zero."
 
 from __future__ import annotations
 
+import functools
 import logging
 import subprocess
 import sys
@@ -99,3 +100,37 @@ def test_run_shows_the_progress_of_each_run_of_the_script(tmp_path: Path) -> Non
     lines = [line.split("\r")[-1] for line in result.stderr.split("\n") if "\r" in line]   # each run's last redraw
     assert [line.split("[")[0].split() for line in lines] == [["dense", "frontier"], ["dense", "bvp"]], result.stderr
     assert all("robot time       3 s" in line for line in lines), lines
+
+
+def _box_runs(monkeypatch, draw) -> dict[str, list[float]]:
+    """The values of each box the figure code draws (the original figures are still made)."""
+    import robotexp.figures as figures
+
+    boxes: dict[str, list[float]] = {}
+    original = figures.box_figure
+
+    def spy(groups, **kwargs):
+        if "visited" in kwargs.get("ylabel", ""):
+            boxes.update({label.split()[-1]: sorted(values) for label, values in groups})
+        return original(groups, **kwargs)
+    monkeypatch.setattr(figures, "box_figure", spy)
+    draw()
+    return boxes
+
+
+def test_figure_and_campaign_plot_count_the_same_runs(tmp_path: Path, monkeypatch) -> None:
+    from robotexp.compare import campaign_plots
+    from robotexp.figures import campaign_figures
+
+    def rec(seed: int, cells: int, reason: str) -> dict[str, object]:
+        return {"run": f"w_a_s{seed}", "world": "nowhere", "method": "a", "pose": "1", "seed": seed,
+                "visited_cells": cells, "coverage": 0.9, "path_length_m": 10.0, "robot_time_s": 60.0,
+                "max_speed_m_s": 0.3, "completed": reason == "explored", "reason": reason, "cell_m": 0.1}
+    recs = [rec(0, 100, "explored"), rec(1, 120, "explored"), rec(2, 900, "time limit of 60 s reached"),
+            rec(3, 5, "interrupted (Ctrl-C)")]
+    for include, expected in ((False, [100.0, 120.0]), (True, [100.0, 120.0, 900.0])):
+        fig = _box_runs(monkeypatch, functools.partial(campaign_figures, recs, tmp_path / "f", ("png",),
+                                                       include_incomplete=include))
+        plot = _box_runs(monkeypatch, functools.partial(campaign_plots, recs, tmp_path, tmp_path / "p",
+                                                        include_incomplete=include, note=lambda _: None))
+        assert fig == {"a": expected} and plot == {"a": expected}
