@@ -56,7 +56,7 @@ class FrontierExplorer(Explorer):
         return_home: drive back to the start pose when exploration is done.
         face_reach: [m] a frontier cell needs an unknown 4-neighbour farther than this from every
             cell ever firmly occupied (hit twice more than crossed: `WallMemory`), and no such cell
-            as 8-neighbour (0: neither test, nor the memory of walls: the explorer of session 4).
+            as 8-neighbour (0: neither test, nor the memory of walls).
     """
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,

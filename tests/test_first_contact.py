@@ -134,3 +134,25 @@ def test_figure_and_campaign_plot_count_the_same_runs(tmp_path: Path, monkeypatc
         plot = _box_runs(monkeypatch, functools.partial(campaign_plots, recs, tmp_path, tmp_path / "p",
                                                         include_incomplete=include, note=lambda _: None))
         assert fig == {"a": expected} and plot == {"a": expected}
+
+
+def test_parameter_help_of_every_explorer_is_clean() -> None:
+    from robotexp.paramhelp import WIDTH, explorer_parameters, parameters_text
+    from robotexp.registry import EXPLORERS, available
+
+    methods = sorted(available(EXPLORERS))
+    assert {"frontier", "bvp", "srt-ball", "srt-star", "srt-laser", "meta-ga", "meta-firefly", "meta-exhaustive",
+            "waypoints"} <= set(methods)
+    for method in methods:
+        for p in explorer_parameters(method):
+            assert p.doc, f"{method}: {p.name} has no description"
+            for debris in ("`", "see above", "see ", "session", "**kwargs"):
+                assert debris not in p.doc, f"{method}: {p.name}: {p.doc!r}"
+        text = parameters_text(method)
+        assert all(len(line) <= WIDTH for line in text.splitlines()), method
+    star = {p.name: p for p in explorer_parameters("srt-star")}
+    assert star["cone"].default == "0.261799" and star["alpha"].doc.startswith("fraction of RADIUS")
+    assert star["margin"].doc == "[m] each cone's radius is its reading less this."
+    laser = {p.name: p for p in explorer_parameters("srt-laser")}
+    assert laser["step"].doc == "[m] sampling step of the shrunk region along each direction."
+    assert laser["sweep_rate"].doc == "[rad/s] turn rate while perceiving."
