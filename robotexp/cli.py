@@ -286,7 +286,6 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         click.echo(parameters_text(method))
         return
     hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
-    _compile_notice()
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
@@ -322,13 +321,15 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         recorder = BagRecorder(record, world=world)
         watchers.append(recorder)
     try:
-        if address is None:
-            result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
-        else:
-            given = click.get_current_context().get_parameter_source("world")
-            truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            with connect_with_laser(robot, address, laser, laser_pose) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays, image=formats)
+        with compile_watch():       # the first run after an install: numba compiles, said as it happens
+            if address is None:
+                result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
+            else:
+                given = click.get_current_context().get_parameter_source("world")
+                truth_world = None if given == click.core.ParameterSource.DEFAULT else world
+                with connect_with_laser(robot, address, laser, laser_pose) as bot:
+                    result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays,
+                                          image=formats)
     except (WorldError, ConfigError) as exc:
         end_view(live, interrupted=True)
         if hint is not None:            # one line: the refusal and how the pose was read
@@ -357,18 +358,26 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         _fail(f"{r.run}: {r.reason}", 1)
 
 
-def _compile_notice() -> None:
-    """Say why the first run after an install is slower: numba compiles the kernels once and caches them."""
-    import os
+def compile_watch(tty: bool | None = None) -> Any:
+    """A `robotexp.compilewatch.CompileWatch` that tells stderr, as it happens, that numba compiles the
+    kernels of a group (the first run after an install) and how far it got: on a terminal (`tty`,
+    default: whether stderr is one) one line redrawn per group, else a line per kernel."""
+    from robotexp.compilewatch import CompileWatch
 
-    import robotexp.mapping as mapping
+    redraw = sys.stderr.isatty() if tty is None else tty
+    drawn = [False]
 
-    where = os.environ.get("NUMBA_CACHE_DIR")       # numba's cache: there, else beside the module
-    cached = (any(Path(where).glob("**/kernels.*.nbi")) if where
-              else any((Path(mapping.__file__).parent / "__pycache__").glob("kernels.*.nbi")))
-    if not cached:
-        click.echo("robotexp: first run after an install: numba compiles the map and planning kernels "
-                   "(a few seconds more, cached for the next runs)", err=True)
+    def say(text: str) -> None:
+        step = text.startswith("  ")
+        if step and redraw:
+            click.echo(f"\r{text.strip()}\033[K", nl=False, err=True)
+            drawn[0] = True
+            return
+        if drawn[0]:
+            click.echo("", err=True)
+            drawn[0] = False
+        click.echo(text if step else f"robotexp: {text}", err=True)
+    return CompileWatch(say)
 
 
 def _pose_hint(text: str | None) -> str | None:
@@ -647,11 +656,13 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(None, enabled=True if tty_progress else None)      # each run of the script
     try:
-        result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
-                            emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
-                            max_memory=None if memory is None else int(memory * 2**20),
-                            allow_addresses=allow_address, retire=True,
-                            observers=(progress,) if live is None else (progress, live.observer), record=record)
+        with compile_watch(True if tty_progress else None):
+            result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
+                                emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                                max_memory=None if memory is None else int(memory * 2**20),
+                                allow_addresses=allow_address, retire=True,
+                                observers=(progress,) if live is None else (progress, live.observer),
+                                record=record)
     except BaseException:
         end_view(live, interrupted=True)
         raise
@@ -755,7 +766,11 @@ def connect(backend: str, address: str, drive: str | None, duration: float, lase
         recorder = BagRecorder(record)
     live = start_view(view, view_host, view_port, view_speed)
     try:
-        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
+        if live is None:
+            _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
+        else:
+            with compile_watch():   # the view's map is built by the map kernels
+                _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
     except BaseException:
         end_view(live, interrupted=True)
         raise

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -156,3 +157,53 @@ def test_parameter_help_of_every_explorer_is_clean() -> None:
     laser = {p.name: p for p in explorer_parameters("srt-laser")}
     assert laser["step"].doc == "[m] sampling step of the shrunk region along each direction."
     assert laser["sweep_rate"].doc == "[rad/s] turn rate while perceiving."
+
+
+def _kernel_of(module: str):
+    """A fresh numba kernel that says it belongs to `module` (compiled at its first call: never cached)."""
+    import numba
+
+    def scale(x: float) -> float:
+        return x * 2.0
+    scale.__module__ = module
+    return numba.njit(scale)
+
+
+def test_compilation_is_said_at_once_per_group_with_progress() -> None:
+    from robotexp.compilewatch import CompileWatch
+
+    lines: list[str] = []
+    now = [0.0]
+    with CompileWatch(lines.append, clock=lambda: now[0]) as watch:
+        kernel = _kernel_of("robotexp.localization.kernels")
+        now[0] = 1.0
+        assert kernel(1.5) == 3.0
+        now[0] = 4.0
+        _kernel_of("robotexp.mapping.kernels")(1.0)
+        _kernel_of("numpy_user_code")(1.0)                   # not robotexp's: not said
+    assert lines == [
+        "compiling the localization kernels (first run after an install, ~45 s; cached for the next runs)...",
+        "  localization kernels: 1 compiled (scale), 0 s",
+        "  localization kernels ready (1 compiled in 3 s)",
+        "compiling the map kernels (first run after an install, ~20 s; cached for the next runs)...",
+        "  map kernels: 1 compiled (scale), 0 s",
+        "  map kernels ready (1 compiled in 0 s)"]
+    assert watch.compiled == {"localization": 1, "map": 1}
+    _kernel_of("robotexp.localization.kernels")(1.0)         # closed: silent
+    assert len(lines) == 6
+
+
+def test_explore_says_the_compilation_before_the_run_goes_on(tmp_path: Path, monkeypatch) -> None:
+    import robotexp.experiment as experiment
+
+    def compiles_then_stops(*args, **kwargs):
+        _kernel_of("robotexp.localization.kernels")(1.0)
+        raise ConfigError("stopped after compiling")
+    monkeypatch.setattr(experiment, "run_experiment", compiles_then_stops)
+    result = CliRunner().invoke(main, ["explore", "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2
+    lines = result.stderr.splitlines()
+    assert lines[0].startswith("robotexp: compiling the localization kernels (first run after an install, ~")
+    assert re.fullmatch(r"  localization kernels: 1 compiled \(scale\), \d+ s", lines[1]), lines
+    assert re.fullmatch(r"  localization kernels ready \(1 compiled in \d+ s\)", lines[2]), lines
+    assert lines[-1] == "robotexp: error: stopped after compiling"
