@@ -207,3 +207,18 @@ def test_explore_says_the_compilation_before_the_run_goes_on(tmp_path: Path, mon
     assert re.fullmatch(r"  localization kernels: 1 compiled \(scale\), \d+ s", lines[1]), lines
     assert re.fullmatch(r"  localization kernels ready \(1 compiled in \d+ s\)", lines[2]), lines
     assert lines[-1] == "robotexp: error: stopped after compiling"
+
+
+def test_every_lua_function_documents_itself_laser_noise_included() -> None:
+    import inspect
+
+    from robotexp.lua.api import Session
+
+    functions = {name: inspect.getdoc(f) for name, f in vars(Session).items() if name.startswith("lua_")}
+    assert "lua_robot__setLaserNoise" in functions
+    assert all(functions.values()), [name for name, doc in functions.items() if not doc]
+    doc = functions["lua_robot__setLaserNoise"]
+    assert doc.splitlines()[0].startswith("robot.setLaserNoise(uniform_mm[, sigma_mm]):")
+    for words in ("+-`uniform_mm` [mm]", "`sigma_mm` [mm]", "robot.setLaserNoise(0)", "--noise-uniform",
+                  "laser_uniform_mm", "ScriptError"):
+        assert words in doc, words
