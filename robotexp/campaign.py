@@ -658,11 +658,11 @@ def report_tables(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[Tabl
         rows.append(row)
         if any(r.map_iou is not None for recs in by_method.values() for r in recs.values()):
             # map quality of the runs that completed: strict, and with one cell of tolerance
-            for label, key in (("mean map IoU", "map_iou"), ("mean map IoU (1 cell)", "map_iou_tolerant")):
+            for label, field in (("mean map IoU", "map_iou"), ("mean map IoU (1 cell)", "map_iou_tolerant")):
                 row = [label]
                 for m in methods:
-                    known = [float(getattr(r, key)) for r in _completed(by_method[m].values())
-                             if getattr(r, key) is not None]
+                    known = [float(getattr(r, field)) for r in _completed(by_method[m].values())
+                             if getattr(r, field) is not None]
                     row += [f"{statistics.fmean(known):.3f}" if known else "-", ""] + ([""] if has_nodes[m] else [])
                 rows.append(row)
         tables.append(Table(f"{world}, max speed {speed} mm/s", methods, header, rows))

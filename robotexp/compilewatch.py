@@ -73,7 +73,7 @@ class CompileWatch:
             if self._depth == 1 and self._open != label:   # a kernel another one calls is part of the caller
                 self._finish()
                 self._open = label
-                self._started.setdefault(label, self.clock())
+                self._started[label] = self.clock()
                 self.say(f"compiling the {label} kernels (first run after an install, ~{expected:.0f} s; cached "
                          "for the next runs)...")
 
@@ -104,7 +104,7 @@ class CompileWatch:
 
         watch = self
 
-        class _Listener(event.Listener):  # type: ignore[misc]  # numba has no type information
+        class _Listener(event.Listener):     # numba's listener base (numba is taken as Any)
             def on_start(self, ev: Any) -> None:
                 watch.on_start(ev)
 

@@ -70,7 +70,7 @@ def make_record(run: ExplorationRun) -> RunRecord:
         wall_time_s=round(run.wall_time, 3),
         coverage=None if cov is None else round(cov, 5),
         collisions=m.collisions,
-        nodes=nodes,  # type: ignore[arg-type]
+        nodes=nodes,
         visited_cells=len(m.visited),
         seed=run.seed,
         completed=run.completed,
