@@ -3,9 +3,9 @@
 A record has exactly the keys of README "Results" as fields, plus `extra` for what an explorer or a
 caller adds (`targets`, `script`, `address`, ...). `as_dict()` gives the JSON object appended to
 `results.jsonl` (robotexp/schema/results.schema.json describes it), and `RunRecord.from_dict` reads
-any such object back, also one written before records had a `schema_version` or were typed (their end
-reason is read from `completed` and the `reason` text, see `EndReason.classify`). A record is also a read-only mapping
-of its JSON keys (`record["coverage"]`), so code written for the dict records keeps working.
+any such object back, also one written before records had a `schema_version` or were typed (their
+end reason is read from `completed` and the `reason` text, see `EndReason.classify`). A record is
+also a read-only mapping of its JSON keys (`record["coverage"]`), so code written for the dict records keeps working.
 """
 
 from __future__ import annotations
@@ -74,9 +74,6 @@ _HEAD = ("run", "method", "world", "start_pose", "max_speed_m_s", "path_length_m
          "map_iou", "cell_m")
 _TAIL = ("pose", "laser_range_m", "robot")
 RESULT_KEYS = _HEAD[:-1]     # the keys every record has, README "Results"
-# the keys a record of a schema version writes besides (`schema_version` first, the others after `reason`
-# and `map_iou`); records without `schema_version` were written before it and have none of them
-_VERSIONED = ("schema_version", "end", "map_iou_tolerant")
 
 
 @dataclass(frozen=True, eq=True)
@@ -138,7 +135,9 @@ class RunRecord(Mapping[str, Any]):
     # -- JSON ----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, Any]:
         """The JSON object of README "Results", keys in the order they have always been written:
-        the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`."""
+        the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`. A
+        record of a schema version also writes `schema_version` (first), `end` (after `reason`) and
+        `map_iou_tolerant` (after `map_iou`); one read from an earlier line has none of them."""
         versioned = self.schema_version is not None
         out: dict[str, Any] = {"schema_version": self.schema_version} if versioned else {}
         for key in _HEAD:
