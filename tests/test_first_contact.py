@@ -105,6 +105,8 @@ def test_run_shows_the_progress_of_each_run_of_the_script(tmp_path: Path) -> Non
 
 def _box_runs(monkeypatch, draw) -> dict[str, list[float]]:
     """The values of each box the figure code draws (the original figures are still made)."""
+    import matplotlib.pyplot as plt
+
     import robotexp.figures as figures
 
     boxes: dict[str, list[float]] = {}
@@ -115,6 +117,7 @@ def _box_runs(monkeypatch, draw) -> dict[str, list[float]]:
             boxes.update({label.split()[-1]: sorted(values) for label, values in groups})
         return original(groups, **kwargs)
     monkeypatch.setattr(figures, "box_figure", spy)
+    monkeypatch.setattr(figures, "save_figure", lambda fig, *args, **kwargs: plt.close(fig) or [])   # no files
     draw()
     return boxes
 
