@@ -185,8 +185,9 @@ class WaypointsExplorer(Explorer):
             have = ", ".join(lists) or "none"
             want = f"no goal list named {name!r}" if name is not None else \
                 f"no goal list named like the start pose ({ctx.start_name or 'unnamed'})"
-            raise ConfigError(f"waypoints: the world has {want} (it has: {have}); set the parameter path "
-                              "to one of them or give goals as [[x, y], ...] in metres")
+            raise ConfigError(f"waypoints: the world has {want} (it has: {have}); give the goals in metres "
+                              "with the parameter goals (-p 'goals=[[1.0, 2.0], [3.5, 2.0]]'), or name one of "
+                              "the world's goal lists with the parameter path (-p path=NAME)")
         pts = [(float(x), float(y)) for x, y in lists[name]]
         if not pts:
             raise ConfigError(f"waypoints: the world's goal list {name!r} is empty; give goals as [[x, y], ...]")

@@ -615,7 +615,8 @@ def report_tables(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[Tabl
     """Tables in the layout of the thesis's Tables 4.1-4.4: per start pose (and seed, when there are
     several) the path [m] and duration (mm:ss) of each method and the SRT nodes; then mean, standard
     deviation, range and mean speed of the runs that completed (a run cut short is marked * and left
-    out of the statistics)."""
+    out of the statistics), and, when the runs measured it, their mean map IoU, strict and with one
+    cell of tolerance."""
     groups: dict[tuple[str, int], dict[str, dict[tuple[str, int], RunRecord]]] = {}
     for r in map(RunRecord.from_dict, records):
         if r.end is EndReason.INTERRUPTED:
@@ -668,6 +669,15 @@ def report_tables(records: Iterable[RunRecord | Mapping[str, Any]]) -> list[Tabl
             v = sum(r.path_length_m for r in recs) / max(sum(r.robot_time_s for r in recs), 1e-9)
             row += [f"{v * 1000:.0f} mm/s", ""] + ([""] if has_nodes[m] else [])
         rows.append(row)
+        if any(r.map_iou is not None for recs in by_method.values() for r in recs.values()):
+            # map quality of the runs that completed: strict, and with one cell of tolerance
+            for label, field in (("mean map IoU", "map_iou"), ("mean map IoU (1 cell)", "map_iou_tolerant")):
+                row = [label]
+                for m in methods:
+                    known = [float(getattr(r, field)) for r in _completed(by_method[m].values())
+                             if getattr(r, field) is not None]
+                    row += [f"{statistics.fmean(known):.3f}" if known else "-", ""] + ([""] if has_nodes[m] else [])
+                rows.append(row)
         tables.append(Table(f"{world}, max speed {speed} mm/s", methods, header, rows))
     return tables
 

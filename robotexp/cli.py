@@ -28,6 +28,18 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _quiet_stdout() -> None:
+    """The reader of stdout went away (`robotexp plugins | head -1`): point stdout at the null device,
+    so that nothing more (not even the flush at exit) fails on the closed pipe."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
 def handle_errors(func: F) -> F:
     """Turn our errors into one line and an exit code (a traceback only with --debug)."""
     @functools.wraps(func)
@@ -46,6 +58,9 @@ def handle_errors(func: F) -> F:
         except KeyboardInterrupt:
             click.echo("robotexp: interrupted", err=True)
             sys.exit(130)
+        except BrokenPipeError:
+            _quiet_stdout()
+            sys.exit(0)
         except OSError as exc:
             if debug:
                 raise
@@ -68,7 +83,7 @@ class Progress(RunObserver):
     A run observer (`on_sample`), or called as `progress(t, coverage)`.
 
     Args:
-        label: what the line starts with.
+        label: what the line starts with (None: the world and method of each run, at its start).
         enabled: redraw one line (default: whether stderr is a terminal); False: a line every `every` s.
         every: [s] wall time between lines without a terminal.
         clock: wall clock [s].
@@ -78,11 +93,12 @@ class Progress(RunObserver):
     STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
     GAIN = 0.001        # coverage
 
-    def __init__(self, label: str, enabled: bool | None = None, every: float = 60.0,
+    def __init__(self, label: str | None, enabled: bool | None = None, every: float = 60.0,
                  clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
         import time
 
-        self.label = label
+        self.fixed = label
+        self.label = label or ""
         self.notice = notice
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
@@ -100,6 +116,13 @@ class Progress(RunObserver):
         self.max_time = run.max_time
         self.wall0 = self.clock()
         self.next_line = self.wall0 + self.every
+        self.best = (-1.0, 0.0)
+        if self.fixed is None:
+            self.label = f"{Path(run.info.world or '').stem} {run.info.method}".strip()
+
+    def on_end(self, run: Any, record: Any) -> None:
+        """End the run's line (the next run of a script starts its own)."""
+        self.close()
 
     def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
         """Show the sample."""
@@ -119,8 +142,8 @@ class Progress(RunObserver):
                 parts.append(f"no gain for {t - self.best[1]:.0f} s")
         parts.append(f"robot time {t:7.0f} s, wall {wall:5.0f} s")
         if self.max_time is not None and t > 0 and wall > 1.0:
-            left = (self.max_time - t) * wall / t
-            parts.append(f"<= {left:.0f} s left (time limit)")
+            left = max(0.0, (self.max_time - t) * wall / t)     # a run's last sample may pass its limit
+            parts.append(f"<= {round(left):d} s left (time limit)")
         return "  ".join(parts)
 
     def __call__(self, t: float, coverage: float | None) -> None:
@@ -136,6 +159,7 @@ class Progress(RunObserver):
         """End the progress line."""
         if self.shown:
             click.echo("", err=True)
+            self.shown = False
 
 
 def _mm(value: float | None, what: str) -> float | None:
@@ -262,7 +286,6 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         click.echo(parameters_text(method))
         return
     hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
-    _compile_notice()
 
     if (laser is not None or laser_pose is not None) and address is None:
         raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
@@ -298,16 +321,18 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         recorder = BagRecorder(record, world=world)
         watchers.append(recorder)
     try:
-        if address is None:
-            result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
-        else:
-            given = click.get_current_context().get_parameter_source("world")
-            truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-            if localize == "auto":
-                click.echo("robotexp: --localize auto: scan matching corrects the robot's odometry before the map "
-                           "and the explorer see it (--localize none turns it off)", err=True)
-            with connect_with_laser(robot, address, laser, laser_pose) as bot:
-                result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays, image=formats)
+        with compile_watch():       # the first run after an install: numba compiles, said as it happens
+            if address is None:
+                result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
+            else:
+                given = click.get_current_context().get_parameter_source("world")
+                truth_world = None if given == click.core.ParameterSource.DEFAULT else world
+                if localize == "auto":
+                    click.echo("robotexp: --localize auto: scan matching corrects the robot's odometry before the "
+                               "map and the explorer see it (--localize none turns it off)", err=True)
+                with connect_with_laser(robot, address, laser, laser_pose) as bot:
+                    result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays,
+                                          image=formats)
     except (WorldError, ConfigError) as exc:
         end_view(live, interrupted=True)
         if hint is not None:            # one line: the refusal and how the pose was read
@@ -336,18 +361,26 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         _fail(f"{r.run}: {r.reason}", 1)
 
 
-def _compile_notice() -> None:
-    """Say why the first run after an install is slower: numba compiles the kernels once and caches them."""
-    import os
+def compile_watch(tty: bool | None = None) -> Any:
+    """A `robotexp.compilewatch.CompileWatch` that tells stderr, as it happens, that numba compiles the
+    kernels of a group (the first run after an install) and how far it got: on a terminal (`tty`,
+    default: whether stderr is one) one line redrawn per group, else a line per kernel."""
+    from robotexp.compilewatch import CompileWatch
 
-    import robotexp.mapping as mapping
+    redraw = sys.stderr.isatty() if tty is None else tty
+    drawn = [False]
 
-    where = os.environ.get("NUMBA_CACHE_DIR")       # numba's cache: there, else beside the module
-    cached = (any(Path(where).glob("**/kernels.*.nbi")) if where
-              else any((Path(mapping.__file__).parent / "__pycache__").glob("kernels.*.nbi")))
-    if not cached:
-        click.echo("robotexp: first run after an install: numba compiles the map and planning kernels "
-                   "(a few seconds more, cached for the next runs)", err=True)
+    def say(text: str) -> None:
+        step = text.startswith("  ")
+        if step and redraw:
+            click.echo(f"\r{text.strip()}\033[K", nl=False, err=True)
+            drawn[0] = True
+            return
+        if drawn[0]:
+            click.echo("", err=True)
+            drawn[0] = False
+        click.echo(text if step else f"robotexp: {text}", err=True)
+    return CompileWatch(say)
 
 
 def _pose_hint(text: str | None) -> str | None:
@@ -574,13 +607,15 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
 @click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
+@click.option("--tty-progress", is_flag=True, hidden=True,
+              help="Redraw the progress line (the child's stderr is a pipe to a terminal).")
 @click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Record each run of the script as a ROS 2 bag, DIR/<run>.mcap.")
 @view_options
 @handle_errors
 def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
-            max_memory: float | None, timeout: float | None, child: bool, record: Path | None, view: bool,
-            view_port: int, view_host: str, view_speed: str | None) -> None:
+            max_memory: float | None, timeout: float | None, child: bool, tty_progress: bool, record: Path | None,
+            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
 
     The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
@@ -615,20 +650,27 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
             args += [f"--view-speed={view_speed}"] if view_speed is not None else []
         if click.get_current_context().find_root().params.get("debug", False):
             args.append("--debug")
+        if sys.stderr.isatty():         # the child writes to a pipe, relayed here: it redraws for a terminal
+            args.append("--tty-progress")
         sys.exit(supervise(args, script=script.name, out=out, timeout=timeout))
 
     from robotexp.lua import run_script
 
     live = start_view(view, view_host, view_port, view_speed)
+    progress = Progress(None, enabled=True if tty_progress else None)      # each run of the script
     try:
-        result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
-                            emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
-                            max_memory=None if memory is None else int(memory * 2**20),
-                            allow_addresses=allow_address, retire=True,
-                            observers=() if live is None else (live.observer,), record=record)
+        with compile_watch(True if tty_progress else None):
+            result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
+                                emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
+                                max_memory=None if memory is None else int(memory * 2**20),
+                                allow_addresses=allow_address, retire=True,
+                                observers=(progress,) if live is None else (progress, live.observer),
+                                record=record)
     except BaseException:
         end_view(live, interrupted=True)
         raise
+    finally:
+        progress.close()
     click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
     end_view(live, interrupted=False)
     if result.exit_code:
@@ -731,7 +773,11 @@ def connect(backend: str, address: str, drive: str | None, duration: float, lase
         recorder = BagRecorder(record)
     live = start_view(view, view_host, view_port, view_speed)
     try:
-        _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
+        if live is None:
+            _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
+        else:
+            with compile_watch():   # the view's map is built by the map kernels
+                _connect_watch(backend, address, twist, duration, tty, live, laser, laser_pose, recorder)
     except BaseException:
         end_view(live, interrupted=True)
         raise

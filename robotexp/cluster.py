@@ -44,16 +44,20 @@ def check_cluster_address(address: str) -> None:
     """Check the form of a `--cluster` value before any work starts.
 
     Raises:
-        ConfigError: neither `tcp://HOST:PORT` (or `tls://`) nor `local:N` with N >= 1.
+        ConfigError: neither `tcp://HOST:PORT` (or `tls://`) nor `local:N` with N >= 1, or Dask is not
+            installed (the `cluster` extra).
     """
+    from robotexp.extras import require
+
     local = _LOCAL.fullmatch(address)
     if local:
         if int(local.group(1)) < 1:
             raise ConfigError(f"--cluster {address}: a local cluster needs at least 1 worker (local:N, N >= 1)")
-        return
-    if not _ADDRESS.fullmatch(address):
+    elif not _ADDRESS.fullmatch(address):
         raise ConfigError(f"--cluster {address!r}: expected a Dask scheduler address tcp://HOST:PORT (e.g. "
                           "tcp://10.0.0.5:8786, from `dask scheduler`) or local:N (N worker processes here)")
+    require("dask", f"--cluster {address}")
+    require("distributed", f"--cluster {address}")
 
 
 class _CancelWatch(RunObserver):

@@ -178,7 +178,8 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
     methods.
 
     Rows: per method (sorted) the runs used (n; "+k*" counts the runs cut short and left out),
-    visited cells mean ± sample standard deviation, mean coverage (0..1) and mean path [m]; then
+    visited cells mean ± sample standard deviation, mean coverage (0..1) and mean path [m] (and, when
+    the runs measured it, the mean `map_iou` and `map_iou_tolerant`); then
     per pair of methods: "Welch p, A vs B" with the two-sided p-value of Welch's t-test on the
     visited cells, its t (A minus B) and df; "Mann-Whitney p, A vs B"; "95% CI of mean A - B" (a
     percentile bootstrap). "no variance" where a test needs variance the runs lack; "-" when a method
@@ -209,6 +210,10 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
         for cell, by_method in sorted(by_cell.items(), key=lambda kv: (kv[0] is None, kv[0] or 0.0)):
             methods = sorted(by_method)
             header = ["method", "n", "visited cells", "coverage", "path (m)"]
+            # map quality where the runs measured it: strict, and with one cell of tolerance
+            quality = any(r.map_iou is not None for recs in by_method.values() for r in recs)
+            if quality:
+                header += ["map IoU", "map IoU (1 cell)"]
             rows = []
             cells: dict[str, list[float]] = {}
             for m in methods:
@@ -218,6 +223,8 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
                 n = f"{len(recs)}" + (f" +{left_out}*" if left_out else "")
                 rows.append([m, n, _mean_sd(cells[m], 1), _mean([r.coverage for r in recs], 3),
                              _mean([r.path_length_m for r in recs], 1)])
+                if quality:
+                    rows[-1] += [_mean([r.map_iou for r in recs], 3), _mean([r.map_iou_tolerant for r in recs], 3)]
             for a, b in itertools.combinations(methods, 2):
                 rows += _pair_rows(a, b, cells[a], cells[b])
             title = f"{world}, max speed {speed} mm/s: visited cells per run"
@@ -226,6 +233,7 @@ def comparison_tables(records: Iterable[RunRecord | Mapping[str, Any]], *,
                 others = [f"{', '.join(sorted(bm))} ({_cell_label(c)})" for c, bm in by_cell.items() if c != cell]
                 rows.append(["not compared", "", "different cell size: " + "; ".join(others)
                              + " (visited cells of different sizes are not comparable)", "", ""])
+            rows = [row + [""] * (len(header) - len(row)) for row in rows]
             tables.append(Table(title, methods, header, rows))
     return tables
 

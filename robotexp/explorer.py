@@ -332,7 +332,10 @@ class ExplorationRun:
             self.error = exc
             self.reason = f"plugin error: {where}: {method.__name__} raised {type(exc).__name__}: {exc}"
             self.end = EndReason.PLUGIN_ERROR
-            log.error("%s", self.reason, exc_info=True)
+            if log.isEnabledFor(logging.DEBUG):     # robotexp --debug: the traceback as well
+                log.error("%s", self.reason, exc_info=True)
+            else:                                   # the record's reason says it; the caller reports it
+                log.info("%s", self.reason)
             return _FAILED
         if method.__name__ == "step" and not isinstance(result, (Twist, Done)):
             self.reason = (f"plugin error: {where}: step returned {_short(result)}; it must return a "

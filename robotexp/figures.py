@@ -600,20 +600,29 @@ METRICS = (("coverage", "coverage [%]", 100.0), ("path_length_m", "path length [
            ("robot_time_s", "robot time [s]", 1.0), ("visited_cells", "visited cells [cells]", 1.0))
 
 
-def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] = FORMATS) -> list[Path]:
+def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] = FORMATS, *,
+                     include_incomplete: bool = False) -> list[Path]:
     """Box figures of a campaign's records: per world (and cell size), one per metric of `METRICS`,
     one box per method; written as out/box_<metric>_<world>.<format> (the world as `safe_name` makes it a
     file name). Returns the paths.
 
+    The runs are those `robotexp campaign report` and `campaign plot` count: interrupted runs are left
+    out, and runs cut short (time limit, stalled, ...) unless `include_incomplete`.
+
     Raises:
-        ConfigError: no record.
+        ConfigError: no record, or no run left to draw.
     """
-    from robotexp.record import RunRecord
+    from robotexp.record import EndReason, RunRecord
     from robotexp.results import safe_name
 
-    recs = [r if isinstance(r, RunRecord) else RunRecord.from_dict(r) for r in records]
-    if not recs:
+    every = [r if isinstance(r, RunRecord) else RunRecord.from_dict(r) for r in records]
+    if not every:
         raise ConfigError("no run to draw: the results file has no record")
+    finished = [r for r in every if r.end is not EndReason.INTERRUPTED]
+    recs = [r for r in finished if include_incomplete or r.completed]
+    if not recs:
+        raise ConfigError(f"no run to draw: of {len(every)} run(s), {len(every) - len(finished)} were interrupted "
+                          f"and {len(finished)} cut short (--include-incomplete draws the runs cut short)")
     written: list[Path] = []
     by_world: dict[tuple[str, float], list[RunRecord]] = {}
     for r in recs:

@@ -114,12 +114,13 @@ class Observers:
             except Exception as exc:
                 if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
                     raise KeyboardInterrupt from exc
-                # a critical observer's error is raised by the run's caller as one line (a full disk):
-                # its traceback only at debug level; any other observer's is a bug, shown whole
+                # a critical observer's error is raised by the run's caller as one line (a full disk): at
+                # debug level only; any other observer's is logged as one line, its traceback with --debug
                 expected = getattr(observer, "critical", False) and isinstance(exc, (OSError, RobotexpError))
                 log.log(logging.DEBUG if expected else logging.ERROR,
                         "run observer %s raised in %s (detached for the rest of the run): %s: %s",
-                        type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
+                        type(observer).__name__, hook, type(exc).__name__, exc,
+                        exc_info=log.isEnabledFor(logging.DEBUG))
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
                 self._listening.clear()

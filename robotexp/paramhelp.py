@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import inspect
 import re
+import sys
+import textwrap
 from dataclasses import dataclass
 
 __all__ = ["Parameter", "explorer_parameters", "parameters_text"]
@@ -20,8 +22,14 @@ class Parameter:
     doc: str            # its line of the docstring's Args (the unit first, in brackets), or ""
 
 
-def _arg_docs(doc: str) -> dict[str, str]:
-    """name -> description of the "Args:" section of a Google-style docstring (continuation lines joined)."""
+WIDTH = 120        # the help text's width: longer descriptions go on indented lines
+
+
+def _arg_docs(doc: str, refs: dict[str, str] | None = None) -> dict[str, str]:
+    """name -> description of the "Args:" section of a Google-style docstring (continuation lines joined).
+
+    A line naming several parameters that another class describes ("a, b: see `Other`") gives no
+    description; its names go to `refs` (name -> "Other")."""
     out: dict[str, str] = {}
     lines = doc.splitlines()
     try:
@@ -39,7 +47,13 @@ def _arg_docs(doc: str) -> dict[str, str]:
         if width < indent:
             break
         m = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*(\([^)]*\))?:\s*(.*)", line)
-        if width == indent and m:
+        ref = re.match(r"\s*([A-Za-z_][A-Za-z0-9_, ]*):\s*see `?([A-Za-z_][A-Za-z0-9_.]*)`?", line)
+        if width == indent and ref and not m:
+            current = None          # its continuation lines qualify the other class's words: left out
+            for name in ref.group(1).split(","):
+                if refs is not None and name.strip():
+                    refs[name.strip()] = ref.group(2)
+        elif width == indent and m:
             current = m.group(1)
             out[current] = m.group(3).strip()
         elif current is not None:
@@ -58,8 +72,12 @@ def explorer_parameters(method: str) -> list[Parameter]:
 
     cls = load(EXPLORERS, method, Explorer)
     docs: dict[str, str] = {}
+    refs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):          # a subclass's words win
-        docs.update(_arg_docs(inspect.getdoc(klass) or ""))
+        docs.update(_arg_docs(inspect.getdoc(klass) or "", refs))
+    for name, other in refs.items():             # "see `Other`": the words of that class of the plugin
+        if not docs.get(name):
+            docs[name] = _referred(cls, other).get(name, "")
     out: list[Parameter] = []
     seen: set[str] = set()
     for klass in cls.__mro__:                     # **kwargs passed on: the base class's parameters too
@@ -76,11 +94,35 @@ def explorer_parameters(method: str) -> list[Parameter]:
             ann = p.annotation
             kind = "" if ann is inspect.Parameter.empty else ann if isinstance(ann, str) else getattr(ann, "__name__",
                                                                                                       str(ann))
-            default = "required" if p.default is inspect.Parameter.empty else repr(p.default)
-            out.append(Parameter(p.name, kind, default, docs.get(p.name, "").split(" **kwargs")[0]))
+            default = "required" if p.default is inspect.Parameter.empty else _default(p.default)
+            out.append(Parameter(p.name, kind, default, _clean(docs.get(p.name, "").split(" **kwargs")[0])))
         if not more:
             break
     return out
+
+
+def _referred(cls: type, name: str) -> dict[str, str]:
+    """The Args of class `name` (a docstring's "see `name`") as the modules of `cls` and its bases know it."""
+    for klass in cls.__mro__:
+        other = getattr(sys.modules.get(klass.__module__), name.rsplit(".", 1)[-1], None)
+        if isinstance(other, type):
+            docs: dict[str, str] = {}
+            for base in reversed(other.__mro__):
+                docs.update(_arg_docs(inspect.getdoc(base) or ""))
+            return docs
+    return {}
+
+
+def _clean(text: str) -> str:
+    """A description for the help table: no code quotes, no pointers to other parts of a docstring."""
+    text = re.sub(r"[:;,]?\s*\(?see (above|below|`[^`]*`)\)?", "", text)
+    return re.sub(r"\s+", " ", text.replace("`", "")).strip()
+
+
+def _default(value: object) -> str:
+    """A default as the help shows it: a float to 6 significant digits (0.261799, not 0.2617993877991494)."""
+    text = repr(value)
+    return f"{value:.6g}" if isinstance(value, float) and len(text) > 10 else text
 
 
 def parameters_text(method: str) -> str:
@@ -93,5 +135,9 @@ def parameters_text(method: str) -> str:
     w_def = max(len(p.default) for p in params)
     lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets):"]
     for p in params:
-        lines.append(f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  {p.doc}".rstrip())
+        head = f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  "
+        room = max(WIDTH - len(head), 40)
+        wrapped = textwrap.wrap(p.doc, room) or [""]
+        lines.append((head + wrapped[0]).rstrip())
+        lines += [" " * len(head) + more for more in wrapped[1:]]
     return "\n".join(lines)

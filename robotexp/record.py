@@ -2,10 +2,10 @@
 
 A record has exactly the keys of docs/reference/results.md as fields, plus `extra` for what an explorer or a
 caller adds (`targets`, `script`, `address`, ...). `as_dict()` gives the JSON object appended to
-`results.jsonl`, with the same keys and order as ever, and `RunRecord.from_dict` reads any such
-object back, also one written before records were typed (their end reason is read from
-`completed` and the `reason` text, see `EndReason.classify`). A record is also a read-only mapping
-of its JSON keys (`record["coverage"]`), so code written for the dict records keeps working.
+`results.jsonl` (robotexp/schema/results.schema.json describes it), and `RunRecord.from_dict` reads
+any such object back, also one written before records had a `schema_version` or were typed (their
+end reason is read from `completed` and the `reason` text, see `EndReason.classify`). A record is
+also a read-only mapping of its JSON keys (`record["coverage"]`), so code written for the dict records keeps working.
 """
 
 from __future__ import annotations
@@ -13,9 +13,13 @@ from __future__ import annotations
 import enum
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields
+from types import MappingProxyType
 from typing import Any
 
-__all__ = ["EndReason", "RunRecord", "RESULT_KEYS", "COVERAGE_MILESTONES", "milestone_keys"]
+__all__ = ["EndReason", "RunRecord", "RESULT_KEYS", "COVERAGE_MILESTONES", "SCHEMA_VERSION", "milestone_keys",
+           "results_schema"]
+
+SCHEMA_VERSION = 1      # the format of the records written now (robotexp/schema/results.schema.json)
 
 COVERAGE_MILESTONES = (0.90, 0.95, 0.99)
 
@@ -47,6 +51,16 @@ class EndReason(enum.Enum):
         return cls.UNKNOWN
 
 
+def results_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a results.jsonl line of `SCHEMA_VERSION`, as shipped in the
+    package (robotexp/schema/results.schema.json)."""
+    import json
+    from importlib.resources import files
+
+    schema: dict[str, Any] = json.loads(files("robotexp").joinpath("schema/results.schema.json").read_text("utf-8"))
+    return schema
+
+
 def milestone_keys(level: float) -> tuple[str, str]:
     """The record keys of a coverage milestone: (`time_to_coverage_90_s`, `path_to_coverage_90_m`)."""
     key = f"{round(level * 100)}"
@@ -62,13 +76,16 @@ _TAIL = ("pose", "laser_range_m", "robot")
 RESULT_KEYS = _HEAD[:-1]     # the keys every record has, docs/reference/results.md
 
 
-@dataclass(eq=True)
+@dataclass(frozen=True, eq=True)
 class RunRecord(Mapping[str, Any]):
-    """One run's results (SI units; docs/reference/results.md describes each field).
+    """One run's results (SI units; docs/reference/results.md describes each field); immutable (`method_fields`
+    and `extra` are read-only mappings).
 
-    `end` is not a JSON key: it is derived from `completed` and `reason` when a record is read.
-    `pose`, `laser_range_m` and `robot` are None in records written without an output folder
-    before this class existed; they are always set now.
+    Records of `SCHEMA_VERSION` 1 write `schema_version`, `end` (the `EndReason` value) and
+    `map_iou_tolerant` (`map_iou` with one cell of tolerance). A record read from a line written before
+    (no `schema_version`) has `schema_version` None, derives `end` from `completed` and `reason`, and
+    writes back exactly the keys it was read with. `pose`, `laser_range_m` and `robot` are None in
+    records written without an output folder before this class existed; they are always set now.
     """
 
     run: str
@@ -97,19 +114,38 @@ class RunRecord(Mapping[str, Any]):
     pose: str | None = None
     laser_range_m: float | None = None
     robot: str | None = None
-    method_fields: dict[str, Any] = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
+    method_fields: Mapping[str, Any] = field(default_factory=dict)
+    extra: Mapping[str, Any] = field(default_factory=dict)
     end: EndReason = EndReason.UNKNOWN
+    map_iou_tolerant: float | None = None
+    schema_version: int | None = SCHEMA_VERSION
 
     def __post_init__(self) -> None:
         if self.end is EndReason.UNKNOWN:
-            self.end = EndReason.classify(bool(self.completed), str(self.reason))
+            object.__setattr__(self, "end", EndReason.classify(bool(self.completed), str(self.reason)))
+        object.__setattr__(self, "method_fields", MappingProxyType(dict(self.method_fields)))
+        object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
+
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]:
+        """Pickled as its fields (the read-only mappings as dicts), for campaign workers."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["method_fields"], state["extra"] = dict(self.method_fields), dict(self.extra)
+        return _unpickle, (state,)
 
     # -- JSON ----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, Any]:
         """The JSON object of docs/reference/results.md, keys in the order they have always been written:
-        the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`."""
-        out: dict[str, Any] = {key: getattr(self, key) for key in _HEAD}
+        the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`. A
+        record of a schema version also writes `schema_version` (first), `end` (after `reason`) and
+        `map_iou_tolerant` (after `map_iou`); one read from an earlier line has none of them."""
+        versioned = self.schema_version is not None
+        out: dict[str, Any] = {"schema_version": self.schema_version} if versioned else {}
+        for key in _HEAD:
+            out[key] = getattr(self, key)
+            if versioned and key == "reason":
+                out["end"] = self.end.value
+            elif versioned and key == "map_iou":
+                out["map_iou_tolerant"] = self.map_iou_tolerant
         for level in COVERAGE_MILESTONES:
             t_key, p_key = milestone_keys(level)
             out[t_key], out[p_key] = getattr(self, t_key), getattr(self, p_key)
@@ -131,6 +167,12 @@ class RunRecord(Mapping[str, Any]):
             return data
         known = {f.name for f in fields(cls)} - {"method_fields", "extra", "end"}
         kwargs: dict[str, Any] = {key: data.get(key) for key in known}
+        end = EndReason.UNKNOWN
+        if data.get("end") is not None:
+            try:
+                end = EndReason(data["end"])
+            except ValueError:
+                pass            # a reason this version does not know: read from `completed` and `reason`
         for key, default in (("run", ""), ("method", ""), ("world", ""), ("max_speed_m_s", 0.0),
                              ("path_length_m", 0.0), ("robot_time_s", 0.0), ("wall_time_s", 0.0),
                              ("collisions", 0), ("visited_cells", 0), ("seed", 0), ("completed", False),
@@ -143,9 +185,9 @@ class RunRecord(Mapping[str, Any]):
         seen_tail = False
         for key, value in data.items():
             seen_tail = seen_tail or key in _TAIL
-            if key not in known:
+            if key not in known and key != "end":
                 (extra if seen_tail else method_fields)[key] = value
-        return cls(**kwargs, method_fields=method_fields, extra=extra)
+        return cls(**kwargs, method_fields=method_fields, extra=extra, end=end)
 
     # -- read-only mapping of the JSON keys ----------------------------------------------------
     def __getitem__(self, key: str) -> Any:
@@ -159,3 +201,7 @@ class RunRecord(Mapping[str, Any]):
 
     def __contains__(self, key: object) -> bool:
         return key in self.as_dict()
+
+
+def _unpickle(state: dict[str, Any]) -> RunRecord:
+    return RunRecord(**state)

@@ -81,7 +81,7 @@ def take_name(out: Path, base: str) -> str:
 def make_record(run: ExplorationRun) -> RunRecord:
     """The record of a run that ended (SI units; docs/reference/results.md has every key), named by
     `run.info`."""
-    from robotexp.mapping.groundtruth import map_iou
+    from robotexp.mapping.groundtruth import map_iou, map_iou_tolerant
 
     m = run.metrics
     info = run.info
@@ -92,15 +92,14 @@ def make_record(run: ExplorationRun) -> RunRecord:
         t_key, p_key = milestone_keys(level)
         milestones[t_key] = None if hit is None else round(hit[0], 3)
         milestones[p_key] = None if hit is None else round(hit[1], 4)
-    try:
-        method_fields = dict(run.explorer.result_fields())
-    except Exception as exc:        # a plugin's fault: the record is still written, the fault in it
-        method_fields = {}
-        what = f"result_fields raised {type(exc).__name__}: {exc}"
-        log.error("explorer %r: %s", info.method, what, exc_info=True)
-        if run.end is not EndReason.PLUGIN_ERROR:      # an earlier plugin error is the one the record names
-            run.reason, run.end = f"plugin error: explorer {info.method!r}: {what}", EndReason.PLUGIN_ERROR
+    method_fields = _result_fields(run)
     nodes = method_fields.pop("nodes", None)
+    iou: float | None = None
+    iou_tolerant: float | None = None       # within one cell: a face a few millimetres off is not missed
+    if run.truth is not None:
+        states = run.grid.states()
+        iou = round(map_iou(states, run.truth), 5)
+        iou_tolerant = round(map_iou_tolerant(states, run.truth, 1)[0], 5)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
         start_pose=run.start_pose.as_list() if run.start_pose else None,
@@ -110,16 +109,31 @@ def make_record(run: ExplorationRun) -> RunRecord:
         wall_time_s=round(run.wall_time, 3),
         coverage=None if cov is None else round(cov, 5),
         collisions=m.collisions,
-        nodes=nodes,  # type: ignore[arg-type]
+        nodes=nodes,
         visited_cells=len(m.visited),
         seed=run.seed,
         completed=run.completed,
         reason=run.reason,
-        map_iou=None if run.truth is None else round(map_iou(run.grid.states(), run.truth), 5),
+        map_iou=iou,
+        map_iou_tolerant=iou_tolerant,
         cell_m=run.grid.geo.cell,
         **milestones,
         pose=info.pose, laser_range_m=info.laser_range, robot=info.robot,
         method_fields=method_fields, extra=dict(info.extra), end=run.end)
+
+
+def _result_fields(run: ExplorationRun) -> dict[str, Any]:
+    """The explorer's `result_fields()`; none when it raises (an explorer whose `reset` failed has
+    not set up what they count): the run's own plugin error stays what the record says."""
+    try:
+        return dict(run.explorer.result_fields())
+    except Exception as exc:        # a plugin's fault: the record is still written, the fault in it
+        if run.end is not EndReason.PLUGIN_ERROR:      # an earlier plugin error is the one the record names
+            what = f"result_fields raised {type(exc).__name__}: {exc}"
+            log.error("explorer %r: %s (the record has none of its fields)", run.info.method, what,
+                      exc_info=log.isEnabledFor(logging.DEBUG))
+            run.reason, run.end = f"plugin error: explorer {run.info.method!r}: {what}", EndReason.PLUGIN_ERROR
+        return {}
 
 
 class ResultsWriter(RunObserver):

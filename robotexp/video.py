@@ -118,11 +118,17 @@ class PngFrames:
 
 
 def check_video_path(path: Path) -> None:
-    """Raise ConfigError unless `path` is an .mp4 or .gif in an existing folder."""
+    """Raise ConfigError unless `path` is an .mp4 or .gif in an existing folder and the writer it needs
+    is installed (the `video` extra)."""
+    from robotexp.extras import require
+
     if path.suffix.lower() not in VIDEO_SUFFIXES:
         raise ConfigError(f"-o {path}: a video is an .mp4 or a .gif file; name it run.mp4 or run.gif")
     if not path.parent.is_dir():
         raise ConfigError(f"-o {path}: folder {path.parent} does not exist; create it first")
+    require("imageio", f"a video ({path.name})")
+    if path.suffix.lower() == ".mp4":
+        require("imageio_ffmpeg", f"an MP4 video ({path.name})")
 
 
 MIN_FPS, MAX_FPS = 0.1, 120.0   # [frames/s] a video's frame rate (a frame at most every 10 s)

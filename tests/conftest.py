@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 import re
 import signal
 import subprocess
@@ -54,6 +55,48 @@ def _robots_closed() -> Iterator[None]:
     if leaked:
         names = ", ".join(f"{type(r).__name__}({r.name})" for r in leaked)
         pytest.fail(f"the test left {len(leaked)} robot(s) open: {names}; close them (use `with`)")
+
+
+@functools.cache
+def _record_validator() -> Any:
+    import jsonschema
+
+    from robotexp.record import results_schema
+
+    return jsonschema.Draft202012Validator(results_schema())
+
+
+def check_results_files(folder: Path) -> list[str]:
+    """Every record of a results.jsonl under `folder` that carries a `schema_version` checked against
+    robotexp/schema/results.schema.json: the errors, one line each (file:line: path: message)."""
+    errors: list[str] = []
+    for path in folder.rglob("results.jsonl"):
+        try:
+            lines = path.read_text(encoding="utf-8").splitlines()
+        except (OSError, UnicodeDecodeError):
+            continue                # a test's deliberately broken file
+        for i, line in enumerate(lines, start=1):
+            try:
+                record = json.loads(line)
+            except json.JSONDecodeError:
+                continue            # a torn line a test made on purpose
+            if not isinstance(record, dict) or "schema_version" not in record:
+                continue            # hand-written and earlier-format records
+            for error in _record_validator().iter_errors(record):
+                where = "/".join(map(str, error.absolute_path)) or "(record)"
+                errors.append(f"{path}:{i}: {where}: {error.message}")
+    return errors
+
+
+@pytest.fixture(autouse=True)
+def _records_match_their_schema(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Fail a test whose runs wrote, under its tmp_path, a record the published schema refuses."""
+    yield
+    folder = request.node.funcargs.get("tmp_path") if hasattr(request.node, "funcargs") else None
+    if isinstance(folder, Path) and folder.is_dir():
+        errors = check_results_files(folder)
+        if errors:
+            pytest.fail("records that do not match robotexp/schema/results.schema.json:\n" + "\n".join(errors[:10]))
 
 
 class ViewCli:

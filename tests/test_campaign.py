@@ -147,7 +147,8 @@ def test_run_resume_and_report(tmp_path: Path) -> None:
     assert [t.title for t in tables] == ["ufmg-static, max speed 300 mm/s", "ufmg-static, max speed 200 mm/s"]
     t = tables[0]
     assert t.header == ["pose", "frontier path (m)", "frontier time (mm:ss)"]
-    assert [r[0] for r in t.rows] == ["path1", "path2", "mean", "std dev", "range", "mean speed"]
+    assert [r[0] for r in t.rows] == ["path1", "path2", "mean", "std dev", "range", "mean speed", "mean map IoU",
+                                      "mean map IoU (1 cell)"]
 
 
 def test_report_statistics_by_hand() -> None:

@@ -82,17 +82,3 @@ def test_progress_without_terminal_a_line_a_minute_with_estimate_and_stall(capsy
                       "wall    60 s  <= 140 s left (time limit)")
     assert "no gain" not in err[0]                # gained up to t = 250 s
     assert "no gain for 350 s" in err[1]          # t = 600 s, last gain at 250 s
-
-
-def test_first_run_says_numba_compiles(tmp_path: object) -> None:
-    from pathlib import Path
-
-    empty = Path(str(tmp_path)) / "numba-cache"
-    empty.mkdir()
-    args = ["explore", "--out", "/proc/robotexp-no"]     # a bad --out stops the command right after the notice
-    first = CliRunner().invoke(main, args, env={"NUMBA_CACHE_DIR": str(empty)})
-    assert "numba compiles the map and planning kernels" in first.output
-    (empty / "sub").mkdir()
-    (empty / "sub" / "kernels.x-1.py311.nbi").write_bytes(b"")
-    later = CliRunner().invoke(main, args, env={"NUMBA_CACHE_DIR": str(empty)})
-    assert "numba compiles" not in later.output

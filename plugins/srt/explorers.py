@@ -397,6 +397,8 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
         tolerance: [m] a frontier vertex this close to another node's region counts as explored
             (polygon chords and grazing beams leave slivers that would otherwise never close).
         node_gap: [m] no candidate this close to an existing node (every move opens new ground).
+        frontier: when no frontier vertex maps to a candidate, look at the map's frontier before going
+            back to the parent (False: the thesis's tree alone).
         d_min: [m] shortest move (the thesis needs none: 0; at least `step` is used).
         step: [m] sampling step of the shrunk region along each direction.
         sweep_rate, bins, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`.
@@ -536,20 +538,20 @@ class SRTStarExplorer(_FrontierRescue):
     VALIDATE alone.
 
     Args:
-        alpha, i_max, margin, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`
-            (each cone's radius is its reading less `margin`).
-        d_min: [m] shortest move (None: 2 r_robot, see above).
+        alpha, i_max, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`.
+        margin: [m] each cone's radius is its reading less this.
+        d_min: [m] shortest move (None: twice the robot radius).
         ring_radius: [m] added to the readings of the single reading (`sweep=False`; 0: conservative).
         cone: [rad] opening of one transducer's cone (the P3-DX's: 15 deg).
-        sweep: turn at each node to close the blind gaps (see above).
+        sweep: turn at each node to close the blind gaps between the transducers' cones.
         sweep_rate: [rad/s] turn rate while perceiving.
         extra_turn: [rad] turned beyond the largest gap between adjacent axes.
         bins: world-angle cones of a swept region.
-        frontier: look at the map's frontier before backtracking (see above).
+        frontier: look at the map's frontier before going back to the parent (False: VALIDATE alone).
         view: [m] farthest a frontier cell may be from the rescue candidate (and from the star).
         node_gap: [m] no rescue candidate this close to an existing node.
         tries: nearest points of the star tried per frontier cell for the line of sight.
-        wall_faces: leave out frontier cells at the end of a wall cone (see above).
+        wall_faces: leave out frontier cells at the end of a wall cone (no openings: the inside of a wall).
     """
 
     name = "srt-star"

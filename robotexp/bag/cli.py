@@ -99,10 +99,11 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder (default: beside SOURCE).")
 @click.option("--format", "formats", default="png,svg,pdf", show_default=True, help="Comma-separated: png, svg, pdf.")
-def figure(source: Path, out: Path | None, formats: str) -> None:
+@click.option("--include-incomplete", is_flag=True, help="Count runs cut short in the box plots.")
+def figure(source: Path, out: Path | None, formats: str, include_incomplete: bool) -> None:
     """Figures for a thesis (matplotlib; PNG, SVG, PDF): a recording (.mcap) gives its map with a legend,
     scale bar and axes in metres; a results.jsonl gives box plots of coverage, path length and robot
-    time per world and method."""
+    time per world and method, over the completed runs (as campaign report and plot count them)."""
     from robotexp.cli import writable_folder
     from robotexp.figures import FORMATS, campaign_figures, displayable, run_map_figure, save_figure
 
@@ -123,7 +124,7 @@ def figure(source: Path, out: Path | None, formats: str) -> None:
     elif source.suffix.lower() == ".jsonl":
         from robotexp.results import read_records
 
-        written = campaign_figures(read_records(source), folder, fmts)
+        written = campaign_figures(read_records(source), folder, fmts, include_incomplete=include_incomplete)
     else:
         raise ConfigError(f"{source}: give a recording (.mcap) or a results file (.jsonl)")
     for path in written:

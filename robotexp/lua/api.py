@@ -496,7 +496,20 @@ class Session:
         self.spec.laser_range = _positive("robot.setMaxLaserRange", "range_mm", mm, "mm") / 1000.0
 
     def lua_robot__setLaserNoise(self, *args: Any) -> None:
-        """Simulated laser noise: uniform +-`uniform_mm` and, optionally, gaussian `sigma_mm` [mm] (>= 0)."""
+        """robot.setLaserNoise(uniform_mm[, sigma_mm]): noise on the embedded simulator's laser for the
+        following runs.
+
+        Every range that hits something gets an error drawn uniformly in +-`uniform_mm` [mm] plus, when
+        `sigma_mm` [mm] is given, a gaussian one with that standard deviation (default 0: none); the
+        UFMG study's laser is `robot.setLaserNoise(100)`. Both >= 0; `robot.setLaserNoise(0)` turns the
+        noise off. The draws follow `exploration.setSeed`. A real laser (robot.setAddress, robot.setLaser)
+        reads as it reads: the setting is for the simulator. The same as `robotexp explore --noise-uniform
+        MM --noise-sigma MM` and the campaign keys `laser_uniform_mm`, `laser_sigma_mm`.
+
+        Raises:
+            ScriptError: not one or two numbers, or a negative or non-finite one
+                (`script.lua:LINE: robot.setLaserNoise(-5): expected noise >= 0 mm`).
+        """
         usage = "uniform_mm[, sigma_mm]"
         values = _args("robot.setLaserNoise", usage, args, "nn" if len(args) == 2 else "n")
         from robotexp.experiment import MAX_LASER_NOISE

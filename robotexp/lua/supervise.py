@@ -11,7 +11,7 @@ in-process) and watches it:
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
-- the child's output is relayed line by line to the parent's stdout and stderr.
+- the child's output is relayed as it comes (a redrawn progress line too) to the parent's stdout and stderr.
 """
 
 from __future__ import annotations
@@ -45,8 +45,9 @@ def _records(path: Path) -> int:
 
 
 def _relay(stream: IO[bytes], err: bool) -> None:
-    for line in iter(stream.readline, b""):
-        click.echo(line, nl=False, err=err)
+    # what the child wrote as it comes, not by lines: a progress line is redrawn with carriage returns
+    for chunk in iter(lambda: stream.read1(65536), b""):     # type: ignore[attr-defined]
+        click.echo(chunk, nl=False, err=err)
     stream.close()
 
 

@@ -423,7 +423,8 @@ def expand_generated(spec: str) -> list[str]:
 
 def write_generated(path: str | os.PathLike[str], kind: str, seed: int, size: tuple[float, float] | None = None,
                     *, scanned: bool = False) -> list[Path]:
-    """Write the generated world as a ROS map (`.yaml` + `.pgm` beside it) or an ARIA `.map`.
+    """Write the generated world as a ROS map (`.yaml` + `.pgm` beside it) or an ARIA `.map`, making the
+    folders of `path` that do not exist yet.
 
     Returns:
         The files written.
@@ -440,6 +441,11 @@ def write_generated(path: str | os.PathLike[str], kind: str, seed: int, size: tu
         raise ConfigError(f"{out}: unknown map format {suffix or '(none)'!r}, expected FILE.yaml (ROS map_server) "
                           "or FILE.map (ARIA)")
     values, geo = generate_grid(kind, seed, size, scanned=scanned)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)     # the folders the path names, as explore --out makes
+    except OSError as exc:
+        raise WorldError(f"{out}: cannot make its folder {out.parent} ({exc.strerror or exc}); give a path in "
+                         "a folder you can create and write") from exc
     if suffix != ".map":
         save_ros_map(out, values, geo)
         return [out, out.with_name(out.stem + ".pgm")]
