@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from robotexp.errors import interrupt_behind
+from robotexp.errors import RobotexpError, interrupt_behind
 from robotexp.robot import RobotState, Twist
 
 if TYPE_CHECKING:
@@ -114,8 +114,10 @@ class Observers:
             except Exception as exc:
                 if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
                     raise KeyboardInterrupt from exc
+                # robotexp's own errors say what happened in their line; anything else is a bug: its traceback
                 log.error("run observer %s raised in %s (detached for the rest of the run): %s: %s",
-                          type(observer).__name__, hook, type(exc).__name__, exc, exc_info=True)
+                          type(observer).__name__, hook, type(exc).__name__, exc,
+                          exc_info=not isinstance(exc, RobotexpError))
                 self.errors.append((observer, exc))
                 self.active.remove(observer)
                 self._listening.clear()

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robotexp.errors import ConfigError
 from robotexp.observers import RunObserver
 from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunRecord, milestone_keys
 
@@ -98,7 +99,14 @@ class ResultsWriter(RunObserver):
 
         out, name = self.out, record.run
         out.mkdir(parents=True, exist_ok=True)
-        append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
+        try:
+            append_jsonl(out / "results.jsonl", record)      # first: the record is never lost
+        except IsADirectoryError:
+            # something made results.jsonl a folder during the run: the record goes beside it
+            rescue = out / f"{name}.record.json"
+            append_jsonl(rescue, record)
+            raise ConfigError(f"{out / 'results.jsonl'} is a folder, not a results file: this run's record was "
+                              f"written to {rescue} instead; move the folder away") from None
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
         est = np.asarray(run.metrics.estimated, np.float64).reshape(-1, 2)

@@ -11,18 +11,22 @@ in-process) and watches it:
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
-- the child's output is relayed line by line to the parent's stdout and stderr.
+- the child's output is relayed to the parent's stdout and stderr in chunks of at most `CHUNK`
+  bytes as it comes (a script writing gigabytes without a newline costs the parent no memory); when
+  the parent cannot write it (a full disk, a closed pipe) the rest is drained and dropped, and the
+  exit status is 1 with one line on stderr, never 0.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import IO
+from typing import IO, BinaryIO
 
 import click
 
@@ -33,6 +37,7 @@ __all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE"]
 TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it writes the run it stopped)
 INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
 _POLL = 0.05            # [s]
+CHUNK = 65536           # [bytes] the most of the child's output the parent holds at once
 
 
 def _records(path: Path) -> int:
@@ -44,10 +49,32 @@ def _records(path: Path) -> int:
         return 0
 
 
-def _relay(stream: IO[bytes], err: bool) -> None:
-    for line in iter(stream.readline, b""):
-        click.echo(line, nl=False, err=err)
-    stream.close()
+def _relay(stream: IO[bytes], target: BinaryIO, failures: list[OSError | ValueError]) -> None:
+    """Copy `stream` to `target` in chunks of at most CHUNK bytes until its end; after a failed write
+    (kept in `failures`) drain the rest so the child never blocks on a full pipe."""
+    fd = stream.fileno()
+    try:
+        while True:
+            data = os.read(fd, CHUNK)
+            if not data:
+                break
+            if failures:
+                continue
+            try:
+                target.write(data)
+                target.flush()
+            except (OSError, ValueError) as exc:       # ValueError: the target was closed
+                failures.append(exc)
+    finally:
+        stream.close()
+
+
+def _tell(text: str) -> None:
+    """One line on stderr, whatever state stdout is in."""
+    try:
+        click.echo(text, err=True)
+    except (OSError, ValueError):
+        pass
 
 
 def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
@@ -68,11 +95,12 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     results = out / "results.jsonl"
     before = _records(results)
     start = time.monotonic()
-    cmd = [sys.executable, "-m", "robotexp.lua.child", *args]
+    cmd = [sys.executable, "-m", "robotexp.lua.child", *args, f"--started={start!r}"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=die_with_parent)
-    relays = [threading.Thread(target=_relay, args=(s, e), daemon=True)
-              for s, e in ((proc.stdout, False), (proc.stderr, True))]
+    failures: list[OSError | ValueError] = []
+    relays = [threading.Thread(target=_relay, args=(s, click.get_binary_stream(t), failures), daemon=True)
+              for s, t in ((proc.stdout, "stdout"), (proc.stderr, "stderr"))]
     for t in relays:
         t.start()
     kill_at = None if timeout is None else start + timeout + timeout_grace
@@ -103,6 +131,11 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         for t in relays:
             t.join(timeout=2.0)
     made = max(_records(results) - before, 0)
+    if failures:
+        exc = failures[0]
+        why_not = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        _tell(f"robotexp: error: {script}: the script's output could not be written ({why_not}); the rest of it "
+              f"was dropped; the {made} run(s) finished are in {results}")
     if why == "timeout":
         click.echo(f"robotexp: error: {script}: stopped by --timeout after {timeout:g} s (it did not stop by "
                    f"itself within {timeout_grace:g} s: killed); the {made} run(s) finished so far are in "
@@ -117,6 +150,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         # over (`run --view` keeps its page up until Ctrl-C)
         return proc.returncode if why is None and proc.returncode >= 0 else 130
     code = proc.returncode
+    if failures and code == 0:
+        return 1
     if code < 0:
         name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
         click.echo(f"robotexp: error: {script}: the script's process was killed by {name} (out of memory? "
