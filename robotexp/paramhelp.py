@@ -1,5 +1,6 @@
 """`robotexp explore -m METHOD -p help`: an explorer's parameters with their types, defaults and units,
-read from the plugin's signature and the "Args:" section of its class docstring (units in brackets)."""
+read from the plugin's signature, its declared ranges (`Explorer.parameter_bounds`) and the "Args:"
+section of its class docstring (units in brackets)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ class Parameter:
     kind: str           # its annotation as written ("float", "int | None", ...)
     default: str        # repr of the default, or "required"
     doc: str            # its line of the docstring's Args (the unit first, in brackets), or ""
+    range: str = ""     # its declared range ("1..100000", ">= 0"; `Explorer.parameter_bounds`), or ""
 
 
 def _arg_docs(doc: str) -> dict[str, str]:
@@ -54,9 +56,10 @@ def explorer_parameters(method: str) -> list[Parameter]:
         PluginError: unknown method.
     """
     from robotexp.explorer import Explorer
-    from robotexp.registry import EXPLORERS, load
+    from robotexp.registry import EXPLORERS, bounds_text, load, parameter_bounds
 
     cls = load(EXPLORERS, method, Explorer)
+    bounds = parameter_bounds(cls)
     docs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):          # a subclass's words win
         docs.update(_arg_docs(inspect.getdoc(klass) or ""))
@@ -77,7 +80,8 @@ def explorer_parameters(method: str) -> list[Parameter]:
             kind = "" if ann is inspect.Parameter.empty else ann if isinstance(ann, str) else getattr(ann, "__name__",
                                                                                                       str(ann))
             default = "required" if p.default is inspect.Parameter.empty else repr(p.default)
-            out.append(Parameter(p.name, kind, default, docs.get(p.name, "").split(" **kwargs")[0]))
+            out.append(Parameter(p.name, kind, default, docs.get(p.name, "").split(" **kwargs")[0],
+                                 bounds_text(bounds[p.name]) if p.name in bounds else ""))
         if not more:
             break
     return out
@@ -91,7 +95,9 @@ def parameters_text(method: str) -> str:
     w_name = max(len(p.name) for p in params)
     w_kind = max(len(p.kind) for p in params)
     w_def = max(len(p.default) for p in params)
-    lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets):"]
+    w_range = max(len(p.range) for p in params)
+    lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets; range: the values allowed):"]
     for p in params:
-        lines.append(f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  {p.doc}".rstrip())
+        shown = f"range {p.range:{w_range}}" if p.range else " " * (w_range + 6) if w_range else ""
+        lines.append(f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  {shown}  {p.doc}".rstrip())
     return "\n".join(lines)
