@@ -152,8 +152,7 @@ class SRTExplorer(Explorer):
     """
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
-        "max_nodes": (1, 100_000), "stuck_timeout": (None, 86400.0), "failed_radius": (0.0, 10.0),
-        "settle_tolerance": (None, 0.15), "detour_after": (None, 3600.0)}
+        "max_nodes": (1, 100_000), "stuck_timeout": (None, 86400.0), "failed_radius": (0.0, 10.0)}
 
     def __init__(self, *, max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3,
                  settle_tolerance: float = 0.03, detour_after: float = 3.0) -> None:
