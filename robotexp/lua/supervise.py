@@ -99,8 +99,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=die_with_parent)
     failures: list[OSError | ValueError] = []
-    relays = [threading.Thread(target=_relay, args=(s, click.get_binary_stream(t), failures), daemon=True)
-              for s, t in ((proc.stdout, "stdout"), (proc.stderr, "stderr"))]
+    relays = [threading.Thread(target=_relay, args=(s, t, failures), daemon=True)
+              for s, t in ((proc.stdout, click.get_binary_stream("stdout")),
+                           (proc.stderr, click.get_binary_stream("stderr")))]
     for t in relays:
         t.start()
     kill_at = None if timeout is None else start + timeout + timeout_grace
