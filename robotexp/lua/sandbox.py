@@ -3,7 +3,10 @@
 Every path a script gives (io.open, io.lines, dofile, os.remove, mapView.saveMapImage, ...) is
 relative to the output folder, as if the script ran there. With `--sandbox` a path must also
 resolve (symbolic links followed) inside that folder, and os.execute, io.popen, os.tmpname,
-package.loadlib, C-module searchers, binary chunks and most of `debug` are refused.
+package.loadlib, C-module searchers, binary chunks and most of `debug` are refused. Whatever the
+options, robotexp's records (results.jsonl, its `.torn` file, the folder lock) are not the script's
+to write, remove or rename (`PathPolicy`), and with a write limit (`--max-write`, on by default
+with `--sandbox`) every byte the script writes to a file is counted (`WriteQuota`).
 
 A robot address a script gives (robot.setAddress) goes through `AddressPolicy`: with `--sandbox`
 only "" / "sim" or an address the user named on the command line (`--allow-address`, a host:port
@@ -14,8 +17,11 @@ The prelude also installs the interrupt hook: every `HOOK_EVERY` Lua instruction
 whether the script must stop (Ctrl-C, --timeout, os.exit), and `pcall`, `xpcall` and
 `coroutine.resume` re-raise that stop so a script cannot swallow it. The debug functions that
 reach into other functions (getupvalue, setupvalue, upvaluejoin, getlocal, setlocal,
-getregistry) refuse robotexp's own functions, so the raw sethook and the hook's state stay out of
-reach even without `--sandbox`. What the hook cannot see (a finalizer, a long pattern match, a
+getregistry) refuse robotexp's own functions (those made while the script runs, such as the one
+`coroutine.wrap` returns, too), so the raw sethook and the hook's state stay out of reach even
+without `--sandbox`; the metatables shared by every Python object (lupa's) and by every file read
+as locked and cannot be replaced, and `print` hands Python text only (bytes that are not UTF-8
+become U+FFFD), so no Python object reaches the script. What the hook cannot see (a finalizer, a long pattern match, a
 message handler that loops) is stopped from outside: `robotexp run` runs the script in a child
 process and kills it at the deadline (`robotexp.lua.supervise`).
 """

@@ -6,7 +6,9 @@ message handler that loops, or the finalizers Lua runs when its state is closed.
 therefore runs the script in a child process (`python -m robotexp.lua.child`, the same command
 in-process) and watches it:
 
-- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress;
+- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress; its
+  --timeout counts from the parent's start (`--started`), so a child slow to start still stops
+  before the parent's kill;
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
