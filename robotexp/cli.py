@@ -558,6 +558,17 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
         click.echo(f"written: {path}")
 
 
+def _say_ready(fd: int) -> None:
+    """Tell the supervisor the script starts (its --timeout runs from now); once."""
+    import os
+
+    try:
+        os.write(fd, b"r")
+        os.close(fd)
+    except OSError:
+        pass
+
+
 @main.command("run")
 @click.argument("script", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--world", "-w", default=None,
@@ -576,8 +587,8 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               help="Limit of the script's Lua memory [MB] (default: none; 512 with --sandbox).")
 @click.option("--timeout", type=float, default=None, help="Stop the script after this many seconds (exit 1).")
 @click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
-@click.option("--started", type=float, default=None, hidden=True,
-              help="The supervisor's time.monotonic() at its start: --timeout counts from it.")
+@click.option("--ready-fd", type=int, default=None, hidden=True,
+              help="A pipe to write one byte to when the script starts (robotexp.lua.supervise's child).")
 @click.option("--max-write", type=float, default=None,
               help="Limit of what the script writes to files [MB] (default: none; 512 with --sandbox).")
 @click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
@@ -586,7 +597,7 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @handle_errors
 def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
             max_memory: float | None, timeout: float | None, child: bool, record: Path | None, view: bool,
-            view_port: int, view_host: str, view_speed: str | None, started: float | None = None,
+            view_port: int, view_host: str, view_speed: str | None, ready_fd: int | None = None,
             max_write: float | None = None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
 
@@ -637,7 +648,8 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                             max_memory=None if memory is None else int(memory * 2**20),
                             allow_addresses=allow_address, retire=True,
                             observers=() if live is None else (live.observer,), record=record,
-                            max_write=None if written is None else int(written * 2**20), started=started)
+                            max_write=None if written is None else int(written * 2**20),
+                            on_start=None if ready_fd is None else lambda: _say_ready(ready_fd))
     except BaseException:
         end_view(live, interrupted=True)
         raise

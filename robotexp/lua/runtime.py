@@ -124,7 +124,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
                retire: bool = False, observers: Sequence[RunObserver] = (),
                record: Path | None = None, max_write: int | None = None,
-               started: float | None = None) -> ScriptResult:
+               on_start: Callable[[], None] | None = None) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -151,8 +151,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             `exploration.setRecordFolder` does; the script may change it).
         max_write: [bytes] what the script may write to files in all (`robotexp.lua.sandbox.WriteQuota`;
             None: no limit; --sandbox gives `SANDBOX_MAX_WRITE_MB` by default at the command line).
-        started: [s] the `time.monotonic()` the timeout counts from (default: now); the supervisor
-            passes its own start, so the script stops itself before the supervisor's kill.
+        on_start: called once the timeout's clock starts (the supervisor's kill counts from then).
 
     Returns:
         The exit status and the records of the script's runs.
@@ -177,8 +176,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
     addresses = AddressPolicy(sandbox, allow_addresses)
     control = Control(timeout, time.monotonic)
-    if started is not None and timeout is not None:
-        control.deadline = started + timeout
+    if on_start is not None:
+        on_start()
     if max_write is not None and max_write < 0:
         raise ConfigError(f"--max-write must be >= 0 MB, got {max_write / 2**20:g} MB")
     paths = PathPolicy(out, sandbox, max_write)
@@ -215,7 +214,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                           for t, funcs in session.functions().items()})
     script_dir = str(path.resolve().parent) if path.parent != Path("") else ""
     prelude = lua.compile(PRELUDE, name="=robotexp prelude", mode="t")
-    try:        # the deadline may pass already here (a slow start under the supervisor)
+    try:        # a short --timeout may pass already here
         prelude(control.check, paths.resolve, paths.refuse, emit, exit_request, api,
                 lua.table_from(session.methods()), sandbox, HOOK_EVERY, ABORT, script_dir, str(out),
                 paths.quota.grant, max_write is not None)

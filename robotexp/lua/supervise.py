@@ -6,9 +6,10 @@ message handler that loops, or the finalizers Lua runs when its state is closed.
 therefore runs the script in a child process (`python -m robotexp.lua.child`, the same command
 in-process) and watches it:
 
-- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress; its
-  --timeout counts from the parent's start (`--started`), so a child slow to start still stops
-  before the parent's kill;
+- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress; the
+  parent's clock for the kill starts when the child says its script started (a byte on the pipe
+  `--ready-fd`), so a child slow to start (imports on a loaded machine) is not killed before its
+  own deadline; a child that never says so is killed `STARTUP_GRACE` s later than the timeout;
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
@@ -40,6 +41,7 @@ TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it wri
 INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
 _POLL = 0.05            # [s]
 CHUNK = 65536           # [bytes] the most of the child's output the parent holds at once
+STARTUP_GRACE = 60.0    # [s] for the child to start its script, on top of the timeout (it normally says so)
 
 
 def _records(path: Path) -> int:
@@ -71,6 +73,14 @@ def _relay(stream: IO[bytes], target: BinaryIO, failures: list[OSError | ValueEr
         stream.close()
 
 
+def _said(fd: int) -> bool:
+    """True once the child wrote to the (non-blocking) pipe `fd`."""
+    try:
+        return bool(os.read(fd, 1))
+    except BlockingIOError:
+        return False
+
+
 def _tell(text: str) -> None:
     """One line on stderr, whatever state stdout is in."""
     try:
@@ -97,16 +107,22 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     results = out / "results.jsonl"
     before = _records(results)
     start = time.monotonic()
-    cmd = [sys.executable, "-m", "robotexp.lua.child", *args, f"--started={start!r}"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            preexec_fn=die_with_parent)
+    ready, ready_w = os.pipe()          # the child writes a byte there when its script starts
+    os.set_blocking(ready, False)
+    cmd = [sys.executable, "-m", "robotexp.lua.child", *args, f"--ready-fd={ready_w}"]
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                preexec_fn=die_with_parent, pass_fds=(ready_w,))
+    finally:
+        os.close(ready_w)
     failures: list[OSError | ValueError] = []
     relays = [threading.Thread(target=_relay, args=(s, t, failures), daemon=True)
               for s, t in ((proc.stdout, click.get_binary_stream("stdout")),
                            (proc.stderr, click.get_binary_stream("stderr")))]
     for t in relays:
         t.start()
-    kill_at = None if timeout is None else start + timeout + timeout_grace
+    kill_at = None if timeout is None else start + timeout + timeout_grace + STARTUP_GRACE
+    started = False                 # the child said its script started: its timeout runs from then
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
     interrupted = False
     try:
@@ -114,6 +130,11 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             try:
                 while proc.poll() is None:
                     now = time.monotonic()
+                    if not started and _said(ready):
+                        started = True
+                        if timeout is not None:
+                            at = now + timeout + timeout_grace
+                            kill_at = at if kill_at is None else min(kill_at, at)
                     if kill_at is not None and now >= kill_at:
                         why = "interrupted" if interrupted else "timeout"
                         proc.kill()
@@ -131,6 +152,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        os.close(ready)
         for t in relays:
             t.join(timeout=2.0)
     made = max(_records(results) - before, 0)
