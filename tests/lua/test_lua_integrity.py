@@ -3,7 +3,10 @@ Python objects and files share, robotexp's records, and the disk (the write limi
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 import time
 
 import pytest
@@ -45,6 +48,24 @@ def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
     assert code == 1 and time.monotonic() - t0 < 2 + 1.5, output
     assert "stopped by --timeout after 2 s; the 0 run(s) finished so far" in output
     assert "killed" not in output
+
+
+def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
+    # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
+    # kill still counts from the script's start, so the child stops its run at --timeout and writes it
+    slow = tmp_path / "slow"
+    slow.mkdir()
+    (slow / "sitecustomize.py").write_text("import time\ntime.sleep(1.5)\n")
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(3600000); exploration.start()\n'
+                      'exploration.wait(); print("not reached")')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(slow), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
+                           "--timeout", "2"], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.returncode == 1 and "not reached" not in proc.stdout and "killed" not in proc.stderr, proc.stderr
+    assert "stopped by --timeout after 2 s; the 1 run(s) finished so far" in proc.stderr
+    (record,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert record["completed"] is False and "--timeout of 2 s" in record["reason"]
 
 
 def test_print_of_bytes_that_are_not_utf8(lua):
