@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from robotexp.cli import main
+from robotexp.errors import ScriptError
 
 WRAP_ATTACK = """
 local w = coroutine.wrap(function() end)
@@ -165,3 +166,15 @@ def test_max_write_on_the_command_line(tmp_path):
     assert code == 0 and "not reached" in output
     code, output = _cli("run", str(script), "--out", str(out), "--max-write", "-1")
     assert code == 2 and output == "robotexp: error: --max-write must be 0..1073741824 MB, got -1\n"
+
+
+def test_a_results_file_made_a_folder_during_the_run_keeps_the_record(lua):
+    # without --sandbox a script can still start programs: the record goes beside the folder
+    code = ('os.execute("mkdir -p \'" .. exploration.outputFolder() .. "/results.jsonl\'")\n'
+            'exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); exploration.wait()')
+    with pytest.raises(ScriptError, match=r"results.jsonl is a folder, not a results file: this run's record was "
+                                          r"written to .*\.record\.json instead"):
+        lua(code)
+    (rescued,) = lua.out.glob("*.record.json")
+    (record,) = [json.loads(x) for x in rescued.read_text().splitlines()]
+    assert record["run"] == rescued.name.removesuffix(".record.json") and record["robot_time_s"] > 0
