@@ -8,6 +8,7 @@ speed laws of eqs. 3.3-3.5. Done when no reachable free cell touches an unknown 
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -133,6 +134,11 @@ class BVPExplorer(Explorer):
         epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
         flush_sweeps: after a stall, sweeps per cell of the window's rows + columns (>= 0; 0: none).
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "sweeps": (1, 10_000), "update_period": (None, 3600.0), "r_max": (None, 10.0), "eta": (None, 1.0),
+        "k_turn": (None, 100.0), "inflate": (0.0, 10.0), "clearance": (0.0, 10.0), "epsilon": (-1.0, 1.0),
+        "direction": (-math.tau, math.tau), "epsilon_grad": (-1.0, 1.0), "flush_sweeps": (0, 1000)}
 
     grid_model = "himm"
     preferred_cell = 0.1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +59,10 @@ class FrontierExplorer(Explorer):
             cell ever firmly occupied (hit twice more than crossed: `WallMemory`), and no such cell
             as 8-neighbour (0: neither test, nor the memory of walls).
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "min_group_cells": (1, 1_000_000), "replan_period": (None, 3600.0), "goal_timeout": (None, 86400.0),
+        "clearance": (0.0, 10.0), "face_reach": (0.0, 10.0)}
 
     def __init__(self, *, min_group_cells: int | None = None, replan_period: float = 2.0,
                  goal_timeout: float = 20.0, clearance: float = 0.3, return_home: bool = False,

@@ -87,6 +87,10 @@ class MetaheuristicExplorer(Explorer):
             flat, and sometimes ended on a weak frontier across the map: see `FireflyExplorer`.
     """
 
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "min_frontier": (1, 1_000_000), "min_opening": (0, 1_000_000), "replan_period": (None, 3600.0),
+        "goal_timeout": (None, 86400.0), "clearance": (0.0, 10.0)}
+
     preferred_cell: ClassVar[float | None] = SANTOS_CELL
     name: ClassVar[str] = "meta"
 
@@ -356,6 +360,9 @@ class GAExplorer(MetaheuristicExplorer):
         **kwargs: those of `MetaheuristicExplorer`.
     """
 
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "population": (2, 100_000), "generations": (1, 10_000)}
+
     name: ClassVar[str] = "meta-ga"
 
     def __init__(self, *, population: int = 1024, generations: int = 60, **kwargs: object) -> None:
@@ -387,6 +394,10 @@ class FireflyExplorer(MetaheuristicExplorer):
         iterations: sweeps over all pairs of fireflies.
         **kwargs: those of `MetaheuristicExplorer`.
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        # a sweep draws a random vector per pair: iterations x population^2 x 16 bytes (320 MB at the bounds)
+        "population": (2, 200), "iterations": (1, 500)}
 
     name: ClassVar[str] = "meta-firefly"
 

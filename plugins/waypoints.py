@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -122,6 +123,11 @@ class WaypointsExplorer(Explorer):
         memory: [s] how long laser returns keep repelling after they were seen: what the laser saw
             before the robot turned still pushes (the Kobuki's laser is blind behind it).
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "k_att": (None, 1000.0), "k_rep": (None, 1000.0), "influence": (None, 10.0), "tolerance": (None, 10.0),
+        "k_turn": (None, 100.0), "stuck_time": (None, 86400.0), "progress": (None, 100.0), "lookahead": (None, 100.0),
+        "goal_timeout": (None, 86400.0), "memory": (None, 3600.0)}
 
     preferred_cell = 0.05       # [m] the UFMG study's choice (0.01 too slow, 0.1 too coarse)
 

@@ -174,7 +174,8 @@ def writable_folder(out: Path, option: str = "--out") -> None:
     """Check, before any run starts, that the output folder `out` can be made and written.
 
     Raises:
-        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system).
+        ConfigError: it cannot (under a file, in /proc, no permission, a read-only file system), or
+            (--out) its results.jsonl is a folder or another file that cannot take records.
     """
     import tempfile
 
@@ -200,6 +201,9 @@ def writable_folder(out: Path, option: str = "--out") -> None:
                 d.rmdir()
             except OSError:
                 break
+    if option == "--out":
+        from robotexp.safefile import check_results_file
+        check_results_file(out / "results.jsonl")
 
 
 def _params(items: tuple[str, ...]) -> dict[str, Any]:
@@ -590,6 +594,17 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
         click.echo(f"written: {path}")
 
 
+def _say_ready(fd: int) -> None:
+    """Tell the supervisor the script starts (its --timeout runs from now); once."""
+    import os
+
+    try:
+        os.write(fd, b"r")
+        os.close(fd)
+    except OSError:
+        pass
+
+
 @main.command("run")
 @click.argument("script", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--world", "-w", default=None,
@@ -599,7 +614,8 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
               show_default=True, help="Output folder; the script's relative paths are relative to it.")
 @click.option("--sandbox", is_flag=True,
               help="Refuse os.execute, io.popen, C modules, files outside the output folder and robot addresses "
-                   "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB).")
+                   "not given with --allow-address; limit the script's memory (--max-memory, default 512 MB) "
+                   "and what it writes to files (--max-write, default 512 MB).")
 @click.option("--allow-address", multiple=True,
               help="With --sandbox: a robot or laser address (host[:port] or device path) the script may open "
                    "(repeatable).")
@@ -609,18 +625,23 @@ def campaign_plot(results: Path, out: Path | None, include_incomplete: bool) -> 
 @click.option("--child", is_flag=True, hidden=True, help="Run in this process (robotexp.lua.supervise's child).")
 @click.option("--tty-progress", is_flag=True, hidden=True,
               help="Redraw the progress line (the child's stderr is a pipe to a terminal).")
+@click.option("--ready-fd", type=int, default=None, hidden=True,
+              help="A pipe to write one byte to when the script starts (robotexp.lua.supervise's child).")
+@click.option("--max-write", type=float, default=None,
+              help="Limit of what the script writes to files [MB] (default: none; 512 with --sandbox).")
 @click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Record each run of the script as a ROS 2 bag, DIR/<run>.mcap.")
 @view_options
 @handle_errors
 def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: bool, allow_address: tuple[str, ...],
             max_memory: float | None, timeout: float | None, child: bool, tty_progress: bool, record: Path | None,
-            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
+            view: bool, view_port: int, view_host: str, view_speed: str | None, ready_fd: int | None = None,
+            max_write: float | None = None) -> None:
     """Run a Lua experiment script (IfTEA's API: robot, exploration, mapView, robotView).
 
     The script runs in a child process that is killed at --timeout (+1 s) or 3 s after Ctrl-C
     if it does not stop by itself; runs already written stay in results.jsonl."""
-    from robotexp.lua.runtime import SANDBOX_MAX_MEMORY_MB
+    from robotexp.lua.runtime import SANDBOX_MAX_MEMORY_MB, SANDBOX_MAX_WRITE_MB
     from robotexp.lua.sandbox import AddressPolicy
 
     if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
@@ -632,6 +653,9 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                           "any address)")
     AddressPolicy(sandbox, allow_address)       # a malformed --allow-address: one line, before anything runs
     memory = max_memory if max_memory is not None else (SANDBOX_MAX_MEMORY_MB if sandbox else None)
+    if max_write is not None and not (0 <= max_write <= 2**30):
+        raise ConfigError(f"--max-write must be 0..1073741824 MB, got {max_write:g}")
+    written = max_write if max_write is not None else (SANDBOX_MAX_WRITE_MB if sandbox else None)
     writable_folder(out)
     parse_speed(view_speed)                     # a bad --view-speed: one line, before anything runs
     if record is not None:
@@ -643,6 +667,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
         args = [str(script), "--robot", robot, "--out", str(out)] + (["--world", world] if world else [])
         args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]
         args += [f"--max-memory={max_memory!r}"] if max_memory is not None else []
+        args += [f"--max-write={max_write!r}"] if max_write is not None else []
         args += [f"--timeout={timeout!r}"] if timeout is not None else []
         args += [f"--record={record}"] if record is not None else []
         if view:            # the child runs the script, so it serves the view
@@ -665,7 +690,8 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                                 max_memory=None if memory is None else int(memory * 2**20),
                                 allow_addresses=allow_address, retire=True,
                                 observers=(progress,) if live is None else (progress, live.observer),
-                                record=record)
+                                record=record, max_write=None if written is None else int(written * 2**20),
+                                on_start=None if ready_fd is None else lambda: _say_ready(ready_fd))
     except BaseException:
         end_view(live, interrupted=True)
         raise

@@ -15,7 +15,10 @@ the finished task's result is ever written.
 from __future__ import annotations
 
 import contextlib
+import ipaddress
+import logging
 import re
+import socket
 import tempfile
 import threading
 import uuid
@@ -33,19 +36,28 @@ if TYPE_CHECKING:
     from robotexp.explorer import ExplorationRun
     from robotexp.observers import StepEvent
 
-__all__ = ["check_cluster_address", "run_on_cluster"]
+__all__ = ["ClusterLost", "check_cluster_address", "run_on_cluster"]
 
-_ADDRESS = re.compile(r"(?:tcp|tls)://\[?[A-Za-z0-9_.:-]+\]?:\d{1,5}")
+_ADDRESS = re.compile(r"(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9][A-Za-z0-9_.-]*):(\d{1,5})")
 _LOCAL = re.compile(r"local:(\d{1,4})")
-CONNECT_TIMEOUT = "15s"     # how long the client waits for the scheduler to answer
+PROBE_TIMEOUT = 3.0         # [s] for the scheduler's port to accept a connection (refused: at once)
+CONNECT_TIMEOUT = "5s"      # how long the client waits for the scheduler to answer, and to come back when lost
+
+log = logging.getLogger(__name__)
 
 
-def check_cluster_address(address: str) -> None:
-    """Check the form of a `--cluster` value before any work starts.
+class ClusterLost(RobotexpError):
+    """The Dask scheduler went away while the campaign ran (the runs written so far are kept)."""
+
+
+def check_cluster_address(address: str) -> tuple[str, int] | None:
+    """Check the form of a `--cluster` value before any work starts; return its (host, port), or
+    None for `local:N`.
 
     Raises:
-        ConfigError: neither `tcp://HOST:PORT` (or `tls://`) nor `local:N` with N >= 1, or Dask is not
-            installed (the `cluster` extra).
+        ConfigError: neither `tcp://HOST:PORT` (or `tls://`; HOST a name, an IPv4 address or an IPv6
+            address in brackets; PORT 1..65535) nor `local:N` with N >= 1, or Dask is not installed (the
+            `cluster` extra).
     """
     from robotexp.extras import require
 
@@ -53,11 +65,46 @@ def check_cluster_address(address: str) -> None:
     if local:
         if int(local.group(1)) < 1:
             raise ConfigError(f"--cluster {address}: a local cluster needs at least 1 worker (local:N, N >= 1)")
-    elif not _ADDRESS.fullmatch(address):
-        raise ConfigError(f"--cluster {address!r}: expected a Dask scheduler address tcp://HOST:PORT (e.g. "
-                          "tcp://10.0.0.5:8786, from `dask scheduler`) or local:N (N worker processes here)")
+        require("dask", f"--cluster {address}")
+        require("distributed", f"--cluster {address}")
+        return None
+    m = _ADDRESS.fullmatch(address)
+    host, port = (m.group(2), int(m.group(3))) if m else ("", 0)
+    if m and host.startswith("["):
+        try:
+            ipaddress.IPv6Address(host[1:-1])
+            host = host[1:-1]
+        except ValueError:
+            m = None
+    if not m or not 1 <= port <= 65535:
+        raise ConfigError(f"--cluster {address!r}: expected a Dask scheduler address tcp://HOST:PORT with PORT "
+                          "1..65535 (e.g. tcp://10.0.0.5:8786 or tcp://[::1]:8786, from `dask scheduler`) or "
+                          "local:N (N worker processes here)")
     require("dask", f"--cluster {address}")
     require("distributed", f"--cluster {address}")
+    return host, port
+
+
+def _probe(address: str, host: str, port: int) -> None:
+    """Fail fast when nothing accepts connections at the scheduler's address.
+
+    Raises:
+        ConfigError: the connection is refused, the host is unknown or nothing answers in PROBE_TIMEOUT s.
+    """
+    try:
+        with socket.create_connection((host, port), timeout=PROBE_TIMEOUT):
+            pass
+    except OSError as exc:
+        why = "no answer" if isinstance(exc, TimeoutError) else exc.strerror or str(exc)
+        raise ConfigError(f"--cluster {address}: no Dask scheduler answers there ({why} within {PROBE_TIMEOUT:g} "
+                          "s); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+
+
+class _ReconnectNoise(logging.Filter):
+    """Drops distributed's own report of a lost scheduler: `run_on_cluster` says it in one line."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Failed to reconnect to scheduler")
 
 
 class _CancelWatch(RunObserver):
@@ -140,6 +187,15 @@ def _run_task(spec: RunSpec, extra: dict[str, Any], record: bool = False, stop_e
     return data, files, error, None if data is None else timing(RunRecord.from_dict(data))
 
 
+def _count(results: Path) -> int:
+    """Records in a results file (complete lines)."""
+    try:
+        with open(results, "rb") as f:
+            return sum(1 for line in f if line.endswith(b"\n"))
+    except OSError:
+        return 0
+
+
 def _worker_name() -> str:
     """The Dask worker this runs on (its address), or this process."""
     try:
@@ -201,7 +257,7 @@ def _client(address: str) -> Iterator[Any]:
     import dask
     from distributed import Client, LocalCluster
 
-    check_cluster_address(address)
+    where = check_cluster_address(address)
     local = _LOCAL.fullmatch(address)
     if local:
         with dask.config.set(LOCAL_CONFIG):     # read when the scheduler, nannies and workers are made
@@ -215,9 +271,11 @@ def _client(address: str) -> Iterator[Any]:
         finally:
             cluster.close()
         return
+    assert where is not None
+    _probe(address, *where)
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:
         raise ConfigError(f"--cluster {address}: no Dask scheduler answers there ({exc}); start one with "
                           "`dask scheduler` and workers with `dask worker ADDRESS`") from None
     try:
@@ -240,12 +298,39 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
 
     Raises:
         ConfigError: a bad address, or no scheduler there.
+        ClusterLost: the scheduler went away mid-campaign (the runs written so far stay in results.jsonl).
         RobotexpError: a run failed (its record, when it has one, is written first).
         KilledWorker: (distributed) a run killed its workers more often than allowed.
     """
+    token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
+    noise = _ReconnectNoise()
+    logging.getLogger("distributed.client").addFilter(noise)
+    silenced: dict[str, int] = {}
+    try:
+        _run_futures(todo, out, address, extra, on_record, record, timings, token, silenced)
+    finally:
+        logging.getLogger("distributed.client").removeFilter(noise)
+        for name, level in silenced.items():
+            logging.getLogger(name).setLevel(level)
+
+
+def _lost(exc: BaseException, client: Any) -> bool:
+    """True when `exc` (raised while waiting for a run) means the client lost its scheduler."""
+    from distributed.client import FutureCancelledError
+    from distributed.comm import CommClosedError
+
+    if isinstance(exc, FutureCancelledError):
+        return "scheduler-connection-lost" in str(exc) or client.status not in ("running", "connecting")
+    return isinstance(exc, (CommClosedError, OSError, TimeoutError)) or client.status in ("closed", "closing")
+
+
+def _run_futures(todo: list[RunSpec], out: Path, address: str, extra: Callable[[RunSpec], dict[str, Any]],
+                 on_record: Callable[[RunRecord], None], record: bool, timings: list[RunTiming] | None,
+                 token: str, silenced: dict[str, int]) -> None:
+    """`run_on_cluster`'s work, on a client of `address`; once the scheduler is lost, distributed's own
+    loggers are silenced (their levels before kept in `silenced`) while the client closes."""
     from distributed import Event, as_completed
 
-    token = uuid.uuid4().hex[:8]       # keys unique on a scheduler that several campaigns share
     with _client(address) as client:
         stop = Event(f"robotexp-stop-{token}", client=client)
         local = _LOCAL.fullmatch(address) is not None
@@ -261,10 +346,25 @@ def run_on_cluster(todo: list[RunSpec], out: Path, address: str, extra: Callable
                 if error is not None:
                     raise RobotexpError(f"a run failed on the cluster: {error}")
                 fut.release()
-        except BaseException:
+        except BaseException as exc:
+            lost = isinstance(exc, Exception) and not isinstance(exc, RobotexpError) and _lost(exc, client)
+            if lost:            # closing a client whose scheduler is gone logs tracebacks of its cancelled calls
+                for name in ("distributed", "distributed.client", "distributed.core", "distributed.comm",
+                             "distributed.batched", "distributed.utils", "distributed.event"):
+                    silenced.setdefault(name, logging.getLogger(name).level)
+                    logging.getLogger(name).setLevel(logging.CRITICAL + 1)
             with contextlib.suppress(Exception):
                 stop.set()              # the runs executing on workers end at their next check
-            client.cancel(futures, force=True)
+            with contextlib.suppress(Exception):
+                client.cancel(futures, force=True)
+            if lost:
+                results = out / "results.jsonl"
+                log.debug("the scheduler was lost", exc_info=True)
+                raise ClusterLost(f"--cluster {address}: the Dask scheduler went away mid-campaign "
+                                  f"({type(exc).__name__}); the {_count(results)} run(s) written are kept in "
+                                  f"{results}; start the "
+                                  "scheduler and its workers again and run the same command with --resume to make "
+                                  "the rest") from None
             raise
         # every run is in: release the runs' watch threads still waiting on the event (a wait left at the
         # scheduler when a local cluster closes is logged as an error)

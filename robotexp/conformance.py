@@ -9,7 +9,8 @@ plugin and the first rule broken:
 2. every `__init__` parameter (through `**kwargs` forwarded to a base class) is keyword-only, has
    a default, and is annotated with a type the CLI and Lua can pass: bool, int, float, str, a
    `Literal` of those, a sequence of those (a JSON array: ``-p goals=[[1, 2]]``), or one of these or
-   None; each default fits its annotation, and the class builds with the defaults alone;
+   None; each default fits its annotation and its declared range (`parameter_bounds`, whose names
+   must be parameters), and the class builds with the defaults alone;
 3. on a small generated world (a 5 x 4 m room with a crate, `make_room`) in the simulator, for a
    bounded robot time, `reset` accepts an `ExplorerContext` and every `step` returns a `Twist` of
    finite floats or a `Done` with a string reason; `result_fields` is a dict of JSON values keyed by
@@ -182,7 +183,24 @@ def _check_parameters(cls: type[Explorer], label: str) -> dict[str, object]:
             found.setdefault(pname, param.default)
         if not forwards:
             break
+    _check_bounds(cls, label, found)
     return found
+
+
+def _check_bounds(cls: type[Explorer], label: str, params: dict[str, object]) -> None:
+    """Each declared range (`parameter_bounds`) names a parameter, is ordered and holds its default."""
+    from robotexp.registry import parameter_bounds
+
+    for pname, (lo, hi) in parameter_bounds(cls).items():
+        if pname not in params:
+            raise PluginError(f"explorer {label}: parameter_bounds names {pname!r}, which is not a parameter")
+        if lo is not None and hi is not None and not lo <= hi:
+            raise PluginError(f"explorer {label}: parameter_bounds[{pname!r}] = {(lo, hi)!r} is empty")
+        default = params[pname]
+        if isinstance(default, (int, float)) and not isinstance(default, bool) and not (
+                (lo is None or default >= lo) and (hi is None or default <= hi)):
+            raise PluginError(f"explorer {label}: parameter {pname!r} defaults to {default!r}, outside its "
+                              f"declared range {(lo, hi)!r}")
 
 
 def _parseable(hint: Any) -> bool:

@@ -78,6 +78,9 @@ class Explorer(ABC):
     grid_model: ClassVar[Literal["logodds", "himm"]] = "logodds"
     preferred_cell: ClassVar[float | None] = None   # [m] a cell size the method is defined for
     uses_sonar: ClassVar[bool] = False      # the method reads RobotState.sonar
+    # the inclusive range of each numeric parameter, {name: (low, high)} (None: open on that side); a
+    # class's entries add to its bases'; checked before the explorer is built, shown by `-p help`
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {}
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Called once before the first step of a run."""

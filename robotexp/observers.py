@@ -115,7 +115,8 @@ class Observers:
                 if interrupt_behind(exc):   # Ctrl-C inside a numba kernel's call: the run is interrupted
                     raise KeyboardInterrupt from exc
                 # a critical observer's error is raised by the run's caller as one line (a full disk): at
-                # debug level only; any other observer's is logged as one line, its traceback with --debug
+                # debug level only; any other is logged as one line, its traceback with --debug, or always when
+                # it is not one of robotexp's own errors (a bug)
                 expected = getattr(observer, "critical", False) and isinstance(exc, (OSError, RobotexpError))
                 log.log(logging.DEBUG if expected else logging.ERROR,
                         "run observer %s raised in %s (detached for the rest of the run): %s: %s",

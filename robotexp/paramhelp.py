@@ -1,5 +1,6 @@
 """`robotexp explore -m METHOD -p help`: an explorer's parameters with their types, defaults and units,
-read from the plugin's signature and the "Args:" section of its class docstring (units in brackets)."""
+read from the plugin's signature, its declared ranges (`Explorer.parameter_bounds`) and the "Args:"
+section of its class docstring (units in brackets)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ class Parameter:
     kind: str           # its annotation as written ("float", "int | None", ...)
     default: str        # repr of the default, or "required"
     doc: str            # its line of the docstring's Args (the unit first, in brackets), or ""
+    range: str = ""     # its declared range ("1..100000", ">= 0"; `Explorer.parameter_bounds`), or ""
 
 
 WIDTH = 120        # the help text's width: longer descriptions go on indented lines
@@ -68,9 +70,10 @@ def explorer_parameters(method: str) -> list[Parameter]:
         PluginError: unknown method.
     """
     from robotexp.explorer import Explorer
-    from robotexp.registry import EXPLORERS, load
+    from robotexp.registry import EXPLORERS, bounds_text, load, parameter_bounds
 
     cls = load(EXPLORERS, method, Explorer)
+    bounds = parameter_bounds(cls)
     docs: dict[str, str] = {}
     refs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):          # a subclass's words win
@@ -95,7 +98,8 @@ def explorer_parameters(method: str) -> list[Parameter]:
             kind = "" if ann is inspect.Parameter.empty else ann if isinstance(ann, str) else getattr(ann, "__name__",
                                                                                                       str(ann))
             default = "required" if p.default is inspect.Parameter.empty else _default(p.default)
-            out.append(Parameter(p.name, kind, default, _clean(docs.get(p.name, "").split(" **kwargs")[0])))
+            out.append(Parameter(p.name, kind, default, _clean(docs.get(p.name, "").split(" **kwargs")[0]),
+                                 bounds_text(bounds[p.name]) if p.name in bounds else ""))
         if not more:
             break
     return out
@@ -133,11 +137,16 @@ def parameters_text(method: str) -> str:
     w_name = max(len(p.name) for p in params)
     w_kind = max(len(p.kind) for p in params)
     w_def = max(len(p.default) for p in params)
-    lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets):"]
+    w_range = max(len(p.range) for p in params)
+    lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets; range: the values allowed):"]
     for p in params:
-        head = f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  "
-        room = max(WIDTH - len(head), 40)
-        wrapped = textwrap.wrap(p.doc, room) or [""]
+        shown = f"range {p.range:{w_range}}  " if p.range else " " * (w_range + 8) if w_range else ""
+        head = f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  {shown}"
+        if len(head) > WIDTH - 40:       # a long type or range: the description on the lines below
+            lines.append(head.rstrip())
+            lines += ["      " + more for more in textwrap.wrap(p.doc, WIDTH - 6)]
+            continue
+        wrapped = textwrap.wrap(p.doc, WIDTH - len(head)) or [""]
         lines.append((head + wrapped[0]).rstrip())
         lines += [" " * len(head) + more for more in wrapped[1:]]
     return "\n".join(lines)

@@ -150,6 +150,10 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
         listing = ", ".join(accepted) if accepted else "none"
         raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
     params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
+    bounds = parameter_bounds(cls)
+    for key, value in params.items():
+        if key in bounds:
+            check_bounds(method, key, value, bounds[key])
     try:
         return cls(**params)
     except TypeError as exc:
@@ -157,6 +161,49 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
 
 
 _KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
+
+
+def parameter_bounds(cls: type) -> dict[str, tuple[float | None, float | None]]:
+    """The declared range of each numeric parameter of explorer class `cls` (its `parameter_bounds`
+    and its bases', a subclass's entries winning)."""
+    out: dict[str, tuple[float | None, float | None]] = {}
+    for klass in reversed(cls.__mro__):
+        out.update(vars(klass).get("parameter_bounds", {}))
+    return out
+
+
+def _number(x: float) -> str:
+    """A bound or a value as written: whole numbers in full (100000, not 1e+05)."""
+    if isinstance(x, int) or (math.isfinite(x) and float(x).is_integer() and abs(x) < 1e15):
+        return str(int(x))
+    return f"{x:g}"
+
+
+def bounds_text(bounds: tuple[float | None, float | None]) -> str:
+    """A range as `-p help` shows it: "1..100000", ">= 0", "<= 10"."""
+    lo, hi = bounds
+    if lo is not None and hi is not None:
+        return f"{_number(lo)}..{_number(hi)}"
+    return f">= {_number(lo)}" if lo is not None else f"<= {_number(hi)}" if hi is not None else ""
+
+
+def check_bounds(method: str, key: str, value: Any, bounds: tuple[float | None, float | None]) -> None:
+    """Refuse a numeric `value` of parameter `key` outside its declared (inclusive) `bounds`; a value
+    that is not a number (None, a boolean, a string, a list) is left to the parameter's type check.
+
+    Raises:
+        ConfigError: out of range, or not a number (NaN).
+    """
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return
+    lo, hi = bounds
+    if hi is not None and value > hi:
+        raise ConfigError(f"method {method!r}: parameter {key!r} must be <= {_number(hi)}, got {_number(value)}")
+    if lo is not None and value < lo:
+        raise ConfigError(f"method {method!r}: parameter {key!r} must be >= {_number(lo)}, got {_number(value)}")
+    if value != value:
+        raise ConfigError(f"method {method!r}: parameter {key!r} must be a number in {bounds_text(bounds)}, "
+                          f"got {value}")
 
 
 def _parameter_names(cls: type) -> list[str] | None:

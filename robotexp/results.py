@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.errors import RobotexpError
+from robotexp.errors import ConfigError, RobotexpError
 from robotexp.observers import RunObserver
 from robotexp.record import COVERAGE_MILESTONES, RESULT_KEYS, EndReason, RunRecord, milestone_keys
 
@@ -162,6 +162,12 @@ class ResultsWriter(RunObserver):
         try:
             out.mkdir(parents=True, exist_ok=True)
             append_jsonl(results, record)      # first: the record is never lost
+        except IsADirectoryError:
+            # something made results.jsonl a folder during the run: the record goes beside it
+            rescue = out / f"{name}.record.json"
+            append_jsonl(rescue, record)
+            raise ConfigError(f"{results} is a folder, not a results file: this run's record was "
+                              f"written to {rescue} instead; move the folder away") from None
         except OSError as exc:      # a full disk: append_jsonl left no half line
             raise OSError(exc.errno, f"{exc.strerror or exc}: the record of run {name} was not written to "
                           f"{results}") from exc

@@ -27,7 +27,7 @@ from typing import Any
 
 from robotexp.errors import ConfigError
 
-__all__ = ["append_line", "read_records", "repair_tail", "folder_lock", "LOCK_NAME"]
+__all__ = ["append_line", "read_records", "repair_tail", "folder_lock", "check_results_file", "LOCK_NAME"]
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +100,18 @@ def repair_tail(path: Path, note: Callable[[str], None] = warn) -> bool:
         return _repair_locked(fd, path, note)
     finally:
         os.close(fd)
+
+
+def check_results_file(path: Path) -> None:
+    """Refuse, before any run starts, a results file that cannot take records (a folder, a device).
+
+    Raises:
+        ConfigError: `path` exists and is not a regular file (symbolic links followed).
+    """
+    if os.path.lexists(path) and not os.path.isfile(path):
+        what = "a folder" if os.path.isdir(path) else "not a regular file"
+        raise ConfigError(f"{path}: is {what}, not a results file; move it away or give another --out "
+                          "(the runs' records go there)")
 
 
 def append_line(path: Path, record: dict[str, Any], note: Callable[[str], None] = warn) -> None:

@@ -231,7 +231,7 @@ def test_sweep_over_two_parameters_runs_and_reports_by_them(tmp_path: Path) -> N
     ("clearance = []", "non-empty list"),
     ("clearance = {start = 1.0, stop = 0.5, step = 0.1}", "stop >= start"),
     ("clearance = {start = 0.1, stop = 0.5}", "{start, stop, step}"),
-    ("clearance = [-1.0]", "clearance must be >= 0"),
+    ("clearance = [-1.0]", "parameter 'clearance' must be >= 0"),
     ("speed = [1, 2]", "speed"),
 ])
 def test_bad_sweeps_name_the_key(tmp_path: Path, sweep: str, words: str) -> None:

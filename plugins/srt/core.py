@@ -31,6 +31,7 @@ import math
 from abc import abstractmethod
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -149,6 +150,9 @@ class SRTExplorer(Explorer):
         settle_tolerance: [m] how close to a node's position the robot re-centres before leaving it.
         detour_after: [s] without progress on the way back to the parent before a detour is planned.
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "max_nodes": (1, 100_000), "stuck_timeout": (None, 86400.0), "failed_radius": (0.0, 10.0)}
 
     def __init__(self, *, max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3,
                  settle_tolerance: float = 0.03, detour_after: float = 3.0) -> None:

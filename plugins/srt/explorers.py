@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
+from typing import ClassVar
 
 import numpy as np
 
@@ -280,6 +281,9 @@ class _FrontierRescue(SRTExplorer):
 class _SweepingSRT(SRTExplorer):
     """SRT whose perception is a turn on the spot with the laser (see the module docstring)."""
 
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "sweep_rate": (None, 10.0), "bins": (3, 36_000)}
+
     def __init__(self, *, sweep_rate: float = 0.8, bins: int = 360, max_nodes: int = 1000,
                  stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
         super().__init__(max_nodes=max_nodes, stuck_timeout=stuck_timeout, failed_radius=failed_radius)
@@ -337,6 +341,9 @@ class SRTBallExplorer(_SweepingSRT):
     Raises:
         ConfigError: a parameter out of range, or d_min too small for the robot (in `reset`).
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "alpha": (None, 1.0), "d_min": (None, 100.0), "i_max": (1, 100_000), "margin": (0.0, 10.0)}
 
     name = "srt-ball"
 
@@ -403,6 +410,11 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
         step: [m] sampling step of the shrunk region along each direction.
         sweep_rate, bins, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`.
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "offset": (None, 10.0), "margin": (0.0, 10.0), "view": (None, 1.0), "tries": (1, 10_000),
+        "tolerance": (0.0, 10.0), "node_gap": (0.0, 100.0), "d_min": (0.0, 100.0),
+        "step": (0.001, 10.0)}     # a finer step samples the shrunk region too densely
 
     name = "srt-laser"
     RESCUE_SIGHT = True
@@ -553,6 +565,12 @@ class SRTStarExplorer(_FrontierRescue):
         tries: nearest points of the star tried per frontier cell for the line of sight.
         wall_faces: leave out frontier cells at the end of a wall cone (no openings: the inside of a wall).
     """
+
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "alpha": (None, 1.0), "d_min": (None, 100.0), "i_max": (1, 100_000), "margin": (0.0, 10.0),
+        "ring_radius": (0.0, 100.0), "cone": (None, math.pi), "sweep_rate": (None, 10.0),
+        "extra_turn": (None, math.tau), "bins": (3, 36_000), "view": (None, 1000.0), "node_gap": (0.0, 100.0),
+        "tries": (1, 10_000)}
 
     name = "srt-star"
     uses_sonar = True

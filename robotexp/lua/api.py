@@ -373,7 +373,8 @@ class Session:
         if self.frame_folder is not None and run.robot_time >= self._next_frame:
             from robotexp.render import save_png
             self.frames += 1
-            save_png(self._image(run), self.frame_folder / f"frame_{self.frames:06d}.png")
+            self.paths.quota.check("mapView.setFrameFolder")
+            self._charge(save_png(self._image(run), self.frame_folder / f"frame_{self.frames:06d}.png"))
             self._next_frame += self.redraw_interval
         if self.control.check() and self.control.reason == "timeout":
             run.request_stop(f"stopped: the script's --timeout of {self.control.timeout:g} s was reached")
@@ -772,9 +773,20 @@ class Session:
         (path,) = _args("mapView.saveMapImage", "path", args, "s")
         target = self.paths.resolve(path, "w", "mapView.saveMapImage")
         run = self._last("mapView.saveMapImage").run
+        self.paths.quota.check("mapView.saveMapImage")
         if self.show["tracking"]:          # a window around the robot: the raster view, as the frames
-            return str(save_png(self._image(run), target))
-        return str(self._save_figure(run, Path(target)))
+            saved = save_png(self._image(run), target)
+        else:
+            saved = self._save_figure(run, Path(target))
+        self._charge(saved)
+        return str(saved)
+
+    def _charge(self, path: Path) -> None:
+        """Count a file written for the script against its --max-write limit."""
+        try:
+            self.paths.quota.charge(os.path.getsize(path))
+        except OSError:
+            pass
 
     def lua_robotView__setShowPath(self, *args: Any) -> None:
         """Draw the robot's path."""

@@ -25,11 +25,12 @@ from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, Path
 from robotexp.observers import RunObserver
 from robotexp.record import RunRecord
 
-__all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB"]
+__all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
 
 log = logging.getLogger(__name__)
 
 SANDBOX_MAX_MEMORY_MB = 512     # [MB] the Lua memory limit under --sandbox when --max-memory is not given
+SANDBOX_MAX_WRITE_MB = 512      # [MB] what a script may write to files under --sandbox when --max-write is not given
 _RETIRED: list[Any] = []        # Lua states never closed (retire=True): closing runs __gc finalizers
 
 
@@ -122,7 +123,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
                retire: bool = False, observers: Sequence[RunObserver] = (),
-               record: Path | None = None) -> ScriptResult:
+               record: Path | None = None, max_write: int | None = None,
+               on_start: Callable[[], None] | None = None) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -147,6 +149,9 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         observers: told about each of the script's runs (a live view).
         record: a folder where each run is also written as a ROS 2 bag, <run>.mcap (as the script's
             `exploration.setRecordFolder` does; the script may change it).
+        max_write: [bytes] what the script may write to files in all (`robotexp.lua.sandbox.WriteQuota`;
+            None: no limit; --sandbox gives `SANDBOX_MAX_WRITE_MB` by default at the command line).
+        on_start: called once the timeout's clock starts (the supervisor's kill counts from then).
 
     Returns:
         The exit status and the records of the script's runs.
@@ -171,7 +176,11 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
     addresses = AddressPolicy(sandbox, allow_addresses)
     control = Control(timeout, time.monotonic)
-    paths = PathPolicy(out, sandbox)
+    if on_start is not None:
+        on_start()
+    if max_write is not None and max_write < 0:
+        raise ConfigError(f"--max-write must be >= 0 MB, got {max_write / 2**20:g} MB")
+    paths = PathPolicy(out, sandbox, max_write)
     session = Session(out=out, paths=paths, control=control, world=world, robot=robot, notice=notice,
                       script=name, addresses=addresses, observers=observers)
     session.record_folder = record
@@ -205,8 +214,15 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                           for t, funcs in session.functions().items()})
     script_dir = str(path.resolve().parent) if path.parent != Path("") else ""
     prelude = lua.compile(PRELUDE, name="=robotexp prelude", mode="t")
-    prelude(control.check, paths.resolve, paths.refuse, emit, exit_request, api,
-            lua.table_from(session.methods()), sandbox, HOOK_EVERY, ABORT, script_dir, str(out))
+    try:        # a short --timeout may pass already here
+        prelude(control.check, paths.resolve, paths.refuse, emit, exit_request, api,
+                lua.table_from(session.methods()), sandbox, HOOK_EVERY, ABORT, script_dir, str(out),
+                paths.quota.grant, max_write is not None)
+    except LuaError as exc:
+        session.close()
+        if _stopped(control, name, session):
+            return ScriptResult(control.exit_code, session.records)
+        raise ScriptError(_message(exc, name, max_memory)) from None
 
     try:
         chunk = lua.compile(code, name=f"={name}", mode="t")

@@ -3,7 +3,10 @@
 Every path a script gives (io.open, io.lines, dofile, os.remove, mapView.saveMapImage, ...) is
 relative to the output folder, as if the script ran there. With `--sandbox` a path must also
 resolve (symbolic links followed) inside that folder, and os.execute, io.popen, os.tmpname,
-package.loadlib, C-module searchers, binary chunks and most of `debug` are refused.
+package.loadlib, C-module searchers, binary chunks and most of `debug` are refused. Whatever the
+options, robotexp's records (results.jsonl, its `.torn` file, the folder lock) are not the script's
+to write, remove or rename (`PathPolicy`), and with a write limit (`--max-write`, on by default
+with `--sandbox`) every byte the script writes to a file is counted (`WriteQuota`).
 
 A robot address a script gives (robot.setAddress) goes through `AddressPolicy`: with `--sandbox`
 only "" / "sim" or an address the user named on the command line (`--allow-address`, a host:port
@@ -14,8 +17,11 @@ The prelude also installs the interrupt hook: every `HOOK_EVERY` Lua instruction
 whether the script must stop (Ctrl-C, --timeout, os.exit), and `pcall`, `xpcall` and
 `coroutine.resume` re-raise that stop so a script cannot swallow it. The debug functions that
 reach into other functions (getupvalue, setupvalue, upvaluejoin, getlocal, setlocal,
-getregistry) refuse robotexp's own functions, so the raw sethook and the hook's state stay out of
-reach even without `--sandbox`. What the hook cannot see (a finalizer, a long pattern match, a
+getregistry) refuse robotexp's own functions (those made while the script runs, such as the one
+`coroutine.wrap` returns, too), so the raw sethook and the hook's state stay out of reach even
+without `--sandbox`; the metatables shared by every Python object (lupa's) and by every file read
+as locked and cannot be replaced, and `print` hands Python text only (bytes that are not UTF-8
+become U+FFFD), so no Python object reaches the script. What the hook cannot see (a finalizer, a long pattern match, a
 message handler that loops) is stopped from outside: `robotexp run` runs the script in a child
 process and kills it at the deadline (`robotexp.lua.supervise`).
 """
@@ -24,16 +30,19 @@ from __future__ import annotations
 
 import os
 import re
+import unicodedata
 from pathlib import Path
 
 from robotexp.errors import ScriptError
+from robotexp.safefile import LOCK_NAME
 
-__all__ = ["AddressPolicy", "PathPolicy", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
+__all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
 
 HOOK_EVERY = 10_000     # Lua instructions between two stop checks (~0.1 ms of Lua; ~1 % overhead)
 ABORT = "\x00robotexp: script stopped"   # the error value of a stop; never shown to the user
 
 _WRITE_MODES = ("w", "a", "+")
+RECORDS = "results.jsonl"   # robotexp's record file; it, its `.torn` file and the folder lock are not the script's
 _HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
 _HOST = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.-]*$")
 _DEVICE = re.compile(r"^/[A-Za-z0-9_./+-]+$")
@@ -102,17 +111,43 @@ class AddressPolicy:
                               f"(allowed: {named})")
 
 
+def _protected(name: str) -> bool:
+    """True for a file name of robotexp's records: results.jsonl, its `.torn` file (any
+    `results.jsonl.*`) and the folder lock, in any letter case or Unicode spelling."""
+    key = unicodedata.normalize("NFKC", name).casefold()
+    return key.startswith(RECORDS) or key == LOCK_NAME
+
+
 class PathPolicy:
     """Resolve the paths a script gives: relative to `out`; inside `out` only when `sandbox`.
+
+    Whatever the options, a script may not write, create, remove or rename robotexp's records
+    (results.jsonl, results.jsonl.torn, the folder lock), wherever they are: a path whose name, or
+    the name of a folder on its way, is one of them is refused for writing, as written and after
+    `..` and symbolic links are resolved; so is renaming a folder that holds one.
 
     Args:
         out: the output folder (created on first write).
         sandbox: refuse every path outside `out`.
+        max_write: [bytes] what the script may write in all (`WriteQuota`; None: no limit).
     """
 
-    def __init__(self, out: Path, sandbox: bool) -> None:
+    def __init__(self, out: Path, sandbox: bool, max_write: int | None = None) -> None:
         self.out = Path(out)
         self.sandbox = sandbox
+        self.quota = WriteQuota(max_write)
+
+    def _guard_records(self, path: str, full: Path, where: str) -> None:
+        """Refuse writing `full` (the script's `path`) when it names robotexp's records."""
+        spellings = (os.path.normpath(full), os.path.realpath(full))
+        if any(_protected(part) for spelling in spellings for part in Path(spelling).parts):
+            raise ScriptError(f"{where}({path!r}): refused: scripts may not write, remove or rename robotexp's "
+                              "records (results.jsonl, results.jsonl.torn, .robotexp.lock)")
+        if os.path.isdir(full):
+            for _, dirs, files in os.walk(full):
+                if any(_protected(n) for n in dirs + files):
+                    raise ScriptError(f"{where}({path!r}): refused: the folder holds robotexp's records "
+                                      "(results.jsonl); scripts may not move or remove them")
 
     def resolve(self, path: object, mode: object, where: str) -> str:
         """The file-system path for the script's `path` opened with Lua `mode` by function `where`.
@@ -133,6 +168,7 @@ class PathPolicy:
                 raise ScriptError(f"{where}({path!r}): refused by --sandbox: scripts may only use files "
                                   f"inside the output folder {self.out}")
         if writing:
+            self._guard_records(path, full, where)
             full.parent.mkdir(parents=True, exist_ok=True)
         return str(full)
 
@@ -140,6 +176,60 @@ class PathPolicy:
         """Raise the --sandbox refusal of `what` (os.execute, io.popen, ...)."""
         raise ScriptError(f"{what}: refused by --sandbox (scripts may not start programs, load C code or "
                           "reach outside the output folder); run without --sandbox to allow it")
+
+
+class WriteQuota:
+    """The bytes a script may write to files (`robotexp run --max-write`).
+
+    The script's file writes (file:write, io.write) ask for bytes in grants of up to `GRANT` bytes
+    (the prelude counts them down without calling Python), and each file the script creates costs
+    `FILE_COST` bytes (what a file takes on disk at least); the images the script saves
+    (mapView.saveMapImage) are counted at their size once written. A write the remaining bytes do
+    not cover is refused with an error, and so is every one after it.
+
+    Args:
+        limit: [bytes] the limit, or None for none.
+    """
+
+    GRANT = 65536           # [bytes] asked for at once by the prelude's write wrapper
+    FILE_COST = 4096        # [bytes] charged for each file the script creates
+
+    def __init__(self, limit: int | None) -> None:
+        self.limit = limit
+        self.used = 0       # [bytes] written or granted
+
+    def grant(self, need: object, where: object = "file:write") -> int:
+        """Charge `need` bytes about to be written; return how many more the caller may write
+        without asking again (0 without a limit: the prelude does not count then).
+
+        Raises:
+            ScriptError: the limit does not cover `need`.
+        """
+        if self.limit is None:
+            return 0
+        n = int(need) if isinstance(need, (int, float)) and need >= 0 else 0
+        left = self.limit - self.used
+        if n > left:
+            self.used = self.limit        # nothing more: every later write is refused too
+            raise ScriptError(f"{where}: refused: the script's files reached its --max-write limit of "
+                              f"{self.limit / 2**20:g} MB; raise it with --max-write MB if the script needs more")
+        extra = min(self.GRANT, left - n)
+        self.used += n + extra
+        return extra
+
+    def charge(self, n: int) -> None:
+        """Count `n` bytes written by robotexp for the script (a saved image)."""
+        if self.limit is not None:
+            self.used = min(self.used + max(n, 0), self.limit)
+
+    def check(self, where: str) -> None:
+        """Refuse a write when nothing is left (before robotexp writes a file for the script).
+
+        Raises:
+            ScriptError: the limit is reached.
+        """
+        if self.limit is not None and self.used >= self.limit:
+            self.grant(1, where)
 
 
 def lua_kind(value: object) -> str:
@@ -159,14 +249,30 @@ def lua_kind(value: object) -> str:
 # Arguments: check (-> true to stop), resolve(path, mode, where), refuse(what), emit(text),
 # exit(code), api {table = {name = python function}}, methods {LUA_NAME = plugin name},
 # sandbox (boolean), every (instructions between hook calls), abort (the stop marker),
-# script_dir (string: prepended to package.path when not sandboxed), out (the output folder).
+# script_dir (string: prepended to package.path when not sandboxed), out (the output folder),
+# grant(bytes, where) (-> more bytes the script may write; `WriteQuota.grant`), counting (boolean:
+# count the script's file writes against a limit).
 PRELUDE = r"""
-local check, resolve, refuse, emit, exit_request, api, methods, sandbox, every, ABORT, script_dir, out = ...
+local check, resolve, refuse, emit, exit_request, api, methods, sandbox, every, ABORT, script_dir, out,
+      grant, counting = ...
 local pack, unpack, concat = table.pack, table.unpack, table.concat
 local raw_pcall, raw_xpcall, tostring, error, select, pairs, type = pcall, xpcall, tostring, error, select, pairs, type
+local rawequal, s_find, s_sub, utf8_len = rawequal, string.find, string.sub, utf8.len
 local sethook = debug.sethook
 local d_getupvalue, d_getinfo, d_setupvalue, d_upvaluejoin, d_getlocal, d_setlocal =
     debug.getupvalue, debug.getinfo, debug.setupvalue, debug.upvaluejoin, debug.getlocal, debug.setlocal
+local d_getmetatable, d_setmetatable = debug.getmetatable, debug.setmetatable
+-- robotexp's own Lua functions, closed to the debug library (filled below; a function made while the
+-- script runs, such as coroutine.wrap's, is added when it is made)
+local guarded = setmetatable({}, {__mode = "k"})
+
+-- the metatables of Python objects (lupa's, shared by all of them) and of files are robotexp's: a
+-- script that changed them would change every call into Python (the stop check) or every file write
+local LOCKED = "robotexp: locked"
+local python_mt = d_getmetatable(check)
+local file_mt = d_getmetatable(io.stdout)
+python_mt.__metatable = LOCKED
+file_mt.__metatable = LOCKED
 
 local stopping = false
 local function aborting()
@@ -213,22 +319,38 @@ end
 coroutine.resume = function(...) return pass(pack(co_resume(...))) end
 coroutine.wrap = function(f)
   local co = coroutine.create(f)
-  return function(...)
+  local function resume(...)
     local r = pack(co_resume(co, ...))
     if r[1] then return unpack(r, 2, r.n) end
     if co_close then co_close(co) end
     if aborting() then error(ABORT, 0) end
     error(r[2], 0)
   end
+  guarded[resume] = true      -- its upvalues (aborting, error) are the hook's
+  return resume
 end
 debug.sethook = function()
   error("debug.sethook is reserved by robotexp (it stops scripts on Ctrl-C and --timeout)", 2)
 end
 
+-- text for Python: every byte sequence that is not UTF-8 becomes U+FFFD
+local function utf8_text(s)
+  if utf8_len(s) then return s end
+  local parts, i = {}, 1
+  while true do
+    local n, bad = utf8_len(s, i)
+    if n then parts[#parts + 1] = s_sub(s, i); break end
+    parts[#parts + 1] = s_sub(s, i, bad - 1)
+    parts[#parts + 1] = "\u{FFFD}"
+    i = bad + 1
+  end
+  return concat(parts)
+end
+local emit_py = wrap(emit, 3)
 print = function(...)
   local n, parts = select("#", ...), {}
   for i = 1, n do parts[i] = tostring((select(i, ...))) end
-  emit(concat(parts, "\t"))
+  emit_py(utf8_text(concat(parts, "\t")))
 end
 local exit_py = wrap(exit_request, 3)
 os.exit = function(code)
@@ -241,7 +363,51 @@ local path_of = wrap(resolve, 3)
 local io_open, io_lines, io_input, io_output = io.open, io.lines, io.input, io.output
 local raw_loadfile, raw_dofile, raw_load = loadfile, dofile, load
 local os_remove, os_rename = os.remove, os.rename
-io.open = function(name, mode) return io_open(path_of(name, mode or "r", "io.open"), mode) end
+local io_stdout, io_stderr, f_write = io.stdout, io.stderr, file_mt.__index.write
+-- with a write limit (--max-write) every byte written to a file is counted: up to `budget` bytes
+-- without asking Python, then a new grant; each file created costs what one takes on disk at least
+local budget, FILE_COST = 0, 4096
+local function take(n, where)
+  if n <= budget then budget = budget - n; return nil end
+  local ok, r = raw_pcall(grant, n, where)
+  if ok then budget = r; return nil end
+  if aborting() then error(ABORT, 0) end
+  return tostring(r)
+end
+local function count(where, f, ...)
+  if not counting or rawequal(f, io_stdout) or rawequal(f, io_stderr) then return nil end
+  local args, n = pack(...), 0
+  for i = 1, args.n do
+    local kind = type(args[i])
+    if kind == "string" then n = n + #args[i] elseif kind == "number" then n = n + 24 end
+  end
+  return take(n, where)
+end
+local function create_cost(full, mode, where)
+  if not counting or type(mode) ~= "string" or not s_find(mode, "[wa+]") then return end
+  local f = io_open(full, "rb")
+  if f then f:close(); return end
+  local e = take(FILE_COST, where)
+  if e then error(e, 3) end
+end
+if counting then
+  file_mt.__index.write = function(f, ...)
+    local e = count("file:write", f, ...)
+    if e then error(e, 2) end
+    return f_write(f, ...)
+  end
+  io.write = function(...)
+    local f = io_output()
+    local e = count("io.write", f, ...)
+    if e then error(e, 2) end
+    return f_write(f, ...)
+  end
+end
+io.open = function(name, mode)
+  local full = path_of(name, mode or "r", "io.open")
+  create_cost(full, mode, "io.open")
+  return io_open(full, mode)
+end
 io.lines = function(name, ...)
   if name == nil then return io_lines() end
   return io_lines(path_of(name, "r", "io.lines"), ...)
@@ -251,7 +417,11 @@ io.input = function(f)
   return io_input(f)
 end
 io.output = function(f)
-  if type(f) == "string" then return io_output(path_of(f, "w", "io.output")) end
+  if type(f) == "string" then
+    local full = path_of(f, "w", "io.output")
+    create_cost(full, "w", "io.output")
+    return io_output(full)
+  end
   return io_output(f)
 end
 os.remove = function(name) return os_remove(path_of(name, "w", "os.remove")) end
@@ -320,7 +490,6 @@ end
 -- every Lua function reachable from the globals now, and every one in their upvalues, was made
 -- here (the script has not run yet)
 local dbg = debug
-local guarded = setmetatable({}, {__mode = "k"})
 local seen = {}
 local function collect(v)
   if seen[v] then return end
@@ -341,7 +510,8 @@ local function collect(v)
   end
 end
 collect(_G)
-for _, f in ipairs({hook, aborting, wrap, pass, path_of}) do collect(f) end
+collect(file_mt)
+for _, f in ipairs({hook, aborting, wrap, pass, path_of, take, count}) do collect(f) end
 seen = nil
 if dbg.getupvalue then
   local function closed(what, level)
@@ -386,7 +556,21 @@ if dbg.getupvalue then
   dbg.getregistry = function()
     error("debug.getregistry is reserved by robotexp (the registry holds the hook that stops scripts)", 2)
   end
-  for _, name in ipairs({"getupvalue", "setupvalue", "upvaluejoin", "getlocal", "setlocal", "getregistry"}) do
+  -- the metatables of Python objects and files read as locked and cannot be replaced
+  local function ours(v)
+    local mt = d_getmetatable(v)
+    return rawequal(mt, python_mt) or rawequal(mt, file_mt)
+  end
+  dbg.getmetatable = function(v)
+    if ours(v) then return LOCKED end
+    return d_getmetatable(v)
+  end
+  dbg.setmetatable = function(v, mt)
+    if ours(v) then closed("debug.setmetatable") end
+    return d_setmetatable(v, mt)
+  end
+  for _, name in ipairs({"getupvalue", "setupvalue", "upvaluejoin", "getlocal", "setlocal", "getregistry",
+                         "getmetatable", "setmetatable"}) do
     guarded[dbg[name]] = true
   end
 end

@@ -6,23 +6,30 @@ message handler that loops, or the finalizers Lua runs when its state is closed.
 therefore runs the script in a child process (`python -m robotexp.lua.child`, the same command
 in-process) and watches it:
 
-- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress;
+- the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress; the
+  parent's clock for the kill starts when the child says its script started (a byte on the pipe
+  `--ready-fd`), so a child slow to start (imports on a loaded machine) is not killed before its
+  own deadline; a child that never says so is killed `STARTUP_GRACE` s later than the timeout;
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
-- the child's output is relayed as it comes (a redrawn progress line too) to the parent's stdout and stderr.
+- the child's output is relayed to the parent's stdout and stderr as it comes, not by lines (a
+  redrawn progress line too), in chunks of at most `CHUNK` bytes (a script writing gigabytes without a
+  newline costs the parent no memory); when the parent cannot write it (a full disk, a closed pipe) the
+  rest is drained and dropped, and the exit status is 1 with one line on stderr, never 0.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import IO
+from typing import IO, BinaryIO
 
 import click
 
@@ -33,6 +40,8 @@ __all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE"]
 TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it writes the run it stopped)
 INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
 _POLL = 0.05            # [s]
+CHUNK = 65536           # [bytes] the most of the child's output the parent holds at once
+STARTUP_GRACE = 60.0    # [s] for the child to start its script, on top of the timeout (it normally says so)
 
 
 def _records(path: Path) -> int:
@@ -44,11 +53,40 @@ def _records(path: Path) -> int:
         return 0
 
 
-def _relay(stream: IO[bytes], err: bool) -> None:
-    # what the child wrote as it comes, not by lines: a progress line is redrawn with carriage returns
-    for chunk in iter(lambda: stream.read1(65536), b""):     # type: ignore[attr-defined]
-        click.echo(chunk, nl=False, err=err)
-    stream.close()
+def _relay(stream: IO[bytes], target: BinaryIO, failures: list[OSError | ValueError]) -> None:
+    """Copy `stream` to `target` in chunks of at most CHUNK bytes until its end; after a failed write
+    (kept in `failures`) drain the rest so the child never blocks on a full pipe."""
+    fd = stream.fileno()
+    try:
+        while True:
+            data = os.read(fd, CHUNK)
+            if not data:
+                break
+            if failures:
+                continue
+            try:
+                target.write(data)
+                target.flush()
+            except (OSError, ValueError) as exc:       # ValueError: the target was closed
+                failures.append(exc)
+    finally:
+        stream.close()
+
+
+def _said(fd: int) -> bool:
+    """True once the child wrote to the (non-blocking) pipe `fd`."""
+    try:
+        return bool(os.read(fd, 1))
+    except BlockingIOError:
+        return False
+
+
+def _tell(text: str) -> None:
+    """One line on stderr, whatever state stdout is in."""
+    try:
+        click.echo(text, err=True)
+    except (OSError, ValueError):
+        pass
 
 
 def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
@@ -69,14 +107,22 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     results = out / "results.jsonl"
     before = _records(results)
     start = time.monotonic()
-    cmd = [sys.executable, "-m", "robotexp.lua.child", *args]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            preexec_fn=die_with_parent)
-    relays = [threading.Thread(target=_relay, args=(s, e), daemon=True)
-              for s, e in ((proc.stdout, False), (proc.stderr, True))]
+    ready, ready_w = os.pipe()          # the child writes a byte there when its script starts
+    os.set_blocking(ready, False)
+    cmd = [sys.executable, "-m", "robotexp.lua.child", *args, f"--ready-fd={ready_w}"]
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                preexec_fn=die_with_parent, pass_fds=(ready_w,))
+    finally:
+        os.close(ready_w)
+    failures: list[OSError | ValueError] = []
+    relays = [threading.Thread(target=_relay, args=(s, t, failures), daemon=True)
+              for s, t in ((proc.stdout, click.get_binary_stream("stdout")),
+                           (proc.stderr, click.get_binary_stream("stderr")))]
     for t in relays:
         t.start()
-    kill_at = None if timeout is None else start + timeout + timeout_grace
+    kill_at = None if timeout is None else start + timeout + timeout_grace + STARTUP_GRACE
+    started = False                 # the child said its script started: its timeout runs from then
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
     interrupted = False
     try:
@@ -84,6 +130,11 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             try:
                 while proc.poll() is None:
                     now = time.monotonic()
+                    if not started and _said(ready):
+                        started = True
+                        if timeout is not None:
+                            at = now + timeout + timeout_grace
+                            kill_at = at if kill_at is None else min(kill_at, at)
                     if kill_at is not None and now >= kill_at:
                         why = "interrupted" if interrupted else "timeout"
                         proc.kill()
@@ -101,9 +152,15 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        os.close(ready)
         for t in relays:
             t.join(timeout=2.0)
     made = max(_records(results) - before, 0)
+    if failures:
+        exc = failures[0]
+        why_not = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        _tell(f"robotexp: error: {script}: the script's output could not be written ({why_not}); the rest of it "
+              f"was dropped; the {made} run(s) finished are in {results}")
     if why == "timeout":
         click.echo(f"robotexp: error: {script}: stopped by --timeout after {timeout:g} s (it did not stop by "
                    f"itself within {timeout_grace:g} s: killed); the {made} run(s) finished so far are in "
@@ -118,6 +175,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         # over (`run --view` keeps its page up until Ctrl-C)
         return proc.returncode if why is None and proc.returncode >= 0 else 130
     code = proc.returncode
+    if failures and code == 0:
+        return 1
     if code < 0:
         name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
         click.echo(f"robotexp: error: {script}: the script's process was killed by {name} (out of memory? "

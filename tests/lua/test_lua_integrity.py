@@ -1,0 +1,180 @@
+"""What a script cannot break: the stop hook (through closures made while it runs), the metatables
+Python objects and files share, robotexp's records, and the disk (the write limit)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+from click.testing import CliRunner
+
+from robotexp.cli import main
+from robotexp.errors import ScriptError
+
+WRAP_ATTACK = """
+local w = coroutine.wrap(function() end)
+local i = 1
+while true do
+  local ok, n = pcall(debug.getupvalue, w, i)
+  if not ok then print("refused: " .. n) break end
+  if n == nil then break end
+  if n == "error" then debug.setupvalue(w, i, function() end) end
+  if n == "aborting" then debug.setupvalue(w, i, function() return false end) end
+  i = i + 1
+end
+"""
+
+
+def _cli(*args: str) -> tuple[int, str]:
+    result = CliRunner().invoke(main, list(args))
+    return result.exit_code, result.output
+
+
+def test_coroutine_wrap_closure_is_closed_to_debug(lua):
+    lua(WRAP_ATTACK + 'print(pcall(debug.setupvalue, coroutine.wrap(print), 6, print))')
+    assert lua.lines[0].startswith("refused: ") and "robotexp's own functions are closed" in lua.lines[0]
+    assert lua.lines[1].startswith("false\t") and "debug.setupvalue" in lua.lines[1]
+
+
+def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
+    # the script stops itself at --timeout (writing the run in progress, if any); it is not killed
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text(WRAP_ATTACK + "while true do end")
+    t0 = time.monotonic()
+    code, output = _cli("run", str(script), "--out", str(out), "--timeout", "2")
+    assert code == 1 and time.monotonic() - t0 < 2 + 1.5, output
+    assert "stopped by --timeout after 2 s; the 0 run(s) finished so far" in output
+    assert "killed" not in output
+
+
+def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
+    # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
+    # kill still counts from the script's start, so the child stops its run at --timeout and writes it
+    slow = tmp_path / "slow"
+    slow.mkdir()
+    (slow / "sitecustomize.py").write_text("import time\ntime.sleep(1.5)\n")
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(3600000); exploration.start()\n'
+                      'exploration.wait(); print("not reached")')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(slow), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
+                           "--timeout", "2"], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.returncode == 1 and "not reached" not in proc.stdout and "killed" not in proc.stderr, proc.stderr
+    assert "stopped by --timeout after 2 s; the 1 run(s) finished so far" in proc.stderr
+    (record,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert record["completed"] is False and "--timeout of 2 s" in record["reason"]
+
+
+def test_print_of_bytes_that_are_not_utf8(lua):
+    lua('print(pcall(print, "a\\255b\\237\\160\\128c\\226\\130", 1))')
+    assert lua.lines == ["a\ufffdb\ufffd\ufffd\ufffdc\ufffd\ufffd\t1", "true"]
+
+
+def test_shared_metatables_are_locked(lua):
+    code = ('print(getmetatable(io.stdout), debug.getmetatable(io.stdout))\n'
+            'print(pcall(debug.setmetatable, io.stdout, {}))\n'
+            'print(pcall(setmetatable, io.stdout, {}))')
+    lua(code)
+    assert lua.lines[0] == "robotexp: locked\trobotexp: locked"
+    assert lua.lines[1].startswith("false\t") and "debug.setmetatable" in lua.lines[1]
+    assert lua.lines[2].startswith("false\t")
+
+
+RECORD_WRITES = [
+    'io.open("results.jsonl", "w")', 'io.open("results.jsonl", "a")', 'io.open("results.jsonl", "r+")',
+    'io.open("RESULTS.JSONL", "w")', 'io.open("Results.Jsonl.torn", "a")', 'io.open("sub/../results.jsonl", "w")',
+    'io.open("./results.jsonl.torn", "w")', 'io.open(".robotexp.lock", "w")', 'io.open("results.jsonl/x", "w")',
+    'io.open("link", "w")', 'io.open("shared/results.jsonl", "w")', 'io.output("results.jsonl")',
+    'os.remove("results.jsonl")', 'os.rename("results.jsonl", "x")', 'os.rename("mine.txt", "results.jsonl")',
+    'os.rename("shared", "elsewhere")', 'mapView.setFrameFolder("results.jsonl")',
+    'exploration.setRecordFolder("shared/results.jsonl.torn")', 'mapView.saveMapImage("results.jsonl")',
+]
+
+
+@pytest.mark.parametrize("sandbox", [True, False])
+def test_scripts_cannot_touch_the_records(lua, sandbox):
+    out = lua.out
+    (out / "shared").mkdir(parents=True)
+    for f in (out / "results.jsonl", out / "shared" / "results.jsonl"):
+        f.write_text('{"run": "earlier", "coverage": 0.25}\n')
+    (out / "mine.txt").write_text("x")
+    os.symlink("results.jsonl", out / "link")
+    code = "local refused = 0\n"
+    for w in RECORD_WRITES:
+        code += (f"local ok, e = pcall(function() return {w} end)\n"
+                 "if not ok and e:find(\"refused\", 1, true) then refused = refused + 1 else print(e) end\n")
+    lua(code + "print(refused)", sandbox=sandbox)
+    assert lua.lines == [str(len(RECORD_WRITES))]
+    for f in (out / "results.jsonl", out / "shared" / "results.jsonl"):
+        assert f.read_text() == '{"run": "earlier", "coverage": 0.25}\n'
+    assert sorted(p.name for p in out.iterdir()) == ["link", "mine.txt", "results.jsonl", "shared"]
+
+
+def test_a_results_file_that_is_a_folder_is_refused_before_the_run(tmp_path):
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('print("ran")')
+    (out / "results.jsonl").mkdir(parents=True)
+    code, output = _cli("run", str(script), "--out", str(out))
+    assert code == 2 and "ran" not in output and "Traceback" not in output
+    assert output == f"robotexp: error: {out / 'results.jsonl'}: is a folder, not a results file; move it away " \
+                     "or give another --out (the runs' records go there)\n"
+
+
+def test_the_write_limit_stops_a_write_loop(lua):
+    code = """
+    local f = io.open("big.bin", "wb")
+    local chunk, n = ("x"):rep(65536), 0
+    local ok, e = pcall(function() while true do f:write(chunk); n = n + 1 end end)
+    print(n, e)
+    print(pcall(f.write, f, "y"))
+    io.output(f)
+    print(pcall(io.write, "y"))
+    io.output(io.stdout)
+    print(pcall(io.write, "to the terminal: not counted "))
+    f:close()
+    print(pcall(io.open, "other.txt", "w"))
+    """
+    lua(code, sandbox=True, max_write=2**20)
+    n, error = lua.lines[0].split("\t")
+    assert int(n) == 15          # 16 x 64 KiB fill 1 MB; the file costs 4 KiB
+    assert "file:write: refused: the script's files reached its --max-write limit of 1 MB" in error
+    assert (lua.out / "big.bin").stat().st_size == 15 * 65536
+    assert [line.split("\t")[0] for line in lua.lines[1:]] == ["false", "false", "true", "false"]
+    assert all("--max-write" in line for line in lua.lines[1:] if line.startswith("false"))
+    assert not (lua.out / "other.txt").exists()
+
+
+def test_the_write_limit_counts_files_created(lua):
+    code = ('local n = 0\nlocal ok, e = pcall(function() while true do io.open("f" .. n, "w"):close(); '
+            'n = n + 1 end end)\nprint(n, e)')
+    lua(code, sandbox=True, max_write=2**20)
+    n, error = lua.lines[0].split("\t")
+    assert int(n) == 256 and "io.open: refused" in error and "--max-write" in error     # 1 MB / 4 KiB
+
+
+def test_max_write_on_the_command_line(tmp_path):
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('local f = io.open("a.bin", "wb"); f:write(("x"):rep(3 * 2^20)); print("not reached")')
+    code, output = _cli("run", str(script), "--out", str(out), "--sandbox", "--max-write", "2")
+    assert code == 1 and "not reached" not in output and "Traceback" not in output
+    assert "s.lua:1: file:write: refused: the script's files reached its --max-write limit of 2 MB" in output
+    code, output = _cli("run", str(script), "--out", str(out), "--sandbox")       # the default: 512 MB
+    assert code == 0 and "not reached" in output
+    code, output = _cli("run", str(script), "--out", str(out), "--max-write", "-1")
+    assert code == 2 and output == "robotexp: error: --max-write must be 0..1073741824 MB, got -1\n"
+
+
+def test_a_results_file_made_a_folder_during_the_run_keeps_the_record(lua):
+    # without --sandbox a script can still start programs: the record goes beside the folder
+    code = ('os.execute("mkdir -p \'" .. exploration.outputFolder() .. "/results.jsonl\'")\n'
+            'exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); exploration.wait()')
+    with pytest.raises(ScriptError, match=r"results.jsonl is a folder, not a results file: this run's record was "
+                                          r"written to .*\.record\.json instead"):
+        lua(code)
+    (rescued,) = lua.out.glob("*.record.json")
+    (record,) = [json.loads(x) for x in rescued.read_text().splitlines()]
+    assert record["run"] == rescued.name.removesuffix(".record.json") and record["robot_time_s"] > 0
