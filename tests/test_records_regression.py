@@ -26,14 +26,14 @@ EXPECTED = {
     # still give the same records to the last digit
     ("dense", "frontier", 60.0): {
         "params": {"face_reach": 0.0},
-        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 8.0525, "robot_time_s": 60.0,
-                   "coverage": 0.15561, "map_iou": 0.12809, "visited_cells": 95, "collisions": 0,
+        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 10.5375, "robot_time_s": 60.0,
+                   "coverage": 0.16869, "map_iou": 0.14369, "visited_cells": 123, "collisions": 0,
                    "reason": "time limit of 60 s reached", "completed": False, "nodes": None,
                    "start_pose": [-5.0, 7.5, 0.0], "time_to_coverage_90_s": None, "pose": "1",
                    "robot": "p3dx", "laser_range_m": 3.0, "cell_m": 0.1, "max_speed_m_s": 0.3, "seed": 0},
         "end": EndReason.TIME_LIMIT,
-        "curve_sha256": "693e5f1509b356861714c990e3091d6864c5934d7baa37f10c1e44cdb07060b1",
-        "path_sha256": "e18a2517a57632c322ade639b4805ca5466c7bf64ce32e086d4783a2461212a5",
+        "curve_sha256": "738af13835382d2927e98c75a03bfd1ef919f63671f8de4d693eff908dfafb4d",
+        "path_sha256": "415a97b72790c49f42324807e376a3ed48c1970be08865a5e1a5f2e9b1b657b0",
     },
     # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension)
     ("dense", "srt-laser", 4 * 3600.0): {

@@ -30,8 +30,6 @@ MARGIN = 0.01       # [m] the hard limit beyond the robot's footprint: a safety 
 ZONE = 0.05 + 0.05  # [m] the danger zone starts this much wider than it did when the hard limit was 5 cm + half
 #                     a cell: costs far from the walls stay as they were
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
-TIGHT = 0.05        # [m] closer than the radius plus this to a wall, a cell costs at least TIGHT_COST
-TIGHT_COST = 40.0
 REFINE = 1.5        # [cells] the wall distance is measured to hits and squares this far beyond the hard limit
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
 
@@ -41,9 +39,8 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
 
     A cell is blocked when its centre lies within radius + MARGIN of a wall: of the point where the last
     laser hit of an occupied cell landed (the wall's face; `OccupancyGrid.hits`), or of the whole square
-    of an occupied cell no hit marked. Within `TIGHT` of that limit a cell costs at least `TIGHT_COST` (a
-    door, never a path along a wall); the next `clearance` [m] (plus `ZONE`; none when 0) is a danger
-    zone whose cost rises towards the walls, so paths keep off walls where there is room and pass a door through its
+    of an occupied cell no hit marked. The next `clearance` [m] (plus `ZONE`; none when 0) is a danger zone whose cost
+    rises towards the walls, so paths keep off walls where there is room and pass a door through its
     middle. On a 10 cm grid a 0.65 m door stays open to a 0.5 m robot: its faces are known to the
     centimetre, not to the cell.
 
@@ -58,19 +55,7 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
     occ = grid.occupied()
     dist = wall_distance(distance_transform(occ), occ, grid.hits, grid.geo.cell, rr + REFINE)
-    cost = cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST,
-                     blocked=~grid.free())
-    return _tight(cost, dist, grid.geo.cell, radius) if clearance > 0 else cost
-
-
-def _tight(cost: npt.NDArray[np.float32], dist: npt.NDArray[np.float32], cell: float,
-           radius: float) -> npt.NDArray[np.float32]:
-    """`cost` with the cells closer than the robot radius + `TIGHT` to a wall (`dist` [cells]) costing at
-    least `TIGHT_COST`: a plan passes that close only where it must (a door), never along a wall. Part of
-    the danger zone: not applied without one (`clearance` 0)."""
-    tight = (dist <= (radius + TIGHT) / cell) & np.isfinite(cost)
-    cost[tight] = np.maximum(cost[tight], np.float32(TIGHT_COST))
-    return cost
+    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
 
 
 def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
@@ -246,10 +231,9 @@ class PlanCosts:
             near = grid.window(s0, s1, t0, t1)
             dist = wall_distance(self.walls.dist[s0:s1, t0:t1], near.occupied(), near.hits, grid.geo.cell,
                                  rr + REFINE)
-            inner = dist[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
-            cost = cost_grid(inner, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST,
-                             blocked=~grid.window(r0, r1, c0, c1).free())
-            self.cost[r0:r1, c0:c1] = _tight(cost, inner, grid.geo.cell, self.radius) if self.clearance > 0 else cost
+            self.cost[r0:r1, c0:c1] = cost_grid(dist[r0 - s0:r1 - s0, c0 - t0:c1 - t0], robot_radius_cells=rr,
+                                                danger_radius_cells=dr, danger_cost=DANGER_COST,
+                                                blocked=~grid.window(r0, r1, c0, c1).free())
         return self.cost
 
 
