@@ -16,7 +16,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
-from robotexp.planning.targets import WallDistance
+from robotexp.planning.targets import MARGIN, WallDistance, wall_distance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
@@ -24,7 +24,7 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
-INFLATE_MARGIN = 0.05   # [m] the walls grow by the robot radius plus this and half a cell (default inflate)
+INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -75,8 +75,8 @@ class BVPExplorer(Explorer):
       within 1e-16 of 1 and rounds to a flat 1.0 in float64 (a robot in an explored room behind a
       door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
       to 1e-308, so the gradient keeps its direction.
-    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, 5 cm): cells
-      whose centre lies within inflate + half a cell of an occupied cell's
+    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 5 cm the
+      planners keep): cells whose centre lies within inflate + half a cell of an occupied cell's
       centre are obstacles (potential 1) too, as in Connolly & Grupen's planner, so the descent never
       leads into a gap the robot cannot pass and unknown cells right by walls (their unseen faces)
       are not goals. With the radius alone the field led into channels of the configuration space
@@ -193,7 +193,7 @@ class BVPExplorer(Explorer):
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
-            self.walls = WallDistance(self._inflate_cells(grid))
+            self.walls = WallDistance(self._inflate_cells(grid) + 1.5)
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -244,15 +244,19 @@ class BVPExplorer(Explorer):
         rows, cols = view.shape
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
+        # to the walls' faces where laser hits mark them (`wall_distance`): a door keeps its width
+        inflate = self._inflate_cells(grid)
+        dist = wall_distance(dist, view.occupied(), view.hits, grid.geo.cell, inflate + 1.0)
+        wall = (dist <= inflate) | view.occupied()      # with no inflation: the occupied cells
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
 
     def _inflate_cells(self, grid: OccupancyGrid) -> float:
-        """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
+        """[cells] a cell whose centre is this near a wall (a laser hit's point, or an occupied cell's square
+        where no hit marked it) is a wall."""
         inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
-        return inflate / grid.geo.cell + 0.5
+        return inflate / grid.geo.cell
 
     def update_potential(self, grid: OccupancyGrid
                          ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], tuple[int, int]]:
