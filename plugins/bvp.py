@@ -16,7 +16,7 @@ from robotexp.errors import ConfigError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
-from robotexp.planning.targets import MARGIN, WallDistance, wall_distance
+from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
@@ -193,7 +193,7 @@ class BVPExplorer(Explorer):
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
-            self.walls = WallDistance(self._inflate_cells(grid) + 1.5)
+            self.walls = WallDistance(self._inflate_cells(grid))
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -244,19 +244,15 @@ class BVPExplorer(Explorer):
         rows, cols = view.shape
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        # to the walls' faces where laser hits mark them (`wall_distance`): a door keeps its width
-        inflate = self._inflate_cells(grid)
-        dist = wall_distance(dist, view.occupied(), view.hits, grid.geo.cell, inflate + 1.0)
-        wall = (dist <= inflate) | view.occupied()      # with no inflation: the occupied cells
+        wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
 
     def _inflate_cells(self, grid: OccupancyGrid) -> float:
-        """[cells] a cell whose centre is this near a wall (a laser hit's point, or an occupied cell's square
-        where no hit marked it) is a wall."""
+        """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
         inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
-        return inflate / grid.geo.cell
+        return inflate / grid.geo.cell + 0.5
 
     def update_potential(self, grid: OccupancyGrid
                          ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], tuple[int, int]]:

@@ -53,8 +53,8 @@ def test_nothing_blocks_when_not_moving_forward() -> None:
 
 
 def test_corridor_edges_by_hand() -> None:
-    assert blocked_ahead(scan_at((0.3, 0.255)), R, 0.08, 0.3)        # |y| 0.255 < 0.25 + SIDE_EPS
-    assert not blocked_ahead(scan_at((0.3, 0.265)), R, 0.08, 0.3)
+    assert blocked_ahead(scan_at((0.3, 0.26)), R, 0.08, 0.3)         # |y| 0.26 < 0.27
+    assert not blocked_ahead(scan_at((0.3, 0.28)), R, 0.08, 0.3)
     assert blocked_ahead(scan_at((0.47, 0.0)), R, 0.08, 0.3)         # x 0.47 < 0.48
     assert not blocked_ahead(scan_at((0.49, 0.0)), R, 0.08, 0.3)
     # faster: the corridor grows with the stopping distance (speed / 2): at 0.6 m/s x < 0.63

@@ -179,8 +179,7 @@ def tiny_grid(cell: float, size: int) -> OccupancyGrid:
 
 
 def test_plan_costs_blocks_radius_margin_and_half_a_cell() -> None:
-    # cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.01) / 0.1 = 2.6 cells of the square of (5, 5) (no
-    # hit marks it), which on this grid is the disc of 3.5 cells round its centre
+    # cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.05) / 0.1 + 0.5 = 3.5 cells of (5, 5)
     cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0)
     for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 3, 2.83, 3.16
                             (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 4, 3.61, 4, 7.07
@@ -193,24 +192,23 @@ def test_plan_costs_blocks_radius_margin_and_half_a_cell() -> None:
 
 
 def test_plan_costs_half_cell_depends_on_the_cell() -> None:
-    # cell 0.05 m: blocked within (0.25 + 0.01) / 0.05 = 5.2 cells of the occupied square (no hit marks it)
+    # cell 0.05 m: (0.25 + 0.05) / 0.05 + 0.5 = 6.5 cells; without the half cell it would be 6
     cost = plan_costs(tiny_grid(0.05, 17), radius=0.25, clearance=0.0)
     c = 8
-    assert np.isinf(cost[c, c + 5])               # 4.5 cells from the square
-    assert np.isinf(cost[c + 3, c + 5])           # (2.5, 4.5): 5.15
-    assert np.isfinite(cost[c + 4, c + 5])        # (3.5, 4.5): 5.70
-    assert np.isfinite(cost[c, c + 6])            # 5.5
+    assert np.isinf(cost[c + 4, c + 5])           # sqrt(41) = 6.40 cells
+    assert np.isinf(cost[c, c + 6])               # 6
+    assert np.isfinite(cost[c + 3, c + 6])        # sqrt(45) = 6.71 cells
+    assert np.isfinite(cost[c, c + 7])
 
 
 def test_plan_costs_danger_zone_and_unknown_cells() -> None:
     grid = tiny_grid(0.1, 11)
-    # clearance 0.2 m + ZONE 0.1 m = 3 cells beyond 2.6: cost 1 + 4 (1 - (d - 2.6) / 3) for 2.6 < d <= 5.6,
-    # d the distance to the occupied square
+    # clearance 0.2 m = 2 cells beyond 3.5: cost 1 + 4 (1 - (d - 3.5) / 2) for 3.5 < d <= 5.5
     cost = plan_costs(grid, radius=0.25, clearance=0.2)
-    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.9 / 3), rel=1e-6)              # d = 3.5: 3.8
-    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.9 / 3), rel=1e-6)             # d = 4.5
-    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.sqrt(8.5) - 2.6) / 3), rel=1e-6)
-    assert cost[0, 0] == 1.0                                                       # d = 6.36
+    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.5 / 2))                      # d = 4: 4.0
+    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.5 / 2))                     # d = 5: 2.0
+    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.sqrt(13) - 3.5) / 2), rel=1e-6)
+    assert cost[0, 0] == 1.0                                                       # d = 7.07
     # unknown cells are never passable, however far from walls
     unknown_corner = OccupancyGrid(grid.geo)
     values = grid.values.copy()

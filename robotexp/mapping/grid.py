@@ -109,9 +109,6 @@ class OccupancyGrid:
         else:
             self.values = np.zeros(shape, np.uint8)
         self.stamp: npt.NDArray[np.int32] = np.zeros(shape, np.int32)   # last scan id per cell, 0 = never
-        # where in each cell the last laser hit landed, (x, y) [m] from the cell's centre (NaN: never hit):
-        # the wall's face within the cell, which planners measure clearance to (`planning.targets`)
-        self.hits: npt.NDArray[np.float32] = np.full((*shape, 2), np.nan, np.float32)
         self.scans = 0
         self.cells_updated = 0
         self.box: tuple[int, int, int, int] | None = None   # see touched_box
@@ -160,25 +157,8 @@ class OccupancyGrid:
         else:
             cert = cast("npt.NDArray[np.uint8]", self.values)
             n = integrate_scan_himm(cert, self.stamp, self.scans, self.geo, sensor, angles, ranges, rmax)
-        self._note_hits(sensor, angles[hits], ranges[hits] - HIT_DEPTH, ranges[hits])
         self.cells_updated += int(n)
         return int(n)
-
-    def _note_hits(self, sensor: npt.NDArray[np.float64], angles: npt.NDArray[np.float64],
-                   surface: npt.NDArray[np.float64], nudged: npt.NDArray[np.float64]) -> None:
-        """Keep, for the cell each hit was counted in (at range `nudged`), where its surface point (at range
-        `surface`) lies from that cell's centre."""
-        if len(angles) == 0:
-            return
-        g = self.geo
-        heading = sensor[2] + angles
-        c, s = np.cos(heading), np.sin(heading)
-        col = np.floor((sensor[0] + nudged * c - g.origin_x) / g.cell).astype(np.int64)
-        row = np.floor((sensor[1] + nudged * s - g.origin_y) / g.cell).astype(np.int64)
-        ok = (row >= 0) & (row < g.rows) & (col >= 0) & (col < g.cols) & np.isfinite(surface) & (surface >= 0)
-        row, col = row[ok], col[ok]
-        self.hits[row, col, 0] = sensor[0] + surface[ok] * c[ok] - (g.origin_x + (col + 0.5) * g.cell)
-        self.hits[row, col, 1] = sensor[1] + surface[ok] * s[ok] - (g.origin_y + (row + 0.5) * g.cell)
 
     def touched_box(self) -> tuple[int, int, int, int] | None:
         """Rows r0..r1 and columns c0..c1 (half-open) that hold every cell a scan or mark has touched so far
@@ -229,7 +209,6 @@ class OccupancyGrid:
         other.geo = GridGeometry(g.origin_x + c0 * g.cell, g.origin_y + r0 * g.cell, g.cell, r1 - r0, c1 - c0)
         other.values = self.values[r0:r1, c0:c1]
         other.stamp = self.stamp[r0:r1, c0:c1]
-        other.hits = self.hits[r0:r1, c0:c1]
         other._changes = np.zeros((64, 4), np.int32)   # a window keeps no history: ask the grid (its numbers)
         other.box = None if self.box is None else (
             max(self.box[0] - r0, 0), max(min(self.box[1] - r0, r1 - r0), 0),
@@ -382,7 +361,6 @@ class OccupancyGrid:
         other.__dict__.update(self.__dict__)
         other.values = self.values.copy()
         other.stamp = self.stamp.copy()
-        other.hits = self.hits.copy()
         other._changes = self._changes.copy()
         return other
 

@@ -2,8 +2,7 @@
 
 Shared by every goal-seeking explorer (frontier, SRT, metaheuristic targets). Pure pursuit with a
 look-ahead point, turning in place when the heading error is large, slowing near the end, and a
-safety check on the laser: no forward motion towards an obstacle closer than the robot needs to stop;
-slower where a laser return lies near the robot's disc (a door, a narrow corridor).
+safety check on the laser: no forward motion towards an obstacle closer than the robot needs to stop.
 """
 
 from __future__ import annotations
@@ -19,12 +18,7 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.planning.grid_planner import simplify
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["PathFollower", "FollowerConfig", "SIDE_EPS", "SLOW_ZONE", "blocked_ahead", "path_points",
-           "side_clearance"]
-
-SIDE_EPS = 0.01         # [m] a return this close beside the robot's swept corridor counts as in it
-SLOW_ZONE = 0.25        # [m] below this gap to the nearest return the follower slows down, in proportion
-SLOW_MIN = 0.25         # the slowest share of the speed in the narrowest places
+__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead", "path_points"]
 
 
 @dataclass(frozen=True)
@@ -57,23 +51,8 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
     x = scan.offset_x + r[ok] * np.cos(a[ok])
     y = r[ok] * np.sin(a[ok])
     reach = radius + clearance + max(speed, 0.05) * 0.5
-    inside = (x > 0) & (x < reach) & (np.abs(y) < radius + SIDE_EPS)
+    inside = (x > 0) & (x < reach) & (np.abs(y) < radius + 0.02)
     return bool(inside.any())
-
-
-def side_clearance(scan: LaserScan | None, radius: float) -> float:
-    """[m] the gap between the robot's disc and the nearest laser return beside or ahead of it (within
-    the robot's radius plus `SLOW_ZONE` of its centre, forward half and sides); inf when none."""
-    if scan is None:
-        return math.inf
-    r = scan.ranges
-    ok = np.isfinite(r)
-    if not ok.any():
-        return math.inf
-    x = scan.offset_x + r[ok] * np.cos(scan.angles[ok])
-    y = r[ok] * np.sin(scan.angles[ok])
-    d = np.hypot(x, y)[x > -radius]
-    return float(d.min()) - radius if len(d) else math.inf
 
 
 def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
@@ -160,10 +139,6 @@ class PathFollower:
         v = lim.v_max * math.cos(err) * min(1.0, to_end / 0.5 + 0.2)
         # braking distance v^2 / 2a must fit in what is left of the path
         v = min(v, math.sqrt(2 * lim.a_max * max(to_end, 0.0)) + 0.02)
-        # slow where the clearance is small (a door): pure pursuit then keeps closer to the path
-        gap = side_clearance(scan, self.radius)
-        if gap < SLOW_ZONE:
-            v *= max(SLOW_MIN, gap / SLOW_ZONE)
         self.blocked = blocked_ahead(scan, self.radius, cfg.clearance, v)
         if self.blocked:
             return Twist(0.0, w)

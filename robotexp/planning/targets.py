@@ -1,9 +1,8 @@
 """Where goal-seeking explorers may go and at what cost: the planning helpers they share.
 
 Frontier cells worth driving to (`frontier_targets`, `usable_frontier`), the traversal costs every
-plan uses (`plan_costs`: known-free cells only, blocked where the robot's disc (plus a safety
-epsilon, `MARGIN`) would touch a wall, a costly danger zone beyond that keeps paths centred), and the
-passable cell to plan from when the robot's own cell is not
+plan uses (`plan_costs`: known-free cells only, walls inflated by the robot radius and a margin, a
+costly danger zone beyond), and the passable cell to plan from when the robot's own cell is not
 passable (`nearest_passable`, `passable_cell`). The frontier, metaheuristic and SRT explorers all
 plan with these; they lived in the frontier plugin before, and plugins do not import each other.
 """
@@ -18,31 +17,23 @@ import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.kernels import kernel
 from robotexp.planning.grid_planner import cost_grid, distance_transform
 from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory"]
 
-MARGIN = 0.01       # [m] the hard limit beyond the robot's footprint: a safety epsilon (the danger zone keeps
-#                     paths off the walls where there is room)
-ZONE = 0.05 + 0.05  # [m] the danger zone starts this much wider than it did when the hard limit was 5 cm + half
-#                     a cell: costs far from the walls stay as they were
+MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
-REFINE = 1.5        # [cells] the wall distance is measured to hits and squares this far beyond the hard limit
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
 
 
 def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
     """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
 
-    A cell is blocked when its centre lies within radius + MARGIN of a wall: of the point where the last
-    laser hit of an occupied cell landed (the wall's face; `OccupancyGrid.hits`), or of the whole square
-    of an occupied cell no hit marked. The next `clearance` [m] (plus `ZONE`; none when 0) is a danger zone whose cost
-    rises towards the walls, so paths keep off walls where there is room and pass a door through its
-    middle. On a 10 cm grid a 0.65 m door stays open to a 0.5 m robot: its faces are known to the
-    centimetre, not to the cell.
+    A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
+    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger
+    zone whose cost rises towards the obstacle, so paths keep off walls where there is room.
 
     Args:
         grid: the map.
@@ -53,55 +44,13 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
-    occ = grid.occupied()
-    dist = wall_distance(distance_transform(occ), occ, grid.hits, grid.geo.cell, rr + REFINE)
+    dist = distance_transform(grid.occupied())
     return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
 
 
 def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
     """`plan_costs`' robot radius and danger zone width [cells]."""
-    return (radius + MARGIN) / cell, (clearance + ZONE) / cell if clearance > 0 else 0.0
-
-
-def wall_distance(dist: npt.NDArray[np.float32], occ: npt.NDArray[np.bool_], hits: npt.NDArray[np.float32],
-                  cell: float, reach: float) -> npt.NDArray[np.float32]:
-    """(rows, cols) float32 distance [cells] from each cell centre to the nearest wall: for the cells whose
-    distance `dist` to the nearest occupied centre is within `reach` [cells], the distance to the nearest
-    hit point (`hits`, (rows, cols, 2) [m] from the cell centres) of an occupied cell, or to the square of
-    an occupied cell without one; `dist` - 0.5 elsewhere (about the distance to the nearest occupied square)."""
-    out = np.empty(dist.shape, np.float32)
-    _wall_distance(np.ascontiguousarray(dist, np.float32), np.ascontiguousarray(occ),
-                   np.ascontiguousarray(hits, np.float32), float(cell), float(reach), out)
-    return out
-
-
-@kernel
-def _wall_distance(dist: npt.NDArray[np.float32], occ: npt.NDArray[np.bool_], hits: npt.NDArray[np.float32],
-                   cell: float, reach: float, out: npt.NDArray[np.float32]) -> None:
-    rows, cols = dist.shape
-    w = int(math.ceil(reach)) + 1
-    for r in range(rows):
-        for c in range(cols):
-            d = dist[r, c]
-            if not d <= reach:
-                out[r, c] = d - 0.5         # about the distance to that cell's square
-                continue
-            best = math.inf
-            for rr in range(max(r - w, 0), min(r + w + 1, rows)):
-                for cc in range(max(c - w, 0), min(c + w + 1, cols)):
-                    if not occ[rr, cc]:
-                        continue
-                    hx, hy = hits[rr, cc, 0], hits[rr, cc, 1]
-                    if math.isnan(hx) or math.isnan(hy):
-                        ax = max(abs(cc - c) - 0.5, 0.0)
-                        ay = max(abs(rr - r) - 0.5, 0.0)
-                    else:
-                        ax = (cc - c) + hx / cell
-                        ay = (rr - r) + hy / cell
-                    e = ax * ax + ay * ay
-                    if e < best:
-                        best = e
-            out[r, c] = math.sqrt(best) if best < math.inf else d
+    return (radius + MARGIN) / cell + 0.5, clearance / cell
 
 
 class WallDistance:
@@ -217,21 +166,14 @@ class PlanCosts:
         write to it)."""
         rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
         if self.walls is None or self.walls._grid is not grid:
-            self.walls = WallDistance(rr + dr + 2.0)
+            self.walls = WallDistance(rr + dr)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
         box = self.walls.update(grid)
         if fresh:
             self.cost = np.full(grid.shape, np.inf, np.float32)     # unknown cells are blocked
         if box is not None:
-            # the wall distance near a cell depends on the occupied cells and hits within reach + 2 of it
-            k = int(math.ceil(rr + REFINE)) + 2
-            rows, cols = grid.shape
             r0, r1, c0, c1 = box
-            s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
-            near = grid.window(s0, s1, t0, t1)
-            dist = wall_distance(self.walls.dist[s0:s1, t0:t1], near.occupied(), near.hits, grid.geo.cell,
-                                 rr + REFINE)
-            self.cost[r0:r1, c0:c1] = cost_grid(dist[r0 - s0:r1 - s0, c0 - t0:c1 - t0], robot_radius_cells=rr,
+            self.cost[r0:r1, c0:c1] = cost_grid(self.walls.dist[r0:r1, c0:c1], robot_radius_cells=rr,
                                                 danger_radius_cells=dr, danger_cost=DANGER_COST,
                                                 blocked=~grid.window(r0, r1, c0, c1).free())
         return self.cost
