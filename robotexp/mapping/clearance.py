@@ -9,7 +9,8 @@ rectangles by the loader). A disc robot of radius r fits at a point whose cleara
 the whole map. On a grid of cell h, clearance is 1-Lipschitz, so a cell whose centre has clearance
 C > r + h/sqrt(2) lies wholly in the free space ("sure") and one with C + h/sqrt(2) <= r wholly outside
 ("blocked"). Only the remaining cells, a band along the free space's border, are sampled finely: k x k
-points per cell (k = ceil(h / FINE_STEP)), each free when its own exact clearance exceeds r. The regions
+points per cell (k = ceil(h / FINE_STEP), lowered to keep the band under MAX_SAMPLES samples), each free
+when its own exact clearance exceeds r. The regions
 are the 8-connected components of the fine lattice whose points are free when their cell is sure or
 their own sample is free. A passage the robot fits through with d to spare on each side keeps a row of
 fine points when 2 d exceeds the fine step: with FINE_STEP 1 cm, a door 2 cm wider than the robot is
@@ -29,9 +30,11 @@ from robotexp.mapping.kernels import edt_sq, kernel
 from robotexp.sim.raycast import RayIndex, _shape_distance
 from robotexp.world.model import World
 
-__all__ = ["FINE_STEP", "TOL", "Regions", "clearance", "clearance_points", "reach_regions", "world_index"]
+__all__ = ["FINE_STEP", "MAX_SAMPLES", "TOL", "Regions", "clearance", "clearance_points", "reach_regions",
+           "world_index"]
 
 FINE_STEP = 0.01        # [m] the finest spacing at which the border of the free space is sampled
+MAX_SAMPLES = 16_000_000  # the border band holds at most this many fine samples (k is lowered to fit)
 TOL = 1e-9              # [m] a clearance within this of the radius counts as touching: the robot does not fit
 
 
@@ -298,18 +301,19 @@ def reach_regions(world: World, geo: GridGeometry, radius: float, *, occupied: n
         radius: [m] the robot's radius (>= 0).
         occupied: bool (rows, cols) cells overlapping an obstacle (`groundtruth.occupancy`).
         index: `world_index(world)`, when already built.
-        fine_step: [m] the border band's sample spacing (at most the cell).
+        fine_step: [m] the border band's sample spacing (at most the cell; coarser when the band would
+            hold more than MAX_SAMPLES samples, as on a very coarse grid).
     """
     if index is None:
         index = world_index(world)
     h = float(geo.cell)
-    k = max(1, math.ceil(h / fine_step - 1e-9))
     half_diag = h * math.sqrt(0.5)
     clear = clearance(world, geo, radius + h, index=index, occupied=occupied)
     sure = clear > radius + half_diag + TOL
     band = ~sure & (clear + half_diag > radius + TOL)
     mr, mc = np.nonzero(band)
     mr, mc = mr.astype(np.int64), mc.astype(np.int64)
+    k = max(1, min(math.ceil(h / fine_step - 1e-9), math.isqrt(MAX_SAMPLES // max(len(mr), 1))))
     mid = np.full((geo.rows, geo.cols), -1, np.int64)
     mid[mr, mc] = np.arange(len(mr), dtype=np.int64)
     fine = np.zeros((len(mr), k, k), np.bool_)
