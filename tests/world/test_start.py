@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -94,3 +96,25 @@ def test_rooms_joined_by_a_door_the_robot_just_fits_through_are_one_region():
     truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=choice.pose)
     assert truth.reachable[geo.cell_of(1.0, 1.0)] and truth.reachable[geo.cell_of(7.0, 3.0)]
     assert not truth.reachable[geo.cell_of(12.5, 2.5)]
+
+
+def test_explore_says_where_the_default_start_is_and_why(tmp_path):
+    from click.testing import CliRunner
+
+    from robotexp.cli import main
+    from robotexp.world.rosmap import save_ros_map
+
+    values = np.zeros((40, 40), np.int8)            # a closed 4 x 4 m room on 0.1 m cells
+    values[0, :] = values[-1, :] = values[:, 0] = values[:, -1] = 100
+    save_ros_map(tmp_path / "room.yaml", values, GridGeometry(0.0, 0.0, 0.1, 40, 40))
+    result = CliRunner().invoke(main, ["explore", "-w", str(tmp_path / "room.yaml"), "-o", str(tmp_path / "out"),
+                                       "--robot", "kobuki", "--max-time", "1"])
+    assert result.exit_code == 0, result.output
+    line = next(s for s in result.stderr.splitlines() if s.startswith("robotexp: start "))
+    # the room's middle (on the 5 cm search grid), the pose's name, and why: the one region, 3.45 x 3.45 m2
+    # where the Kobuki's centre fits (3.8 m inside the walls less 2 x 0.175 m)
+    m = re.fullmatch(r"robotexp: start centre: \((\S+), (\S+)\) m, heading 0 deg \(default start \(\S+, \S+\) m: "
+                     r"largest of 1 regions where the robot fits, (\S+) m2\)", line)
+    assert m is not None, line
+    assert abs(float(m[1]) - 2.0) <= 0.05 and abs(float(m[2]) - 2.0) <= 0.05
+    assert float(m[3]) == pytest.approx(3.45 * 3.45, rel=0.01)
