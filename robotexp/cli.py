@@ -88,18 +88,21 @@ class Progress(RunObserver):
         every: [s] wall time between lines without a terminal.
         clock: wall clock [s].
         notice: a line said on stderr when the run starts.
+        say_start: say where the run starts (its pose's name; why, for a default start) on stderr.
     """
 
     STALL = 60.0        # [s] robot time without a coverage gain of GAIN before "no gain" is said
     GAIN = 0.001        # coverage
 
     def __init__(self, label: str | None, enabled: bool | None = None, every: float = 60.0,
-                 clock: Callable[[], float] | None = None, notice: str | None = None) -> None:
+                 clock: Callable[[], float] | None = None, notice: str | None = None,
+                 say_start: bool = False) -> None:
         import time
 
         self.fixed = label
         self.label = label or ""
         self.notice = notice
+        self.say_start = say_start
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.shown = False
         self.every = every
@@ -113,6 +116,8 @@ class Progress(RunObserver):
         """Say the notice, note the run's time limit and start the wall clock."""
         if self.notice:
             click.echo(self.notice, err=True)
+        if self.say_start:
+            click.echo(f"robotexp: {_start_line(run)}", err=True)
         self.max_time = run.max_time
         self.wall0 = self.clock()
         self.next_line = self.wall0 + self.every
@@ -312,7 +317,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     spec.validate()
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
-    progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}")
+    progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}",
+                        say_start=address is None)
     watchers: list[RunObserver] = [progress] if live is None else [progress, live.observer]
     if frames is not None:
         from robotexp.video import FrameObserver, PngFrames
@@ -385,6 +391,19 @@ def compile_watch(tty: bool | None = None) -> Any:
             drawn[0] = False
         click.echo(text if step else f"robotexp: {text}", err=True)
     return CompileWatch(say)
+
+
+def _start_line(run: Any) -> str:
+    """Where a run starts, with its pose's name (and, for the default start, why it lies there)."""
+    from robotexp.world.start import chosen_start
+
+    p = run.start_pose
+    label = getattr(run.info, "pose", None)
+    line = f"start {label or 'pose'!s}: ({p.x:.2f}, {p.y:.2f}) m, heading {math.degrees(p.theta):.0f} deg"
+    choice = chosen_start(run.info.world) if label == "centre" else None
+    if choice is not None and choice.pose.x == p.x and choice.pose.y == p.y:
+        line += f" ({choice.describe()})"
+    return line
 
 
 def _pose_hint(text: str | None) -> str | None:

@@ -29,7 +29,9 @@ def main() -> int:
     from robotexp.mapping.kernels import clearance_mask, flood8, label8
     from robotexp.planning.targets import MARGIN
     from robotexp.world.loader import load_world
-    from robotexp.world.start import START_MARGIN, default_start
+    from robotexp.world.start import default_start
+
+    START_MARGIN = 0.05     # [m] room to spare beyond the radius for a "tight" place here
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kinds", default="office,warehouse,cave")

@@ -2,11 +2,10 @@
 
 `ground_truth()` rasterises a `World` and derives the reachable and explorable cells; `coverage()`
 and `map_iou()` score an occupancy grid against it. A cell is reachable when the robot, a disc of
-`robot_radius` centred on the cell centre, overlaps no occupied cell and connects to the start
-cell through such cells (8-connectivity), or through a passage the robot fits through on a finer
-grid (`FIT_CELL`, with `FIT_MARGIN` to spare: see `ground_truth`). A cell is explorable when it is
-free and a laser of `laser_range` sees it from some reachable position (see `ground_truth` for the
-sampling).
+`robot_radius`, fits at some point of the cell (its exact clearance from the world's obstacle shapes
+exceeds the radius) connected to the start by such points (`robotexp.mapping.clearance`: exact
+clearance, the free space's border sampled every centimetre). A cell is explorable when it is free and
+a laser of `laser_range` sees it from some reachable position (see `ground_truth` for the sampling).
 """
 
 from __future__ import annotations
@@ -20,22 +19,19 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError, WorldError
-from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
-from robotexp.mapping.kernels import clearance_mask, flood8, rasterize, traverse, view_free
+from robotexp.mapping.clearance import TOL, Regions, clearance_points, reach_regions, world_index
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.kernels import rasterize, traverse, view_free
 from robotexp.robot import Pose
 from robotexp.world.model import World
-from robotexp.world.start import START_MARGIN
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.sim.raycast import RayIndex
 
-__all__ = ["FIT_CELL", "FIT_MARGIN", "GroundTruth", "coverage", "map_iou_tolerant",
+__all__ = ["GroundTruth", "coverage", "map_iou_tolerant",
            "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
            "ray_tree"]
-
-
-FIT_CELL = 0.05             # [m] the finest cell on which passages are looked for (as the default start's)
-FIT_MARGIN = START_MARGIN   # [m] room to spare beyond the robot radius in such a passage (the default start's)
 
 
 @dataclass(frozen=True)
@@ -142,16 +138,11 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
                  start: Pose, n_rays: int = 720, sample_step: float | None = None) -> GroundTruth:
     """Rasterise `world` on `geo` and find the cells reachable and explorable from `start`.
 
-    C-free is the set of cells whose centre is farther than `robot_radius` from every point of
-    every occupied cell (exact; a distance equal to the radius blocks). Reachable is the
-    8-connected part of C-free holding the start cell, and every other part joined to it by a
-    passage the robot fits through: on a grid of cells of `FIT_CELL` (or `geo`'s cells split in
-    k x k, k = ceil(cell / FIT_CELL), fewer when that grid would exceed `MAX_CELLS`), the places
-    where the robot fits with `FIT_MARGIN` to spare, 8-connected to those inside the start's part.
-    On the coarse grid alone, every occupied cell spans up to a cell more than its obstacle, so a
-    door a robot passes with 10 cm to spare can hold no C-free cell at 10 cm cells: the rooms behind
-    it would not count as reachable although the robot drives there (Stage's hospital map at 10 cm
-    cells: 12 m2 reachable of the 285 m2 the robot explored). Explorable is the reachable cells plus the
+    Reachable is where the robot fits (a disc of `robot_radius` whose centre is farther than the radius
+    from every obstacle shape: exact distances, no cell quantisation) connected to the start
+    (`robotexp.mapping.clearance.reach_regions`): the cells whose centre is such a point, and the start
+    cell (a cell overlapping an obstacle never counts). A door the robot fits through with a centimetre
+    to spare joins the rooms, whatever the cell size. Explorable is the reachable cells plus the
     free cells seen by `n_rays` rays over 360 deg, each stopped by the first occupied cell or at
     `laser_range`, cast from the centres of the viewpoints: the reachable cells whose row and
     column are multiples of k = max(1, round(sample_step / cell)), every reachable cell with a
@@ -191,17 +182,25 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
         x1, y1 = geo.origin_x + geo.width, geo.origin_y + geo.height
         raise WorldError(f"{where} is outside the map (x {geo.origin_x:g}..{x1:g} m, "
                          f"y {geo.origin_y:g}..{y1:g} m): pick a start inside it")
-    if not base.cfree[row, col]:
+    here = np.empty(1)
+    index = base.index
+    clearance_points(index.shapes, index.starts, index.items, index.origin[0], index.origin[1], index.bucket,
+                     index.rows, index.cols, np.array([float(start.x)]), np.array([float(start.y)]),
+                     float(robot_radius) + 1.0, here)
+    label = base.regions.region_at(start.x, start.y) if here[0] > robot_radius + TOL else 0
+    if label == 0:
         raise WorldError(f"{where} is inside an obstacle or closer than the robot radius "
                          f"({robot_radius:g} m) to one: pick a start in open space")
     offsets, skip = ray_tree(int(n_rays), float(laser_range) / geo.cell)
     sight = (step, int(n_rays), float(laser_range))
-    part = next((c for c in base.components if c.sight == sight and c.reachable[row, col]), None)
+    part = next((c for c in base.components if c.sight == sight and c.label == label), None)
     if part is None:
-        reachable = _joined(world, geo, float(robot_radius), base, flood8(base.cfree, row, col))
+        reachable = (base.centres == label) & ~occ
+        reachable[row, col] = not occ[row, col]
         views = _border(reachable)
         views[::step, ::step] |= reachable[::step, ::step]
-        part = _Component(sight, reachable, views, view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip))
+        part = _Component(sight, label, reachable, views,
+                          view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip))
         base.components.append(part)
     seen = part.seen
     if not part.views[row, col]:        # the start cell is a viewpoint too: what it sees joins the rest
@@ -215,6 +214,7 @@ class _Component:
     and the border of `ground_truth`, without a start cell)."""
 
     sight: tuple[int, int, float]           # (lattice step, rays, laser range) they were seen with
+    label: int                              # the region's label in `_WorldGrid.regions`
     reachable: npt.NDArray[np.bool_]
     views: npt.NDArray[np.bool_]
     seen: npt.NDArray[np.bool_]
@@ -222,42 +222,14 @@ class _Component:
 
 @dataclass
 class _WorldGrid:
-    """A world rasterised on a grid for one robot radius, and its reachable regions found so far;
-    `parts` the 8-connected parts of C-free and `fits` the places where the robot fits on the finer
-    grid (`_joined`), both labelled once they are needed."""
+    """A world rasterised on a grid for one robot radius: its occupied cells, the regions where the
+    robot fits, and the reachable regions' sight found so far."""
 
     occupied: npt.NDArray[np.bool_]
-    cfree: npt.NDArray[np.bool_]
+    index: RayIndex
+    regions: Regions
+    centres: npt.NDArray[np.int32]          # `regions.centre_labels()`
     components: list[_Component]
-    parts: npt.NDArray[np.int32] | None = None
-    fits: npt.NDArray[np.int32] | None = None
-
-
-def _joined(world: World, geo: GridGeometry, radius: float, base: _WorldGrid,
-            start_part: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
-    """`start_part`, the start's part of C-free, with every other part of it that the places where the
-    robot fits on the finer grid (see `ground_truth`) join to it."""
-    from robotexp.mapping.kernels import label8
-
-    k = max(1, math.ceil(geo.cell / FIT_CELL - 1e-9))
-    while k > 1 and geo.rows * geo.cols * k * k > MAX_CELLS:
-        k -= 1
-    if k == 1:                  # no finer grid: its places, with the margin, lie inside C-free's parts
-        return start_part
-    if base.parts is None:
-        base.parts, _ = label8(base.cfree)
-    if base.fits is None:
-        fine = GridGeometry(geo.origin_x, geo.origin_y, geo.cell / k, geo.rows * k, geo.cols * k)
-        base.fits, _ = label8(clearance_mask(occupancy(world, fine), (radius + FIT_MARGIN) / fine.cell))
-    fits = base.fits
-    # the finer grid's places inside the start's part, and every place connected to them
-    seeds = np.unique(fits[np.repeat(np.repeat(start_part, k, axis=0), k, axis=1)])
-    seeds = seeds[seeds > 0]
-    if len(seeds) == 0:
-        return start_part
-    reached = np.isin(fits, seeds).reshape(geo.rows, k, geo.cols, k).any(axis=(1, 3))
-    parts = np.unique(base.parts[reached & base.cfree])
-    return np.isin(base.parts, parts[parts > 0]) | start_part
 
 
 _GRIDS: dict[tuple[object, ...], _WorldGrid] = {}
@@ -265,7 +237,7 @@ _GRIDS_KEPT = 4
 
 
 def _world_grid(world: World, geo: GridGeometry, robot_radius: float) -> _WorldGrid:
-    """The world's occupied and C-free cells on `geo`, kept for the next runs in the same world (a
+    """The world's occupied cells and regions on `geo`, kept for the next runs in the same world (a
     campaign makes many runs per world: rasterising, the clearance and the sight from a region's
     viewpoints are the same for every start in that region; only the start cell's own view differs,
     and `view_free` of a set of viewpoints is the union of theirs, so the result is the same bit for bit)."""
@@ -275,7 +247,9 @@ def _world_grid(world: World, geo: GridGeometry, robot_radius: float) -> _WorldG
     grid = _GRIDS.pop(key, None)
     if grid is None:
         occ = occupancy(world, geo)
-        grid = _WorldGrid(occ, clearance_mask(occ, robot_radius / geo.cell), [])
+        index = world_index(world)
+        regions = reach_regions(world, geo, robot_radius, occupied=occ, index=index)
+        grid = _WorldGrid(occ, index, regions, regions.centre_labels(), [])
     _GRIDS[key] = grid                      # most recently used last
     while len(_GRIDS) > _GRIDS_KEPT:
         del _GRIDS[next(iter(_GRIDS))]

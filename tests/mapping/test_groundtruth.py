@@ -211,14 +211,17 @@ def test_a_door_closed_at_the_grid_s_cells_but_open_to_the_robot_joins_the_rooms
     world = _two_rooms(1.73)
     cfree = clearance_mask(occupancy(world, geo), 0.25 / 0.1)
     assert not flood8(cfree, *geo.cell_of(1.5, 1.2))[above]
-    # At 5 cm the ends fill [1.0, 1.05) and [1.7, 1.75): the centre 1.375 m is 0.325 m from both,
-    # more than the radius plus FIT_MARGIN (0.30 m), so the robot passes and the room above counts.
+    # The exact geometry has 0.71 m between the wall ends: the robot passes with 0.105 m to spare on
+    # each side and the room above counts. Beyond the coarse C-free it holds the cells whose centre is
+    # more than 0.25 m from the exact wall: the doorway's (2.45 m; x 1.35 m: 0.33 m from the end at
+    # 1.02 m, 1.45 m: 0.28 m from 1.73 m), (1.05, 2.15) and (1.05, 2.75) m (0.2518 m from the corner
+    # (1.02, 2.4) or (1.02, 2.5)), (1.25, 2.25) and (1.25, 2.65) m (0.2746 m from the corner).
     gt = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=Pose(1.5, 1.2))
     assert gt.reachable[above]
-    assert gt.reachable.sum() == cfree.sum()            # both rooms' C-free, nothing else
-    assert not (gt.reachable & ~cfree).any()
-    # A 0.60 m door (fine ends [1.0, 1.05) and [1.6, 1.65)): at most 0.275 m from a side at 5 cm,
-    # less than 0.30 m: a robot with under 5 cm to spare does not count as passing.
-    gt = ground_truth(_two_rooms(1.62), geo, robot_radius=0.25, laser_range=3.0, start=Pose(1.5, 1.2))
+    extra = {tuple(rc) for rc in np.argwhere(gt.reachable & ~cfree).tolist()}
+    assert extra == {(24, 13), (24, 14), (21, 10), (27, 10), (22, 12), (26, 12)}
+    assert not (cfree & ~gt.reachable).any()
+    # A 0.50 m door (1.02..1.52 m) for a 0.5 m robot: no point lies farther than 0.25 m from both ends.
+    gt = ground_truth(_two_rooms(1.52), geo, robot_radius=0.25, laser_range=3.0, start=Pose(1.5, 1.2))
     assert not gt.reachable[above]
     assert not gt.reachable[geo.cell_of(1.5, 2.7)]

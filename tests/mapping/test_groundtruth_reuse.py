@@ -12,7 +12,8 @@ import numpy.typing as npt
 from robotexp.mapping import groundtruth
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.groundtruth import _border, ground_truth, occupancy, ray_tree
-from robotexp.mapping.kernels import clearance_mask, flood8, view_free
+from robotexp.mapping.clearance import reach_regions
+from robotexp.mapping.kernels import view_free
 from robotexp.robot import Pose
 from robotexp.world.model import World
 
@@ -35,7 +36,9 @@ def _from_scratch(world: World, start: Pose, laser_range: float,
     """The ground truth as one computation from scratch (the code before the reuse)."""
     occ = occupancy(world, GEO)
     row, col = GEO.cell_of(start.x, start.y)
-    reachable = flood8(clearance_mask(occ, 0.25 / GEO.cell), row, col)
+    regions = reach_regions(world, GEO, 0.25, occupied=occ)
+    reachable = (regions.centre_labels() == regions.region_at(start.x, start.y)) & ~occ
+    reachable[row, col] = True
     views = _border(reachable)
     views[::step, ::step] |= reachable[::step, ::step]
     views[row, col] = True

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -27,8 +29,9 @@ def test_the_start_is_in_the_big_room_not_in_the_closet_at_the_centre():
     p = choice.pose
     assert not (4.2 < p.x < 5.8 and 3.2 < p.y < 4.8)
     assert choice.regions == 2 and not choice.edge
-    # the big room: 9.9 x 7.9 m minus the closet's 1.7 x 1.7, shrunk by 0.3 m on every face
-    assert choice.area == pytest.approx(9.3 * 7.3 - 2.3 * 2.3, rel=0.03)
+    # the big room: 9.9 x 7.9 m shrunk by the radius on every face, minus the closet's 1.7 x 1.7 m
+    # grown by the radius with rounded corners (the exact free space of the robot's centre)
+    assert choice.area == pytest.approx(9.4 * 7.4 - (2.2 * 2.2 - (4 - np.pi) * 0.25**2), rel=0.002)
     # well inside: at least WELL_INSIDE from every wall
     boxes = world.boxes
     d = min(abs(p.x - 0.05), abs(9.95 - p.x), abs(p.y - 0.05), abs(7.95 - p.y))
@@ -74,3 +77,44 @@ def test_the_start_is_deterministic_and_free_on_generated_maps():
     reach = flood8(fits, *geo.cell_of(a.pose.x, a.pose.y))
     # the region holds the building's floor: much of the 30 x 20 m
     assert np.count_nonzero(reach) * geo.cell ** 2 > 0.4 * 30 * 20
+
+
+def test_rooms_joined_by_a_door_the_robot_just_fits_through_are_one_region():
+    # two 4 x 4 m rooms joined by a door 4 cm wider than the robot (0.54 m for a 0.5 m disc), and a closed
+    # 5 x 5 m room apart: the pair (2 x 3.4 x 3.4 m2 where the centre fits) outweighs the single room
+    # (4.4 x 4.4 m2), so the start lies in the pair; with a margin beyond the radius (the door closed)
+    # the single room would be the largest
+    door = (1.7, 1.7 + 0.54)
+    world = World("pair", walls((0, 0, 8, 0), (8, 0, 8, 4), (8, 4, 0, 4), (0, 4, 0, 0),
+                                (4, 0, 4, door[0] - 0.05), (4, door[1] + 0.05, 4, 4),
+                                (10, 0, 15, 0), (15, 0, 15, 5), (15, 5, 10, 5), (10, 5, 10, 0)))
+    choice = default_start(world, 0.25)
+    assert 0 < choice.pose.x < 8 and 0 < choice.pose.y < 4
+    assert choice.area == pytest.approx(2 * 3.4 * 3.4, rel=0.01)
+    assert choice.regions == 3          # the pair, the single room, the 2 m gap between them (open)
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.2)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=choice.pose)
+    assert truth.reachable[geo.cell_of(1.0, 1.0)] and truth.reachable[geo.cell_of(7.0, 3.0)]
+    assert not truth.reachable[geo.cell_of(12.5, 2.5)]
+
+
+def test_explore_says_where_the_default_start_is_and_why(tmp_path):
+    from click.testing import CliRunner
+
+    from robotexp.cli import main
+    from robotexp.world.rosmap import save_ros_map
+
+    values = np.zeros((40, 40), np.int8)            # a closed 4 x 4 m room on 0.1 m cells
+    values[0, :] = values[-1, :] = values[:, 0] = values[:, -1] = 100
+    save_ros_map(tmp_path / "room.yaml", values, GridGeometry(0.0, 0.0, 0.1, 40, 40))
+    result = CliRunner().invoke(main, ["explore", "-w", str(tmp_path / "room.yaml"), "-o", str(tmp_path / "out"),
+                                       "--robot", "kobuki", "--max-time", "1"])
+    assert result.exit_code == 0, result.output
+    line = next(s for s in result.stderr.splitlines() if s.startswith("robotexp: start "))
+    # the room's middle (on the 5 cm search grid), the pose's name, and why: the one region, 3.45 x 3.45 m2
+    # where the Kobuki's centre fits (3.8 m inside the walls less 2 x 0.175 m)
+    m = re.fullmatch(r"robotexp: start centre: \((\S+), (\S+)\) m, heading 0 deg \(default start \(\S+, \S+\) m: "
+                     r"largest of 1 regions where the robot fits, (\S+) m2\)", line)
+    assert m is not None, line
+    assert abs(float(m[1]) - 2.0) <= 0.05 and abs(float(m[2]) - 2.0) <= 0.05
+    assert float(m[3]) == pytest.approx(3.45 * 3.45, rel=0.01)
