@@ -287,9 +287,7 @@ class OnlineGraph:
         if d[best] > c.radius:
             return None
         j = old[best]
-        gap = cur.path - self.keyframes[j].path
-        wxy = min(c.gate_xy[0] + c.gate_xy[1] * gap, c.cap_xy)
-        wth = min(c.gate_theta[0] + c.gate_theta[1] * gap, c.cap_theta)
+        wxy, wth = self.gate(j, n)
         self.tried += 1
         poses = self.poses()
         scans = [k.scan for k in self.keyframes]
@@ -313,10 +311,6 @@ class OnlineGraph:
         if m.conditioning < c.min_conditioning:
             self._refuse("degenerate")
             return None
-        dev = relative(cur.pose, m.pose)
-        if math.hypot(dev.x, dev.y) > wxy or abs(dev.theta) > wth:
-            self._refuse("gated")
-            return None
         return Edge(j, n, relative(self.keyframes[j].pose, m.pose), self._loop_info(), loop=True)
 
     def _recent(self, n: int, path: float) -> int:
@@ -326,10 +320,26 @@ class OnlineGraph:
             k -= 1
         return n - k
 
-    def add_loop(self, edge: Edge) -> None:
-        """Add a loop edge (robust), optimise, and apply the correction when it is large enough."""
+    def gate(self, i: int, j: int) -> tuple[float, float]:
+        """([m], [rad]) how far a loop edge between keyframes i and j may move j from its estimate: the drift
+        the path between them can have made (`gate_xy`, `gate_theta`, capped)."""
+        c = self.config
+        gap = abs(self.keyframes[j].path - self.keyframes[i].path)
+        return (min(c.gate_xy[0] + c.gate_xy[1] * gap, c.cap_xy),
+                min(c.gate_theta[0] + c.gate_theta[1] * gap, c.cap_theta))
+
+    def add_loop(self, edge: Edge, *, check: bool = True) -> bool:
+        """Add a loop edge (robust kernel), optimise, and apply the correction when it is large enough.
+        With `check`, an edge that would move node j farther from its estimate than `gate` allows is
+        refused (counted in `refused["inconsistent"]`) and False returned."""
         if not (0 <= edge.i < len(self.keyframes) and 0 <= edge.j < len(self.keyframes)):
             raise ConfigError(f"loop closure: edge {edge.i} -> {edge.j} outside the {len(self.keyframes)} keyframes")
+        if check:
+            dev = relative(self.keyframes[edge.j].pose, compose(self.keyframes[edge.i].pose, edge.z))
+            gxy, gth = self.gate(edge.i, edge.j)
+            if math.hypot(dev.x, dev.y) > gxy or abs(wrap_angle(dev.theta)) > gth:
+                self._refuse("inconsistent")
+                return False
         edge = replace(edge, loop=True)
         self.edges.append(edge)
         self.loops += 1
@@ -340,6 +350,7 @@ class OnlineGraph:
         else:
             new = optimize(self.poses(), self.edges, iterations=10, cauchy=self.config.cauchy)
         self._set_poses(new)
+        return True
 
     def _set_poses(self, new: npt.NDArray[np.float64]) -> None:
         for k, kf in enumerate(self.keyframes):

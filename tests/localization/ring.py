@@ -53,7 +53,7 @@ def ring_path(laps: float = 1.2, step: float = 0.1, turn: float = math.radians(1
 def drifted(truth: list[Pose], scale: float, drift: float) -> list[Pose]:
     """Odometry of `truth`: distances times `scale`, `drift` [rad/m] of heading error per metre."""
     out = [truth[0]]
-    for a, b in zip(truth, truth[1:]):
+    for a, b in zip(truth[:-1], truth[1:], strict=True):
         c, s = math.cos(a.theta), math.sin(a.theta)
         dx, dy = b.x - a.x, b.y - a.y
         lx, ly = c * dx + s * dy, -s * dx + c * dy
