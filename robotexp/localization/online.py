@@ -13,7 +13,7 @@ weighted by a Cauchy kernel (a wrong edge pulls little). The graph is optimised 
 Gauss-Newton of `posegraph.optimize` after each loop edge. When a loop edge moves the current keyframe
 by more than `apply_xy` or `apply_theta`, the correction is applied: the localizer's pose moves with its
 keyframe and its matching map is rebuilt from the keyframes at their corrected poses, and `rebuilds`
-counts up (the run's map follows: `robotexp.localization.run.LoopClosureMap`).
+counts up (the run's map follows: `robotexp.localization.run.LoopClosureTracker`).
 """
 
 from __future__ import annotations
@@ -114,13 +114,16 @@ class OnlineLoopConfig:
 @dataclass
 class Keyframe:
     """A keyframe: its pose (the graph's estimate), the scan taken there, the odometry reading, the path
-    length [m] of corrected motion from the start, and how its scan was matched."""
+    length [m] of corrected motion from the start, how its scan was matched, and `local`: its pose in the
+    localizer's frame (the localizer's poses after it are relative to that one; equal to `pose` after a
+    correction was applied)."""
 
     pose: Pose
     scan: LaserScan
     odom: Pose
     path: float
     status: str
+    local: Pose
 
 
 class _Isam2:
@@ -263,7 +266,7 @@ class OnlineGraph:
         self._anchor = pose
         self._loc = pose
         self._inc = Pose(0.0, 0.0, 0.0)
-        self.keyframes.append(Keyframe(guess, scan, odom, self._path, status))
+        self.keyframes.append(Keyframe(guess, scan, odom, self._path, status, pose))
         if self._isam is not None:
             self._isam.add(len(self.keyframes) - 1, guess, new)
         n = len(self.keyframes) - 1
