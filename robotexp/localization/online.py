@@ -38,7 +38,7 @@ __all__ = ["OnlineLoopConfig", "OnlineGraph", "Keyframe", "have_gtsam"]
 def have_gtsam() -> bool:
     """True when GTSAM's Python module can be imported (the iSAM2 back end)."""
     try:
-        import gtsam  # type: ignore[import-untyped]  # noqa: F401  # optional: the `slam` extra
+        import gtsam  # noqa: F401  # optional: the `slam` extra
     except ImportError:
         return False
     return True
