@@ -76,6 +76,8 @@ class OnlineLoopConfig:
         apply_xy: [m] a correction of the current pose larger than this is applied (the localizer's pose and
             matching map, the run's map) ...
         apply_theta: [rad] ... or larger than this.
+        corridor_edges: a loop match that fixes the position across a corridor but not along it becomes a loop
+            edge weak along it (`cap_xy`); off: such matches are refused.
         backend: "isam2", "sparse" (`posegraph.optimize` after each loop edge) or "auto" (iSAM2 when
             gtsam can be imported).
     """
@@ -101,6 +103,7 @@ class OnlineLoopConfig:
     jump_theta: float = math.inf
     apply_xy: float = 0.01
     apply_theta: float = math.radians(0.2)
+    corridor_edges: bool = True
     backend: str = "auto"
 
     def __post_init__(self) -> None:
@@ -214,6 +217,7 @@ class OnlineGraph:
         self._loc: Pose | None = None        # the localizer's last pose
         self._inc = Pose(0.0, 0.0, 0.0)      # the chain's motion since the last keyframe
         self.jumps = 0
+        self.corridor_loops = 0
 
     @property
     def update_times(self) -> list[float]:
@@ -307,16 +311,35 @@ class OnlineGraph:
                                  motion_sigma_xy=wxy, motion_sigma_theta=wth, accept_score=2.0))
         px, py = scan_points(cur.scan, mc.range_max)
         m = sm.match(grid.values, grid.geo, px, py, cur.pose, hits)
-        if m.status != "matched":
+        if m.status not in ("matched", "degenerate"):
             self._refuse(m.status)
             return None
         if m.points < c.min_points:
             self._refuse("few-points")
             return None
-        if m.conditioning < c.min_conditioning:
-            self._refuse("degenerate")
-            return None
-        return Edge(j, n, relative(self.keyframes[j].pose, m.pose), self._loop_info(), loop=True)
+        info = self._loop_info()
+        if m.status == "degenerate" or m.conditioning < c.min_conditioning:
+            if not c.corridor_edges or m.info is None:
+                self._refuse("degenerate")
+                return None
+            info = self._corridor_info(m.info, m.pose.theta)
+            self.corridor_loops += 1
+        return Edge(j, n, relative(self.keyframes[j].pose, m.pose), info, loop=True)
+
+    def _corridor_info(self, h: npt.NDArray[np.float64], theta: float) -> npt.NDArray[np.float64]:
+        """A loop edge's information where its scan does not fix the position along one direction (a corridor):
+        `loop_xy` across it, `cap_xy` along it (the weak eigenvector of the match's translation information
+        `h`, in the world frame, turned into the frame of the edge's error, the later keyframe's)."""
+        c = self.config
+        _, vecs = np.linalg.eigh(np.asarray(h, np.float64)[:2, :2])
+        w = vecs[:, 0]
+        ct, st = math.cos(theta), math.sin(theta)
+        wj = np.array([ct * w[0] + st * w[1], -st * w[0] + ct * w[1]])
+        along = np.outer(wj, wj)
+        out = np.zeros((3, 3))
+        out[:2, :2] = (np.eye(2) - along) / c.loop_xy ** 2 + along / c.cap_xy ** 2
+        out[2, 2] = c.loop_theta ** -2
+        return out
 
     def _recent(self, n: int, path: float) -> int:
         """How many keyframes before `n` lie within `path` metres along the path (left out of a submap)."""

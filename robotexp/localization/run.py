@@ -137,7 +137,8 @@ class LoopClosureTracker(TrajectoryTracker):
             times = graph.update_times
             run.info.extra["loop_closure"] = {
                 "keyframes": len(graph.keyframes), "loops": graph.loops, "tried": graph.tried,
-                "refused": dict(graph.refused), "rebuilds": graph.rebuilds, "map_rebuilds": self.map_rebuilds,
+                "refused": dict(graph.refused), "corridor_loops": graph.corridor_loops,
+                "rebuilds": graph.rebuilds, "map_rebuilds": self.map_rebuilds,
                 "backend": graph.backend,
                 "update_ms": round(1e3 * float(np.median(times)), 3) if times else None,
                 "rebuild_s": round(self.rebuild_time, 3)}
