@@ -128,3 +128,12 @@ def test_a_true_loop_on_a_ring_corridor_is_found_and_shrinks_the_end_error(backe
     # the correction was applied: the localizer's pose moved with the last keyframe, its map rebuilt
     assert loc.pose is not None and math.hypot(loc.pose.x - est[-1, 0], loc.pose.y - est[-1, 1]) < 0.3
     assert loc.grid.scans > 100                   # nothing but the rebuilds put scans in it here
+
+
+def test_a_corridor_loop_edge_holds_across_the_corridor_not_along_it() -> None:
+    g = _graph("sparse", _square(2))
+    c = g.config
+    h = np.diag([1.0, 400.0, 50.0])          # the match fixes y (across a corridor along x) and not x
+    info = g._corridor_info(h, math.pi / 2)  # the later keyframe faces +y: the corridor runs along its y axis
+    np.testing.assert_allclose(info[:2, :2], np.diag([c.loop_xy ** -2, c.cap_xy ** -2]), rtol=1e-9, atol=1e-6)
+    assert info[2, 2] == pytest.approx(c.loop_theta ** -2)
