@@ -188,6 +188,14 @@ class BVPExplorer(Explorer):
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
 
+    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+        """Loop closure rebuilt the map: the wall distances are recomputed and the field is relaxed anew from
+        below at the next update (as after `give_up`), so that no goal or wall of the old map lingers in it."""
+        if self.q.shape != (0, 0):
+            self.walls = WallDistance(self._inflate_cells(grid))
+            self.flush = True
+        self.next_update = -math.inf
+
     # -- the potential ---------------------------------------------------------------
     def _ensure(self, grid: OccupancyGrid) -> None:
         rows, cols = grid.shape

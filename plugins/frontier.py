@@ -104,6 +104,13 @@ class FrontierExplorer(Explorer):
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
         self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
 
+    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+        """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew."""
+        self.walls_seen = None
+        self._targets = None
+        self.costs = PlanCosts(self.ctx.radius, self.clearance)
+        self.next_plan = -math.inf
+
     # -- the decision ----------------------------------------------------------------
     def markers(self) -> dict[str, dict[str, object]]:
         """What the live view draws (robotexp.view): the goal [m] the robot drives to, when it has one."""

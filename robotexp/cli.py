@@ -262,9 +262,10 @@ def _image_formats(text: str) -> tuple[str, ...]:
 @click.option("--odometry-error", default="none", show_default=True,
               help="Simulated odometry error: none, p3dx, kobuki, or key=value,... (mismatch, slip, drift "
                    "[deg/m], servo); a preset:key=value,... overrides its values.")
-@click.option("--localize", type=click.Choice(["auto", "none", "scan-match"]), default="auto", show_default=True,
+@click.option("--localize", type=click.Choice(["auto", "none", "scan-match", "slam"]), default="auto",
+              show_default=True,
               help="Correct the pose by scan matching before the map and the explorer see it (auto: in the "
-                   "simulator when --odometry-error is on).")
+                   "simulator when --odometry-error is on); slam: with online loop closure as well.")
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("out"),
               show_default=True, help="Output folder (results.jsonl, images).")
 @click.option("--bounds", default=None, metavar="XMIN,YMIN,XMAX,YMAX",

@@ -73,7 +73,7 @@ class RunSpec:
     #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
     bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
     odometry: str = "none"              # simulator odometry error (robotexp.sim.odometry_error spec)
-    localize: str = "auto"              # "none", "scan-match", "auto" (robotexp.localization.run: wrap)
+    localize: str = "auto"              # "none", "scan-match", "slam", "auto" (robotexp.localization.run: wrap)
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""

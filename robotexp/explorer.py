@@ -94,6 +94,13 @@ class Explorer(ABC):
         """Extra result fields of this method (e.g. `nodes` of a tree)."""
         return {}
 
+    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+        """The run's map was rebuilt: loop closure (`robotexp explore --localize slam`) moved the poses its
+        scans were mapped at, so any cell may have changed and what was derived from the old map (costs,
+        a potential, a memory of walls) is stale. Called between steps, before the next `step` sees
+        `grid`; drop or recompute such state here. Default: nothing (for methods that keep none)."""
+        return None
+
     def overlays(self) -> dict[str, npt.NDArray[np.float64]]:
         """Arrays to draw over the map image (e.g. `potential`, `vectors`), on the run's grid."""
         return {}

@@ -467,6 +467,7 @@ class Localizer:
         self._free = (0.0, 0.0)    # odometry's distance [m] and turn [rad] since the last correction
         self._odom: Pose | None = None
         self._pose: Pose | None = None
+        self.prediction: Pose | None = None     # the last `locate`'s prediction
         self.covariance = covariance
         self.cov = self._cov0()
 
@@ -512,6 +513,11 @@ class Localizer:
         self.hits.add(pose, scan, rmax)
         self.version += 1
 
+    @property
+    def pose(self) -> Pose | None:
+        """The last corrected pose (None before `reset`)."""
+        return self._pose
+
     def predict(self, odom: Pose) -> Pose:
         """The last corrected pose moved by the odometry increment since then (odom itself at first)."""
         if self._odom is None or self._pose is None:
@@ -527,6 +533,7 @@ class Localizer:
         follows odometry smoothly between matches and the scans cost nothing. While `turn_rate`
         [rad/s] exceeds `max_turn_rate` the same holds ("turning")."""
         prediction = self.predict(odom)
+        self.prediction = prediction
         moved = relative(self._matched, odom) if self._matched is not None else None
         if self._odom is not None:
             step = relative(self._odom, odom)

@@ -19,6 +19,7 @@ from robotexp.localization import kernels as K
 from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, MatcherConfig, ScanMatcher
 from robotexp.localization.metrics import ate
+from robotexp.localization.online import OnlineGraph, OnlineLoopConfig
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Robot, RobotState, Twist, new_scan
 
@@ -67,12 +68,16 @@ class LocalizedRobot(Robot):
         calibrate: estimate odometry's systematic heading error online (`OdometryCalibration`).
         max_turn_rate: [rad/s] the `Localizer` option (none by default: a simulator's scan is taken at
             the state's instant; MAX_TURN_RATE for a laser of its own, whose stamps are not).
+        loop_closure: keyframes and online loop closure (`robotexp.localization.online`) with these
+            settings (True: the defaults; None: none).
 
     Attributes:
         localizer: the localizer (its `counts` say how the matches went).
         track: (corrected, true) poses of every new state, where the true pose is known.
         odometry: beside each `track` entry, the inner robot's own pose (to replay the localizer:
             `benchmarks/studies/bench_localized_iou.py`).
+        graph: the online pose graph with `loop_closure` (else None).
+        keyframe: the index of the graph's latest keyframe at the last new state (-1: none yet).
         steps: beside each `track` entry: (robot time [s], the localizer's status, the scan's echoes,
             the odometry calibration's heading bias k [rad/m]); `benchmarks/studies/bench_localized_explore.py
             --trace` writes them with the errors.
@@ -82,7 +87,8 @@ class LocalizedRobot(Robot):
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
                  min_travel: float = 0.1, min_turn: float = math.radians(5.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,
-                 gate: float = GATE, calibrate: bool = True, max_turn_rate: float = math.inf) -> None:
+                 gate: float = GATE, calibrate: bool = True, max_turn_rate: float = math.inf,
+                 loop_closure: OnlineLoopConfig | bool | None = None) -> None:
         self.inner = inner
         self.name = f"{inner.name}+scan-match"         # type: ignore[misc]
         self.capabilities = inner.capabilities          # type: ignore[misc]
@@ -95,6 +101,11 @@ class LocalizedRobot(Robot):
                                    gate=gate, calibration=OdometryCalibration() if calibrate else None,
                                    max_turn_rate=max_turn_rate, map_uncertain=MAP_UNCERTAIN,
                                    map_travel=MAP_TRAVEL, map_turn=MAP_TURN, covariance=COVARIANCE)
+        self.graph: OnlineGraph | None = None
+        if loop_closure:
+            self.graph = OnlineGraph(self.localizer, self.localizer.matcher.config,
+                                     loop_closure if isinstance(loop_closure, OnlineLoopConfig) else None)
+        self.keyframe = -1
         K.warm()                                        # every matcher kernel compiled before the run starts
         C.warm()                                        # ... and the covariance's
         self.track: list[tuple[Pose, Pose]] = []
@@ -103,6 +114,7 @@ class LocalizedRobot(Robot):
         self._start = start
         self._last: tuple[float, RobotState] | None = None
         self._matched: float | None = None                  # the stamp of the last scan matched
+        self._version = -1                                  # the localizer's map version at the last state
         super().__init__()
 
     def _read(self) -> RobotState:
@@ -117,6 +129,13 @@ class LocalizedRobot(Robot):
         else:
             scan = state.laser if new_scan(state.laser, self._matched) else None    # each scan matched once
             pose = self.localizer.locate(state.pose, scan, state.velocity.w)
+            if self.graph is not None and self.localizer.prediction is not None:
+                self.graph.step(self.localizer.prediction, pose)
+        if self.graph is not None and state.laser is not None and self.localizer.version != self._version:
+            self.graph.add_keyframe(pose, state.laser, state.pose, self.localizer.status or "matched")
+            pose = self.localizer.pose or pose          # moved with its keyframe when a loop closed
+            self.keyframe = len(self.graph.keyframes) - 1
+        self._version = self.localizer.version
         if state.laser is not None:
             self._matched = state.laser.stamp
         out = replace(state, pose=pose)
@@ -172,3 +191,6 @@ class LocalizedRobot(Robot):
         self.inner.move_to(pose)
         self._last = None
         self._start = pose
+        if self.graph is not None:                      # a new start: a new graph
+            self.graph = OnlineGraph(self.localizer, self.graph.matcher_config, self.graph.config)
+            self.keyframe = -1

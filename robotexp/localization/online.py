@@ -1,0 +1,413 @@
+"""Online loop closure: keyframes, a pose graph optimised incrementally during the run, and loop edges
+found by matching the current scan against a submap of an earlier part of the path.
+
+`OnlineGraph` sits beside a `Localizer`. Every scan the localizer puts into its matching map (its map
+update thresholds: 0.3 m or 15 deg of motion in whole runs) becomes a keyframe: the corrected pose,
+the scan, the odometry and the path length so far. Consecutive keyframes are joined by a sequential edge
+(their relative corrected pose; its information from how the scan was matched). When a keyframe lies
+within `radius` of a keyframe at least `min_path` metres back along the path, the scan is matched
+against a submap of the old keyframes around it (`posegraph._submap`); a good, well-conditioned match
+whose correction lies within the gate of the drift the path between them can have adds a loop edge,
+weighted by a Cauchy kernel (a wrong edge pulls little). The graph is optimised by GTSAM's iSAM2 when
+`gtsam` can be imported (an update per keyframe: a fraction of a millisecond), else by the sparse
+Gauss-Newton of `posegraph.optimize` after each loop edge. When a loop edge moves the current keyframe
+by more than `apply_xy` or `apply_theta`, the correction is applied: the localizer's pose moves with its
+keyframe and its matching map is rebuilt from the keyframes at their corrected poses, and `rebuilds`
+counts up (the run's map follows: `robotexp.localization.run.LoopClosureTracker`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.errors import ConfigError
+from robotexp.localization.matcher import HitMap, Localizer, MatcherConfig, ScanMatcher, compose, relative, scan_points
+from robotexp.localization.posegraph import Edge, _submap, optimize
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import LaserScan, Pose, wrap_angle
+
+__all__ = ["OnlineLoopConfig", "OnlineGraph", "Keyframe", "have_gtsam"]
+
+
+def have_gtsam() -> bool:
+    """True when GTSAM's Python module can be imported (the iSAM2 back end)."""
+    try:
+        import gtsam  # noqa: F401  # optional: the `slam` extra
+    except ImportError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class OnlineLoopConfig:
+    """Settings of online loop closure (SI units).
+
+    Attributes:
+        radius: [m] a loop is tried with the nearest keyframe whose estimated position lies within this ...
+        min_path: [m] ... and at least this far back along the path.
+        every: try a loop at every `every`-th keyframe.
+        submap: keyframes on each side of the old keyframe that make its submap.
+        gate_xy: (a [m], b [m/m]): a loop match may move the current pose by at most a + b * the path
+            length between the two keyframes (the drift scan matching can have made), capped by `cap_xy`;
+            the matcher searches that window, and a match outside it is refused.
+        gate_theta: (a [rad], b [rad/m]) the same for heading, capped by `cap_theta`.
+        cap_xy: [m] the widest position gate.
+        cap_theta: [rad] the widest heading gate.
+        min_points: a loop match needs this many scan points ...
+        min_score: ... this mean field value (0.8; with 0.6 and loop edges of 5 cm and 0.5 deg, dense
+            frontier's ATE was 0.065 m against 0.042 m with these settings) ...
+        min_conditioning: ... and this conditioning (not along a corridor, where it can slide).
+        seq_xy: (a [m], b [m/m]) standard deviation of a sequential edge's position after d metres
+            of motion: a + b d (a matched scan; `weak` times as much for an unmatched or degenerate one).
+        seq_theta: (a [rad], b [rad/m], c [rad/rad]) heading: a + b d + c |turn|. (Twice these, 1 cm + 2 % and
+            0.25 deg + 0.5 deg/m, let loop edges bend the scan-matched chain: dense bvp ATE 0.092 m against
+            0.068 m, the ring corridor eb_loop 0.66 m against 0.58 m, frontier, P3-DX preset, seed 0.)
+        weak: the factor of an edge whose scan was not matched well.
+        loop_xy: [m] standard deviation of a loop edge's position.
+        loop_theta: [rad] the same for heading.
+        cauchy: [standard deviations] the scale of the Cauchy kernel on loop edges.
+        jump_xy: [m] a localizer correction larger than this in one match is a jump (see `OnlineGraph.step`) ...
+        jump_theta: [rad] ... or larger than this. Off by default: on `dense` (frontier, P3-DX preset, seed 0)
+            5 cm and 1.5 deg took the ATE from 0.065 to 0.133 m (legitimate corrections after turns left out).
+        apply_xy: [m] a correction of the current pose larger than this is applied (the localizer's pose and
+            matching map, the run's map) ...
+        apply_theta: [rad] ... or larger than this.
+        corridor_edges: a loop match that fixes the position across a corridor but not along it becomes a loop
+            edge weak along it (`cap_xy`); off: such matches are refused.
+        backend: "isam2", "sparse" (`posegraph.optimize` after each loop edge) or "auto" (iSAM2 when
+            gtsam can be imported).
+    """
+
+    radius: float = 2.5
+    min_path: float = 6.0
+    every: int = 2
+    submap: int = 8
+    gate_xy: tuple[float, float] = (0.15, 0.05)
+    gate_theta: tuple[float, float] = (math.radians(2.0), math.radians(0.5))
+    cap_xy: float = 1.5
+    cap_theta: float = math.radians(12.0)
+    min_points: int = 60
+    min_score: float = 0.8
+    min_conditioning: float = 0.2
+    seq_xy: tuple[float, float] = (0.005, 0.01)
+    seq_theta: tuple[float, float, float] = (math.radians(0.1), math.radians(0.25), 0.01)
+    weak: float = 4.0
+    loop_xy: float = 0.02
+    loop_theta: float = math.radians(0.3)
+    cauchy: float = 3.0
+    jump_xy: float = math.inf
+    jump_theta: float = math.inf
+    apply_xy: float = 0.01
+    apply_theta: float = math.radians(0.2)
+    corridor_edges: bool = True
+    backend: str = "auto"
+
+    def __post_init__(self) -> None:
+        if self.backend not in ("auto", "isam2", "sparse"):
+            raise ConfigError(f"loop closure: backend must be auto, isam2 or sparse, got {self.backend!r}")
+        if self.every < 1 or self.submap < 0 or self.min_points < 1:
+            raise ConfigError(f"loop closure: every, min_points >= 1 and submap >= 0 expected, got {self}")
+        if not (self.radius > 0 and self.min_path > 0 and self.loop_xy > 0 and self.loop_theta > 0
+                and self.cauchy > 0 and self.seq_xy[0] > 0 and self.seq_theta[0] > 0 and self.weak > 0):
+            raise ConfigError(f"loop closure: radius, min_path, sigmas and cauchy must be > 0, got {self}")
+
+
+@dataclass
+class Keyframe:
+    """A keyframe: its pose (the graph's estimate), the scan taken there, the odometry reading, the path
+    length [m] of corrected motion from the start, how its scan was matched, and `local`: its pose in the
+    localizer's frame (the localizer's poses after it are relative to that one; equal to `pose` after a
+    correction was applied)."""
+
+    pose: Pose
+    scan: LaserScan
+    odom: Pose
+    path: float
+    status: str
+    local: Pose
+
+
+class _Isam2:
+    """The iSAM2 back end: Pose2 keys 0..n-1, a tight prior on node 0."""
+
+    def __init__(self, cauchy: float) -> None:
+        import gtsam
+
+        self.g = gtsam
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(0.01)
+        params.relinearizeSkip = 1
+        self.isam = gtsam.ISAM2(params)
+        self.cauchy = cauchy
+        self.times: list[float] = []
+
+    def _noise(self, info: npt.NDArray[np.float64], robust: bool) -> Any:
+        g = self.g
+        base = g.noiseModel.Gaussian.Information(np.asarray(info, np.float64))
+        if not robust:
+            return base
+        return g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Cauchy.Create(self.cauchy), base)
+
+    def add(self, k: int, guess: Pose, edges: list[Edge]) -> None:
+        """Node `k` (None edges: the first) with its initial estimate and its edges, one iSAM2 update."""
+        g = self.g
+        graph = g.NonlinearFactorGraph()
+        values = g.Values()
+        if k >= 0:
+            values.insert(k, g.Pose2(guess.x, guess.y, guess.theta))
+            if k == 0:
+                graph.add(g.PriorFactorPose2(0, g.Pose2(guess.x, guess.y, guess.theta),
+                                             g.noiseModel.Diagonal.Sigmas(np.array([1e-6, 1e-6, 1e-8]))))
+        for e in edges:
+            graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(e.z.x, e.z.y, e.z.theta), self._noise(e.info, e.loop)))
+        t0 = time.perf_counter()
+        self.isam.update(graph, values)
+        self.times.append(time.perf_counter() - t0)
+
+    def settle(self, rounds: int = 3) -> None:
+        """Extra iSAM2 updates (relinearisation steps) after a loop edge."""
+        for _ in range(rounds):
+            self.isam.update()
+
+    def poses(self) -> npt.NDArray[np.float64]:
+        """(n, 3) the current estimate."""
+        est = self.isam.calculateEstimate()
+        return np.asarray(self.g.utilities.extractPose2(est), np.float64).reshape(-1, 3)
+
+
+class OnlineGraph:
+    """Keyframes and loop closure beside `localizer` (see the module docstring).
+
+    Args:
+        localizer: the localizer whose matched scans become keyframes and whose pose and matching map
+            loop closure corrects.
+        matcher: the scan matcher settings loop matches start from (the run's: `RUN_MATCHER`).
+        config: the loop-closure settings.
+
+    Attributes:
+        keyframes: the keyframes, oldest first (their poses: the graph's estimate after the last loop edge).
+        edges: every edge of the graph (sequential and loop).
+        loops: loop edges added; `tried`: loop matches attempted; `refused`: by which test they failed.
+        rebuilds: corrections applied (the matching map rebuilt that many times).
+        backend: "isam2" or "sparse".
+        update_times: [s] the back end's update time at every keyframe (iSAM2 only).
+    """
+
+    def __init__(self, localizer: Localizer, matcher: MatcherConfig, config: OnlineLoopConfig | None = None) -> None:
+        self.localizer = localizer
+        self.config = c = config or OnlineLoopConfig()
+        self.matcher_config = matcher
+        self.keyframes: list[Keyframe] = []
+        self.edges: list[Edge] = []
+        self.loops = 0
+        self.tried = 0
+        self.refused: dict[str, int] = {}
+        self.rebuilds = 0
+        want = c.backend if c.backend != "auto" else ("isam2" if have_gtsam() else "sparse")
+        if want == "isam2" and not have_gtsam():
+            raise ConfigError("loop closure: the iSAM2 back end needs gtsam (pip install 'robotexp[slam]')")
+        self.backend = want
+        self._isam = _Isam2(c.cauchy) if want == "isam2" else None
+        self._path = 0.0
+        self._anchor: Pose | None = None     # the localizer's pose at the last keyframe (its frame)
+        self._loc: Pose | None = None        # the localizer's last pose
+        self._inc = Pose(0.0, 0.0, 0.0)      # the chain's motion since the last keyframe
+        self.jumps = 0
+        self.corridor_loops = 0
+
+    @property
+    def update_times(self) -> list[float]:
+        return [] if self._isam is None else self._isam.times
+
+    def poses(self) -> npt.NDArray[np.float64]:
+        """(n, 3) the keyframes' poses."""
+        return np.array([[k.pose.x, k.pose.y, k.pose.theta] for k in self.keyframes], np.float64).reshape(-1, 3)
+
+    def _seq_info(self, rel: Pose, status: str) -> npt.NDArray[np.float64]:
+        c = self.config
+        d = math.hypot(rel.x, rel.y)
+        f = 1.0 if status == "matched" else c.weak
+        sxy = f * (c.seq_xy[0] + c.seq_xy[1] * d)
+        sth = f * (c.seq_theta[0] + c.seq_theta[1] * d + c.seq_theta[2] * abs(rel.theta))
+        return np.diag([sxy ** -2, sxy ** -2, sth ** -2])
+
+    def _loop_info(self) -> npt.NDArray[np.float64]:
+        c = self.config
+        return np.diag([c.loop_xy ** -2, c.loop_xy ** -2, c.loop_theta ** -2])
+
+    def step(self, prediction: Pose, pose: Pose) -> None:
+        """One `Localizer.locate`: its prediction (odometry from its last pose) and its corrected pose. The
+        chain between keyframes takes the corrected increments, except where the localizer's correction
+        jumped (more than `jump_xy` or `jump_theta`: the scan matched an old part of the map the drifted
+        path came back to): there it takes odometry's increment, and the loop edge the same place gives
+        the graph carries the correction back along the loop instead of leaving it in one step."""
+        if self._loc is None:
+            self._loc = pose
+            return
+        c = self.config
+        fix = relative(prediction, pose)
+        jump = math.hypot(fix.x, fix.y) > c.jump_xy or abs(fix.theta) > c.jump_theta
+        inc = relative(self._loc, prediction if jump else pose)
+        self._inc = compose(self._inc, inc)
+        self.jumps += int(jump)
+        self._loc = pose
+
+    def add_keyframe(self, pose: Pose, scan: LaserScan, odom: Pose, status: str = "matched") -> None:
+        """A new keyframe at the localizer's corrected `pose` (its sequential edge added to the graph),
+        then a loop tried from it."""
+        new: list[Edge] = []
+        guess = pose
+        if self.keyframes:
+            rel = Pose(self._inc.x, self._inc.y, wrap_angle(self._inc.theta))
+            self._path += math.hypot(rel.x, rel.y)
+            edge = Edge(len(self.keyframes) - 1, len(self.keyframes), rel, self._seq_info(rel, status))
+            self.edges.append(edge)
+            new = [edge]
+            guess = compose(self.keyframes[-1].pose, rel)
+            guess = Pose(guess.x, guess.y, wrap_angle(guess.theta))
+        self._anchor = pose
+        self._loc = pose
+        self._inc = Pose(0.0, 0.0, 0.0)
+        self.keyframes.append(Keyframe(guess, scan, odom, self._path, status, pose))
+        if self._isam is not None:
+            self._isam.add(len(self.keyframes) - 1, guess, new)
+        n = len(self.keyframes) - 1
+        if n % self.config.every == 0:
+            loop = self._find_loop(n)
+            if loop is not None:
+                self.add_loop(loop)
+
+    def _refuse(self, why: str) -> None:
+        self.refused[why] = self.refused.get(why, 0) + 1
+
+    def _find_loop(self, n: int) -> Edge | None:
+        c = self.config
+        cur = self.keyframes[n]
+        old = [k for k in range(n) if cur.path - self.keyframes[k].path >= c.min_path]
+        if not old:
+            return None
+        xy = np.array([[self.keyframes[k].pose.x, self.keyframes[k].pose.y] for k in old])
+        d = np.hypot(xy[:, 0] - cur.pose.x, xy[:, 1] - cur.pose.y)
+        best = int(np.argmin(d))
+        if d[best] > c.radius:
+            return None
+        j = old[best]
+        wxy, wth = self.gate(j, n)
+        self.tried += 1
+        poses = self.poses()
+        scans = [k.scan for k in self.keyframes]
+        mc = self.matcher_config
+        lo = max(j - c.submap, 0)
+        hi = min(j + c.submap + 1, n - self._recent(n, c.min_path))
+        if hi <= lo:
+            return None
+        grid, hits = _submap(poses[:hi], scans[:hi], j, c.submap, self.localizer.grid.geo.cell,
+                             mc.range_max + wxy)
+        sm = ScanMatcher(replace(mc, window_xy=wxy, window_theta=wth, min_score=c.min_score, prior=0.0,
+                                 motion_sigma_xy=wxy, motion_sigma_theta=wth, accept_score=2.0))
+        px, py = scan_points(cur.scan, mc.range_max)
+        m = sm.match(grid.values, grid.geo, px, py, cur.pose, hits)
+        if m.status not in ("matched", "degenerate"):
+            self._refuse(m.status)
+            return None
+        if m.points < c.min_points:
+            self._refuse("few-points")
+            return None
+        info = self._loop_info()
+        if m.status == "degenerate" or m.conditioning < c.min_conditioning:
+            if not c.corridor_edges or m.info is None:
+                self._refuse("degenerate")
+                return None
+            info = self._corridor_info(m.info, m.pose.theta)
+            self.corridor_loops += 1
+        return Edge(j, n, relative(self.keyframes[j].pose, m.pose), info, loop=True)
+
+    def _corridor_info(self, h: npt.NDArray[np.float64], theta: float) -> npt.NDArray[np.float64]:
+        """A loop edge's information where its scan does not fix the position along one direction (a corridor):
+        `loop_xy` across it, `cap_xy` along it (the weak eigenvector of the match's translation information
+        `h`, in the world frame, turned into the frame of the edge's error, the later keyframe's)."""
+        c = self.config
+        _, vecs = np.linalg.eigh(np.asarray(h, np.float64)[:2, :2])
+        w = vecs[:, 0]
+        ct, st = math.cos(theta), math.sin(theta)
+        wj = np.array([ct * w[0] + st * w[1], -st * w[0] + ct * w[1]])
+        along = np.outer(wj, wj)
+        out = np.zeros((3, 3))
+        out[:2, :2] = (np.eye(2) - along) / c.loop_xy ** 2 + along / c.cap_xy ** 2
+        out[2, 2] = c.loop_theta ** -2
+        return out
+
+    def _recent(self, n: int, path: float) -> int:
+        """How many keyframes before `n` lie within `path` metres along the path (left out of a submap)."""
+        k = n
+        while k > 0 and self.keyframes[n].path - self.keyframes[k - 1].path < path:
+            k -= 1
+        return n - k
+
+    def gate(self, i: int, j: int) -> tuple[float, float]:
+        """([m], [rad]) how far a loop edge between keyframes i and j may move j from its estimate: the drift
+        the path between them can have made (`gate_xy`, `gate_theta`, capped)."""
+        c = self.config
+        gap = abs(self.keyframes[j].path - self.keyframes[i].path)
+        return (min(c.gate_xy[0] + c.gate_xy[1] * gap, c.cap_xy),
+                min(c.gate_theta[0] + c.gate_theta[1] * gap, c.cap_theta))
+
+    def add_loop(self, edge: Edge, *, check: bool = True) -> bool:
+        """Add a loop edge (robust kernel), optimise, and apply the correction when it is large enough.
+        With `check`, an edge that would move node j farther from its estimate than `gate` allows is
+        refused (counted in `refused["inconsistent"]`) and False returned."""
+        if not (0 <= edge.i < len(self.keyframes) and 0 <= edge.j < len(self.keyframes)):
+            raise ConfigError(f"loop closure: edge {edge.i} -> {edge.j} outside the {len(self.keyframes)} keyframes")
+        if check:
+            dev = relative(self.keyframes[edge.j].pose, compose(self.keyframes[edge.i].pose, edge.z))
+            gxy, gth = self.gate(edge.i, edge.j)
+            if math.hypot(dev.x, dev.y) > gxy or abs(wrap_angle(dev.theta)) > gth:
+                self._refuse("inconsistent")
+                return False
+        edge = replace(edge, loop=True)
+        self.edges.append(edge)
+        self.loops += 1
+        if self._isam is not None:
+            self._isam.add(-1, Pose(0.0, 0.0, 0.0), [edge])
+            self._isam.settle()
+            new = self._isam.poses()
+        else:
+            new = optimize(self.poses(), self.edges, iterations=10, cauchy=self.config.cauchy)
+        self._set_poses(new)
+        return True
+
+    def _set_poses(self, new: npt.NDArray[np.float64]) -> None:
+        for k, kf in enumerate(self.keyframes):
+            kf.pose = Pose(float(new[k, 0]), float(new[k, 1]), float(new[k, 2]))
+        assert self._anchor is not None
+        moved = relative(self._anchor, self.keyframes[-1].pose)
+        c = self.config
+        if math.hypot(moved.x, moved.y) > c.apply_xy or abs(moved.theta) > c.apply_theta:
+            self._apply()
+
+    def _apply(self) -> None:
+        """Move the localizer's pose with the last keyframe and rebuild its matching map."""
+        loc = self.localizer
+        if loc._pose is not None and self._anchor is not None:
+            moved = compose(self.keyframes[-1].pose, relative(self._anchor, loc._pose))
+            loc._pose = Pose(moved.x, moved.y, wrap_angle(moved.theta))
+            self._loc = compose(self.keyframes[-1].pose, relative(self._anchor, self._loc or self._anchor))
+        self._anchor = self.keyframes[-1].pose
+        old = loc.grid
+        grid = OccupancyGrid(old.geo, model=old.model, range_max=old.range_max)
+        grid.l_occ, grid.l_free, grid.l_clamp = old.l_occ, old.l_free, old.l_clamp     # the same sensor model
+        loc.grid = grid
+        loc.hits = HitMap(old.geo)
+        for kf in self.keyframes:
+            loc.integrate(kf.pose, kf.scan)
+        self.rebuilds += 1
+
+    def pose_of(self, k: int) -> Pose:
+        """The current estimate of keyframe `k`."""
+        return self.keyframes[k].pose

@@ -1,0 +1,61 @@
+"""`--localize slam` in the run loop: `LoopClosureTracker` keeps every mapped scan beside its keyframe and,
+when loop closure corrects the keyframes, rebuilds the run's map from all of them and tells the explorer."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+from ring_corridor import RingRobot, drifted, ring_path
+
+from robotexp.localization.matcher import compose
+from robotexp.localization.robot import LocalizedRobot
+from robotexp.localization.run import LoopClosureTracker
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.observers import StepEvent
+from robotexp.robot import LaserScan
+
+
+class Told:
+    """An explorer's `map_rebuilt` as the tracker calls it."""
+
+    def __init__(self) -> None:
+        self.calls: list[OccupancyGrid] = []
+
+    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+        self.calls.append(grid)
+
+
+def test_the_runs_map_is_rebuilt_from_every_scan_at_the_corrected_keyframes() -> None:
+    truth = ring_path(1.3)
+    odom = drifted(truth, 1.03, math.radians(1.0))
+    geo = GridGeometry.covering(-1, -1, 11, 11, 0.1)
+    grid = OccupancyGrid(geo, range_max=4.0)
+    told = Told()
+    with RingRobot(truth, odom) as inner:
+        robot = LocalizedRobot(inner, GridGeometry.covering(-1, -1, 11, 11, 0.05), range_max=4.0, loop_closure=True)
+        tracker = LoopClosureTracker("slam", "test", robot)
+        run = SimpleNamespace(grid=grid, explorer=told, info=SimpleNamespace(extra={}), state=None)
+        for k in range(len(truth)):
+            state = robot.read()
+            assert state.laser is not None
+            grid.update(state.pose, state.laser)            # what the run loop does with each new scan
+            tracker.on_step(run, StepEvent(0.1 * k, state, True, None))   # type: ignore[arg-type]
+        robot.detach()
+    g = robot.graph
+    assert g is not None and g.loops >= 1 and g.rebuilds >= 1
+    assert 1 <= tracker.map_rebuilds <= g.rebuilds
+    assert len(told.calls) == tracker.map_rebuilds and all(c is grid for c in told.calls)   # the explorer was told
+    assert len(tracker.scans) == len(truth)                 # every mapped scan kept, none twice
+    # after the last rebuild the run's map is exactly the scans taken since it on top of all scans
+    # up to it at their keyframes' corrected poses; rebuilt once more now, it is every scan at them
+    again = OccupancyGrid(geo, range_max=4.0)
+    for kf, rel, ranges, angles, rmax, off in tracker.scans:
+        again.update(compose(g.keyframes[kf].pose, rel), LaserScan(angles, ranges.astype(np.float64), rmax, off))
+    tracker._rebuild(run)                                   # type: ignore[arg-type]
+    np.testing.assert_array_equal(grid.values, again.values)
+    assert len(told.calls) == tracker.map_rebuilds
+    info = run.info.extra["loop_closure"]
+    assert info["loops"] == g.loops and info["rebuilds"] == g.rebuilds and info["keyframes"] == len(g.keyframes)
