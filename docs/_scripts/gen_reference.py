@@ -49,6 +49,7 @@ RESULT_KEYS = {
     "completed": "true when the explorer itself said it was done",
     "reason": "why the run ended; starts with the end reason (`explored`, `time limit`, `stalled`, ...)",
     "map_iou": "mean of the IoU of mapped vs true occupied cells and of mapped vs explorable free cells",
+    "map_iou_tolerant": "map_iou with one cell of tolerance: a mark counts as right, a cell as found, within one cell",
     "cell_m": "the map's cell size [m]",
     "time_to_coverage_90_s": "robot time when coverage first reached 0.90 [s] (null if never)",
     "path_to_coverage_90_m": "path length when coverage first reached 0.90 [m] (null if never)",
