@@ -82,6 +82,20 @@ def _border(region: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     return region & ~inner
 
 
+def _near(mask: npt.NDArray[np.bool_], reach: int) -> npt.NDArray[np.bool_]:
+    """Cells within `reach` cells (Chebyshev distance) of a True cell of `mask`: a box filter done as
+    two running sums, linear in the cells whatever `reach` is."""
+    out = mask
+    for axis in (0, 1):
+        n = out.shape[axis]
+        sums = np.concatenate([np.zeros_like(out.take([0], axis), np.int32), np.cumsum(out, axis, dtype=np.int32)],
+                              axis)
+        hi = np.minimum(np.arange(n) + reach + 1, n)
+        lo = np.maximum(np.arange(n) - reach, 0)
+        out = (sums.take(hi, axis) - sums.take(lo, axis)) > 0
+    return out
+
+
 @functools.lru_cache(maxsize=8)
 def ray_tree(n_rays: int, range_cells: float) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """The rays of a laser at a cell centre as a prefix tree of cell offsets, for `view_free`.
@@ -199,6 +213,10 @@ def ground_truth(world: World, geo: GridGeometry, *, robot_radius: float, laser_
         reachable[row, col] = not occ[row, col]
         views = _border(reachable)
         views[::step, ::step] |= reachable[::step, ::step]
+        # a viewpoint sees no further than its rays reach: one with no free cell the robot cannot reach
+        # that near adds nothing to the reachable cells (explorable anyway), so it is not cast from
+        # (the same ground truth bit for bit; a large open floor costs its border, not its area)
+        views &= _near(~occ & ~reachable, int(np.abs(offsets).max()) + 1)
         part = _Component(sight, label, reachable, views,
                           view_free(occ, np.argwhere(views).astype(np.int64), offsets, skip))
         base.components.append(part)
