@@ -32,7 +32,7 @@ def test_run_and_figures_of_a_non_utf8_map_name(tmp_path: Path) -> None:
     assert {p.suffix for p in out.glob("*") if ".coverage." not in p.name} >= {".png", ".svg", ".pdf"}
     svg = next(p for p in out.glob("*.svg") if ".coverage." not in p.name)
     assert "box\ufffd" in svg.read_text(encoding="utf-8")
-    res = CliRunner().invoke(main, ["figure", str(out / "results.jsonl"), "--include-incomplete", "-o", str(tmp_path / "fig"),
-                                    "--format", "svg"])
+    res = CliRunner().invoke(main, ["figure", str(out / "results.jsonl"), "--include-incomplete",
+                                    "-o", str(tmp_path / "fig"), "--format", "svg"])
     assert res.exit_code == 0, (res.output, res.exception)
     assert list((tmp_path / "fig").glob("box_*.svg"))
