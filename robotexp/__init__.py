@@ -23,21 +23,21 @@ __version__ = "0.1.0"
 # public name -> the module that defines it
 _EXPORTS = {
     "Explorer": "robotexp.explorer", "ExplorerContext": "robotexp.explorer", "Done": "robotexp.explorer",
-    "ExplorationRun": "robotexp.explorer", "RunInfo": "robotexp.explorer",
+    "ExplorationRun": "robotexp.run.loop", "RunInfo": "robotexp.run.loop",
     "Twist": "robotexp.robot", "Pose": "robotexp.robot", "RobotState": "robotexp.robot",
     "LaserScan": "robotexp.robot", "SonarScan": "robotexp.robot", "Limits": "robotexp.robot",
     "Robot": "robotexp.robot", "Capability": "robotexp.robot", "RobotEmulator": "robotexp.robot",
     "Laser": "robotexp.laser",
     "OccupancyGrid": "robotexp.mapping.grid", "GridGeometry": "robotexp.mapping.geometry",
-    "RunSpec": "robotexp.experiment", "RunOutput": "robotexp.experiment",
+    "RunSpec": "robotexp.run.spec", "RunOutput": "robotexp.experiment",
     "run_experiment": "robotexp.experiment", "run_on_robot": "robotexp.experiment",
-    "RunObserver": "robotexp.observers", "StepEvent": "robotexp.observers",
-    "RunRecord": "robotexp.record", "EndReason": "robotexp.record",
+    "RunObserver": "robotexp.run.observers", "StepEvent": "robotexp.run.observers",
+    "RunRecord": "robotexp.run.record", "EndReason": "robotexp.run.record",
     "load_world": "robotexp.world.loader", "World": "robotexp.world.model",
     "RobotexpError": "robotexp.errors", "RobotError": "robotexp.errors", "ConnectionLost": "robotexp.errors",
     "ProtocolError": "robotexp.errors", "WorldError": "robotexp.errors", "ScriptError": "robotexp.errors",
     "PluginError": "robotexp.errors", "ConfigError": "robotexp.errors",
-    "check_explorer": "robotexp.conformance",
+    "check_explorer": "robotexp.testing.explorer_contract",
 }
 
 __all__ = [
@@ -54,14 +54,16 @@ __all__ = [
 if TYPE_CHECKING:
     from robotexp.errors import (ConfigError, ConnectionLost, PluginError, ProtocolError, RobotError, RobotexpError,
                                  ScriptError, WorldError)
-    from robotexp.experiment import RunOutput, RunSpec, run_experiment, run_on_robot
-    from robotexp.explorer import Done, ExplorationRun, Explorer, ExplorerContext, RunInfo
-    from robotexp.conformance import check_explorer
+    from robotexp.experiment import RunOutput, run_experiment, run_on_robot
+    from robotexp.run.spec import RunSpec
+    from robotexp.explorer import Done, Explorer, ExplorerContext
+    from robotexp.run.loop import ExplorationRun, RunInfo
+    from robotexp.testing.explorer_contract import check_explorer
     from robotexp.laser import Laser
     from robotexp.mapping.geometry import GridGeometry
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.observers import RunObserver, StepEvent
-    from robotexp.record import EndReason, RunRecord
+    from robotexp.run.observers import RunObserver, StepEvent
+    from robotexp.run.record import EndReason, RunRecord
     from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState, SonarScan, Twist
     from robotexp.world.loader import load_world
     from robotexp.world.model import World

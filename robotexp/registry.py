@@ -251,7 +251,7 @@ def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
 
 def connect_robot(backend: str, address: str, **options: Any) -> Robot:
     """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`, with the
-    backend's keyword `options` (e.g. `robotexp.laser_mount.robot_options`).
+    backend's keyword `options` (e.g. `robotexp.run.laser_mount.robot_options`).
 
     Raises:
         PluginError: unknown backend.

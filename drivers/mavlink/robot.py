@@ -56,7 +56,7 @@ from dataclasses import replace
 import numpy as np
 
 from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.laser_mount import PoseHistory, scan_in_robot_frame
+from robotexp.laser import PoseHistory, scan_in_robot_frame
 from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C

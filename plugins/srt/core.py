@@ -199,7 +199,7 @@ class SRTExplorer(Explorer):
     @property
     def backtracking(self) -> bool:
         """True while the robot drives back to a node of the tree (to the parent, or re-centres on its node
-        before leaving it): the run's stall watch (`robotexp.watch.StallWatch`) does not count this time,
+        before leaving it): the run's stall watch (`robotexp.run.endings.StallWatch`) does not count this time,
         in which SRT maps nothing by design. The way back is bounded (each move goes up the finite tree;
         a move without progress is abandoned after `stuck_timeout`)."""
         return self.phase is Phase.SETTLE or (self.phase in (Phase.TURN, Phase.MOVE) and self.target_node is not None)

@@ -19,7 +19,7 @@ import numpy as np
 from robotexp.errors import ConfigError
 from robotexp.explorer import ExplorerContext
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.groundtruth import ray_tree
+from robotexp.world.groundtruth import ray_tree
 from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight
 from robotexp.planning.targets import frontier_targets
@@ -142,7 +142,7 @@ class _FrontierRescue(SRTExplorer):
     def _open_beyond(self, grid: OccupancyGrid, x: float, y: float) -> np.ndarray:
         """Bool (rows, cols): the cells within 1.5 cells of unknown space a robot disc could drive into were
         it free, from (x, y) [m] (the disc clear of every occupied cell; as the run's honest ending counts
-        frontier, `robotexp.watch.frontier_left`). The inside of a shelf whose outline the laser drew with
+        frontier, `robotexp.run.endings.frontier_left`). The inside of a shelf whose outline the laser drew with
         gaps, or a wall's cells that grazing beams left unknown, is no such space: chasing them cost a
         rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95). The map's edge
         counts as a wall: through a wall's unmarked cells the unknown strip outside a building (the

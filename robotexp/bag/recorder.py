@@ -19,7 +19,7 @@ plausible stamps; every tick of the run has one /odom and one /tf at the same st
 
 and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
 cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
-`robotexp.record` (the run's record, as written to results.jsonl) at the end.
+`robotexp.run.record` (the run's record, as written to results.jsonl) at the end.
 
 The recorder only exists when asked for (`--record`): a run without it does no work for it. Messages
 are encoded by `robotexp.bag.cdr` (numpy; recording a 300 s run on `dense` costs about 10 % of its
@@ -42,15 +42,15 @@ from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, MARKER_ARRAY, OCCUPANCY
 from robotexp.errors import ConfigError
 from robotexp.markers import markers_problem
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.observers import RunObserver, StepEvent
+from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, RobotState
 
 if TYPE_CHECKING:
     from mcap.writer import Writer
 
-    from robotexp.explorer import ExplorationRun
-    from robotexp.mapping.groundtruth import GroundTruth
-    from robotexp.record import RunRecord
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.world.groundtruth import GroundTruth
+    from robotexp.run.record import RunRecord
 
 __all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "check_record_path"]
 
@@ -268,7 +268,7 @@ class BagRecorder(RunObserver):
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record as metadata and close the file."""
         assert self._writer is not None
-        self._writer.add_metadata("robotexp.record", {"json": json.dumps(record.as_dict())})
+        self._writer.add_metadata("robotexp.run.record", {"json": json.dumps(record.as_dict())})
         self.close()
 
     def close(self) -> None:

@@ -22,8 +22,8 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
-from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
+from robotexp.run.observers import RunObserver
+from robotexp.run.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
 

@@ -34,7 +34,7 @@ import unicodedata
 from pathlib import Path
 
 from robotexp.errors import ScriptError
-from robotexp.safefile import LOCK_NAME
+from robotexp.output.safefile import LOCK_NAME
 
 __all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
 

@@ -33,14 +33,14 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.markers import markers_problem
-from robotexp.observers import RunObserver, StepEvent
-from robotexp.record import EndReason
+from robotexp.run.observers import RunObserver, StepEvent
+from robotexp.run.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
-from robotexp.view.live import DEFAULT_SPEED, speed_value
+from robotexp.view.feed import DEFAULT_SPEED, speed_value
 
 if TYPE_CHECKING:
-    from robotexp.explorer import ExplorationRun
-    from robotexp.record import RunRecord
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.run.record import RunRecord
 
 __all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
            "run_meta", "pacer_command", "new_path_points", "SpeedMeter"]

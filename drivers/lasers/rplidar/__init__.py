@@ -167,7 +167,7 @@ class RPLidarLaser(StreamLaser):
 
     def beam_offsets(self) -> npt.NDArray[np.float64]:
         """When each beam of a turn was measured [s], relative to the turn's stamp (<= 0): the turn
-        sweeps clockwise from the front and ends when the next one begins (`robotexp.laser_mount`
+        sweeps clockwise from the front and ends when the next one begins (`robotexp.run.laser_mount`
         places each echo from the robot pose at its beam's time)."""
         g = self.geometry
         cw = (-g.angles()) % (2 * np.pi)
