@@ -1,12 +1,8 @@
-"""The explorer plugin contract (`Explorer`) and the control loop that runs one (`ExplorationRun`).
+"""The explorer plugin contract: `Explorer`, what it is given (`ExplorerContext`) and `Done`.
 
 An explorer only decides: given the robot's state and the map it returns a `Twist`, or `Done`.
 It never sleeps, reads clocks, does I/O or holds a robot handle; its randomness comes from the
-generator in its `ExplorerContext`. `ExplorationRun` owns the loop of docs/architecture.md ("One run"):
-
-    clock tick -> robot.read() -> grid.update() -> explorer.step() -> robot.command() -> metrics
-
-and tells its observers (`robotexp.run.observers`) about each step, each coverage sample and the end.
+generator in its `ExplorerContext`. The loop that runs one is `robotexp.run.loop.ExplorationRun`.
 """
 
 from __future__ import annotations
@@ -20,12 +16,11 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.robot import Limits, Pose, RobotState, Twist
-from robotexp.run.record import COVERAGE_MILESTONES
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
 
-__all__ = ["Done", "ExplorerContext", "Explorer", "COVERAGE_MILESTONES"]
+__all__ = ["Done", "ExplorerContext", "Explorer"]
 
 log = logging.getLogger(__name__)
 

@@ -71,7 +71,8 @@ class ResultsWriter(RunObserver):
     `results.jsonl` first (so it is never lost), then `<run>.coverage.csv`, `<run>.path.csv` (the true
     path where known), `<run>.estimated_path.csv` (the pose the explorer got, when it differs: odometry
     error, localization), `<run>.map.yaml` + `.pgm` and, with `image`, the figures `<run>.png` and
-    `<run>.coverage.png` (`robotexp.output.figures`; also as .svg / .pdf when `image` is a tuple of formats naming them).
+    `<run>.coverage.png` (`robotexp.output.figures`; also as .svg / .pdf when `image` is a tuple of formats
+    naming them).
 
     It is `critical`: when writing fails the caller of the run raises the error after the run.
     """

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError, ConnectionLost, RobotError
-from robotexp.explorer import COVERAGE_MILESTONES, Done, Explorer, ExplorerContext
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.run.record import COVERAGE_MILESTONES
 from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
