@@ -1,6 +1,5 @@
 """The commands `robotexp replay` (rebuild a recording's map and metrics), `robotexp video` and
-`robotexp figure`. robotexp.cli registers them (wrapping each in its `handle_errors`); this module
-imports robotexp.cli only inside the commands (`python -m robotexp.cli` runs it as __main__)."""
+`robotexp figure`. `robotexp.cli.main` registers them, wrapping each in `handle_errors`."""
 
 from __future__ import annotations
 

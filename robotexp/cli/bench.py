@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from robotexp.cli.common import fail
 from robotexp.errors import ConfigError, PluginError, WorldError
 
 __all__ = ["bench"]
@@ -43,8 +44,7 @@ def bench(maps: tuple[str, ...], methods: str | None, done_when: bool, seeds: st
             click.echo(f"{done}/{total} {record['run']}: coverage {record['coverage']}, {record['reason']}", err=True)
 
     if not maps and not done_when:
-        from robotexp.cli.common import fail as _fail  # here, not at import: robotexp.cli imports this module
-        _fail("bench: give the maps to run (files, folders, generated:KIND:A-B), or --done-when", 2)
+        fail("bench: give the maps to run (files, folders, generated:KIND:A-B), or --done-when", 2)
     if methods is None:
         methods = ",".join(DONE_WHEN_METHODS) if done_when else "frontier,bvp"
     if done_when:
@@ -54,8 +54,7 @@ def bench(maps: tuple[str, ...], methods: str | None, done_when: bool, seeds: st
                             jobs=jobs or os.cpu_count() or 1, resume=resume, max_time=max_time, progress=progress,
                             run=not report)
     except (ConfigError, WorldError, PluginError) as exc:
-        from robotexp.cli.common import fail as _fail  # here, not at import: robotexp.cli imports this module
-        _fail(str(exc), 2)
+        fail(str(exc), 2)
     except KeyboardInterrupt:
         click.echo("robotexp: interrupted", err=True)
         sys.exit(130)

@@ -1,8 +1,7 @@
 """`robotexp map LOG --out DIR`: build a map from a CARMEN laser log, optionally from perturbed odometry
 recovered by scan matching, and measure the absolute trajectory error against the logged poses.
 
-`robotexp.cli` registers the command and wraps it in its error handling (bad input: one line, exit 2);
-this module does not import `robotexp.cli`, which `python -m robotexp.cli` runs as `__main__`."""
+`robotexp.cli.main` registers the command and wraps it in its error handling (bad input: one line, exit 2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""`robotexp worlds generate`: write a procedural world as a ROS map or an ARIA `.map`."""
+"""`robotexp worlds` (the built-in worlds and their start poses) and `robotexp worlds generate` (a procedural
+world written as a ROS map or an ARIA `.map`)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from robotexp.cli.common import handle_errors
+from robotexp.cli.common import fail, handle_errors
 from robotexp.errors import ConfigError, WorldError
 from robotexp.world.generate import DEFAULT_SIZES, KINDS, write_generated
 
@@ -45,7 +46,7 @@ def _size(text: str | None) -> tuple[float, float] | None:
         raise ConfigError(f"--size {text!r}: expected WIDTHxHEIGHT in metres, e.g. 30x20") from None
 
 
-@click.command()
+@worlds.command()
 @click.option("--kind", required=True, type=click.Choice(KINDS), help="What to build.")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="The same seed gives the same file.")
@@ -61,6 +62,5 @@ def generate(kind: str, seed: int, size: str | None, scanned: bool, out: Path) -
     try:
         files = write_generated(out, kind, seed, _size(size), scanned=scanned)
     except (ConfigError, WorldError) as exc:
-        from robotexp.cli.common import fail as _fail  # here, not at import: robotexp.cli imports this module
-        _fail(str(exc), 2)
+        fail(str(exc), 2)
     click.echo(" ".join(str(f) for f in files))
