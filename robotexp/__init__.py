@@ -2,11 +2,13 @@
 
 Importing this package is cheap: the names below are imported on first use (PEP 562), and pybullet,
 numba, lupa and pymavlink load only in the modules that need them. What plugin and script authors
-need is here:
+need is here (docs/architecture.md, "Public API", names the public subpackages beside it):
 
 - explorers: `Explorer`, `ExplorerContext`, `Done`, `Twist`, `RobotState`, `LaserScan`, `SonarScan`,
-  `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`, and `check_explorer` for a plugin's own tests;
-- robot backends: `Robot`, `Capability`, `RobotEmulator`, `Laser`;
+  `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`, `wrap_angle`, `compose_pose`, `relative_pose`, and
+  `check_explorer` for a plugin's own tests;
+- robot backends and laser drivers: `Robot`, `Capability`, `RobotEmulator`, `Clock`, `PacedClock`, `Laser`,
+  `LaserGeometry`, `StampedScan`, `ScanSource`, `PoseHistory`, `scan_in_robot_frame`;
 - runs: `RunSpec`, `run_experiment`, `run_on_robot`, `RunOutput`, `ExplorationRun`, `RunInfo`,
   `RunObserver`, `StepEvent`, `RunRecord`, `EndReason`, `load_world`, `World`;
 - errors: `RobotexpError`, `RobotError`, `ConnectionLost`, `ProtocolError`, `WorldError`,
@@ -27,7 +29,10 @@ _EXPORTS = {
     "Twist": "robotexp.robot", "Pose": "robotexp.robot", "RobotState": "robotexp.robot",
     "LaserScan": "robotexp.robot", "SonarScan": "robotexp.robot", "Limits": "robotexp.robot",
     "Robot": "robotexp.robot", "Capability": "robotexp.robot", "RobotEmulator": "robotexp.robot",
-    "Laser": "robotexp.laser",
+    "wrap_angle": "robotexp.robot", "compose_pose": "robotexp.robot", "relative_pose": "robotexp.robot",
+    "Clock": "robotexp.clock", "PacedClock": "robotexp.clock",
+    "Laser": "robotexp.laser", "LaserGeometry": "robotexp.laser", "StampedScan": "robotexp.laser",
+    "ScanSource": "robotexp.laser", "PoseHistory": "robotexp.laser", "scan_in_robot_frame": "robotexp.laser",
     "OccupancyGrid": "robotexp.mapping.grid", "GridGeometry": "robotexp.mapping.geometry",
     "RunSpec": "robotexp.run.spec", "RunOutput": "robotexp.experiment",
     "run_experiment": "robotexp.experiment", "run_on_robot": "robotexp.experiment",
@@ -44,7 +49,9 @@ __all__ = [
     "__version__",
     "Explorer", "ExplorerContext", "Done", "ExplorationRun", "RunInfo",
     "Twist", "Pose", "RobotState", "LaserScan", "SonarScan", "Limits", "Robot", "Capability", "RobotEmulator",
-    "Laser", "OccupancyGrid", "GridGeometry",
+    "wrap_angle", "compose_pose", "relative_pose", "Clock", "PacedClock",
+    "Laser", "LaserGeometry", "StampedScan", "ScanSource", "PoseHistory", "scan_in_robot_frame",
+    "OccupancyGrid", "GridGeometry",
     "RunSpec", "RunOutput", "run_experiment", "run_on_robot", "RunObserver", "StepEvent", "RunRecord", "EndReason",
     "load_world", "World",
     "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError", "WorldError", "ScriptError", "PluginError",
@@ -59,12 +66,14 @@ if TYPE_CHECKING:
     from robotexp.explorer import Done, Explorer, ExplorerContext
     from robotexp.run.loop import ExplorationRun, RunInfo
     from robotexp.testing.explorer_contract import check_explorer
-    from robotexp.laser import Laser
+    from robotexp.clock import Clock, PacedClock
+    from robotexp.laser import Laser, LaserGeometry, PoseHistory, ScanSource, StampedScan, scan_in_robot_frame
     from robotexp.mapping.geometry import GridGeometry
     from robotexp.mapping.grid import OccupancyGrid
     from robotexp.run.observers import RunObserver, StepEvent
     from robotexp.run.record import EndReason, RunRecord
-    from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState, SonarScan, Twist
+    from robotexp.robot import (Capability, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState, SonarScan, Twist,
+                                compose_pose, relative_pose, wrap_angle)
     from robotexp.world.loader import load_world
     from robotexp.world.model import World
 
