@@ -48,9 +48,7 @@ from abc import abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar, Protocol
 
-from robotexp.clock import Clock, PacedClock
-from robotexp.errors import ConfigError, ConnectionLost, RobotError
-from robotexp.robot import Pose, Robot, Twist
+from robotexp import Clock, ConfigError, ConnectionLost, PacedClock, Pose, Robot, RobotError, Twist
 
 __all__ = ["StateStamps", "StreamBackend", "StreamLink", "StreamReader", "read_waiting", "require_positive"]
 

@@ -13,13 +13,11 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
-from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
 __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 

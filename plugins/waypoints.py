@@ -27,11 +27,9 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
-from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 
 __all__ = ["WaypointsExplorer", "attractive_force", "repulsive_force", "scan_points", "SECTORS"]
 

@@ -24,8 +24,7 @@ from __future__ import annotations
 import logging
 import math
 
-from robotexp.errors import ConfigError, ConnectionLost
-from robotexp.robot import LaserScan, Pose, Twist, wrap_angle
+from robotexp import ConfigError, ConnectionLost, LaserScan, Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, OdometryError, SimRobot
 from robotexp.world.model import World
 from robotexp_drivers.kobuki import constants as K

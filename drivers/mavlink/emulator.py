@@ -72,8 +72,7 @@ import socket
 from collections.abc import Callable
 from dataclasses import replace
 
-from robotexp.errors import ConfigError
-from robotexp.robot import Pose, Twist, wrap_angle
+from robotexp import ConfigError, Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, OdometryError, SimRobot, preset
 from robotexp.world.model import World
 from robotexp_drivers.backend import require_positive

@@ -55,9 +55,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.laser import PoseHistory, scan_in_robot_frame
-from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp import (
+    Capability, ConnectionLost, LaserScan, Limits, Pose, PoseHistory, ProtocolError, RobotError, RobotState, Twist,
+    scan_in_robot_frame, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message

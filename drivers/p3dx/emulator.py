@@ -41,10 +41,9 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, WorldError
-from robotexp.robot import Pose, Twist, compose_pose, relative_pose, wrap_angle
+from robotexp import ConfigError, Pose, Twist, WorldError, compose_pose, relative_pose, wrap_angle
 from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig, OdometryError
-from robotexp.sim.robot import _approach     # the simulator's own velocity ramp, applied per cycle
+from robotexp.sim.robot import approach     # the simulator's own velocity ramp, applied per cycle
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase, odometry_model
 
@@ -544,8 +543,8 @@ class P3DXEmulator(EmulatorBase):
             now = self._velocity
             v, w = self.motion.targets(self._heading_deg(), c.SIP_PERIOD_S)
             accel, rot_accel = self.motion.ramp_rates(now.v * 1000.0, math.degrees(now.w), v, w)
-            twist = Twist(_approach(now.v, v / 1000.0, accel / 1000.0 * c.SIP_PERIOD_S),
-                          _approach(now.w, math.radians(w), math.radians(rot_accel) * c.SIP_PERIOD_S))
+            twist = Twist(approach(now.v, v / 1000.0, accel / 1000.0 * c.SIP_PERIOD_S),
+                          approach(now.w, math.radians(w), math.radians(rot_accel) * c.SIP_PERIOD_S))
         self.sim.limits = replace(self._sim_limits, a_max=math.inf, alpha_max=math.inf)
         self.sim.command(twist)
 

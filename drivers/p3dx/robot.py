@@ -19,9 +19,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import (Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, compose_pose,
-                            relative_pose, wrap_angle)
+from robotexp import (
+    Capability, ConnectionLost, LaserScan, Limits, Pose, ProtocolError, RobotError, RobotState, SonarScan, Twist,
+    compose_pose, relative_pose, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, reads_until, require_positive
 
 from . import codec as k

@@ -36,13 +36,11 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import FollowerConfig, PathFollower, path_points
 from robotexp.planning.grid_planner import astar
 from robotexp.planning.targets import passable_cell, plan_costs
-from robotexp.robot import Pose, RobotState, Twist
 
 from .regions import SafeRegion
 

@@ -16,14 +16,12 @@ from typing import ClassVar
 
 import numpy as np
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import ExplorerContext
+from robotexp import ConfigError, ExplorerContext, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ray_tree
 from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight
 from robotexp.planning.targets import frontier_targets
-from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
 from .core import SRTExplorer
 from .regions import (

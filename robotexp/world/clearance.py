@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.kernels import edt_sq, kernel
-from robotexp.world.raycast import RayIndex, _shape_distance
+from robotexp.world.raycast import RayIndex, shape_distance
 from robotexp.world.model import World
 
 __all__ = ["FINE_STEP", "MAX_SAMPLES", "TOL", "Regions", "clearance", "clearance_points", "reach_regions",
@@ -61,7 +61,7 @@ def clearance_points(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int
                 cell = r * cols + c
                 for j in range(starts[cell], starts[cell + 1]):
                     k = items[j]
-                    d = _shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
+                    d = shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
                                         shapes[k, 5], shapes[k, 6], x, y)
                     if d < best:
                         best = d
@@ -118,7 +118,7 @@ def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], i
                 cell = r * cols + c
                 for j in range(starts[cell], starts[cell + 1]):
                     q = items[j]
-                    d = _shape_distance(shapes[q, 0], shapes[q, 1], shapes[q, 2], shapes[q, 3], shapes[q, 4],
+                    d = shape_distance(shapes[q, 0], shapes[q, 1], shapes[q, 2], shapes[q, 3], shapes[q, 4],
                                         shapes[q, 5], shapes[q, 6], xc, yc)
                     if d <= radius + h:     # within reach of some point of the cell (h > h / sqrt 2)
                         dup = False
@@ -136,7 +136,7 @@ def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], i
                 free = True
                 for t in range(n):
                     q = cand[t]
-                    if _shape_distance(shapes[q, 0], shapes[q, 1], shapes[q, 2], shapes[q, 3], shapes[q, 4],
+                    if shape_distance(shapes[q, 0], shapes[q, 1], shapes[q, 2], shapes[q, 3], shapes[q, 4],
                                        shapes[q, 5], shapes[q, 6], x, y) <= radius + 1e-9:
                         free = False
                         break

@@ -226,7 +226,7 @@ def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64
 
 
 @kernel
-def _shape_distance(kind: float, cx: float, cy: float, a: float, b: float, c: float, s: float,
+def shape_distance(kind: float, cx: float, cy: float, a: float, b: float, c: float, s: float,
                     x: float, y: float) -> float:
     """Distance [m] from the point (x, y) to the shape (0 inside it)."""
     px, py = x - cx, y - cy
@@ -249,7 +249,7 @@ def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], 
             cell = r * cols + cc
             for j in range(starts[cell], starts[cell + 1]):
                 k = items[j]
-                if _shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
+                if shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
                                    shapes[k, 5], shapes[k, 6], x, y) <= reach:
                     return True
     return False

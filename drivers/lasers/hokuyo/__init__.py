@@ -14,7 +14,7 @@ import math
 import time
 from typing import ClassVar
 
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
+from robotexp import ConfigError, ConnectionLost, ProtocolError
 from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.hokuyo import constants as C

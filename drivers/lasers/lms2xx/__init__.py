@@ -13,8 +13,7 @@ from __future__ import annotations
 import math
 import time
 
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
-from robotexp.laser import LaserGeometry
+from robotexp import ConfigError, ConnectionLost, LaserGeometry, ProtocolError
 from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.lms2xx import codec as k

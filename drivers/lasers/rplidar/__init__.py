@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, ConnectionLost, ProtocolError
+from robotexp import ConfigError, ConnectionLost, ProtocolError
 from robotexp_drivers.backend import reads_until
 from robotexp_drivers.lasers.base import LaserLink, StreamLaser
 from robotexp_drivers.lasers.rplidar import constants as C
