@@ -116,7 +116,7 @@ def warm_kernels(spec: RunSpec, robot: Robot) -> None:
     _WARMED.add(key)
 
 
-def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
+def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,  # noqa: PLR0913
                  observers: Iterable[RunObserver] = (),
                  on_sample: Callable[[float, float | None], None] | None = None,
                  show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True, map_size: float = 20.0,

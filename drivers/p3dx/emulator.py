@@ -181,7 +181,7 @@ class P3DXEmulator(EmulatorBase):
     radius = c.ROBOT_RADIUS_MM / 1000.0          # robotexp.robot.RobotEmulator: the simulated footprint [m]
     options = frozenset({"odometry"})            # `robotexp emulate p3dx --odometry-error SPEC`
 
-    def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
+    def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,  # noqa: PLR0913
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
                  robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,

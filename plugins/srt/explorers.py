@@ -417,7 +417,7 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     name = "srt-laser"
     RESCUE_SIGHT = True
 
-    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,
+    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,  # noqa: PLR0913
                  tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
@@ -573,7 +573,7 @@ class SRTStarExplorer(_FrontierRescue):
     name = "srt-star"
     uses_sonar = True
 
-    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
+    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,  # noqa: PLR0913
                  ring_radius: float = 0.0, cone: float = math.radians(15.0), sweep: bool = True,
                  sweep_rate: float = 0.3, extra_turn: float = math.radians(10.0), bins: int = 360,
                  frontier: bool = True, view: float = 4.0, node_gap: float = 0.3, wall_faces: bool = True,

@@ -163,7 +163,7 @@ _RANGES = {"period_s": (1e-4, 10.0), "sample_period_s": (1e-3, 3600.0), "radius_
            "laser_range_m": (0.0, 1000.0), "max_speed_m_s": (0.0, 100.0)}
 
 
-def _check_meta(meta: Any) -> dict[str, Any]:
+def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
     """The `robotexp.run` metadata, its fields checked (ValueError naming the first wrong one)."""
     if not isinstance(meta, dict):
         raise ValueError(f"robotexp.run metadata is a {type(meta).__name__}, expected a JSON object")
@@ -223,7 +223,7 @@ def _check_record(record: Any) -> dict[str, Any]:
     return record
 
 
-def read_bag(path: Path) -> Bag:
+def read_bag(path: Path) -> Bag:  # noqa: C901
     """Read a recording (see the module's docstring), within the limits of `robotexp.bag.reading`.
 
     Raises:

@@ -276,7 +276,7 @@ def _run_label(record: RunRecord, with_speed: bool) -> str:
     return label + ("" if record.completed else " *")
 
 
-def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir: Path, out: Path, *,
+def campaign_plots(records: Iterable[RunRecord | Mapping[str, Any]], results_dir: Path, out: Path, *,  # noqa: C901
                    include_incomplete: bool = False,
                    note: Callable[[str], None] | None = None) -> list[Path]:
     """Write `visited_cells.png`, one `coverage_<world>.png` per world and one `paths_<world>_<method>.png`

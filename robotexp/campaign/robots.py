@@ -67,7 +67,7 @@ class RobotDevices:
         return {"laser": self.laser, "laser_pose": self.laser_pose or "0,0,0"}
 
 
-def robot_devices(s: Mapping[str, Any], fail: Callable[..., Exception]) -> RobotDevices | None:
+def robot_devices(s: Mapping[str, Any], fail: Callable[..., Exception]) -> RobotDevices | None:  # noqa: C901
     """The devices of a (merged) campaign set `s`, or None for a set run on the embedded simulator.
 
     Args:

@@ -102,7 +102,7 @@ def run_campaign(campaign: Campaign, out: Path, *, jobs: int, resume: bool = Fal
                            timings=timings)
 
 
-def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,
+def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,  # noqa: C901
                 progress: Callable[[int, int, RunRecord | None], None] | None,
                 cluster: str | None = None, place: Place | None = None,
                 timings: list[RunTiming] | None = None) -> list[RunRecord]:

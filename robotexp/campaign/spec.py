@@ -100,7 +100,7 @@ def _get(table: dict[str, Any], key: str, default: Any, kind: type | tuple[type,
     return value
 
 
-def load_campaign(path: str | Path) -> Campaign:
+def load_campaign(path: str | Path) -> Campaign:  # noqa: C901
     """Parse and check a campaign file; expand it into runs.
 
     Raises:
@@ -251,7 +251,7 @@ def _sweeps(s: dict[str, Any], methods: list[str], params: dict[str, Any], p: Pa
     return out
 
 
-def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],
+def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  # noqa: C901
             load_world: Callable[[str], Any]) -> list[tuple[RunSpec, dict[str, Any]]]:
     world_name = _get(s, "world", None, str, p, where)
     if world_name is None:

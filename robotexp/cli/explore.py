@@ -62,7 +62,7 @@ __all__ = ["explore"]
               help="Formats of the run's map and coverage figures, comma-separated: png, svg, pdf.")
 @view_options
 @handle_errors
-def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,
+def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,  # noqa: C901
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
             odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,

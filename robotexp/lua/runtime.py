@@ -118,7 +118,7 @@ def _sigint_sets(control: Control) -> Iterator[None]:
         sys.unraisablehook = previous_hook
 
 
-def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,
+def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,  # noqa: C901, PLR0913
                timeout: float | None = None, code: str | None = None,
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),

@@ -89,7 +89,7 @@ def _tell(text: str) -> None:
         pass
 
 
-def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
+def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,  # noqa: C901
               timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE) -> int:
     """Run `robotexp run ARGS` in a child process; return its exit status (see the module docstring).
 

@@ -130,7 +130,7 @@ def _field(name: str, value: npt.ArrayLike, geo: GridGeometry, extra: tuple[int,
     return arr
 
 
-def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike | None = None,
+def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike | None = None,  # noqa: PLR0913
                path: npt.ArrayLike | None = None, est_path: npt.ArrayLike | None = None,
                start: Pose | None = None, end: Pose | None = None, potential: npt.ArrayLike | None = None,
                vectors: npt.ArrayLike | None = None, laser: npt.ArrayLike | None = None, grid: bool = False,
@@ -257,7 +257,7 @@ def _grid_lines(ax: Axes, geo: GridGeometry, x0: float, x1: float, y0: float, y1
     ax.hlines(ys, x0, x1, **kw)
 
 
-def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike | None,
+def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike | None,  # noqa: PLR0913
                 path: npt.ArrayLike | None, est_path: npt.ArrayLike | None, start: Pose | None, end: Pose | None,
                 potential: npt.ArrayLike | None, vectors: npt.ArrayLike | None, laser: npt.ArrayLike | None,
                 grid: bool, title: str | None, note: str | None, content: npt.ArrayLike | None,

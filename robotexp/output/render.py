@@ -366,7 +366,7 @@ def _reframe(values: npt.NDArray[np.generic], geo: GridGeometry, window: GridGeo
     return out
 
 
-def render_map(states: npt.ArrayLike, geo: GridGeometry, *,
+def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR0913
                truth: npt.ArrayLike | None = None, path: npt.ArrayLike | None = None,
                start: Pose | None = None, end: Pose | None = None, scale: int | None = None,
                show_grid: bool = False, laser: npt.ArrayLike | None = None,

@@ -147,7 +147,7 @@ class ExplorationRun:
     `observer_errors` (the observers that raised, detached).
     """
 
-    def __init__(self, robot: Robot, explorer: Explorer, grid: OccupancyGrid, *,
+    def __init__(self, robot: Robot, explorer: Explorer, grid: OccupancyGrid, *,  # noqa: PLR0913
                  truth: GroundTruth | None = None, period: float = 0.1, max_time: float = 4 * 3600,
                  sample_period: float = 1.0, seed: int = 0,
                  on_sample: Callable[[float, float | None], None] | None = None,

@@ -129,7 +129,7 @@ class Pacer:
             self.stopped, self.paused = True, False
             self._changed()
 
-    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,
+    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,  # noqa: C901
              on_hold: Callable[[bool], None] | None = None) -> bool:
         """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
         paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,

@@ -44,7 +44,7 @@ def world_index(world: World) -> RayIndex:
 
 
 @kernel
-def clearance_points(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
+def clearance_points(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],  # noqa: PLR0913
                      gx: float, gy: float, bucket: float, rows: int, cols: int, xs: npt.NDArray[np.float64],
                      ys: npt.NDArray[np.float64], cap: float, out: npt.NDArray[np.float64]) -> None:
     """Write into `out` the exact distance [m] from each point (xs[i], ys[i]) to the nearest shape of the
@@ -95,7 +95,7 @@ def clearance(world: World, geo: GridGeometry, cap: float, *, index: RayIndex | 
 
 
 @kernel
-def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
+def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],  # noqa: PLR0913
                gx: float, gy: float, bucket: float, rows: int, cols: int, ox: float, oy: float, h: float,
                k: int, radius: float, mr: npt.NDArray[np.int64], mc: npt.NDArray[np.int64],
                out: npt.NDArray[np.bool_]) -> None:
@@ -144,7 +144,7 @@ def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], i
 
 
 @kernel
-def _label(sure: npt.NDArray[np.bool_], mid: npt.NDArray[np.int64], mr: npt.NDArray[np.int64],
+def _label(sure: npt.NDArray[np.bool_], mid: npt.NDArray[np.int64], mr: npt.NDArray[np.int64],  # noqa: C901
            mc: npt.NDArray[np.int64], fine: npt.NDArray[np.bool_], k: int
            ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.int32], int]:
     """Label the 8-connected components of the fine lattice (see the module): (coarse labels (rows, cols)

@@ -51,7 +51,7 @@ class LMS2xxLaser(StreamLaser):
 
     name = "lms2xx"
 
-    def __init__(self, address: str, *, baud: int = 38400, fov: int = 180, resolution: float = 1.0,
+    def __init__(self, address: str, *, baud: int = 38400, fov: int = 180, resolution: float = 1.0,  # noqa: PLR0913
                  units: str = "mm", range_mode: int = 8, start_baud: int = c.POWER_ON_BAUD,
                  detect_baud: bool = True, password: str = c.INSTALLATION_PASSWORD.decode(),
                  timeout: float | None = None, reply_timeout: float = 1.0) -> None:
