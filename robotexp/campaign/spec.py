@@ -1,4 +1,26 @@
-"""Campaign files: a TOML file of run sets, checked and expanded into `RunSpec`s before the first run."""
+"""Campaign files: a TOML file of run sets, checked and expanded into `RunSpec`s before the first run.
+
+A campaign file (see `campaigns/thesis.toml`):
+
+    [campaign]                      # defaults for every set
+    name = "thesis"
+    laser_range_mm = 3000
+    seeds = [0]
+
+    [[set]]
+    world = "dense"
+    poses = "all"                   # or a list of the world's pose names
+    methods = ["bvp", "srt-laser"]
+    speeds_mm_s = [100, 40]
+
+    [set.params.bvp]                # keyword parameters of one method in this set
+    iterations = 30
+
+    [set.sweep.frontier]            # a sweep: one run per combination of these values
+    clearance = [0.2, 0.3]                               # a list of values
+    replan_period = {start = 1.0, stop = 3.0, step = 1.0}  # a range, stop included
+
+Everything is checked before the first run starts, so a bad file leaves no results behind."""
 
 from __future__ import annotations
 
