@@ -1,11 +1,10 @@
-"""One exploration run, from a `RunSpec` to written results: the one run path of every robot.
+"""One exploration run with its outputs, from a `RunSpec` to written results: the one run path of every robot.
 
 `run_on_robot` runs a spec's explorer on an open robot, any backend; `run_experiment` builds the
 embedded simulator's `SimRobot` for the spec and hands it to `run_on_robot`. This is what
-`robotexp explore`, the Lua `exploration.start()` and campaigns all call. The parts live in their
-own modules: start poses in `robotexp.world.poses`, plugin construction in `robotexp.registry`,
-the loop in `robotexp.explorer`, observers in `robotexp.run.observers`, records in `robotexp.run.record`
-and output files in `robotexp.output.results`.
+`robotexp explore`, the Lua `exploration.start()` and campaigns all call. It joins the run
+(`robotexp.run`: the spec and plan, the loop, observers, records) and its outputs (`robotexp.output`:
+the results writer); start poses are in `robotexp.world.poses`, plugin construction in `robotexp.registry`.
 """
 
 from __future__ import annotations
@@ -19,8 +18,8 @@ from typing import Any
 
 from robotexp.errors import ConfigError, PluginError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.output.results import ResultsWriter, map_image, run_id
-from robotexp.registry import connect_robot, make_emulator, make_explorer
+from robotexp.output.results import ResultsWriter, run_id
+from robotexp.registry import make_explorer
 from robotexp.robot import Capability, Robot
 from robotexp.run.endings import RunWatch, StallWatch
 from robotexp.run.loop import ExplorationRun, RunInfo
@@ -28,10 +27,9 @@ from robotexp.run.observers import RunObserver, SampleCallback
 from robotexp.run.record import EndReason, RunRecord
 from robotexp.run.spec import DEFAULT_CELL, RunPlan, RunSpec, plan_run, sim_robot
 from robotexp.world.model import World
-from robotexp.world.poses import parse_pose, pose_name, resolve_pose
+from robotexp.world.poses import pose_name
 
-__all__ = ["RunOutput", "run_experiment", "run_on_robot", "warm_kernels", "connect_robot", "make_emulator",
-           "parse_pose", "resolve_pose", "make_explorer", "map_image"]
+__all__ = ["RunOutput", "run_experiment", "run_on_robot", "warm_kernels"]
 
 log = logging.getLogger(__name__)
 
