@@ -22,8 +22,8 @@ from typing import Any
 from robotexp.errors import ConfigError, WorldError
 from robotexp.run.spec import RunSpec
 
-__all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_specs", "bench_table", "done_when_maps",
-           "expand_maps", "failure_causes", "map_group", "mark_outside", "success"]
+__all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_table", "done_when_maps",
+           "expand_maps", "failure_causes", "success"]
 
 SUCCESS_COVERAGE = 0.95
 DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # the Done-when benchmark
@@ -66,7 +66,7 @@ def done_when_maps(maps: Iterable[str], seeds: str = "0-49") -> list[str]:
     return [*maps, *(f"generated:{kind}:{seeds}" for kind in KINDS)]
 
 
-def bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
+def _bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
                 max_time: float = 4 * 3600.0, seed: int = 0,
                 load: Callable[[str], Any] | None = None) -> list[RunSpec]:
     """One `RunSpec` per map and method (default start pose), every map loaded once first so that a
@@ -129,7 +129,7 @@ def _map_name(record: dict[str, Any]) -> str:
     return spec if spec.startswith("generated:") else Path(spec).name
 
 
-def map_group(record: dict[str, Any]) -> str:
+def _map_group(record: dict[str, Any]) -> str:
     """The map's group in the summary: `generated:KIND` (plus its options but the seed) for a generated
     world, `map files` for a file, else the built-in world's name."""
     spec = str(record.get("world_spec") or record.get("world"))
@@ -170,7 +170,7 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     for method, res in sorted(by_method.items()):
         ok, done = sum(a for a, _ in res), sum(b for _, b in res)
         lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
-    groups = sorted({map_group(r) for r in rows})
+    groups = sorted({_map_group(r) for r in rows})
     if len(groups) > 1:
         lines.append("")
         lines.append("success per method and group of maps (ok/runs)")
@@ -179,7 +179,7 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
         for method in sorted(by_method):
             cells = []
             for g in groups:
-                runs = [r for r in rows if str(r.get("method")) == method and map_group(r) == g]
+                runs = [r for r in rows if str(r.get("method")) == method and _map_group(r) == g]
                 cells.append(f"{sum(success(r) for r in runs)}/{len(runs)}" if runs else "-")
             lines.append(f"  {method:<12} " + " ".join(f"{c:>{gw}}" for c in cells))
     checked = [r for r in rows if r.get(OUTSIDE) is not None]
@@ -197,7 +197,7 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
-def mark_outside(records: list[dict[str, Any]], out: Path) -> None:
+def _mark_outside(records: list[dict[str, Any]], out: Path) -> None:
     """Set each record's `OUTSIDE`: how many points of its path (`out/RUN.path.csv`) lie outside the
     exploration area its map declares (None: no path file, or no area)."""
     import numpy as np
@@ -229,27 +229,27 @@ def mark_outside(records: list[dict[str, Any]], out: Path) -> None:
 
 
 def _no_load(spec: str) -> None:
-    """`bench_specs` without loading the maps (a report of runs already made)."""
+    """`_bench_specs` without loading the maps (a report of runs already made)."""
 
 
 def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
               max_time: float = 4 * 3600.0, run: bool = True,
               progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
-    """Run every map x method (see `bench_specs`) through the campaign runner into `out` (`run` False:
+    """Run every map x method (see `_bench_specs`) through the campaign runner into `out` (`run` False:
     none, only the table), write `bench.txt` and `bench.csv` there from the records of these runs in
     `out/results.jsonl` (the text says how many have none), return (text, csv)."""
     from robotexp.campaign.spec import Campaign
     from robotexp.campaign.runner import run_campaign
     from robotexp.output.results import read_jsonl
 
-    specs = bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
+    specs = _bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
     if run:
         run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
     wanted = {(s.world, s.method) for s in specs}
     path = out / "results.jsonl"
     records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
         if path.is_file() else []
-    mark_outside(records, out)
+    _mark_outside(records, out)
     text, table = bench_table(records)
     missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
     if missing:

@@ -41,7 +41,7 @@ from robotexp.run.record import RunRecord
 from robotexp.run.spec import RunSpec
 from robotexp.world.bounds import parse_bounds
 
-__all__ = ["MAX_RUNS", "RunKey", "Campaign", "sweep_label", "run_key", "record_key", "method_label", "load_campaign"]
+__all__ = ["MAX_RUNS", "RunKey", "Campaign", "run_key", "record_key", "method_label", "load_campaign"]
 
 _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s", "robot", "cell_mm",
                   "laser_sigma_mm", "laser_uniform_mm", "bounds_mm", "bounds_wall", "record"} | DEVICE_KEYS
@@ -83,14 +83,14 @@ class Campaign:
         return run_key(spec, pose_label(spec), self.sweep_of(spec))
 
 
-def sweep_label(sweep: Mapping[str, Any] | None) -> str:
+def _sweep_label(sweep: Mapping[str, Any] | None) -> str:
     """The swept values as text, names sorted: "clearance=0.2,replan_period=1.0" ("" for none)."""
     return ",".join(f"{k}={json.dumps(v)}" for k, v in sorted((sweep or {}).items()))
 
 
 def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
     """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values)."""
-    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, sweep_label(sweep))
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _sweep_label(sweep))
 
 
 def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
@@ -100,14 +100,14 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     sweep = r.get("sweep")
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
-            sweep_label(sweep if isinstance(sweep, dict) else None))
+            _sweep_label(sweep if isinstance(sweep, dict) else None))
 
 
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:
     """The method of a record as the report names it: with its swept values, "frontier [clearance=0.2]"."""
     r = RunRecord.from_dict(record)
     sweep = r.get("sweep")
-    label = sweep_label(sweep if isinstance(sweep, dict) else None)
+    label = _sweep_label(sweep if isinstance(sweep, dict) else None)
     return f"{r.method} [{label}]" if label else r.method
 
 
@@ -269,7 +269,7 @@ def _sweeps(s: dict[str, Any], methods: list[str], params: dict[str, Any], p: Pa
             try:
                 make_explorer(m, {**params.get(m, {}), **combo})      # names, types and ranges, before any run
             except ConfigError as exc:
-                raise _fail(p, f"{where}.sweep.{m}", f"{sweep_label(combo)}: {exc}") from None
+                raise _fail(p, f"{where}.sweep.{m}", f"{_sweep_label(combo)}: {exc}") from None
     return out
 
 

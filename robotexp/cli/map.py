@@ -15,12 +15,12 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 
-__all__ = ["map_command", "crop_seen"]
+__all__ = ["map_command", "_crop_seen"]
 
 MAX_PROBLEMS_SHOWN = 10
 
 
-def crop_seen(states: npt.NDArray[np.int8], geo: GridGeometry, margin: int = 10
+def _crop_seen(states: npt.NDArray[np.int8], geo: GridGeometry, margin: int = 10
               ) -> tuple[npt.NDArray[np.int8], GridGeometry]:
     """The states and geometry cut to the cells seen (not -1) plus `margin` cells around them."""
     seen = np.argwhere(states >= 0)
@@ -87,7 +87,7 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
                      range_max=range_max, loops=LoopConfig() if loop_closure else None)
     name = _stem(log)
     out.mkdir(parents=True, exist_ok=True)
-    states, geo = crop_seen(result.grid.states(), result.grid.geo)
+    states, geo = _crop_seen(result.grid.states(), result.grid.geo)
     est = result.estimate[:, :2] if apart(result.estimate, result.truth) else None
     fig = map_figure(states, geo, path=result.truth[:, :2], est_path=est, labels=("logged path", "estimated path"),
                      title=figure_title(name, localize),

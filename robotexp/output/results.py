@@ -26,7 +26,7 @@ from robotexp.output.render import laser_hits
 from robotexp.output.safefile import safe_name
 
 __all__ = ["append_jsonl", "read_jsonl", "read_records", "run_id", "take_name", "write_curve_csv", "ResultsWriter",
-           "save_run_images", "map_image", "read_curve_csv", "RESULT_KEYS", "RunRecord", "EndReason"]
+           "map_image", "read_curve_csv", "RESULT_KEYS", "RunRecord", "EndReason"]
 
 
 log = logging.getLogger(__name__)
@@ -122,10 +122,10 @@ class ResultsWriter(RunObserver):
             write_path_csv(out / f"{name}.estimated_path.csv", run.metrics.estimated)   # the explorer's pose
         save_ros_map(out / f"{name}.map.yaml", run.grid.states(), run.grid.geo)   # ROS map_server map
         if self.image:
-            self.image_path, self.plot_path = save_run_images(run, out, name, self.show, self.formats)
+            self.image_path, self.plot_path = _save_run_images(run, out, name, self.show, self.formats)
 
 
-def save_run_images(run: ExplorationRun, out: Path, name: str, show: tuple[str, ...] = (),
+def _save_run_images(run: ExplorationRun, out: Path, name: str, show: tuple[str, ...] = (),
                     formats: tuple[str, ...] = ("png",)) -> tuple[Path, Path | None]:
     """The map figure (grid, walls, path - true and estimated when they differ -, start, end and the `show`
     overlays) and the coverage figure (None without ground truth), as `formats` (PNG first)."""
@@ -139,7 +139,7 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
               path: bool = True) -> Any:
     """The fast raster image (PIL, `robotexp.output.render`) of a run's map with its path and the overlays named in
     `show` (grid, laser, vectors, potential, truth), for frames; `scale` in pixels per cell (None: fit),
-    `path` False leaves the path out. The final images are figures (`save_run_images`)."""
+    `path` False leaves the path out. The final images are figures (`_save_run_images`)."""
     from robotexp.output.render import render_map
 
     m = run.metrics

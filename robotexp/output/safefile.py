@@ -28,7 +28,7 @@ from typing import Any
 
 from robotexp.errors import ConfigError
 
-__all__ = ["append_line", "read_records", "repair_tail", "folder_lock", "check_results_file", "LOCK_NAME",
+__all__ = ["append_line", "read_records", "folder_lock", "check_results_file", "LOCK_NAME",
            "MAX_NAME", "safe_name", "writable_folder"]
 
 log = logging.getLogger(__name__)
@@ -139,7 +139,7 @@ def _count_newlines(fd: int, upto: int) -> int:
     return n
 
 
-def repair_tail(path: Path, note: Callable[[str], None] = warn) -> bool:
+def _repair_tail(path: Path, note: Callable[[str], None] = warn) -> bool:
     """Repair a torn last line of `path` (see the module docstring); True when there was one."""
     try:
         fd = os.open(path, os.O_RDWR)

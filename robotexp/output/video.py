@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
     from robotexp.run.record import RunRecord
 
-__all__ = ["FrameObserver", "frame_image", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path",
+__all__ = ["FrameObserver", "PngFrames", "VideoWriter", "VIDEO_SUFFIXES", "check_video_path",
            "check_fps"]
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -36,7 +36,7 @@ FRAME_SIZE = 800        # [px] frames fit this square unless the grid has more c
 BLOCK = 16              # [px] video frames are padded to multiples of this (H.264 macro blocks)
 
 
-def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None = None,
+def _frame_image(run: ExplorationRun, scale: int | None = None, title: str | None = None,
                 show: tuple[str, ...] = ()) -> Image.Image:
     """The frame of `run` now (see the module's docstring); `scale` [px per cell] (None: fit FRAME_SIZE);
     `show`: the explorer's overlays to draw too ("potential", "vectors", "grid", as `explore --show`)."""
@@ -63,7 +63,7 @@ def frame_image(run: ExplorationRun, scale: int | None = None, title: str | None
 
 class FrameObserver(RunObserver):
     """Renders a frame every `every` seconds of robot time (the first at the start, the last at the
-    end) and hands it to `sink`; `show`: the explorer's overlays drawn too (`frame_image`).
+    end) and hands it to `sink`; `show`: the explorer's overlays drawn too (`_frame_image`).
 
     Raises:
         ConfigError: `every` is not > 0.
@@ -83,7 +83,7 @@ class FrameObserver(RunObserver):
             from robotexp.output.render import map_layout
 
             self._scale = map_layout(run.grid.geo, title="t", max_size=FRAME_SIZE).scale
-        self.sink(frame_image(run, self._scale, show=self.show))
+        self.sink(_frame_image(run, self._scale, show=self.show))
         self.frames += 1
         self._last_time = time
 

@@ -40,7 +40,7 @@ from robotexp.laser import (
 from robotexp.robot import Clock, Pose, Robot, RobotState, Twist
 
 __all__ = ["LaserMountedRobot", "parse_laser_pose", "parse_laser_spec", "check_laser_options", "connect_laser",
-           "attach_laser", "robot_options", "connect_with_laser", "serve_laser", "emulate_devices"]
+           "robot_options", "connect_with_laser", "emulate_devices"]
 
 
 class LaserMountedRobot(Robot):
@@ -188,7 +188,7 @@ def check_laser_options(spec: str | None, pose: str | None) -> None:
         parse_laser_pose(pose)
 
 
-def attach_laser(robot: Robot, spec: str | None, pose: str | None) -> Robot:
+def _attach_laser(robot: Robot, spec: str | None, pose: str | None) -> Robot:
     """`robot` with the laser `spec` ("NAME:ADDRESS") mounted at `pose` ("X,Y,THETA" in mm, mm, deg;
     default 0,0,0), or `robot` itself when `spec` is None. The robot is closed (stopped) when the
     laser cannot be connected.
@@ -230,19 +230,19 @@ def robot_options(backend: str, laser: bool) -> dict[str, Any]:
 
 def connect_with_laser(backend: str, address: str, spec: str | None, pose: str | None) -> Robot:
     """Connect robot `backend` at `address` (`robotexp.registry.connect_robot`) and mount the laser
-    `spec` at `pose` on it (`attach_laser`); with a laser, the robot is connected without its own
+    `spec` at `pose` on it (`_attach_laser`); with a laser, the robot is connected without its own
     simulated laser (`robot_options`). Options are checked before anything connects.
 
     Raises:
-        ConfigError, PluginError, RobotError: as `check_laser_options`, `connect_robot`, `attach_laser`.
+        ConfigError, PluginError, RobotError: as `check_laser_options`, `connect_robot`, `_attach_laser`.
     """
     from robotexp.registry import connect_robot
 
     check_laser_options(spec, pose)
-    return attach_laser(connect_robot(backend, address, **robot_options(backend, spec is not None)), spec, pose)
+    return _attach_laser(connect_robot(backend, address, **robot_options(backend, spec is not None)), spec, pose)
 
 
-def serve_laser(name: str, source: ScanSource, *, pty: bool = False, port: int | None = None,
+def _serve_laser(name: str, source: ScanSource, *, pty: bool = False, port: int | None = None,
                 speedup: float = 1.0) -> LaserEmulator:
     """The emulator of laser `name` (`robotexp.laser_emulators`) measuring with `source`, started.
 
@@ -294,7 +294,7 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
             start, _ = resolve_pose(w, pose, robot.radius)
             sim = SimRobot(w, robot=robot, pose=start, sonar=False)
             started.append(("simulator", sim))
-            started.append(("laser", serve_laser(backend, mounted_source(sim, mount), pty=pty, port=port,
+            started.append(("laser", _serve_laser(backend, mounted_source(sim, mount), pty=pty, port=port,
                                                  speedup=speedup)))
             return started
         if laser is not None and laser not in lasers:
@@ -308,7 +308,7 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
             if emulated is None:
                 raise ConfigError(f"the {backend!r} emulator has no simulator a laser could measure from")
             source = mounted_source(emulated, mount, getattr(emulator, "lock", None))
-            started.append(("laser", serve_laser(laser, source, pty=pty, speedup=speedup)))
+            started.append(("laser", _serve_laser(laser, source, pty=pty, speedup=speedup)))
         return started
     except BaseException:
         for _, device in reversed(started):

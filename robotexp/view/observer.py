@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
     from robotexp.run.record import RunRecord
 
-__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "potential_levels",
            "run_meta", "pacer_command", "new_path_points", "SpeedMeter"]
 
 log = logging.getLogger(__name__)
@@ -370,7 +370,7 @@ class ViewObserver(RunObserver):
             frame.map = classes_of_states(run.grid.states())
         if watched and (force or now >= self._next_overlay):
             self._next_overlay = now + self.overlay_period
-            frame.overlays = explorer_overlays(run)
+            frame.overlays = _explorer_overlays(run)
         self.hub.publish(frame)
 
     def _new_path(self, run: ExplorationRun) -> list[float]:
@@ -413,7 +413,7 @@ def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bo
     return out
 
 
-def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
+def _explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
     vectors as arrows on a lattice) and `Explorer.markers()` (left out, with a warning, when malformed)."""
     out: dict[str, Any] = {}
