@@ -31,7 +31,7 @@ from robotexp.errors import ConfigError, WorldError
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.run.loop import ExplorationRun, RunInfo
 from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
-from robotexp.world.groundtruth import GroundTruth
+from robotexp.world.groundtruth import GroundTruth, ground_truth
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.markers import Markers
 from robotexp.run.observers import RunObserver
@@ -400,7 +400,6 @@ def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
     meta = bag.meta
     if meta is None or bag.truth is None or not meta.get("world_source") or meta.get("start") is None:
         return None
-    from robotexp.world.groundtruth import ground_truth
     from robotexp.world.loader import load_world
 
     try:

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from robotexp.campaign.report import Table
-from robotexp.campaign.spec import method_label
+from robotexp.campaign.spec import method_label, record_key
 from robotexp.output.safefile import warn
 from robotexp.errors import ConfigError, WorldError
 from robotexp.run.record import EndReason, RunRecord
@@ -86,7 +86,6 @@ def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> li
 def _unique(path: Path, records: list[RunRecord], dropped: list[RunRecord] | None = None) -> list[RunRecord]:
     """`records` with one record per run key (world, method, pose, speed, seed): the first of each,
     the others reported (a campaign run twice into one folder, a --resume over a killed campaign)."""
-    from robotexp.campaign.spec import record_key
 
     seen: dict[tuple[Any, ...], int] = {}
     kept: list[RunRecord] = []

@@ -29,10 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robotexp.errors import ConfigError, PluginError
-from robotexp.run.spec import RunSpec
+from robotexp.errors import ConfigError, PluginError, WorldError
+from robotexp.run.spec import RunSpec, plan_run
 from robotexp.run.record import EndReason, RunRecord
-from robotexp.robot import Pose
+from robotexp.robot import Pose, Robot
 
 if TYPE_CHECKING:
     from robotexp.campaign.spec import Campaign
@@ -98,7 +98,6 @@ def robot_devices(s: Mapping[str, Any], fail: Callable[..., Exception]) -> Robot
         raise fail("robot", f"no robot backend {backend!r} to connect at {address!r}; available: "
                             f"{', '.join(sorted(robots)) or 'none'}", PluginError)
     from robotexp.registry import load
-    from robotexp.robot import Robot
 
     if not getattr(load(ROBOTS, backend, Robot), "by_address", True):
         raise fail("robot", f"robot {backend!r} is not reached at an address; drop `address` to run it here")
@@ -135,10 +134,7 @@ def check_starts(campaign: Campaign) -> None:
     Raises:
         WorldError, ConfigError, PluginError: as `robotexp.run.spec.plan_run`, with the file named.
     """
-    from robotexp.errors import WorldError
-    from robotexp.run.spec import plan_run
     from robotexp.registry import ROBOTS, load
-    from robotexp.robot import Robot
 
     for spec in campaign.runs:
         devices = campaign.devices_of(spec)
@@ -178,7 +174,6 @@ def run_on_robots(campaign: Campaign, todo: list[RunSpec], out: Path, *,
         RobotError: a robot or laser cannot be connected (the runs made so far are written).
         PluginError: an explorer failed (its record is written first).
     """
-    from robotexp.run.spec import plan_run
     from robotexp.experiment import run_experiment, run_on_robot
     from robotexp.run.laser_mount import connect_with_laser
 
@@ -214,7 +209,6 @@ def run_on_robots(campaign: Campaign, todo: list[RunSpec], out: Path, *,
 def _start(spec: RunSpec, devices: RobotDevices) -> Pose:
     """The start pose of a run on `devices` (resolved as the run will resolve it)."""
     from robotexp.registry import ROBOTS, load
-    from robotexp.robot import Robot
     from robotexp.world.loader import load_world
     from robotexp.world.poses import resolve_pose
 

@@ -36,7 +36,7 @@ from typing import Any
 
 from robotexp.campaign.robots import DEVICE_KEYS, RobotDevices, check_starts, robot_devices
 from robotexp.errors import ConfigError, PluginError, WorldError
-from robotexp.registry import make_explorer
+from robotexp.registry import EXPLORERS, available, make_explorer
 from robotexp.run.record import RunRecord
 from robotexp.run.spec import RunSpec
 from robotexp.world.bounds import parse_bounds
@@ -130,7 +130,6 @@ def load_campaign(path: str | Path) -> Campaign:  # noqa: C901
         PluginError: a method that is not installed.
         WorldError: an unknown world or a pose name the world lacks.
     """
-    from robotexp.registry import EXPLORERS, available
     from robotexp.world.loader import load_world
 
     p = Path(path)

@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotexpError, ScriptError
-from robotexp.lua.sandbox import lua_kind
+from robotexp.lua.sandbox import AddressPolicy, lua_kind
 from robotexp.run.observers import RunObserver
 from robotexp.robot import Capability, Pose
 
@@ -171,7 +171,6 @@ class Session:
                  robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
                  addresses: AddressPolicy | None = None, observers: Sequence[RunObserver] = ()) -> None:
         from robotexp.run.spec import RunSpec
-        from robotexp.lua.sandbox import AddressPolicy
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
         self.addresses = addresses if addresses is not None else AddressPolicy(False)

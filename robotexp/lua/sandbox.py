@@ -33,7 +33,7 @@ import re
 import unicodedata
 from pathlib import Path
 
-from robotexp.errors import ScriptError
+from robotexp.errors import ConfigError, ScriptError
 from robotexp.output.safefile import LOCK_NAME
 
 __all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
@@ -83,7 +83,6 @@ class AddressPolicy:
     """
 
     def __init__(self, sandbox: bool, allowed: tuple[str, ...] | list[str] = ()) -> None:
-        from robotexp.errors import ConfigError
 
         self.sandbox = sandbox
         self.allowed: dict[str, str] = {}

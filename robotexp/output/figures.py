@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.output.render import COLORS, content_window
+from robotexp.output.render import COLORS, content_window, laser_hits
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -341,7 +341,6 @@ def run_map_figure(run: ExplorationRun, *, show: Sequence[str] = (), potential: 
     from the true one), start and end, and the `show` overlays (grid, laser, vectors, potential; `potential`
     True is the same as naming it), titled by `run_title` with the cell size, path length, coverage and ATE
     under it."""
-    from robotexp.output.render import laser_hits
 
     m = run.metrics
     states = run.grid.states()

@@ -22,8 +22,8 @@ from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord
 
 if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
-from robotexp.output.render import laser_hits
-from robotexp.output.safefile import safe_name
+from robotexp.output.render import laser_hits, render_map
+from robotexp.output.safefile import append_line, safe_name
 
 __all__ = ["append_jsonl", "read_jsonl", "read_records", "run_id", "take_name", "write_curve_csv", "ResultsWriter",
            "map_image", "read_curve_csv", "RESULT_KEYS", "RunRecord", "EndReason"]
@@ -140,7 +140,6 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
     """The fast raster image (PIL, `robotexp.output.render`) of a run's map with its path and the overlays named in
     `show` (grid, laser, vectors, potential, truth), for frames; `scale` in pixels per cell (None: fit),
     `path` False leaves the path out. The final images are figures (`_save_run_images`)."""
-    from robotexp.output.render import render_map
 
     m = run.metrics
     overlays = run.explorer.overlays()
@@ -163,7 +162,6 @@ def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:
     """Append `record` (a RunRecord is written as its `as_dict()`) as one line to `path` and force it
     to disk; a torn last line left by an earlier fault is repaired first (and reported), and a failed
     write leaves no half line (`robotexp.output.safefile.append_line`)."""
-    from robotexp.output.safefile import append_line
     append_line(path, record.as_dict() if isinstance(record, RunRecord) else record)
 
 
@@ -185,7 +183,6 @@ def read_curve_csv(path: Path) -> np.ndarray[Any, np.dtype[np.float64]]:
         ConfigError: not a coverage file (wrong header, a line that is not three numbers).
         OSError: the file cannot be read.
     """
-    from robotexp.errors import ConfigError
 
     with open(path, newline="", encoding="utf-8") as f:
         rows = list(csv.reader(f))

@@ -28,15 +28,8 @@ import numpy as np
 
 from robotexp.errors import ConfigError
 from robotexp.laser import (
-    Laser,
-    LaserEmulator,
-    PoseHistory,
-    ScanSource,
-    StampedScan,
-    _compose,
-    _poses_at,
-    scan_in_robot_frame,
-)
+    LASERS, LASER_EMULATORS, Laser, LaserEmulator, PoseHistory, ScanSource, StampedScan, _compose, _poses_at,
+    scan_in_robot_frame)
 from robotexp.robot import Clock, Pose, Robot, RobotState, Twist
 
 __all__ = ["LaserMountedRobot", "parse_laser_pose", "parse_laser_spec", "check_laser_options", "connect_laser",
@@ -166,7 +159,6 @@ def connect_laser(spec: str) -> Laser:
         ConfigError: a malformed spec. PluginError: an unknown laser.
         RobotError: the laser cannot be reached or refuses the handshake.
     """
-    from robotexp.laser import LASERS
     from robotexp.registry import load
 
     name, address = parse_laser_spec(spec)
@@ -249,7 +241,6 @@ def _serve_laser(name: str, source: ScanSource, *, pty: bool = False, port: int 
     Raises:
         PluginError: no emulator of that name. ConfigError: a bad speedup. OSError: the port is taken.
     """
-    from robotexp.laser import LASER_EMULATORS
     from robotexp.registry import load
 
     cls = load(LASER_EMULATORS, name, object)
@@ -270,7 +261,6 @@ def emulate_devices(backend: str, world: str, *, pose: str | None = None, port: 
     Raises:
         ConfigError, PluginError, WorldError: bad names, options, world or pose. OSError: a port taken.
     """
-    from robotexp.laser import LASER_EMULATORS
     from robotexp.registry import EMULATORS, available, make_emulator
     from robotexp.sim import SimRobot, mounted_source, preset
     from robotexp.world.loader import load_world

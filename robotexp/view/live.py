@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from robotexp.errors import ConfigError
-from robotexp.view.feed import DEFAULT_SPEED, MAX_SPEED, MIN_SPEED, SPEEDS, speed_value
+from robotexp.view.feed import DEFAULT_SPEED, MAX_SPEED, MIN_SPEED, SPEEDS, ViewHub, speed_value
 
 __all__ = ["LiveView", "view_options", "parse_speed", "start_view", "end_view"]
 
@@ -40,7 +40,6 @@ class LiveView:
                  echo: Callable[[str], None] = click.echo) -> None:
         if not 0 <= port <= 65535:
             raise ConfigError(f"--view-port must be within 0..65535, got {port}")
-        from robotexp.view.feed import ViewHub
         from robotexp.view.observer import ViewObserver
         from robotexp.view.server import ViewServer
 
