@@ -53,9 +53,19 @@ def test_the_test_tree_mirrors_the_packages() -> None:
     assert folders <= packages, folders - packages
     top_modules = {p.stem for p in (ROOT / "robotexp").glob("*.py") if p.stem != "__init__"}
     flat = [p.name for p in (ROOT / "tests").glob("test_*.py")
-            if p.name != Path(__file__).name
-            and not any(p.stem == f"test_{m}" or p.stem.startswith(f"test_{m}_") for m in top_modules)]
+            if not any(p.stem == f"test_{m}" or p.stem.startswith(f"test_{m}_") for m in top_modules)
+            and _imports_robotexp(p)]
     assert flat == [], f"tests of a package belong in tests/<package>/: {flat}"
+
+
+def _imports_robotexp(path: Path) -> bool:
+    """Whether a test imports robotexp's code (a flat test that does not checks the repository itself)."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                 else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+        if any(n.split(".")[0] in ("robotexp", "robotexp_plugins", "robotexp_drivers") for n in names):
+            return True
+    return False
 
 
 def test_test_files_have_unique_names() -> None:
