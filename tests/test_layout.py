@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = {"robotexp": ROOT / "robotexp", "plugins": ROOT / "plugins", "drivers": ROOT / "drivers"}
-MAX_LINES = 800
+MAX_LINES = 850
 TOO_BIG_ON_PURPOSE = {"drivers/p3dx/codec.py"}     # the whole P3-DX protocol with its tables (docs/conventions.md)
 
 

@@ -114,7 +114,7 @@ class RayIndex:
 
 
 @kernel
-def _hit_shape(kind: float, cx: float, cy: float, a: float, b: float, c: float, s: float,  # noqa: PLR0913
+def _hit_shape(kind: float, cx: float, cy: float, a: float, b: float, c: float, s: float,
                ox: float, oy: float, dx: float, dy: float) -> float:
     """Distance along the unit ray (ox, oy) + t (dx, dy) to where it enters the shape; inf if it does not
     (or if the origin lies inside)."""
@@ -172,7 +172,7 @@ def _next_border(o: float, d: float, g: float, k: int, bucket: float) -> float:
 
 
 @kernel
-def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64], reach: float,  # noqa: PLR0913
+def cast_rays(origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64], reach: float,
               shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
               gx: float, gy: float, bucket: float, rows: int, cols: int, movers: npt.NDArray[np.float64],
               out: npt.NDArray[np.float64]) -> None:
@@ -237,7 +237,7 @@ def shape_distance(kind: float, cx: float, cy: float, a: float, b: float, c: flo
 
 
 @kernel
-def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],  # noqa: PLR0913
+def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
                 gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float, reach: float) -> bool:
     """True when a shape of the bucket grid (see `cast_rays`) lies within `reach` [m] of (x, y) [m]."""
     c0 = max(int(math.floor((x - reach - gx) / bucket)), 0)
