@@ -29,7 +29,7 @@ backend live here:
 - every state as it arrives: a backend calls `_state_seen(robot_time, pose)` for each state packet
   it decodes, and the reader hands the states of one read to the listeners of
   `add_state_listener` (a laser mounted on the robot pairs its scans with them:
-  `robotexp.laser_mount`), stamped on the host's `time.monotonic()`: the newest at the read, each
+  `robotexp.run.laser_mount`), stamped on the host's `time.monotonic()`: the newest at the read, each
   earlier one as much before as its robot time is older (robot seconds turned into host seconds at
   the rate the stream has been arriving: an emulator at 10x sends ten robot seconds a second).
 
@@ -48,9 +48,7 @@ from abc import abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar, Protocol
 
-from robotexp.clock import Clock, PacedClock
-from robotexp.errors import ConfigError, ConnectionLost, RobotError
-from robotexp.robot import Pose, Robot, Twist
+from robotexp import Clock, ConfigError, ConnectionLost, PacedClock, Pose, Robot, RobotError, Twist
 
 __all__ = ["StateStamps", "StreamBackend", "StreamLink", "StreamReader", "read_waiting", "require_positive"]
 

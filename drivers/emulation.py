@@ -27,7 +27,7 @@ import tty
 from abc import ABC, abstractmethod
 from typing import ClassVar, Self
 
-from robotexp.robot import Twist
+from robotexp import Twist
 from robotexp.sim import OdometryError, SimRobot, odometry_error
 
 __all__ = ["EmulatorBase", "StreamEmulator", "odometry_model"]

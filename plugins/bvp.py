@@ -13,13 +13,11 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
-from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 
 __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
@@ -143,7 +141,7 @@ class BVPExplorer(Explorer):
     grid_model = "himm"
     preferred_cell = 0.1
 
-    def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,
+    def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,  # noqa: PLR0913
                  k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.05,
                  epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0,
                  flush_sweeps: int = 4) -> None:

@@ -8,13 +8,11 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
 from robotexp.planning.targets import PlanCosts, WallMemory, frontier_targets, known_window, passable_cell
-from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["FrontierExplorer"]
 

@@ -36,8 +36,7 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.kernels import flood, label8
 from robotexp.planning.follower import PathFollower
@@ -53,7 +52,6 @@ from robotexp.planning.metaheuristics import (
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import PlanCosts, known_window, passable_cell, usable_frontier
-from robotexp.robot import Pose, RobotState, Twist
 
 __all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer", "search_domain"]
 

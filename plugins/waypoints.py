@@ -27,11 +27,9 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
-from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 
 __all__ = ["WaypointsExplorer", "attractive_force", "repulsive_force", "scan_points", "SECTORS"]
 
@@ -131,7 +129,7 @@ class WaypointsExplorer(Explorer):
 
     preferred_cell = 0.05       # [m] the UFMG study's choice (0.01 too slow, 0.1 too coarse)
 
-    def __init__(self, *, goals: Sequence[Sequence[float]] | None = None, path: str | None = None,
+    def __init__(self, *, goals: Sequence[Sequence[float]] | None = None, path: str | None = None,  # noqa: PLR0913
                  k_att: float = 1.0, k_rep: float = 0.02, influence: float = 0.5, tolerance: float = 0.25,
                  k_turn: float = 2.0, stuck_time: float = 8.0, progress: float = 0.3, lookahead: float = 0.8,
                  goal_timeout: float = 240.0, memory: float = 3.0) -> None:

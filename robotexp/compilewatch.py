@@ -28,7 +28,7 @@ GROUPS: dict[str, tuple[str, float]] = {
     "robotexp.planning.kernels": ("planning", 45.0),
     "robotexp.localization.kernels": ("localization", 45.0),
     "robotexp.localization.covariance": ("localization", 45.0),
-    "robotexp.sim.raycast": ("simulator", 5.0),
+    "robotexp.world.raycast": ("simulator", 5.0),
 }
 
 

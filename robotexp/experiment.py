@@ -1,114 +1,37 @@
-"""One exploration run, from a `RunSpec` to written results: the one run path of every robot.
+"""One exploration run with its outputs, from a `RunSpec` to written results: the one run path of every robot.
 
 `run_on_robot` runs a spec's explorer on an open robot, any backend; `run_experiment` builds the
 embedded simulator's `SimRobot` for the spec and hands it to `run_on_robot`. This is what
-`robotexp explore`, the Lua `exploration.start()` and campaigns all call. The parts live in their
-own modules: start poses in `robotexp.world.poses`, plugin construction in `robotexp.registry`,
-the loop in `robotexp.explorer`, observers in `robotexp.observers`, records in `robotexp.record`
-and output files in `robotexp.results`.
+`robotexp explore`, the Lua `exploration.start()` and campaigns all call. It joins the run
+(`robotexp.run`: the spec and plan, the loop, observers, records) and its outputs (`robotexp.output`:
+the results writer); start poses are in `robotexp.world.poses`, plugin construction in `robotexp.registry`.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from robotexp.errors import ConfigError, PluginError
-from robotexp.explorer import ExplorationRun, Explorer, RunInfo
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.observers import RunObserver, SampleCallback
-from robotexp.record import EndReason, RunRecord
-from robotexp.registry import connect_robot, make_emulator, make_explorer
-from robotexp.results import ResultsWriter, map_image, run_id
-from robotexp.robot import Capability, Pose, Robot
-from robotexp.watch import RunWatch, StallWatch
-from robotexp.world.bounds import exploration_area, with_boundary_walls
+from robotexp.output.results import ResultsWriter, run_id
+from robotexp.registry import make_explorer
+from robotexp.robot import Capability, Robot
+from robotexp.run.endings import RunWatch, StallWatch
+from robotexp.run.loop import ExplorationRun, RunInfo
+from robotexp.run.observers import RunObserver, SampleCallback
+from robotexp.run.record import EndReason, RunRecord
+from robotexp.run.spec import DEFAULT_CELL, RunPlan, RunSpec, plan_run, sim_robot
 from robotexp.world.model import World
-from robotexp.world.poses import parse_pose, pose_name, resolve_pose
+from robotexp.world.poses import pose_name
 
-if TYPE_CHECKING:
-    from robotexp.mapping.groundtruth import GroundTruth
-    from robotexp.sim import SimRobot
-
-__all__ = ["RunSpec", "RunOutput", "RunPlan", "run_experiment", "run_on_robot", "plan_run", "sim_robot",
-           "warm_kernels",
-           "DEFAULT_CELL", "MAP_MARGIN",
-           # where they were before the restructure (they live in world.poses, registry and results now)
-           "connect_robot", "make_emulator", "parse_pose", "resolve_pose", "make_explorer", "map_image"]
+__all__ = ["RunOutput", "run_experiment", "run_on_robot", "warm_kernels"]
 
 log = logging.getLogger(__name__)
-
-DEFAULT_CELL = 0.1      # [m] map cell unless the method prefers another
-MAP_MARGIN = 1.0        # [m] the map reaches this far beyond the world's obstacles
-MAX_SPEED = 10.0        # [m/s] a speed limit above this is a typo (robots here do 0.7-1.5 m/s)
-MAX_LASER_RANGE = 200.0  # [m] the longest laser range accepted (outdoor scanners reach 80-120 m)
-MAX_LASER_NOISE = 1.0   # [m] laser noise (uniform half-width or sigma): real scanners err by 10-30 mm, 1 m
-#                         already buries a room's walls; more is a unit mistake (metres given as mm)
-MAX_SEED = 2**63 - 1    # seeds are non-negative 64-bit integers (numpy's generators, JSON readers)
-MAX_MAP_CELLS = 1e8     # cells of a map given by limits (1e8 cells: 10 km x 10 km at 1 m, 1 km x 1 km at 10 cm)
-
-
-@dataclass
-class RunSpec:
-    """Everything that defines one run (SI units)."""
-
-    world: str = "dense"
-    method: str = "frontier"
-    pose: str | None = None             # a pose name, "x_mm,y_mm,theta_deg", or None for the default
-    speed: float = 0.3                  # [m/s] maximum forward speed
-    laser_range: float = 3.0            # [m]
-    cell: float | None = None           # [m] map cell (None: the method's preferred, else 0.1)
-    seed: int = 0
-    robot: str = "p3dx"
-    params: dict[str, Any] = field(default_factory=dict)   # explorer keyword parameters
-    max_time: float = 4 * 3600.0        # [s] robot time
-    laser_sigma: float = 0.0            # [m] gaussian laser noise
-    laser_uniform: float = 0.0          # [m] uniform laser noise half-width
-    map_bounds: tuple[float, float, float, float] | None = None   # [m] xmin, ymin, xmax, ymax of the map
-    #                                   (None: the area the map declares, else the world's bounds plus MAP_MARGIN)
-    bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
-    odometry: str = "none"              # simulator odometry error (robotexp.sim.odometry_error spec)
-    localize: str = "auto"              # "none", "scan-match", "slam", "auto" (robotexp.localization.run: wrap)
-
-    def validate(self) -> None:
-        """Raise ConfigError on a value out of range."""
-        if not (0 < self.speed <= MAX_SPEED):
-            raise ConfigError(f"speed must be > 0 and at most {MAX_SPEED * 1000:g} mm/s, got "
-                              f"{self.speed * 1000:g} mm/s")
-        if not (0 < self.laser_range <= MAX_LASER_RANGE):
-            raise ConfigError(f"laser range must be > 0 and at most {MAX_LASER_RANGE * 1000:g} mm, got "
-                              f"{self.laser_range * 1000:g} mm")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
-            raise ConfigError(f"seed must be an integer 0..{MAX_SEED}, got {self.seed!r}")
-        if self.cell is not None and not (0.005 <= self.cell <= 2.0):
-            raise ConfigError(f"cell size must be within 5..2000 mm, got {self.cell * 1000:g} mm")
-        if not self.max_time > 0:
-            raise ConfigError(f"max time must be > 0 s, got {self.max_time}")
-        for what, noise in (("uniform", self.laser_uniform), ("sigma", self.laser_sigma)):
-            if not 0 <= noise <= MAX_LASER_NOISE:       # NaN and inf refused too
-                raise ConfigError(f"laser noise {what} must be within 0..{MAX_LASER_NOISE * 1000:g} mm, got "
-                                  f"{noise * 1000:g} mm")
-        from robotexp.localization.run import check_localize
-        from robotexp.sim.presets import odometry_error
-
-        odometry_error(self.odometry)
-        check_localize(self.localize)
-        if self.map_bounds is not None:
-            x0, y0, x1, y1 = self.map_bounds
-            if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):
-                raise ConfigError(f"map limits must be finite with min < max, got x {x0 * 1000:g}..{x1 * 1000:g}, "
-                                  f"y {y0 * 1000:g}..{y1 * 1000:g} mm")
-            cell = self.cell or DEFAULT_CELL
-            cells = ((x1 - x0) / cell) * ((y1 - y0) / cell)
-            if cells > MAX_MAP_CELLS:
-                raise ConfigError(f"map limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm make "
-                                  f"{cells:.3g} cells of {cell * 1000:g} mm, more than {MAX_MAP_CELLS:.0e}; give "
-                                  "smaller limits or larger cells")
 
 
 @dataclass
@@ -129,76 +52,6 @@ class RunOutput:
     def interrupted(self) -> bool:
         """The run was interrupted by Ctrl-C (the caller should exit 130)."""
         return self.record.end is EndReason.INTERRUPTED
-
-
-def sim_robot(spec: RunSpec, world: World, start: Pose, *, sonar: bool = True) -> SimRobot:
-    """The embedded simulator's robot for `spec`: its preset, seed, laser (range and noise) and speed,
-    standing at `start` in `world` (`sonar`: read the sonar ring in every state).
-
-    Raises:
-        WorldError: the start pose is outside the world or touches an obstacle.
-        ConfigError: an unknown robot preset.
-    """
-    from robotexp.sim import LaserConfig, SimRobot, odometry_error, preset
-
-    robot_preset = preset(spec.robot)
-    laser = LaserConfig(beams=robot_preset.laser.beams, fov=robot_preset.laser.fov, range_max=spec.laser_range,
-                        sigma=spec.laser_sigma, uniform=spec.laser_uniform, height=robot_preset.laser.height)
-    return SimRobot(world, robot=robot_preset, pose=start, seed=spec.seed, laser=laser, max_speed=spec.speed,
-                    sonar=sonar, odometry=odometry_error(spec.odometry))
-
-
-@dataclass
-class RunPlan:
-    """A spec resolved against its world before any robot moves: the explorer, the start, the map
-    geometry and the ground truth (`plan_run`)."""
-
-    explorer: Explorer
-    world: World
-    start: Pose
-    pose_label: str
-    geo: GridGeometry
-    truth: GroundTruth
-    area: tuple[float, float, float, float] | None = None    # [m] the exploration area (None: the grid)
-
-
-def plan_run(spec: RunSpec, world: World | str, radius: float, explorer: Explorer | None = None) -> RunPlan:
-    """Resolve `spec` in `world` for a robot of `radius` [m]: the explorer (made unless given), the
-    start pose, the map and the ground truth. Every check of the input happens here.
-
-    Raises:
-        WorldError, PluginError, ConfigError: bad input (unknown world, method or pose, a start in an
-            obstacle or outside the map limits).
-    """
-    from robotexp.mapping.groundtruth import ground_truth
-    from robotexp.world.loader import load_world
-
-    spec.validate()
-    w = load_world(world) if isinstance(world, str) else world
-    if explorer is None:
-        explorer = make_explorer(spec.method, spec.params)
-    start, pose_label = resolve_pose(w, spec.pose, radius)
-    cell = spec.cell or explorer.preferred_cell or DEFAULT_CELL
-    assert w.bounds is not None
-    area = exploration_area(w, spec.map_bounds)
-    if spec.map_bounds is None and area is not None:
-        # the area the map declares, grown to hold the start (a home placed in its margin)
-        r = radius + MAP_MARGIN
-        area = (min(area[0], start.x - r), min(area[1], start.y - r), max(area[2], start.x + r),
-                max(area[3], start.y + r))
-        geo = GridGeometry.covering(*area, cell=cell)
-    elif spec.map_bounds is None:
-        geo = GridGeometry.covering(*w.bounds, cell=cell, margin=MAP_MARGIN)
-    else:
-        geo = GridGeometry.covering(*spec.map_bounds, cell=cell)
-        x0, y0, x1, y1 = spec.map_bounds
-        if not (x0 <= start.x <= x1 and y0 <= start.y <= y1):
-            raise ConfigError(f"start pose ({start.x * 1000:.0f}, {start.y * 1000:.0f}) mm is outside the map "
-                              f"limits x {x0 * 1000:g}..{x1 * 1000:g}, y {y0 * 1000:g}..{y1 * 1000:g} mm")
-    if spec.bounds_wall and area is not None:
-        w = with_boundary_walls(w, area)
-    truth = ground_truth(w, geo, robot_radius=radius, laser_range=spec.laser_range, start=start)
-    return RunPlan(explorer, w, start, pose_label, geo, truth, area)
 
 
 def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
@@ -242,7 +95,7 @@ def warm_kernels(spec: RunSpec, robot: Robot) -> None:
     Kobuki and RPLidar emulators on a clean clone bumped 10 times in its first 12 s, or never moved.
     The warm-up writes nothing; with the kernels cached it takes a fraction of a second.
     """
-    from robotexp.localization.run import wants_localizer
+    from robotexp.run.localize import wants_localizer
     from robotexp.sim import SimRobot
 
     if isinstance(robot, SimRobot):
@@ -261,7 +114,7 @@ def warm_kernels(spec: RunSpec, robot: Robot) -> None:
     _WARMED.add(key)
 
 
-def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,
+def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | str | None = None, *,  # noqa: PLR0913
                  observers: Iterable[RunObserver] = (),
                  on_sample: Callable[[float, float | None], None] | None = None,
                  show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True, map_size: float = 20.0,
@@ -279,7 +132,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     sensors. The robot is stopped at the end, not closed.
 
     The loop's observers are, in order: the results writer (with `out`), the `on_sample`/`on_run`
-    callbacks, the honest-endings watch (`robotexp.watch.RunWatch`: stall watch, exploration area,
+    callbacks, the honest-endings watch (`robotexp.run.endings.RunWatch`: stall watch, exploration area,
     an explorer's Done checked against the frontier left), then `observers`. The exploration area is
     `spec.map_bounds`, else the map's declared area (`robotexp.world.bounds`). The record names the
     robot by `robot.model` and, when it has one, its `address`; `record_extra` adds keys.
@@ -293,8 +146,8 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         PluginError: the explorer failed during the run (its record is written first).
         OSError: the results could not be written (an error of a `critical` observer).
     """
-    from robotexp.localization.run import localized, release
     from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.run.localize import localized, release
 
     spec.validate()
     if not map_size > 0:
@@ -322,7 +175,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     warm_kernels(spec, robot)
     robot.set_max_speed(spec.speed)
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
-    robot, tracker = localized(spec, robot, geo)    # robotexp.localization.run: the explorer's pose
+    robot, tracker = localized(spec, robot, geo)    # robotexp.run.localize: the explorer's pose
 
     extra: dict[str, Any] = {}
     if robot.address is not None:

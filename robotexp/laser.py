@@ -14,17 +14,140 @@ scan is mounted on the robot (`mount`, a `Pose` in the robot frame) is the calle
 
 from __future__ import annotations
 
+import bisect
 import math
+import threading
+import time
 from abc import ABC, abstractmethod
+from collections import deque
 from dataclasses import dataclass
 from typing import ClassVar, Protocol, Self
 
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.robot import LaserScan
+from robotexp.robot import LaserScan, Pose, wrap_angle
 
-__all__ = ["LASERS", "LASER_EMULATORS", "LaserGeometry", "StampedScan", "Laser", "ScanSource", "LaserEmulator"]
+__all__ = ["LASERS", "LASER_EMULATORS", "LaserGeometry", "StampedScan", "Laser", "ScanSource", "LaserEmulator",
+           "PoseHistory", "scan_in_robot_frame"]
+
+
+class PoseHistory:
+    """The robot's poses at host times, for the pose at any time between them.
+
+    Args:
+        maxlen: how many (time, pose) samples to keep.
+    """
+
+    def __init__(self, maxlen: int = 2048) -> None:
+        self._t: deque[float] = deque(maxlen=maxlen)
+        self._p: deque[Pose] = deque(maxlen=maxlen)
+        self._lock = threading.Lock()           # added to by a reader thread, read by the control loop
+        self._floor = -math.inf                 # poses at or before this time are from before `clear`
+
+    def add(self, t: float, pose: Pose) -> None:
+        """Record `pose` at host time `t` [s]; a time not after the last one (or not after the last
+        `clear`) replaces nothing and is dropped."""
+        with self._lock:
+            if t <= self._floor or self._t and t <= self._t[-1]:
+                return
+            self._t.append(t)
+            self._p.append(pose)
+
+    def clear(self) -> None:
+        """Forget every pose (odometry jumped) and refuse any stamped before now."""
+        with self._lock:
+            self._floor = time.monotonic()
+            self._t.clear()
+            self._p.clear()
+
+    def oldest(self) -> Pose | None:
+        """The first pose kept (None when empty)."""
+        with self._lock:
+            return self._p[0] if self._p else None
+
+    def at(self, t: float) -> Pose | None:
+        """The pose at host time `t`: linear between the samples around it (the heading along the
+        shorter arc), the newest pose after the last sample; None before the first or when empty."""
+        with self._lock:
+            if not self._t or t < self._t[0]:
+                return None
+            i = bisect.bisect_right(self._t, t)
+            if i >= len(self._t):
+                return self._p[-1]
+            t0, t1 = self._t[i - 1], self._t[i]
+            p0, p1 = self._p[i - 1], self._p[i]
+        f = (t - t0) / (t1 - t0)
+        return Pose(p0.x + f * (p1.x - p0.x), p0.y + f * (p1.y - p0.y),
+                    wrap_angle(p0.theta + f * wrap_angle(p1.theta - p0.theta)))
+
+    def samples(self) -> tuple[list[float], list[Pose]]:
+        """A copy of the (times, poses) kept, oldest first."""
+        with self._lock:
+            return list(self._t), list(self._p)
+
+
+def _poses_at(history: PoseHistory, ts: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], ...] | None:
+    """(x, y, theta) arrays of the poses at host times `ts` (clamped to the history's span: before the
+    first sample the first pose), interpolated as `PoseHistory.at`; None when the history is empty."""
+    times, poses = history.samples()
+    if not times:
+        return None
+    t = np.asarray(times, np.float64)
+    x = np.fromiter((p.x for p in poses), np.float64, len(poses))
+    y = np.fromiter((p.y for p in poses), np.float64, len(poses))
+    th = np.unwrap(np.fromiter((p.theta for p in poses), np.float64, len(poses)))
+    if t.size == 1:
+        return np.full(ts.shape, x[0]), np.full(ts.shape, y[0]), np.full(ts.shape, th[0])
+    return np.interp(ts, t, x), np.interp(ts, t, y), np.interp(ts, t, th)
+
+
+def _compose(a: Pose, b: Pose) -> Pose:
+    """`b` (in `a`'s frame) in the frame `a` is given in."""
+    c, s = math.cos(a.theta), math.sin(a.theta)
+    return Pose(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.theta + b.theta))
+
+
+def scan_in_robot_frame(scan: LaserScan, sensor: Pose, robot: Pose,
+                        beam_sensors: tuple[npt.NDArray[np.float64], ...] | None = None) -> LaserScan:
+    """A scan taken in the sensor frame with the sensor at world pose `sensor`, as the robot at world
+    pose `robot` sees it: `offset_x` is the sensor's position along the robot's heading, each echo
+    lands exactly where it was (angle and range from that point), beams without echo (inf, NaN, or
+    at `range_max` and beyond) keep their direction and range. The sensor's sideways offset from
+    the robot's axis is not representable in a `LaserScan`: echoes stay exact, the rays towards them
+    start up to that offset away (a few millimetres for a laser on the robot's axis).
+
+    `beam_sensors` = (x, y, theta) arrays, one per beam: where the sensor was when it measured each
+    beam (a turning laser measures its beams one after the other while the robot moves); the echoes
+    are placed from those, the rays start from `sensor`.
+    """
+    c, s = math.cos(robot.theta), math.sin(robot.theta)
+
+    def in_robot(x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        dx, dy = np.asarray(x, np.float64) - robot.x, np.asarray(y, np.float64) - robot.y
+        return c * dx + s * dy, -s * dx + c * dy
+
+    origin_x, _ = in_robot(sensor.x, sensor.y)                    # the rays' origin: (ox, 0)
+    ox = float(origin_x)
+    ranges = np.asarray(scan.ranges, np.float64)
+    if beam_sensors is None:
+        bx, by = in_robot(np.full(ranges.shape, sensor.x), np.full(ranges.shape, sensor.y))
+        dth = np.full(ranges.shape, sensor.theta - robot.theta)
+    else:
+        bx, by = in_robot(beam_sensors[0], beam_sensors[1])
+        dth = np.asarray(beam_sensors[2], np.float64) - robot.theta
+    angles = np.asarray(scan.angles, np.float64) + dth           # beam directions in the robot frame
+    hit = np.isfinite(ranges) & (ranges < scan.range_max)
+    out_r = np.where(hit, 0.0, ranges)
+    out_r = np.where(np.isfinite(ranges) & ~hit, math.inf, out_r)
+    out_a = angles.copy()
+    # an echo lies at (bx, by) + r (cos a, sin a) in the robot frame; seen from (ox, 0):
+    ex = bx[hit] - ox + ranges[hit] * np.cos(angles[hit])
+    ey = by[hit] + ranges[hit] * np.sin(angles[hit])
+    out_a[hit] = np.arctan2(ey, ex)
+    out_r[hit] = np.hypot(ex, ey)
+    out_a = (out_a + math.pi) % (2 * math.pi) - math.pi
+    return LaserScan(out_a, out_r, scan.range_max, offset_x=ox)
 
 LASERS = "robotexp.lasers"                      # entry-point group: laser driver classes
 LASER_EMULATORS = "robotexp.laser_emulators"    # entry-point group: their emulators, by the same names

@@ -135,7 +135,7 @@ def lua_name(name: str) -> str:
 
 def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     """Instantiate the explorer plugin `method` with keyword `params` (each checked against its
-    annotation, see `typed_parameter`).
+    annotation, see `_typed_parameter`).
 
     Raises:
         PluginError: unknown method.
@@ -149,7 +149,7 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     if unknown:
         listing = ", ".join(accepted) if accepted else "none"
         raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
-    params = {key: typed_parameter(method, cls, key, value) for key, value in params.items()}
+    params = {key: _typed_parameter(method, cls, key, value) for key, value in params.items()}
     bounds = parameter_bounds(cls)
     for key, value in params.items():
         if key in bounds:
@@ -223,7 +223,7 @@ def _parameter_names(cls: type) -> list[str] | None:
     return names
 
 
-def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
+def _typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
     """`value` for the keyword `key` of `cls`, checked against its annotation (bool, int, float, str,
     or one of these or None); a whole float for an int and an int for a float are converted.
     Parameters without such an annotation pass unchecked. Raises ConfigError."""
@@ -251,7 +251,7 @@ def typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
 
 def connect_robot(backend: str, address: str, **options: Any) -> Robot:
     """Connect the robot backend registered as `backend` (`robotexp.robots`) at `address`, with the
-    backend's keyword `options` (e.g. `robotexp.laser_mount.robot_options`).
+    backend's keyword `options` (e.g. `robotexp.run.laser_mount.robot_options`).
 
     Raises:
         PluginError: unknown backend.

@@ -61,7 +61,7 @@ def _robots_closed() -> Iterator[None]:
 def _record_validator() -> Any:
     import jsonschema
 
-    from robotexp.record import results_schema
+    from robotexp.run.record import results_schema
 
     return jsonschema.Draft202012Validator(results_schema())
 

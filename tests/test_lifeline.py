@@ -11,7 +11,7 @@ from pathlib import Path
 SCRIPT = textwrap.dedent("""
     import atexit, logging, sys
     from robotexp.lifeline import exit_without_teardown
-    from robotexp.mapping.groundtruth import occupancy          # numba kernels loaded
+    from robotexp.world.groundtruth import occupancy  # numba kernels loaded
     from robotexp.mapping.geometry import GridGeometry
     from robotexp.world.loader import load_world
 

@@ -25,7 +25,8 @@ from types import ModuleType
 
 import numpy as np
 
-from robotexp.experiment import DEFAULT_CELL, MAP_MARGIN, resolve_pose
+from robotexp.run.spec import DEFAULT_CELL, MAP_MARGIN
+from robotexp.world.poses import resolve_pose
 from robotexp.laser import LASER_EMULATORS, LASERS, Laser
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid

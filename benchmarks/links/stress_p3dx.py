@@ -33,7 +33,8 @@ def _explore(args: tuple[int, str, float, float]) -> tuple[int, str, float, bool
     be); (index, reason, wall seconds, lost the robot, longest pause of the reader thread [s]: the
     time between two of its reads returning, its starvation by the main thread and the load)."""
     index, world, max_time, speedup = args
-    from robotexp.experiment import RunSpec, run_on_robot
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_on_robot
     from robotexp_drivers.p3dx.robot import P3DXRobot
 
     t0 = time.monotonic()

@@ -38,7 +38,7 @@ def _worlds(maps: list[str], seeds: range) -> list[tuple[str, str | None]]:
 
 
 def digest(maps: list[str], seeds: range) -> None:
-    from robotexp.experiment import RunSpec, plan_run
+    from robotexp.run.spec import RunSpec, plan_run
     from robotexp.world.loader import load_world
 
     for world, pose in _worlds(maps, seeds):

@@ -25,7 +25,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 
 # every built-in explorer on dense and sparse from the default pose at the default speed; srt-ball
 # only in sparse (it stops at once in dense); waypoints where the world has waypoint lists

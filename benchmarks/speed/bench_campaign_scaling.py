@@ -23,7 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from robotexp.campaign import load_campaign, run_campaign
+from robotexp.campaign.spec import load_campaign
+from robotexp.campaign.runner import run_campaign
 
 DEFAULT = """
 [campaign]

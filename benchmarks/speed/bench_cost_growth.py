@@ -22,10 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import occupancy
-from robotexp.observers import RunObserver
+from robotexp.world.groundtruth import occupancy
+from robotexp.run.observers import RunObserver
 from robotexp.world.builtin import builtin_world
 from robotexp.world.rosmap import save_ros_map
 

@@ -22,7 +22,8 @@ from bench_cost_growth import CpuClock  # noqa: E402
 from bench_grid_kernel import CELL, RANGE, _rate, _scans  # noqa: E402
 from perflog import Figure, record  # noqa: E402
 
-from robotexp.experiment import RunSpec, run_experiment  # noqa: E402
+from robotexp.run.spec import RunSpec  # noqa: E402
+from robotexp.experiment import run_experiment
 from robotexp.mapping.geometry import GridGeometry  # noqa: E402
 from robotexp.mapping.kernels import LogOddsModel, integrate_scan_logodds  # noqa: E402
 from robotexp.mapping.reference import integrate_scan_logodds_ref  # noqa: E402

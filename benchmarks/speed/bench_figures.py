@@ -1,4 +1,4 @@
-"""Cost of the images a run writes at its end (robotexp.figures, matplotlib) against the raster frame path.
+"""Cost of the images a run writes at its end (robotexp.output.figures, matplotlib) against the raster frame path.
 
 Run: python benchmarks/speed/bench_figures.py [--world dense] [--method frontier] [--max-time 600] [--repeats 5]
 Target: the map image of a 600 s dense run in about 1 s or less.
@@ -6,7 +6,7 @@ Target: the map image of a 600 s dense run in about 1 s or less.
 One run is made (no images), then, in this process: the first map figure (it imports matplotlib and loads
 its fonts, as the first run of a process does), then --repeats times each of: the map figure written as PNG
 (made and saved), the coverage figure as PNG, the map figure as SVG and as PDF, and one raster frame
-(`robotexp.render.render_map`, what --frames, video and the live view draw) encoded as PNG. Medians are
+(`robotexp.output.render.render_map`, what --frames, video and the live view draw) encoded as PNG. Medians are
 printed, with the ratio of the map figure to the raster frame measured in this run.
 """
 
@@ -27,7 +27,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
 
-    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
@@ -40,9 +41,9 @@ def main() -> None:
               f"points, grid {geo.cols} x {geo.rows} cells of {geo.cell * 1000:g} mm "
               f"(made in {time.perf_counter() - t0:.1f} s)")
 
-        from robotexp.figures import run_coverage_figure, run_map_figure, save_figure
-        from robotexp.render import save_png
-        from robotexp.results import map_image
+        from robotexp.output.figures import run_coverage_figure, run_map_figure, save_figure
+        from robotexp.output.render import save_png
+        from robotexp.output.results import map_image
 
         t = time.perf_counter()
         save_figure(run_map_figure(run), out / "first", ("png",))

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import occupancy
+from robotexp.world.groundtruth import occupancy
 from robotexp.planning.harmonic import gauss_seidel
 from robotexp.world.builtin import builtin_world
 import sys

@@ -11,7 +11,7 @@ import time
 import numpy as np
 
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import ground_truth
+from robotexp.world.groundtruth import ground_truth
 from robotexp.mapping.kernels import LogOddsModel, integrate_scan_logodds
 from robotexp.mapping.reference import integrate_scan_logodds_ref
 from robotexp.robot import Pose

@@ -17,7 +17,8 @@ import argparse
 import cProfile
 import pstats
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 import sys
 from pathlib import Path
 

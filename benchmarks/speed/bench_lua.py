@@ -16,7 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 from robotexp.lua import run_script
 import sys
 

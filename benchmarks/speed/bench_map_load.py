@@ -81,7 +81,7 @@ def child(path: str) -> None:
 
     t0 = time.perf_counter()
     from robotexp.mapping.geometry import GridGeometry
-    from robotexp.mapping.groundtruth import ground_truth
+    from robotexp.world.groundtruth import ground_truth
     from robotexp.robot import Pose
     from robotexp.sim import SimRobot
     from robotexp.world.loader import load_world

@@ -34,7 +34,8 @@ HERE = Path(__file__).resolve().parent.parent
 
 def _child(world: str, method: str, max_time: float, params: dict[str, Any]) -> None:
     """Run one case in this process and print its record, wall and CPU time as one JSON line."""
-    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
 
     spec = RunSpec(world=world, method=method, params=params)
     spec.max_time = max_time

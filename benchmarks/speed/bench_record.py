@@ -15,7 +15,8 @@ from pathlib import Path
 
 from robotexp.bag.recorder import BagRecorder
 from robotexp.bag.replay import read_bag, replay_bag
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
 from perflog import Figure, record  # noqa: E402

@@ -33,9 +33,9 @@ from robotexp.localization.reference import (
 )
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.groundtruth import occupancy
+from robotexp.world.groundtruth import occupancy
 from robotexp.robot import LaserScan, Pose
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.builtin import builtin_world
 
 

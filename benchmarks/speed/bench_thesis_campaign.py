@@ -4,7 +4,7 @@ Run: python benchmarks/speed/bench_thesis_campaign.py [FILE] [--jobs 2] [--clust
                                                 [--sample] [--out DIR] [--top 8]
 
 Runs the campaign from scratch as `robotexp campaign run FILE --jobs N` does (or on `--cluster`), with
-every run timed in its worker (`robotexp.campaign.RunTiming`), and prints:
+every run timed in its worker (`robotexp.campaign.jobs.RunTiming`), and prints:
 - the campaign's wall time, and the machine's load average (os.getloadavg) before, during and after;
 - load-independent figures: the CPU seconds of all runs; the longest run against total / jobs (the
   critical path: no schedule beats the larger of the two); the wall time a list schedule of the measured
@@ -30,8 +30,10 @@ import threading
 import time
 from pathlib import Path
 
-from robotexp.campaign import RunTiming, load_campaign, record_key, run_campaign, run_order
-from robotexp.experiment import RunSpec
+from robotexp.campaign.jobs import RunTiming
+from robotexp.campaign.spec import load_campaign, record_key
+from robotexp.campaign.runner import run_campaign, run_order
+from robotexp.run.spec import RunSpec
 
 
 def list_schedule(durations: list[float], workers: int) -> float:

@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 from robotexp.view.feed import ViewHub
 from robotexp.view.observer import ViewObserver
 from robotexp.view.server import ViewServer

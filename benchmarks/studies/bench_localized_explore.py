@@ -35,9 +35,10 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 from robotexp.localization.robot import LocalizedRobot
-from robotexp.mapping.groundtruth import map_iou_tolerant
+from robotexp.world.groundtruth import map_iou_tolerant
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
 from perflog import Figure, record  # noqa: E402

@@ -43,14 +43,15 @@ from typing import Any
 
 import numpy as np
 
-from robotexp.experiment import RunSpec, run_experiment
-from robotexp.explorer import ExplorationRun
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
 from robotexp.localization import posegraph as PG
 from robotexp.localization.matcher import Localizer, compose, relative, scan_points
 from robotexp.localization.robot import RUN_MATCHER, LocalizedRobot
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.groundtruth import GroundTruth, map_iou, map_iou_parts
-from robotexp.observers import RunObserver, StepEvent
+from robotexp.world.groundtruth import GroundTruth, map_iou, map_iou_parts
+from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose
 
 
@@ -88,7 +89,7 @@ class Recorder(RunObserver):
 
 
 def iou_parts(states: np.ndarray, gt: GroundTruth) -> tuple[float, float, float]:
-    """(map IoU, occupied IoU, free IoU): `robotexp.mapping.groundtruth.map_iou` and its two halves."""
+    """(map IoU, occupied IoU, free IoU): `robotexp.world.groundtruth.map_iou` and its two halves."""
     occ, free = map_iou_parts(states, gt)
     mean = map_iou(states, gt)
     assert abs(mean - (occ + free) / 2) < 1e-12      # the same definition as the record's

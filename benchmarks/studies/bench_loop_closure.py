@@ -19,8 +19,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
 from perflog import Figure, record  # noqa: E402
 
-from robotexp.experiment import RunSpec, run_experiment  # noqa: E402
-from robotexp.mapping.groundtruth import map_iou_tolerant  # noqa: E402
+from robotexp.run.spec import RunSpec  # noqa: E402
+from robotexp.experiment import run_experiment
+from robotexp.world.groundtruth import map_iou_tolerant  # noqa: E402
 
 RING = "/work/shared/maps/eb_loop.yaml"
 

@@ -17,8 +17,9 @@ import time
 
 import numpy as np
 
-from robotexp.experiment import RunSpec, run_experiment
-from robotexp.explorer import ExplorationRun
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
 from robotexp.planning.grid_planner import dijkstra
 from robotexp.planning.metaheuristics import exhaustive, firefly_search, genetic_search
 from robotexp.planning.objective import PRESETS, Objective

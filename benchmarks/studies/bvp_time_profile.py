@@ -25,8 +25,9 @@ def profile(world: str, sweeps: int, max_time: float) -> str:
     import numpy as np
 
     import robotexp_plugins.bvp as bvp
-    from robotexp.experiment import RunSpec, run_experiment
-    from robotexp.observers import RunObserver
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
+    from robotexp.run.observers import RunObserver
 
     factors: list[tuple[float, float]] = []
     law = bvp.speed_law

@@ -18,8 +18,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from robotexp.experiment import RunSpec, run_on_robot
-from robotexp.laser_mount import connect_with_laser, emulate_devices
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_on_robot
+from robotexp.run.laser_mount import connect_with_laser, emulate_devices
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
 from perflog import Figure, record  # noqa: E402

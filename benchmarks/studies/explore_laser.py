@@ -3,7 +3,7 @@ its own pseudo-terminal, against the embedded simulator.
 
 The laser emulator (any of `robotexp.laser_emulators`) measures from the robot emulator's simulated
 robot (`robotexp.sim.mounted_source`, the sensor at the robot centre facing forward), its driver
-reads it through the pseudo-terminal, and `robotexp.laser_mount.LaserMountedRobot` pairs each scan
+reads it through the pseudo-terminal, and `robotexp.run.laser_mount.LaserMountedRobot` pairs each scan
 with the robot's pose at the scan's stamp (`--unpaired`, Kobuki only: the Kobuki backend takes the
 newest scan as it is, as if taken at the present pose). Both runs explore `--world` from `--pose` at 0.3 m/s; the script
 prints each run's coverage, completion, path and the coverage difference in points.
@@ -46,9 +46,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment, run_on_robot
 from robotexp.laser import LASER_EMULATORS, LASERS, Laser, StampedScan
-from robotexp.laser_mount import LaserMountedRobot, robot_options
+from robotexp.run.laser_mount import LaserMountedRobot, robot_options
 from robotexp.registry import available, connect_robot, load, make_emulator
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, wrap_angle
 from robotexp.sim import mounted_source

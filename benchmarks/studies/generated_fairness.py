@@ -6,7 +6,7 @@ For each `generated:KIND:SEED` (default: office, warehouse, cave, seeds 0-9) thi
 - `regions`: places where the robot fits with 5 cm to spare (robotexp.world.start), and `cut off`: the
   area [m2] of the closed ones (not open to the map's edge) the start's region does not hold - rooms
   behind furniture or a passage too narrow (they are not in the ground truth either);
-- `explorable`: the ground truth the run's coverage is measured against [m2] (robotexp.mapping.groundtruth,
+- `explorable`: the ground truth the run's coverage is measured against [m2] (robotexp.world.groundtruth,
   the robot's exact radius), and `tight`: the share of it that is only reachable through a gap a planner
   keeping `--margin` (default: robotexp.planning.targets.MARGIN plus half a cell, 0.075 m) from the walls
   cannot pass - coverage a method could not get without touching a wall.
@@ -25,7 +25,7 @@ import numpy as np
 
 def main() -> int:
     from robotexp.mapping.geometry import GridGeometry
-    from robotexp.mapping.groundtruth import ground_truth, occupancy
+    from robotexp.world.groundtruth import ground_truth, occupancy
     from robotexp.mapping.kernels import clearance_mask, flood8, label8
     from robotexp.planning.targets import MARGIN
     from robotexp.world.loader import load_world

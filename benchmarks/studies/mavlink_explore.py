@@ -23,7 +23,9 @@ import statistics
 import sys
 import time
 
-from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.world.poses import resolve_pose
+from robotexp.experiment import run_experiment, run_on_robot
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.mavlink.emulator import MavlinkEmulator
 from robotexp_drivers.mavlink.robot import ROVER_RADIUS, MavlinkRobot

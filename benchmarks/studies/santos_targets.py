@@ -53,8 +53,9 @@ import numpy.typing as npt
 from PIL import Image
 
 from robotexp.errors import ConfigError
-from robotexp.experiment import RunSpec, run_experiment
-from robotexp.explorer import ExplorationRun
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import dijkstra
 from robotexp.planning.metaheuristics import (
@@ -67,8 +68,8 @@ from robotexp.planning.metaheuristics import (
 )
 from robotexp.planning.targets import nearest_passable, plan_costs, usable_frontier
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
-from robotexp.figures import PAGE_WIDTH, box_figure, save_figure
-from robotexp.render import Marker, render_field, render_map, save_png
+from robotexp.output.figures import PAGE_WIDTH, box_figure, save_figure
+from robotexp.output.render import Marker, render_field, render_map, save_png
 from robotexp.robot import Pose
 
 WORLDS = ("dense", "sparse")

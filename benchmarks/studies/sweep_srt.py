@@ -18,8 +18,9 @@ import argparse
 import math
 from concurrent.futures import ProcessPoolExecutor
 
-from robotexp.experiment import RunSpec, run_experiment
-from robotexp.explorer import ExplorationRun
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
 
 DEFAULT = [("dense", str(p), m) for m in ("srt-laser", "srt-star") for p in range(1, 10)] + \
           [("sparse", str(p), m) for m in ("srt-laser", "srt-star", "srt-ball") for p in range(1, 6)]

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from robotexp.explorer import ExplorationRun
+from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.render import render_map, save_png
+from robotexp.output.render import render_map, save_png
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim import LaserConfig, SimRobot, preset
 from robotexp.world.builtin import builtin_world

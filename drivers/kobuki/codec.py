@@ -42,7 +42,7 @@ from robotexp_drivers.kobuki.messages import (
     UnknownSubpayload,
 )
 
-from robotexp.errors import ConfigError
+from robotexp import ConfigError
 
 __all__ = [
     "BaseControl", "BasicSensorData", "CliffSensors", "ControllerInfo", "Direction", "DockingIR",

@@ -24,8 +24,7 @@ from __future__ import annotations
 import logging
 import math
 
-from robotexp.errors import ConfigError, ConnectionLost
-from robotexp.robot import LaserScan, Pose, Twist, wrap_angle
+from robotexp import ConfigError, ConnectionLost, LaserScan, Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, OdometryError, SimRobot
 from robotexp.world.model import World
 from robotexp_drivers.kobuki import constants as K
@@ -93,7 +92,7 @@ class KobukiEmulator(StreamEmulator):
     radius = KOBUKI_RADIUS                       # robotexp.robot.RobotEmulator: the simulated footprint [m]
     options = frozenset({"odometry"})            # `robotexp emulate kobuki --odometry-error SPEC`
 
-    def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
+    def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",  # noqa: PLR0913
                  pty: bool = False, speedup: float = 1.0, seed: int = 0, laser: LaserConfig | None = None,
                  odometry: OdometryError | str | None = None, command_timeout: float | None = 1.0,
                  battery_dv: int = 165) -> None:

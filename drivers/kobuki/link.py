@@ -13,7 +13,7 @@ import threading
 
 import serial
 
-from robotexp.errors import ConnectionLost
+from robotexp import ConnectionLost
 from robotexp_drivers.kobuki import constants as K
 from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 

@@ -12,7 +12,7 @@ import struct
 from dataclasses import dataclass, fields
 from typing import ClassVar, Self, TypeAlias
 
-from robotexp.errors import ConfigError
+from robotexp import ConfigError
 from robotexp_drivers.kobuki import constants as K
 
 __all__ = [

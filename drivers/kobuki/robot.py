@@ -34,8 +34,8 @@ import math
 import time
 from typing import Protocol
 
-from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp import (
+    Capability, ConnectionLost, LaserScan, Limits, Pose, ProtocolError, RobotError, RobotState, Twist, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.kobuki import constants as K
 from robotexp_drivers.kobuki.codec import (

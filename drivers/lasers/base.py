@@ -28,9 +28,7 @@ from abc import abstractmethod
 import numpy as np
 import serial
 
-from robotexp.errors import ConfigError, ConnectionLost, RobotError
-from robotexp.laser import Laser, ScanSource, StampedScan
-from robotexp.robot import LaserScan
+from robotexp import ConfigError, ConnectionLost, Laser, LaserScan, RobotError, ScanSource, StampedScan
 from robotexp_drivers.backend import StreamReader, read_waiting
 from robotexp_drivers.emulation import StreamEmulator
 from robotexp_drivers.portio import WRITE_TIMEOUT, write_all

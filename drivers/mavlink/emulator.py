@@ -72,8 +72,7 @@ import socket
 from collections.abc import Callable
 from dataclasses import replace
 
-from robotexp.errors import ConfigError
-from robotexp.robot import Pose, Twist, wrap_angle
+from robotexp import ConfigError, Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, OdometryError, SimRobot, preset
 from robotexp.world.model import World
 from robotexp_drivers.backend import require_positive
@@ -153,7 +152,7 @@ class MavlinkEmulator(StreamEmulator):
     radius = ROVER_RADIUS                        # robotexp.robot.RobotEmulator: the simulated footprint [m]
     options = frozenset({"udp", "odometry"})     # `robotexp emulate mavlink --udp HOST:PORT --odometry-error SPEC`
 
-    def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",
+    def __init__(self, world: World, *, pose: Pose | None = None, port: int = 0, host: str = "127.0.0.1",  # noqa: PLR0913
                  udp: str | None = None, tcp: bool = False, pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  tick: float = 0.05, scan_range: float = 3.0, guid_timeout: float = C.GUID_TIMEOUT,
                  battery_mv: int = 12600, origin: tuple[float, float, float] | None = None,

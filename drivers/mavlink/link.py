@@ -27,7 +27,7 @@ from typing import Protocol
 
 import serial
 
-from robotexp.errors import ConfigError, ConnectionLost
+from robotexp import ConfigError, ConnectionLost
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 

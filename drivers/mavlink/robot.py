@@ -55,9 +55,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.laser_mount import PoseHistory, scan_in_robot_frame
-from robotexp.robot import Capability, LaserScan, Limits, Pose, RobotState, Twist, wrap_angle
+from robotexp import (
+    Capability, ConnectionLost, LaserScan, Limits, Pose, PoseHistory, ProtocolError, RobotError, RobotState, Twist,
+    scan_in_robot_frame, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, require_positive
 from robotexp_drivers.mavlink import constants as C
 from robotexp_drivers.mavlink.codec import MavlinkCodec, Message
@@ -161,7 +161,7 @@ class MavlinkRobot(StreamBackend):
     name = "mavlink"
     capabilities = frozenset({Capability.MOVE_TO, Capability.BATTERY, Capability.PACED_CLOCK})
 
-    def __init__(self, address: str = f"udp:127.0.0.1:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,
+    def __init__(self, address: str = f"udp:127.0.0.1:{C.DEFAULT_UDP_PORT}", *, pose: Pose | None = None,  # noqa: PLR0913
                  limits: Limits = ROVER_LIMITS, radius: float = ROVER_RADIUS, timeout: float = 1.0,
                  watchdog: float = 0.5, connect_timeout: float = 5.0, rate: float = 20.0,
                  scan_rate: float = 10.0, resend: float = 0.25, arm: bool = True,
@@ -376,7 +376,7 @@ class MavlinkRobot(StreamBackend):
                         "messages from other sources are counted, not logged", self.address, m.get_type(), *src,
                         *(self._target or (0, 0)))
 
-    def _on_message(self, m: Message, now: float) -> None:
+    def _on_message(self, m: Message, now: float) -> None:  # noqa: C901
         kind = m.get_type()
         src = (m.get_srcSystem(), m.get_srcComponent())
         with self._cond:

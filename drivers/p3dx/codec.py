@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from operator import index
 
-from robotexp.errors import ConfigError, ProtocolError
+from robotexp import ConfigError, ProtocolError
 
 from . import constants as c
 

@@ -41,10 +41,9 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, WorldError
-from robotexp.robot import Pose, Twist, compose_pose, relative_pose, wrap_angle
+from robotexp import ConfigError, Pose, Twist, WorldError, compose_pose, relative_pose, wrap_angle
 from robotexp.sim.presets import P3DX_SONAR, P3DX_SONAR_ARIA, LaserConfig, OdometryError
-from robotexp.sim.robot import _approach     # the simulator's own velocity ramp, applied per cycle
+from robotexp.sim.robot import approach     # the simulator's own velocity ramp, applied per cycle
 from robotexp.world.model import World
 from robotexp_drivers.emulation import EmulatorBase, odometry_model
 
@@ -182,7 +181,7 @@ class P3DXEmulator(EmulatorBase):
     radius = c.ROBOT_RADIUS_MM / 1000.0          # robotexp.robot.RobotEmulator: the simulated footprint [m]
     options = frozenset({"odometry"})            # `robotexp emulate p3dx --odometry-error SPEC`
 
-    def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,
+    def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,  # noqa: PLR0913
                  host: str = "127.0.0.1", pty: bool = False, speedup: float = 1.0, seed: int = 0,
                  laser: LaserConfig | None = None, robot: str = "p3dx", robot_type: str = c.DEFAULT_CLASS,
                  robot_subtype: str = c.DEFAULT_SUBCLASS, simulator: bool = True, watchdog: float | None = None,
@@ -544,8 +543,8 @@ class P3DXEmulator(EmulatorBase):
             now = self._velocity
             v, w = self.motion.targets(self._heading_deg(), c.SIP_PERIOD_S)
             accel, rot_accel = self.motion.ramp_rates(now.v * 1000.0, math.degrees(now.w), v, w)
-            twist = Twist(_approach(now.v, v / 1000.0, accel / 1000.0 * c.SIP_PERIOD_S),
-                          _approach(now.w, math.radians(w), math.radians(rot_accel) * c.SIP_PERIOD_S))
+            twist = Twist(approach(now.v, v / 1000.0, accel / 1000.0 * c.SIP_PERIOD_S),
+                          approach(now.w, math.radians(w), math.radians(rot_accel) * c.SIP_PERIOD_S))
         self.sim.limits = replace(self._sim_limits, a_max=math.inf, alpha_max=math.inf)
         self.sim.command(twist)
 

@@ -13,7 +13,7 @@ import time
 
 import serial
 
-from robotexp.errors import ConfigError, ConnectionLost
+from robotexp import ConfigError, ConnectionLost
 from robotexp_drivers.backend import read_waiting
 from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
 

@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from robotexp.errors import ConfigError
+from robotexp import ConfigError
 
 __all__ = ["ArcosMotion", "TransMode", "RotMode", "approach", "speeding_up", "stopping_speed"]
 

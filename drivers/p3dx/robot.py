@@ -19,9 +19,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from robotexp.errors import ConnectionLost, ProtocolError, RobotError
-from robotexp.robot import (Capability, LaserScan, Limits, Pose, RobotState, SonarScan, Twist, compose_pose,
-                            relative_pose, wrap_angle)
+from robotexp import (
+    Capability, ConnectionLost, LaserScan, Limits, Pose, ProtocolError, RobotError, RobotState, SonarScan, Twist,
+    compose_pose, relative_pose, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, reads_until, require_positive
 
 from . import codec as k
@@ -70,7 +70,7 @@ class P3DXRobot(StreamBackend):
     name = "p3dx"
     capabilities = frozenset({Capability.SONAR, Capability.LASER, Capability.MOVE_TO})
     radius = c.ROBOT_RADIUS_MM / 1000.0
-    # with a laser device mounted (robotexp.laser_mount.robot_options): no simulated-laser packets
+    # with a laser device mounted (robotexp.run.laser_mount.robot_options): no simulated-laser packets
     mounted_laser_options: Mapping[str, object] = MappingProxyType({"laser": False})
     _join_timeout = 2.0
 

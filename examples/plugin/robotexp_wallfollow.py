@@ -11,9 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
-from robotexp.robot import RobotState, Twist
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, RobotState, Twist
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid

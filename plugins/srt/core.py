@@ -36,13 +36,11 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import FollowerConfig, PathFollower, path_points
 from robotexp.planning.grid_planner import astar
 from robotexp.planning.targets import passable_cell, plan_costs
-from robotexp.robot import Pose, RobotState, Twist
 
 from .regions import SafeRegion
 
@@ -199,7 +197,7 @@ class SRTExplorer(Explorer):
     @property
     def backtracking(self) -> bool:
         """True while the robot drives back to a node of the tree (to the parent, or re-centres on its node
-        before leaving it): the run's stall watch (`robotexp.watch.StallWatch`) does not count this time,
+        before leaving it): the run's stall watch (`robotexp.run.endings.StallWatch`) does not count this time,
         in which SRT maps nothing by design. The way back is bounded (each move goes up the finite tree;
         a move without progress is abandoned after `stuck_timeout`)."""
         return self.phase is Phase.SETTLE or (self.phase in (Phase.TURN, Phase.MOVE) and self.target_node is not None)

@@ -16,14 +16,12 @@ from typing import ClassVar
 
 import numpy as np
 
-from robotexp.errors import ConfigError
-from robotexp.explorer import ExplorerContext
+from robotexp import ConfigError, ExplorerContext, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.mapping.groundtruth import ray_tree
+from robotexp.world.groundtruth import ray_tree
 from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight
 from robotexp.planning.targets import frontier_targets
-from robotexp.robot import Pose, RobotState, Twist, wrap_angle
 
 from .core import SRTExplorer
 from .regions import (
@@ -142,7 +140,7 @@ class _FrontierRescue(SRTExplorer):
     def _open_beyond(self, grid: OccupancyGrid, x: float, y: float) -> np.ndarray:
         """Bool (rows, cols): the cells within 1.5 cells of unknown space a robot disc could drive into were
         it free, from (x, y) [m] (the disc clear of every occupied cell; as the run's honest ending counts
-        frontier, `robotexp.watch.frontier_left`). The inside of a shelf whose outline the laser drew with
+        frontier, `robotexp.run.endings.frontier_left`). The inside of a shelf whose outline the laser drew with
         gaps, or a wall's cells that grazing beams left unknown, is no such space: chasing them cost a
         rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95). The map's edge
         counts as a wall: through a wall's unmarked cells the unknown strip outside a building (the
@@ -419,7 +417,7 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     name = "srt-laser"
     RESCUE_SIGHT = True
 
-    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,
+    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,  # noqa: PLR0913
                  tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
@@ -575,7 +573,7 @@ class SRTStarExplorer(_FrontierRescue):
     name = "srt-star"
     uses_sonar = True
 
-    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,
+    def __init__(self, *, alpha: float = 0.8, d_min: float | None = None, i_max: int = 200, margin: float = 0.05,  # noqa: PLR0913
                  ring_radius: float = 0.0, cone: float = math.radians(15.0), sweep: bool = True,
                  sweep_rate: float = 0.3, extra_turn: float = math.radians(10.0), bins: int = 360,
                  frontier: bool = True, view: float = 4.0, node_gap: float = 0.3, wall_faces: bool = True,

@@ -21,7 +21,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError
+from robotexp import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 
 __all__ = ["SafeRegion", "BallRegion", "StarRegion", "PolygonRegion", "SweepBuffer", "frontier_arcs",

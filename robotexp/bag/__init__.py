@@ -1,3 +1,3 @@
 """Runs as ROS 2 bags in MCAP: the recorder (`robotexp.bag.recorder.BagRecorder`, a run observer),
 the replay (`robotexp.bag.replay`) and the commands `robotexp replay` and `robotexp video`
-(`robotexp.bag.cli`). Import the submodules: this package imports nothing heavy itself."""
+(`robotexp.cli.bag`). Import the submodules: this package imports nothing heavy itself."""

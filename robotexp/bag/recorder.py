@@ -19,7 +19,7 @@ plausible stamps; every tick of the run has one /odom and one /tf at the same st
 
 and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
 cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
-`robotexp.record` (the run's record, as written to results.jsonl) at the end.
+`robotexp.run.record` (the run's record, as written to results.jsonl) at the end.
 
 The recorder only exists when asked for (`--record`): a run without it does no work for it. Messages
 are encoded by `robotexp.bag.cdr` (numpy; recording a 300 s run on `dense` costs about 10 % of its
@@ -42,17 +42,17 @@ from robotexp.bag.schemas import EXACT_SCAN, LASER_SCAN, MARKER_ARRAY, OCCUPANCY
 from robotexp.errors import ConfigError
 from robotexp.markers import markers_problem
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.observers import RunObserver, StepEvent
+from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, RobotState
 
 if TYPE_CHECKING:
     from mcap.writer import Writer
 
-    from robotexp.explorer import ExplorationRun
-    from robotexp.mapping.groundtruth import GroundTruth
-    from robotexp.record import RunRecord
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.world.groundtruth import GroundTruth
+    from robotexp.run.record import RunRecord
 
-__all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "check_record_path"]
+__all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "_check_record_path"]
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +70,7 @@ def yaw_of(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def check_record_path(path: Path) -> None:
+def _check_record_path(path: Path) -> None:
     """Raise ConfigError unless `path` names an .mcap file in an existing folder.
 
     Raises:
@@ -82,7 +82,7 @@ def check_record_path(path: Path) -> None:
         raise ConfigError(f"--record {path}: folder {path.parent} does not exist; create it first")
 
 
-def laser_scan_message(ns: int, scan: LaserScan, period: float) -> bytes:
+def _laser_scan_message(ns: int, scan: LaserScan, period: float) -> bytes:
     """A sensor_msgs/LaserScan of `scan` (frame `laser`; beams evenly spread from the first angle to the last)."""
     n = len(scan.angles)
     a0, a1 = (float(scan.angles[0]), float(scan.angles[-1])) if n else (0.0, 0.0)
@@ -102,7 +102,7 @@ def exact_scan_message(ns: int, scan: LaserScan) -> bytes:
                           float(scan.offset_x))
 
 
-def truth_states(truth: GroundTruth) -> np.ndarray[Any, Any]:
+def _truth_states(truth: GroundTruth) -> np.ndarray[Any, Any]:
     """The ground truth as map states: 100 occupied, 0 explorable, -1 any other cell."""
     out = np.full(truth.explorable.shape, -1, np.int8)
     out[truth.explorable] = 0
@@ -141,7 +141,7 @@ class BagRecorder(RunObserver):
         self._file: IO[bytes] | None = None
         self._writer: Writer | None = None
         if path is not None:
-            check_record_path(path)
+            _check_record_path(path)
             self._open(path)
         self._channels: dict[str, int] = {}
         self._schema_ids: dict[str, int] = {}
@@ -208,7 +208,7 @@ class BagRecorder(RunObserver):
                 "epoch_s": EPOCH}
         self._writer.add_metadata("robotexp.run", {"json": json.dumps(meta)})
         if run.truth is not None:
-            self._write_grid("/ground_truth/map", run.truth.geo, truth_states(run.truth), stamp_ns(0.0))
+            self._write_grid("/ground_truth/map", run.truth.geo, _truth_states(run.truth), stamp_ns(0.0))
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
         """Write the tick's odometry, transforms, true pose and (when the map took it) scan."""
@@ -237,7 +237,7 @@ class BagRecorder(RunObserver):
                 self._static_done = True
                 self._write("/tf_static", TF_MESSAGE,
                             cdr.tf_message(ns, [("base_link", "laser", s.laser.offset_x, 0.0, 0.0)]), ns)
-            self._write("/scan", LASER_SCAN, laser_scan_message(ns, s.laser, period), ns)
+            self._write("/scan", LASER_SCAN, _laser_scan_message(ns, s.laser, period), ns)
             self._write("/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser), ns)
         self._started = True
 
@@ -268,7 +268,7 @@ class BagRecorder(RunObserver):
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """Write the record as metadata and close the file."""
         assert self._writer is not None
-        self._writer.add_metadata("robotexp.record", {"json": json.dumps(record.as_dict())})
+        self._writer.add_metadata("robotexp.run.record", {"json": json.dumps(record.as_dict())})
         self.close()
 
     def close(self) -> None:

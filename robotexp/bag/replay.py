@@ -28,13 +28,14 @@ from robotexp.bag.reading import MAX_POSITION, TOPIC_TYPES, decode_errors, finit
 from robotexp.bag.recorder import yaw_of
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import ConfigError, WorldError
-from robotexp.explorer import Done, Explorer, ExplorerContext, ExplorationRun, RunInfo
+from robotexp.explorer import Done, Explorer, ExplorerContext
+from robotexp.run.loop import ExplorationRun, RunInfo
 from robotexp.mapping.geometry import MAX_CELLS, GridGeometry
-from robotexp.mapping.groundtruth import GroundTruth
+from robotexp.world.groundtruth import GroundTruth, ground_truth
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.markers import Markers
-from robotexp.observers import RunObserver
-from robotexp.record import EndReason
+from robotexp.run.observers import RunObserver
+from robotexp.run.record import EndReason
 from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotState, Twist
 
 __all__ = ["Tick", "Bag", "read_bag", "replay_bag", "ReplayRobot", "ReplayExplorer"]
@@ -62,7 +63,7 @@ class Bag:
     path: Path
     ticks: list[Tick]
     meta: dict[str, Any] | None = None          # `robotexp.run` metadata (None: not made by robotexp)
-    record: dict[str, Any] | None = None        # the run's record (`robotexp.record` metadata)
+    record: dict[str, Any] | None = None        # the run's record (`robotexp.run.record` metadata)
     truth: GroundTruth | None = None            # the recorded ground truth
     topics: dict[str, str] = field(default_factory=dict)   # topic -> schema name
     markers: list[tuple[float, Markers]] = field(default_factory=list)   # (time [s], the explorer's markers)
@@ -162,7 +163,7 @@ _RANGES = {"period_s": (1e-4, 10.0), "sample_period_s": (1e-3, 3600.0), "radius_
            "laser_range_m": (0.0, 1000.0), "max_speed_m_s": (0.0, 100.0)}
 
 
-def _check_meta(meta: Any) -> dict[str, Any]:
+def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
     """The `robotexp.run` metadata, its fields checked (ValueError naming the first wrong one)."""
     if not isinstance(meta, dict):
         raise ValueError(f"robotexp.run metadata is a {type(meta).__name__}, expected a JSON object")
@@ -211,18 +212,18 @@ def _check_meta(meta: Any) -> dict[str, Any]:
 
 
 def _check_record(record: Any) -> dict[str, Any]:
-    """The `robotexp.record` metadata, the fields a replay reads checked."""
+    """The `robotexp.run.record` metadata, the fields a replay reads checked."""
     if not isinstance(record, dict):
-        raise ValueError(f"robotexp.record metadata is a {type(record).__name__}, expected a JSON object")
+        raise ValueError(f"robotexp.run.record metadata is a {type(record).__name__}, expected a JSON object")
     if record.get("reason") is not None and not isinstance(record["reason"], str):
-        raise ValueError(f"robotexp.record metadata: reason is {record['reason']!r}, expected text")
+        raise ValueError(f"robotexp.run.record metadata: reason is {record['reason']!r}, expected text")
     c = record.get("collisions")
     if c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c)):
-        raise ValueError(f"robotexp.record metadata: collisions is {c!r}, expected a number")
+        raise ValueError(f"robotexp.run.record metadata: collisions is {c!r}, expected a number")
     return record
 
 
-def read_bag(path: Path) -> Bag:
+def read_bag(path: Path) -> Bag:  # noqa: C901
     """Read a recording (see the module's docstring), within the limits of `robotexp.bag.reading`.
 
     Raises:
@@ -247,7 +248,7 @@ def read_bag(path: Path) -> Bag:
                     text = (r.metadata or {}).get("json")
                     if r.name == "robotexp.run":
                         meta = _check_meta(json.loads(text or "null"))
-                    elif r.name == "robotexp.record":
+                    elif r.name == "robotexp.run.record":
                         record = _check_record(json.loads(text or "null"))
                     continue
                 topics[r.topic] = TOPIC_TYPES[r.topic]
@@ -399,7 +400,6 @@ def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
     meta = bag.meta
     if meta is None or bag.truth is None or not meta.get("world_source") or meta.get("start") is None:
         return None
-    from robotexp.mapping.groundtruth import ground_truth
     from robotexp.world.loader import load_world
 
     try:
@@ -423,7 +423,8 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
         ConfigError: a cell size out of range.
         OSError: the results could not be written.
     """
-    from robotexp.results import ResultsWriter, run_id, safe_name
+    from robotexp.output.results import ResultsWriter, run_id
+    from robotexp.output.safefile import safe_name
 
     if cell is not None and not 0.005 <= cell <= 2.0:
         raise ConfigError(f"cell size must be within 5..2000 mm, got {cell * 1000:g} mm")

@@ -200,7 +200,7 @@ def _clip(h: float, u: float, lo: float, hi: float) -> tuple[float, float]:
 
 
 @kernel
-def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]
+def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]  # noqa: C901
                ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]:
     """The hit point of every occupied cell in grid coordinates [cells] (cell (r, c) spans [c, c + 1) in x)
     and the wall segment through it, as (index, segments): index (rows, cols) int32 numbers the occupied

@@ -219,7 +219,7 @@ class ScanMatcher:
         points = K.hit_points(sub, off_x, off_y) if self.config.exact_field and hits is not None else None
         return f, geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell, points
 
-    def match(self, occupied: npt.NDArray[Any], geo: GridGeometry, px: npt.NDArray[np.float64],
+    def match(self, occupied: npt.NDArray[Any], geo: GridGeometry, px: npt.NDArray[np.float64],  # noqa: C901
               py: npt.NDArray[np.float64], prediction: Pose, hits: HitMap | None = None,
               known: npt.NDArray[Any] | None = None, motion: tuple[float, float] | None = None,
               window: tuple[float, float] | None = None, version: int | None = None) -> Match:
@@ -437,7 +437,7 @@ class Localizer:
         cov: the 4x4 covariance of (x, y [m], theta [rad], k [rad/m]) with `covariance`.
     """
 
-    def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,
+    def __init__(self, geo: GridGeometry, matcher: ScanMatcher | None = None, *, p_occ: float = 0.9,  # noqa: PLR0913
                  p_free: float = 0.4, range_max: float | None = None, use_hits: bool = True,
                  skip_unseen: bool = False, min_travel: float = 0.0, min_turn: float = 0.0,
                  motion_noise: tuple[float, float, float, float, float] | None = None, gate: float = 0.0,

@@ -13,7 +13,7 @@ weighted by a Cauchy kernel (a wrong edge pulls little). The graph is optimised 
 Gauss-Newton of `posegraph.optimize` after each loop edge. When a loop edge moves the current keyframe
 by more than `apply_xy` or `apply_theta`, the correction is applied: the localizer's pose moves with its
 keyframe and its matching map is rebuilt from the keyframes at their corrected poses, and `rebuilds`
-counts up (the run's map follows: `robotexp.localization.run.LoopClosureTracker`).
+counts up (the run's map follows: `robotexp.run.localize.LoopClosureTracker`).
 """
 
 from __future__ import annotations

@@ -83,7 +83,7 @@ class LocalizedRobot(Robot):
             --trace` writes them with the errors.
     """
 
-    def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,
+    def __init__(self, inner: Robot, geo: GridGeometry, *, matcher: ScanMatcher | None = None,  # noqa: PLR0913
                  start: Pose | None = None, range_max: float | None = None, skip_unseen: bool = True,
                  min_travel: float = 0.1, min_turn: float = math.radians(5.0),
                  motion_noise: tuple[float, float, float, float, float] | None = MOTION_NOISE,

@@ -23,7 +23,7 @@ world with `exploration.setWorld`, which is then ground truth only (as `robotexp
 
 Lasers. `robot.setLaser("NAME:ADDRESS", x, y, theta)` mounts a laser device (`robotexp.lasers`) at
 (x [mm], y [mm], theta [deg]) on the robot of the address, as `robotexp explore --laser --laser-pose`
-does (`robotexp.laser_mount`): runs then map from its scans, each paired with the robot's pose at
+does (`robotexp.run.laser_mount`): runs then map from its scans, each paired with the robot's pose at
 its stamp. Its address obeys the script's address rule (`--sandbox`, `--allow-address`).
 """
 
@@ -39,14 +39,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotexpError, ScriptError
-from robotexp.lua.sandbox import lua_kind
-from robotexp.observers import RunObserver
+from robotexp.lua.sandbox import AddressPolicy, lua_kind
+from robotexp.run.observers import RunObserver
 from robotexp.robot import Capability, Pose
 
 if TYPE_CHECKING:
-    from robotexp.experiment import RunOutput, RunSpec
-    from robotexp.explorer import ExplorationRun
-    from robotexp.record import RunRecord
+    from robotexp.experiment import RunOutput
+    from robotexp.run.spec import RunSpec
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.run.record import RunRecord
     from robotexp.robot import Robot
     from robotexp.lua.sandbox import AddressPolicy, PathPolicy
     from robotexp.world.model import World
@@ -169,8 +170,7 @@ class Session:
     def __init__(self, *, out: Path, paths: PathPolicy, control: Control, world: str | None = None,
                  robot: str = "p3dx", notice: Callable[[str], None] = log.info, script: str = "",
                  addresses: AddressPolicy | None = None, observers: Sequence[RunObserver] = ()) -> None:
-        from robotexp.experiment import RunSpec
-        from robotexp.lua.sandbox import AddressPolicy
+        from robotexp.run.spec import RunSpec
 
         self.out, self.paths, self.control, self.notice, self.script = out, paths, control, notice, script
         self.addresses = addresses if addresses is not None else AddressPolicy(False)
@@ -308,7 +308,7 @@ class Session:
             ScriptError: the robot or its laser cannot be reached (naming the call and the address).
         """
         if self.connected is None:
-            from robotexp.laser_mount import robot_options
+            from robotexp.run.laser_mount import robot_options
             from robotexp.registry import connect_robot
             kind, where = self.target
             backend = self.backend
@@ -343,7 +343,7 @@ class Session:
         Raises:
             ScriptError: the laser cannot be reached (the robot stays connected; the script's end stops it).
         """
-        from robotexp.laser_mount import LaserMountedRobot, connect_laser, parse_laser_pose
+        from robotexp.run.laser_mount import LaserMountedRobot, connect_laser, parse_laser_pose
 
         if isinstance(robot, LaserMountedRobot):
             robot.laser.close()
@@ -371,7 +371,7 @@ class Session:
 
     def _on_run(self, run: ExplorationRun) -> None:
         if self.frame_folder is not None and run.robot_time >= self._next_frame:
-            from robotexp.render import save_png
+            from robotexp.output.render import save_png
             self.frames += 1
             self.paths.quota.check("mapView.setFrameFolder")
             self._charge(save_png(self._image(run), self.frame_folder / f"frame_{self.frames:06d}.png"))
@@ -382,7 +382,7 @@ class Session:
     def _scale(self, run: ExplorationRun, title: str) -> float:
         """[px per cell] the scale the script asked for (mapView.setMapScaling, zoom; default: fit 1400 px),
         refused when the image would be too large to be a picture."""
-        from robotexp.render import map_layout
+        from robotexp.output.render import map_layout
 
         geo = run.grid.geo
         if self.scaling is None:
@@ -400,9 +400,9 @@ class Session:
 
     def _image(self, run: ExplorationRun) -> Any:
         """The fast raster image (frames, tracking view), titled by the figures' convention."""
-        from robotexp.figures import run_title
-        from robotexp.render import map_layout
-        from robotexp.results import map_image
+        from robotexp.output.figures import run_title
+        from robotexp.output.render import map_layout
+        from robotexp.output.results import map_image
 
         title = run_title(run, f"{run.metrics.path_length:.1f} m")
         scale = max(1, round(self._scale(run, title)))
@@ -418,9 +418,9 @@ class Session:
         return image
 
     def _save_figure(self, run: ExplorationRun, target: Path) -> Path:
-        """The run's map figure (`robotexp.figures.run_map_figure`, as the CLI's) at the scale asked: the map
+        """The run's map figure (`robotexp.output.figures.run_map_figure`, as the CLI's) at the scale asked: the map
         drawn at mapView's pixels per metre (at least MIN_FIGURE_DPI), PNG, or SVG / PDF by `target`'s suffix."""
-        from robotexp.figures import run_map_figure, run_title, write_figure
+        from robotexp.output.figures import run_map_figure, run_title, write_figure
 
         scale = self._scale(run, run_title(run))
         fig = run_map_figure(run, show=self._show(), path=self.show["path"])
@@ -469,7 +469,7 @@ class Session:
         Ignored (said once) when the script runs on the embedded simulator, which has its own laser.
         """
         from robotexp.laser import LASERS
-        from robotexp.laser_mount import check_laser_options, parse_laser_spec
+        from robotexp.run.laser_mount import check_laser_options, parse_laser_spec
         from robotexp.registry import available
 
         usage = "address, x_mm, y_mm, theta_deg"
@@ -513,7 +513,7 @@ class Session:
         """
         usage = "uniform_mm[, sigma_mm]"
         values = _args("robot.setLaserNoise", usage, args, "nn" if len(args) == 2 else "n")
-        from robotexp.experiment import MAX_LASER_NOISE
+        from robotexp.run.spec import MAX_LASER_NOISE
 
         if not all(0 <= v <= MAX_LASER_NOISE * 1000 for v in values):
             raise ScriptError(f"robot.setLaserNoise({', '.join(f'{v:g}' for v in values)}): expected noise within "
@@ -769,7 +769,7 @@ class Session:
     def lua_mapView__saveMapImage(self, *args: Any) -> str:
         """Save the last run's map as a figure (legend, scale bar, axes in metres; PNG, or SVG / PDF by the
         file's suffix; with tracking, the 800 x 600 px raster view around the robot); returns the path."""
-        from robotexp.render import save_png
+        from robotexp.output.render import save_png
         (path,) = _args("mapView.saveMapImage", "path", args, "s")
         target = self.paths.resolve(path, "w", "mapView.saveMapImage")
         run = self._last("mapView.saveMapImage").run

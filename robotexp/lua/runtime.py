@@ -22,8 +22,8 @@ from typing import Any
 from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
-from robotexp.observers import RunObserver
-from robotexp.record import RunRecord
+from robotexp.run.observers import RunObserver
+from robotexp.run.record import RunRecord
 
 __all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
 
@@ -118,7 +118,7 @@ def _sigint_sets(control: Control) -> Iterator[None]:
         sys.unraisablehook = previous_hook
 
 
-def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,
+def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,  # noqa: C901, PLR0913
                timeout: float | None = None, code: str | None = None,
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),

@@ -33,8 +33,8 @@ import re
 import unicodedata
 from pathlib import Path
 
-from robotexp.errors import ScriptError
-from robotexp.safefile import LOCK_NAME
+from robotexp.errors import ConfigError, ScriptError
+from robotexp.output.safefile import LOCK_NAME
 
 __all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
 
@@ -49,7 +49,7 @@ _DEVICE = re.compile(r"^/[A-Za-z0-9_./+-]+$")
 DEFAULT_PORT = 8101     # a bare host is MobileSim's TCP port (as robotexp.lua.api.parse_address)
 
 
-def normal_address(address: str) -> str | None:
+def _normal_address(address: str) -> str | None:
     """`address` in one spelling ("host:port" or a resolved device path), or None when it is
     neither a host[:port] nor a plain device path (a pyserial URL, a query, spaces, ...)."""
     a = address.strip()
@@ -69,7 +69,7 @@ class AddressPolicy:
 
     Without a sandbox every address is the script's to choose. With one, only "" / "sim" (the
     embedded simulator) and the addresses of `allowed` (given by the user on the command line) are
-    accepted, compared in one spelling (`normal_address`): "host" is "host:8101", a device path is
+    accepted, compared in one spelling (`_normal_address`): "host" is "host:8101", a device path is
     compared after resolving its symbolic links. A pyserial URL is never accepted in a sandbox,
     even when named: its handlers open files (spy://), sockets (socket://, rfc2217://) or search
     devices (hwgrep://) on their own.
@@ -83,12 +83,11 @@ class AddressPolicy:
     """
 
     def __init__(self, sandbox: bool, allowed: tuple[str, ...] | list[str] = ()) -> None:
-        from robotexp.errors import ConfigError
 
         self.sandbox = sandbox
         self.allowed: dict[str, str] = {}
         for a in allowed:
-            key = normal_address(a)
+            key = _normal_address(a)
             if key is None:
                 raise ConfigError(f"--allow-address {a!r}: expected host, host:port (port 1..65535) or a device "
                                   "path such as /dev/ttyUSB0; pyserial URLs (socket://, spy://, ...) are never "
@@ -103,7 +102,7 @@ class AddressPolicy:
         """
         if not self.sandbox or address.strip() in ("", "sim"):
             return
-        key = normal_address(address)
+        key = _normal_address(address)
         if key is None or key not in self.allowed:
             named = ", ".join(sorted(self.allowed.values())) or "none"
             raise ScriptError(f"{where}({address!r}): refused by --sandbox: a sandboxed script may use the "

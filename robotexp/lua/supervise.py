@@ -3,7 +3,7 @@
 The interrupt hook of the prelude stops a script only where Lua calls hooks: not inside a __gc
 finalizer, a long pattern match (`string.find(("a"):rep(40), ("a*"):rep(40) .. "b")`), a
 message handler that loops, or the finalizers Lua runs when its state is closed. `robotexp run`
-therefore runs the script in a child process (`python -m robotexp.lua.child`, the same command
+therefore runs the script in a child process (`python -m robotexp.cli.lua_child`, the same command
 in-process) and watches it:
 
 - the child stops itself first (the hook: --timeout, Ctrl-C), writing the run in progress; the
@@ -89,7 +89,7 @@ def _tell(text: str) -> None:
         pass
 
 
-def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
+def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,  # noqa: C901
               timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE) -> int:
     """Run `robotexp run ARGS` in a child process; return its exit status (see the module docstring).
 
@@ -109,7 +109,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     start = time.monotonic()
     ready, ready_w = os.pipe()          # the child writes a byte there when its script starts
     os.set_blocking(ready, False)
-    cmd = [sys.executable, "-m", "robotexp.lua.child", *args, f"--ready-fd={ready_w}"]
+    cmd = [sys.executable, "-m", "robotexp.cli.lua_child", *args, f"--ready-fd={ready_w}"]
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 preexec_fn=die_with_parent, pass_fds=(ready_w,))

@@ -273,7 +273,7 @@ def _window_value(surface: npt.NDArray[np.float64], r: int, c: int) -> float:
 
 
 @kernel
-def _firefly_kernel(surface: npt.NDArray[np.float64], pos: npt.NDArray[np.float64],
+def _firefly_kernel(surface: npt.NDArray[np.float64], pos: npt.NDArray[np.float64],  # noqa: PLR0913
                     eps: npt.NDArray[np.float64], alphas: npt.NDArray[np.float64], beta0: float, gamma: float,
                     best: npt.NDArray[np.float64], r0: int, c0: int, rows: int, cols: int) -> int:
     """Run the firefly sweeps in place on `pos` (n, 2) [units of L]; write (x, y, f) of the best to `best`.

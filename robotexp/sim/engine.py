@@ -6,7 +6,7 @@ static body, and the robot is tested against its shapes exactly by `RayIndex.nea
 the robot's centre to each box or disc in the buckets around it). Movers are kinematic cylinders,
 and the robot a cylinder that is placed, never pushed: the robot's motion is integrated by
 `SimRobot` and pybullet answers the contact questions. Rays (laser, sonar) are cast against the
-same shapes by the exact kernel of `robotexp.sim.raycast`, which agrees with pybullet's ray test
+same shapes by the exact kernel of `robotexp.world.raycast`, which agrees with pybullet's ray test
 (checked by the tests) at a fraction of its cost; `rays="pybullet"` casts them with pybullet.
 """
 
@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.model import World
 
 __all__ = ["Engine"]
@@ -72,7 +72,7 @@ class Engine:
     Args:
         world: the environment.
         robot_radius, robot_height: [m] the robot cylinder.
-        rays: "exact" (the `robotexp.sim.raycast` kernel, default) or "pybullet" (Bullet's ray test).
+        rays: "exact" (the `robotexp.world.raycast` kernel, default) or "pybullet" (Bullet's ray test).
     """
 
     def __init__(self, world: World, robot_radius: float, robot_height: float, rays: str = "exact") -> None:

@@ -145,8 +145,8 @@ class SimRobot(Robot):
         self._ensure_open()
         self._move_movers(dt)
         lim = self.limits
-        v = _approach(self._vel.v, self._cmd.v, lim.a_max * dt)
-        w = _approach(self._vel.w, self._cmd.w, lim.alpha_max * dt)
+        v = approach(self._vel.v, self._cmd.v, lim.a_max * dt)
+        w = approach(self._vel.w, self._cmd.w, lim.alpha_max * dt)
         vt, wt = self._wheel_motion(v, w)
         # split long steps so contacts are found close to where they happen
         n = max(1, math.ceil(abs(vt) * dt / (self.radius / 5)))
@@ -333,7 +333,7 @@ class SimRobot(Robot):
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
         return SonarScan(ring, ranges, cfg.range_max, self._sonar_positions)
 
-def _approach(current: float, target: float, step: float) -> float:
+def approach(current: float, target: float, step: float) -> float:
     """Move `current` towards `target` by at most `step`."""
     if target > current:
         return min(target, current + step)

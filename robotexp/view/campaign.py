@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from robotexp.record import RunRecord
+from robotexp.run.record import RunRecord
 from robotexp.view.feed import Frame, ViewHub
 
 __all__ = ["CampaignFeed"]

@@ -38,7 +38,37 @@ if TYPE_CHECKING:
 
 __all__ = ["UNKNOWN", "FREE", "OCCUPIED", "TILE", "Frame", "MapLayer", "ViewClient", "ViewHub", "classes_of_states",
            "encode_classes", "decode_classes", "changed_tiles", "encode_tiles", "decode_tiles", "laser_points",
-           "packed_laser", "unpack_laser", "vector_arrows", "command_problem", "COMMANDS"]
+           "packed_laser", "unpack_laser", "vector_arrows", "command_problem", "COMMANDS", "DEFAULT_SPEED",
+           "MIN_SPEED", "MAX_SPEED", "SPEEDS", "speed_value"]
+
+
+DEFAULT_SPEED = 10.0        # robot time per wall time of a simulated run watched in the view (observer.py too)
+
+
+MIN_SPEED, MAX_SPEED = 0.01, 1000.0     # the speeds the view takes (a tick of 0.1 s: at most 10 s of wall time)
+
+
+SPEEDS = f"a number within {MIN_SPEED:g}..{MAX_SPEED:g} (times real time) or 'max'"
+
+
+def speed_value(value: object) -> float | None:
+    """A view speed as the CLI or a page gives it: a number within MIN_SPEED..MAX_SPEED (robot time per wall
+    time; a number's text too) or "max" / None (as fast as it goes: None).
+
+    Raises:
+        ValueError: anything else (says what is taken).
+    """
+    if value is None or (isinstance(value, str) and value.strip().lower() == "max"):
+        return None
+    speed = math.nan
+    if isinstance(value, (int, float, str)) and not isinstance(value, bool):
+        try:
+            speed = float(value)
+        except ValueError:
+            pass
+    if not MIN_SPEED <= speed <= MAX_SPEED:         # NaN too
+        raise ValueError(f"speed {value!r}: expected {SPEEDS}")
+    return speed
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 TILE = 32           # [cells] side of the map tiles sent to browsers
@@ -48,7 +78,7 @@ COMMANDS = ("pause", "resume", "step", "stop", "speed", "seek")     # what a pag
 def command_problem(msg: object) -> str | None:
     """Why `msg` is not a command a page may send (None: it is one): a JSON object {"cmd": one of COMMANDS},
     a speed's "value" within MIN_SPEED..MAX_SPEED or "max", a seek's a finite number of seconds."""
-    from robotexp.view.live import speed_value
+    pass
 
     if not isinstance(msg, dict) or not isinstance(msg.get("cmd"), str):
         return 'expected a JSON object like {"cmd": "pause"}'

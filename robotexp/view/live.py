@@ -2,40 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
 import click
 
 from robotexp.errors import ConfigError
+from robotexp.view.feed import DEFAULT_SPEED, MAX_SPEED, MIN_SPEED, SPEEDS, ViewHub, speed_value
 
-__all__ = ["LiveView", "view_options", "parse_speed", "speed_value", "start_view", "end_view", "DEFAULT_SPEED",
-           "MIN_SPEED", "MAX_SPEED", "SPEEDS"]
-
-DEFAULT_SPEED = 10.0        # robot time per wall time of a simulated run watched in the view (observer.py too)
-MIN_SPEED, MAX_SPEED = 0.01, 1000.0     # the speeds the view takes (a tick of 0.1 s: at most 10 s of wall time)
-SPEEDS = f"a number within {MIN_SPEED:g}..{MAX_SPEED:g} (times real time) or 'max'"
-
-
-def speed_value(value: object) -> float | None:
-    """A view speed as the CLI or a page gives it: a number within MIN_SPEED..MAX_SPEED (robot time per wall
-    time; a number's text too) or "max" / None (as fast as it goes: None).
-
-    Raises:
-        ValueError: anything else (says what is taken).
-    """
-    if value is None or (isinstance(value, str) and value.strip().lower() == "max"):
-        return None
-    speed = math.nan
-    if isinstance(value, (int, float, str)) and not isinstance(value, bool):
-        try:
-            speed = float(value)
-        except ValueError:
-            pass
-    if not MIN_SPEED <= speed <= MAX_SPEED:         # NaN too
-        raise ValueError(f"speed {value!r}: expected {SPEEDS}")
-    return speed
+__all__ = ["LiveView", "view_options", "parse_speed", "start_view", "end_view"]
 
 
 def parse_speed(text: str | None) -> float | None:
@@ -65,7 +40,6 @@ class LiveView:
                  echo: Callable[[str], None] = click.echo) -> None:
         if not 0 <= port <= 65535:
             raise ConfigError(f"--view-port must be within 0..65535, got {port}")
-        from robotexp.view.feed import ViewHub
         from robotexp.view.observer import ViewObserver
         from robotexp.view.server import ViewServer
 

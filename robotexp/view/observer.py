@@ -33,16 +33,16 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.markers import markers_problem
-from robotexp.observers import RunObserver, StepEvent
-from robotexp.record import EndReason
+from robotexp.run.observers import RunObserver, StepEvent
+from robotexp.run.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
-from robotexp.view.live import DEFAULT_SPEED, speed_value
+from robotexp.view.feed import DEFAULT_SPEED, speed_value
 
 if TYPE_CHECKING:
-    from robotexp.explorer import ExplorationRun
-    from robotexp.record import RunRecord
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.run.record import RunRecord
 
-__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "explorer_overlays", "potential_levels",
+__all__ = ["Pacer", "ViewObserver", "STOP_REASON", "DEFAULT_SPEED", "potential_levels",
            "run_meta", "pacer_command", "new_path_points", "SpeedMeter"]
 
 log = logging.getLogger(__name__)
@@ -129,7 +129,7 @@ class Pacer:
             self.stopped, self.paused = True, False
             self._changed()
 
-    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,
+    def wait(self, robot_time: float | None, halt: Callable[[], None] | None = None,  # noqa: C901
              on_hold: Callable[[bool], None] | None = None) -> bool:
         """The loop's side, at each tick with robot time [s] (None: no pacing, a real robot): hold while
         paused (calling `halt()` at once and every `halt_period`; `on_hold(True)` when holding starts,
@@ -370,7 +370,7 @@ class ViewObserver(RunObserver):
             frame.map = classes_of_states(run.grid.states())
         if watched and (force or now >= self._next_overlay):
             self._next_overlay = now + self.overlay_period
-            frame.overlays = explorer_overlays(run)
+            frame.overlays = _explorer_overlays(run)
         self.hub.publish(frame)
 
     def _new_path(self, run: ExplorationRun) -> list[float]:
@@ -413,7 +413,7 @@ def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bo
     return out
 
 
-def explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
+def _explorer_overlays(run: ExplorationRun) -> dict[str, Any]:
     """The explorer's overlays for the view: `Explorer.overlays()` (potential as a quantized layer,
     vectors as arrows on a lattice) and `Explorer.markers()` (left out, with a warning, when malformed)."""
     out: dict[str, Any] = {}

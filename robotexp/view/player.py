@@ -23,14 +23,14 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.observers import RunObserver, StepEvent
+from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.view.feed import Frame, ViewHub, classes_of_states
-from robotexp.view.live import DEFAULT_SPEED
+from robotexp.view.feed import DEFAULT_SPEED
 from robotexp.view.observer import STOP_REASON, Pacer, SpeedMeter, new_path_points, pacer_command, run_meta
 
 if TYPE_CHECKING:
     from robotexp.bag.replay import Bag
-    from robotexp.explorer import ExplorationRun
+    from robotexp.run.loop import ExplorationRun
 
 __all__ = ["Checkpoints", "ReplayPlayer", "checkpoint_every"]
 

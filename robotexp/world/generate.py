@@ -311,7 +311,7 @@ def generate_grid(kind: str, seed: int, size: tuple[float, float] | None = None,
         inside[r0:r0 + rock.shape[0], c0:c0 + rock.shape[1]] = True
         outer: list[tuple[float, float, float, float]] = []
     else:
-        from robotexp.mapping.groundtruth import occupancy
+        from robotexp.world.groundtruth import occupancy
 
         boxes, discs, outer = (_office if kind == "office" else _warehouse)(rng, w, h, t)
         gaps: list[list[tuple[float, float]]] = [[] for _ in outer]

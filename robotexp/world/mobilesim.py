@@ -1,4 +1,4 @@
-"""Load ARIA / MobileSim `.map` files (ArMap format, `formats/maps.md` §1) as a `World`.
+"""Load ARIA / MobileSim `.map` files (ArMap format, docs/maps-format.md §1) as a `World`.
 
 A `.map` file is text: a `2D-Map...` intro line, metadata lines (`Key: values`, among them the
 `Cairn:` map objects), then `LINES` / `DATA` sections (and `<Sensor>_LINES` / `<Sensor>_DATA` in

@@ -1,4 +1,4 @@
-"""ROS map_server maps (YAML + PGM/PNG image, `formats/maps.md` §2): load as a grid or a `World`, save.
+"""ROS map_server maps (YAML + PGM/PNG image, docs/maps-format.md §2): load as a grid or a `World`, save.
 
 Pixels are read as nav2's `map_io` reads them: channels averaged to a shade `x` in [0, 255]
 (in trinary mode an alpha channel is averaged in too, 255 = opaque, as nav2 and ROS 1 do; so an

@@ -2,7 +2,7 @@
 
 The free place nearest a map's centre can be a closet, a pocket between furniture or the unknown
 outside of a laser-built map. Instead: the places where the robot fits, by the ground truth's own
-definition (`robotexp.mapping.clearance.reach_regions`: exact clearance from the obstacle shapes
+definition (`robotexp.world.clearance.reach_regions`: exact clearance from the obstacle shapes
 greater than the robot radius, connected through passages it fits through), are split into their
 connected regions; regions touching the edge of the map's box are left out when another exists
 (they leak out of an unclosed outline); the largest region left (by area) is the one the run
@@ -63,8 +63,8 @@ def default_start(world: World, radius: float, *, cell: float = 0.05) -> StartCh
         WorldError: nowhere in the map does the robot fit (says the radius).
         ConfigError: the map is too large for any grid (`check_grid_size`).
     """
-    from robotexp.mapping.clearance import clearance, reach_regions, world_index
-    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.world.clearance import clearance, reach_regions, world_index
+    from robotexp.world.groundtruth import occupancy
 
     assert world.bounds is not None
     x0, y0, x1, y1 = world.bounds

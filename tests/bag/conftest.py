@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from robotexp.cli import main
-from robotexp.results import read_jsonl
+from robotexp.output.results import read_jsonl
 
 
 @pytest.fixture(scope="session")

@@ -99,6 +99,6 @@ def write(path: Path, *, ticks: int = 5, run_meta: Any = "default", run_record: 
                   ns)
     r = record() if run_record == "default" else run_record
     if r is not None:
-        c.writer.add_metadata("robotexp.record", {"json": json.dumps(r)})
+        c.writer.add_metadata("robotexp.run.record", {"json": json.dumps(r)})
     c.close()
     return path

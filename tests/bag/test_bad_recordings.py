@@ -49,7 +49,7 @@ CASES: dict[str, tuple[Callable[[Path], Path], str]] = {
                                "sample_period_s"),
     "radius as text": (lambda p: crafted.write(p, run_meta=_meta(radius_m="big")), "radius_m"),
     "start NaN": (lambda p: crafted.write(p, run_meta=_meta(start=[math.nan, 0, 0])), "start"),
-    "record not an object": (lambda p: crafted.write(p, run_record="done"), "robotexp.record"),
+    "record not an object": (lambda p: crafted.write(p, run_record="done"), "robotexp.run.record"),
     "collisions as text": (lambda p: crafted.write(p, run_record={**crafted.record(), "collisions": "many"}),
                            "collisions"),
     "pose at 1e300": (lambda p: crafted.write(p, pose=lambda i: (1e300, 0.0, 0.0)), "position"),

@@ -16,7 +16,7 @@ from mcap_ros2.writer import Writer
 from robotexp.bag.recorder import EPOCH
 from robotexp.bag.replay import read_bag, replay_bag
 from robotexp.cli import main
-from robotexp.results import read_jsonl
+from robotexp.output.results import read_jsonl
 
 
 def _last(path: Path) -> dict[str, object]:

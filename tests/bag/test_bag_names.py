@@ -135,14 +135,14 @@ def test_figure_writes_only_into_its_folder(tmp_path: Path, run: object) -> None
 
 def test_replay_names_its_run_safely_without_an_out_folder(tmp_path: Path) -> None:
     from robotexp.bag.replay import read_bag, replay_bag
-    from robotexp.results import safe_name
+    from robotexp.output.safefile import safe_name
 
     run = replay_bag(read_bag(_bag(tmp_path / "rec.mcap", "../../x")), None)
     assert run.info.name == safe_name("../../x") and "/" not in run.info.name
 
 
 def test_safe_name() -> None:
-    from robotexp.results import safe_name
+    from robotexp.output.safefile import safe_name
 
     assert safe_name("ufmg-static_frontier_A_300mms_s0") == "ufmg-static_frontier_A_300mms_s0"
     assert safe_name("../../x") == "x"

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from robotexp.bag.replay import read_bag, replay_bag
-from robotexp.campaign import load_campaign, run_campaign
+from robotexp.campaign.spec import load_campaign
+from robotexp.campaign.runner import run_campaign
 from robotexp.errors import ConfigError
 
 CAMPAIGN = """

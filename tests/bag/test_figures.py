@@ -11,8 +11,8 @@ from click.testing import CliRunner
 from PIL import Image
 
 from robotexp.cli import main
-from robotexp.figures import PAGE_WIDTH, box_figure
-from robotexp.results import read_jsonl
+from robotexp.output.figures import PAGE_WIDTH, box_figure
+from robotexp.output.results import read_jsonl
 
 
 def test_map_figure_of_a_recording(recorded: tuple[Path, dict[str, object]], tmp_path: Path) -> None:
@@ -64,7 +64,7 @@ def test_box_figure_draws_boxes_only_for_enough_runs() -> None:
 
 
 def test_potential_gets_a_colour_bar(tmp_path: Path) -> None:
-    from robotexp.figures import map_figure, save_figure
+    from robotexp.output.figures import map_figure, save_figure
     from robotexp.mapping.geometry import GridGeometry
 
     geo = GridGeometry(0.0, 0.0, 0.1, 40, 60)

@@ -16,9 +16,10 @@ from robotexp.bag.markers import marker_array, markers_of
 from robotexp.bag.recorder import BagRecorder, stamp_ns
 from robotexp.bag.replay import read_bag, replay_bag
 from robotexp.bag.schemas import MARKER_ARRAY
-from robotexp.experiment import RunSpec, run_experiment
-from robotexp.explorer import ExplorationRun
-from robotexp.observers import RunObserver
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
+from robotexp.run.observers import RunObserver
 from robotexp.view.feed import ViewHub
 from robotexp.view.observer import ViewObserver
 

@@ -19,7 +19,7 @@ import pytest
 
 from robotexp.bag.replay import Bag, read_bag, replay_bag
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.results import read_jsonl
+from robotexp.output.results import read_jsonl
 from robotexp.view.feed import ViewClient, ViewHub, classes_of_states, decode_tiles
 from robotexp.view.player import Checkpoints, ReplayPlayer, checkpoint_every
 

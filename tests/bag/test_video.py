@@ -16,8 +16,8 @@ from PIL import Image
 from robotexp.bag.replay import read_bag
 from robotexp.cli import main
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.render import map_layout
-from robotexp.video import BLOCK, FRAME_SIZE
+from robotexp.output.render import map_layout
+from robotexp.output.video import BLOCK, FRAME_SIZE
 
 
 def _frame_size(bag: Path) -> tuple[int, int]:
@@ -82,9 +82,10 @@ def test_explore_frames(recorded: tuple[Path, dict[str, object]]) -> None:
 
 def test_frames_draw_the_explorers_overlays() -> None:
     """explore --frames with --show potential: the frames carry the BVP potential (viridis on free cells)."""
-    from robotexp.experiment import RunSpec, run_experiment
-    from robotexp.render import viridis
-    from robotexp.video import FrameObserver
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
+    from robotexp.output.render import viridis
+    from robotexp.output.video import FrameObserver
 
     shown: list[np.ndarray] = []
     plain: list[np.ndarray] = []

@@ -10,7 +10,7 @@ import imageio.v3 as iio3
 import numpy as np
 from PIL import Image
 
-from robotexp.video import VideoWriter
+from robotexp.output.video import VideoWriter
 
 
 def test_gif_frames_are_not_kept(tmp_path: Path) -> None:

@@ -7,7 +7,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from robotexp.experiment import RunSpec, resolve_pose
+from robotexp.run.spec import RunSpec
+from robotexp.world.poses import resolve_pose
 from robotexp.robot import Pose
 from robotexp.world.builtin import builtin_world
 from robotexp.world.model import World

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 
 import pytest
 
-from robotexp.experiment import resolve_pose
+from robotexp.world.poses import resolve_pose
 from robotexp.robot import Twist
 from robotexp.testing.backend_contract import CHECKS, BackendContractError, BackendHarness, HarnessFactory
 from robotexp.world.model import World

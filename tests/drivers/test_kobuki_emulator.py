@@ -17,8 +17,10 @@ from typing import Any
 import pytest
 
 from robotexp.errors import ConnectionLost
-from robotexp.experiment import RunSpec, run_on_robot
-from robotexp.explorer import Done, ExplorationRun, Explorer
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_on_robot
+from robotexp.explorer import Done, Explorer
+from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import Pose, RobotState, Twist

@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment, run_on_robot
 from robotexp.world.model import World
 from robotexp_drivers.kobuki.codec import BaseControl, SoundSequence
 from robotexp_drivers.kobuki.emulator import EmulatorLaser, KobukiEmulator

@@ -17,8 +17,8 @@ from click.testing import CliRunner
 
 from robotexp.cli import main
 from robotexp.errors import ProtocolError
-from robotexp.results import read_records
-from robotexp.experiment import make_emulator
+from robotexp.output.results import read_records
+from robotexp.registry import make_emulator
 from robotexp_drivers.p3dx.robot import P3DXRobot
 
 

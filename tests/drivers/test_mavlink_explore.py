@@ -6,7 +6,9 @@ from collections.abc import Callable
 
 import pytest
 
-from robotexp.experiment import RunSpec, resolve_pose, run_experiment, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.world.poses import resolve_pose
+from robotexp.experiment import run_experiment, run_on_robot
 from robotexp.robot import Twist
 from robotexp.world.model import World
 from robotexp_drivers.mavlink.emulator import MavlinkEmulator

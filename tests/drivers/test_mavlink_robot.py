@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConnectionLost
-from robotexp.experiment import RunSpec, resolve_pose, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.world.poses import resolve_pose
+from robotexp.experiment import run_on_robot
 from robotexp.robot import Twist
 from robotexp.world.model import World
 from robotexp_drivers.mavlink import constants as C
@@ -126,7 +128,7 @@ def test_no_vehicle_is_connection_lost() -> None:
 def _echo_errors(world: World, states: list[Any]) -> np.ndarray:
     """[m] distance from each echo of `states` (placed from the state's pose) to the world's walls."""
     from robotexp.mapping.geometry import GridGeometry
-    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.world.groundtruth import occupancy
     from robotexp.planning.grid_planner import distance_transform
 
     geo = GridGeometry.covering(*world.bounds, cell=0.01, margin=0.5)

@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 import pytest
 
 from robotexp.errors import ProtocolError, RobotError
-from robotexp.experiment import resolve_pose
+from robotexp.world.poses import resolve_pose
 from robotexp.robot import Twist
 from robotexp.world.model import World
 from robotexp_drivers.mavlink import constants as C

@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robotexp.experiment import RunSpec, run_experiment, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment, run_on_robot
 from robotexp.robot import Twist
 from robotexp.sim import LaserConfig
 from robotexp_drivers.p3dx import codec as k

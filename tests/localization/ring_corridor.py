@@ -1,5 +1,5 @@
 """A small ring corridor and a scripted robot driving round it with odometry error, for the loop-closure
-tests: scans ray cast against boxes (`robotexp.sim.raycast.RayIndex`), no simulator."""
+tests: scans ray cast against boxes (`robotexp.world.raycast.RayIndex`), no simulator."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 
 OUTER, INNER = 10.0, (1.6, 8.4)        # [m] the ring: a 10 m square around a 6.8 m block, 1.6 m corridors
 # walls (cx, cy, half_x, half_y, yaw), 0.1 m thick, and a few bumps on them so that no stretch is a

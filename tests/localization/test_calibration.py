@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.experiment import RunSpec, resolve_pose, run_on_robot
+from robotexp.run.spec import RunSpec
+from robotexp.world.poses import resolve_pose
+from robotexp.experiment import run_on_robot
 from robotexp.localization.calibration import OdometryCalibration
 from robotexp.localization.matcher import Localizer, MatcherConfig, ScanMatcher, _eig2, scan_points
-from robotexp.localization.run import localized, release
+from robotexp.run.localize import localized, release
 from robotexp.localization.robot import LocalizedRobot
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import LaserScan, Pose, Twist

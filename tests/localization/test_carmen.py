@@ -17,7 +17,7 @@ from robotexp.localization import ate
 from robotexp.localization.carmen import flaser_angles, format_flaser, odometry_at, read_carmen
 from robotexp.localization.logmap import OdometryNoise, perturb_path
 from robotexp.robot import Pose
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.builtin import builtin_world
 from robotexp.world.rosmap import load_ros_grid, load_ros_world
 

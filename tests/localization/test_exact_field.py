@@ -15,7 +15,7 @@ from robotexp.localization.reference import hit_points_ref, refine_hits_ref, wal
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import LaserScan, Pose, Twist
 from robotexp.sim import SimRobot, odometry_error
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.builtin import builtin_world
 from robotexp.world.model import World, segment_box
 

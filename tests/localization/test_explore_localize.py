@@ -9,7 +9,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from robotexp.cli import main
-from robotexp.record import RunRecord
+from robotexp.run.record import RunRecord
 
 
 def test_explore_records_ate_with_and_without_scan_matching(tmp_path: Path) -> None:

@@ -11,10 +11,10 @@ from ring_corridor import RingRobot, drifted, ring_path
 
 from robotexp.localization.matcher import compose
 from robotexp.localization.robot import LocalizedRobot
-from robotexp.localization.run import LoopClosureTracker
+from robotexp.run.localize import LoopClosureTracker
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.observers import StepEvent
+from robotexp.run.observers import StepEvent
 from robotexp.robot import LaserScan
 
 

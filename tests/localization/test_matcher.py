@@ -17,9 +17,9 @@ from robotexp.localization.reference import (
     splat_field_ref,
 )
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import occupancy
+from robotexp.world.groundtruth import occupancy
 from robotexp.robot import LaserScan, Pose
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.model import World, segment_box
 
 CELL = 0.05

@@ -14,7 +14,7 @@ from PIL import Image
 from robotexp.errors import ScriptError
 from robotexp.lua import parse_address
 from robotexp.registry import EXPLORERS, available, lua_name
-from robotexp.render import COLORS
+from robotexp.output.render import COLORS
 
 SHORT = 'exploration.setWorld("ufmg-static")\nexploration.setMaxTime(6000)\n'
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from robotexp.campaign import report_tables
-from robotexp.compare import comparison_tables
+from robotexp.campaign.report import report_tables
+from robotexp.campaign.compare import comparison_tables
 from robotexp.lua import run_script
 
 SCRIPT = Path(__file__).parents[2] / "scripts_lua" / "santos.lua"

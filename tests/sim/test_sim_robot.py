@@ -11,7 +11,8 @@ import pybullet as pb
 import pytest
 
 from robotexp.errors import RobotError, WorldError
-from robotexp.experiment import RunSpec, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_experiment
 from robotexp.robot import Limits, Pose, Twist
 from robotexp.sim import LaserConfig, OdometryError, RobotPreset, SimRobot, preset
 from robotexp.world.model import Mover, World, segment_box

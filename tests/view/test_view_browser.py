@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from robotexp.record import EndReason
-from robotexp.results import read_records
+from robotexp.run.record import EndReason
+from robotexp.output.results import read_records
 from robotexp.view.observer import STOP_REASON
 
 CHROMIUM = os.environ.get("ROBOTEXP_CHROMIUM", "/usr/bin/chromium")

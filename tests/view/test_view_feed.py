@@ -173,7 +173,8 @@ def test_potential_levels_log_scale_on_free_cells() -> None:
 def test_explorer_overlays_reach_the_hub(method: str) -> None:
     """The run's last frame carries what the explorer exposes: SRT's nodes, tree and safe regions, BVP's
     potential and vectors, the frontier target (while it has one)."""
-    from robotexp.experiment import RunSpec, run_experiment
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
     from robotexp.view.observer import ViewObserver
 
     hub = ViewHub()
@@ -216,9 +217,10 @@ def test_hub_sends_campaign_rows_once() -> None:
 def test_observer_skips_the_map_while_nobody_watches() -> None:
     """Without a browser the observer publishes no maps (the run does not build them); one that connects
     gets the run's current map at once."""
-    from robotexp.experiment import RunSpec, run_experiment
-    from robotexp.explorer import ExplorationRun
-    from robotexp.observers import RunObserver, StepEvent
+    from robotexp.run.spec import RunSpec
+    from robotexp.experiment import run_experiment
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.run.observers import RunObserver, StepEvent
     from robotexp.view.observer import ViewObserver
 
     hub = ViewHub()

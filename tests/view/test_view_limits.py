@@ -20,9 +20,10 @@ from click.testing import CliRunner
 
 from robotexp.cli import main
 from robotexp.errors import ConfigError
-from robotexp.experiment import RunOutput, RunSpec, run_experiment
-from robotexp.record import EndReason
-from robotexp.results import read_records
+from robotexp.experiment import RunOutput, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.run.record import EndReason
+from robotexp.output.results import read_records
 from robotexp.view.feed import ViewHub
 from robotexp.view.live import parse_speed
 from robotexp.view.observer import STOP_REASON, Pacer, ViewObserver

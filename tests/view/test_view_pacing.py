@@ -11,9 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from robotexp.experiment import RunOutput, RunSpec, run_experiment
-from robotexp.record import EndReason
-from robotexp.results import read_records
+from robotexp.experiment import RunOutput, run_experiment
+from robotexp.run.spec import RunSpec
+from robotexp.run.record import EndReason
+from robotexp.output.results import read_records
 from robotexp.robot import Pose
 from robotexp.view.feed import ViewHub
 from robotexp.view.observer import STOP_REASON, Pacer, ViewObserver

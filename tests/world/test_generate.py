@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 from robotexp.cli import main
 from robotexp.errors import ConfigError, WorldError
-from robotexp.mapping.groundtruth import occupancy
+from robotexp.world.groundtruth import occupancy
 from robotexp.mapping.kernels import clearance_mask, label8
 from robotexp.world.generate import (DEFAULT_SIZES, DOOR_MIN, KINDS, expand_generated, generate_grid,
                                      parse_generated, write_generated)

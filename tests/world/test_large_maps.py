@@ -14,7 +14,7 @@ from robotexp.cli import main
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import BYTES_PER_CELL, GridGeometry, check_grid_size
 from robotexp.sim.engine import Engine
-from robotexp.sim.raycast import RayIndex
+from robotexp.world.raycast import RayIndex
 from robotexp.world.mobilesim import load_mobilesim
 from robotexp.world.model import World
 

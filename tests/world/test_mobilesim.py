@@ -160,7 +160,7 @@ def test_points_one_resolution_apart_merge_into_rectangles_covering_the_same_squ
     expected = sorted([(0.2, 0.0, 0.25, 0.05, 0.0), (0.1, 0.15, 0.15, 0.1, 0.0), (1.05, 0.0, 0.05, 0.05, 0.0)])
     np.testing.assert_allclose(sorted(map(tuple, world.boxes)), expected, atol=1e-12)
     from robotexp.mapping.geometry import GridGeometry
-    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.world.groundtruth import occupancy
     geo = GridGeometry.covering(-0.2, -0.2, 1.2, 0.4, 0.05)
     squares = World("s", [(x / 1000, y / 1000, 0.05, 0.05, 0.0) for x, y in pts])
     np.testing.assert_array_equal(occupancy(world, geo), occupancy(squares, geo))

@@ -17,7 +17,7 @@ PIXELS = [[0, 254, 205, 255],
           [100, 206, 50, 89],
           [10, 240, 128, 90]]
 
-# Expected grids, row 0 = the image's bottom row, worked out by hand from maps.md §2
+# Expected grids, row 0 = the image's bottom row, worked out by hand from docs/maps-format.md §2
 EXPECTED = {
     ("trinary", 0): [[100, 0, -1, -1], [-1, 0, 100, 100], [100, 0, -1, 0]],
     ("trinary", 1): [[0, 100, -1, -1], [-1, 100, -1, -1], [0, 100, 100, 100]],

@@ -9,7 +9,7 @@ import pytest
 
 from robotexp.errors import WorldError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.groundtruth import ground_truth
+from robotexp.world.groundtruth import ground_truth
 from robotexp.world.model import World, segment_box
 from robotexp.world.start import WELL_INSIDE, default_start
 
@@ -72,7 +72,7 @@ def test_the_start_is_deterministic_and_free_on_generated_maps():
     from robotexp.mapping.kernels import clearance_mask, flood8
 
     geo = GridGeometry.covering(*world.bounds, cell=0.1)
-    from robotexp.mapping.groundtruth import occupancy
+    from robotexp.world.groundtruth import occupancy
     fits = clearance_mask(occupancy(world, geo), 0.25 / geo.cell)
     reach = flood8(fits, *geo.cell_of(a.pose.x, a.pose.y))
     # the region holds the building's floor: much of the 30 x 20 m

@@ -17,8 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, ProtocolError
-from robotexp.laser import LaserGeometry
+from robotexp import ConfigError, LaserGeometry, ProtocolError
 from robotexp_drivers.lasers.hokuyo import constants as C
 
 __all__ = [

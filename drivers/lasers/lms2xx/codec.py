@@ -22,7 +22,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.errors import ConfigError, ProtocolError
+from robotexp import ConfigError, ProtocolError
 from robotexp_drivers.lasers.lms2xx import constants as c
 
 __all__ = [

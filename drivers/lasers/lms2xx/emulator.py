@@ -34,8 +34,7 @@ import time
 
 import numpy as np
 
-from robotexp.errors import ConfigError
-from robotexp.laser import ScanSource
+from robotexp import ConfigError, ScanSource
 from robotexp_drivers.lasers.base import LaserEmulatorBase
 from robotexp_drivers.lasers.lms2xx import codec as k
 from robotexp_drivers.lasers.lms2xx import constants as c

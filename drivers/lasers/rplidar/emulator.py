@@ -25,8 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robotexp.errors import ConfigError
-from robotexp.laser import ScanSource
+from robotexp import ConfigError, ScanSource
 from robotexp_drivers.lasers.base import LaserEmulatorBase
 from robotexp_drivers.lasers.rplidar import constants as C
 from robotexp_drivers.lasers.rplidar.codec import (

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from robotexp.campaign import load_campaign
+from robotexp.campaign.spec import load_campaign
 from robotexp.cli import main
 from robotexp.robot import Pose
 from robotexp_drivers.kobuki.codec import BaseControl

@@ -1,4 +1,4 @@
-"""A laser attached to a robot (robotexp.laser_mount): poses interpolated at a scan's stamp, echoes
+"""A laser attached to a robot (robotexp.run.laser_mount): poses interpolated at a scan's stamp, echoes
 re-expressed in the robot frame (hand-computed cases), and a Kobuki emulator plus an RPLidar emulator
 on two pseudo-terminals: scans paired during a run, and the laser unplugged mid-run ends the run
 within a second with the robot stopped and the partial result kept."""
@@ -15,9 +15,11 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.experiment import RunSpec, run_on_robot
-from robotexp.laser_mount import LaserMountedRobot, PoseHistory, parse_laser_pose, parse_laser_spec, scan_in_robot_frame
-from robotexp.observers import RunObserver
+from robotexp.run.spec import RunSpec
+from robotexp.experiment import run_on_robot
+from robotexp.run.laser_mount import LaserMountedRobot, parse_laser_pose, parse_laser_spec
+from robotexp.laser import PoseHistory, scan_in_robot_frame
+from robotexp.run.observers import RunObserver
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim import mounted_source
 from robotexp.world.model import World

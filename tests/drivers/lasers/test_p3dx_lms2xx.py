@@ -1,4 +1,4 @@
-"""A P3-DX with a laser device mounted (`robotexp.laser_mount.connect_with_laser`): the driver never
+"""A P3-DX with a laser device mounted (`robotexp.run.laser_mount.connect_with_laser`): the driver never
 asks the P3-DX emulator for MobileSim's simulated laser, so the emulator sends no laser packets and
 every scan comes from the LMS2xx emulator on its own pseudo-terminal."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 
-from robotexp.laser_mount import LaserMountedRobot, connect_with_laser, robot_options
+from robotexp.run.laser_mount import LaserMountedRobot, connect_with_laser, robot_options
 from robotexp.sim import mounted_source
 from robotexp_drivers.lasers.lms2xx.emulator import LMS2xxEmulator
 from robotexp_drivers.p3dx import constants as c

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from robotexp.laser_mount import LaserMountedRobot
+from robotexp.run.laser_mount import LaserMountedRobot
 from robotexp.robot import Twist
 from robotexp_drivers.backend import StateStamps
 from robotexp_drivers.kobuki.robot import KobukiRobot

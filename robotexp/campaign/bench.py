@@ -1,0 +1,259 @@
+"""`robotexp bench`: explorers over many maps (files, folders, generated worlds), one table.
+
+Every map is run from its default start pose with every method (through the campaign runner:
+parallel processes, `--resume`), then a row per run (coverage, path, robot time, end reason,
+success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
+A run succeeds (the Done-when benchmark's rule) when it reached `SUCCESS_COVERAGE` of the explorable space
+with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
+leaving the exploration area - and when no point of its path (`RUN.path.csv` in the output folder)
+lies outside the map's exploration area. A `stalled` end (the loop's stall watch) is on its own and
+counts when its coverage does; the table shows every end reason, and the summary counts the runs whose
+explorer said it was done (`completed`) apart.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from robotexp.errors import ConfigError, WorldError
+from robotexp.run.spec import RunSpec
+
+__all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_table", "done_when_maps",
+           "expand_maps", "failure_causes", "success"]
+
+SUCCESS_COVERAGE = 0.95
+DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # the Done-when benchmark
+_MAP_SUFFIXES = (".map", ".yaml", ".yml")
+OUTSIDE = "path_points_outside"     # added to a record by `run_bench` from its path file (None: not checked)
+COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
+
+
+def expand_maps(items: Iterable[str]) -> list[str]:
+    """World specs of `items`: a folder gives its `.map` / `.yaml` files (sorted), `generated:KIND:A-B`
+    one spec per seed, anything else itself (a file or a built-in name, checked when loaded).
+
+    Raises:
+        WorldError: a folder without maps, a missing path, a malformed generated spec.
+    """
+    from robotexp.world.generate import expand_generated
+
+    out: list[str] = []
+    for item in items:
+        path = Path(item)
+        if item.startswith("generated:"):
+            out += expand_generated(item)
+        elif path.is_dir():
+            found = sorted(str(p) for p in path.iterdir() if p.suffix.lower() in _MAP_SUFFIXES and p.is_file())
+            if not found:
+                raise WorldError(f"{item}: no .map or .yaml map in this folder, expected map files")
+            out += found
+        elif path.suffix.lower() in _MAP_SUFFIXES and not path.is_file():
+            raise WorldError(f"{item}: no such map file")
+        else:
+            out.append(str(path.resolve()) if path.suffix.lower() in _MAP_SUFFIXES else item)
+    return out
+
+
+def done_when_maps(maps: Iterable[str], seeds: str = "0-49") -> list[str]:
+    """The Done-when benchmark's set: `maps` (the real maps: files or folders) then `generated:KIND:seeds`
+    for every generated kind (office, warehouse, cave)."""
+    from robotexp.world.generate import KINDS
+
+    return [*maps, *(f"generated:{kind}:{seeds}" for kind in KINDS)]
+
+
+def _bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
+                max_time: float = 4 * 3600.0, seed: int = 0,
+                load: Callable[[str], Any] | None = None) -> list[RunSpec]:
+    """One `RunSpec` per map and method (default start pose), every map loaded once first so that a
+    bad one is reported before any run starts.
+
+    Raises:
+        WorldError, PluginError, ConfigError: a map that does not load, an unknown method.
+    """
+    from robotexp.registry import make_explorer
+    from robotexp.world.loader import load_world
+
+    if not maps or not methods:
+        raise ConfigError("bench: give at least one map and one method")
+    for method in methods:
+        make_explorer(method, {})
+    for spec in maps:
+        (load or load_world)(spec)
+    specs = [RunSpec(world=m, method=method, pose=None, speed=speed, laser_range=laser_range, seed=seed,
+                     max_time=max_time) for m in maps for method in methods]
+    for s in specs:
+        s.validate()
+    return specs
+
+
+def success(record: dict[str, Any]) -> bool:
+    """True when the run covered SUCCESS_COVERAGE, never collided and ended on its own (see the module)."""
+    from robotexp.run.record import EndReason
+
+    cov = record.get("coverage")
+    end = EndReason.classify(bool(record.get("completed")), str(record.get("reason", "")))
+    own = end in (EndReason.EXPLORED, EndReason.STALLED) or (
+        end is EndReason.STOPPED and "left the exploration area" not in str(record.get("reason", "")))
+    return (own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
+            and not record.get(OUTSIDE))
+
+
+def failure_causes(record: dict[str, Any]) -> list[str]:
+    """Why a run is no success, each rule it broke in words (empty for a success)."""
+    from robotexp.run.record import EndReason
+
+    if success(record):
+        return []
+    out = []
+    cov = record.get("coverage")
+    if cov is None or cov < SUCCESS_COVERAGE:
+        out.append("no coverage" if cov is None else f"coverage {cov:.3f} < {SUCCESS_COVERAGE}")
+    if record.get("collisions", 1) != 0:
+        out.append(f"{record.get('collisions')} collisions")
+    if record.get(OUTSIDE):
+        out.append(f"{record[OUTSIDE]} path points outside the exploration area")
+    reason = str(record.get("reason", ""))
+    end = EndReason.classify(bool(record.get("completed")), reason)
+    if end not in (EndReason.EXPLORED, EndReason.STALLED, EndReason.STOPPED) or "left the exploration area" in reason:
+        out.append(f"did not end on its own ({end.value})")
+    return out
+
+
+def _map_name(record: dict[str, Any]) -> str:
+    spec = str(record.get("world_spec") or record.get("world"))
+    return spec if spec.startswith("generated:") else Path(spec).name
+
+
+def _map_group(record: dict[str, Any]) -> str:
+    """The map's group in the summary: `generated:KIND` (plus its options but the seed) for a generated
+    world, `map files` for a file, else the built-in world's name."""
+    spec = str(record.get("world_spec") or record.get("world"))
+    if spec.startswith("generated:"):
+        parts = spec.split(":")
+        return ":".join(parts[:2] + parts[3:])
+    return "map files" if Path(spec).suffix.lower() in _MAP_SUFFIXES else spec
+
+
+def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
+    """(text, csv) of the runs (sorted by map and method) and the success rate per method."""
+    rows = sorted(records, key=lambda r: (_map_name(r), str(r.get("method"))))
+    table = []
+    for r in rows:
+        cov = r.get("coverage")
+        table.append({"map": _map_name(r), "method": r.get("method"),
+                      "coverage": "" if cov is None else f"{cov:.4f}",
+                      "path_m": f"{r.get('path_length_m', 0.0):.1f}",
+                      "robot_time_s": f"{r.get('robot_time_s', 0.0):.0f}",
+                      "collisions": str(r.get("collisions")), "completed": str(bool(r.get("completed"))).lower(),
+                      "reason": str(r.get("reason", "")), "success": "yes" if success(r) else "no"})
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(table)
+    width = max([len(str(t["map"])) for t in table] + [3])
+    lines = [f"{'map':<{width}}  {'method':<12} {'coverage':>8} {'path m':>8} {'time s':>7} {'coll':>4} "
+             f"{'ok':>3}  end reason"]
+    for t in table:
+        lines.append(f"{t['map']:<{width}}  {t['method']:<12} {t['coverage']:>8} {t['path_m']:>8} "
+                     f"{t['robot_time_s']:>7} {t['collisions']:>4} {t['success']:>3}  {t['reason']}")
+    lines.append("")
+    lines.append(f"per method: success (coverage >= {SUCCESS_COVERAGE}, no collision, ended on its own: not by the "
+                 "time limit or an error), and runs the explorer itself completed")
+    by_method: dict[str, list[tuple[bool, bool]]] = {}
+    for r in rows:
+        by_method.setdefault(str(r.get("method")), []).append((success(r), bool(r.get("completed"))))
+    for method, res in sorted(by_method.items()):
+        ok, done = sum(a for a, _ in res), sum(b for _, b in res)
+        lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
+    groups = sorted({_map_group(r) for r in rows})
+    if len(groups) > 1:
+        lines.append("")
+        lines.append("success per method and group of maps (ok/runs)")
+        gw = max(len(g) for g in groups)
+        lines.append(f"  {'method':<12} " + " ".join(f"{g:>{gw}}" for g in groups))
+        for method in sorted(by_method):
+            cells = []
+            for g in groups:
+                runs = [r for r in rows if str(r.get("method")) == method and _map_group(r) == g]
+                cells.append(f"{sum(success(r) for r in runs)}/{len(runs)}" if runs else "-")
+            lines.append(f"  {method:<12} " + " ".join(f"{c:>{gw}}" for c in cells))
+    checked = [r for r in rows if r.get(OUTSIDE) is not None]
+    if checked:
+        lines.append("")
+        lines.append(f"path points outside the exploration area: {sum(int(r[OUTSIDE]) for r in checked)} "
+                     f"(paths of {len(checked)} of {len(rows)} runs checked: the others have no path file "
+                     "or their map declares no area)")
+    failed = [r for r in rows if not success(r)]
+    lines.append("")
+    lines.append(f"failures: {len(failed)} of {len(rows)} runs" + (":" if failed else ""))
+    for r in failed:
+        lines.append(f"  {_map_name(r)} {r.get('method')}: {'; '.join(failure_causes(r))} - "
+                     f"end reason: {r.get('reason', '')}")
+    return "\n".join(lines) + "\n", buf.getvalue()
+
+
+def _mark_outside(records: list[dict[str, Any]], out: Path) -> None:
+    """Set each record's `OUTSIDE`: how many points of its path (`out/RUN.path.csv`) lie outside the
+    exploration area its map declares (None: no path file, or no area)."""
+    import numpy as np
+
+    from robotexp.world.bounds import exploration_area
+    from robotexp.world.loader import load_world
+
+    areas: dict[str, tuple[float, float, float, float] | None] = {}
+    for r in records:
+        path = out / f"{r.get('run')}.path.csv"
+        spec = str(r.get("world_spec") or r.get("world"))
+        r[OUTSIDE] = None
+        if not path.is_file():
+            continue
+        if spec not in areas:
+            try:
+                areas[spec] = exploration_area(load_world(spec), None)
+            except (ConfigError, WorldError):
+                areas[spec] = None
+        area = areas[spec]
+        if area is None:
+            continue
+        xy = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        if xy.size == 0:
+            r[OUTSIDE] = 0
+            continue
+        x0, y0, x1, y1 = area
+        r[OUTSIDE] = int(np.count_nonzero((xy[:, 0] < x0) | (xy[:, 0] > x1) | (xy[:, 1] < y0) | (xy[:, 1] > y1)))
+
+
+def _no_load(spec: str) -> None:
+    """`_bench_specs` without loading the maps (a report of runs already made)."""
+
+
+def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
+              max_time: float = 4 * 3600.0, run: bool = True,
+              progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
+    """Run every map x method (see `_bench_specs`) through the campaign runner into `out` (`run` False:
+    none, only the table), write `bench.txt` and `bench.csv` there from the records of these runs in
+    `out/results.jsonl` (the text says how many have none), return (text, csv)."""
+    from robotexp.campaign.spec import Campaign
+    from robotexp.campaign.runner import run_campaign
+    from robotexp.output.results import read_jsonl
+
+    specs = _bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
+    if run:
+        run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
+    wanted = {(s.world, s.method) for s in specs}
+    path = out / "results.jsonl"
+    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
+        if path.is_file() else []
+    _mark_outside(records, out)
+    text, table = bench_table(records)
+    missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
+    if missing:
+        text += f"not run: {missing} of {len(wanted)} map x method pairs (no record in {path})\n"
+    (out / "bench.txt").write_text(text, encoding="utf-8")
+    (out / "bench.csv").write_text(table, encoding="utf-8")
+    return text, table

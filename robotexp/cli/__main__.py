@@ -1,0 +1,5 @@
+"""`python -m robotexp.cli ARGS`: the `robotexp` command."""
+
+from robotexp.cli.main import main
+
+main()

@@ -1,0 +1,118 @@
+"""What every command shares: error handling (one line and an exit code), folders, option parsing."""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import click
+
+from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
+
+__all__ = ["fail", "handle_errors", "mm", "params", "image_formats", "compile_watch"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def fail(message: str, code: int) -> None:
+    click.echo(f"robotexp: error: {message}", err=True)
+    sys.exit(code)
+
+
+def _quiet_stdout() -> None:
+    """The reader of stdout went away (`robotexp plugins | head -1`): point stdout at the null device,
+    so that nothing more (not even the flush at exit) fails on the closed pipe."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def handle_errors(func: F) -> F:
+    """Turn our errors into one line and an exit code (a traceback only with --debug)."""
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        debug = click.get_current_context().find_root().params.get("debug", False)
+        try:
+            return func(*args, **kwargs)
+        except (ConfigError, WorldError, PluginError) as exc:
+            if debug:
+                raise
+            fail(str(exc), 2)
+        except (RobotError, ScriptError, RobotexpError) as exc:
+            if debug:
+                raise
+            fail(str(exc), 1)
+        except KeyboardInterrupt:
+            click.echo("robotexp: interrupted", err=True)
+            sys.exit(130)
+        except BrokenPipeError:
+            _quiet_stdout()
+            sys.exit(0)
+        except OSError as exc:
+            if debug:
+                raise
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            fail(f"{exc.strerror or exc}{where}", 1)
+    return wrapper  # type: ignore[return-value]
+
+
+def mm(value: float | None, what: str) -> float | None:
+    if value is None:
+        return None
+    if not (value > 0 and math.isfinite(value)):
+        raise ConfigError(f"{what} must be a positive number of mm, got {value:g}")
+    return value / 1000.0
+
+
+def params(items: tuple[str, ...]) -> dict[str, Any]:
+    """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
+    import json
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.isidentifier():
+            raise ConfigError(f"--param {item!r}: expected key=value with key a parameter name")
+        try:
+            out[key] = json.loads(raw)
+        except json.JSONDecodeError:
+            out[key] = raw
+    return out
+
+
+def image_formats(text: str) -> tuple[str, ...]:
+    """--image-format: "png,svg" -> ("png", "svg"); ConfigError for anything else."""
+    from robotexp.output.figures import FORMATS
+
+    fmts = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    if not fmts or set(fmts) - set(FORMATS):
+        raise ConfigError(f"--image-format {text!r}: use png, svg, pdf (comma-separated)")
+    return fmts
+
+
+def compile_watch(tty: bool | None = None) -> Any:
+    """A `robotexp.compilewatch.CompileWatch` that tells stderr, as it happens, that numba compiles the
+    kernels of a group (the first run after an install) and how far it got: on a terminal (`tty`,
+    default: whether stderr is one) one line redrawn per group, else a line per kernel."""
+    from robotexp.compilewatch import CompileWatch
+
+    redraw = sys.stderr.isatty() if tty is None else tty
+    drawn = [False]
+
+    def say(text: str) -> None:
+        step = text.startswith("  ")
+        if step and redraw:
+            click.echo(f"\r{text.strip()}\033[K", nl=False, err=True)
+            drawn[0] = True
+            return
+        if drawn[0]:
+            click.echo("", err=True)
+            drawn[0] = False
+        click.echo(text if step else f"robotexp: {text}", err=True)
+    return CompileWatch(say)

@@ -1,0 +1,34 @@
+"""`python -m robotexp.cli.lua_child ARGS`: `robotexp run ARGS` in-process, for `robotexp.lua.supervise`.
+
+The Lua state is never closed (its __gc finalizers could loop) and the process ends with
+`os._exit` once its output is flushed.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+
+def main() -> None:
+    """Run `robotexp run --child ARGS` and exit with its status without closing the Lua state."""
+    from robotexp.cli import main as cli
+
+    args = sys.argv[1:]
+    debug = "--debug" in args
+    args = [a for a in args if a != "--debug"]
+    try:
+        cli.main(args=(["--debug"] if debug else []) + ["run", "--child", *args], prog_name="robotexp")
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,185 @@
+"""Cost that does not grow with the map: the window of touched cells, and plans on it equal to plans on the map.
+
+Frontier and bvp plan on `OccupancyGrid.window` of `touched_box` (every cell outside it is unknown); the
+run's coverage and stall watch count there too. These tests check the box holds every touched cell, that
+the windowed planning helpers and relaxation give what the whole map gives (the numba sweeps against the
+plain-Python reference), and that a whole run on a map three times as wide and tall drives the same path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError
+from robotexp.run.loop import ExplorationRun
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.world.groundtruth import coverage, grid_coverage, ground_truth
+from robotexp.planning.harmonic import (
+    free_box,
+    free_box_in,
+    gauss_seidel_perturbed_ref,
+    gauss_seidel_ref,
+    relax,
+)
+from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, plan_costs
+from robotexp.robot import LaserScan, Pose
+from robotexp.sim import LaserConfig, SimRobot
+from robotexp.world.model import World, segment_box
+from robotexp_plugins.bvp import BVPExplorer
+from robotexp_plugins.frontier import FrontierExplorer
+
+RANGE = 2.0
+
+
+def _room() -> World:
+    """Two 3 x 4 m rooms joined by a 1.1 m door in the wall x = 3 m, with a table in the right room."""
+    t = 0.1
+    return World("door", np.array([segment_box(0, 0, 6, 0, t), segment_box(0, 4, 6, 4, t),
+                                   segment_box(0, 0, 0, 4, t), segment_box(6, 0, 6, 4, t),
+                                   segment_box(3, 0, 3, 1.4, t), segment_box(3, 2.6, 3, 4, t),
+                                   segment_box(4.2, 2.6, 5.0, 2.6, 0.4)]))
+
+
+@pytest.mark.parametrize("model", ["logodds", "himm"])
+def test_touched_box_holds_every_touched_cell(model: str) -> None:
+    geo = GridGeometry(-1.0, -2.0, 0.1, 80, 120)
+    grid = OccupancyGrid(geo, model=model)  # type: ignore[arg-type]
+    assert grid.touched_box() is None
+    rng = np.random.default_rng(3)
+    angles = np.linspace(-math.pi, math.pi, 361)
+    for k in range(40):
+        # poses inside, near the edges and off the grid; ranges short, long, beyond range_max, inf
+        pose = Pose(rng.uniform(-3, 13), rng.uniform(-4, 8), rng.uniform(-math.pi, math.pi))
+        ranges = rng.choice([0.3, 1.7, 2.9, 3.0, 7.0, math.inf], size=angles.size)
+        grid.update(pose, LaserScan(angles, ranges, 3.0, offset_x=0.2))
+        box = grid.touched_box()
+        touched = np.argwhere(grid.stamp > 0)
+        if len(touched):
+            assert box is not None
+            r0, r1, c0, c1 = box
+            assert (touched[:, 0] >= r0).all() and (touched[:, 0] < r1).all()
+            assert (touched[:, 1] >= c0).all() and (touched[:, 1] < c1).all()
+            assert 0 <= r0 < r1 <= geo.rows and 0 <= c0 < c1 <= geo.cols
+            # and the box is the scans' reach, not the map: a scan of 3 m spans at most 63 cells
+            if k == 0:
+                assert r1 - r0 <= 64 and c1 - c0 <= 64
+    mark = np.zeros(grid.shape, bool)
+    mark[79, 119] = True
+    grid.mark_occupied(mark)
+    box = grid.touched_box()
+    assert box is not None and box[1] == 80 and box[3] == 120
+
+
+def test_window_shares_the_arrays_and_refuses_empty() -> None:
+    geo = GridGeometry(0.0, 0.0, 0.1, 30, 40)
+    grid = OccupancyGrid(geo)
+    free = np.zeros(grid.shape, bool)
+    free[5:10, 6:20] = True
+    grid.mark_free(free)
+    assert grid.touched_box() == (5, 10, 6, 20)
+    view = grid.window(4, 12, 5, 25)
+    assert view.shape == (8, 20) and view.geo.origin_x == pytest.approx(0.5) and view.geo.origin_y == pytest.approx(0.4)
+    assert np.array_equal(view.free(), grid.free()[4:12, 5:25])
+    assert np.shares_memory(view.values, grid.values)
+    assert view.touched_box() == (1, 6, 1, 15)
+    w, (r0, c0) = known_window(grid, 2)
+    assert (r0, c0) == (3, 4) and w.shape == (9, 18)
+    with pytest.raises(ConfigError, match="no cell"):
+        grid.window(30, 40, 0, 5)
+
+
+def _gs_case(seed: int) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+    """A padded field whose cells outside the window's interior are all fixed (as bvp's window)."""
+    rng = np.random.default_rng(seed)
+    p = rng.random((40, 50))
+    fixed = np.ones(p.shape, bool)
+    window = (6, 31, 9, 44)
+    fixed[7:30, 10:43] = rng.random((23, 33)) < 0.3
+    return p, fixed, window
+
+
+def test_relax_on_a_window_equals_the_reference_on_the_whole_field() -> None:
+    p, fixed, window = _gs_case(0)
+    assert free_box_in(fixed, 7, 30, 10, 43) == free_box(fixed)
+    ref = p.copy()
+    gauss_seidel_ref(ref, fixed, 9)
+    fast = p.copy()
+    relax(fast, fixed, 9, window=window)
+    assert np.array_equal(fast, ref)                      # bit for bit, the numba sweep against Python
+    eps = np.random.default_rng(1).uniform(-0.5, 0.5, p.shape)
+    ref = p.copy()
+    gauss_seidel_perturbed_ref(ref, fixed, 5, 0.2, -0.1, eps)
+    fast = p.copy()
+    relax(fast, fixed, 5, preferred=(0.2, -0.1), eps_abs=eps, window=window)
+    assert np.array_equal(fast, ref)
+    ref = p.copy()
+    gauss_seidel_perturbed_ref(ref, fixed, 5, 0.0, 0.0, np.full(p.shape, 0.3))
+    fast = p.copy()
+    relax(fast, fixed, 5, eps_abs=0.3, window=window)      # a scalar eps(r)
+    assert np.array_equal(fast, ref)
+    with pytest.raises(ConfigError, match="window"):
+        relax(p.copy(), fixed, 1, window=(0, 41, 0, 5))
+
+
+def _run(explorer: FrontierExplorer | BVPExplorer, geo: GridGeometry, max_time: float) -> ExplorationRun:
+    world, start = _room(), Pose(1.0, 1.0, math.pi)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=RANGE, start=start)
+    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=RANGE)
+    with SimRobot(world, pose=start, seed=0, laser=LaserConfig(range_max=RANGE), max_speed=0.5, sonar=False) as robot:
+        return ExplorationRun(robot, explorer, grid, truth=truth, max_time=max_time, seed=0).run()
+
+
+@pytest.mark.parametrize("method", ["frontier", "bvp"])
+def test_a_map_three_times_larger_drives_the_same_run(method: str) -> None:
+    small = GridGeometry(-0.5, -0.5, 0.1, 50, 70)
+    large = GridGeometry(-0.5, -0.5, 0.1, 150, 210)      # the same cells, and unknown space beyond
+    make = FrontierExplorer if method == "frontier" else BVPExplorer
+    a, b = _run(make(), small, 400.0), _run(make(), large, 400.0)
+    assert a.completed and b.completed and a.reason == b.reason
+    assert a.metrics.path == b.metrics.path
+    assert a.coverage() == b.coverage() and a.coverage() is not None and a.coverage() > 0.97
+    # the run's coverage counts in the window what the whole map counts
+    assert b.truth is not None and b.coverage() == coverage(b.grid.free(), b.truth)
+    assert grid_coverage(b.grid, b.truth) == coverage(b.grid.free(), b.truth)
+
+
+def test_windowed_costs_and_frontier_equal_the_whole_maps() -> None:
+    geo = GridGeometry(-0.5, -0.5, 0.1, 150, 210)
+    run = _run(FrontierExplorer(), geo, 25.0)           # part way: frontier left
+    grid = run.grid
+    view, (r0, c0) = known_window(grid, 2)
+    rows, cols = view.shape
+    assert rows < geo.rows // 2 and cols < geo.cols // 2
+    whole = plan_costs(grid, 0.25, 0.3)
+    part = plan_costs(view, 0.25, 0.3)
+    assert np.array_equal(part, whole[r0:r0 + rows, c0:c0 + cols])
+    outside = np.ones(grid.shape, bool)
+    outside[r0:r0 + rows, c0:c0 + cols] = False
+    assert np.isinf(whole[outside]).all()
+    t_whole, t_part = frontier_targets(grid, 5), frontier_targets(view, 5)
+    assert t_part.any() and np.array_equal(t_part, t_whole[r0:r0 + rows, c0:c0 + cols])
+    assert not t_whole[outside].any()
+
+
+def test_plan_costs_kept_up_to_date_equal_the_whole_computation() -> None:
+    geo = GridGeometry(-1.0, -2.0, 0.1, 90, 130)
+    grid = OccupancyGrid(geo)
+    cache = PlanCosts(0.25, 0.3)
+    rng = np.random.default_rng(5)
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    assert np.isinf(cache.update(grid)).all()
+    for k in range(60):
+        pose = Pose(rng.uniform(0, 11), rng.uniform(-1, 6), rng.uniform(-math.pi, math.pi))
+        grid.update(pose, LaserScan(angles, rng.uniform(0.2, 3.5, angles.size), 3.0))
+        if k % 7 == 3:
+            assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+    wall = np.zeros(grid.shape, bool)
+    wall[40:43, 20:90] = True
+    grid.mark_occupied(wall)
+    assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+    other = grid.copy()                                   # another grid: computed afresh
+    assert np.array_equal(cache.update(other), plan_costs(other, 0.25, 0.3))

@@ -1,0 +1,364 @@
+"""The frontier explorer plugin on small worlds, run end to end on the SimRobot with real ground truth.
+
+Worlds are 6 x 4 m rooms (walls 0.1 m thick centred on x = 0, 6 m and y = 0, 4 m) split at x = 3 m
+by an inner wall. The laser reaches 2 m so that the robot must
+drive to see everything. Each run takes well under a second of wall time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError
+from robotexp.registry import make_explorer
+from robotexp.run.loop import ExplorationRun
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.world.groundtruth import GroundTruth, ground_truth
+from robotexp.planning.targets import plan_costs
+from robotexp.robot import Pose
+from robotexp.sim import LaserConfig, SimRobot
+from robotexp.world.model import World, segment_box
+from robotexp_plugins.frontier import FrontierExplorer
+
+T = 0.1             # [m] wall thickness
+RANGE = 2.0         # [m] laser range
+CELL = 0.1          # [m]
+START = Pose(1.0, 1.0, math.pi)     # in the left room, facing its wall
+
+
+def outer_walls() -> list[tuple[float, ...]]:
+    return [segment_box(0, 0, 6, 0, T), segment_box(0, 4, 6, 4, T),
+            segment_box(0, 0, 0, 4, T), segment_box(6, 0, 6, 4, T)]
+
+
+def door_room() -> World:
+    """Two 3 x 4 m rooms joined by a 1.1 m door (y 1.45..2.55 m) in the wall x = 3 m."""
+    return World("door", np.array(outer_walls() + [segment_box(3, 0, 3, 1.4, T), segment_box(3, 2.6, 3, 4, T)]))
+
+
+def gap_room(gap: float) -> World:
+    """The same with a slit of `gap` [m] around y = 2 m instead of the door."""
+    lo, hi = 2 - gap / 2 - T / 2, 2 + gap / 2 + T / 2     # segment_box reaches T/2 past each end
+    return World("gap", np.array(outer_walls() + [segment_box(3, 0, 3, lo, T), segment_box(3, hi, 3, 4, T)]))
+
+
+@dataclass
+class Outcome:
+    run: ExplorationRun
+    end: Pose                   # true pose when the run ended
+    truth: GroundTruth
+
+
+def explore(world: World, *, seed: int = 0, sigma: float = 0.0, max_time: float = 600.0,
+            **params: object) -> Outcome:
+    geo = GridGeometry.covering(*world.bounds, cell=CELL, margin=0.5)
+    truth = ground_truth(world, geo, robot_radius=0.25, laser_range=RANGE, start=START)
+    grid = OccupancyGrid(geo, range_max=RANGE)
+    laser = LaserConfig(range_max=RANGE, sigma=sigma)
+    with SimRobot(world, pose=START, seed=seed, laser=laser, max_speed=0.5, sonar=False) as robot:
+        run = ExplorationRun(robot, FrontierExplorer(**params), grid, truth=truth, max_time=max_time,  # type: ignore[arg-type]
+                             seed=seed).run()
+        end = robot.read().true_pose
+    assert end is not None
+    return Outcome(run, end, truth)
+
+
+# -- whole runs ----------------------------------------------------------------------------
+
+def test_explores_two_rooms_through_a_door() -> None:
+    out = explore(door_room())
+    run = out.run
+    assert run.completed and run.reason == "no reachable frontier left"
+    assert run.coverage() is not None and run.coverage() >= 0.99
+    assert run.metrics.collisions == 0
+    # the robot went into the right room (the door is its only way there)
+    assert max(x for x, _ in run.metrics.path) > 3.3
+    assert run.robot_time < 200.0
+    assert run.metrics.milestones[0.99] is not None
+
+
+def test_return_home_ends_at_the_start() -> None:
+    out = explore(door_room(), return_home=True)
+    assert out.run.completed and out.run.reason == "explored; back at the start"
+    assert out.end.distance_to(START) < 0.2
+    assert out.run.coverage() is not None and out.run.coverage() >= 0.99
+    assert out.run.metrics.collisions == 0
+    plain = explore(door_room())
+    # driving home costs path: it is at least the distance from where plain exploration ended
+    assert out.run.metrics.path_length > plain.run.metrics.path_length
+
+
+def test_a_region_behind_a_slit_narrower_than_the_robot_does_not_trap_the_run() -> None:
+    world = gap_room(0.3)           # the robot is 0.5 m wide
+    out = explore(world, max_time=600.0)
+    run = out.run
+    # the right room is seen through the slit (explorable) but cannot be reached
+    assert not out.truth.reachable[:, out.truth.geo.cell_of(4.5, 2.0)[1]].any()
+    assert out.truth.explorable[out.truth.geo.cell_of(3.5, 2.0)]
+    assert run.completed and run.reason == "no reachable frontier left"
+    assert run.robot_time < 300.0                          # ended on its own, long before max_time
+    assert run.metrics.collisions == 0
+    assert max(x for x, _ in run.metrics.path) < 3.0 - 0.05 - 0.25 + 0.01   # never through the slit
+    assert run.coverage() is not None and run.coverage() >= 0.9
+
+
+def test_same_seed_same_run() -> None:
+    a = explore(door_room(), seed=3, sigma=0.02)
+    b = explore(door_room(), seed=3, sigma=0.02)
+    assert a.run.metrics.path_length == b.run.metrics.path_length
+    assert a.run.robot_time == b.run.robot_time
+    assert a.run.metrics.path == b.run.metrics.path
+    assert np.array_equal(a.run.grid.values, b.run.grid.values)
+    # the seed does matter (the laser is noisy): another one gives another map
+    c = explore(door_room(), seed=4, sigma=0.02)
+    assert not np.array_equal(a.run.grid.values, c.run.grid.values)
+
+
+# -- parameters ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("params", "message"), [
+    ({"min_group_cells": 0}, "min_group_cells must be >= 1, got 0"),
+    ({"replan_period": 0.0}, "replan_period must be > 0, got 0.0"),
+    ({"replan_period": math.nan}, "replan_period must be > 0"),
+    ({"goal_timeout": -1.0}, "goal_timeout must be > 0, got -1.0"),
+    ({"clearance": -0.1}, "clearance must be >= 0 m, got -0.1"),
+])
+def test_bad_parameters(params: dict[str, float], message: str) -> None:
+    with pytest.raises(ConfigError, match=f"^frontier: {message}"):
+        FrontierExplorer(**params)  # type: ignore[arg-type]
+
+
+def test_parameters_through_the_registry() -> None:
+    explorer = make_explorer("frontier", {"min_group_cells": 3, "return_home": True})
+    assert isinstance(explorer, FrontierExplorer)
+    assert explorer.min_group_cells == 3 and explorer.return_home
+    with pytest.raises(ConfigError, match="method 'frontier'.*speed"):
+        make_explorer("frontier", {"speed": 1.0})
+    with pytest.raises(ConfigError, match="clearance"):
+        make_explorer("frontier", {"clearance": -1.0})
+
+
+@pytest.mark.parametrize(("method", "params", "message"), [
+    ("frontier", {"return_home": "maybe"}, "'return_home' must be true or false, got 'maybe'"),
+    ("frontier", {"return_home": 1}, "'return_home' must be true or false, got 1"),
+    ("frontier", {"min_group_cells": 2.5}, "'min_group_cells' must be a whole number, got 2.5"),
+    ("frontier", {"clearance": "wide"}, "'clearance' must be a number, got 'wide'"),
+    ("frontier", {"clearance": True}, "'clearance' must be a number, got True"),
+    ("srt-star", {"d_min": "auto"}, "'d_min' must be a number, got 'auto'"),
+])
+def test_parameter_types_are_checked_against_the_plugin(method: str, params: dict[str, object], message: str) -> None:
+    with pytest.raises(ConfigError, match=f"method '{method}': parameter {message}"):
+        make_explorer(method, params)
+
+
+def test_parameter_values_are_converted_where_exact() -> None:
+    # a Lua or TOML number 3.0 for an int, 2 for a float; None where the plugin allows it
+    explorer = make_explorer("frontier", {"min_group_cells": 3.0, "clearance": 1, "replan_period": 2})
+    assert isinstance(explorer, FrontierExplorer)
+    assert explorer.min_group_cells == 3 and isinstance(explorer.min_group_cells, int)
+    assert explorer.clearance == 1.0 and isinstance(explorer.clearance, float)
+    assert make_explorer("frontier", {"min_group_cells": None}).min_group_cells is None  # type: ignore[attr-defined]
+
+
+# -- plan_costs ----------------------------------------------------------------------------
+
+def tiny_grid(cell: float, size: int) -> OccupancyGrid:
+    """A size x size grid, all free but the centre cell (occupied)."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, cell, size, size))
+    free = np.ones((size, size), dtype=bool)
+    c = size // 2
+    free[c, c] = False
+    grid.mark_free(free)
+    grid.mark_occupied(~free)
+    return grid
+
+
+def test_plan_costs_blocks_radius_margin_and_half_a_cell() -> None:
+    # cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.05) / 0.1 + 0.5 = 3.5 cells of (5, 5)
+    cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0)
+    for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 3, 2.83, 3.16
+                            (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 4, 3.61, 4, 7.07
+                            (2, 5): True, (5, 1): False}.items():                          # 3, 4
+        assert np.isinf(cost[r, c]) == blocked, (r, c)
+    # without a danger zone every other cell costs 1
+    assert np.all((cost == 1.0) | np.isinf(cost))
+    dr, dc = np.meshgrid(np.arange(11) - 5, np.arange(11) - 5, indexing="ij")
+    assert np.array_equal(np.isinf(cost), dr ** 2 + dc ** 2 <= 3.5 ** 2)
+
+
+def test_plan_costs_half_cell_depends_on_the_cell() -> None:
+    # cell 0.05 m: (0.25 + 0.05) / 0.05 + 0.5 = 6.5 cells; without the half cell it would be 6
+    cost = plan_costs(tiny_grid(0.05, 17), radius=0.25, clearance=0.0)
+    c = 8
+    assert np.isinf(cost[c + 4, c + 5])           # sqrt(41) = 6.40 cells
+    assert np.isinf(cost[c, c + 6])               # 6
+    assert np.isfinite(cost[c + 3, c + 6])        # sqrt(45) = 6.71 cells
+    assert np.isfinite(cost[c, c + 7])
+
+
+def test_plan_costs_danger_zone_and_unknown_cells() -> None:
+    grid = tiny_grid(0.1, 11)
+    # clearance 0.2 m = 2 cells beyond 3.5: cost 1 + 4 (1 - (d - 3.5) / 2) for 3.5 < d <= 5.5
+    cost = plan_costs(grid, radius=0.25, clearance=0.2)
+    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.5 / 2))                      # d = 4: 4.0
+    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.5 / 2))                     # d = 5: 2.0
+    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.sqrt(13) - 3.5) / 2), rel=1e-6)
+    assert cost[0, 0] == 1.0                                                       # d = 7.07
+    # unknown cells are never passable, however far from walls
+    unknown_corner = OccupancyGrid(grid.geo)
+    values = grid.values.copy()
+    values[0, 0] = 0.0
+    unknown_corner.values[:] = values
+    cost2 = plan_costs(unknown_corner, radius=0.25, clearance=0.2)
+    assert np.isinf(cost2[0, 0]) and cost2[0, 1] == 1.0
+
+
+def _frontier_of(explorer: FrontierExplorer, grid: OccupancyGrid) -> np.ndarray:
+    from robotexp.explorer import ExplorerContext
+    from robotexp.planning.targets import known_window
+    from robotexp.robot import Limits
+
+    explorer.reset(ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1,
+                                   start=Pose(1.0, 1.0, 0.0), laser_range=3.0, rng=np.random.default_rng(0)))
+    view, off = known_window(grid, 2)
+    out = np.zeros(grid.shape, bool)
+    rows, cols = view.shape
+    out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier_targets(grid, view, off)
+    return out
+
+
+def test_grazed_wall_face_is_no_frontier_but_an_opening_is() -> None:
+    """A 0.4 m wall seen from both sides whose face beams grazed clear over 1.1 m (its inside unknown),
+    and a room open to the east onto unknown space: only the opening is a target by default."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[24:40, 5:40] = True        # two rooms either side of the wall (rows 20-23)
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[23, 5:40] = True             # the wall's two faces; rows 21-22 never seen
+    wall[23, 10:21] = False
+    free[23, 10:21] = True                             # grazing beams cleared 11 face cells
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    old = _frontier_of(FrontierExplorer(face_reach=0.0), grid)
+    new = _frontier_of(FrontierExplorer(), grid)
+    face = np.zeros(grid.shape, bool)
+    face[23, 10:21] = True
+    assert (old & face).sum() >= 5 and not (new & face).any()
+    opening = np.zeros(grid.shape, bool)
+    opening[6:19, 39] = opening[25:39, 39] = True      # the rooms' east ends, unknown beyond
+    # the opening stays a target, but for its cells within face_reach of the wall's corners
+    assert (new & opening).sum() >= 20 and not (new & ~old).any()
+    with pytest.raises(ConfigError, match="face_reach"):
+        FrontierExplorer(face_reach=-1.0)
+
+
+def test_worn_face_of_a_deep_shelf_is_no_frontier() -> None:
+    """A shelf 1 m deep whose face was seen (occupied) and then worn free over 1.1 m by grazing beams
+    (log-odds: a pass cancels a hit): its unknown inside lies 0.5 m from the walls left on the map, but
+    one cell from walls the explorer saw; no target there. The room's open east end stays a target."""
+    from robotexp.planning.targets import WallMemory, distance_transform
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[31:45, 5:40] = True        # aisles either side of the shelf (rows 20-30)
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[30, 5:40] = True             # the shelf's faces; rows 21-29 never seen
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    old, new = FrontierExplorer(face_reach=0.0), FrontierExplorer()
+    _frontier_of(old, grid)
+    _frontier_of(new, grid)
+    new.step(_state(), grid)        # the explorer notes the walls the map shows (after every scan)
+    worn = np.zeros(grid.shape, bool)
+    worn[30, 10:21] = True
+    grid.mark_free(worn)            # grazing beams wore 11 face cells down to free
+    face = np.zeros(grid.shape, bool)
+    face[30, 10:21] = True
+    opening = np.zeros(grid.shape, bool)
+    opening[6:19, 39] = opening[32:44, 39] = True      # the aisles' east ends, unknown beyond
+    got_old, got_new = _targets_now(old, grid), _targets_now(new, grid)
+    # the map's own walls no longer explain the worn face: the explorer without wall memory (and face_reach on
+    # the map's walls) sends the robot there
+    assert (got_old & face).sum() >= 5
+    assert not (got_new & face).any()
+    assert (got_new & opening).sum() >= 20 and not (got_new & ~got_old).any()
+    # the memory against its definition: the distance to every cell ever occupied, from scratch
+    assert new.walls_seen is not None and (new.walls_seen.ever == wall).all()
+    mem = WallMemory(3.0)
+    mem.note(grid)
+    assert (mem.ever == (wall & ~worn)).all()        # a fresh memory knows only the walls the map shows now
+    want = distance_transform(wall)
+    got = new.walls_seen.distance(grid)
+    near = want <= 2.5
+    assert np.allclose(got[near], want[near]) and (got[~near] > 2.5).all()
+
+
+def _state() -> object:
+    from robotexp.robot import RobotState, Twist
+
+    return RobotState(time=0.0, pose=Pose(1.0, 1.0, 0.0), velocity=Twist.ZERO)
+
+
+def _targets_now(explorer: FrontierExplorer, grid: OccupancyGrid) -> np.ndarray:
+    """The explorer's targets on `grid` now, without resetting it (its memory kept)."""
+    from robotexp.planning.targets import known_window
+
+    memory = getattr(explorer, "walls_seen", None)
+    if memory is not None:
+        memory.note(grid)
+    view, off = known_window(grid, 2)
+    out = np.zeros(grid.shape, bool)
+    rows, cols = view.shape
+    out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier_targets(grid, view, off)
+    return out
+
+
+@pytest.mark.parametrize("model", ["logodds", "himm"])
+def test_wall_memory_keeps_walls_seen_twice_not_a_stray_hit(model: str) -> None:
+    """A scan taken from a slightly wrong pose (a heading a packet old) puts one hit 0.6 m short of the
+    wall, in free space; the next scans cross that cell. It must not stay a wall in the memory (a stray
+    hit beside a doorway would hide the opening for the rest of the run), while the wall, hit by two
+    scans and then worn down by grazing beams, stays one."""
+    from robotexp.planning.targets import WallMemory
+    from robotexp.robot import LaserScan
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 40, 40), model=model)   # type: ignore[arg-type]
+    beam = LaserScan(np.array([0.0]), np.array([2.0]), 5.0)      # from (0.55, 2.05) east: hits x = 2.55
+    short = LaserScan(np.array([0.0]), np.array([1.4]), 5.0)     # the stray hit at x = 1.95
+    pose = Pose(0.55, 2.05, 0.0)
+    wall, stray = (20, 25), (20, 19)
+    mem = WallMemory(3.0)
+    grid.update(pose, short)            # the stray scan comes first, onto unknown cells
+    mem.note(grid)
+    assert grid.occupied()[stray] and not mem.ever[stray]
+    grid.update(pose, beam)
+    mem.note(grid)
+    assert grid.occupied()[wall] and not grid.firmly_occupied()[wall]     # one hit: occupied, not firm
+    grid.update(pose, beam)             # the next scans cross the stray cell and hit the wall again
+    mem.note(grid)
+    assert grid.firmly_occupied()[wall] and mem.ever[wall]
+    assert grid.free()[stray] and not mem.ever[stray]
+    grid.mark_free(np.pad(np.ones((1, 1), bool), ((20, 19), (25, 14))))    # grazing beams wear the wall
+    mem.note(grid)
+    assert not grid.occupied()[wall] and mem.ever[wall]
+    assert mem.ever.sum() == 1
+
+
+def test_firmly_occupied_thresholds() -> None:
+    """Log-odds: two hits (2 logit(0.9) = 4.39, clamped to l_clamp) are firm, one (2.20) is not, and
+    with a larger clamp two hits still are; HIMM: two hits (+3 each = 6) are, one (3) is not."""
+    geo = GridGeometry(0.0, 0.0, 0.1, 1, 4)
+    grid = OccupancyGrid(geo)
+    grid.values[0] = [2.1972246, 3.5, 3.4, -3.5]
+    assert grid.firmly_occupied()[0].tolist() == [False, True, False, False]
+    wide = OccupancyGrid(geo, l_clamp=10.0)
+    wide.values[0] = [2.1972246, 4.3944492, 4.3, 10.0]
+    assert wide.firmly_occupied()[0].tolist() == [False, True, False, True]
+    himm = OccupancyGrid(geo, model="himm")
+    himm.values[0] = [3, 5, 6, 15]
+    assert himm.firmly_occupied()[0].tolist() == [False, False, True, True]
