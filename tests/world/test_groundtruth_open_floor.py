@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import robotexp.mapping.groundtruth as gt
-from robotexp.experiment import RunSpec, plan_run
+import robotexp.world.groundtruth as gt
+from robotexp.run.spec import RunSpec, plan_run
 
 SQUARE = """2D-Map
 LineMinPos: 0 0
