@@ -116,9 +116,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     finally:
         os.close(ready_w)
     failures: list[OSError | ValueError] = []
-    relays = [threading.Thread(target=_relay, args=(s, t, failures), daemon=True)
-              for s, t in ((proc.stdout, click.get_binary_stream("stdout")),
-                           (proc.stderr, click.get_binary_stream("stderr")))]
+    assert proc.stdout is not None and proc.stderr is not None
+    pairs: list[tuple[IO[bytes], BinaryIO]] = [(proc.stdout, sys.stdout.buffer), (proc.stderr, sys.stderr.buffer)]
+    relays = [threading.Thread(target=_relay, args=(s, t, failures), daemon=True) for s, t in pairs]
     for t in relays:
         t.start()
     kill_at = None if timeout is None else start + timeout + timeout_grace + STARTUP_GRACE
