@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.kernels import edt_sq, kernel
-from robotexp.world.raycast import RayIndex, shape_distance
+from robotexp.world.raycast import RayIndex, bucket_window, shape_distance
 from robotexp.world.model import World
 
 __all__ = ["FINE_STEP", "MAX_SAMPLES", "TOL", "Regions", "clearance", "clearance_points", "reach_regions",
@@ -52,10 +52,7 @@ def clearance_points(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int
     for i in range(xs.shape[0]):
         x, y = xs[i], ys[i]
         best = cap
-        c0 = max(int(math.floor((x - cap - gx) / bucket)), 0)
-        c1 = min(int(math.floor((x + cap - gx) / bucket)), cols - 1)
-        r0 = max(int(math.floor((y - cap - gy) / bucket)), 0)
-        r1 = min(int(math.floor((y + cap - gy) / bucket)), rows - 1)
+        r0, r1, c0, c1 = bucket_window(gx, gy, bucket, rows, cols, x, y, cap)
         for r in range(r0, r1 + 1):
             for c in range(c0, c1 + 1):
                 cell = r * cols + c

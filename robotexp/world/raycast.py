@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from robotexp.mapping.kernels import kernel
 
-__all__ = ["RayIndex", "cast_rays", "shapes_near"]
+__all__ = ["RayIndex", "bucket_window", "cast_rays", "shapes_near"]
 
 MAX_BUCKETS = 1 << 20       # a bucket grid never exceeds this many cells
 
@@ -237,13 +237,22 @@ def shape_distance(kind: float, cx: float, cy: float, a: float, b: float, c: flo
 
 
 @kernel
-def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
-                gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float, reach: float) -> bool:
-    """True when a shape of the bucket grid (see `cast_rays`) lies within `reach` [m] of (x, y) [m]."""
+def bucket_window(gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float,
+                  reach: float) -> tuple[int, int, int, int]:
+    """(r0, r1, c0, c1): the buckets, inclusive and clipped to the grid, of every point within `reach` [m]
+    of (x, y) [m]."""
     c0 = max(int(math.floor((x - reach - gx) / bucket)), 0)
     c1 = min(int(math.floor((x + reach - gx) / bucket)), cols - 1)
     r0 = max(int(math.floor((y - reach - gy) / bucket)), 0)
     r1 = min(int(math.floor((y + reach - gy) / bucket)), rows - 1)
+    return r0, r1, c0, c1
+
+
+@kernel
+def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],
+                gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float, reach: float) -> bool:
+    """True when a shape of the bucket grid (see `cast_rays`) lies within `reach` [m] of (x, y) [m]."""
+    r0, r1, c0, c1 = bucket_window(gx, gy, bucket, rows, cols, x, y, reach)
     for r in range(r0, r1 + 1):
         for cc in range(c0, c1 + 1):
             cell = r * cols + cc
