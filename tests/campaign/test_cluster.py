@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,6 +18,7 @@ from click.testing import CliRunner
 
 from robotexp.campaign.spec import load_campaign, record_key, run_key
 from robotexp.cli import main
+from dask_ports import free_port, wait_port
 
 TINY = """
 [campaign]
@@ -45,22 +45,6 @@ seeds = [0, 1, 2]
 """
 
 DASK = str(Path(sys.executable).parent / "dask")
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _wait_port(port: int, timeout: float) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.1)
-    raise TimeoutError(f"nothing listens on port {port}")
 
 
 def _lines(results: Path) -> list[dict[str, object]]:
@@ -99,14 +83,14 @@ def test_scheduler_two_workers_one_killed_mid_run_every_run_once(tmp_path: Path,
     camp_file = tmp_path / "tiny.toml"
     camp_file.write_text(TINY, encoding="utf-8")
     camp = load_campaign(camp_file)
-    port = _free_port()
+    port = free_port()
     env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
     procs: list[subprocess.Popen[bytes]] = []
     try:
         procs.append(subprocess.Popen([DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port),
                                        "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.DEVNULL))
-        _wait_port(port, 30)
+        wait_port(port, 30)
         address = f"tcp://127.0.0.1:{port}"
         workers = [subprocess.Popen([DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
                                      "--host", "127.0.0.1", "--name", f"w{i}"], env=env, stdout=subprocess.DEVNULL,
@@ -210,7 +194,7 @@ def test_no_scheduler_there_is_one_line_exit_2(tmp_path: Path, monkeypatch: pyte
     camp_file = tmp_path / "tiny.toml"
     camp_file.write_text(TINY, encoding="utf-8")
     r = CliRunner().invoke(main, ["campaign", "run", str(camp_file), "--out", str(tmp_path / "o"),
-                                  "--cluster", f"tcp://127.0.0.1:{_free_port()}"])
+                                  "--cluster", f"tcp://127.0.0.1:{free_port()}"])
     assert r.exit_code == 2 and "no Dask scheduler answers there" in r.output, r.output
     assert not (tmp_path / "o" / "results.jsonl").exists()
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -17,6 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 from robotexp.cli import main
+from dask_ports import free_port, wait_port
 
 
 # runs of a few seconds each: the first comes back while the others are still running
@@ -36,22 +36,6 @@ WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
 ROBOTEXP = [sys.executable, "-m", "robotexp.cli"]
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _wait_port(port: int, timeout: float) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.1)
-    raise TimeoutError(f"nothing listens on port {port}")
-
-
 def _records(path: Path) -> list[dict[str, Any]]:
     return [json.loads(x) for x in path.read_text().splitlines()] if path.exists() else []
 
@@ -59,7 +43,7 @@ def _records(path: Path) -> list[dict[str, Any]]:
 def test_scheduler_killed_mid_campaign_is_one_line_and_the_records_stay(tmp_path: Path) -> None:
     camp_file, out = tmp_path / "short.toml", tmp_path / "out"
     camp_file.write_text(SHORT, encoding="utf-8")
-    port = _free_port()
+    port = free_port()
     env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
     address = f"tcp://127.0.0.1:{port}"
     procs: list[subprocess.Popen[bytes]] = []
@@ -70,7 +54,7 @@ def test_scheduler_killed_mid_campaign_is_one_line_and_the_records_stay(tmp_path
         procs.append(subprocess.Popen([*WORKER, address, "--nthreads", "1", "--no-nanny",
                                        "--no-dashboard", "--host", "127.0.0.1"], env=env,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        _wait_port(port, 30)
+        wait_port(port, 30)
         campaign = subprocess.Popen([*ROBOTEXP, "campaign", "run", str(camp_file), "--out", str(out),
                                      "--cluster", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(campaign)
@@ -114,7 +98,7 @@ def test_an_impossible_address_is_one_line_at_once(tmp_path: Path, address: str)
 def test_a_refused_connection_fails_fast(tmp_path: Path) -> None:
     camp_file = tmp_path / "short.toml"
     camp_file.write_text(SHORT, encoding="utf-8")
-    address = f"tcp://127.0.0.1:{_free_port()}"       # nothing listens there
+    address = f"tcp://127.0.0.1:{free_port()}"       # nothing listens there
     t0 = time.monotonic()
     result = CliRunner().invoke(main, ["campaign", "run", str(camp_file), "--out", str(tmp_path / "out"),
                                        "--cluster", address])
