@@ -5,108 +5,19 @@ like "../../x" or "/tmp/x" is made a plain file name."""
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 
-import numpy as np
 import pytest
 from click.testing import CliRunner
-from mcap_ros2.writer import Writer
 
+import crafted_bags
 from robotexp.cli import main
-
-SCAN_DEF = """std_msgs/Header header
-float32 angle_min
-float32 angle_max
-float32 angle_increment
-float32 time_increment
-float32 scan_time
-float32 range_min
-float32 range_max
-float32[] ranges
-float32[] intensities
-================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec"""
-
-ODOM_DEF = """std_msgs/Header header
-string child_frame_id
-geometry_msgs/PoseWithCovariance pose
-geometry_msgs/TwistWithCovariance twist
-================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-================================================================================
-MSG: geometry_msgs/PoseWithCovariance
-geometry_msgs/Pose pose
-float64[36] covariance
-================================================================================
-MSG: geometry_msgs/Pose
-geometry_msgs/Point position
-geometry_msgs/Quaternion orientation
-================================================================================
-MSG: geometry_msgs/Point
-float64 x
-float64 y
-float64 z
-================================================================================
-MSG: geometry_msgs/Quaternion
-float64 x
-float64 y
-float64 z
-float64 w
-================================================================================
-MSG: geometry_msgs/TwistWithCovariance
-geometry_msgs/Twist twist
-float64[36] covariance
-================================================================================
-MSG: geometry_msgs/Twist
-geometry_msgs/Vector3 linear
-geometry_msgs/Vector3 angular
-================================================================================
-MSG: geometry_msgs/Vector3
-float64 x
-float64 y
-float64 z"""
 
 
 def _bag(path: Path, run: object) -> Path:
-    """A 1 s recording of a robot standing in a 2 m ring of echoes, whose `robotexp.run` metadata names the
-    run `run`."""
-    angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
-    with open(path, "wb") as f:
-        w = Writer(f)
-        scan_s = w.register_msgdef("sensor_msgs/msg/LaserScan", SCAN_DEF)
-        odom_s = w.register_msgdef("nav_msgs/msg/Odometry", ODOM_DEF)
-        for i in range(11):
-            ns = 10**12 + i * 10**8
-            stamp = {"sec": ns // 10**9, "nanosec": ns % 10**9}
-            w.write_message("/odom", odom_s, {
-                "header": {"stamp": stamp, "frame_id": "odom"}, "child_frame_id": "base_footprint",
-                "pose": {"pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
-                                  "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}, "covariance": [0.0] * 36},
-                "twist": {"twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0},
-                                    "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                          "covariance": [0.0] * 36}}, log_time=ns, publish_time=ns)
-            w.write_message("/scan", scan_s, {
-                "header": {"stamp": stamp, "frame_id": "base_scan"}, "angle_min": float(angles[0]),
-                "angle_max": float(angles[-1]), "angle_increment": float(angles[1] - angles[0]), "time_increment": 0.0,
-                "scan_time": 0.1, "range_min": 0.1, "range_max": 3.5, "ranges": [2.0] * len(angles),
-                "intensities": []}, log_time=ns, publish_time=ns)
-        w.add_metadata("robotexp.run", {"json": json.dumps({"run": run})})
-        w.finish()
-    return path
+    """A crafted recording (crafted_bags) whose `robotexp.run` metadata names the run `run`."""
+    return crafted_bags.write(path, run_meta={**crafted_bags.meta(), "run": run})
 
 
 def _files(root: Path) -> set[str]:
