@@ -54,7 +54,7 @@ _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "s
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
 
-RunKey = tuple[str, str, str, int, int, str]
+RunKey = tuple[str, str, str, int, int, str, str]
 
 
 @dataclass
@@ -89,8 +89,8 @@ def _sweep_label(sweep: Mapping[str, Any] | None) -> str:
 
 
 def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
-    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values)."""
-    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _sweep_label(sweep))
+    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values, robot)."""
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _sweep_label(sweep), spec.robot)
 
 
 def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
@@ -100,7 +100,7 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     sweep = r.get("sweep")
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
-            _sweep_label(sweep if isinstance(sweep, dict) else None))
+            _sweep_label(sweep if isinstance(sweep, dict) else None), str(r.robot or "p3dx"))
 
 
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:
