@@ -14,8 +14,9 @@ rasterising is exact.
 
 In office, warehouse and cave every door and passage is at least `DOOR_MIN` wide (a P3-DX, 0.5 m
 across, with 0.2 m on each side); a building's doors are as narrow as real ones (from 0.6 m). With
-`scanned=True` the map gets the artefacts of laser-built maps: some walls one cell thin, small breaks in walls (narrower than a robot, wide enough for a laser), one to three gaps in
-the outer wall onto a band of free space outside the building, and unknown space around it all.
+`scanned=True` the map gets the artefacts of laser-built maps: some walls one cell thin, small breaks
+in walls (narrower than a robot, wide enough for a laser), one to three gaps in the outer wall onto a
+band of free space outside the building, and unknown space around it all.
 """
 
 from __future__ import annotations
