@@ -15,7 +15,8 @@ value per map), then writes:
   percentiles of each distribution, of the corpus and of the generated worlds;
 - `benchmarks/results/buildings/distributions.json`: every map's row and the 0, 5, ..., 100th
   percentiles of each distribution (the generator's parameters in robotexp/world/building.py come from it);
-- `--figure PNG`: histograms of the corpus beside the generated worlds.
+- `--figure PNG`: histograms of the corpus beside the generated worlds (the share of the items, or of the
+  maps, in each bin; values beyond the axis are counted in its end bins).
 
     python benchmarks/studies/measure_buildings.py ../shared/maps --leave-out 'eb_*,stdr_*,turtlebot3_*,nav2_tb3_*' \
         --generated building:0-19 --figure docs/figures/buildings.png
@@ -127,17 +128,16 @@ def figure(path: Path, corpus: dict[str, list[float]], generated: dict[str, list
               ("unknown_share_box", "unknown share of the building box (per map)", np.arange(0, 0.65, 0.05), False)]
     fig, axes = plt.subplots(2, 3, figsize=(13, 7))
     for ax, (key, title, bins, logx) in zip(axes.ravel(), panels, strict=True):
-        ax.hist(np.clip(corpus[key], bins[0], bins[-1]), bins=bins, density=True, alpha=0.55, label="real maps",
-                color="tab:blue")
-        if generated is not None:
-            ax.hist(np.clip(generated[key], bins[0], bins[-1]), bins=bins, density=True, alpha=0.55, label=label,
-                    color="tab:orange", histtype="stepfilled")
+        for dist, name, colour in ((corpus, "real maps", "tab:blue"), (generated, label, "tab:orange")):
+            if dist is None or not dist[key]:
+                continue
+            xs = np.clip(dist[key], bins[0], bins[-1])       # the ends of the axis hold what lies beyond
+            ax.hist(xs, bins=bins, weights=np.full(len(xs), 1.0 / len(xs)), alpha=0.55, label=name, color=colour)
         ax.set_xlabel(title)
-        ax.set_yticks([])
         if logx:
             ax.set_xscale("log")
-    axes[0, 0].set_ylabel("density")
-    axes[1, 0].set_ylabel("density")
+    axes[0, 0].set_ylabel("share of the doors, corridors, rooms")
+    axes[1, 0].set_ylabel("share of the maps")
     axes[0, 0].legend()
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

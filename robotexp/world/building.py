@@ -44,30 +44,30 @@ CELL = 0.05
 PERCENTILES = np.linspace(0.0, 100.0, 21)
 # measured by benchmarks/studies/measure_buildings.py (see the module's docstring)
 DISTRIBUTIONS: dict[str, tuple[float, ...]] = {
-    "door_widths": (0.3, 0.5, 0.65, 0.7042, 0.8, 0.8, 0.9, 0.9, 0.9737, 1.0, 1.0636, 1.1, 1.2, 1.4, 1.55, 1.7822,
-                    1.9, 2.1291, 2.5, 3.498, 5.7),
-    "corridor_widths": (0.1164, 0.4065, 0.4865, 0.5804, 0.675, 0.6962, 0.7996, 0.8805, 0.9652, 1.075, 1.175, 1.228,
-                        1.32, 1.39, 1.5476, 1.675, 1.7778, 1.975, 2.2233, 2.7266, 3.4764),
-    "room_areas": (1.0026, 2.18, 4.0938, 4.6052, 4.927, 5.3631, 6.6979, 7.4248, 8.3874, 9.8087, 11.2875, 12.3545,
-                   13.4668, 15.575, 18.3997, 24.119, 29.7205, 43.308, 77.7337, 134.981, 1683.529),
-    "clutter_areas": (0.0101, 0.015, 0.02, 0.0225, 0.025, 0.025, 0.025, 0.0275, 0.03, 0.03, 0.0325, 0.04, 0.04,
-                      0.045, 0.065, 0.0725, 0.0888, 0.1555, 0.2125, 0.2822, 568.82),
-    "clutter_per_100m2": (0.0, 0.0, 0.0, 0.0, 0.2206, 0.3347, 0.919, 1.6464, 1.9822, 2.4095, 2.946, 4.0724, 6.3118,
-                          12.0716, 21.0991, 24.8965, 25.8473, 26.9708, 30.6924, 31.8766, 33.5416),
-    "specks_per_100m2": (0.0, 0.0, 0.0632, 0.1972, 0.2297, 1.2693, 2.2344, 6.176, 8.9502, 10.4845, 12.0615, 14.4752,
-                         17.0691, 18.8236, 24.4359, 34.6302, 40.326, 52.0651, 59.2151, 63.4843, 68.5286),
+    "door_widths": (0.375, 0.525, 0.63, 0.6962, 0.775, 0.875, 0.875, 0.8758, 0.975, 0.975, 1.0555, 1.075, 1.205,
+                    1.375, 1.575, 1.7748, 1.875, 2.1335, 2.475, 3.57, 5.675),
+    "corridor_widths": (0.1164, 0.4222, 0.5457, 0.6153, 0.6821, 0.7812, 0.875, 0.9206, 0.9859, 1.093, 1.1792, 1.275,
+                        1.3664, 1.4621, 1.575, 1.6964, 1.7998, 1.975, 2.2233, 2.7033, 3.4764),
+    "room_areas": (1.0369, 2.3577, 4.1257, 4.7192, 5.026, 5.61, 6.927, 7.7598, 9.0214, 10.4645, 11.4465, 12.4475,
+                   13.6224, 16.0691, 19.5917, 25.1475, 29.7756, 43.3295, 80.8073, 138.211, 1699.75),
+    "clutter_areas": (0.0101, 0.015, 0.02, 0.0225, 0.025, 0.025, 0.025, 0.0275, 0.03, 0.03, 0.0325, 0.04, 0.04, 0.045,
+                      0.065, 0.0725, 0.0888, 0.1555, 0.2125, 0.2822, 568.82),
+    "clutter_per_100m2": (0, 0, 0, 0, 0.2206, 0.3347, 0.919, 1.6464, 1.9822, 2.4095, 2.946, 4.0724, 6.3118, 12.0716,
+                          21.0991, 24.8965, 25.8473, 26.9708, 30.6924, 31.8766, 33.5416),
+    "specks_per_100m2": (0, 0, 0, 0.1867, 0.2297, 1.2693, 2.2344, 6.176, 8.9502, 10.4845, 12.0615, 14.4752, 17.0691,
+                         18.8236, 24.4359, 34.6018, 40.1695, 51.7422, 58.9222, 63.1958, 68.3983),
     "wall_thickness": (0.045, 0.0663, 0.0742, 0.075, 0.075, 0.075, 0.075, 0.075, 0.075, 0.075, 0.075, 0.075, 0.075,
                        0.075, 0.0874, 0.1164, 0.1281, 0.175, 0.1833, 0.2587, 0.275),
     "corners_per_m": (1.2693, 1.7357, 2.2926, 2.656, 3.7782, 4.6157, 5.2041, 5.3866, 5.4189, 5.8444, 6.2642, 6.4802,
                       6.8017, 7.1207, 7.2888, 7.4703, 7.9113, 8.2742, 8.4423, 9.6977, 11.7067),
     "wall_gaps_per_10m": (0.0907, 0.6662, 0.7436, 1.0955, 1.3634, 2.7979, 3.6886, 4.1286, 5.0683, 5.8917, 6.8479,
                           8.1745, 9.1905, 9.6413, 9.8576, 10.4423, 11.2722, 11.7055, 12.2047, 12.4574, 13.6303),
-    "pockets_per_100m2": (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1952, 0.3989, 0.5344, 0.7229, 0.8699,
-                          1.0485, 1.6748, 2.7484, 2.9463, 3.3591, 4.1026, 9.6956),
+    "pockets_per_100m2": (0, 0, 0, 0, 0, 0, 0, 0, 0, 0.1952, 0.3989, 0.5344, 0.7229, 0.8699, 1.072, 1.7334, 2.7484,
+                          2.9463, 3.3591, 4.1026, 9.6956),
 }
 DOOR_RANGE = (0.6, 2.5)         # [m] doors drawn: a P3-DX (0.5 m) with a hand's width to spare, up to open passages
 CORRIDOR_RANGE = (1.0, 3.0)     # [m]
-ROOM_RANGE = (4.0, 80.0)        # [m2]
+ROOM_RANGE = (4.0, 150.0)       # [m2]
 CLUTTER_RANGE = (0.01, 0.3)     # [m2] a free-standing box or post
 DOOR_CLEAR = 1.0                # [m] kept free of furniture in front of a door
 FURNITURE_GAP = 0.7             # [m] between free-standing pieces, and from the walls
@@ -275,10 +275,13 @@ def _furnish(rng: np.random.Generator, canvas: _Canvas, room: _Room, density: fl
                 canvas.rect(canvas.occ, *box)
                 break
     area = (room.r1 - room.r0) * (room.c1 - room.c0) * CELL * CELL
-    for _ in range(int(rng.poisson(density * area / 100.0))):
-        if rng.random() < 0.3:                                   # a table on four legs
+    pieces = int(rng.poisson(density * area / 100.0))
+    while pieces > 0:
+        if pieces >= 4 and rng.random() < 0.3:                   # a table on four legs: four pieces
             tw, th, leg = _cells(rng.uniform(0.8, 1.6)), _cells(rng.uniform(0.6, 1.0)), _cells(0.1)
+            pieces -= 4
         else:
+            pieces -= 1
             side = max(_cells(np.sqrt(draw(rng, "clutter_areas", *CLUTTER_RANGE))), 1)
             tw, th, leg = side, side, 0
         if room.r1 - room.r0 < th + 2 * gap or room.c1 - room.c0 < tw + 2 * gap:
@@ -389,7 +392,7 @@ def _artefacts(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np
     n_bumps = min(int(draw(rng, "corners_per_m") * face_m / 4), len(cells))
     for r, c in cells[rng.choice(len(cells), size=n_bumps, replace=False)] if n_bumps else ():
         canvas.occ[r, c] = True
-    _holes(rng, canvas, inside, keep, int(round(draw(rng, "wall_gaps_per_10m") * face_m / 10 / 2)))
+    _holes(rng, canvas, inside, keep, int(round(draw(rng, "wall_gaps_per_10m") * face_m / 10)))
     free = np.argwhere(inside & ~canvas.occ & ~canvas.unknown & ~keep)
     n_specks = min(int(rng.poisson(draw(rng, "specks_per_100m2") * free_m2 / 100)), len(free))
     for r, c in free[rng.choice(len(free), size=n_specks, replace=False)] if n_specks else ():
@@ -407,13 +410,15 @@ def _artefacts(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np
 
 def _holes(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np.bool_], keep: npt.NDArray[np.bool_],
            n: int) -> None:
-    """`n` holes of one cell through walls at most 3 cells thick, between free cells of the building."""
+    """`n` holes of one cell through walls at most 3 cells thick, between free cells of the building; a hole
+    that cut a piece of wall off the rest (two holes in one stretch of wall) is filled again, so the
+    walls stay one piece (a piece standing alone would be clutter)."""
     occ = canvas.occ
     walls = np.argwhere(occ & inside & ~keep)
     rows, cols = occ.shape
-    made = 0
+    holes: list[list[tuple[int, int]]] = []
     for _try in range(20 * n):
-        if made >= n or not len(walls):
+        if len(holes) >= n or not len(walls):
             break
         r, c = walls[int(rng.integers(len(walls)))]
         dr, dc = ((1, 0), (0, 1))[int(rng.integers(2))]
@@ -427,9 +432,31 @@ def _holes(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np.boo
         if lo + hi + 1 > 3 or not all(0 <= p[0] < rows and 0 <= p[1] < cols for p in (a, b)):
             continue
         if all(inside[p] and not occ[p] and not canvas.unknown[p] for p in (a, b)):
-            for k in range(-lo, hi + 1):
-                occ[r + k * dr, c + k * dc] = False
-            made += 1
+            cut = [(int(r + k * dr), int(c + k * dc)) for k in range(-lo, hi + 1)]
+            for cell in cut:
+                occ[cell] = False
+            holes.append(cut)
+    _mend(canvas, holes)
+
+
+def _mend(canvas: _Canvas, holes: list[list[tuple[int, int]]]) -> None:
+    """Fill the holes next to a piece of wall the holes cut off the building's walls (the largest piece)."""
+    from scipy import ndimage  # type: ignore[import-untyped]  # scipy: a dependency (statistics)
+
+    if not holes:
+        return
+    parts, _ = ndimage.label(canvas.occ, structure=np.ones((3, 3), dtype=bool))
+    sizes = np.bincount(parts.ravel())
+    sizes[0] = 0
+    main = int(np.argmax(sizes))
+    rows, cols = canvas.occ.shape
+    for cut in holes:
+        r0, c0 = min(p[0] for p in cut) - 1, min(p[1] for p in cut) - 1
+        r1, c1 = max(p[0] for p in cut) + 2, max(p[1] for p in cut) + 2
+        around = parts[max(r0, 0):min(r1, rows), max(c0, 0):min(c1, cols)]
+        if np.any((around > 0) & (around != main)):
+            for cell in cut:
+                canvas.occ[cell] = True
 
 
 def building_grid(rng: np.random.Generator, shape: tuple[int, int], offset: tuple[int, int],
