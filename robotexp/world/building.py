@@ -23,7 +23,8 @@ The plan is drawn on the grid's cells (CELL), so a door drawn k cells wide is k 
 - furniture: shelves and cabinets against the walls, tables standing on four legs, boxes, at a drawn
   density of free-standing pieces per 100 m2, 0.7 m clear of each other and 1 m clear of doors;
 - laser artefacts: bumps on the wall faces (a drawn number of corners per metre), holes of one cell
-  through walls, specks of one cell in free space, unknown pockets against walls, all at drawn rates.
+  through walls, specks of one cell in free space, unknown pockets against walls (1.6 m clear of doors),
+  all at drawn rates.
 
 Every step draws from one numpy Generator, so a seed gives the same grid.
 """
@@ -74,6 +75,7 @@ FURNITURE_GAP = 0.7             # [m] between free-standing pieces, and from the
 MIN_ROOM_SIDE = 2.4             # [m]
 DEEP = 7.0                      # [m] a block deeper than this holds a front and a back row of rooms
 CLOSED = 1 / 15                 # share of rooms without a door (unknown inside)
+POCKET_MAX = 0.6                # [m] radius of an unknown pocket
 OUTSIDE = 4.5                   # [m] of grid round the building (the fans seen through its exterior doors)
 
 
@@ -382,9 +384,10 @@ def _keep_doors(canvas: _Canvas, rooms: list[_Room], exits: list[tuple[int, int,
 
 
 def _artefacts(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np.bool_],
-               keep: npt.NDArray[np.bool_]) -> None:
+               keep: npt.NDArray[np.bool_], far: npt.NDArray[np.bool_]) -> None:
     """Bumps on wall faces (drawn corners per metre, 4 corners a bump), one-cell holes through walls
-    (drawn per 10 m of face), specks in free space and unknown pockets against walls (drawn per 100 m2)."""
+    (drawn per 10 m of face) and specks in free space off the cells `keep`, unknown pockets against walls
+    (drawn per 100 m2) off the cells `far` (a pocket beside a door would narrow the way to it)."""
     faces = _faces(canvas, inside) & ~keep
     cells = np.argwhere(faces)
     face_m = len(cells) * CELL
@@ -397,11 +400,11 @@ def _artefacts(rng: np.random.Generator, canvas: _Canvas, inside: npt.NDArray[np
     n_specks = min(int(rng.poisson(draw(rng, "specks_per_100m2") * free_m2 / 100)), len(free))
     for r, c in free[rng.choice(len(free), size=n_specks, replace=False)] if n_specks else ():
         canvas.occ[r, c] = True
-    spots = np.argwhere(_faces(canvas, inside) & ~keep)
+    spots = np.argwhere(_faces(canvas, inside) & ~far)
     rows, cols = canvas.occ.shape
     for _ in range(min(int(rng.poisson(draw(rng, "pockets_per_100m2") * free_m2 / 100)), len(spots))):
         r, c = spots[int(rng.integers(len(spots)))]
-        rad = _cells(rng.uniform(0.3, 0.6))
+        rad = _cells(rng.uniform(0.3, POCKET_MAX))
         yy, xx = np.ogrid[max(r - rad, 0):min(r + rad + 1, rows), max(c - rad, 0):min(c + rad + 1, cols)]
         disc = (yy - r) ** 2 + (xx - c) ** 2 <= rad * rad
         win = (slice(max(r - rad, 0), min(r + rad + 1, rows)), slice(max(c - rad, 0), min(c + rad + 1, cols)))
@@ -477,7 +480,8 @@ def building_grid(rng: np.random.Generator, shape: tuple[int, int], offset: tupl
     inside = np.zeros_like(canvas.occ)
     canvas.rect(inside, 0, canvas.rows_b, 0, canvas.cols_b)
     inside &= ~canvas.unknown
-    _artefacts(rng, canvas, inside, _keep_doors(canvas, rooms, exits, 2))
+    _artefacts(rng, canvas, inside, _keep_doors(canvas, rooms, exits, 2),
+               _keep_doors(canvas, rooms, exits, _cells(DOOR_CLEAR + POCKET_MAX)))
     values = np.where(canvas.occ, 100, 0).astype(np.int8)
     values[canvas.unknown | (~inside & ~canvas.fan & ~canvas.occ)] = -1
     values[canvas.fan & ~inside] = 0
