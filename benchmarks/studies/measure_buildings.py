@@ -194,17 +194,18 @@ def main() -> int:
     print(f"{time.perf_counter() - t0:.1f} s")
     if args.no_record:
         return 0
-    if args.figure is not None:
-        figure(args.figure, corpus, generated, f"generated {args.generated}")
+    tree = commit()            # before anything is written: the figure and the results are tracked files
+    record("buildings", figures, title="Real buildings measured, and the generated building worlds", section="studies",
+           parameters={"maps pooled": len(rows), "maps left out": len(left_out), "generated": args.generated or "none"})
     out = results_dir() / "buildings" / "distributions.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"command": command(), "commit": commit(), "maps": [r["map"] for r in rows],
+    out.write_text(json.dumps({"command": command(), "commit": tree, "maps": [r["map"] for r in rows],
                                "left_out": [r["map"] for r in left_out], "percentiles": list(range(0, 101, 5)),
                                "corpus": quantiles(corpus), "generated": quantiles(generated) if generated else None,
                                "rows": rows + left_out, "generated_rows": gen_rows}, indent=1) + "\n")
     print(f"distributions written to {out}")
-    record("buildings", figures, title="Real buildings measured, and the generated building worlds", section="studies",
-           parameters={"maps pooled": len(rows), "maps left out": len(left_out), "generated": args.generated or "none"})
+    if args.figure is not None:
+        figure(args.figure, corpus, generated, f"generated {args.generated}")
     return 0
 
 
