@@ -1,6 +1,7 @@
 """Are generated worlds fair tests? Per kind and seed, what the default start can reach.
 
-For each `generated:KIND:SEED` (default: office, warehouse, cave, seeds 0-9) this prints, for a P3-DX
+For each `generated:KIND:SEED` (default: office, warehouse, cave, seeds 0-9) and each map file given
+(real buildings, to compare) this prints, for a P3-DX
 (radius 0.25 m) with a 3 m laser and the run's 5 cm grid:
 
 - `regions`: places where the robot fits with 5 cm to spare (robotexp.world.start), and `cut off`: the
