@@ -43,7 +43,7 @@ __all__ = ["CORRIDOR_RANGE", "DISTRIBUTIONS", "DOOR_RANGE", "OUTSIDE", "ROOM_RAN
 
 CELL = 0.05
 PERCENTILES = np.linspace(0.0, 100.0, 21)
-# measured by benchmarks/studies/measure_buildings.py (see the module's docstring)
+# measured by benchmarks/studies/measure_buildings.py (see the module's docstring), six significant digits
 DISTRIBUTIONS: dict[str, tuple[float, ...]] = {
     "door_widths": (0.375, 0.525, 0.63, 0.6962, 0.775, 0.875, 0.875, 0.8758, 0.975, 0.975, 1.0555, 1.075, 1.205,
                     1.375, 1.575, 1.7748, 1.875, 2.1335, 2.475, 3.57, 5.675),

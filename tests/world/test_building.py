@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -14,6 +17,13 @@ from robotexp.world.measure import measure_grid
 from robotexp.world.start import default_start
 
 SIZE = (16.0, 12.0)
+MEASURED = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "buildings" / "distributions.json"
+
+
+def test_the_parameters_are_the_measured_percentiles():
+    corpus = json.loads(MEASURED.read_text())["corpus"]
+    for key, values in DISTRIBUTIONS.items():
+        assert values == pytest.approx(corpus[key], rel=1e-5), key
 
 
 def test_draws_follow_the_measured_percentiles_within_their_range():
