@@ -199,10 +199,21 @@ def main() -> int:
            parameters={"maps pooled": len(rows), "maps left out": len(left_out), "generated": args.generated or "none"})
     out = results_dir() / "buildings" / "distributions.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"command": command(), "commit": tree, "maps": [r["map"] for r in rows],
-                               "left_out": [r["map"] for r in left_out], "percentiles": list(range(0, 101, 5)),
-                               "corpus": quantiles(corpus), "generated": quantiles(generated) if generated else None,
-                               "rows": rows + left_out, "generated_rows": gen_rows}, indent=1) + "\n")
+    doc = {"command": command(), "commit": tree, "maps": [r["map"] for r in rows],
+           "left_out": [r["map"] for r in left_out], "percentiles": list(range(0, 101, 5)),
+           "corpus": quantiles(corpus), "generated": quantiles(generated) if generated else None,
+           "rows": rows + left_out, "generated_rows": gen_rows}
+    # one line per distribution and per map: a readable diff when measured again
+    lines = []
+    for key, value in doc.items():
+        if isinstance(value, dict):
+            inner = [f'  {json.dumps(k)}: {json.dumps(v)}' for k, v in value.items()]
+            lines.append(f'{json.dumps(key)}: {{\n' + ",\n".join(inner) + "\n }")
+        elif key in ("rows", "generated_rows"):
+            lines.append(f'{json.dumps(key)}: [\n' + ",\n".join(f"  {json.dumps(r)}" for r in value) + "\n ]")
+        else:
+            lines.append(f"{json.dumps(key)}: {json.dumps(value)}")
+    out.write_text("{\n " + ",\n ".join(lines) + "\n}\n")
     print(f"distributions written to {out}")
     if args.figure is not None:
         figure(args.figure, corpus, generated, f"generated {args.generated}")
