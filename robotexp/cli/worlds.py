@@ -54,11 +54,13 @@ def _size(text: str | None) -> tuple[float, float] | None:
               help="Building size [m] (default: " + ", ".join(f"{k} {w:g}x{h:g}" for k, (w, h) in
                                                             DEFAULT_SIZES.items()) + ").")
 @click.option("--scanned", is_flag=True, help="Artefacts of laser-built maps: thin and broken walls, gaps to the "
-                                              "outside, unknown space around the building.")
+                                              "outside, unknown space around the building (a building has them "
+                                              "always).")
 @click.option("--out", "out", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="FILE.yaml (ROS map_server, with FILE.pgm) or FILE.map (ARIA points).")
 def generate(kind: str, seed: int, size: str | None, scanned: bool, out: Path) -> None:
-    """Generate a floor plan (office, warehouse, cave) with rooms, doors, furniture, pillars and clutter."""
+    """Generate a floor plan (office, warehouse, cave, or a building drawn from real buildings' measured doors,
+    corridors, rooms, clutter and laser noise) with rooms, doors, furniture, pillars and clutter."""
     try:
         files = write_generated(out, kind, seed, _size(size), scanned=scanned)
     except (ConfigError, WorldError) as exc:

@@ -1,4 +1,7 @@
-"""Procedural worlds: floor plans of offices, warehouses and caves, deterministic per seed.
+"""Procedural worlds: floor plans of offices, warehouses, caves and buildings, deterministic per seed.
+
+The `building` kind (robotexp.world.building) draws its doors, corridors, rooms, clutter and laser
+artefacts from distributions measured on maps of real buildings; the others are drawn by the rules below.
 
 `generate_grid(kind, seed)` draws a plan (walls with doors, rooms, corridors, furniture, racks,
 pillars, clutter) and rasterises it on a 5 cm occupancy grid (0 free, 100 occupied, -1 unknown);
@@ -9,10 +12,11 @@ unknown cells are not written, a point map has none); `generated_world` gives th
 same kind, seed, size and options give the same bytes: only numpy's seeded PCG64 draws, and
 rasterising is exact.
 
-Every door and passage is at least `DOOR_MIN` wide (a P3-DX, 0.5 m across, with 0.2 m on each
-side). With `scanned=True` the map gets the artefacts of laser-built maps: some walls one cell
-thin, small breaks in walls (narrower than a robot, wide enough for a laser), one to three gaps in
-the outer wall onto a band of free space outside the building, and unknown space around it all.
+In office, warehouse and cave every door and passage is at least `DOOR_MIN` wide (a P3-DX, 0.5 m
+across, with 0.2 m on each side); a building's doors are as narrow as real ones (from 0.6 m). With
+`scanned=True` the map gets the artefacts of laser-built maps: some walls one cell thin, small breaks
+in walls (narrower than a robot, wide enough for a laser), one to three gaps in the outer wall onto a
+band of free space outside the building, and unknown space around it all.
 """
 
 from __future__ import annotations
@@ -33,8 +37,8 @@ __all__ = ["CELL", "DEFAULT_SIZES", "DOOR_MIN", "KINDS", "expand_generated", "ge
 
 CELL = 0.05                 # [m] cell of the generated grid
 DOOR_MIN = 0.9              # [m] narrowest door or passage
-KINDS = ("office", "warehouse", "cave")
-DEFAULT_SIZES = {"office": (30.0, 20.0), "warehouse": (40.0, 30.0), "cave": (30.0, 24.0)}
+KINDS = ("office", "warehouse", "cave", "building")
+DEFAULT_SIZES = {"office": (30.0, 20.0), "warehouse": (40.0, 30.0), "cave": (30.0, 24.0), "building": (36.0, 24.0)}
 MIN_SIZE, MAX_SIZE = 8.0, 200.0     # [m] side of a generated world
 _OUTSIDE = 3.0              # [m] band around the building in scanned maps (free near gaps, then unknown)
 _SPEC = re.compile(r"generated:([a-z]+):(\d+)(?:-(\d+))?((?::[a-z0-9.x]+)*)")
@@ -296,6 +300,11 @@ def generate_grid(kind: str, seed: int, size: tuple[float, float] | None = None,
         raise ConfigError(f"generated world: size {w:g} x {h:g} m, expected each side in "
                           f"{MIN_SIZE:g}..{MAX_SIZE:g} m")
     w, h = round(w / CELL) * CELL, round(h / CELL) * CELL
+    if kind == "building":        # laser-like already: `scanned` changes nothing
+        from robotexp.world.building import generate_building
+
+        values, geo, _ = generate_building(np.random.default_rng([seed, KINDS.index(kind)]), w, h)
+        return values, geo
     rng = np.random.default_rng([seed, KINDS.index(kind), int(scanned)])
     pad = _OUTSIDE if scanned else 0.5
     geo = GridGeometry.covering(-pad, -pad, w + pad, h + pad, CELL)
