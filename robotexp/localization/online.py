@@ -18,6 +18,7 @@ counts up (the run's map follows: `robotexp.run.localize.LoopClosureTracker`).
 
 from __future__ import annotations
 
+import bisect
 import math
 import time
 from collections import deque
@@ -213,6 +214,7 @@ class _Isam2:
         self.isam = gtsam.ISAM2(params)
         self.cauchy = cauchy
         self.times: list[float] = []
+        self._sorted: list[float] = []       # the same, in order (the median at every keyframe, without a sort)
 
     def _noise(self, info: npt.NDArray[np.float64], robust: bool) -> Any:
         g = self.g
@@ -236,6 +238,14 @@ class _Isam2:
         t0 = time.perf_counter()
         self.isam.update(graph, values)
         self.times.append(time.perf_counter() - t0)
+        bisect.insort(self._sorted, self.times[-1])
+
+    def median(self) -> float | None:
+        """[s] the median update time so far (None before the first)."""
+        n = len(self._sorted)
+        if n == 0:
+            return None
+        return self._sorted[n // 2] if n % 2 else 0.5 * (self._sorted[n // 2 - 1] + self._sorted[n // 2])
 
     def settle(self, rounds: int = 3) -> None:
         """Extra iSAM2 updates (relinearisation steps) after a loop edge."""
@@ -295,6 +305,11 @@ class OnlineGraph:
     @property
     def update_times(self) -> list[float]:
         return [] if self._isam is None else self._isam.times
+
+    @property
+    def update_median(self) -> float | None:
+        """[s] the median of `update_times` (None without one)."""
+        return None if self._isam is None else self._isam.median()
 
     def poses(self) -> npt.NDArray[np.float64]:
         """(n, 3) the keyframes' poses."""

@@ -161,14 +161,14 @@ class LoopClosureTracker(TrajectoryTracker):
                 self._rebuild(run)
         if len(graph.keyframes) != self._reported:
             self._reported = len(graph.keyframes)
-            times = graph.update_times
+            median = graph.update_median
             run.info.extra["loop_closure"] = {
                 "keyframes": len(graph.keyframes), "loops": graph.loops, "tried": graph.tried,
                 "refused": dict(graph.refused), "corridor_loops": graph.corridor_loops,
                 "rebuilds": graph.rebuilds, "map_rebuilds": self.map_rebuilds,
                 "scans_kept": len(self.scans), "keyframe_scans_kept": len(graph.keyframes) - graph.bins.dropped,
                 "backend": graph.backend,
-                "update_ms": round(1e3 * float(np.median(times)), 3) if times else None,
+                "update_ms": round(1e3 * median, 3) if median is not None else None,
                 "rebuild_s": round(self.rebuild_time, 3)}
 
     def _moved(self, tol: float, poses: npt.NDArray[np.float64], reach: float) -> bool:
