@@ -37,6 +37,7 @@ def main() -> None:
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--modes", default="none,scan-match,slam", help="--localize modes, comma-separated")
+    ap.add_argument("--no-record", action="store_true", help="print only (benchmarks/results is left alone)")
     ap.add_argument("--profile", type=int, default=0, help="print a cProfile of a run of the last mode (N lines)")
     args = ap.parse_args()
     modes = args.modes.split(",")
@@ -77,10 +78,11 @@ def main() -> None:
             figures.append(Figure(f"{names.get(mode, mode)}: {lc['backend']} update per keyframe (median)",
                                   float(lc["update_ms"]), "ms",
                                   f"{lc['keyframes']} keyframes, {lc['loops']} loop edges"))
-    record("localize-speed", figures, title="A run with scan-matching localization (and loop closure) against the "
-           "same run without it",
-        parameters={"world": args.world, "method": args.method, "speed": f"{args.speed:g} mm/s",
-                    "robot time": f"{args.max_time:g} s", "odometry error": args.odometry})
+    if not args.no_record:
+        record("localize-speed", figures, title="A run with scan-matching localization (and loop closure) against the "
+               "same run without it",
+               parameters={"world": args.world, "method": args.method, "speed": f"{args.speed:g} mm/s",
+                           "robot time": f"{args.max_time:g} s", "odometry error": args.odometry})
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()

@@ -2,7 +2,8 @@
 
 Run: python benchmarks/studies/bench_localized_explore.py [--worlds dense,sparse] [--methods frontier,srt-laser]
          [--speeds 300] [--modes exact,odometry,scan-match] [--max-time 3600] [--seed 0 | --seeds 0-4]
-         [--odometry p3dx] [--jobs 2] [--trace DIR] [--known-bias] [--jsonl FILE]
+         [--odometry p3dx] [--jobs 2] [--trace DIR] [--known-bias] [--jsonl FILE] [--no-record]
+     python benchmarks/studies/bench_localized_explore.py --table FILE      # the markdown table of a --jsonl FILE
 
 The loop-closure study (scan matching + online loop closure, `--localize slam`, 45 runs and their exact runs):
 
@@ -141,13 +142,26 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--seeds", default=None, help="seeds, e.g. 0-4 or 0,2 (instead of --seed)")
     ap.add_argument("--jsonl", type=Path, default=None, metavar="FILE", help="append each run's figures here")
+    ap.add_argument("--no-record", action="store_true", help="print only (benchmarks/results is left alone)")
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec (robotexp.sim.odometry_error)")
     ap.add_argument("--jobs", type=int, default=1, help="runs at once (processes)")
     ap.add_argument("--trace", type=Path, default=None, metavar="DIR",
                     help="write a per-step error trace of each scan-match run (CSV) in DIR")
     ap.add_argument("--known-bias", action="store_true",
                     help="diagnostic: the odometry calibration starts at the true heading bias, not 0")
+    ap.add_argument("--table", type=Path, default=None, metavar="FILE",
+                    help="run nothing: print the markdown table of the runs in a --jsonl FILE and the summary")
     args = ap.parse_args()
+    if args.table is not None:
+        try:
+            rows = [json.loads(line) for line in args.table.read_text().splitlines() if line.strip()]
+        except (OSError, ValueError) as exc:
+            print(f"bench_localized_explore: --table {args.table}: {exc}; give a file written by --jsonl",
+                  file=sys.stderr)
+            sys.exit(2)
+        table(rows)
+        summary(rows)
+        return
     modes = args.modes.split(",")
     if set(modes) - set(MODES) or args.jobs < 1:
         print(f"bench_localized_explore: --modes takes {', '.join(MODES)} and --jobs >= 1", file=sys.stderr)
@@ -193,10 +207,31 @@ def main() -> None:
         if base is not None and r is not base and r["iou1"] is not None and base["iou1"] is not None:
             figures.append(Figure(f"{label}: tolerant map IoU - the exact run's", r["iou1"] - base["iou1"], "",
                                   "target >= -0.03"))
+    if args.no_record:
+        return
     record("localized-explore", figures, section="studies",
            title="Exploration under the odometry error, with and without scan matching",
            parameters={"seeds": ",".join(map(str, seeds)), "odometry": args.odometry, "laser range": args.laser_range,
                        "robot time": f"{args.max_time:g} s"})
+
+
+def table(results: list[dict[str, Any]]) -> None:
+    """Print a markdown table: each run that is not exact beside the exact run of its world, method, speed, seed."""
+    exact = {(e["world"], e["method"], e["speed"], e["seed"]): e for e in results if e["mode"] == "exact"}
+    print("| world | method | seed | mode | ATE | coverage | tolerant IoU (exact run) | drop | met |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for r in results:
+        if r["mode"] == "exact":
+            continue
+        base = exact.get((r["world"], r["method"], r["speed"], r["seed"]))
+        drop = None if base is None or r["iou1"] is None or base["iou1"] is None else r["iou1"] - base["iou1"]
+        met = (r["ate"] is not None and r["ate"] <= 0.10 and r["coverage"] >= 0.95 and drop is not None
+               and drop >= -0.03)
+        ate = "-" if r["ate"] is None else f"{r['ate']:.3f} m"
+        ref = "-" if base is None or base["iou1"] is None else f"{base['iou1']:.3f}"
+        print(f"| {r['world']} | {r['method']} | {r['seed']} | {r['mode']} | {ate} | {r['coverage']:.3f} | "
+              f"{(r['iou1'] or 0.0):.3f} ({ref}) | {'-' if drop is None else f'{drop:+.3f}'} | "
+              f"{'yes' if met else 'no'} |")
 
 
 def summary(results: list[dict[str, Any]]) -> None:
