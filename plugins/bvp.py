@@ -8,7 +8,7 @@ speed laws of eqs. 3.3-3.5. Done when no reachable free cell touches an unknown 
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -18,6 +18,9 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import blocked_ahead
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
+
+if TYPE_CHECKING:
+    from robotexp.localization import FrameCorrection
 
 __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
@@ -186,7 +189,7 @@ class BVPExplorer(Explorer):
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
 
-    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: the wall distances are recomputed and the field is relaxed anew from
         below at the next update (as after `give_up`), so that no goal or wall of the old map lingers in it."""
         if self.q.shape != (0, 0):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -13,6 +13,9 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
 from robotexp.planning.targets import PlanCosts, WallMemory, frontier_targets, known_window, passable_cell
+
+if TYPE_CHECKING:
+    from robotexp.localization import FrameCorrection
 
 __all__ = ["FrontierExplorer"]
 
@@ -102,8 +105,9 @@ class FrontierExplorer(Explorer):
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
         self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
 
-    def map_rebuilt(self, grid: OccupancyGrid) -> None:
-        """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew."""
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
+        """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew (the
+        goal is kept only while its frontier cells are still frontier in the rebuilt map)."""
         self.walls_seen = None
         self._targets = None
         self.costs = PlanCosts(self.ctx.radius, self.clearance)

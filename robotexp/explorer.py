@@ -18,6 +18,7 @@ import numpy.typing as npt
 from robotexp.robot import Limits, Pose, RobotState, Twist
 
 if TYPE_CHECKING:
+    from robotexp.localization.correction import FrameCorrection
     from robotexp.mapping.grid import OccupancyGrid
 
 __all__ = ["Done", "ExplorerContext", "Explorer"]
@@ -79,11 +80,14 @@ class Explorer(ABC):
         """Extra result fields of this method (e.g. `nodes` of a tree)."""
         return {}
 
-    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """The run's map was rebuilt: loop closure (`robotexp explore --localize slam`) moved the poses its
         scans were mapped at, so any cell may have changed and what was derived from the old map (costs,
-        a potential, a memory of walls) is stale. Called between steps, before the next `step` sees
-        `grid`; drop or recompute such state here. Default: nothing (for methods that keep none)."""
+        a potential, a memory of walls) is stale; and every pose the explorer was given moved with it:
+        a point derived from the pose of robot time t (`RobotState.time`; a tree node, a goal, a path) now
+        lies at `moved.points(xy, t)` (`robotexp.localization.FrameCorrection`). Called between steps,
+        before the next `step` sees `grid`; drop, move or recompute such state here. Default: nothing
+        (for methods that keep none)."""
         return None
 
     def overlays(self) -> dict[str, npt.NDArray[np.float64]]:

@@ -31,7 +31,7 @@ import math
 from abc import abstractmethod
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -43,6 +43,9 @@ from robotexp.planning.grid_planner import astar
 from robotexp.planning.targets import passable_cell, plan_costs
 
 from .regions import SafeRegion
+
+if TYPE_CHECKING:
+    from robotexp.localization import FrameCorrection
 
 __all__ = ["Node", "SRTTree", "SRTExplorer", "Phase"]
 
@@ -57,6 +60,7 @@ class Node:
     parent: int | None
     children: list[int] = field(default_factory=list)
     failed: list[tuple[float, float]] = field(default_factory=list)   # candidates the robot could not reach
+    t: float = 0.0             # [s] the robot time of the pose it was perceived from (`map_rebuilt` moves it)
 
 
 class SRTTree:
@@ -68,8 +72,9 @@ class SRTTree:
     def __len__(self) -> int:
         return len(self.nodes)
 
-    def add(self, x: float, y: float, region: SafeRegion, parent: int | None) -> int:
-        """ADD(T, (q, S(q))) as a child of `parent` (None only for the first node); returns its index.
+    def add(self, x: float, y: float, region: SafeRegion, parent: int | None, t: float = 0.0) -> int:
+        """ADD(T, (q, S(q))) as a child of `parent` (None only for the first node), perceived from the pose
+        of robot time `t` [s]; returns its index.
 
         Raises:
             ConfigError: a parent that is not in the tree, or a second root.
@@ -78,7 +83,7 @@ class SRTTree:
             raise ConfigError("srt tree: only the first node may be the root")
         if parent is not None and not 0 <= parent < len(self.nodes):
             raise ConfigError(f"srt tree: parent {parent} is not a node (tree has {len(self.nodes)})")
-        self.nodes.append(Node(x, y, region, parent))
+        self.nodes.append(Node(x, y, region, parent, t=t))
         index = len(self.nodes) - 1
         if parent is not None:
             self.nodes[parent].children.append(index)
@@ -186,6 +191,7 @@ class SRTExplorer(Explorer):
         self._grid: OccupancyGrid | None = None
         self._best = math.inf
         self._progress_t = 0.0
+        self._now = 0.0                      # [s] the robot time of the step
         self._begin_sense()
 
     def result_fields(self) -> dict[str, object]:
@@ -236,6 +242,7 @@ class SRTExplorer(Explorer):
         """One control step of Fig. 3.5."""
         pose = state.pose
         self._grid = grid
+        self._now = state.time
         if self.phase is Phase.SENSE:
             twist, region = self._sense(state)
             if region is None:
@@ -278,8 +285,43 @@ class SRTExplorer(Explorer):
         self.current = self.target_node      # back at a known node: choose again (no new node)
         return self._choose(pose, state)
 
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
+        """Loop closure moved the poses: every node moves (position, safe region, abandoned candidates) with the
+        pose it was perceived from, the target and the path being driven with the node they lead from or to,
+        and the regions are marked into the rebuilt map again (it holds the scans only). A perception under way
+        starts over (its beams were taken in the old frame)."""
+        for node in self.tree.nodes:
+            dx, dy, dth = moved.move(node.t)
+            node.x, node.y = moved.point(node.x, node.y, node.t)
+            node.region = node.region.moved(dx, dy, dth)
+            node.failed = [moved.point(fx, fy, node.t) for fx, fy in node.failed]
+            self._mark(node.region, grid)
+        if self.current is not None:
+            here = self.tree.nodes[self.current]
+            if self.target_node is not None:
+                node = self.tree.nodes[self.target_node]
+                self.target = (node.x, node.y)
+            elif self.target is not None:
+                self.target = moved.point(*self.target, here.t)
+            for follower, end in ((self.follower, self.target), (self.settler, (here.x, here.y))):
+                if not follower.done:         # the path from here, its end where its node or target now is
+                    index = follower._index
+                    path = moved.points(follower.path, here.t)
+                    if end is not None:
+                        path[-1] = end
+                    follower.set_path(path)
+                    follower._index = index
+        if self.phase is Phase.SENSE and self.tree.nodes:
+            self._begin_sense()
+        self._best = math.inf
+
     def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
-        self.current = self.tree.add(pose.x, pose.y, region, self.current)
+        self.current = self.tree.add(pose.x, pose.y, region, self.current, t=self._now)
+        self._mark(region, grid)
+
+    @staticmethod
+    def _mark(region: SafeRegion, grid: OccupancyGrid) -> None:
+        """Mark a safe region into the map: its cells free (unless occupied), its obstacle points occupied."""
         free = region.mask(grid.geo) & ~grid.occupied()
         grid.mark_free(free)
         obstacles = region.obstacle_points()

@@ -15,8 +15,10 @@ Angles are world angles [rad]; positions world coordinates [m].
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -64,6 +66,20 @@ class SafeRegion(ABC):
         d = np.hypot(dx, dy)
         return d < self.radius(np.arctan2(dy, dx)) + margin
 
+    def moved(self, dx: float, dy: float, dtheta: float) -> SafeRegion:
+        """A copy moved rigidly, as loop closure moves the poses it was perceived from: every point p of it
+        goes to R(dtheta) p + (dx, dy) [m] (its centre, boundary and obstacle points; its directions turn by
+        `dtheta` [rad])."""
+        out = copy.copy(self)
+        c, s = math.cos(dtheta), math.sin(dtheta)
+        out.x, out.y = c * self.x - s * self.y + dx, s * self.x + c * self.y + dy
+        out._turn(dtheta, lambda p: np.column_stack([c * p[:, 0] - s * p[:, 1] + dx, s * p[:, 0] + c * p[:, 1] + dy]))
+        return out
+
+    @abstractmethod
+    def _turn(self, dtheta: float, move: Callable[[Array], Array]) -> None:
+        """`moved`'s part for the subclass's own angles [rad] and points [m] (`move` maps (k, 2) points)."""
+
     def mask(self, geo: GridGeometry) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): the cells of `geo` whose centre lies inside the region."""
         out = np.zeros((geo.rows, geo.cols), dtype=bool)
@@ -94,6 +110,9 @@ class BallRegion(SafeRegion):
     def radius(self, theta: Array) -> Array:
         """The constant radius [m], shaped like `theta`."""
         return np.full(np.shape(theta), self.r)
+
+    def _turn(self, dtheta: float, move: Callable[[Array], Array]) -> None:
+        self._obstacle = move(self._obstacle)
 
     def boundary(self) -> Array:
         """The circle as a 360-gon (k, 2) [m]."""
@@ -148,6 +167,11 @@ class StarRegion(SafeRegion):
     def radius(self, theta: Array) -> Array:
         """The radius [m] of the cone each angle falls in."""
         return self.radii[self.cone_of(theta)]
+
+    def _turn(self, dtheta: float, move: Callable[[Array], Array]) -> None:
+        self.edges = self.edges + dtheta
+        self._echoes = move(self._echoes)
+        self._boundary = None
 
     def boundary(self) -> Array:
         """Arcs sampled every <= 2 deg, joined by the radial steps between cones (k, 2) [m]; computed
@@ -215,6 +239,9 @@ class PolygonRegion(SafeRegion):
         t = self.angles[0] + rel
         ri, rj = self.ranges[i], self.ranges[j]
         return np.asarray(ri * rj * np.sin(pj - pi_) / (ri * np.sin(t - pi_) + rj * np.sin(pj - t)))
+
+    def _turn(self, dtheta: float, move: Callable[[Array], Array]) -> None:
+        self.angles = self.angles + dtheta
 
     def vertices(self) -> Array:
         """The vertices (n, 2) [m]."""

@@ -1,5 +1,6 @@
 """Localization: scan-to-map matching that corrects odometry, and trajectory metrics."""
 
+from robotexp.localization.correction import FrameCorrection
 from robotexp.localization.matcher import (
     HitMap,
     Localizer,
@@ -12,5 +13,5 @@ from robotexp.localization.matcher import (
 )
 from robotexp.localization.metrics import ate, rigid_alignment
 
-__all__ = ["HitMap", "Localizer", "Match", "MatcherConfig", "ScanMatcher", "compose", "relative", "scan_points", "ate",
-           "rigid_alignment"]
+__all__ = ["FrameCorrection", "HitMap", "Localizer", "Match", "MatcherConfig", "ScanMatcher", "compose", "relative",
+           "scan_points", "ate", "rigid_alignment"]

@@ -20,11 +20,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
+from robotexp.localization.correction import FrameCorrection
 from robotexp.localization.matcher import compose, relative
+from robotexp.localization.online import ScanBins
 from robotexp.localization.robot import MAX_TURN_RATE, LocalizedRobot
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.run.observers import RunObserver, StepEvent
-from robotexp.robot import LaserScan, Pose, Robot
+from robotexp.robot import LaserScan, Pose, Robot, wrap_angle
 
 if TYPE_CHECKING:
     from robotexp.run.spec import RunSpec
@@ -34,6 +36,9 @@ __all__ = ["LOCALIZE_MODES", "MATCH_CELL", "check_localize", "localized", "relea
            "LoopClosureTracker"]
 
 LOCALIZE_MODES = ("auto", "none", "scan-match", "slam")
+# the memory bound of the scans the run's map is rebuilt from (`LoopClosureTracker`): the newest 4 of each
+# 0.5 m square and 45 deg sector of the poses they were taken at
+SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA = 4, 0.5, math.radians(45.0)
 MATCH_CELL = 0.05     # [m] cells of the localizer's matching map (the explorer's may be coarser)
 
 
@@ -101,18 +106,29 @@ class LoopClosureTracker(TrajectoryTracker):
     closure corrects the localizer by every centimetre.
 
     A scan is kept as float32 ranges (a 181-beam scan: 724 bytes; its beam angles shared with the scan before
-    when equal): a 4 h run scanning at 10 Hz holds about 105 MB of them."""
+    when equal), and only while it is among the newest SCANS_PER_BIN of its pose's bin (SCAN_BIN_XY square,
+    SCAN_BIN_THETA sector; `ScanBins`): the scans kept are bounded by the area explored, at most 128 a square
+    metre (93 kB of 181-beam scans), not by the run's length (at 10 Hz, 26 MB an hour without the bound)."""
 
     def __init__(self, localize: str, odometry: str, robot: LocalizedRobot) -> None:
         super().__init__(localize, odometry, robot)
         self.slam = robot
-        self.scans: list[tuple[int, Pose, npt.NDArray[np.float32], npt.NDArray[np.float64], float, float]] = []
+        self.scans: dict[int, tuple[int, Pose, npt.NDArray[np.float32], npt.NDArray[np.float64], float, float]] = {}
+        self.bins = ScanBins(SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA)
+        self._count = 0                           # scans seen
         self.rebuilds = 0                         # the graph's corrections seen
         self.map_rebuilds = 0                     # the run's map rebuilt
         self.rebuild_time = 0.0
         self._angles: npt.NDArray[np.float64] | None = None
         self._built = np.zeros((0, 3))            # the keyframes' poses the map was last built at
         self._reported = -1                       # the keyframes counted in the record
+        # the frames of the poses the explorer was given: from robot time t on, poses relative to keyframe k
+        # sat where the explorer's coordinates have k at `frame` (the keyframe's `local`, then its pose at
+        # each rebuild); `FrameCorrection` of a rebuild moves each by where k is now
+        self._seg_t: list[float] = []
+        self._seg_kf: list[int] = []
+        self._seg_frame: list[Pose] = []
+        self._seg_key: tuple[int, Pose] | None = None
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
         """Keep the scan the map took; rebuild the map when the keyframes were corrected."""
@@ -120,27 +136,39 @@ class LoopClosureTracker(TrajectoryTracker):
         laser = step.state.laser
         if graph is None:
             return
+        if self.slam.keyframe >= 0:
+            kf = graph.keyframes[self.slam.keyframe]
+            if self._seg_key != (self.slam.keyframe, kf.local):     # a new keyframe, or a correction applied
+                self._seg_key = (self.slam.keyframe, kf.local)
+                self._seg_t.append(step.state.time)
+                self._seg_kf.append(self.slam.keyframe)
+                self._seg_frame.append(kf.local)
         if step.map_updated and laser is not None and self.slam.keyframe >= 0:
             kf = graph.keyframes[self.slam.keyframe]
             angles = np.asarray(laser.angles, np.float64)
             if self._angles is not None and self._angles.shape == angles.shape and np.array_equal(self._angles, angles):
                 angles = self._angles
             self._angles = angles
-            self.scans.append((self.slam.keyframe, relative(kf.local, step.state.pose),
-                               np.asarray(laser.ranges, np.float32), angles, laser.range_max, laser.offset_x))
+            self.scans[self._count] = (self.slam.keyframe, relative(kf.local, step.state.pose),
+                                       np.asarray(laser.ranges, np.float32), angles, laser.range_max, laser.offset_x)
+            drop = self.bins.add(self._count, step.state.pose)
+            if drop is not None:
+                del self.scans[drop]
+            self._count += 1
         if graph.rebuilds != self.rebuilds:
             self.rebuilds = graph.rebuilds
             if self._moved(run.grid.geo.cell / 2, graph.poses(), laser.range_max if laser is not None else 8.0):
                 self._rebuild(run)
         if len(graph.keyframes) != self._reported:
             self._reported = len(graph.keyframes)
-            times = graph.update_times
+            median = graph.update_median
             run.info.extra["loop_closure"] = {
                 "keyframes": len(graph.keyframes), "loops": graph.loops, "tried": graph.tried,
                 "refused": dict(graph.refused), "corridor_loops": graph.corridor_loops,
                 "rebuilds": graph.rebuilds, "map_rebuilds": self.map_rebuilds,
+                "scans_kept": len(self.scans), "keyframe_scans_kept": len(graph.keyframes) - graph.bins.dropped,
                 "backend": graph.backend,
-                "update_ms": round(1e3 * float(np.median(times)), 3) if times else None,
+                "update_ms": round(1e3 * median, 3) if median is not None else None,
                 "rebuild_s": round(self.rebuild_time, 3)}
 
     def _moved(self, tol: float, poses: npt.NDArray[np.float64], reach: float) -> bool:
@@ -162,13 +190,28 @@ class LoopClosureTracker(TrajectoryTracker):
         grid = run.grid
         grid.values[...] = 0
         grid.stamp[...] = 0
-        for k, rel, ranges, angles, range_max, offset in self.scans:
+        for k, rel, ranges, angles, range_max, offset in self.scans.values():
             grid.update(compose(graph.keyframes[k].pose, rel),
                         LaserScan(angles, ranges.astype(np.float64), range_max, offset))
         self.rebuild_time += time.perf_counter() - t0
         self._built = graph.poses()
         self.map_rebuilds += 1
-        run.explorer.map_rebuilt(grid)
+        run.explorer.map_rebuilt(grid, self._correction())
+
+    def _correction(self) -> FrameCorrection:
+        """Where the explorer's coordinates move at this rebuild (`FrameCorrection`); the frames advance to it."""
+        graph = self.slam.graph
+        assert graph is not None
+        if not self._seg_t:
+            return FrameCorrection.identity()
+        moves = np.empty((len(self._seg_t), 3))
+        for i, (k, old) in enumerate(zip(self._seg_kf, self._seg_frame, strict=True)):
+            new = graph.keyframes[k].pose
+            dth = wrap_angle(new.theta - old.theta)
+            c, s = math.cos(dth), math.sin(dth)
+            moves[i] = (new.x - (c * old.x - s * old.y), new.y - (s * old.x + c * old.y), dth)
+            self._seg_frame[i] = new
+        return FrameCorrection(self._seg_t, moves)
 
 
 def localized(spec: RunSpec, robot: Robot, geo: GridGeometry) -> tuple[Robot, TrajectoryTracker]:

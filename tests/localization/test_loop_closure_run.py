@@ -9,13 +9,15 @@ from types import SimpleNamespace
 import numpy as np
 from ring_corridor import RingRobot, drifted, ring_path
 
+from robotexp.localization.correction import FrameCorrection
 from robotexp.localization.matcher import compose
+from robotexp.localization.online import ScanBins
 from robotexp.localization.robot import LocalizedRobot
-from robotexp.run.localize import LoopClosureTracker
+from robotexp.run.localize import SCANS_PER_BIN, LoopClosureTracker
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.run.observers import StepEvent
-from robotexp.robot import LaserScan
+from robotexp.robot import LaserScan, Pose
 
 
 class Told:
@@ -24,7 +26,7 @@ class Told:
     def __init__(self) -> None:
         self.calls: list[OccupancyGrid] = []
 
-    def map_rebuilt(self, grid: OccupancyGrid) -> None:
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         self.calls.append(grid)
 
 
@@ -48,14 +50,39 @@ def test_the_runs_map_is_rebuilt_from_every_scan_at_the_corrected_keyframes() ->
     assert g is not None and g.loops >= 1 and g.rebuilds >= 1
     assert 1 <= tracker.map_rebuilds <= g.rebuilds
     assert len(told.calls) == tracker.map_rebuilds and all(c is grid for c in told.calls)   # the explorer was told
-    assert len(tracker.scans) == len(truth)                 # every mapped scan kept, none twice
+    assert len(tracker.scans) + tracker.bins.dropped == len(truth)   # every mapped scan kept or pushed out, none twice
+    # the memory bound: at most SCANS_PER_BIN scans per pose bin, here and in the graph's keyframes
+    assert tracker.bins.dropped > 0 and len(tracker.scans) <= SCANS_PER_BIN * len(tracker.bins.bins)
+    kept = sum(k.scan is not None for k in g.keyframes)
+    assert kept == len(g.keyframes) - g.bins.dropped <= g.config.scans_per_bin * len(g.bins.bins)
     # after the last rebuild the run's map is exactly the scans taken since it on top of all scans
     # up to it at their keyframes' corrected poses; rebuilt once more now, it is every scan at them
     again = OccupancyGrid(geo, range_max=4.0)
-    for kf, rel, ranges, angles, rmax, off in tracker.scans:
+    for kf, rel, ranges, angles, rmax, off in tracker.scans.values():
         again.update(compose(g.keyframes[kf].pose, rel), LaserScan(angles, ranges.astype(np.float64), rmax, off))
     tracker._rebuild(run)                                   # type: ignore[arg-type]
     np.testing.assert_array_equal(grid.values, again.values)
     assert len(told.calls) == tracker.map_rebuilds
     info = run.info.extra["loop_closure"]
     assert info["loops"] == g.loops and info["rebuilds"] == g.rebuilds and info["keyframes"] == len(g.keyframes)
+
+
+def test_the_scan_bound_keeps_the_newest_few_of_each_bin_however_long_the_run() -> None:
+    bins = ScanBins(4, 0.5, math.radians(45.0))
+    kept: set[int] = set()
+    key = 0
+    for lap in range(10):                           # back and forth along 2 m, 0.1 m apart, 10 times
+        for i in range(20):
+            x = 0.1 * i + 0.05 if lap % 2 == 0 else 1.95 - 0.1 * i
+            kept.add(key)
+            drop = bins.add(key, Pose(x, 0.3, 0.1 if lap % 2 == 0 else math.pi - 0.1))
+            if drop is not None:
+                kept.discard(drop)
+            key += 1
+        # 4 x-bins x 2 headings, 4 scans each at most: 32, from the second lap on
+        assert len(kept) <= 4 * 4 * 2 and len(kept) + bins.dropped == key
+    assert len(kept) == 32
+    # each bin holds its newest: the last lap (headings near pi) and the one before (near 0) entirely,
+    # 5 scans a bin on each lap, the newest 4 of them
+    last, before = range(180, 200), range(160, 180)
+    assert kept == {k for k in last if (k - 180) % 5 != 0} | {k for k in before if (k - 160) % 5 != 0}

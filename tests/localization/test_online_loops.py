@@ -13,6 +13,7 @@ from robotexp.localization.online import OnlineGraph, OnlineLoopConfig, have_gts
 from robotexp.localization.posegraph import Edge, optimize
 from robotexp.localization.robot import RUN_MATCHER
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import LaserScan, Pose
 
 from ring_corridor import RingRobot, drifted, ring_path
@@ -137,3 +138,40 @@ def test_a_corridor_loop_edge_holds_across_the_corridor_not_along_it() -> None:
     info = g._corridor_info(h, math.pi / 2)  # the later keyframe faces +y: the corridor runs along its y axis
     np.testing.assert_allclose(info[:2, :2], np.diag([c.loop_xy ** -2, c.cap_xy ** -2]), rtol=1e-9, atol=1e-6)
     assert info[2, 2] == pytest.approx(c.loop_theta ** -2)
+
+
+def test_the_matching_map_is_rebuilt_in_the_box_of_the_moved_keyframes_only() -> None:
+    """After a correction the localizer's map is rebuilt only around the keyframes that moved: inside that box
+    it equals the map of every keyframe's scan at its corrected pose, outside it nothing changed."""
+    truth = ring_path(0.5)
+    loc = Localizer(GridGeometry.covering(-1, -1, 25, 25, 0.05), range_max=4.0)    # room around the ring
+    loc.reset(truth[0], truth[0])
+    g = OnlineGraph(loc, RUN_MATCHER, OnlineLoopConfig(scans_per_bin=0))
+    with RingRobot(truth, truth) as robot:
+        for k in range(len(truth)):
+            s = robot.read()
+            assert s.laser is not None
+            if k % 3 == 0:
+                loc.integrate(s.pose, s.laser)        # the localizer maps the scan, a keyframe is made of it
+                g.add_keyframe(s.pose, s.laser, s.pose)
+    n = len(g.keyframes)
+    before = loc.grid.values.copy()
+    poses = g.poses()
+    poses[n - 5:, :2] += (0.04, -0.03)               # the last five keyframes moved by 5 cm
+    g._poses.a[:] = poses
+    version = loc.version
+    box = g._rebuild()
+    assert box is not None and loc.version != version
+    r0, r1, c0, c1 = box
+    full = OccupancyGrid(loc.grid.geo, range_max=4.0)
+    full.l_occ, full.l_free, full.l_clamp = loc.grid.l_occ, loc.grid.l_free, loc.grid.l_clamp
+    for k, kf in enumerate(g.keyframes):
+        assert kf.scan is not None
+        full.update(Pose(*poses[k]), kf.scan)
+    np.testing.assert_array_equal(loc.grid.values[r0:r1, c0:c1], full.values[r0:r1, c0:c1])
+    outside = np.ones(before.shape, bool)
+    outside[r0:r1, c0:c1] = False
+    assert outside.any() and (r1 - r0) * (c1 - c0) < before.size / 2
+    np.testing.assert_array_equal(loc.grid.values[outside], before[outside])
+    assert not np.array_equal(loc.grid.values, before)
+    assert g._rebuild() is None                      # nothing moved since
