@@ -22,7 +22,7 @@ class NoCoordinator(Coordinator):
 
     def assign(self, candidates: Candidates, kept: Sequence[int | None]) -> list[int | None]:
         """Nothing is assigned."""
-        return [None] * len(kept)
+        return list(kept)
 
 
 def _free_robots(candidates: Candidates, kept: Sequence[int | None]) -> list[int]:

@@ -220,11 +220,12 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
 
 def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
              show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
-             record_extra: dict[str, Any] | None = None) -> RunOutput:
+             record_extra: dict[str, Any] | None = None, world: World | None = None) -> RunOutput:
     """Run `spec`'s explorer on a team of simulated robots (`team`) and write one record for the team under
     `out` (nothing when `out` is None): the robots start at `team.poses` or spread from the spec's start
     (`robotexp.sim.team.spread_starts`), share one map (or, with `team.comm_range`, each keep one and pass
     scans on within that range) and take targets from `team.coordinator` (`robotexp.run.team.TeamRun`).
+    `world` stands for `spec.world` when given (a world built in code).
 
     Raises:
         WorldError, PluginError, ConfigError: bad input, before the robots move.
@@ -242,7 +243,7 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
         raise ConfigError("--team: teams run with exact odometry and no localizer for now; leave out "
                           "--odometry-error and --localize")
     radii = [preset(name).radius for name in team.robots]
-    plan = plan_run(spec, spec.world, max(radii))
+    plan = plan_run(spec, spec.world if world is None else world, max(radii))
     coordinator = make_coordinator(team.coordinator, team.coordinator_params)
     explorers = [plan.explorer] + [make_explorer(spec.method, spec.params) for _ in team.robots[1:]]
     if coordinator.assigns_targets and not plan.explorer.takes_targets:

@@ -119,6 +119,7 @@ class TeamRun(ExplorationRun):
         for i, m in enumerate(self.members):
             m.sampling = False
             m.rng = np.random.default_rng(seed if i == 0 else (seed, i))
+        info = info or RunInfo(method=type(explorers[0]).__name__)
         super().__init__(robots[0], TeamExplorers(self.members), grid, truth=truth, period=period,
                          max_time=max_time, seed=seed, info=info, observers=observers, area=area)
         self.clock = clock
@@ -183,11 +184,11 @@ class TeamRun(ExplorationRun):
             self._share()
             self._count_idle(active)
             self._team_sample()
-            if self._stop is not None or not active:
-                if not active:
-                    self._all_done()
-                else:
-                    self.reason, self.end = self._stop
+            if not active:
+                self._all_done()
+                return
+            if self._stop is not None:
+                self.reason, self.end = self._stop
                 return
             self.clock.tick()
             states = [m.robot.read() for m in self.members]
@@ -295,7 +296,7 @@ class TeamRun(ExplorationRun):
             chosen = self.coordinator.assign(cand, kept)
             for j, i in enumerate(robots):
                 k = chosen[j] if j < len(chosen) else None
-                if kept[j] is not None and k == kept[j]:
+                if k is not None and k == kept[j]:
                     self.targets[i] = cand.cells[k]
                     continue
                 if k is None or not (0 <= k < len(cand)) or not math.isfinite(cand.cost[j, k]):
@@ -326,7 +327,7 @@ class TeamRun(ExplorationRun):
                 "idle_time_s": round(self.idle[i] * self.period, 3),
                 "end": m.end.value if m.end is not EndReason.UNKNOWN else self.end.value,
                 "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
-                "cells_seen": int(np.count_nonzero(self.seen.bits & self.seen._one[i])),
+                "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),
             }
             if self.exchange is not None:
                 fields["scans_received"] = int(self.exchange.received[i])

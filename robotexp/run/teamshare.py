@@ -39,6 +39,10 @@ class SeenCells:
         touched = grid.stamp[r0:r1, c0:c1] == grid.scans
         self.bits[r0:r1, c0:c1][touched] |= self._one[robot]
 
+    def seen_by(self, robot: int) -> npt.NDArray[np.bool_]:
+        """(rows, cols) bool: the cells robot `robot`'s scans touched."""
+        return (self.bits & self._one[robot]) != 0
+
     def counts(self) -> tuple[int, int]:
         """(cells seen by some robot, cells seen by more than one)."""
         seen = self.bits != 0
