@@ -263,6 +263,12 @@ class FrontierExplorer(Explorer):
         self._follow(path, passable, pose, grid, off)
         return True
 
+    def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], Offset]:
+        """The frontier cells the next plan would choose among (walls' faces and cells given up on left out),
+        on the window of the scanned part of `grid`, with the window's offset."""
+        view, off = known_window(grid, WINDOW_MARGIN)
+        return self._frontier_targets(grid, view, off), off
+
     def _assigned_part(self, targets: npt.NDArray[np.bool_], off: Offset) -> npt.NDArray[np.bool_]:
         """The targets among the coordinator's cells, when some are; else all of them."""
         if self.assigned is None or len(self.assigned) == 0:

@@ -85,6 +85,12 @@ class Explorer(ABC):
         is among the explorer's own candidates any more, it chooses alone. Default: ignored."""
         return None
 
+    def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], tuple[int, int]] | None:
+        """The frontier cells this explorer would choose a goal among on `grid` now, for a team's coordinator
+        to share out: a bool mask of a window of the grid and the (row, col) of the window's cell (0, 0).
+        Default None: the team takes `robotexp.planning.targets.frontier_targets` of the map."""
+        return None
+
     def result_fields(self) -> dict[str, object]:
         """Extra result fields of this method (e.g. `nodes` of a tree)."""
         return {}

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robotexp.errors import ConfigError, RobotError, interrupt_behind
-from robotexp.robot import Pose, Robot, RobotState, Twist, new_scan
+from robotexp.robot import LaserScan, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.run.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.run.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.world.bounds import clip_scan
@@ -180,6 +180,9 @@ class ExplorationRun:
         self.rng: np.random.Generator | None = None     # the explorer's generator (None: from `seed`)
         self.decision: Twist | Done | None = None       # the last step's decision
         self.mapped_now = False             # the last step's scan went into the map
+        self.mapped_scan: LaserScan | None = None  # the scan mapped last (after `scan_filter`)
+        # what of a state's scan the map gets (None: all of it; a team leaves out the beams on its robots)
+        self.scan_filter: Callable[[RobotState], LaserScan] | None = None
         self._next_sample = 0.0
         self._t0 = 0.0
         self._collisions0 = 0
@@ -296,7 +299,8 @@ class ExplorationRun:
         updated = new_scan(state.laser, self._mapped)
         if updated:
             assert state.laser is not None
-            self.grid.update(state.pose, state.laser)
+            self.mapped_scan = state.laser if self.scan_filter is None else self.scan_filter(state)
+            self.grid.update(state.pose, self.mapped_scan)
             self._mapped = state.laser.stamp
         self.mapped_now = updated
         # half a period of slack: robot time summed from float periods reads 0.99999 s at

@@ -11,6 +11,7 @@ samples coverage, watches for stalls, and makes one `RunRecord` with the team's 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
@@ -19,10 +20,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.coordinator import Candidates, Coordinator, TeamContext
+from robotexp.coordinator import Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
-from robotexp.robot import Twist
+from robotexp.robot import LaserScan, RobotState, Twist
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver
@@ -39,6 +40,7 @@ if TYPE_CHECKING:
 __all__ = ["TeamRun", "TeamExplorers", "TeamSpec", "parse_team", "COORDINATION_PERIOD"]
 
 COORDINATION_PERIOD = 1.0       # [s] robot time between the coordinator's rounds
+TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
 LEAVE_TOL = 0.3                 # [m] how far a robot's centre may stray past the exploration area
 _END_ORDER = (EndReason.PLUGIN_ERROR, EndReason.ROBOT_ERROR, EndReason.INTERRUPTED, EndReason.STOPPED,
               EndReason.STALLED, EndReason.TIME_LIMIT, EndReason.EXPLORED)
@@ -119,6 +121,7 @@ class TeamRun(ExplorationRun):
         for i, m in enumerate(self.members):
             m.sampling = False
             m.rng = np.random.default_rng(seed if i == 0 else (seed, i))
+            m.scan_filter = functools.partial(self._without_teammates, i)
         info = info or RunInfo(method=type(explorers[0]).__name__)
         super().__init__(robots[0], TeamExplorers(self.members), grid, truth=truth, period=period,
                          max_time=max_time, seed=seed, info=info, observers=observers, area=area)
@@ -198,14 +201,42 @@ class TeamRun(ExplorationRun):
         if not m.mapped_now:
             return
         self.seen.note(i, m.grid)
-        if self.exchange is not None and m.state is not None and m.state.laser is not None:
-            self.exchange.log(i, m.state.pose, m.state.laser)
-            self.grid.update(m.state.pose, m.state.laser)
+        if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
+            self.exchange.log(i, m.state.pose, m.mapped_scan)
+            self.grid.update(m.state.pose, m.mapped_scan)
         p = m.state.true_pose or m.state.pose if m.state is not None else None
         if self.area is not None and p is not None:
             from robotexp.world.bounds import inside
             if not inside(self.area, p.x, p.y, LEAVE_TOL):
                 self.request_stop(f"robot {i + 1} left the exploration area at ({p.x:.2f}, {p.y:.2f}) m")
+
+    def _without_teammates(self, robot: int, state: RobotState) -> LaserScan:
+        """Robot `robot`'s scan for the maps: the beams that end on a teammate (within its radius plus
+        TEAMMATE_MARGIN of where it stands, as the robots tell each other) read NaN, which the map skips,
+        so that robots are not mapped as walls (the explorers get the whole scan)."""
+        scan = state.laser
+        assert scan is not None
+        p = state.pose
+        others = [m.state.true_pose or m.state.pose for j, m in enumerate(self.members)
+                  if j != robot and m.state is not None]
+        if not others:
+            return scan
+        radii = np.array([m.robot.radius for j, m in enumerate(self.members) if j != robot and m.state is not None])
+        xy = np.array([(q.x, q.y) for q in others])
+        sx = p.x + scan.offset_x * math.cos(p.theta)
+        sy = p.y + scan.offset_x * math.sin(p.theta)
+        near = np.hypot(xy[:, 0] - sx, xy[:, 1] - sy) <= radii + TEAMMATE_MARGIN + scan.range_max
+        if not near.any():
+            return scan
+        hit = np.isfinite(scan.ranges)
+        ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
+        ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
+        on = np.zeros(len(scan.ranges), bool)
+        for (x, y), r in zip(xy[near], radii[near], strict=True):
+            on |= hit & (np.hypot(ex - x, ey - y) <= r + TEAMMATE_MARGIN)
+        if not on.any():
+            return scan
+        return replace(scan, ranges=np.where(on, np.nan, scan.ranges))
 
     def _share(self) -> None:
         if self.exchange is not None:
@@ -273,7 +304,7 @@ class TeamRun(ExplorationRun):
             return
         self._next_round = self.robot_time + COORDINATION_PERIOD
         from robotexp.planning.targets import PlanCosts
-        from robotexp.planning.team import label_cells, team_candidates
+        from robotexp.planning.team import label_cells, team_candidates, with_costs
 
         if not self._costs:
             radius = max(m.robot.radius for m in self.members)
@@ -282,16 +313,19 @@ class TeamRun(ExplorationRun):
             robots = [active[g] for g in group]
             leader = robots[0]
             grid = self.members[leader].grid
-            kept: list[int | None] = []
-            cand: Candidates | None = None
             radius = max(self.members[i].robot.radius for i in robots)
-            cand = team_candidates(grid, self._costs[leader], [tuple(p) for p in self._positions(robots)], radius)
-            for j, i in enumerate(robots):
-                cells = self.targets[i]
-                k = None if cells is None else label_cells(cand, cells)
-                kept.append(k if k is not None and math.isfinite(cand.cost[j, k]) else None)
-            if all(k is not None for k in kept):
+            # the targets first; the paths (a Dijkstra per robot) only when some robot needs a target
+            frontier = self.members[leader].explorer.target_frontier(grid)
+            cand = team_candidates(grid, None, [tuple(p) for p in self._positions(robots)], radius,
+                                   frontier=frontier)
+            labels = [None if self.targets[i] is None else label_cells(cand, self.targets[i]) for i in robots]
+            if all(k is not None for k in labels):
+                for i, k in zip(robots, labels, strict=True):
+                    assert k is not None
+                    self.targets[i] = cand.cells[k]
                 continue
+            cand = with_costs(cand, grid, self._costs[leader], radius)
+            kept = [k if k is not None and math.isfinite(cand.cost[j, k]) else None for j, k in enumerate(labels)]
             self.rounds += 1
             chosen = self.coordinator.assign(cand, kept)
             for j, i in enumerate(robots):

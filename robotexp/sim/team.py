@@ -57,19 +57,23 @@ class SimTeam:
         return np.array([[r.true_pose.x, r.true_pose.y, r.radius, r.preset.height] for r in self.robots],
                         np.float64).reshape(-1, 4)
 
-    def _sync(self, only: int | None = None) -> None:
-        """Tell the robots (or robot `only`) where the others stand."""
+    def _sync(self) -> None:
+        """Tell every robot where the others stand."""
         discs = self._discs()
         for i, robot in enumerate(self.robots):
-            if only is None or i == only:
-                robot.engine.set_peers(np.delete(discs, i, axis=0))
+            robot.engine.set_peers(np.delete(discs, i, axis=0))
 
     def advance(self, dt: float) -> None:
         """Advance every robot by `dt` [s], in order, each against the others where they stand."""
+        discs = self._discs()
         for i, robot in enumerate(self.robots):
-            self._sync(i)
+            if i:           # robot 0's peers are where the last tick left them (set at its end)
+                robot.engine.set_peers(np.delete(discs, i, axis=0))
             robot.advance(dt)
-        self._sync()
+            p = robot.true_pose
+            discs[i, 0], discs[i, 1] = p.x, p.y
+        for i, robot in enumerate(self.robots):
+            robot.engine.set_peers(np.delete(discs, i, axis=0))
         self.time += dt
 
     def make_clock(self, period: float) -> Clock:

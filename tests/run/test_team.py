@@ -145,3 +145,34 @@ def test_robots_out_of_range_keep_their_own_maps_and_merge_when_they_meet():
     for g in grids:
         assert np.array_equal(g.states() >= 0, known)
         assert np.mean(g.states()[known] == team_grid.states()[known]) > 0.98
+
+
+def test_teammates_are_not_mapped_as_walls_but_the_explorers_see_them():
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(3.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(5.0, 1.0, math.pi), sonar=False)]
+    seen = []
+
+    class Look(Explorer):
+        def step(self, state, grid):
+            seen.append(float(state.laser.ranges[np.argmin(np.abs(state.laser.angles))]))
+            return Done("looked")
+
+    with SimTeam(robots) as team:
+        raw = OccupancyGrid(geo, range_max=3.0)
+        raw.update(robots[0].read().pose, robots[0].read().laser)
+        run = TeamRun(robots, [Look(), Look()], [grid, grid], team.make_clock(0.1), max_time=5.0)
+        run.run()
+    r = robots[0].radius
+    assert seen == pytest.approx([2.0 - r, 2.0 - r])        # each explorer saw the other robot ahead
+    rows, cols = np.nonzero(raw.occupied())
+    xy = geo.centers_of(np.stack([rows, cols], axis=1))
+    on_robot = np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 1.0) <= r + 0.1
+    assert on_robot.any()                                   # a scan alone maps the other robot
+    rows, cols = np.nonzero(grid.occupied())
+    xy = geo.centers_of(np.stack([rows, cols], axis=1))
+    assert not (np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 1.0) <= r + 0.2).any()
+    assert not (np.hypot(xy[:, 0] - 3.0, xy[:, 1] - 1.0) <= r + 0.2).any()
+    assert grid.occupied().any()                            # the walls still are
