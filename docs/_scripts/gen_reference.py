@@ -77,11 +77,12 @@ RESULT_KEYS = {
                      "scans touched",
     "idle_time_s": "team runs only: robot time the robots stood idle, summed [s]: after their explorer was done, or "
                    "commanded to stand still",
-    "robot_collisions": "team runs only: the collisions between two robots (counted in `collisions` too)",
+    "robot_collisions": "team runs only: the collisions with another robot, counted per robot as `collisions` are "
+                        "(a contact both drove into counts twice; counted in `collisions` too)",
     "coordinator_rounds": "team runs only: the coordinator's rounds that assigned targets (null: coordinator `none`)",
     "robots": "team runs only: one object per robot: `robot`, `start_pose`, `end_pose`, `path_length_m`, "
-              "`collisions`, `robot_collisions`, `idle_time_s`, `end`, `reason`, `cells_seen`, `scans_received` "
-              "(with a communication range) and the explorer's own keys",
+              "`collisions`, `robot_collisions`, `idle_time_s`, `give_way_s`, `end`, `reason`, `cells_seen`, "
+              "`scans_received` (with a communication range) and the explorer's own keys",
 }
 
 

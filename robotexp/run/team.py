@@ -23,7 +23,7 @@ import numpy.typing as npt
 from robotexp.coordinator import Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
-from robotexp.robot import LaserScan, RobotState, Twist
+from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver
@@ -40,6 +40,9 @@ if TYPE_CHECKING:
 __all__ = ["TeamRun", "TeamExplorers", "TeamSpec", "parse_team", "COORDINATION_PERIOD"]
 
 COORDINATION_PERIOD = 1.0       # [s] robot time between the coordinator's rounds
+GIVE_WAY_GAP = 0.6              # [m] a robot gives way to a teammate ahead closer than this (footprints' gap)
+GIVE_WAY_ANGLE = math.radians(75)   # [rad] "ahead": within this of the heading
+GIVE_WAY_SPEED = 0.02           # [m/s] a teammate slower than this stands still
 TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
 LEAVE_TOL = 0.3                 # [m] how far a robot's centre may stray past the exploration area
 _END_ORDER = (EndReason.PLUGIN_ERROR, EndReason.ROBOT_ERROR, EndReason.INTERRUPTED, EndReason.STOPPED,
@@ -131,6 +134,7 @@ class TeamRun(ExplorationRun):
         self.comm_range = comm_range
         self.exchange = None if comm_range is None else ScanExchange(grids)
         self.seen = SeenCells(grid.shape, n)
+        self.gave_way = [0] * n             # periods each robot gave way to a teammate
         self.idle = [0] * n                 # ticks each robot stood idle (done, or commanded to stand still)
         self.targets: list[npt.NDArray[np.int64] | None] = [None] * n     # each robot's coordinator target
         self.rounds = 0                     # coordinator rounds that assigned targets
@@ -178,6 +182,8 @@ class TeamRun(ExplorationRun):
                     m._stop = self._stop
                 go_on = m._tick(states[i])
                 self._after_tick(i, m)
+                if go_on:
+                    self._give_way(i, m)
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
@@ -209,6 +215,30 @@ class TeamRun(ExplorationRun):
             from robotexp.world.bounds import inside
             if not inside(self.area, p.x, p.y, LEAVE_TOL):
                 self.request_stop(f"robot {i + 1} left the exploration area at ({p.x:.2f}, {p.y:.2f}) m")
+
+    def _give_way(self, robot: int, m: ExplorationRun) -> None:
+        """The traffic rule of the team: a robot about to drive towards a teammate of a smaller number that is
+        moving and close ahead (gap under GIVE_WAY_GAP, within GIVE_WAY_ANGLE of its heading) stops its
+        translation for this period (it may turn); a teammate standing still is left to the robot's own laser
+        check. Two robots closing on each other would otherwise both brake for a still obstacle at twice the
+        closing speed."""
+        d = m.decision
+        s = m.state
+        if not isinstance(d, Twist) or d.v <= 0.0 or s is None:
+            return
+        p = s.true_pose or s.pose
+        for j in range(robot):
+            other = self.members[j]
+            t = other.state
+            if t is None or other.end is not EndReason.UNKNOWN or abs(t.velocity.v) < GIVE_WAY_SPEED:
+                continue
+            q = t.true_pose or t.pose
+            dx, dy = q.x - p.x, q.y - p.y
+            gap = math.hypot(dx, dy) - m.robot.radius - other.robot.radius
+            if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
+                m.robot.command(Twist(0.0, d.w))
+                self.gave_way[robot] += 1
+                return
 
     def _without_teammates(self, robot: int, state: RobotState) -> LaserScan:
         """Robot `robot`'s scan for the maps: the beams that end on a teammate (within its radius plus
@@ -359,6 +389,7 @@ class TeamRun(ExplorationRun):
                 "path_length_m": round(m.metrics.path_length, 4), "collisions": m.metrics.collisions,
                 "robot_collisions": None if robot_collisions is None else int(robot_collisions),
                 "idle_time_s": round(self.idle[i] * self.period, 3),
+                "give_way_s": round(self.gave_way[i] * self.period, 3),
                 "end": m.end.value if m.end is not EndReason.UNKNOWN else self.end.value,
                 "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
                 "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),

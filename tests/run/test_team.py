@@ -176,3 +176,23 @@ def test_teammates_are_not_mapped_as_walls_but_the_explorers_see_them():
     assert not (np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 1.0) <= r + 0.2).any()
     assert not (np.hypot(xy[:, 0] - 3.0, xy[:, 1] - 1.0) <= r + 0.2).any()
     assert grid.occupied().any()                            # the walls still are
+
+
+def test_a_robot_gives_way_to_a_moving_teammate_of_a_smaller_number_ahead():
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(3.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(6.0, 1.0, math.pi), sonar=False)]
+    with SimTeam(robots) as team:
+        # Drive has no laser check: robot 1 stops for robot 0, which drives on into it
+        run = TeamRun(robots, [Drive(11.0), Drive(1.0)], [grid, grid], team.make_clock(0.1), max_time=8.0)
+        run.run()
+    r = robots[0].radius
+    first, second = run.record.robots
+    gap = 3.0 - 2 * r
+    assert second["give_way_s"] > 0 and first["give_way_s"] == 0
+    # robot 1 drove until the gap closed to 0.6 m (half of it each, both at the same speed), then braked
+    assert (gap - 0.6) / 2 < second["path_length_m"] < (gap - 0.6) / 2 + 0.25
+    assert first["path_length_m"] + second["path_length_m"] == pytest.approx(gap, abs=0.03)
+    assert run.record.robot_collisions == 2 and first["robot_collisions"] == second["robot_collisions"] == 1
