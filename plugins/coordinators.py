@@ -58,19 +58,25 @@ class BurgardCoordinator(Coordinator):
     near them: a target at distance d from an assigned one loses 1 - d / range when d < range, the laser
     range (the chance that the assigned robot's sensor covers it, linear in distance). Then, robot by
     robot, the free robot and target with the largest utility minus `beta` times the robot's path cost,
-    normalised by its largest finite cost, are paired and the target's neighbours are discounted the same
-    way.
+    divided by `cost_scale` (or by the robot's largest finite cost), are paired and the target's
+    neighbours are discounted the same way.
 
     Args:
         beta: weight of the cost against the utility (the paper's beta; 1 weighs them equally).
+        cost_scale: [m] the path length that costs as much as a whole target's utility (with beta 1); 0:
+            each robot's farthest reachable target.
     """
 
-    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {"beta": (0.0, 100.0)}
+    parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "beta": (0.0, 100.0), "cost_scale": (0.0, 10000.0)}
 
-    def __init__(self, *, beta: float = 1.0) -> None:
+    def __init__(self, *, beta: float = 1.0, cost_scale: float = 0.0) -> None:
         if not (math.isfinite(beta) and beta >= 0):
             raise ConfigError(f"burgard: beta must be >= 0, got {beta}")
+        if not (math.isfinite(cost_scale) and cost_scale >= 0):
+            raise ConfigError(f"burgard: cost_scale must be >= 0 m, got {cost_scale}")
         self.beta = beta
+        self.cost_scale = cost_scale
 
     def assign(self, candidates: Candidates, kept: Sequence[int | None]) -> list[int | None]:
         """Pairs of (free robot, target) by the best utility minus cost, one at a time."""
@@ -90,7 +96,7 @@ class BurgardCoordinator(Coordinator):
         for i in range(cost.shape[0]):
             finite = np.isfinite(cost[i])
             if finite.any():
-                top = max(float(cost[i][finite].max()), 1e-9)
+                top = self.cost_scale or max(float(cost[i][finite].max()), 1e-9)
                 scaled[i, finite] = -self.beta * cost[i, finite] / top
         free = [i for i, t in enumerate(kept) if t is None]
         while free:

@@ -348,7 +348,7 @@ class TeamRun(ExplorationRun):
             frontier = self.members[leader].explorer.target_frontier(grid)
             cand = team_candidates(grid, None, [tuple(p) for p in self._positions(robots)], radius,
                                    frontier=frontier)
-            labels = [None if self.targets[i] is None else label_cells(cand, self.targets[i]) for i in robots]
+            labels = [None if (cells := self.targets[i]) is None else label_cells(cand, cells) for i in robots]
             if all(k is not None for k in labels):
                 for i, k in zip(robots, labels, strict=True):
                     assert k is not None

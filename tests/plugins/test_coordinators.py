@@ -45,6 +45,9 @@ def test_burgard_discounts_targets_within_the_sensor_range_of_an_assigned_one():
     # robot 0: 1/3 - 0.25 = 0.083, 0 - 0.5 (target 1 now 0), 1 - 1 = 0 -> target 0
     cand = round_of([(0, 0), (1, 0), (11, 0)], [[1.0, 2.0, 4.0], [2.0, 1.0, 8.0]])
     assert ready(BurgardCoordinator()).assign(cand, [None, None]) == [0, 1]
+    # costs in units of 100 m weigh next to nothing: robot 0 - target 0 first (0.99, tied with robot 1 -
+    # target 1, first in order); then robot 1: target 1 at 1/3 - 0.01, target 2 at 1 - 0.08 -> target 2
+    assert ready(BurgardCoordinator(cost_scale=100.0)).assign(cand, [None, None]) == [0, 2]
     # beta 0 weighs utility alone: all ties at 1, the first pair (robot 0, target 0) wins; then target 1
     # (1 m away) keeps 1/3 and target 2 (11 m away) 1: robot 1 goes to target 2, not to its nearest
     assert ready(BurgardCoordinator(beta=0.0)).assign(cand, [None, None]) == [0, 2]

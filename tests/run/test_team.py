@@ -196,3 +196,12 @@ def test_a_robot_gives_way_to_a_moving_teammate_of_a_smaller_number_ahead():
     assert (gap - 0.6) / 2 < second["path_length_m"] < (gap - 0.6) / 2 + 0.25
     assert first["path_length_m"] + second["path_length_m"] == pytest.approx(gap, abs=0.03)
     assert run.record.robot_collisions == 2 and first["robot_collisions"] == second["robot_collisions"] == 1
+
+
+@pytest.mark.parametrize(("method", "coordinator"), [("meta-exhaustive", "minpos"), ("bvp", "none")])
+def test_target_choosing_and_reactive_explorers_explore_as_a_team(method, coordinator):
+    spec = RunSpec(world="conformance-room", method=method, max_time=40.0)
+    r = run_team(spec, TeamSpec(robots=("p3dx", "kobuki"), coordinator=coordinator), None, image=False,
+                 world=make_room()).record
+    assert r.coverage > 0.9 and r.robot == "p3dx,kobuki" and [x["robot"] for x in r.robots] == ["p3dx", "kobuki"]
+    assert (r.coordinator_rounds or 0) > 0 if coordinator != "none" else r.coordinator_rounds is None
