@@ -70,6 +70,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     (`sim_robot`) at its start is handed to `run_on_robot`, which writes the results under `out`
     (nothing when `out` is None).
 
+    A spec with a `team` runs that team (`run_team`, with the spec's coordinator and communication range).
+
     `on_sample(t, coverage)` and `on_run(run)` are called after each coverage sample (an observer's
     `on_sample` does the same; `on_run` may render frames or call `request_stop`). `image`: write the map
     and coverage figures (PNG; a tuple names the formats, e.g. ("png", "svg")) or not.
@@ -81,6 +83,11 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     """
     from robotexp.sim import preset
 
+    if spec.team:       # a team (a campaign's `teams`): one record for the team
+        from robotexp.run.team import TeamSpec
+
+        team = TeamSpec(robots=spec.team, coordinator=spec.coordinator, comm_range=spec.comm_range)
+        return run_team(spec, team, out, observers=observers, show=show, image=image, record_extra=record_extra)
     spec.validate()
     plan = plan_run(spec, spec.world, preset(spec.robot).radius)
     with sim_robot(spec, plan.world, plan.start, sonar=plan.explorer.uses_sonar) as robot:
