@@ -1,14 +1,15 @@
 """`robotexp bench`: explorers over many maps (files, folders, generated worlds), one table.
 
-Every map is run from its default start pose with every method (through the campaign runner:
-parallel processes, `--resume`), then a row per run (coverage, path, robot time, end reason,
-success) and a success rate per method are printed and written as `bench.csv` / `bench.txt`.
-A run succeeds (the Done-when benchmark's rule) when it reached `SUCCESS_COVERAGE` of the explorable space
-with no collision and ended on its own: not by the time limit, Ctrl-C, a robot or plugin error, or
-leaving the exploration area - and when no point of its path (`RUN.path.csv` in the output folder)
-lies outside the map's exploration area. A `stalled` end (the loop's stall watch) is on its own and
-counts when its coverage does; the table shows every end reason, and the summary counts the runs whose
-explorer said it was done (`completed`) apart.
+Every map is run from its default start pose with every method and every robot preset (through the
+campaign runner: parallel processes, `--resume`), then a row per run (coverage, path, robot time, end
+reason, success) and a success rate per method and robot are printed and written as `bench.csv` /
+`bench.txt` / `bench.md` (a Markdown table for documentation).
+A run succeeds when it reached `SUCCESS_COVERAGE` of the space the robot can physically reach, with no
+collision, and ended with an honest "explored": the explorer said it was done and the run's own check
+found nothing reachable left unexplored (a run stopped by the time limit, the stall watch, Ctrl-C, a
+robot or plugin error, leaving the exploration area, or an explorer that gave up with frontier left is
+no success) - and when no point of its path (`RUN.path.csv` in the output folder) lies outside the
+map's exploration area. The table shows every end reason.
 """
 
 from __future__ import annotations
@@ -22,14 +23,16 @@ from typing import Any
 from robotexp.errors import ConfigError, WorldError
 from robotexp.run.spec import RunSpec
 
-__all__ = ["DONE_WHEN_METHODS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_table", "done_when_maps",
-           "expand_maps", "failure_causes", "success"]
+__all__ = ["DONE_WHEN_METHODS", "DONE_WHEN_ROBOTS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_markdown", "bench_table",
+           "done_when_maps",           "expand_maps", "failure_causes", "success"]
 
 SUCCESS_COVERAGE = 0.95
 DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # the Done-when benchmark
+DONE_WHEN_ROBOTS = ("p3dx", "kobuki")
 _MAP_SUFFIXES = (".map", ".yaml", ".yml")
 OUTSIDE = "path_points_outside"     # added to a record by `run_bench` from its path file (None: not checked)
-COLUMNS = ("map", "method", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason", "success")
+COLUMNS = ("map", "method", "robot", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason",
+           "success")
 
 
 def expand_maps(items: Iterable[str]) -> list[str]:
@@ -66,41 +69,43 @@ def done_when_maps(maps: Iterable[str], seeds: str = "0-49") -> list[str]:
     return [*maps, *(f"generated:{kind}:{seeds}" for kind in KINDS)]
 
 
-def _bench_specs(maps: list[str], methods: list[str], *, speed: float = 0.3, laser_range: float = 3.0,
-                max_time: float = 4 * 3600.0, seed: int = 0,
-                load: Callable[[str], Any] | None = None) -> list[RunSpec]:
-    """One `RunSpec` per map and method (default start pose), every map loaded once first so that a
-    bad one is reported before any run starts.
+def _bench_specs(maps: list[str], methods: list[str], robots: Iterable[str] = ("p3dx",), *, speed: float = 0.3,
+                 laser_range: float = 3.0, max_time: float = 4 * 3600.0, seed: int = 0,
+                 load: Callable[[str], Any] | None = None) -> list[RunSpec]:
+    """One `RunSpec` per map, method and robot preset (default start pose), every map loaded once first
+    so that a bad one is reported before any run starts.
 
     Raises:
-        WorldError, PluginError, ConfigError: a map that does not load, an unknown method.
+        WorldError, PluginError, ConfigError: a map that does not load, an unknown method or robot preset.
     """
     from robotexp.registry import make_explorer
+    from robotexp.sim.presets import preset
     from robotexp.world.loader import load_world
 
-    if not maps or not methods:
-        raise ConfigError("bench: give at least one map and one method")
+    robots = list(robots)
+    if not maps or not methods or not robots:
+        raise ConfigError("bench: give at least one map, one method and one robot")
     for method in methods:
         make_explorer(method, {})
+    for robot in robots:
+        preset(robot)
     for spec in maps:
         (load or load_world)(spec)
     specs = [RunSpec(world=m, method=method, pose=None, speed=speed, laser_range=laser_range, seed=seed,
-                     max_time=max_time) for m in maps for method in methods]
+                     max_time=max_time, robot=robot) for m in maps for method in methods for robot in robots]
     for s in specs:
         s.validate()
     return specs
 
 
 def success(record: dict[str, Any]) -> bool:
-    """True when the run covered SUCCESS_COVERAGE, never collided and ended on its own (see the module)."""
+    """True when the run covered SUCCESS_COVERAGE, never collided and ended explored (see the module)."""
     from robotexp.run.record import EndReason
 
     cov = record.get("coverage")
     end = EndReason.classify(bool(record.get("completed")), str(record.get("reason", "")))
-    own = end in (EndReason.EXPLORED, EndReason.STALLED) or (
-        end is EndReason.STOPPED and "left the exploration area" not in str(record.get("reason", "")))
-    return (own and cov is not None and cov >= SUCCESS_COVERAGE and record.get("collisions", 1) == 0
-            and not record.get(OUTSIDE))
+    return (end is EndReason.EXPLORED and cov is not None and cov >= SUCCESS_COVERAGE
+            and record.get("collisions", 1) == 0 and not record.get(OUTSIDE))
 
 
 def failure_causes(record: dict[str, Any]) -> list[str]:
@@ -119,8 +124,8 @@ def failure_causes(record: dict[str, Any]) -> list[str]:
         out.append(f"{record[OUTSIDE]} path points outside the exploration area")
     reason = str(record.get("reason", ""))
     end = EndReason.classify(bool(record.get("completed")), reason)
-    if end not in (EndReason.EXPLORED, EndReason.STALLED, EndReason.STOPPED) or "left the exploration area" in reason:
-        out.append(f"did not end on its own ({end.value})")
+    if end is not EndReason.EXPLORED:
+        out.append(f"did not end explored ({end.value})")
     return out
 
 
@@ -139,49 +144,65 @@ def _map_group(record: dict[str, Any]) -> str:
     return "map files" if Path(spec).suffix.lower() in _MAP_SUFFIXES else spec
 
 
-def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
-    """(text, csv) of the runs (sorted by map and method) and the success rate per method."""
-    rows = sorted(records, key=lambda r: (_map_name(r), str(r.get("method"))))
+def _robot(record: Mapping[str, Any]) -> str:
+    """The record's robot (the default preset for records that name none)."""
+    return str(record.get("robot") or "p3dx")
+
+
+def _label(record: Mapping[str, Any]) -> str:
+    """The record's method and robot, as the summaries group runs: `frontier p3dx`."""
+    return f"{record.get('method')} {_robot(record)}"
+
+
+def _rows(records: Iterable[dict[str, Any]]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """The records sorted by map, method and robot, and their table rows (`COLUMNS`, as text)."""
+    rows = sorted(records, key=lambda r: (_map_name(r), str(r.get("method")), _robot(r)))
     table = []
     for r in rows:
         cov = r.get("coverage")
-        table.append({"map": _map_name(r), "method": r.get("method"),
+        table.append({"map": _map_name(r), "method": str(r.get("method")), "robot": _robot(r),
                       "coverage": "" if cov is None else f"{cov:.4f}",
                       "path_m": f"{r.get('path_length_m', 0.0):.1f}",
                       "robot_time_s": f"{r.get('robot_time_s', 0.0):.0f}",
                       "collisions": str(r.get("collisions")), "completed": str(bool(r.get("completed"))).lower(),
                       "reason": str(r.get("reason", "")), "success": "yes" if success(r) else "no"})
+    return rows, table
+
+
+def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
+    """(text, csv) of the runs (sorted by map, method and robot) and the success rate per method and robot."""
+    rows, table = _rows(records)
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     writer.writeheader()
     writer.writerows(table)
     width = max([len(str(t["map"])) for t in table] + [3])
-    lines = [f"{'map':<{width}}  {'method':<12} {'coverage':>8} {'path m':>8} {'time s':>7} {'coll':>4} "
-             f"{'ok':>3}  end reason"]
+    lines = [f"{'map':<{width}}  {'method':<12} {'robot':<7} {'coverage':>8} {'path m':>8} {'time s':>7} "
+             f"{'coll':>4} {'ok':>3}  end reason"]
     for t in table:
-        lines.append(f"{t['map']:<{width}}  {t['method']:<12} {t['coverage']:>8} {t['path_m']:>8} "
+        lines.append(f"{t['map']:<{width}}  {t['method']:<12} {t['robot']:<7} {t['coverage']:>8} {t['path_m']:>8} "
                      f"{t['robot_time_s']:>7} {t['collisions']:>4} {t['success']:>3}  {t['reason']}")
     lines.append("")
-    lines.append(f"per method: success (coverage >= {SUCCESS_COVERAGE}, no collision, ended on its own: not by the "
-                 "time limit or an error), and runs the explorer itself completed")
-    by_method: dict[str, list[tuple[bool, bool]]] = {}
+    lines.append(f"per method and robot: success (coverage >= {SUCCESS_COVERAGE} of the reachable space, no "
+                 "collision, ended explored), and runs the explorer itself completed")
+    by_label: dict[str, list[tuple[bool, bool]]] = {}
     for r in rows:
-        by_method.setdefault(str(r.get("method")), []).append((success(r), bool(r.get("completed"))))
-    for method, res in sorted(by_method.items()):
+        by_label.setdefault(_label(r), []).append((success(r), bool(r.get("completed"))))
+    for label, res in sorted(by_label.items()):
         ok, done = sum(a for a, _ in res), sum(b for _, b in res)
-        lines.append(f"  {method:<12} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
+        lines.append(f"  {label:<20} success {ok}/{len(res)} = {ok / len(res):.0%}   completed {done}/{len(res)}")
     groups = sorted({_map_group(r) for r in rows})
     if len(groups) > 1:
         lines.append("")
-        lines.append("success per method and group of maps (ok/runs)")
+        lines.append("success per method, robot and group of maps (ok/runs)")
         gw = max(len(g) for g in groups)
-        lines.append(f"  {'method':<12} " + " ".join(f"{g:>{gw}}" for g in groups))
-        for method in sorted(by_method):
+        lines.append(f"  {'method robot':<20} " + " ".join(f"{g:>{gw}}" for g in groups))
+        for label in sorted(by_label):
             cells = []
             for g in groups:
-                runs = [r for r in rows if str(r.get("method")) == method and _map_group(r) == g]
+                runs = [r for r in rows if _label(r) == label and _map_group(r) == g]
                 cells.append(f"{sum(success(r) for r in runs)}/{len(runs)}" if runs else "-")
-            lines.append(f"  {method:<12} " + " ".join(f"{c:>{gw}}" for c in cells))
+            lines.append(f"  {label:<20} " + " ".join(f"{c:>{gw}}" for c in cells))
     checked = [r for r in rows if r.get(OUTSIDE) is not None]
     if checked:
         lines.append("")
@@ -192,9 +213,39 @@ def bench_table(records: Iterable[dict[str, Any]]) -> tuple[str, str]:
     lines.append("")
     lines.append(f"failures: {len(failed)} of {len(rows)} runs" + (":" if failed else ""))
     for r in failed:
-        lines.append(f"  {_map_name(r)} {r.get('method')}: {'; '.join(failure_causes(r))} - "
+        lines.append(f"  {_map_name(r)} {_label(r)}: {'; '.join(failure_causes(r))} - "
                      f"end reason: {r.get('reason', '')}")
     return "\n".join(lines) + "\n", buf.getvalue()
+
+
+def _md(text: str) -> str:
+    """`text` as a Markdown table cell (pipes escaped, one line)."""
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def bench_markdown(records: Iterable[dict[str, Any]]) -> str:
+    """The runs as Markdown for documentation: success per method and robot, then every run (map,
+    method, robot, coverage, path, robot time, collisions, success and end reason), then every failure
+    with the rules it broke."""
+    rows, table = _rows(records)
+    by_label: dict[str, list[bool]] = {}
+    for r in rows:
+        by_label.setdefault(_label(r), []).append(success(r))
+    out = ["| method | robot | success | rate |", "|---|---|---:|---:|"]
+    for label, res in sorted(by_label.items()):
+        method, robot = label.rsplit(" ", 1)
+        out.append(f"| {method} | {robot} | {sum(res)}/{len(res)} | {sum(res) / len(res):.0%} |")
+    out += ["", "| map | method | robot | coverage | path m | time s | collisions | ok | end reason |",
+            "|---|---|---|---:|---:|---:|---:|---|---|"]
+    for t in table:
+        out.append(f"| {_md(t['map'])} | {t['method']} | {t['robot']} | {t['coverage']} | {t['path_m']} | "
+                   f"{t['robot_time_s']} | {t['collisions']} | {t['success']} | {_md(t['reason'])} |")
+    failed = [r for r in rows if not success(r)]
+    out += ["", f"Failures: {len(failed)} of {len(rows)} runs."]
+    if failed:
+        out.append("")
+        out += [f"- {_md(_map_name(r))}, {_label(r)}: {_md('; '.join(failure_causes(r)))}" for r in failed]
+    return "\n".join(out) + "\n"
 
 
 def _mark_outside(records: list[dict[str, Any]], out: Path) -> None:
@@ -233,27 +284,28 @@ def _no_load(spec: str) -> None:
 
 
 def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resume: bool = False,
-              max_time: float = 4 * 3600.0, run: bool = True,
+              max_time: float = 4 * 3600.0, run: bool = True, robots: Iterable[str] = ("p3dx",),
               progress: Callable[[int, int, Mapping[str, Any] | None], None] | None = None) -> tuple[str, str]:
-    """Run every map x method (see `_bench_specs`) through the campaign runner into `out` (`run` False:
-    none, only the table), write `bench.txt` and `bench.csv` there from the records of these runs in
-    `out/results.jsonl` (the text says how many have none), return (text, csv)."""
+    """Run every map x method x robot (see `_bench_specs`) through the campaign runner into `out` (`run`
+    False: none, only the table), write `bench.txt`, `bench.csv` and `bench.md` there from the records of
+    these runs in `out/results.jsonl` (the text says how many have none), return (text, csv)."""
     from robotexp.campaign.spec import Campaign
     from robotexp.campaign.runner import run_campaign
     from robotexp.output.results import read_jsonl
 
-    specs = _bench_specs(expand_maps(maps), methods, max_time=max_time, load=None if run else _no_load)
+    specs = _bench_specs(expand_maps(maps), methods, robots, max_time=max_time, load=None if run else _no_load)
     if run:
         run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
-    wanted = {(s.world, s.method) for s in specs}
+    wanted = {(s.world, s.method, s.robot) for s in specs}
     path = out / "results.jsonl"
-    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method")) in wanted] \
+    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method"), _robot(r)) in wanted] \
         if path.is_file() else []
     _mark_outside(records, out)
     text, table = bench_table(records)
-    missing = len(wanted) - len({(r.get("world_spec"), r.get("method")) for r in records})
+    missing = len(wanted) - len({(r.get("world_spec"), r.get("method"), _robot(r)) for r in records})
     if missing:
-        text += f"not run: {missing} of {len(wanted)} map x method pairs (no record in {path})\n"
+        text += f"not run: {missing} of {len(wanted)} map x method x robot runs (no record in {path})\n"
     (out / "bench.txt").write_text(text, encoding="utf-8")
     (out / "bench.csv").write_text(table, encoding="utf-8")
+    (out / "bench.md").write_text(bench_markdown(records), encoding="utf-8")
     return text, table

@@ -55,7 +55,7 @@ _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "s
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
 
-RunKey = tuple[str, str, str, int, int, str]
+RunKey = tuple[str, str, str, int, int, str, str]
 
 
 @dataclass
@@ -101,9 +101,11 @@ def _label(sweep: str, team: str) -> str:
 
 
 def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
-    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values and team)."""
+    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values and team,
+    robot)."""
     team = _team_label(len(spec.team), spec.coordinator, spec.comm_range)
-    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _label(_sweep_label(sweep), team))
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _label(_sweep_label(sweep), team),
+            spec.robot)
 
 
 def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
@@ -114,7 +116,7 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     team = _team_label(r.team_size, r.coordinator, r.comm_range_m)
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
-            _label(_sweep_label(sweep if isinstance(sweep, dict) else None), team))
+            _label(_sweep_label(sweep if isinstance(sweep, dict) else None), team), str(r.robot or "p3dx"))
 
 
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:

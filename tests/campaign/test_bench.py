@@ -9,7 +9,8 @@ import io
 import pytest
 from click.testing import CliRunner
 
-from robotexp.campaign.bench import SUCCESS_COVERAGE, bench_table, done_when_maps, expand_maps, failure_causes, success
+from robotexp.campaign.bench import (SUCCESS_COVERAGE, bench_markdown, bench_table, done_when_maps, expand_maps,
+                                     failure_causes, success)
 from robotexp.cli import main
 from robotexp.errors import WorldError
 from robotexp.world.generate import write_generated
@@ -33,16 +34,19 @@ def record(method: str, cov: float | None, completed: bool, collisions: int = 0,
             "collisions": collisions, "reason": reason, "path_length_m": 12.34, "robot_time_s": 56.7}
 
 
-def test_success_needs_its_own_ending_the_coverage_and_no_collision():
+def test_success_needs_an_explored_ending_the_coverage_and_no_collision():
     assert success(record("a", SUCCESS_COVERAGE, True))
     assert not success(record("a", SUCCESS_COVERAGE - 1e-9, True))
     assert not success(record("a", 1.0, True, collisions=1))
     assert not success(record("a", None, True))
-    assert success(record("a", 1.0, False, reason="stalled: no newly known space for 3 x 120 s"))
+    # only an honest "explored" counts: a stall, a time limit, an error, leaving the area, or an explorer that
+    # said it was done with reachable frontier left (the run's check turns that into "stopped") do not
+    assert not success(record("a", 1.0, False, reason="stalled: no newly known space for 3 x 120 s"))
     assert not success(record("a", 1.0, False, reason="time limit of 3600 s reached"))
     assert not success(record("a", 1.0, False, reason="robot error: link lost"))
     assert not success(record("a", 1.0, False, reason="stopped: the robot left the exploration area at (1, 2) m"))
-    assert success(record("a", 0.99, False, reason="stopped: the explorer ended (x) with 5 frontier cells left"))
+    assert not success(record("a", 0.99, False, reason="stopped: the explorer ended (x) with 5 frontier cells left"))
+    assert failure_causes(record("a", 0.99, False, reason="stalled: x")) == ["did not end explored (stalled)"]
 
 
 def test_the_table_has_a_row_per_run_and_a_rate_per_method():
@@ -53,9 +57,25 @@ def test_the_table_has_a_row_per_run_and_a_rate_per_method():
     assert [(r["method"], r["coverage"], r["success"]) for r in rows] == [
         ("bvp", "0.9900", "no"), ("frontier", "0.9900", "yes"), ("frontier", "0.5000", "no")]
     assert rows[0]["path_m"] == "12.3" and rows[0]["reason"] == "time limit of 9 s reached"
-    assert rows[0]["map"] == "generated:office:1"
-    assert "  bvp          success 0/1 = 0%   completed 0/1" in text
-    assert "  frontier     success 1/2 = 50%   completed 2/2" in text
+    assert rows[0]["map"] == "generated:office:1" and rows[0]["robot"] == "p3dx"
+    assert "  bvp p3dx             success 0/1 = 0%   completed 0/1" in text
+    assert "  frontier p3dx        success 1/2 = 50%   completed 2/2" in text
+
+
+def test_runs_are_told_apart_and_summed_per_robot():
+    runs = [{**record("frontier", 0.99, True, reason="done"), "robot": "kobuki"},
+            {**record("frontier", 0.5, True, reason="early"), "robot": "p3dx"},
+            {**record("frontier", 0.97, True, reason="done"), "robot": "p3dx", "world_spec": "/m/b.yaml"}]
+    text, table = bench_table(runs)
+    assert [(r["map"], r["robot"], r["success"]) for r in csv.DictReader(io.StringIO(table))] == [
+        ("b.yaml", "p3dx", "yes"), ("generated:office:1", "kobuki", "yes"), ("generated:office:1", "p3dx", "no")]
+    assert "  frontier kobuki      success 1/1 = 100%" in text
+    assert "  frontier p3dx        success 1/2 = 50%" in text
+    md = bench_markdown(runs)
+    assert "| frontier | kobuki | 1/1 | 100% |" in md and "| frontier | p3dx | 1/2 | 50% |" in md
+    assert "| generated:office:1 | frontier | p3dx | 0.5000 | 12.3 | 57 | 0 | no | early |" in md
+    assert "- generated:office:1, frontier p3dx: coverage 0.500 < 0.95" in md
+    assert bench_markdown([{**runs[0], "reason": "a | b"}]).count("a \\| b") == 1
 
 
 def test_bench_runs_a_generated_world_end_to_end_and_writes_its_table(tmp_path):
@@ -80,13 +100,13 @@ def test_failures_are_listed_with_the_rules_they_broke_and_groups_are_tallied():
             {**record("bvp", 0.5, True, collisions=2, reason="explored"), "world_spec": "generated:cave:3"}]
     text, _ = bench_table(runs)
     assert "failures: 2 of 3 runs:" in text
-    assert ("  a.yaml frontier: did not end on its own (time limit) - end reason: time limit of 9 s reached"
+    assert ("  a.yaml frontier p3dx: did not end explored (time limit) - end reason: time limit of 9 s reached"
             in text)
-    assert "  generated:cave:3 bvp: coverage 0.500 < 0.95; 2 collisions - end reason: explored" in text
-    header = next(line for line in text.splitlines() if line.startswith("  method  "))
-    assert header.split() == ["method", "generated:cave", "generated:office", "map", "files"]
+    assert "  generated:cave:3 bvp p3dx: coverage 0.500 < 0.95; 2 collisions - end reason: explored" in text
+    header = next(line for line in text.splitlines() if line.startswith("  method robot "))
+    assert header.split() == ["method", "robot", "generated:cave", "generated:office", "map", "files"]
     assert next(line for line in text.splitlines() if line.startswith("  frontier ") and "/" in line
-                and "success" not in line).split() == ["frontier", "-", "1/1", "0/1"]
+                and "success" not in line).split() == ["frontier", "p3dx", "-", "1/1", "0/1"]
     assert failure_causes(runs[0]) == []
 
 
@@ -105,9 +125,29 @@ def test_report_tables_the_recorded_runs_and_counts_the_missing(tmp_path):
     (out / "results.jsonl").write_text(json.dumps(rec) + "\n")
     result = CliRunner().invoke(main, ["bench", "generated:cave:0-1", "-m", "frontier", "-o", str(out), "--report"])
     assert result.exit_code == 0, result.output
-    assert "frontier     success 1/1 = 100%" in result.output
-    assert "not run: 1 of 2 map x method pairs" in result.output
+    assert "frontier p3dx        success 1/1 = 100%" in result.output
+    assert "not run: 1 of 2 map x method x robot runs" in result.output
     assert (out / "bench.csv").read_text().count("\n") == 2
+    # each robot preset is a run of its own: the kobuki's is missing, and --resume would make just that one
+    result = CliRunner().invoke(main, ["bench", "generated:cave:0", "-m", "frontier", "-r", "p3dx,kobuki",
+                                       "-o", str(out), "--report"])
+    assert result.exit_code == 0, result.output
+    assert "not run: 1 of 2 map x method x robot runs" in result.output
+    assert "| frontier | p3dx | 1/1 | 100% |" in (out / "bench.md").read_text()
+    bad = CliRunner().invoke(main, ["bench", "generated:cave:0", "-r", "roomba", "-o", str(out)])
+    assert bad.exit_code == 2 and "roomba" in bad.output
+
+
+def test_a_runs_robot_is_part_of_its_key_for_resume():
+    from robotexp.campaign.spec import record_key, run_key
+    from robotexp.run.spec import RunSpec
+
+    p3dx, kobuki = (RunSpec(world="dense", method="frontier", robot=r) for r in ("p3dx", "kobuki"))
+    assert run_key(p3dx, "default") != run_key(kobuki, "default")
+    rec = {"run": "x", "method": "frontier", "world": "dense", "world_spec": "dense", "pose_spec": "default",
+           "max_speed_m_s": 0.3, "seed": 0, "robot": "kobuki"}
+    assert record_key(rec) == run_key(kobuki, "default")
+    assert record_key({**rec, "robot": None}) == run_key(p3dx, "default")     # records that name no robot
 
 
 def test_report_counts_the_path_points_outside_the_exploration_area(tmp_path):
@@ -123,5 +163,6 @@ def test_report_counts_the_path_points_outside_the_exploration_area(tmp_path):
     result = CliRunner().invoke(main, ["bench", "generated:cave:0", "-m", "frontier,bvp", "-o", str(out), "--report"])
     assert result.exit_code == 0, result.output
     assert "path points outside the exploration area: 2 (paths of 2 of 2 runs checked" in result.output
-    assert "frontier     success 1/1 = 100%" in result.output and "bvp          success 0/1 = 0%" in result.output
-    assert "generated:cave:0 bvp: 2 path points outside the exploration area" in result.output
+    assert "frontier p3dx        success 1/1 = 100%" in result.output
+    assert "bvp p3dx             success 0/1 = 0%" in result.output
+    assert "generated:cave:0 bvp p3dx: 2 path points outside the exploration area" in result.output

@@ -41,7 +41,7 @@ def test_expansion_counts_every_combination(tmp_path: Path) -> None:
     assert camp.name == "mini"
     assert len(camp.runs) == 2 * 2 * 2          # poses x speeds x seeds
     keys = {run_key(s, s.pose or "default") for s in camp.runs}
-    assert ("ufmg-static", "frontier", "path2", 200, 1, "") in keys
+    assert ("ufmg-static", "frontier", "path2", 200, 1, "", "p3dx") in keys
     assert all(s.max_time == 20 for s in camp.runs)
 
 
@@ -215,7 +215,7 @@ def test_sweep_over_two_parameters_runs_and_reports_by_them(tmp_path: Path) -> N
     assert combos == {(c, r) for c in (0.2, 0.35) for r in (1.0, 1.5, 2.0)}
     keys = {camp.key(s) for s in camp.runs}
     assert len(keys) == 6 and ("ufmg-static", "frontier", "path1", 300, 0,
-                               "clearance=0.35,replan_period=1.5") in keys
+                               "clearance=0.35,replan_period=1.5", "p3dx") in keys
     out = tmp_path / "out"
     records = run_campaign(camp, out, jobs=2)
     stored = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
