@@ -8,8 +8,9 @@ single robot's from the same start), writes every record to OUT/results.jsonl, t
 OUT/team_study.md, and the figures (the coverage curves of the first start, the map of its team run for each
 coordinator) to `--figures`.
 
-    python benchmarks/studies/team_study.py [--world dense] [--team 4] [--coordinators none,greedy,burgard,minpos]
-        [--poses 1] [--seeds 0] [--max-time 1800] [--out out/team_study] [--figures docs/figures]
+    python benchmarks/studies/team_study.py [--world dense] [--team 4 | 2,4,8]
+        [--coordinators none,greedy,burgard,minpos] [--poses 1] [--seeds 0] [--max-time 1800]
+        [--out out/team_study] [--figures docs/figures]
 
 docs/how-to/teams.md: ``python benchmarks/studies/team_study.py --poses 1,2,3,4,5,6,7,8,9 --figures docs/figures``.
 """
@@ -31,7 +32,7 @@ def main() -> int:
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="dense")
-    ap.add_argument("--team", type=int, default=4, help="robots in a team")
+    ap.add_argument("--team", default="4", help="robots in a team, comma-separated sizes (2,4,8: a scaling study)")
     ap.add_argument("--coordinators", default="none,greedy,burgard,minpos")
     ap.add_argument("--seeds", default="0", help="comma-separated")
     ap.add_argument("--poses", default="1", help="start poses of the world, comma-separated")
@@ -42,6 +43,7 @@ def main() -> int:
     seeds = [int(s) for s in args.seeds.split(",")]
     cases = [(pose, seed) for pose in args.poses.split(",") for seed in seeds]
     coordinators = args.coordinators.split(",")
+    sizes = [int(n) for n in args.team.split(",")]
     figures = args.figures or args.out
     figures.mkdir(parents=True, exist_ok=True)
     rows: dict[str, list[dict[str, float | None]]] = {}
@@ -54,9 +56,10 @@ def main() -> int:
         spec = RunSpec(world=args.world, method="frontier", pose=pose, seed=seed, max_time=args.max_time)
         single = run_experiment(spec, args.out, image=False)
         settings = [("1 robot", single)]
-        for name in coordinators:
-            team = TeamSpec(robots=("p3dx",) * args.team, coordinator=name)
-            settings.append((f"{args.team} {name}", run_team(spec, team, args.out, image=False)))
+        for size in sizes:
+            for name in coordinators:
+                team = TeamSpec(robots=("p3dx",) * size, coordinator=name)
+                settings.append((f"{size} {name}", run_team(spec, team, args.out, image=False)))
         base = single.record.time_to_coverage_95_s
         for label, output in settings:
             r = output.record
@@ -74,7 +77,8 @@ def main() -> int:
                 curves.append((label, [c[0] for c in curve], [100 * c[2] for c in curve]))
                 if r.team_size is not None:
                     fig = run_map_figure(output.run)
-                    save_figure(fig, figures / f"teams_{args.world}_{r.coordinator}", ("png",))
+                    size = "" if sizes == [4] else f"{r.team_size}_"
+                    save_figure(fig, figures / f"teams_{args.world}_{size}{r.coordinator}", ("png",))
     table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
              "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for label, rs in rows.items():
@@ -86,8 +90,8 @@ def main() -> int:
     fig = curve_figure(curves, xlabel="robot time [s]", ylabel="coverage [%]",
                        title=f"{args.world}: one robot and teams of {args.team} (frontier, start {cases[0][0]})",
                        hlines=[95.0])
-    save_figure(fig, figures / f"teams_{args.world}_coverage", ("png",))
-    print(f"\n{len(cases) * (1 + len(coordinators))} runs in {time.perf_counter() - t0:.0f} s; records in "
+    save_figure(fig, figures / f"teams_{args.world}_{'' if sizes == [4] else 'scaling_'}coverage", ("png",))
+    print(f"\n{len(cases) * (1 + len(sizes) * len(coordinators))} runs in {time.perf_counter() - t0:.0f} s; records in "
           f"{args.out / 'results.jsonl'}, figures in {figures}")
     return 0
 
