@@ -61,6 +61,7 @@ class FrontierExplorer(Explorer):
             as 8-neighbour (0: neither test, nor the memory of walls).
     """
 
+    takes_targets = True
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
         "min_group_cells": (1, 1_000_000), "replan_period": (None, 3600.0), "goal_timeout": (None, 86400.0),
         "clearance": (0.0, 10.0), "face_reach": (0.0, 10.0)}
@@ -104,6 +105,7 @@ class FrontierExplorer(Explorer):
         self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
         self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
+        self.assigned: npt.NDArray[np.int64] | None = None    # a team coordinator's target cells
 
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew (the
@@ -111,6 +113,15 @@ class FrontierExplorer(Explorer):
         self.walls_seen = None
         self._targets = None
         self.costs = PlanCosts(self.ctx.radius, self.clearance)
+        self.next_plan = -math.inf
+
+    def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
+        """A team coordinator's target: the next goal is chosen among these frontier cells (None: alone);
+        a new target drops the goal at once."""
+        self.assigned = None if cells is None else np.asarray(cells, np.int64).reshape(-1, 2)
+        if self.goal is not None and not self.homing:
+            self.follower.clear()
+            self.goal = self.face = None
         self.next_plan = -math.inf
 
     # -- the decision ----------------------------------------------------------------
@@ -233,6 +244,7 @@ class FrontierExplorer(Explorer):
         targets = self._frontier_targets(grid, view, off)
         if not targets.any():
             return False
+        targets = self._assigned_part(targets, off)
         # stand within a robot radius (plus the inflation) of a frontier cell
         # stand on or right by a frontier cell where possible (inside the room, not in its door);
         # frontier cells in pockets too narrow for the robot are looked at from up to a metre away
@@ -254,6 +266,24 @@ class FrontierExplorer(Explorer):
         self._aim(targets, goal_rc, view, grid, off)
         self._follow(path, passable, pose, grid, off)
         return True
+
+    def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], Offset]:
+        """The frontier cells the next plan would choose among (walls' faces and cells given up on left out),
+        on the window of the scanned part of `grid`, with the window's offset."""
+        view, off = known_window(grid, WINDOW_MARGIN)
+        return self._frontier_targets(grid, view, off), off
+
+    def _assigned_part(self, targets: npt.NDArray[np.bool_], off: Offset) -> npt.NDArray[np.bool_]:
+        """The targets among the coordinator's cells, when some are; else all of them."""
+        if self.assigned is None or len(self.assigned) == 0:
+            return targets
+        local = self.assigned - off
+        rows, cols = targets.shape
+        inside = (local[:, 0] >= 0) & (local[:, 0] < rows) & (local[:, 1] >= 0) & (local[:, 1] < cols)
+        local = local[inside]
+        keep = np.zeros_like(targets)
+        keep[local[:, 0], local[:, 1]] = targets[local[:, 0], local[:, 1]]
+        return keep if keep.any() else targets
 
     def _frontier_targets(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
         """`frontier_targets` of the groups large enough to matter, blacklisted cells left out, on the

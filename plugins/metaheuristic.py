@@ -90,6 +90,7 @@ class MetaheuristicExplorer(Explorer):
         "goal_timeout": (None, 86400.0), "clearance": (0.0, 10.0)}
 
     preferred_cell: ClassVar[float | None] = SANTOS_CELL
+    takes_targets = True
     name: ClassVar[str] = "meta"
 
     def __init__(self, *, objective: str = "proportional", min_frontier: int = 20, min_opening: int | None = None,
@@ -138,6 +139,15 @@ class MetaheuristicExplorer(Explorer):
         self.gaps: list[float] = []         # [cells] from each target to the exhaustive optimum
         self.fallbacks = 0                  # searches that ended with no frontier within reach
         self.frontier_left = 0
+        self.assigned: npt.NDArray[np.int64] | None = None     # a team coordinator's target cells
+
+    def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
+        """A team coordinator's target: the search runs on the frontier among these cells (None: all of
+        it); a new target drops the current one at once."""
+        self.assigned = None if cells is None else np.asarray(cells, np.int64).reshape(-1, 2)
+        self.target = self.face = None
+        self.follower.clear()
+        self.next_plan = -math.inf
 
     def result_fields(self) -> dict[str, object]:
         """Targets chosen, their mean distance to the exhaustive optimum [cells], frontier left, and the
@@ -251,6 +261,7 @@ class MetaheuristicExplorer(Explorer):
         self.frontier_left = int(np.count_nonzero(frontier))
         if self.frontier_left < self.min_frontier and not self._opening_left(frontier, geo.cell):
             return False
+        frontier = self._assigned_part(frontier, off)
         target = None if self.target is None else (self.target[0] - off[0], self.target[1] - off[1])
         if (target is not None and not self.follower.done and 0 <= target[0] < wr and 0 <= target[1] < wc
                 and reachable[target] and len(self._open_cells(frontier, off))):
@@ -291,6 +302,17 @@ class MetaheuristicExplorer(Explorer):
         self.best_remaining, self.last_progress = math.inf, now
         self._follow(path, passable, pose, grid, off)
         return True
+
+    def _assigned_part(self, frontier: npt.NDArray[np.bool_], off: Offset) -> npt.NDArray[np.bool_]:
+        """The frontier among the coordinator's cells, when some is; else all of it."""
+        if self.assigned is None or len(self.assigned) == 0:
+            return frontier
+        local = self.assigned - off
+        rows, cols = frontier.shape
+        local = local[(local[:, 0] >= 0) & (local[:, 0] < rows) & (local[:, 1] >= 0) & (local[:, 1] < cols)]
+        keep = np.zeros_like(frontier)
+        keep[local[:, 0], local[:, 1]] = frontier[local[:, 0], local[:, 1]]
+        return keep if keep.any() else frontier
 
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
                 grid: OccupancyGrid, off: Offset) -> None:

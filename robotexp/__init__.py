@@ -7,6 +7,7 @@ need is here (docs/architecture.md, "Public API", names the public subpackages b
 - explorers: `Explorer`, `ExplorerContext`, `Done`, `Twist`, `RobotState`, `LaserScan`, `SonarScan`,
   `Pose`, `Limits`, `OccupancyGrid`, `GridGeometry`, `wrap_angle`, `compose_pose`, `relative_pose`, and
   `check_explorer` for a plugin's own tests;
+- coordinators of a team: `Coordinator`, `Candidates`, `TeamContext`, and `check_coordinator`;
 - robot backends and laser drivers: `Robot`, `Capability`, `RobotEmulator`, `Clock`, `PacedClock`, `Laser`,
   `LaserGeometry`, `StampedScan`, `ScanSource`, `PoseHistory`, `scan_in_robot_frame`;
 - runs: `RunSpec`, `run_experiment`, `run_on_robot`, `RunOutput`, `ExplorationRun`, `RunInfo`,
@@ -43,6 +44,8 @@ _EXPORTS = {
     "ProtocolError": "robotexp.errors", "WorldError": "robotexp.errors", "ScriptError": "robotexp.errors",
     "PluginError": "robotexp.errors", "ConfigError": "robotexp.errors",
     "check_explorer": "robotexp.testing.explorer_contract",
+    "Coordinator": "robotexp.coordinator", "Candidates": "robotexp.coordinator", "TeamContext": "robotexp.coordinator",
+    "check_coordinator": "robotexp.testing.coordinator_contract",
 }
 
 __all__ = [
@@ -55,7 +58,7 @@ __all__ = [
     "RunSpec", "RunOutput", "run_experiment", "run_on_robot", "RunObserver", "StepEvent", "RunRecord", "EndReason",
     "load_world", "World",
     "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError", "WorldError", "ScriptError", "PluginError",
-    "ConfigError", "check_explorer",
+    "ConfigError", "check_explorer", "Coordinator", "Candidates", "TeamContext", "check_coordinator",
 ]
 
 if TYPE_CHECKING:
@@ -63,7 +66,9 @@ if TYPE_CHECKING:
                                  ScriptError, WorldError)
     from robotexp.experiment import RunOutput, run_experiment, run_on_robot
     from robotexp.run.spec import RunSpec
+    from robotexp.coordinator import Candidates, Coordinator, TeamContext
     from robotexp.explorer import Done, Explorer, ExplorerContext
+    from robotexp.testing.coordinator_contract import check_coordinator
     from robotexp.run.loop import ExplorationRun, RunInfo
     from robotexp.testing.explorer_contract import check_explorer
     from robotexp.clock import Clock, PacedClock

@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from robotexp.errors import ConfigError, PluginError
 from robotexp.mapping.geometry import GridGeometry
@@ -29,7 +32,11 @@ from robotexp.run.spec import DEFAULT_CELL, RunPlan, RunSpec, plan_run, sim_robo
 from robotexp.world.model import World
 from robotexp.world.poses import pose_name
 
-__all__ = ["RunOutput", "run_experiment", "run_on_robot", "warm_kernels"]
+if TYPE_CHECKING:
+    from robotexp.run.team import TeamSpec
+    from robotexp.sim import SimRobot
+
+__all__ = ["RunOutput", "run_experiment", "run_on_robot", "run_team", "warm_kernels"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +70,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     (`sim_robot`) at its start is handed to `run_on_robot`, which writes the results under `out`
     (nothing when `out` is None).
 
+    A spec with a `team` runs that team (`run_team`, with the spec's coordinator and communication range).
+
     `on_sample(t, coverage)` and `on_run(run)` are called after each coverage sample (an observer's
     `on_sample` does the same; `on_run` may render frames or call `request_stop`). `image`: write the map
     and coverage figures (PNG; a tuple names the formats, e.g. ("png", "svg")) or not.
@@ -74,6 +83,11 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     """
     from robotexp.sim import preset
 
+    if spec.team:       # a team (a campaign's `teams`): one record for the team
+        from robotexp.run.team import TeamSpec
+
+        team = TeamSpec(robots=spec.team, coordinator=spec.coordinator, comm_range=spec.comm_range)
+        return run_team(spec, team, out, observers=observers, show=show, image=image, record_extra=record_extra)
     spec.validate()
     plan = plan_run(spec, spec.world, preset(spec.robot).radius)
     with sim_robot(spec, plan.world, plan.start, sonar=plan.explorer.uses_sonar) as robot:
@@ -209,3 +223,113 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     assert run.record is not None
     return RunOutput(run.record, run, None if writer is None else writer.image_path,
                      None if writer is None else writer.plot_path)
+
+
+def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
+             show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
+             record_extra: dict[str, Any] | None = None, world: World | None = None) -> RunOutput:
+    """Run `spec`'s explorer on a team of simulated robots (`team`) and write one record for the team under
+    `out` (nothing when `out` is None): the robots start at `team.poses` or spread from the spec's start
+    (`robotexp.sim.team.spread_starts`), share one map (or, with `team.comm_range`, each keep one and pass
+    scans on within that range) and take targets from `team.coordinator` (`robotexp.run.team.TeamRun`).
+    `world` stands for `spec.world` when given (a world built in code).
+
+    Raises:
+        WorldError, PluginError, ConfigError: bad input, before the robots move.
+        PluginError: an explorer failed during the run (the record is written first).
+        OSError: the results could not be written.
+    """
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.registry import make_coordinator
+    from robotexp.run.team import TeamRun
+    from robotexp.sim import SimTeam, preset
+
+    spec.validate()
+    team.validate()
+    if spec.odometry != "none" or spec.localize not in ("auto", "none"):
+        raise ConfigError("--team: teams run with exact odometry and no localizer for now; leave out "
+                          "--odometry-error and --localize")
+    radii = [preset(name).radius for name in team.robots]
+    plan = plan_run(spec, spec.world if world is None else world, max(radii))
+    coordinator = make_coordinator(team.coordinator, team.coordinator_params)
+    explorers = [plan.explorer] + [make_explorer(spec.method, spec.params) for _ in team.robots[1:]]
+    if coordinator.assigns_targets and not plan.explorer.takes_targets:
+        raise ConfigError(f"--coordinator {team.coordinator} assigns frontier targets, and method {spec.method!r} "
+                          "does not take targets (reactive explorers run with --coordinator none)")
+    robots = _team_robots(spec, team, plan)
+    try:
+        with SimTeam(robots) as sim:
+            geo = plan.geo
+            model, rmax = plan.explorer.grid_model, spec.laser_range
+            grid = OccupancyGrid(geo, model=model, range_max=rmax)
+            grids = [grid] * len(robots) if team.comm_range is None else \
+                [OccupancyGrid(geo, model=model, range_max=rmax) for _ in robots]
+            n = len(robots)
+            label = f"{spec.method}-team{n}-{team.coordinator}"
+            if out is None:
+                name = f"{plan.world.name}_{label}_{plan.pose_label}"
+            else:
+                out.mkdir(parents=True, exist_ok=True)
+                name = run_id(plan.world.name, label, plan.pose_label, spec.speed, spec.seed, out)
+            models = sorted(set(team.robots))
+            info = RunInfo(name=name, method=spec.method, world=plan.world.name, pose=plan.pose_label,
+                           robot=",".join(team.robots) if len(models) > 1 else models[0], max_speed=spec.speed,
+                           laser_range=spec.laser_range, extra=dict(record_extra or {}))
+            for robot in robots:
+                robot.set_max_speed(spec.speed)
+            writer = None if out is None else ResultsWriter(out, image=image, show=show)
+            chain: list[RunObserver] = [] if writer is None else [writer]
+            chain.extend(observers)
+            run = TeamRun(robots, explorers, grids, sim.make_clock(0.1), coordinator=coordinator,
+                          comm_range=team.comm_range, grid=grid if team.comm_range is not None else None,
+                          truth=plan.truth, max_time=spec.max_time, seed=spec.seed, info=info, observers=chain,
+                          area=plan.area)
+            run.coordinator_name = team.coordinator
+            run.run()
+    finally:
+        for robot in robots:
+            robot.close()
+    for observer, exc in run.observer_errors:
+        if observer.critical:
+            raise exc
+    if run.end is EndReason.PLUGIN_ERROR:
+        raise PluginError(run.reason) from run.error
+    assert run.record is not None
+    return RunOutput(run.record, run, None if writer is None else writer.image_path,
+                     None if writer is None else writer.plot_path)
+
+
+def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]:
+    """The team's simulated robots at their starts: `team.poses`, else spread from the plan's start."""
+    from dataclasses import replace
+
+    from robotexp.errors import WorldError
+    from robotexp.sim.team import spread_starts
+    from robotexp.world.poses import resolve_pose
+
+    first = sim_robot(replace(spec, robot=team.robots[0]), plan.world, plan.start, sonar=plan.explorer.uses_sonar)
+    robots = [first]
+    try:
+        from robotexp.sim import preset
+
+        radii = [preset(name).radius for name in team.robots]
+        if team.poses:
+            starts = [resolve_pose(plan.world, p, r)[0] for p, r in zip(team.poses, radii, strict=True)]
+            for i in range(len(starts)):
+                for j in range(i):
+                    gap = math.hypot(starts[i].x - starts[j].x, starts[i].y - starts[j].y)
+                    if gap < radii[i] + radii[j]:
+                        raise WorldError(f"--team-poses: robots {j + 1} and {i + 1} overlap ({gap * 1000:.0f} mm "
+                                         "apart); give poses farther apart")
+            first.move_to(starts[0])
+        else:
+            starts = spread_starts(plan.truth, plan.start, radii, free=first)
+        for i, (name, start) in enumerate(zip(team.robots[1:], starts[1:], strict=True), start=1):
+            seed = int(np.random.SeedSequence([spec.seed, i]).generate_state(1)[0])
+            robots.append(sim_robot(replace(spec, robot=name, seed=seed), plan.world, start,
+                                    sonar=plan.explorer.uses_sonar))
+    except BaseException:
+        for robot in robots:
+            robot.close()
+        raise
+    return robots

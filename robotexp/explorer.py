@@ -67,6 +67,9 @@ class Explorer(ABC):
     # the inclusive range of each numeric parameter, {name: (low, high)} (None: open on that side); a
     # class's entries add to its bases'; checked before the explorer is built, shown by `-p help`
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {}
+    # the explorer chooses its goals among frontier cells and follows a team coordinator's targets
+    # (`assign_targets`); teams with a coordinator that assigns targets need it
+    takes_targets: ClassVar[bool] = False
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Called once before the first step of a run."""
@@ -75,6 +78,19 @@ class Explorer(ABC):
     @abstractmethod
     def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
         """Decide the next velocity command from the state and the map (updated with this state)."""
+
+    def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
+        """A team's coordinator (`robotexp.coordinator`) gives this robot a target: the frontier cells, (m, 2)
+        (row, col) of the run's grid, to choose the next goal among; None: choose alone. Called between
+        steps, on explorers whose `takes_targets` is True, when the target changes. When none of the cells
+        is among the explorer's own candidates any more, it chooses alone. Default: ignored."""
+        return None
+
+    def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], tuple[int, int]] | None:
+        """The frontier cells this explorer would choose a goal among on `grid` now, for a team's coordinator
+        to share out: a bool mask of a window of the grid and the (row, col) of the window's cell (0, 0).
+        Default None: the team takes `robotexp.planning.targets.frontier_targets` of the map."""
+        return None
 
     def result_fields(self) -> dict[str, object]:
         """Extra result fields of this method (e.g. `nodes` of a tree)."""

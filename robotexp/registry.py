@@ -24,14 +24,16 @@ from typing import TYPE_CHECKING, Any
 from robotexp.errors import ConfigError, PluginError
 
 if TYPE_CHECKING:
+    from robotexp.coordinator import Coordinator
     from robotexp.explorer import Explorer
     from robotexp.robot import Robot, RobotEmulator
 
 __all__ = ["PluginInfo", "ROBOTS", "EXPLORERS", "EMULATORS", "available", "load", "lua_name",
-           "make_explorer", "connect_robot", "make_emulator"]
+           "make_explorer", "make_coordinator", "connect_robot", "make_emulator", "COORDINATORS"]
 
 ROBOTS = "robotexp.robots"
 EXPLORERS = "robotexp.explorers"
+COORDINATORS = "robotexp.coordinators"   # `robotexp.coordinator.Coordinator` subclasses (teams)
 EMULATORS = "robotexp.emulators"     # robot backend name -> its emulator class (`robotexp.robot.RobotEmulator`)
 _NAME = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 
@@ -107,7 +109,7 @@ def load(group: str, name: str, base: type) -> type:
     plugins = available(group)
     info = plugins.get(name)
     if info is None:
-        kind = {EXPLORERS: "method", EMULATORS: "emulator"}.get(group, "robot backend")
+        kind = {EXPLORERS: "method", EMULATORS: "emulator", COORDINATORS: "coordinator"}.get(group, "robot backend")
         close = difflib.get_close_matches(name, list(plugins), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise PluginError(f"unknown {kind} {name!r}{hint}; available: {', '.join(plugins) or 'none'}. "
@@ -143,7 +145,24 @@ def make_explorer(method: str, params: dict[str, Any]) -> Explorer:
     """
     from robotexp.explorer import Explorer
 
-    cls = load(EXPLORERS, method, Explorer)
+    return _make(load(EXPLORERS, method, Explorer), method, params)
+
+
+def make_coordinator(name: str, params: dict[str, Any]) -> Coordinator:
+    """Instantiate the coordinator plugin `name` (`robotexp.coordinators`) with keyword `params`, checked
+    as an explorer's are.
+
+    Raises:
+        PluginError: unknown coordinator.
+        ConfigError: an unknown or invalid parameter.
+    """
+    from robotexp.coordinator import Coordinator
+
+    return _make(load(COORDINATORS, name, Coordinator), name, params)
+
+
+def _make(cls: type, method: str, params: dict[str, Any]) -> Any:
+    """`cls(**params)`, every parameter checked against its annotation and declared bounds."""
     accepted = _parameter_names(cls)
     unknown = [key for key in params if accepted is not None and key not in accepted]
     if unknown:

@@ -67,6 +67,22 @@ RESULT_KEYS = {
     "end": "why the run ended, an `EndReason` value: `explored`, `time limit`, `interrupted`, `robot error`, "
            "`stalled`, `stopped`, `plugin error`",
     "schema_version": "the version of the record's schema",
+    "team_size": "team runs only (`--team`): the robots of the team; the record is the team's: `path_length_m` and "
+                 "`collisions` are the sums over the robots, coverage and its milestones the team map's",
+    "coordinator": "team runs only: the coordinator plugin (`none`, `greedy`, `burgard`, `minpos`, ...)",
+    "comm_range_m": "team runs only: the communication range [m]; null: one map shared by all",
+    "total_path_m": "team runs only: the robots' paths summed [m]",
+    "max_path_m": "team runs only: the longest path of one robot [m]",
+    "overlap_ratio": "team runs only: the share of the cells seen (touched by a scan) that more than one robot's "
+                     "scans touched",
+    "idle_time_s": "team runs only: robot time the robots stood idle, summed [s]: after their explorer was done, or "
+                   "commanded to stand still",
+    "robot_collisions": "team runs only: the collisions with another robot, counted per robot as `collisions` are "
+                        "(a contact both drove into counts twice; counted in `collisions` too)",
+    "coordinator_rounds": "team runs only: the coordinator's rounds that assigned targets (null: coordinator `none`)",
+    "robots": "team runs only: one object per robot: `robot`, `start_pose`, `end_pose`, `path_length_m`, "
+              "`collisions`, `robot_collisions`, `idle_time_s`, `give_way_s`, `end`, `reason`, `cells_seen`, "
+              "`scans_received` (with a communication range) and the explorer's own keys",
 }
 
 

@@ -50,7 +50,8 @@ _CAMPAIGN_KEYS = {"name", "description", "laser_range_mm", "seeds", "max_time_s"
 MAX_RUNS = 100_000      # runs of one campaign (checked before any list of them is made)
 
 
-_SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep"}
+_SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep", "teams", "coordinators",
+              "comm_range_mm"}
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
 
@@ -88,9 +89,23 @@ def _sweep_label(sweep: Mapping[str, Any] | None) -> str:
     return ",".join(f"{k}={json.dumps(v)}" for k, v in sorted((sweep or {}).items()))
 
 
+def _team_label(size: int | None, coordinator: str | None, comm_range: float | None) -> str:
+    """A team as keys and reports name it: "team=4,coordinator=burgard[,comm_range_m=3.0]" ("" for one robot)."""
+    if not size:
+        return ""
+    return f"team={size},coordinator={coordinator}" + ("" if comm_range is None else f",comm_range_m={comm_range:g}")
+
+
+def _label(sweep: str, team: str) -> str:
+    return ",".join(x for x in (sweep, team) if x)
+
+
 def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
-    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values, robot)."""
-    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _sweep_label(sweep), spec.robot)
+    """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values and team,
+    robot)."""
+    team = _team_label(len(spec.team), spec.coordinator, spec.comm_range)
+    return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _label(_sweep_label(sweep), team),
+            spec.robot)
 
 
 def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
@@ -98,16 +113,19 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     r = RunRecord.from_dict(record)
     # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
     sweep = r.get("sweep")
+    team = _team_label(r.team_size, r.coordinator, r.comm_range_m)
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
-            _sweep_label(sweep if isinstance(sweep, dict) else None), str(r.robot or "p3dx"))
+            _label(_sweep_label(sweep if isinstance(sweep, dict) else None), team), str(r.robot or "p3dx"))
 
 
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:
-    """The method of a record as the report names it: with its swept values, "frontier [clearance=0.2]"."""
+    """The method of a record as the report names it: with its swept values and team, "frontier [clearance=0.2]",
+    "frontier [team=4,coordinator=burgard]"."""
     r = RunRecord.from_dict(record)
     sweep = r.get("sweep")
-    label = _sweep_label(sweep if isinstance(sweep, dict) else None)
+    label = _label(_sweep_label(sweep if isinstance(sweep, dict) else None),
+                   _team_label(r.team_size, r.coordinator, r.comm_range_m))
     return f"{r.method} [{label}]" if label else r.method
 
 
@@ -182,6 +200,9 @@ def load_campaign(path: str | Path) -> Campaign:  # noqa: C901
                 if sweep:
                     sweeps[id(spec)] = sweep
                 if robot is not None:
+                    if spec.team:
+                        raise _fail(p, where, "teams run on the embedded simulator: leave `teams` out of a set "
+                                    "on a robot")
                     devices[id(spec)] = robot
     name = head.get("name", p.stem)
     if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", name)):
@@ -334,25 +355,58 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  
         bounds = parse_bounds(",".join(str(v) for v in bounds), f"{where}.bounds_mm")
     bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
     swept = _sweeps(s, methods, params, p, where)
-    count = sum(len(swept[m]) for m in methods) * len(pose_names) * len(speeds) * len(seeds)
+    teams = _teams(s, robot, p, where)
+    count = sum(len(swept[m]) for m in methods) * len(pose_names) * len(speeds) * len(seeds) * len(teams)
     if count > MAX_RUNS:
         raise _fail(p, where, f"{count:.3g} runs (methods and swept values x {len(pose_names)} poses x "
                     f"{len(speeds)} speeds x {len(seeds)} seeds); a campaign has at most {MAX_RUNS} runs")
     runs = []
     for method in methods:
-        for sweep, pose, speed, seed in itertools.product(swept[method], pose_names, speeds, seeds):
+        for sweep, pose, speed, seed, (team, coordinator, comm) in itertools.product(
+                swept[method], pose_names, speeds, seeds, teams):
             spec = RunSpec(world=world_spec, method=method, pose=None if pose == "default" else pose,
                            speed=speed / 1000, laser_range=laser,
                            cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
                            params={**params.get(method, {}), **sweep}, max_time=max_time,
                            laser_sigma=sigma, laser_uniform=uniform, map_bounds=bounds,
-                           bounds_wall=bounds_wall)
+                           bounds_wall=bounds_wall, team=team, coordinator=coordinator, comm_range=comm)
             try:
                 spec.validate()
             except ConfigError as exc:
                 raise _fail(p, where, str(exc)) from None
             runs.append((spec, sweep))
     return runs
+
+
+def _teams(s: dict[str, Any], robot: str, p: Path, where: str) -> list[tuple[tuple[str, ...], str, float | None]]:
+    """A set's team axes: `teams` (robots per team, 1 = one robot alone; default [1]) times `coordinators`
+    (default ["none"]; a team of one has none), with `comm_range_mm` (default: one shared map), as
+    (presets, coordinator, communication range [m])."""
+    from robotexp.registry import COORDINATORS
+    from robotexp.sim.team import MAX_TEAM
+
+    sizes = s.get("teams", [1])
+    if not (isinstance(sizes, list) and sizes and all(isinstance(n, int) and not isinstance(n, bool)
+                                                      and 1 <= n <= MAX_TEAM for n in sizes)):
+        raise _fail(p, f"{where}.teams", f"expected a list of robots per team, 1..{MAX_TEAM}, got {sizes!r}")
+    names = s.get("coordinators", ["none"])
+    known = available(COORDINATORS)
+    if not (isinstance(names, list) and names and all(isinstance(c, str) for c in names)):
+        raise _fail(p, f"{where}.coordinators", f"expected a list of coordinator names, got {names!r}")
+    for c in names:
+        if c not in known:
+            raise _fail(p, f"{where}.coordinators", f"unknown coordinator {c!r}; available: {', '.join(known)}",
+                        PluginError)
+    comm = _get(s, "comm_range_mm", None, (int, float), p, where)
+    if comm is not None and not (comm > 0 and math.isfinite(comm)):
+        raise _fail(p, f"{where}.comm_range_mm", f"must be > 0 mm, got {comm!r}")
+    out: list[tuple[tuple[str, ...], str, float | None]] = []
+    for n in dict.fromkeys(sizes):
+        if n == 1:
+            out.append(((), "none", None))
+        else:
+            out.extend(((robot,) * n, c, None if comm is None else comm / 1000) for c in dict.fromkeys(names))
+    return out
 
 
 def pose_label(spec: RunSpec) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -15,6 +16,9 @@ from robotexp.output.safefile import writable_folder
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import EndReason
 from robotexp.view.live import end_view, start_view, view_options
+
+if TYPE_CHECKING:
+    from robotexp.run.team import TeamSpec
 
 __all__ = ["explore"]
 
@@ -60,14 +64,29 @@ __all__ = ["explore"]
 @click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
 @click.option("--image-format", "image_format", default="png", show_default=True,
               help="Formats of the run's map and coverage figures, comma-separated: png, svg, pdf.")
+@click.option("--team", default=None, metavar="N|PRESET,...",
+              help="Explore with a team of simulated robots: N robots of --robot, or a list of presets "
+                   "(p3dx,p3dx,kobuki); one record for the team.")
+@click.option("--team-poses", default=None, metavar="POSE;POSE;...",
+              help="With --team: each robot's start pose (names or x,y,theta in mm, mm, deg), ';'-separated "
+                   "(default: spread from --pose).")
+@click.option("--coordinator", default="none", show_default=True,
+              help="With --team: the coordinator plugin that shares out frontier targets (none, greedy, burgard, "
+                   "minpos).")
+@click.option("--coordinator-param", multiple=True, metavar="KEY=VALUE",
+              help="A coordinator parameter (repeatable).")
+@click.option("--comm-range", type=float, default=None, metavar="MM",
+              help="With --team: each robot keeps its own map and merges the scans of robots within this range "
+                   "[mm] (default: one shared map).")
 @view_options
 @handle_errors
 def explore(world: str, method: str, pose: str | None, speed: float, laser_range: float, cell: float | None,  # noqa: C901
             seed: int, robot: str, address: str | None, laser: str | None, laser_pose: str | None,
             param: tuple[str, ...], show: str, max_time: float, noise_uniform: float, noise_sigma: float,
             odometry_error: str, localize: str, out: Path, bounds: str | None, bounds_wall: bool,
-            record: Path | None, frames: Path | None, frame_every: float, image_format: str, view: bool,
-            view_port: int, view_host: str, view_speed: str | None) -> None:
+            record: Path | None, frames: Path | None, frame_every: float, image_format: str, team: str | None,
+            team_poses: str | None, coordinator: str, coordinator_param: tuple[str, ...], comm_range: float | None,
+            view: bool, view_port: int, view_host: str, view_speed: str | None) -> None:
     """Run one exploration on the embedded simulator (or a robot: --address) and write its results."""
     from robotexp.experiment import run_experiment, run_on_robot
     from robotexp.run.laser_mount import check_laser_options, connect_with_laser
@@ -99,6 +118,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    map_bounds=None if bounds is None else parse_bounds(bounds),
                    odometry=odometry_error, localize=localize)
     spec.validate()
+    team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address,
+                           (record, frames, view))
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}",
@@ -116,7 +137,11 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         watchers.append(recorder)
     try:
         with compile_watch():       # the first run after an install: numba compiles, said as it happens
-            if address is None:
+            if team_spec is not None:
+                from robotexp.experiment import run_team
+
+                result = run_team(spec, team_spec, out, observers=watchers, show=overlays, image=formats)
+            elif address is None:
                 result = run_experiment(spec, out, observers=watchers, show=overlays, image=formats)
             else:
                 given = click.get_current_context().get_parameter_source("world")
@@ -147,12 +172,40 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     extra = ("" if r.map_iou is None else f", map IoU {r.map_iou:.3f}") + ("" if ate is None else f", ATE {ate:.3f} m")
     click.echo(f"{r.run}: {r.reason}; path {r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s "
                f"(wall {r.wall_time_s:.1f} s), coverage {cov}{extra}, collisions {r.collisions}")
+    if r.team_size is not None:
+        click.echo(f"team of {r.team_size} ({r.coordinator}): total path {r.total_path_m:.1f} m, longest "
+                   f"{r.max_path_m:.1f} m, overlap {0 if r.overlap_ratio is None else r.overlap_ratio * 100:.1f}%, "
+                   f"idle {r.idle_time_s:.0f} s, robot-robot collisions {r.robot_collisions}")
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     end_view(live, result.interrupted)
     if result.interrupted:
         sys.exit(130)
     if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
         fail(f"{r.run}: {r.reason}", 1)
+
+
+def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinator_param: tuple[str, ...],  # noqa: PLR0913
+               comm_range: float | None, robot: str, address: str | None,
+               recorders: tuple[object, ...]) -> TeamSpec | None:
+    """The team of `--team`, checked (None without it)."""
+    from robotexp.run.team import TeamSpec, parse_team
+
+    source = click.get_current_context().get_parameter_source
+    team_only = [name for name in ("team_poses", "coordinator", "coordinator_param", "comm_range")
+                 if source(name) != click.core.ParameterSource.DEFAULT]
+    if team is None:
+        if team_only:
+            raise ConfigError(f"--{team_only[0].replace('_', '-')} needs --team")
+        return None
+    if address is not None:
+        raise ConfigError("--team runs on the embedded simulator; leave out --address")
+    if any(r not in (None, False) for r in recorders):
+        raise ConfigError("--team: --record, --frames and --view show one robot; leave them out of team runs")
+    spec = TeamSpec(robots=parse_team(team, robot), coordinator=coordinator,
+                    coordinator_params=params(coordinator_param), comm_range=mm(comm_range, "--comm-range"),
+                    poses=tuple(p.strip() for p in poses.split(";") if p.strip()) if poses else ())
+    spec.validate()
+    return spec
 
 
 def _pose_hint(text: str | None) -> str | None:

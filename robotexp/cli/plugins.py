@@ -12,9 +12,10 @@ __all__ = ["plugins"]
 @handle_errors
 def plugins() -> None:
     """List the explorers, robot backends and their emulators found through entry points."""
-    from robotexp.registry import EMULATORS, EXPLORERS, ROBOTS, available, lua_name
+    from robotexp.registry import COORDINATORS, EMULATORS, EXPLORERS, ROBOTS, available, lua_name
 
-    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS), ("emulators", EMULATORS)):
+    for title, group in (("explorers", EXPLORERS), ("robots", ROBOTS), ("emulators", EMULATORS),
+                         ("coordinators", COORDINATORS)):
         click.echo(f"{title} ({group}):")
         for info in available(group).values():
             extra = f"  Lua: ExplorationMethod.{lua_name(info.name)}" if group == EXPLORERS else ""

@@ -359,14 +359,21 @@ def run_map_figure(run: ExplorationRun, *, show: Sequence[str] = (), potential: 
     ate = run.info.extra.get("ate_m")
     if est is not None and isinstance(ate, (int, float)):
         parts.append(f"ATE {ate:.2f} m")
-    return map_figure(states, run.grid.geo, truth=None if run.truth is None else run.truth.occupied,
-                      path=true_path, est_path=est, start=run.start_pose,
-                      end=None if state is None else (state.true_pose or state.pose),
-                      potential=overlays.get("potential") if "potential" in wanted else None,
-                      vectors=overlays.get("vectors") if "vectors" in wanted else None,
-                      laser=laser, grid="grid" in wanted,
-                      content=(states >= 0) if run.truth is None else (states >= 0) | run.truth.explorable,
-                      title=run_title(run), note=", ".join(parts), width=width)
+    paths = [np.asarray(p, np.float64).reshape(-1, 2) for p in getattr(run, "paths", [])] if path else []
+    if len(paths) > 1:
+        parts.append(f"{len(paths)} robots")
+    fig = map_figure(states, run.grid.geo, truth=None if run.truth is None else run.truth.occupied,
+                     path=true_path, est_path=est, start=run.start_pose,
+                     end=None if state is None else (state.true_pose or state.pose),
+                     potential=overlays.get("potential") if "potential" in wanted else None,
+                     vectors=overlays.get("vectors") if "vectors" in wanted else None,
+                     laser=laser, grid="grid" in wanted,
+                     content=(states >= 0) if run.truth is None else (states >= 0) | run.truth.explorable,
+                     title=run_title(run), note=", ".join(parts), width=width)
+    for i, other in enumerate(paths[1:], start=1):     # a team's other robots
+        if len(other) >= 2:
+            fig.axes[0].plot(other[:, 0], other[:, 1], color=f"C{i}", linewidth=1.0, zorder=4)
+    return fig
 
 
 def curve_figure(series: Sequence[tuple[str, npt.ArrayLike, npt.ArrayLike]], *, xlabel: str, ylabel: str,

@@ -117,6 +117,8 @@ class ResultsWriter(RunObserver):
         out = self.out
         write_curve_csv(out / f"{name}.coverage.csv", run.metrics.curve)
         write_path_csv(out / f"{name}.path.csv", run.metrics.path)     # overlaid by `campaign plot`
+        for i, other in enumerate(getattr(run, "paths", [])[1:], start=2):     # a team's other robots
+            write_path_csv(out / f"{name}.robot_{i}.path.csv", other)
         est = np.asarray(run.metrics.estimated, np.float64).reshape(-1, 2)
         if len(est) and np.abs(est - np.asarray(run.metrics.path, np.float64)).max() > 1e-3:   # odometry error on
             write_path_csv(out / f"{name}.estimated_path.csv", run.metrics.estimated)   # the explorer's pose

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robotexp.errors import ConfigError, RobotError, interrupt_behind
-from robotexp.robot import Pose, Robot, RobotState, Twist, new_scan
+from robotexp.robot import LaserScan, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.run.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.run.record import COVERAGE_MILESTONES, EndReason, RunRecord
 from robotexp.world.bounds import clip_scan
@@ -29,9 +29,6 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.run.record import milestone_keys
 
 __all__ = ["RunMetrics", "RunInfo", "ExplorationRun", "make_record"]
-
-log = logging.getLogger(__name__)
-
 
 log = logging.getLogger(__name__)
 
@@ -179,6 +176,17 @@ class ExplorationRun:
         self._stop: tuple[str, EndReason] | None = None
         self._sigint = False                # a SIGINT arrived during run() (see _watch_sigint)
         self.area = area
+        self.sampling = True                # sample coverage (a team's members leave it to the team)
+        self.rng: np.random.Generator | None = None     # the explorer's generator (None: from `seed`)
+        self.decision: Twist | Done | None = None       # the last step's decision
+        self.mapped_now = False             # the last step's scan went into the map
+        self.mapped_scan: LaserScan | None = None  # the scan mapped last (after `scan_filter`)
+        # what of a state's scan the map gets (None: all of it; a team leaves out the beams on its robots)
+        self.scan_filter: Callable[[RobotState], LaserScan] | None = None
+        self._next_sample = 0.0
+        self._t0 = 0.0
+        self._collisions0 = 0
+        self._mapped: float | None = None   # the stamp of the last scan mapped
 
     @property
     def observer_errors(self) -> list[tuple[RunObserver, Exception]]:
@@ -220,10 +228,13 @@ class ExplorationRun:
             if previous is not None:
                 signal.signal(signal.SIGINT, previous)
         self._sample()
-        pass
-        self.record = make_record(self)
+        self.record = self._make_record()
         self.observers.end(self, self.record)
         return self
+
+    def _make_record(self) -> RunRecord:
+        """The record of the run that ended (`make_record`)."""
+        return make_record(self)
 
     def _watch_sigint(self) -> Any:
         """Note every SIGINT of the run before the handler in place raises KeyboardInterrupt (or
@@ -246,66 +257,78 @@ class ExplorationRun:
 
     def _loop(self) -> None:
         """The control loop, up to the end of the run (the caller stops the robot)."""
+        clock = self.robot.make_clock(self.period)
+        state = self._begin()
+        while state is not None and self._tick(state):
+            clock.tick()
+            state = self.robot.read()
+
+    def _begin(self) -> RobotState | None:
+        """Read the first state, reset the explorer and tell the observers the run starts; the first
+        state, or None when the explorer's reset failed (the run ends)."""
         robot = self.robot
-        clock = robot.make_clock(self.period)
-        next_sample = 0.0
-        slack = self.period / 2
-        notify = self.observers.notify
+        self._next_sample = 0.0
         state = robot.read()
         self.start_pose = state.true_pose or state.pose
-        t0 = state.time
+        self._t0 = state.time
         self.state = state
         ctx = ExplorerContext(
             radius=robot.radius, limits=robot.limits, period=self.period, start=state.pose,
             laser_range=state.laser.range_max if state.laser else 0.0,
-            rng=np.random.default_rng(self.seed), sonar=state.sonar is not None,
-            goals=self.goals, start_name=self.start_name)
+            rng=self.rng if self.rng is not None else np.random.default_rng(self.seed),
+            sonar=state.sonar is not None, goals=self.goals, start_name=self.start_name)
         if self._explorer_call(self.explorer.reset, ctx) is _FAILED:
-            return
-        notify("on_start", self)
-        collisions0 = int(state.extra.get("collisions", 0))
-        mapped: float | None = None         # the stamp of the last scan mapped
-        while True:
-            if self._sigint:                # a Ctrl-C whose KeyboardInterrupt was swallowed on its way
-                raise KeyboardInterrupt
-            self.state = state
-            self.robot_time = state.time - t0
-            self._track(state, collisions0)
-            # a scan is evidence once: a backend whose loop outruns its laser hands the same scan
-            # (same stamp) out again, and mapping it twice would count its hits twice
-            updated = new_scan(state.laser, mapped)
-            if updated:
-                assert state.laser is not None
-                self.grid.update(state.pose, state.laser)
-                mapped = state.laser.stamp
-            # half a period of slack: robot time summed from float periods reads 0.99999 s at
-            # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
-            if self.robot_time >= next_sample - slack:
-                self._sample()
-                while next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
-                    next_sample += self.sample_period
-            decision: Twist | Done | None = None
-            if self._stop is not None:
-                self.reason, self.end = self._stop
-            elif self.robot_time >= self.max_time - slack:
-                self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
-            else:
-                view = state if self.area is None or state.laser is None else \
-                    replace(state, laser=clip_scan(state.laser, state.pose, self.area))
-                result = self._explorer_call(self.explorer.step, view, self.grid)
-                if result is not _FAILED:
-                    decision = result
-                if isinstance(decision, Done):
-                    self.reason, self.end = decision.reason, EndReason.EXPLORED
-                    self.completed = True
-                elif decision is not None:
-                    robot.command(decision)
-            if self.observers.listening("on_step"):
-                notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
-            if not isinstance(decision, Twist):
-                return
-            clock.tick()
-            state = robot.read()
+            return None
+        self.observers.notify("on_start", self)
+        self._collisions0 = int(state.extra.get("collisions", 0))
+        self._mapped = None
+        return state
+
+    def _tick(self, state: RobotState) -> bool:
+        """One control period on `state`: track, map, sample, decide, command; False when the run ends
+        at this tick (the caller then stops the robot), True to go on after the clock's tick."""
+        if self._sigint:                # a Ctrl-C whose KeyboardInterrupt was swallowed on its way
+            raise KeyboardInterrupt
+        robot = self.robot
+        slack = self.period / 2
+        self.state = state
+        self.robot_time = state.time - self._t0
+        self._track(state, self._collisions0)
+        # a scan is evidence once: a backend whose loop outruns its laser hands the same scan
+        # (same stamp) out again, and mapping it twice would count its hits twice
+        updated = new_scan(state.laser, self._mapped)
+        if updated:
+            assert state.laser is not None
+            self.mapped_scan = state.laser if self.scan_filter is None else self.scan_filter(state)
+            self.grid.update(state.pose, self.mapped_scan)
+            self._mapped = state.laser.stamp
+        self.mapped_now = updated
+        # half a period of slack: robot time summed from float periods reads 0.99999 s at
+        # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
+        if self.sampling and self.robot_time >= self._next_sample - slack:
+            self._sample()
+            while self._next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
+                self._next_sample += self.sample_period
+        decision: Twist | Done | None = None
+        if self._stop is not None:
+            self.reason, self.end = self._stop
+        elif self.robot_time >= self.max_time - slack:
+            self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
+        else:
+            view = state if self.area is None or state.laser is None else \
+                replace(state, laser=clip_scan(state.laser, state.pose, self.area))
+            result = self._explorer_call(self.explorer.step, view, self.grid)
+            if result is not _FAILED:
+                decision = result
+            if isinstance(decision, Done):
+                self.reason, self.end = decision.reason, EndReason.EXPLORED
+                self.completed = True
+            elif decision is not None:
+                robot.command(decision)
+        self.decision = decision
+        if self.observers.listening("on_step"):
+            self.observers.notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
+        return isinstance(decision, Twist)
 
     def _explorer_call(self, method: Callable[..., Any], *args: Any) -> Any:
         """`method(*args)` of the explorer; its exception (a RobotError aside: that ends the run as a

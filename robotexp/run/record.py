@@ -73,6 +73,9 @@ _HEAD = ("run", "method", "world", "start_pose", "max_speed_m_s", "path_length_m
          "wall_time_s", "coverage", "collisions", "nodes", "visited_cells", "seed", "completed", "reason",
          "map_iou", "cell_m")
 _TAIL = ("pose", "laser_range_m", "robot")
+# a team's keys (`robotexp explore --team`), written after `_TAIL` when set; records of one robot have none
+_TEAM = ("team_size", "coordinator", "comm_range_m", "total_path_m", "max_path_m", "overlap_ratio", "idle_time_s",
+         "robot_collisions", "coordinator_rounds", "robots")
 RESULT_KEYS = _HEAD[:-1]     # the keys every record has, docs/reference/results.md
 
 
@@ -119,6 +122,16 @@ class RunRecord(Mapping[str, Any]):
     end: EndReason = EndReason.UNKNOWN
     map_iou_tolerant: float | None = None
     schema_version: int | None = SCHEMA_VERSION
+    team_size: int | None = None
+    coordinator: str | None = None
+    comm_range_m: float | None = None
+    total_path_m: float | None = None
+    max_path_m: float | None = None
+    overlap_ratio: float | None = None
+    idle_time_s: float | None = None
+    robot_collisions: int | None = None
+    coordinator_rounds: int | None = None
+    robots: list[dict[str, Any]] | None = None
 
     def __post_init__(self) -> None:
         if self.end is EndReason.UNKNOWN:
@@ -154,6 +167,9 @@ class RunRecord(Mapping[str, Any]):
             value = getattr(self, key)
             if value is not None:
                 out[key] = value
+        if self.team_size is not None:
+            for key in _TEAM:
+                out[key] = getattr(self, key)
         out.update(self.extra)
         return out
 
@@ -184,7 +200,7 @@ class RunRecord(Mapping[str, Any]):
         extra: dict[str, Any] = {}
         seen_tail = False
         for key, value in data.items():
-            seen_tail = seen_tail or key in _TAIL
+            seen_tail = seen_tail or key in _TAIL or key in _TEAM
             if key not in known and key != "end":
                 (extra if seen_tail else method_fields)[key] = value
         return cls(**kwargs, method_fields=method_fields, extra=extra, end=end)

@@ -66,6 +66,9 @@ class RunSpec:
     bounds_wall: bool = False           # the simulator gets walls along the exploration area's edge
     odometry: str = "none"              # simulator odometry error (robotexp.sim.odometry_error spec)
     localize: str = "auto"              # "none", "scan-match", "slam", "auto" (robotexp.run.localize: wrap)
+    team: tuple[str, ...] = ()          # a team of simulated robots, one preset each (robotexp.run.team); (): one
+    coordinator: str = "none"           # the team's coordinator plugin (robotexp.coordinators)
+    comm_range: float | None = None     # [m] the team's communication range (None: one shared map)
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
@@ -90,6 +93,10 @@ class RunSpec:
 
         odometry_error(self.odometry)
         check_localize(self.localize)
+        if self.team:
+            from robotexp.run.team import TeamSpec
+
+            TeamSpec(robots=self.team, coordinator=self.coordinator, comm_range=self.comm_range).validate()
         if self.map_bounds is not None:
             x0, y0, x1, y1 = self.map_bounds
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):

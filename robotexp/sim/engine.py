@@ -91,6 +91,7 @@ class Engine:
         self._robot_z = robot_height / 2
         self._robot_radius = robot_radius
         self._robot_xy = (0.0, 0.0)
+        self._peers = np.zeros((0, 4))      # the other robots of a team: [x, y, radius, height] [m]
         self.statics: list[int] = []
         try:
             if self._bodies:
@@ -145,6 +146,20 @@ class Engine:
         pb.resetBasePositionAndOrientation(self.movers[index], [x, y, height / 2], [0, 0, 0, 1],
                                            physicsClientId=self.client)
 
+    def set_peers(self, discs: npt.NDArray[np.float64]) -> None:
+        """The other robots of a team where they stand now, (k, 4) [x, y, radius, height] [m]: the rays see
+        them (as cylinders, like movers) and the robot touching one collides. Rays cast by pybullet
+        (`rays="pybullet"`) do not see them."""
+        self._peers = np.asarray(discs, np.float64).reshape(-1, 4)
+
+    def peer_near(self, margin: float) -> bool:
+        """True when another robot of the team is within `margin` [m] of the robot cylinder."""
+        if not len(self._peers):
+            return False
+        x, y = self._robot_xy
+        p = self._peers
+        return bool((np.hypot(p[:, 0] - x, p[:, 1] - y) < p[:, 2] + self._robot_radius + margin).any())
+
     def robot_collides(self, include_movers: bool = True) -> bool:
         """True when the robot cylinder, where it was last placed, touches an obstacle."""
         return self.robot_near_obstacle(0.0, include_movers)
@@ -152,6 +167,8 @@ class Engine:
     def robot_near_obstacle(self, margin: float, include_movers: bool = True) -> bool:
         """True when an obstacle is within `margin` [m] of the robot cylinder."""
         x, y = self._robot_xy
+        if include_movers and self.peer_near(margin):
+            return True
         if not self._bodies:
             assert self._index is not None
             if self._index.near(x, y, self._robot_radius + margin):
@@ -185,7 +202,8 @@ class Engine:
         """Hit fractions (n,) of rays from `origins` (n, 2) [m] along `headings` (n,) [rad], `reach` [m] long,
         at height `z` [m]; 1.0 for no hit. The robot never sees itself."""
         if self._index is not None:
-            return self._index.cast(origins, headings, reach, z, self._movers)
+            movers = self._movers if not len(self._peers) else np.vstack((self._movers, self._peers))
+            return self._index.cast(origins, headings, reach, z, movers)
         n = len(headings)
         starts = np.empty((n, 3))
         starts[:, :2] = origins

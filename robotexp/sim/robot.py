@@ -73,6 +73,7 @@ class SimRobot(Robot):
         self.rng = np.random.default_rng(seed)
         self.time = 0.0
         self.collisions = 0
+        self.robot_collisions = 0       # the collisions with another robot of a team (counted in `collisions` too)
         self._in_contact = False
         self._stalled = False
         self._cmd = Twist.ZERO
@@ -167,6 +168,8 @@ class SimRobot(Robot):
             v = 0.0
             if not self._in_contact:
                 self.collisions += 1
+                if self.engine.peer_near(CONTACT_MARGIN):
+                    self.robot_collisions += 1
             self._in_contact = True
         elif self._in_contact:
             # a contact lasts until the robot is clearly away: creeping along a wall is one collision

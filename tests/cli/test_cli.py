@@ -41,6 +41,9 @@ def test_plugins_lists_frontier() -> None:
     name, target, dist, _version, *_ = frontier[0]
     assert (name, target, dist) == ("frontier", "robotexp_plugins.frontier:FrontierExplorer", "robotexp")
     assert "robotexp.explorers" in result.output and "robotexp.robots" in result.output
+    assert "robotexp.coordinators" in result.output
+    assert any(line.split()[:2] == ["burgard", "robotexp_plugins.coordinators:BurgardCoordinator"]
+               for line in result.output.splitlines())
 
 
 # -- bad input: exit 2 and one line on stderr -------------------------------------------------

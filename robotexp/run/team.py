@@ -1,0 +1,463 @@
+"""A team of robots exploring together as one run (`TeamRun`), and its record.
+
+Each robot is a member: an `ExplorationRun` of its robot and explorer whose steps the team takes in turn
+(`ExplorationRun._begin` / `_tick`), one tick of one clock for all. The members map into one grid (perfect
+communication), or each into its own grid, passing scans on to the robots within a communication range
+(`robotexp.run.teamshare.ScanExchange`); the team's grid holds every scan and gives the coverage. A
+coordinator (`robotexp.coordinator`) shares out frontier targets among the robots that have none. The team
+samples coverage, watches for stalls, and makes one `RunRecord` with the team's keys (`team_size`, `robots`,
+`overlap_ratio`, ...).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.coordinator import Coordinator, TeamContext
+from robotexp.errors import ConfigError
+from robotexp.explorer import Explorer
+from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
+from robotexp.run.endings import StallWatch, unexplored_left
+from robotexp.run.loop import ExplorationRun, RunInfo, make_record
+from robotexp.run.observers import RunObserver
+from robotexp.run.record import EndReason, RunRecord
+from robotexp.run.teamshare import ScanExchange, SeenCells, groups_within
+
+if TYPE_CHECKING:
+    from robotexp.clock import Clock
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.planning.targets import PlanCosts
+    from robotexp.robot import Robot
+    from robotexp.world.groundtruth import GroundTruth
+
+__all__ = ["TeamRun", "TeamExplorers", "TeamSpec", "parse_team", "COORDINATION_PERIOD"]
+
+COORDINATION_PERIOD = 1.0       # [s] robot time between the coordinator's rounds
+GIVE_WAY_GAP = 0.6              # [m] a robot gives way to a teammate ahead closer than this (footprints' gap)
+GIVE_WAY_ANGLE = math.radians(75)   # [rad] "ahead": within this of the heading
+GIVE_WAY_SPEED = 0.02           # [m/s] a teammate slower than this stands still
+TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
+LEAVE_TOL = 0.3                 # [m] how far a robot's centre may stray past the exploration area
+_END_ORDER = (EndReason.PLUGIN_ERROR, EndReason.ROBOT_ERROR, EndReason.INTERRUPTED, EndReason.STOPPED,
+              EndReason.STALLED, EndReason.TIME_LIMIT, EndReason.EXPLORED)
+
+
+class TeamExplorers(Explorer):
+    """The explorers of a team seen as one, for what the team's observers ask of `run.explorer`: robot 0's
+    overlays and markers, and `give_up` passed to every robot (the stall watch)."""
+
+    def __init__(self, members: Sequence[ExplorationRun]) -> None:
+        self.members = list(members)
+
+    def step(self, state: Any, grid: OccupancyGrid) -> Twist:      # never called: the members step
+        raise NotImplementedError("a team's explorers step one by one")
+
+    def give_up(self, grid: OccupancyGrid) -> bool:
+        """Every robot gives up its goal (on its own grid)."""
+        given = False
+        for m in self.members:
+            give_up = getattr(m.explorer, "give_up", None)
+            if callable(give_up) and m.end is EndReason.UNKNOWN:
+                given = bool(give_up(m.grid)) or given
+        return given
+
+    def overlays(self) -> dict[str, npt.NDArray[np.float64]]:
+        """Robot 0's overlays."""
+        return self.members[0].explorer.overlays()
+
+    def markers(self) -> dict[str, dict[str, Any]]:
+        """Robot 0's markers."""
+        return self.members[0].explorer.markers()
+
+
+class TeamRun(ExplorationRun):
+    """Robots exploring one world together, one record for the team.
+
+    Args:
+        robots: the open robots (the run stops them at its end, and does not close them).
+        explorers: one explorer per robot (the same method).
+        grids: one grid per robot: the same grid for all (perfect communication) or one each (`comm_range`).
+        clock: the one clock of the team (`robotexp.sim.SimTeam.make_clock`).
+        coordinator: shares out targets (None or one with `assigns_targets` False: none).
+        comm_range: [m] robots share scans within this distance (None: all share one grid).
+        grid: the team's grid, all scans (default: `grids[0]` when the robots share it).
+        truth, period, max_time, sample_period, seed, info, observers, area: as `ExplorationRun`'s.
+
+    Raises:
+        ConfigError: the robots, explorers and grids do not match, or a coordinator that assigns targets
+            with an explorer that takes none.
+    """
+
+    def __init__(self, robots: Sequence[Robot], explorers: Sequence[Explorer],  # noqa: PLR0913
+                 grids: Sequence[OccupancyGrid], clock: Clock, *, coordinator: Coordinator | None = None,
+                 comm_range: float | None = None, grid: OccupancyGrid | None = None,
+                 truth: GroundTruth | None = None, period: float = 0.1, max_time: float = 4 * 3600,
+                 seed: int = 0, info: RunInfo | None = None, observers: Iterable[RunObserver] = (),
+                 area: tuple[float, float, float, float] | None = None, costs: Sequence[PlanCosts] = ()) -> None:
+        n = len(robots)
+        if n < 1 or len(explorers) != n or len(grids) != n:
+            raise ConfigError(f"team: {n} robots, {len(explorers)} explorers and {len(grids)} grids; give one each")
+        shared = all(g is grids[0] for g in grids)
+        if comm_range is None and not shared:
+            raise ConfigError("team: robots without a communication range share one grid")
+        if comm_range is not None and not (math.isfinite(comm_range) and comm_range > 0):
+            raise ConfigError(f"team: the communication range must be > 0 m, got {comm_range * 1000:g} mm")
+        if coordinator is not None and coordinator.assigns_targets:
+            refuse = [type(e).__name__ for e in explorers if not e.takes_targets]
+            if refuse:
+                raise ConfigError(f"team: coordinator {type(coordinator).__name__} assigns frontier targets, and the "
+                                  f"explorer {refuse[0]} does not take them; use it with coordinator none")
+        if grid is None:
+            if not shared:
+                raise ConfigError("team: robots with maps of their own need the team's grid for coverage")
+            grid = grids[0]
+        self.members = [ExplorationRun(r, e, g, truth=None, period=period, max_time=max_time, seed=seed,
+                                       info=RunInfo(method=(info.method if info else "")))
+                        for r, e, g in zip(robots, explorers, grids, strict=True)]
+        for i, m in enumerate(self.members):
+            m.sampling = False
+            m.rng = np.random.default_rng(seed if i == 0 else (seed, i))
+            m.scan_filter = functools.partial(self._without_teammates, i)
+        info = info or RunInfo(method=type(explorers[0]).__name__)
+        super().__init__(robots[0], TeamExplorers(self.members), grid, truth=truth, period=period,
+                         max_time=max_time, seed=seed, info=info, observers=observers, area=area)
+        self.clock = clock
+        self.coordinator = coordinator if coordinator is not None and coordinator.assigns_targets else None
+        self.coordinator_name = "none" if coordinator is None else getattr(coordinator, "name", "")
+        self.comm_range = comm_range
+        self.exchange = None if comm_range is None else ScanExchange(grids)
+        self.seen = SeenCells(grid.shape, n)
+        self.gave_way = [0] * n             # periods each robot gave way to a teammate
+        self.idle = [0] * n                 # ticks each robot stood idle (done, or commanded to stand still)
+        self.targets: list[npt.NDArray[np.int64] | None] = [None] * n     # each robot's coordinator target
+        self.rounds = 0                     # coordinator rounds that assigned targets
+        self.stall = StallWatch()
+        self.metrics.path = self.members[0].metrics.path        # robot 0's path (the others: `paths`)
+        self.metrics.estimated = self.members[0].metrics.estimated
+        self._costs = list(costs)
+        self._next_round = 0.0
+
+    @property
+    def paths(self) -> list[list[tuple[float, float]]]:
+        """Each robot's path [m] so far."""
+        return [m.metrics.path for m in self.members]
+
+    # -- the loop -----------------------------------------------------------------------------
+    def _loop(self) -> None:
+        n = len(self.members)
+        states = []
+        for m in self.members:
+            state = m._begin()
+            if state is None:
+                self.reason, self.end, self.error = m.reason, m.end, m.error
+                return
+            states.append(state)
+        self.state = states[0]
+        self.start_pose = self.members[0].start_pose
+        self._t0 = states[0].time
+        if self.coordinator is not None:
+            lasers = [s.laser.range_max for s in states if s.laser is not None]
+            self.coordinator.reset(TeamContext(size=n, laser_range=min(lasers) if lasers else 0.0,
+                                               radius=tuple(m.robot.radius for m in self.members),
+                                               rng=np.random.default_rng((self.seed, n))))
+        self.stall.start(self.grid, min(m.robot.limits.v_max for m in self.members))
+        self.observers.notify("on_start", self)
+        active = list(range(n))
+        while True:
+            if self._sigint:
+                raise KeyboardInterrupt
+            self.robot_time = states[0].time - self._t0
+            self.state = states[0]
+            self._coordinate(active)
+            for i in list(active):
+                m = self.members[i]
+                if self._stop is not None:
+                    m._stop = self._stop
+                go_on = m._tick(states[i])
+                self._after_tick(i, m)
+                if go_on:
+                    self._give_way(i, m)
+                if not go_on:
+                    active.remove(i)
+                    if m.end is not EndReason.EXPLORED:
+                        self._end_from(m)
+                        return
+                    m._safe_stop()
+            self._share()
+            self._count_idle(active)
+            self._team_sample()
+            if not active:
+                self._all_done()
+                return
+            if self._stop is not None:
+                self.reason, self.end = self._stop
+                return
+            self.clock.tick()
+            states = [m.robot.read() for m in self.members]
+
+    def _after_tick(self, i: int, m: ExplorationRun) -> None:
+        """What the team takes from member `i`'s step: the cells its scan touched, its scan for the others."""
+        if not m.mapped_now:
+            return
+        self.seen.note(i, m.grid)
+        if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
+            self.exchange.log(i, m.state.pose, m.mapped_scan)
+            self.grid.update(m.state.pose, m.mapped_scan)
+        p = m.state.true_pose or m.state.pose if m.state is not None else None
+        if self.area is not None and p is not None:
+            from robotexp.world.bounds import inside
+            if not inside(self.area, p.x, p.y, LEAVE_TOL):
+                self.request_stop(f"robot {i + 1} left the exploration area at ({p.x:.2f}, {p.y:.2f}) m")
+
+    def _give_way(self, robot: int, m: ExplorationRun) -> None:
+        """The traffic rule of the team: a robot about to drive towards a teammate of a smaller number that is
+        moving and close ahead (gap under GIVE_WAY_GAP, within GIVE_WAY_ANGLE of its heading) stops its
+        translation for this period (it may turn); a teammate standing still is left to the robot's own laser
+        check. Two robots closing on each other would otherwise both brake for a still obstacle at twice the
+        closing speed."""
+        d = m.decision
+        s = m.state
+        if not isinstance(d, Twist) or d.v <= 0.0 or s is None:
+            return
+        p = s.true_pose or s.pose
+        for j in range(robot):
+            other = self.members[j]
+            t = other.state
+            if t is None or other.end is not EndReason.UNKNOWN or abs(t.velocity.v) < GIVE_WAY_SPEED:
+                continue
+            q = t.true_pose or t.pose
+            dx, dy = q.x - p.x, q.y - p.y
+            gap = math.hypot(dx, dy) - m.robot.radius - other.robot.radius
+            if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
+                m.robot.command(Twist(0.0, d.w))
+                self.gave_way[robot] += 1
+                return
+
+    def _without_teammates(self, robot: int, state: RobotState) -> LaserScan:
+        """Robot `robot`'s scan for the maps: the beams that end on a teammate (within its radius plus
+        TEAMMATE_MARGIN of where it stands, as the robots tell each other) read NaN, which the map skips,
+        so that robots are not mapped as walls (the explorers get the whole scan)."""
+        scan = state.laser
+        assert scan is not None
+        p = state.pose
+        others = [m.state.true_pose or m.state.pose for j, m in enumerate(self.members)
+                  if j != robot and m.state is not None]
+        if not others:
+            return scan
+        radii = np.array([m.robot.radius for j, m in enumerate(self.members) if j != robot and m.state is not None])
+        xy = np.array([(q.x, q.y) for q in others])
+        sx = p.x + scan.offset_x * math.cos(p.theta)
+        sy = p.y + scan.offset_x * math.sin(p.theta)
+        near = np.hypot(xy[:, 0] - sx, xy[:, 1] - sy) <= radii + TEAMMATE_MARGIN + scan.range_max
+        if not near.any():
+            return scan
+        hit = np.isfinite(scan.ranges)
+        ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
+        ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
+        on = np.zeros(len(scan.ranges), bool)
+        for (x, y), r in zip(xy[near], radii[near], strict=True):
+            on |= hit & (np.hypot(ex - x, ey - y) <= r + TEAMMATE_MARGIN)
+        if not on.any():
+            return scan
+        return replace(scan, ranges=np.where(on, np.nan, scan.ranges))
+
+    def _share(self) -> None:
+        if self.exchange is not None:
+            self.exchange.share(groups_within(self._positions(range(len(self.members))), self.comm_range))
+
+    def _count_idle(self, active: Sequence[int]) -> None:
+        for i, m in enumerate(self.members):
+            d = m.decision
+            if i not in active or not isinstance(d, Twist) or (d.v == 0.0 and d.w == 0.0):
+                self.idle[i] += 1
+
+    def _positions(self, robots: Iterable[int]) -> npt.NDArray[np.float64]:
+        out = []
+        for i in robots:
+            s = self.members[i].state
+            assert s is not None
+            p = s.true_pose or s.pose
+            out.append((p.x, p.y))
+        return np.asarray(out, np.float64).reshape(-1, 2)
+
+    def _team_sample(self) -> None:
+        slack = self.period / 2
+        if self.robot_time < self._next_sample - slack:
+            return
+        self._sample()
+        while self._next_sample <= self.robot_time + slack:
+            self._next_sample += self.sample_period
+        reason = self.stall.sample(self.robot_time, self.grid, self.explorer)
+        if reason is not None:
+            self.request_stop(reason, EndReason.STALLED)
+
+    def _end_from(self, m: ExplorationRun) -> None:
+        self.reason, self.end, self.error = m.reason, m.end, m.error
+        if self.end is EndReason.PLUGIN_ERROR:
+            self.reason = m.reason
+
+    def _all_done(self) -> None:
+        """Every robot's explorer said done: the team's end is theirs, checked against the frontier left."""
+        ends = [m.end for m in self.members]
+        end = next(e for e in _END_ORDER if e in ends)
+        m = self.members[ends.index(end)]
+        self.reason, self.end, self.error = m.reason, m.end, m.error
+        if end is EndReason.EXPLORED:
+            s = self.members[0].state
+            assert s is not None
+            left = unexplored_left(self.grid, s.pose, self.members[0].robot.radius,
+                                   np.asarray(self.members[0].metrics.path))
+            if left is not None:
+                self.end = EndReason.STOPPED
+                self.reason = (f"stopped: the explorers ended ({m.reason}) with {left[0]} frontier cells left that "
+                               f"robot 1 can reach, {left[1]:.1f} m2 of unknown space behind them")
+            else:
+                self.completed = True
+
+    def _safe_stop(self) -> None:
+        for m in self.members:
+            m._safe_stop()
+
+    # -- coordination -------------------------------------------------------------------------
+    def _coordinate(self, active: Sequence[int]) -> None:
+        """A coordinator round when one is due: for each group of robots that can talk, the frontier
+        targets of its first robot's grid; robots whose target is still among them keep it, the others
+        get one from the coordinator."""
+        if self.coordinator is None or not active or self.robot_time < self._next_round - self.period / 2:
+            return
+        self._next_round = self.robot_time + COORDINATION_PERIOD
+        from robotexp.planning.targets import PlanCosts
+        from robotexp.planning.team import label_cells, team_candidates, with_costs
+
+        if not self._costs:
+            radius = max(m.robot.radius for m in self.members)
+            self._costs = [PlanCosts(radius, 0.3) for _ in self.members]
+        for group in groups_within(self._positions(active), self.comm_range):
+            robots = [active[g] for g in group]
+            leader = robots[0]
+            grid = self.members[leader].grid
+            radius = max(self.members[i].robot.radius for i in robots)
+            # the targets first; the paths (a Dijkstra per robot) only when some robot needs a target
+            frontier = self.members[leader].explorer.target_frontier(grid)
+            cand = team_candidates(grid, None, [tuple(p) for p in self._positions(robots)], radius,
+                                   frontier=frontier)
+            labels = [None if (cells := self.targets[i]) is None else label_cells(cand, cells) for i in robots]
+            if all(k is not None for k in labels):
+                for i, k in zip(robots, labels, strict=True):
+                    assert k is not None
+                    self.targets[i] = cand.cells[k]
+                continue
+            cand = with_costs(cand, grid, self._costs[leader], radius)
+            kept = [k if k is not None and math.isfinite(cand.cost[j, k]) else None for j, k in enumerate(labels)]
+            self.rounds += 1
+            chosen = self.coordinator.assign(cand, kept)
+            for j, i in enumerate(robots):
+                k = chosen[j] if j < len(chosen) else None
+                if k is not None and k == kept[j]:
+                    self.targets[i] = cand.cells[k]
+                    continue
+                if k is None or not (0 <= k < len(cand)) or not math.isfinite(cand.cost[j, k]):
+                    if self.targets[i] is not None:
+                        self.targets[i] = None
+                        self.members[i].explorer.assign_targets(None)
+                    continue
+                self.targets[i] = cand.cells[k]
+                self.members[i].explorer.assign_targets(cand.cells[k])
+
+    # -- the record ---------------------------------------------------------------------------
+    def team_record(self) -> RunRecord:
+        """The record of the team (see `make_record`), with the team's keys."""
+        record = make_record(self)
+        n = len(self.members)
+        paths = [m.metrics.path_length for m in self.members]
+        seen, several = self.seen.counts()
+        robots = []
+        for i, m in enumerate(self.members):
+            s = m.state
+            p = None if s is None else (s.true_pose or s.pose)
+            robot_collisions = getattr(m.robot, "robot_collisions", None)
+            fields: dict[str, Any] = {
+                "robot": m.robot.model, "start_pose": m.start_pose.as_list() if m.start_pose else None,
+                "end_pose": None if p is None else p.as_list(),
+                "path_length_m": round(m.metrics.path_length, 4), "collisions": m.metrics.collisions,
+                "robot_collisions": None if robot_collisions is None else int(robot_collisions),
+                "idle_time_s": round(self.idle[i] * self.period, 3),
+                "give_way_s": round(self.gave_way[i] * self.period, 3),
+                "end": m.end.value if m.end is not EndReason.UNKNOWN else self.end.value,
+                "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
+                "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),
+            }
+            if self.exchange is not None:
+                fields["scans_received"] = int(self.exchange.received[i])
+            try:
+                fields.update(m.explorer.result_fields())
+            except Exception:       # noqa: BLE001 - a plugin's fault must not lose the team's record
+                pass
+            robots.append(fields)
+        rc = [r["robot_collisions"] for r in robots]
+        return replace(
+            record, path_length_m=round(sum(paths), 4), collisions=sum(m.metrics.collisions for m in self.members),
+            visited_cells=len(set().union(*(m.metrics.visited for m in self.members))),
+            team_size=n, coordinator=self.coordinator_name, comm_range_m=self.comm_range,
+            total_path_m=round(sum(paths), 4), max_path_m=round(max(paths), 4),
+            overlap_ratio=None if seen == 0 else round(several / seen, 5),
+            idle_time_s=round(sum(self.idle) * self.period, 3),
+            robot_collisions=None if any(c is None for c in rc) else int(sum(rc)),
+            coordinator_rounds=self.rounds if self.coordinator is not None else None,
+            robots=robots)
+
+    def _make_record(self) -> RunRecord:
+        return self.team_record()
+
+    def _sample(self) -> None:
+        """A coverage sample of the team's grid, the path being the team's total."""
+        self.metrics.path_length = sum(m.metrics.path_length for m in self.members)
+        self.metrics.collisions = sum(m.metrics.collisions for m in self.members)
+        super()._sample()
+
+
+@dataclass
+class TeamSpec:
+    """The team of a run (`robotexp explore --team`): the robots' presets, their start poses, the
+    coordinator and the communication range."""
+
+    robots: tuple[str, ...] = ("p3dx",)         # simulator presets, one per robot
+    coordinator: str = "none"                    # a `robotexp.coordinators` plugin
+    coordinator_params: dict[str, Any] = field(default_factory=dict)
+    comm_range: float | None = None              # [m] (None: one shared map)
+    poses: tuple[str, ...] = ()                  # start poses, one per robot (names or x,y,theta in mm); () spread
+
+    def validate(self) -> None:
+        """Raise ConfigError on a team that cannot be run."""
+        from robotexp.sim.presets import preset
+        from robotexp.sim.team import MAX_TEAM
+
+        if not 1 <= len(self.robots) <= MAX_TEAM:
+            raise ConfigError(f"--team: a team has 1..{MAX_TEAM} robots, got {len(self.robots)}")
+        for name in self.robots:
+            preset(name)
+        if self.comm_range is not None and not (math.isfinite(self.comm_range) and self.comm_range > 0):
+            raise ConfigError(f"--comm-range must be > 0 mm, got {self.comm_range * 1000:g} mm")
+        if self.poses and len(self.poses) != len(self.robots):
+            raise ConfigError(f"--team-poses: {len(self.poses)} poses for {len(self.robots)} robots; give one each")
+
+
+def parse_team(text: str, robot: str = "p3dx") -> tuple[str, ...]:
+    """`--team`: a number of robots of preset `robot` ("4") or a list of presets ("p3dx,p3dx,kobuki")."""
+    text = text.strip()
+    if text.isdigit():
+        n = int(text)
+        if n < 1:
+            raise ConfigError(f"--team: a team has at least 1 robot, got {text}")
+        return (robot,) * n
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not names:
+        raise ConfigError(f"--team: give a number of robots or a list of presets (p3dx,kobuki), got {text!r}")
+    return names

@@ -1,0 +1,124 @@
+"""What the robots of a team know: the cells each robot's own scans touched (`SeenCells`, for the overlap
+of a record), and the scans the robots pass on when they are within communication range of each other
+(`ScanExchange`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import LaserScan, Pose
+
+__all__ = ["SeenCells", "ScanExchange", "groups_within"]
+
+
+class SeenCells:
+    """Which robots' scans touched each cell: one bit per robot (at most 64), updated from the box of the
+    scan a grid integrated last (its cells carry that scan's stamp), so the cost of a step follows one
+    scan's reach, not the map.
+
+    Args:
+        shape: (rows, cols) of the team's grids.
+        size: robots in the team.
+    """
+
+    def __init__(self, shape: tuple[int, int], size: int) -> None:
+        dtype = np.uint8 if size <= 8 else np.uint16 if size <= 16 else np.uint32 if size <= 32 else np.uint64
+        self.bits = np.zeros(shape, dtype)
+        self._one = [dtype(1 << i) for i in range(size)]
+
+    def note(self, robot: int, grid: OccupancyGrid) -> None:
+        """Robot `robot`'s scan was the last one `grid` integrated: mark the cells it touched."""
+        box = grid.changed_box(grid.scans - 1)
+        if box is None:
+            return
+        r0, r1, c0, c1 = box
+        touched = grid.stamp[r0:r1, c0:c1] == grid.scans
+        self.bits[r0:r1, c0:c1][touched] |= self._one[robot]
+
+    def seen_by(self, robot: int) -> npt.NDArray[np.bool_]:
+        """(rows, cols) bool: the cells robot `robot`'s scans touched."""
+        return (self.bits & self._one[robot]) != 0
+
+    def counts(self) -> tuple[int, int]:
+        """(cells seen by some robot, cells seen by more than one)."""
+        seen = self.bits != 0
+        several = (self.bits & (self.bits - 1)) != 0
+        return int(np.count_nonzero(seen)), int(np.count_nonzero(several))
+
+    def overlap(self) -> float | None:
+        """The share of the cells seen that more than one robot saw (None: no cell seen)."""
+        seen, several = self.counts()
+        return None if seen == 0 else several / seen
+
+
+def groups_within(positions: npt.NDArray[np.float64], reach: float | None) -> list[list[int]]:
+    """The robots at `positions` (n, 2) [m] that can talk, as groups (each sorted, groups by their first
+    robot): two robots within `reach` [m] talk, and a message passes on through any chain of them;
+    `reach` None: everyone talks to everyone."""
+    n = len(positions)
+    if reach is None:
+        return [list(range(n))]
+    parent = list(range(n))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    d = np.hypot(positions[:, None, 0] - positions[None, :, 0], positions[:, None, 1] - positions[None, :, 1])
+    for i, j in zip(*np.nonzero(np.triu(d <= reach, 1)), strict=True):
+        a, b = root(int(i)), root(int(j))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(root(i), []).append(i)
+    return [groups[k] for k in sorted(groups)]
+
+
+class ScanExchange:
+    """Maps of robots that share what they scanned when they can talk (`robotexp explore --comm-range`).
+
+    Every robot maps its own scans into its own grid and logs them here (`log`). Robots in one group
+    (`groups_within`) bring each other's grids up to the scans any of them knows (`share`): robot i's grid
+    gets robot k's logged scans from the first it lacks to the last one someone in the group has. The
+    maps of robots that talked are then the maps of the union of their scans, and what robot k scanned
+    passes on through the robots that met it. Start poses are known to all (one frame).
+
+    Args:
+        grids: each robot's own grid.
+    """
+
+    def __init__(self, grids: Sequence[OccupancyGrid]) -> None:
+        self.grids = list(grids)
+        n = len(grids)
+        self.scans: list[list[tuple[Pose, LaserScan]]] = [[] for _ in range(n)]
+        self.known = np.zeros((n, n), np.int64)     # known[i, k]: robot k's scans in robot i's grid
+        self.received = np.zeros(n, np.int64)       # scans each robot integrated from others
+
+    def log(self, robot: int, pose: Pose, scan: LaserScan) -> None:
+        """Robot `robot` mapped `scan`, taken at `pose`, into its own grid."""
+        self.scans[robot].append((pose, scan))
+        self.known[robot, robot] = len(self.scans[robot])
+
+    def share(self, groups: Sequence[Sequence[int]]) -> int:
+        """Bring every robot's grid up to the scans its group knows; gives the scans integrated."""
+        total = 0
+        for group in groups:
+            if len(group) < 2:
+                continue
+            members = list(group)
+            best = self.known[members].max(axis=0)
+            for i in members:
+                for k in np.flatnonzero(self.known[i] < best):
+                    for pose, scan in self.scans[k][self.known[i, k]:best[k]]:
+                        self.grids[i].update(pose, scan)
+                    got = int(best[k] - self.known[i, k])
+                    self.received[i] += got
+                    total += got
+                    self.known[i, k] = best[k]
+        return total

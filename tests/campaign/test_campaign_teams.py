@@ -1,0 +1,73 @@
+"""Campaigns with team size and coordinator as axes: expansion, keys that tell team runs apart, a run, the report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from robotexp.campaign.jobs import record_extra, run_one
+from robotexp.campaign.report import report_tables
+from robotexp.campaign.runner import run_campaign
+from robotexp.campaign.spec import load_campaign, method_label, record_key, run_key
+from robotexp.errors import ConfigError, PluginError
+
+TEAMS = """
+[campaign]
+name = "teams"
+max_time_s = 10
+[[set]]
+world = "ufmg-static"
+poses = ["path1"]
+methods = ["frontier"]
+seeds = [0]
+teams = [1, 2]
+coordinators = ["none", "greedy"]
+"""
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "c.toml"
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_teams_and_coordinators_expand_and_key_apart(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, TEAMS))
+    # one robot alone (no coordinator), then a team of two with each coordinator
+    assert [(s.team, s.coordinator) for s in camp.runs] == [((), "none"), (("p3dx", "p3dx"), "none"),
+                                                              (("p3dx", "p3dx"), "greedy")]
+    keys = [run_key(s, s.pose or "default") for s in camp.runs]
+    assert [k[5] for k in keys] == ["", "team=2,coordinator=none", "team=2,coordinator=greedy"]
+    ranged = load_campaign(_write(tmp_path, TEAMS.replace("teams = [1, 2]", "teams = [3]\ncomm_range_mm = 2500")))
+    assert [(len(s.team), s.comm_range) for s in ranged.runs] == [(3, 2.5), (3, 2.5)]
+
+
+@pytest.mark.parametrize(("change", "error", "words"), [
+    (("teams = [1, 2]", "teams = [0]"), ConfigError, ["teams", "1..64"]),
+    (("teams = [1, 2]", "teams = 2"), ConfigError, ["teams", "expected a list"]),
+    (('coordinators = ["none", "greedy"]', 'coordinators = ["boss"]'), PluginError, ["unknown coordinator 'boss'"]),
+    (("teams = [1, 2]", "teams = [2]\ncomm_range_mm = -1"), ConfigError, ["comm_range_mm", "> 0 mm"]),
+])
+def test_bad_team_axes_name_the_file_and_key(tmp_path: Path, change, error, words) -> None:
+    with pytest.raises(error) as info:
+        load_campaign(_write(tmp_path, TEAMS.replace(*change)))
+    for w in words:
+        assert w in str(info.value)
+
+
+def test_a_team_campaign_runs_resumes_and_reports_each_setting(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, TEAMS.replace('["none", "greedy"]', '["greedy"]').replace(
+        "max_time_s = 10", "max_time_s = 4")))
+    out = tmp_path / "out"
+    out.mkdir()
+    # each run as a campaign worker makes it (in this process: a pool's start-up is not what is tested)
+    records = [run_one(spec, str(out), extra=record_extra(spec))[0] for spec in camp.runs]
+    assert sorted(r.team_size or 1 for r in records) == [1, 2]
+    stored = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert {record_key(r) for r in stored} == {run_key(s, s.pose or "default") for s in camp.runs}
+    assert run_campaign(camp, out, jobs=1, resume=True) == []
+    assert sorted(method_label(r) for r in stored) == ["frontier", "frontier [team=2,coordinator=greedy]"]
+    (table,) = report_tables(stored)
+    assert "frontier [team=2,coordinator=greedy] path (m)" in table.header

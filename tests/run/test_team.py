@@ -1,0 +1,207 @@
+"""Team runs end to end: one record for the team, repeatable, maps shared within a communication range."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from robotexp import Done, Explorer, PluginError, RunRecord, Twist
+from robotexp.errors import ConfigError
+from robotexp.experiment import run_team
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.robot import Pose
+from robotexp.run.record import EndReason
+from robotexp.run.spec import RunSpec
+from robotexp.run.team import TeamRun, TeamSpec, parse_team
+from robotexp.sim import SimRobot, SimTeam
+from robotexp.testing.explorer_contract import make_room
+from robotexp.world.model import World, segment_box
+
+
+def room_team(out, coordinator="burgard", robots=("p3dx", "p3dx"), max_time=40.0, **team):
+    spec = RunSpec(world="conformance-room", method="frontier", max_time=max_time, laser_range=3.0)
+    return run_team(spec, TeamSpec(robots=robots, coordinator=coordinator, **team), out, image=False,
+                    world=make_room())
+
+
+def test_a_team_run_writes_one_record_with_the_team_keys(tmp_path):
+    out = room_team(tmp_path)
+    r = out.record
+    assert r.team_size == 2 and r.coordinator == "burgard" and r.comm_range_m is None
+    robots = r.robots
+    assert [x["robot"] for x in robots] == ["p3dx", "p3dx"]
+    paths = [x["path_length_m"] for x in robots]
+    assert all(p > 0 for p in paths)
+    assert r.total_path_m == pytest.approx(sum(paths), abs=1e-3) and r.path_length_m == r.total_path_m
+    assert r.max_path_m == pytest.approx(max(paths), abs=1e-4)
+    assert r.collisions == sum(x["collisions"] for x in robots)
+    assert r.robot_collisions == sum(x["robot_collisions"] for x in robots)
+    assert r.idle_time_s == pytest.approx(sum(x["idle_time_s"] for x in robots))
+    seen = [x["cells_seen"] for x in robots]
+    assert 0 < r.overlap_ratio < 1
+    assert r.coverage > 0.9 and r.time_to_coverage_90_s is not None
+    starts = [x["start_pose"] for x in robots]
+    assert math.dist(starts[0][:2], starts[1][:2]) >= 2 * 0.26 + 0.3 - 1e-9
+    assert seen[0] > 0 and seen[1] > 0
+    # one line in results.jsonl (checked against the schema by conftest), read back as it was written
+    lines = (tmp_path / "results.jsonl").read_text().splitlines()
+    assert len(lines) == 1
+    data = json.loads(lines[0])
+    assert RunRecord.from_dict(data).as_dict() == data == r.as_dict()
+    assert list(data)[-10:] == ["team_size", "coordinator", "comm_range_m", "total_path_m", "max_path_m",
+                                "overlap_ratio", "idle_time_s", "robot_collisions", "coordinator_rounds", "robots"]
+    assert (tmp_path / f"{r.run}.robot_2.path.csv").is_file()
+
+
+def test_a_team_run_repeats_for_a_seed():
+    a, b = room_team(None, "minpos", max_time=15.0).record, room_team(None, "minpos", max_time=15.0).record
+    assert a.as_dict() | {"wall_time_s": 0} == b.as_dict() | {"wall_time_s": 0}
+
+
+def test_a_one_robot_record_has_no_team_keys_and_old_records_load():
+    old = {"run": "r", "method": "frontier", "world": "dense", "start_pose": None, "max_speed_m_s": 0.3,
+           "path_length_m": 1.0, "robot_time_s": 2.0, "wall_time_s": 0.1, "coverage": 0.5, "collisions": 0,
+           "nodes": None, "visited_cells": 3, "seed": 0, "completed": False, "reason": "time limit of 2 s reached",
+           "map_iou": None, "cell_m": 0.1}
+    record = RunRecord.from_dict(old)
+    assert record.team_size is None and record.robots is None
+    assert list(record.as_dict()) == list(old) + [k for k in record.as_dict() if k not in old]
+    assert "team_size" not in record.as_dict()
+
+
+def test_reactive_explorers_need_coordinator_none_and_bad_teams_are_refused():
+    spec = RunSpec(world="conformance-room", method="bvp", max_time=5.0)
+    with pytest.raises(ConfigError, match="does not take targets"):
+        run_team(spec, TeamSpec(robots=("p3dx", "p3dx"), coordinator="greedy"), None, world=make_room())
+    with pytest.raises(PluginError, match="unknown coordinator"):
+        run_team(spec, TeamSpec(robots=("p3dx",), coordinator="nobody"), None, world=make_room())
+    with pytest.raises(ConfigError, match="one each"):
+        TeamSpec(robots=("p3dx", "p3dx"), poses=("start",)).validate()
+    assert parse_team("3", "kobuki") == ("kobuki",) * 3
+    assert parse_team("p3dx, kobuki") == ("p3dx", "kobuki")
+    with pytest.raises(ConfigError, match="at least 1"):
+        parse_team("0")
+
+
+class Drive(Explorer):
+    """Drives straight ahead until its x passes `stop_x`."""
+
+    def __init__(self, stop_x: float) -> None:
+        self.stop_x = stop_x
+
+    def step(self, state, grid):
+        p = state.pose
+        if (p.x - self.stop_x) * math.cos(p.theta) >= 0:
+            return Done("there")
+        return Twist(0.5, 0.0)
+
+
+def hall() -> World:
+    boxes = [segment_box(0, 0, 12, 0, 0.1), segment_box(12, 0, 12, 2, 0.1), segment_box(12, 2, 0, 2, 0.1),
+             segment_box(0, 2, 0, 0, 0.1)]
+    return World("hall", np.array(boxes, np.float64), bounds=(-0.1, -0.1, 12.1, 2.1))
+
+
+def test_robots_out_of_range_keep_their_own_maps_and_merge_when_they_meet():
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grids = [OccupancyGrid(geo, range_max=3.0) for _ in range(2)]
+    team_grid = OccupancyGrid(geo, range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(1.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(11.0, 1.0, math.pi), sonar=False)]
+    far_east = geo.cell_of(9.5, 1.0)        # robot 1 sees it from its start; robot 0 never comes within 3 m
+    far_west = geo.cell_of(2.5, 1.0)
+    samples = []
+
+    class Watch:
+        def on_sample(self, run, time, coverage):
+            samples.append((time, bool(run.members[0].grid.seen[far_east]), bool(run.members[1].grid.seen[far_west])))
+
+    from robotexp.run.observers import RunObserver
+    watch = type("W", (RunObserver,), {"on_sample": Watch.on_sample})()
+    with SimTeam(robots) as team:
+        run = TeamRun(robots, [Drive(5.2), Drive(6.8)], grids, team.make_clock(0.1), comm_range=2.0,
+                      grid=team_grid, max_time=30.0, observers=[watch])
+        run.run()
+    # apart at first: robot 0's map holds nothing of robot 1's end of the hall, nor the reverse
+    assert samples[0][1:] == (False, False)
+    # they stop 1.6 m apart, within range: each map then holds what the other scanned from afar
+    assert samples[-1][1:] == (True, True)
+    met = next(t for t, a, b in samples if a)
+    assert 4.0 < met < 12.0         # closing at 1 m/s from 10 m apart to 2 m: about 8 s plus the start
+    record = run.record
+    # the explorers said done with the hall's two ends unexplored: the team's end says so
+    assert record.comm_range_m == 2.0 and record.end is EndReason.STOPPED and "frontier cells left" in record.reason
+    assert record.method == "Drive" and [x["end"] for x in record.robots] == ["explored", "explored"]
+    received = [x["scans_received"] for x in record.robots]
+    assert all(n > 0 for n in received)
+    # merged: both maps hold the union of every scan, as the team's map does (the same cells known; their
+    # states may differ where the scans came in another order and the log-odds bound cut a sum short)
+    known = team_grid.states() >= 0
+    for g in grids:
+        assert np.array_equal(g.states() >= 0, known)
+        assert np.mean(g.states()[known] == team_grid.states()[known]) > 0.98
+
+
+def test_teammates_are_not_mapped_as_walls_but_the_explorers_see_them():
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(3.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(5.0, 1.0, math.pi), sonar=False)]
+    seen = []
+
+    class Look(Explorer):
+        def step(self, state, grid):
+            seen.append(float(state.laser.ranges[np.argmin(np.abs(state.laser.angles))]))
+            return Done("looked")
+
+    with SimTeam(robots) as team:
+        raw = OccupancyGrid(geo, range_max=3.0)
+        raw.update(robots[0].read().pose, robots[0].read().laser)
+        run = TeamRun(robots, [Look(), Look()], [grid, grid], team.make_clock(0.1), max_time=5.0)
+        run.run()
+    r = robots[0].radius
+    assert seen == pytest.approx([2.0 - r, 2.0 - r])        # each explorer saw the other robot ahead
+    rows, cols = np.nonzero(raw.occupied())
+    xy = geo.centers_of(np.stack([rows, cols], axis=1))
+    on_robot = np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 1.0) <= r + 0.1
+    assert on_robot.any()                                   # a scan alone maps the other robot
+    rows, cols = np.nonzero(grid.occupied())
+    xy = geo.centers_of(np.stack([rows, cols], axis=1))
+    assert not (np.hypot(xy[:, 0] - 5.0, xy[:, 1] - 1.0) <= r + 0.2).any()
+    assert not (np.hypot(xy[:, 0] - 3.0, xy[:, 1] - 1.0) <= r + 0.2).any()
+    assert grid.occupied().any()                            # the walls still are
+
+
+def test_a_robot_gives_way_to_a_moving_teammate_of_a_smaller_number_ahead():
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(3.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(6.0, 1.0, math.pi), sonar=False)]
+    with SimTeam(robots) as team:
+        # Drive has no laser check: robot 1 stops for robot 0, which drives on into it
+        run = TeamRun(robots, [Drive(11.0), Drive(1.0)], [grid, grid], team.make_clock(0.1), max_time=8.0)
+        run.run()
+    r = robots[0].radius
+    first, second = run.record.robots
+    gap = 3.0 - 2 * r
+    assert second["give_way_s"] > 0 and first["give_way_s"] == 0
+    # robot 1 drove until the gap closed to 0.6 m (half of it each, both at the same speed), then braked
+    assert (gap - 0.6) / 2 < second["path_length_m"] < (gap - 0.6) / 2 + 0.25
+    assert first["path_length_m"] + second["path_length_m"] == pytest.approx(gap, abs=0.03)
+    assert run.record.robot_collisions == 2 and first["robot_collisions"] == second["robot_collisions"] == 1
+
+
+@pytest.mark.parametrize(("method", "coordinator"), [("meta-exhaustive", "minpos"), ("bvp", "none")])
+def test_target_choosing_and_reactive_explorers_explore_as_a_team(method, coordinator):
+    spec = RunSpec(world="conformance-room", method=method, max_time=40.0)
+    r = run_team(spec, TeamSpec(robots=("p3dx", "kobuki"), coordinator=coordinator), None, image=False,
+                 world=make_room()).record
+    assert r.coverage > 0.9 and r.robot == "p3dx,kobuki" and [x["robot"] for x in r.robots] == ["p3dx", "kobuki"]
+    assert (r.coordinator_rounds or 0) > 0 if coordinator != "none" else r.coordinator_rounds is None

@@ -1,0 +1,102 @@
+"""SimTeam: robots of one world see each other, collide with each other, step on one clock; spread_starts."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robotexp.errors import ConfigError, WorldError
+from robotexp.mapping.geometry import GridGeometry
+from robotexp.robot import Pose, Twist
+from robotexp.sim import SimRobot, SimTeam, preset, spread_starts
+from robotexp.world.groundtruth import ground_truth
+from robotexp.world.model import World, segment_box
+
+
+def hall(length: float = 10.0, width: float = 3.0) -> World:
+    wall = 0.1
+    boxes = [segment_box(0, 0, length, 0, wall), segment_box(length, 0, length, width, wall),
+             segment_box(length, width, 0, width, wall), segment_box(0, width, 0, 0, wall)]
+    return World("hall", np.array(boxes, dtype=np.float64), bounds=(-0.1, -0.1, length + 0.1, width + 0.1),
+                 poses={"west": Pose(1.0, 1.5, 0.0)})
+
+
+def team_of(world: World, *poses: Pose) -> SimTeam:
+    return SimTeam([SimRobot(world, pose=p, sonar=False) for p in poses])
+
+
+def test_a_robot_sees_another_in_its_laser_where_the_wall_was():
+    world = hall()
+    with team_of(world, Pose(2.0, 1.5, 0.0), Pose(5.0, 1.5, math.pi)) as team:
+        a, b = team.robots
+        scan = a.read().laser
+        ahead = int(np.argmin(np.abs(scan.angles)))
+        # the beam straight ahead ends on the other robot's cylinder: 3 m between centres, minus its radius
+        assert scan.ranges[ahead] == pytest.approx(3.0 - b.radius, abs=1e-6)
+    with SimRobot(world, pose=Pose(2.0, 1.5, 0.0), sonar=False) as alone:
+        assert alone.read().laser.ranges[ahead] == math.inf      # 3 m laser, the far wall 8 m away
+
+
+def test_robots_that_drive_into_each_other_stop_and_count_one_collision_each():
+    world = hall()
+    r = preset("p3dx").radius
+    with team_of(world, Pose(3.0, 1.5, 0.0), Pose(4.0, 1.5, math.pi)) as team:
+        a, b = team.robots
+        a.command(Twist(0.3, 0.0))
+        b.command(Twist(0.3, 0.0))
+        clock = team.make_clock(0.1)
+        for _ in range(40):
+            clock.tick()
+        gap = math.hypot(a.true_pose.x - b.true_pose.x, a.true_pose.y - b.true_pose.y)
+        assert 2 * r - 1e-9 <= gap <= 2 * r + 0.02          # stopped where they touch, not through each other
+        assert (a.collisions, b.collisions) == (1, 1)
+        assert (a.robot_collisions, b.robot_collisions) == (1, 1)
+        assert a.read().stalled and b.read().stalled
+        assert team.time == pytest.approx(4.0)
+
+
+def test_one_clock_advances_every_robot_alike_and_repeats():
+    def drive() -> list[tuple[float, float, float]]:
+        with team_of(hall(), Pose(1.0, 1.0, 0.0), Pose(1.0, 2.2, 0.0)) as team:
+            for i, robot in enumerate(team.robots):
+                robot.command(Twist(0.2 + 0.1 * i, 0.1))
+            clock = team.make_clock(0.1)
+            for _ in range(30):
+                clock.tick()
+            return [(r.time, r.true_pose.x, r.true_pose.y) for r in team.robots]
+    first = drive()
+    assert [t for t, _, _ in first] == pytest.approx([3.0, 3.0])
+    assert first == drive()
+
+
+def test_a_team_refuses_a_world_with_movers_and_robots_of_two_worlds():
+    from robotexp.world.loader import load_world
+
+    dynamic = load_world("ufmg-dynamic")
+    with SimRobot(dynamic, sonar=False) as robot, pytest.raises(ConfigError, match="moving obstacles"):
+        SimTeam([robot])
+    with SimRobot(hall(), sonar=False) as a, SimRobot(hall(), sonar=False) as b, \
+            pytest.raises(ConfigError, match="same world"):
+        SimTeam([a, b])
+
+
+def test_spread_starts_keep_apart_off_the_walls_in_the_start_region():
+    world = hall()
+    radius = preset("p3dx").radius
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    truth = ground_truth(world, geo, robot_radius=radius, laser_range=3.0, start=Pose(1.0, 1.5, 0.0))
+    with SimRobot(world, pose=Pose(1.0, 1.5, 0.3), sonar=False) as first:
+        starts = spread_starts(truth, Pose(1.0, 1.5, 0.3), [radius] * 4, free=first)
+        assert starts[0] == Pose(1.0, 1.5, 0.3)
+        assert all(p.theta == 0.3 for p in starts)
+        for i, p in enumerate(starts):
+            assert truth.reachable[geo.cell_of(p.x, p.y)]
+            assert radius + 0.1 <= p.x <= 10 - radius - 0.1 and radius + 0.1 <= p.y <= 3 - radius - 0.1
+            for q in starts[:i]:
+                assert math.hypot(p.x - q.x, p.y - q.y) >= 2 * radius + 0.3 - 1e-9
+        # nearest first: the team stays by the start, not spread over the hall
+        assert max(math.hypot(p.x - 1.0, p.y - 1.5) for p in starts) < 2.0
+        with pytest.raises(WorldError, match="room for"):
+            spread_starts(truth, Pose(1.0, 1.5, 0.0), [radius] * 200, free=first)
