@@ -2,7 +2,7 @@
 
 Run: python benchmarks/studies/bench_localized_explore.py [--worlds dense,sparse] [--methods frontier,srt-laser]
          [--speeds 300] [--modes exact,odometry,scan-match] [--max-time 3600] [--seed 0 | --seeds 0-4]
-         [--odometry p3dx] [--jobs 2] [--trace DIR] [--known-bias] [--jsonl FILE] [--no-record]
+         [--odometry p3dx] [--jobs 2] [--trace DIR] [--known-bias] [--jsonl FILE] [--no-record] [--result-name NAME]
      python benchmarks/studies/bench_localized_explore.py --table FILE      # the markdown table of a --jsonl FILE
 
 The loop-closure study (scan matching + online loop closure, `--localize slam`, 45 runs and their exact runs):
@@ -143,6 +143,8 @@ def main() -> None:
     ap.add_argument("--seeds", default=None, help="seeds, e.g. 0-4 or 0,2 (instead of --seed)")
     ap.add_argument("--jsonl", type=Path, default=None, metavar="FILE", help="append each run's figures here")
     ap.add_argument("--no-record", action="store_true", help="print only (benchmarks/results is left alone)")
+    ap.add_argument("--result-name", default="localized-explore",
+                    help="the figures' file in benchmarks/results (NAME.json): one per study kept side by side")
     ap.add_argument("--odometry", default="p3dx", help="an --odometry-error spec (robotexp.sim.odometry_error)")
     ap.add_argument("--jobs", type=int, default=1, help="runs at once (processes)")
     ap.add_argument("--trace", type=Path, default=None, metavar="DIR",
@@ -209,7 +211,7 @@ def main() -> None:
                                   "target >= -0.03"))
     if args.no_record:
         return
-    record("localized-explore", figures, section="studies",
+    record(args.result_name, figures, section="studies",
            title="Exploration under the odometry error, with and without scan matching",
            parameters={"seeds": ",".join(map(str, seeds)), "odometry": args.odometry, "laser range": args.laser_range,
                        "robot time": f"{args.max_time:g} s"})
