@@ -21,6 +21,7 @@ from robotexp.mapping.kernels import kernel
 
 __all__ = [
     "SQRT2",
+    "box_distance_kernel",
     "astar_kernel",
     "dijkstra_fill",
     "dijkstra_search",
@@ -116,6 +117,60 @@ def distance_transform_kernel(occ: npt.NDArray[np.bool_], out: npt.NDArray[np.fl
         edt_1d(f[:cols], d[:cols], v, z)
         for c in range(cols):
             out[r, c] = np.float32(math.sqrt(d[c]))
+
+
+HALF_DIAGONAL = 0.5 * SQRT2 + 1e-6     # [cells] from a cell's centre to its corners, rounded up
+
+
+@kernel
+def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], centre: npt.NDArray[np.float32],
+                        reach: float, r0: int, r1: int, c0: int, c1: int, out: npt.NDArray[np.float32]) -> None:
+    """Distance [cells] from the centres of rows r0..r1, columns c0..c1 (half-open) to the nearest box of
+    laser endpoints of an occupied cell, exact up to `reach`.
+
+    Args:
+        occ: (rows, cols) bool occupied cells.
+        hit_box: (rows, cols, 4) uint8 per cell x_lo, x_hi, y_lo, y_hi of its endpoints in 1/255 of a cell
+            from its lower-left corner (`OccupancyGrid.hit_box`); x_lo > x_hi: none, the whole cell counts.
+        centre: (rows, cols) float32 distance [cells] to the nearest occupied cell's centre
+            (`distance_transform(occ)`).
+        reach: [cells] how far the result must be exact; beyond, a lower bound larger than `reach`.
+        r0: first row.
+        r1: row past the last.
+        c0: first column.
+        c1: column past the last.
+        out: (r1 - r0, c1 - c0) float32 output.
+
+    A box lies in its cell, within HALF_DIAGONAL of the cell's centre: the nearest box is no nearer than the
+    nearest centre less that, and no farther than it plus that, so only the occupied cells within
+    `centre` + 2 HALF_DIAGONAL are visited.
+    """
+    rows, cols = occ.shape
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            d = centre[r, c]
+            if d > reach + HALF_DIAGONAL:
+                out[r - r0, c - c0] = d - HALF_DIAGONAL
+                continue
+            k = int(d + 2.0 * HALF_DIAGONAL)
+            best = np.inf
+            for rr in range(max(r - k, 0), min(r + k + 1, rows)):
+                qy = r - rr + 0.5
+                for cc in range(max(c - k, 0), min(c + k + 1, cols)):
+                    if not occ[rr, cc]:
+                        continue
+                    qx = c - cc + 0.5
+                    if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
+                        xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
+                    else:
+                        xl = hit_box[rr, cc, 0] / 255.0
+                        xh = hit_box[rr, cc, 1] / 255.0
+                        yl = hit_box[rr, cc, 2] / 255.0
+                        yh = hit_box[rr, cc, 3] / 255.0
+                    dx = max(xl - qx, 0.0, qx - xh)
+                    dy = max(yl - qy, 0.0, qy - yh)
+                    best = min(best, dx * dx + dy * dy)
+            out[r - r0, c - c0] = np.float32(math.sqrt(best))
 
 
 # ---------------------------------------------------------------------------------------------
