@@ -75,13 +75,16 @@ class BVPExplorer(Explorer):
       within 1e-16 of 1 and rounds to a flat 1.0 in float64 (a robot in an explored room behind a
       door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
       to 1e-308, so the gradient keeps its direction.
-    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 5 cm the
-      planners keep): cells whose centre lies within inflate + half a cell of an occupied cell's
-      centre are obstacles (potential 1) too, as in Connolly & Grupen's planner, so the descent never
-      leads into a gap the robot cannot pass and unknown cells right by walls (their unseen faces)
-      are not goals. With the radius alone the field led into channels of the configuration space
-      one cell wide that the laser guard would not enter, and the robot stood at their mouths until
-      the run stalled (6 of bvp's 7 failures in the 770-run Done-when benchmark, cave 9 at 0.309).
+    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 2 cm the
+      planners keep): cells whose centre lies within inflate of the walls' surface (the laser endpoints
+      in the occupied cells: `robotexp.planning.targets.wall_distance`) are obstacles (potential 1)
+      too, as in Connolly & Grupen's planner, so the descent never leads into a gap the robot cannot
+      pass and unknown cells right by walls (their unseen faces) are not goals. A door the robot fits
+      with 2 cm to spare is a channel of the configuration space a cell or two wide: the guard (the
+      swept disc, `blocked_ahead`) lets the robot in, and where the laser shows less than
+      `FollowerConfig.tight` of room the robot turns in place to the descent before it drives on
+      rather than drive round (through the five-room doors with both presets,
+      benchmarks/studies/doors.py).
       `inflate=0` is the bare map; `campaigns/thesis.toml` sets the radius (the thesis's runs).
     - The robot's cell: cells the robot's footprint has covered count as free even if the laser
       (180 degrees, ahead) never saw them, so the robot is not drawn to the floor under itself.
