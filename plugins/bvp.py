@@ -15,7 +15,7 @@ import numpy.typing as npt
 
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, blocked_ahead
+from robotexp.planning.follower import FollowerConfig, blocked_ahead, free_heading
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 
@@ -358,8 +358,16 @@ class BVPExplorer(Explorer):
                 self.v = 0.0
                 return Twist(0.0, min(lim.w_max, 0.5))
         varphi = wrap_angle(pose.theta - self.phi)
-        w = max(-lim.w_max, min(lim.w_max, -self.k_turn * varphi))
         room = edge_distance(state.laser, self.ctx.radius)
+        if room < TIGHT.tight:
+            # the descent, taken at the robot's cell, may lead into an obstacle beside the robot (it stands
+            # up to half a cell off the cell's centre): slide along it, in the free direction nearest the
+            # descent (within 90 degrees of it: the potential still falls)
+            free = free_heading(state.laser, self.ctx.radius, self.clearance, max(self.v, TIGHT.tight_speed),
+                                -varphi, lim.a_max)
+            if free is not None:
+                varphi = -free
+        w = max(-lim.w_max, min(lim.w_max, -self.k_turn * varphi))
         v = speed_law(self.v, varphi, room, v_max=lim.v_max, r_max=self.r_max, eta=self.eta)
         if room < TIGHT.tight and abs(varphi) > TIGHT.tight_turn:
             v = 0.0             # little room (a door the field leads through): face the descent first

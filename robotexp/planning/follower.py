@@ -23,7 +23,8 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.planning.grid_planner import simplify
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead", "path_points", "roomy_cells", "scan_clearance"]
+__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead", "free_heading", "path_points", "roomy_cells",
+           "scan_clearance"]
 
 REACTION = 0.2          # [s] of motion at the commanded speed added to the stopping distance the guard checks
 SWEEP_STEP = 0.02       # [m] between the disc positions the guard checks along the arc
@@ -79,9 +80,12 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
     """
     if scan is None or speed <= 0:
         return False
-    pts = _scan_points(scan)
-    if len(pts) == 0:
-        return False
+    return _sweep_blocked(_scan_points(scan), radius, clearance, speed, turn, a_max)
+
+
+def _sweep_blocked(pts: npt.NDArray[np.float64], radius: float, clearance: float, speed: float, turn: float,
+                   a_max: float) -> bool:
+    """`blocked_ahead` on the robot-frame points `pts` (k, 2) [m], for speed > 0."""
     length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
     reach = radius + clearance
     near = np.hypot(pts[:, 0], pts[:, 1]) < length + reach      # the rest cannot be reached
@@ -97,6 +101,24 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
         cx, cy = np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k
     d = np.hypot(pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :])
     return bool(((d < reach) & (d < d0[:, None] - 1e-4)).any())
+
+
+def free_heading(scan: LaserScan | None, radius: float, clearance: float, speed: float, heading: float,
+                 a_max: float = 0.5, widest: float = math.pi / 2, step: float = math.radians(10)) -> float | None:
+    """The direction [rad, robot frame] nearest `heading` (at most `widest` off it, tried every `step`, the
+    left first on a tie) in which the robot could drive straight at `speed` [m/s] without `blocked_ahead`;
+    None when there is none. A robot whose way is blocked turns to it and slides along the obstacle."""
+    if scan is None or speed <= 0:
+        return heading
+    pts = _scan_points(scan)
+    k = int(widest / step)
+    for off in [0.0] + [sign * i * step for i in range(1, k + 1) for sign in (1.0, -1.0)]:
+        a = heading + off
+        c, s = math.cos(a), math.sin(a)
+        turned = np.column_stack([c * pts[:, 0] + s * pts[:, 1], -s * pts[:, 0] + c * pts[:, 1]])
+        if not _sweep_blocked(turned, radius, clearance, speed, 0.0, a_max):
+            return wrap_angle(a)
+    return None
 
 
 def roomy_cells(passable: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
