@@ -50,22 +50,32 @@ class FollowerConfig:
                               f"clearance and tight >= 0, 0 < tight_turn <= turn_in_place, got {self}")
 
 
-def _scan_points(scan: LaserScan | None) -> npt.NDArray[np.float64]:
-    """(k, 2) robot-frame points [m] of the finite returns of `scan`."""
+_POINTS: list[object] = [None, np.zeros((0, 2)), np.zeros(0)]     # the last scan, its points, their norms
+
+
+def _points_norms(scan: LaserScan | None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(k, 2) robot-frame points [m] of the returns of `scan` (ranges below its maximum) and (k,) their
+    distances [m] from the robot's centre; the last scan's are kept (a control step asks more than once)."""
     if scan is None:
-        return np.zeros((0, 2))
-    r = scan.ranges
-    ok = np.isfinite(r) & (r < scan.range_max)
-    a = scan.angles[ok]
-    return np.column_stack([scan.offset_x + r[ok] * np.cos(a), r[ok] * np.sin(a)])
+        return np.zeros((0, 2)), np.zeros(0)
+    if _POINTS[0] is not scan:
+        r = scan.ranges
+        ok = r < scan.range_max                  # False for NaN and inf too
+        a = scan.angles[ok]
+        rr = r[ok]
+        pts = np.empty((len(rr), 2))
+        pts[:, 0] = scan.offset_x + rr * np.cos(a)
+        pts[:, 1] = rr * np.sin(a)
+        _POINTS[:] = [scan, pts, rr if scan.offset_x == 0 else np.hypot(pts[:, 0], pts[:, 1])]
+    return _POINTS[1], _POINTS[2]          # type: ignore[return-value]
 
 
 def scan_clearance(scan: LaserScan | None, radius: float) -> float:
     """[m] from the robot's disc of `radius` to the nearest laser return (inf without one)."""
-    pts = _scan_points(scan)
-    if len(pts) == 0:
+    norms = _points_norms(scan)[1]
+    if len(norms) == 0:
         return math.inf
-    return float(np.hypot(pts[:, 0], pts[:, 1]).min()) - radius
+    return float(norms.min()) - radius
 
 
 def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed: float, turn: float = 0.0,
@@ -80,19 +90,20 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
     """
     if scan is None or speed <= 0:
         return False
-    return _sweep_blocked(_scan_points(scan), radius, clearance, speed, turn, a_max)
+    pts, norms = _points_norms(scan)
+    return _sweep_blocked(pts, norms, radius, clearance, speed, turn, a_max)
 
 
-def _sweep_blocked(pts: npt.NDArray[np.float64], radius: float, clearance: float, speed: float, turn: float,
-                   a_max: float) -> bool:
-    """`blocked_ahead` on the robot-frame points `pts` (k, 2) [m], for speed > 0."""
+def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float, clearance: float,
+                   speed: float, turn: float, a_max: float) -> bool:
+    """`blocked_ahead` on the robot-frame points `pts` (k, 2) [m] at distances `norms` (k,), for speed > 0."""
     length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
     reach = radius + clearance
-    near = np.hypot(pts[:, 0], pts[:, 1]) < length + reach      # the rest cannot be reached
-    pts = pts[near]
-    if len(pts) == 0:
+    near = norms < length + reach        # the rest cannot be reached
+    if not near.any():
         return False
-    d0 = np.hypot(pts[:, 0], pts[:, 1])
+    pts = pts[near]
+    d0 = norms[near]
     s = np.linspace(0.0, length, max(2, int(math.ceil(length / SWEEP_STEP)) + 1))[1:]
     k = turn / speed                                             # curvature [1/m]
     if abs(k) < 1e-9:
@@ -110,13 +121,13 @@ def free_heading(scan: LaserScan | None, radius: float, clearance: float, speed:
     None when there is none. A robot whose way is blocked turns to it and slides along the obstacle."""
     if scan is None or speed <= 0:
         return heading
-    pts = _scan_points(scan)
+    pts, norms = _points_norms(scan)
     k = int(widest / step)
     for off in [0.0] + [sign * i * step for i in range(1, k + 1) for sign in (1.0, -1.0)]:
         a = heading + off
         c, s = math.cos(a), math.sin(a)
         turned = np.column_stack([c * pts[:, 0] + s * pts[:, 1], -s * pts[:, 0] + c * pts[:, 1]])
-        if not _sweep_blocked(turned, radius, clearance, speed, 0.0, a_max):
+        if not _sweep_blocked(turned, norms, radius, clearance, speed, 0.0, a_max):
             return wrap_angle(a)
     return None
 
@@ -165,6 +176,8 @@ class PathFollower:
         self.radius = radius
         self.config = config or FollowerConfig()
         self.path: npt.NDArray[np.float64] = np.zeros((0, 2))
+        self._xy: list[tuple[float, float]] = []
+        self._after: list[float] = []
         self._index = 0
         self.done = True
         self.blocked = False
@@ -172,6 +185,9 @@ class PathFollower:
     def set_path(self, points: npt.NDArray[np.float64]) -> None:
         """Follow `points` (k, 2) [m] from the first to the last."""
         self.path = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        self._xy = [(float(x), float(y)) for x, y in self.path]      # plain floats: the carrot's loop is Python
+        steps = np.hypot(*np.diff(self.path, axis=0).T) if len(self.path) > 1 else np.zeros(0)
+        self._after = np.concatenate([np.cumsum(steps[::-1])[::-1], [0.0]]).tolist()   # path left after point i
         self._index = 0
         self.done = len(self.path) == 0
 
@@ -191,9 +207,8 @@ class PathFollower:
         """Distance [m] left along the path from `pose`."""
         if self.done or len(self.path) == 0:
             return 0.0
-        pts = self.path[min(self._index + 1, len(self.path) - 1):]     # the end of the segment it is on, on
-        first = math.hypot(pts[0, 0] - pose.x, pts[0, 1] - pose.y)
-        return first + float(np.hypot(*np.diff(pts, axis=0).T).sum()) if len(pts) > 1 else first
+        i = min(self._index + 1, len(self._xy) - 1)          # the end of the segment it is on, then along
+        return math.hypot(self._xy[i][0] - pose.x, self._xy[i][1] - pose.y) + self._after[i]
 
     def twist(self, pose: Pose, scan: LaserScan | None = None) -> Twist:
         """The command that follows the path from `pose`; zero once done."""
@@ -214,34 +229,36 @@ class PathFollower:
     def _carrot(self, pose: Pose, ahead: float) -> tuple[float, float]:
         """The point `ahead` [m] along the path beyond the robot's projection on it (the projection searched
         on the segment it is on and the next ones within reach, never behind)."""
-        pts = self.path
+        pts = self._xy
+        n = len(pts)
+        if n == 1:
+            return pts[0]
+        px, py = pose.x, pose.y
         best, best_d, best_t = self._index, math.inf, 0.0
-        for i in range(self._index, min(len(pts) - 1, self._index + 8)):
+        for i in range(self._index, min(n - 1, self._index + 8)):
             ax, ay = pts[i]
             bx, by = pts[i + 1]
             dx, dy = bx - ax, by - ay
             seg2 = dx * dx + dy * dy
-            t = 0.0 if seg2 == 0 else min(1.0, max(0.0, ((pose.x - ax) * dx + (pose.y - ay) * dy) / seg2))
-            d = math.hypot(ax + t * dx - pose.x, ay + t * dy - pose.y)
+            t = 0.0 if seg2 == 0 else min(1.0, max(0.0, ((px - ax) * dx + (py - ay) * dy) / seg2))
+            d = math.hypot(ax + t * dx - px, ay + t * dy - py)
             if d < best_d - 1e-9:
                 best, best_d, best_t = i, d, t
             if d > best_d + 2 * ahead:
                 break
-        if len(pts) == 1:
-            return float(pts[0, 0]), float(pts[0, 1])
         self._index = best
         i, t, left = best, best_t, ahead
-        while i < len(pts) - 1:
+        while i < n - 1:
             ax, ay = pts[i]
             bx, by = pts[i + 1]
             seg = math.hypot(bx - ax, by - ay)
             rest = seg * (1.0 - t)
             if rest >= left and seg > 0:
                 f = t + left / seg
-                return float(ax + f * (bx - ax)), float(ay + f * (by - ay))
+                return ax + f * (bx - ax), ay + f * (by - ay)
             left -= rest
             i, t = i + 1, 0.0
-        return float(pts[-1, 0]), float(pts[-1, 1])
+        return pts[-1]
 
     def toward(self, pose: Pose, tx: float, ty: float, to_end: float, scan: LaserScan | None,
                tight: float = 1.0) -> Twist:

@@ -38,15 +38,18 @@ DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
 
 
-def wall_distance(grid: OccupancyGrid, reach: float) -> npt.NDArray[np.float32]:
+def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None) -> npt.NDArray[np.float32]:
     """(rows, cols) float32 distance [cells] from each cell's centre to the nearest box of laser endpoints
     of an occupied cell (`OccupancyGrid.hit_box`; an occupied cell with none counts whole), exact up to
-    `reach` [cells] (beyond: some larger value, inf without an occupied cell)."""
+    `exact` [cells] (None: `reach`), from there up to `reach` [cells] the distance to the nearest occupied
+    cell's centre less half a cell (costs beyond the hard limit), beyond some larger value (inf without an
+    occupied cell)."""
+    exact = reach if exact is None else min(exact, reach)
     occ = grid.occupied()
     centre = distance_transform(occ)
     out = np.empty(grid.shape, np.float32)
-    _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box), centre, float(reach), 0, grid.shape[0], 0,
-                           grid.shape[1], out)
+    _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box), centre, _k.box_offsets(exact), float(exact),
+                           float(reach), 0, grid.shape[0], 0, grid.shape[1], out)
     return out
 
 
@@ -72,7 +75,7 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
-    dist = wall_distance(grid, rr + dr)
+    dist = wall_distance(grid, rr + dr, rr)
     return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
 
 
@@ -97,16 +100,20 @@ class WallDistance:
             only where the scans changed the map (e.g. `WallMemory`'s cells ever firmly occupied).
         surface: measure to the boxes of the laser endpoints in the occupied cells (`wall_distance`,
             the walls' surface) rather than to the occupied cells' centres.
+        exact: with `surface`, how far [cells] the distance to the surface is exact (None: `reach`);
+            beyond, up to `reach`, as `wall_distance`.
     """
 
     def __init__(self, reach: float,
                  occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None,
-                 surface: bool = False) -> None:
+                 surface: bool = False, exact: float | None = None) -> None:
         # a box lies within half a diagonal of its cell's centre: the cells that bear on a distance
         # within `reach` of the surface lie within `reach` + 2 half diagonals of the centres
         self.reach = reach
+        self.exact = reach if exact is None else min(exact, reach)
         self.k = int(math.ceil(reach)) + (3 if surface else 1)
         self.surface = surface
+        self._offsets: npt.NDArray[np.float64] | None = None
         self.dist = np.zeros((0, 0), np.float32)
         self._grid: OccupancyGrid | None = None
         self._synced = 0
@@ -129,8 +136,11 @@ class WallDistance:
         occ = grid.window(s0, s1, t0, t1).occupied() if self._occupied is None else self._occupied(s0, s1, t0, t1)
         sub = distance_transform(occ)
         if self.surface:
-            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, float(self.reach),
-                                   r0 - s0, r1 - s0, c0 - t0, c1 - t0, self.dist[r0:r1, c0:c1])
+            if self._offsets is None:
+                self._offsets = _k.box_offsets(self.exact)
+            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, self._offsets,
+                                   float(self.exact), float(self.reach), r0 - s0, r1 - s0, c0 - t0, c1 - t0,
+                                   self.dist[r0:r1, c0:c1])
         else:
             self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
         return r0, r1, c0, c1
@@ -205,7 +215,7 @@ class PlanCosts:
         write to it)."""
         rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
         if self.walls is None or self.walls._grid is not grid:
-            self.walls = WallDistance(rr + dr, surface=True)
+            self.walls = WallDistance(rr + dr, surface=True, exact=rr)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
         box = self.walls.update(grid)
         if fresh:

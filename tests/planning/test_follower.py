@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.planning.follower import FollowerConfig, PathFollower, blocked_ahead, roomy_cells, scan_clearance
+from robotexp.planning.follower import (FollowerConfig, PathFollower, blocked_ahead, free_heading, roomy_cells,
+                                        scan_clearance)
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 from robotexp.sim import SimRobot
 from robotexp.world.model import World, segment_box
@@ -83,6 +84,18 @@ def test_infinite_ranges_and_sensor_offset() -> None:
     # a sensor 0.2 m ahead of the centre: a return 0.3 m from it is 0.5 m from the centre
     assert not blocked_ahead(scan_at((0.3, 0.0), offset_x=0.2), R, 0.01, 0.3)
     assert blocked_ahead(scan_at((0.2, 0.0), offset_x=0.2), R, 0.01, 0.3)
+
+
+def test_free_heading_slides_along_a_wall_ahead() -> None:
+    # a wall across at x = 0.27 m (2 cm off the disc), at 0.08 m/s: the centre moves 0.0064 + 0.016 + 0.01
+    # = 0.0324 m, so heading a brings it within 0.26 of the wall when 0.27 - 0.0324 cos a < 0.26, i.e.
+    # a < 72 deg: the nearest free direction in 10 deg steps is 80 deg, to the left first
+    wall = scan_at(*[(0.27, y) for y in np.linspace(-1.0, 1.0, 2001)])
+    assert blocked_ahead(wall, R, 0.01, 0.08)
+    assert free_heading(wall, R, 0.01, 0.08, 0.0) == pytest.approx(math.radians(80))
+    assert free_heading(wall, R, 0.01, 0.08, math.radians(-30)) == pytest.approx(math.radians(-80))
+    assert free_heading(wall, R, 0.01, 0.08, 0.0, widest=math.radians(60)) is None
+    assert free_heading(scan_at((2.0, 0.0)), R, 0.01, 0.08, 0.3) == pytest.approx(0.3)     # free: as asked
 
 
 def test_scan_clearance_by_hand() -> None:
