@@ -27,14 +27,14 @@ EXPECTED = {
     # margin and the follower to steer at a carrot with the swept-disc guard (runs changed on purpose)
     ("dense", "frontier", 60.0): {
         "params": {"face_reach": 0.0},
-        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 14.838, "robot_time_s": 60.0,
-                   "coverage": 0.19559, "map_iou": 0.1782, "visited_cells": 169, "collisions": 0,
+        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 15.004, "robot_time_s": 60.0,
+                   "coverage": 0.1713, "map_iou": 0.15217, "visited_cells": 171, "collisions": 0,
                    "reason": "time limit of 60 s reached", "completed": False, "nodes": None,
                    "start_pose": [-5.0, 7.5, 0.0], "time_to_coverage_90_s": None, "pose": "1",
                    "robot": "p3dx", "laser_range_m": 3.0, "cell_m": 0.1, "max_speed_m_s": 0.3, "seed": 0},
         "end": EndReason.TIME_LIMIT,
-        "curve_sha256": "2731aa270f0b4a2c74cac6f9bb17a891aab1dfb7ba2cd27c89be8b623abea8dd",
-        "path_sha256": "6656bbd6522c08c661b945023bd7a577a6c2a902bb6abad8ac80acdf32f96001",
+        "curve_sha256": "5c7642eda5d35e4bf487fe657149adb195e22cb71003cba33f048097278251d2",
+        "path_sha256": "6d873b59c66444015ebbf28e7123ae00351405210d6e56b1691c885922069819",
     },
     # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension);
     # recorded again with the 2 cm margin and the new follower, as frontier above
@@ -49,7 +49,7 @@ EXPECTED = {
                    "backtracks": 51, "detours": 0, "abandoned": 1},
         "end": EndReason.EXPLORED,
         "curve_sha256": "f18a60734f97ed3a8bcba749c9b92e6ab9ffd376841f24cde221fcebcaa35de7",
-        "path_sha256": "71aa14d788fa5e73e8de6e942f1a4a225b3c45a96db07e6923e57c32c0083890",
+        "path_sha256": "16d6a7b62dbdb8ff91c0f857df1410fb648a3b4721fd50485f3ed47e266426e3",
     },
 }
 
