@@ -51,6 +51,7 @@ class FollowerConfig:
 
 
 _POINTS: list[object] = [None, np.zeros((0, 2)), np.zeros(0)]     # the last scan, its points, their norms
+_TRIG: list[object] = [None, np.zeros(0), np.zeros(0)]             # the last beam angles, their cos and sin
 
 
 def _points_norms(scan: LaserScan | None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
@@ -59,13 +60,14 @@ def _points_norms(scan: LaserScan | None) -> tuple[npt.NDArray[np.float64], npt.
     if scan is None:
         return np.zeros((0, 2)), np.zeros(0)
     if _POINTS[0] is not scan:
+        if _TRIG[0] is not scan.angles:          # a robot's scans share one array of beam angles
+            _TRIG[:] = [scan.angles, np.cos(scan.angles), np.sin(scan.angles)]
         r = scan.ranges
         ok = r < scan.range_max                  # False for NaN and inf too
-        a = scan.angles[ok]
         rr = r[ok]
         pts = np.empty((len(rr), 2))
-        pts[:, 0] = scan.offset_x + rr * np.cos(a)
-        pts[:, 1] = rr * np.sin(a)
+        pts[:, 0] = scan.offset_x + rr * _TRIG[1][ok]      # type: ignore[index]
+        pts[:, 1] = rr * _TRIG[2][ok]                      # type: ignore[index]
         _POINTS[:] = [scan, pts, rr if scan.offset_x == 0 else np.hypot(pts[:, 0], pts[:, 1])]
     return _POINTS[1], _POINTS[2]          # type: ignore[return-value]
 

@@ -136,8 +136,8 @@ def box_offsets(reach: float) -> npt.NDArray[np.float64]:
 
 @kernel
 def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], centre: npt.NDArray[np.float32],
-                        offsets: npt.NDArray[np.float64], exact: float, reach: float, r0: int, r1: int, c0: int,
-                        c1: int, out: npt.NDArray[np.float32]) -> None:
+                        need: npt.NDArray[np.bool_], offsets: npt.NDArray[np.float64], exact: float, reach: float,
+                        r0: int, r1: int, c0: int, c1: int, out: npt.NDArray[np.float32]) -> None:
     """Distance [cells] from the centres of rows r0..r1, columns c0..c1 (half-open) to the nearest box of
     laser endpoints of an occupied cell: exact up to `exact`; from there up to `reach` the distance to the
     nearest occupied cell's centre less half a cell (a wall anywhere in its cell, within a fifth of a cell
@@ -149,6 +149,8 @@ def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint
             from its lower-left corner (`OccupancyGrid.hit_box`); x_lo > x_hi: none, the whole cell counts.
         centre: (rows, cols) float32 distance [cells] to the nearest occupied cell's centre
             (`distance_transform(occ)`).
+        need: (rows, cols) bool, the cells whose distance is asked (the others get the centre distance less
+            HALF_DIAGONAL, a lower bound: e.g. the cells a plan may not enter whatever their distance).
         offsets: `box_offsets(exact)`.
         exact: [cells] how far the result must be exact.
         reach: [cells] how far it must be exact or nearly (>= exact); beyond, a value larger than `reach`.
@@ -166,7 +168,7 @@ def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint
     for r in range(r0, r1):
         for c in range(c0, c1):
             d = centre[r, c]
-            if d > reach + HALF_DIAGONAL:
+            if d > reach + HALF_DIAGONAL or not need[r, c]:
                 out[r - r0, c - c0] = d - HALF_DIAGONAL
                 continue
             if d > exact + 2.0 * HALF_DIAGONAL:            # every box farther than `exact`

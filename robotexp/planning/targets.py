@@ -38,18 +38,21 @@ DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
 
 
-def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None) -> npt.NDArray[np.float32]:
+def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None,
+                  need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
     """(rows, cols) float32 distance [cells] from each cell's centre to the nearest box of laser endpoints
     of an occupied cell (`OccupancyGrid.hit_box`; an occupied cell with none counts whole), exact up to
     `exact` [cells] (None: `reach`), from there up to `reach` [cells] the distance to the nearest occupied
     cell's centre less half a cell (costs beyond the hard limit), beyond some larger value (inf without an
-    occupied cell)."""
+    occupied cell). `need` (rows, cols) bool: only these cells' distances are asked (None: all); the others
+    get a lower bound (e.g. the cells not free, which no plan enters)."""
     exact = reach if exact is None else min(exact, reach)
     occ = grid.occupied()
     centre = distance_transform(occ)
     out = np.empty(grid.shape, np.float32)
-    _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box), centre, _k.box_offsets(exact), float(exact),
-                           float(reach), 0, grid.shape[0], 0, grid.shape[1], out)
+    need = np.ones(grid.shape, np.bool_) if need is None else np.ascontiguousarray(need)
+    _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box), centre, need, _k.box_offsets(exact),
+                           float(exact), float(reach), 0, grid.shape[0], 0, grid.shape[1], out)
     return out
 
 
@@ -75,8 +78,9 @@ def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDAr
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
-    dist = wall_distance(grid, rr + dr, rr)
-    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
+    free = grid.free()
+    dist = wall_distance(grid, rr + dr, rr, free)
+    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~free)
 
 
 def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
@@ -102,17 +106,20 @@ class WallDistance:
             the walls' surface) rather than to the occupied cells' centres.
         exact: with `surface`, how far [cells] the distance to the surface is exact (None: `reach`);
             beyond, up to `reach`, as `wall_distance`.
+        free_only: with `surface`, only the free cells' distances are asked (the others get a lower
+            bound: `wall_distance`'s `need`), for costs that block every other cell anyway.
     """
 
     def __init__(self, reach: float,
                  occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None,
-                 surface: bool = False, exact: float | None = None) -> None:
+                 surface: bool = False, exact: float | None = None, free_only: bool = False) -> None:
         # a box lies within half a diagonal of its cell's centre: the cells that bear on a distance
         # within `reach` of the surface lie within `reach` + 2 half diagonals of the centres
         self.reach = reach
         self.exact = reach if exact is None else min(exact, reach)
         self.k = int(math.ceil(reach)) + (3 if surface else 1)
         self.surface = surface
+        self.free_only = free_only
         self._offsets: npt.NDArray[np.float64] | None = None
         self.dist = np.zeros((0, 0), np.float32)
         self._grid: OccupancyGrid | None = None
@@ -138,7 +145,8 @@ class WallDistance:
         if self.surface:
             if self._offsets is None:
                 self._offsets = _k.box_offsets(self.exact)
-            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, self._offsets,
+            need = (grid.window(s0, s1, t0, t1).free() if self.free_only else np.ones(occ.shape, np.bool_))
+            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, need, self._offsets,
                                    float(self.exact), float(self.reach), r0 - s0, r1 - s0, c0 - t0, c1 - t0,
                                    self.dist[r0:r1, c0:c1])
         else:
@@ -215,7 +223,7 @@ class PlanCosts:
         write to it)."""
         rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
         if self.walls is None or self.walls._grid is not grid:
-            self.walls = WallDistance(rr + dr, surface=True, exact=rr)
+            self.walls = WallDistance(rr + dr, surface=True, exact=rr, free_only=True)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
         box = self.walls.update(grid)
         if fresh:
