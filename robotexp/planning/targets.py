@@ -31,7 +31,7 @@ from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
-           "passable_radius"]
+           "surface_distance", "passable_radius"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -46,13 +46,20 @@ def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None,
     cell's centre less half a cell (costs beyond the hard limit), beyond some larger value (inf without an
     occupied cell). `need` (rows, cols) bool: only these cells' distances are asked (None: all); the others
     get a lower bound (e.g. the cells not free, which no plan enters)."""
+    return surface_distance(grid.occupied(), grid.hit_box, reach, exact, need)
+
+
+def surface_distance(occupied: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], reach: float,
+                     exact: float | None = None, need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+    """`wall_distance` from the cells of `occupied` (rows, cols) bool, e.g. a map's occupied cells and those
+    it ever showed firmly occupied (`WallMemory`), with their boxes of endpoints `hit_box` (rows, cols, 4)."""
     exact = reach if exact is None else min(exact, reach)
-    occ = grid.occupied()
+    occ = np.ascontiguousarray(occupied)
     centre = distance_transform(occ)
-    out = np.empty(grid.shape, np.float32)
-    need = np.ones(grid.shape, np.bool_) if need is None else np.ascontiguousarray(need)
-    _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box), centre, need, _k.box_offsets(exact),
-                           float(exact), float(reach), 0, grid.shape[0], 0, grid.shape[1], out)
+    out = np.empty(occ.shape, np.float32)
+    need = np.ones(occ.shape, np.bool_) if need is None else np.ascontiguousarray(need)
+    _k.box_distance_kernel(occ, np.ascontiguousarray(hit_box), centre, need, _k.box_offsets(exact), float(exact),
+                           float(reach), 0, occ.shape[0], 0, occ.shape[1], out)
     return out
 
 
