@@ -15,7 +15,7 @@ import numpy.typing as npt
 
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import blocked_ahead
+from robotexp.planning.follower import FollowerConfig, blocked_ahead, free_heading
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 
@@ -26,6 +26,7 @@ __all__ = ["BVPExplorer", "speed_law", "edge_distance"]
 
 RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 - p: a vanished gradient
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
+TIGHT = FollowerConfig()    # where the path follower turns in place rather than drive round, bvp does too
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 
 
@@ -77,13 +78,16 @@ class BVPExplorer(Explorer):
       within 1e-16 of 1 and rounds to a flat 1.0 in float64 (a robot in an explored room behind a
       door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
       to 1e-308, so the gradient keeps its direction.
-    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 5 cm the
-      planners keep): cells whose centre lies within inflate + half a cell of an occupied cell's
-      centre are obstacles (potential 1) too, as in Connolly & Grupen's planner, so the descent never
-      leads into a gap the robot cannot pass and unknown cells right by walls (their unseen faces)
-      are not goals. With the radius alone the field led into channels of the configuration space
-      one cell wide that the laser guard would not enter, and the robot stood at their mouths until
-      the run stalled (6 of bvp's 7 failures in the 770-run Done-when benchmark, cave 9 at 0.309).
+    - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 2 cm the
+      planners keep): cells whose centre lies within inflate of the walls' surface (the laser endpoints
+      in the occupied cells: `robotexp.planning.targets.wall_distance`) are obstacles (potential 1)
+      too, as in Connolly & Grupen's planner, so the descent never leads into a gap the robot cannot
+      pass and unknown cells right by walls (their unseen faces) are not goals. A door the robot fits
+      with 2 cm to spare is a channel of the configuration space a cell or two wide: the guard (the
+      swept disc, `blocked_ahead`) lets the robot in, and where the laser shows less than
+      `FollowerConfig.tight` of room the robot turns in place to the descent before it drives on
+      rather than drive round (through the five-room doors with both presets,
+      benchmarks/studies/doors.py).
       `inflate=0` is the bare map; `campaigns/thesis.toml` sets the radius (the thesis's runs).
     - The robot's cell: cells the robot's footprint has covered count as free even if the laser
       (180 degrees, ahead) never saw them, so the robot is not drawn to the floor under itself.
@@ -145,7 +149,7 @@ class BVPExplorer(Explorer):
     preferred_cell = 0.1
 
     def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,  # noqa: PLR0913
-                 k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.05,
+                 k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.01,
                  epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0,
                  flush_sweeps: int = 4) -> None:
         if not (isinstance(sweeps, int) and sweeps >= 1):
@@ -184,7 +188,7 @@ class BVPExplorer(Explorer):
         self.v = 0.0
         self.flat_steps = 0
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
-        self.walls = WallDistance(0.0)
+        self.walls = WallDistance(0.0, surface=True)
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
@@ -193,7 +197,7 @@ class BVPExplorer(Explorer):
         """Loop closure rebuilt the map: the wall distances are recomputed and the field is relaxed anew from
         below at the next update (as after `give_up`), so that no goal or wall of the old map lingers in it."""
         if self.q.shape != (0, 0):
-            self.walls = WallDistance(self._inflate_cells(grid))
+            self.walls = WallDistance(self._inflate_cells(grid), surface=True)
             self.flush = True
         self.next_update = -math.inf
 
@@ -208,7 +212,7 @@ class BVPExplorer(Explorer):
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
-            self.walls = WallDistance(self._inflate_cells(grid))
+            self.walls = WallDistance(self._inflate_cells(grid), surface=True)
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -259,15 +263,16 @@ class BVPExplorer(Explorer):
         rows, cols = view.shape
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        wall = dist <= self._inflate_cells(grid)      # with no inflation: the occupied cells (distance 0)
+        wall = (dist <= self._inflate_cells(grid)) | view.occupied()    # with no inflation: the occupied cells
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
 
     def _inflate_cells(self, grid: OccupancyGrid) -> float:
-        """[cells] a cell whose centre is this near an occupied cell's centre is a wall."""
+        """[cells] a cell whose centre is this near the walls' surface (the laser endpoints in the occupied
+        cells: `wall_distance`) is a wall."""
         inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
-        return inflate / grid.geo.cell + 0.5
+        return inflate / grid.geo.cell
 
     def update_potential(self, grid: OccupancyGrid
                          ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], tuple[int, int]]:
@@ -356,10 +361,20 @@ class BVPExplorer(Explorer):
                 self.v = 0.0
                 return Twist(0.0, min(lim.w_max, 0.5))
         varphi = wrap_angle(pose.theta - self.phi)
+        room = edge_distance(state.laser, self.ctx.radius)
+        if room < TIGHT.tight:
+            # the descent, taken at the robot's cell, may lead into an obstacle beside the robot (it stands
+            # up to half a cell off the cell's centre): slide along it, in the free direction nearest the
+            # descent (within 90 degrees of it: the potential still falls)
+            free = free_heading(state.laser, self.ctx.radius, self.clearance, max(self.v, TIGHT.tight_speed),
+                                -varphi, lim.a_max)
+            if free is not None:
+                varphi = -free
         w = max(-lim.w_max, min(lim.w_max, -self.k_turn * varphi))
-        v = speed_law(self.v, varphi, edge_distance(state.laser, self.ctx.radius),
-                      v_max=lim.v_max, r_max=self.r_max, eta=self.eta)
-        if blocked_ahead(state.laser, self.ctx.radius, self.clearance, v):
+        v = speed_law(self.v, varphi, room, v_max=lim.v_max, r_max=self.r_max, eta=self.eta)
+        if room < TIGHT.tight and abs(varphi) > TIGHT.tight_turn:
+            v = 0.0             # little room (a door the field leads through): face the descent first
+        if blocked_ahead(state.laser, self.ctx.radius, self.clearance, v, w, lim.a_max):
             v = 0.0
         self.v = v
         return Twist(v, w)

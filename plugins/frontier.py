@@ -36,8 +36,9 @@ class FrontierExplorer(Explorer):
     the moment: in a log-odds map a beam passing through a wall cell cancels a hit, so grazing beams
     wear faces down to unknown or free cells, and a shelf's face worn over a metre looked like an
     opening into its unseen inside (generated warehouses: a long tail of trips to worn rack faces).
-    Paths are planned on known-free cells with the robot radius (plus a 5 cm
-    margin) inflated around obstacles and a costly zone of `clearance` beyond it (Dijkstra for the
+    Paths are planned on known-free cells where the robot's disc fits 2 cm clear of the walls' surface
+    (`plan_costs`: the laser endpoints in the occupied cells, finer than the cell) and a costly zone of
+    `clearance` beyond that keeps them centred (Dijkstra for the
     nearest goal, A* to refresh the path). The goal is the nearest cell the robot can stand on
     within a robot radius of a frontier cell - inside the room rather than in its door - or, for
     frontiers in pockets too narrow to enter, within a metre of one; on arrival the robot turns to

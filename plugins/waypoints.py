@@ -29,7 +29,8 @@ import numpy.typing as npt
 
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.grid_planner import astar, cost_grid, distance_transform
+from robotexp.planning.grid_planner import astar, cost_grid
+from robotexp.planning.targets import passable_radius, wall_distance
 
 __all__ = ["WaypointsExplorer", "attractive_force", "repulsive_force", "scan_points", "SECTORS"]
 
@@ -266,9 +267,10 @@ class WaypointsExplorer(Explorer):
         occ = grid.occupied()
         if not occ.any():
             return None
-        dist = distance_transform(occ)
-        cost = cost_grid(dist, robot_radius_cells=self.ctx.radius / geo.cell + 0.5,
-                         danger_radius_cells=self.influence / geo.cell, danger_cost=4.0)
+        radius = passable_radius(geo.cell, self.ctx.radius)       # the planners' passability (the walls' surface)
+        dist = wall_distance(grid, radius + self.influence / geo.cell)
+        cost = cost_grid(dist, robot_radius_cells=radius, danger_radius_cells=self.influence / geo.cell,
+                         danger_cost=4.0)
         start, end = geo.cell_of(pose.x, pose.y), geo.cell_of(*goal)
         if not (geo.contains(*start) and geo.contains(*end)):
             return None

@@ -9,7 +9,7 @@ For each `generated:KIND:SEED` (default: office, warehouse, cave, seeds 0-9) and
   behind furniture or a passage too narrow (they are not in the ground truth either);
 - `explorable`: the ground truth the run's coverage is measured against [m2] (robotexp.world.groundtruth,
   the robot's exact radius), and `tight`: the share of it that is only reachable through a gap a planner
-  keeping `--margin` (default: robotexp.planning.targets.MARGIN plus half a cell, 0.075 m) from the walls
+  keeping `--margin` (default 0.075 m, more than the planners' 2 cm from the walls' surface) from the walls
   cannot pass - coverage a method could not get without touching a wall.
 
     python benchmarks/studies/generated_fairness.py [--kinds office,warehouse,cave,building] [--seeds 0-9] [--scanned]
@@ -29,7 +29,6 @@ def main() -> int:
     from robotexp.mapping.geometry import GridGeometry
     from robotexp.world.groundtruth import ground_truth, occupancy
     from robotexp.mapping.kernels import clearance_mask, flood8, label8
-    from robotexp.planning.targets import MARGIN
     from robotexp.world.loader import load_world
     from robotexp.world.start import default_start
 
@@ -43,7 +42,7 @@ def main() -> int:
     ap.add_argument("--size", default="", help="WxH [m] of the worlds (default: each kind's)")
     ap.add_argument("--radius", type=float, default=0.25, help="[m] robot radius (P3-DX)")
     ap.add_argument("--laser-range", type=float, default=3.0, help="[m]")
-    ap.add_argument("--margin", type=float, default=MARGIN + 0.025, help="[m] a planner's margin beyond the radius")
+    ap.add_argument("--margin", type=float, default=0.075, help="[m] a planner's margin beyond the radius")
     args = ap.parse_args()
     a, _, b = args.seeds.partition("-")
     seeds = range(int(a), int(b or a) + 1)

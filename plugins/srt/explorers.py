@@ -21,7 +21,7 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ray_tree
 from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight
-from robotexp.planning.targets import frontier_targets
+from robotexp.planning.targets import MARGIN, frontier_targets
 
 from .core import SRTExplorer
 from .regions import (
@@ -396,7 +396,8 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
 
     Args:
         offset: [m] the shrinking (None: the robot radius + `margin`).
-        margin: [m] added to the robot radius when `offset` is None.
+        margin: [m] added to the robot radius when `offset` is None (the planners' hard `MARGIN`: a door the
+            robot fits with it is a passage; more closes doors the robot drives through).
         view: the farthest a candidate may be from its frontier vertex, as a share of the laser range.
         tries: nearest reachable points tried per frontier vertex for the line of sight.
         tolerance: [m] a frontier vertex this close to another node's region counts as explored
@@ -417,7 +418,7 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     name = "srt-laser"
     RESCUE_SIGHT = True
 
-    def __init__(self, *, offset: float | None = None, margin: float = 0.1, view: float = 0.8, tries: int = 20,  # noqa: PLR0913
+    def __init__(self, *, offset: float | None = None, margin: float = MARGIN, view: float = 0.8, tries: int = 20,  # noqa: PLR0913
                  tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:

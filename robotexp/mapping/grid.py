@@ -27,6 +27,7 @@ from robotexp.mapping.kernels import (
     integrate_scan_himm,
     integrate_scan_logodds,
     label8,
+    note_hits,
 )
 from robotexp.robot import LaserScan, Pose
 
@@ -56,6 +57,10 @@ class OccupancyGrid:
         values: the cell values, (rows, cols): float32 log-odds, or uint8 HIMM certainty.
         stamp: int32 (rows, cols), the last scan (or mark) that touched each cell, 0 = never;
             `seen` is stamp > 0.
+        hit_box: uint8 (rows, cols, 4), per cell the box of the laser endpoints that fell in it
+            (x_lo, x_hi, y_lo, y_hi in 1/255 of the cell's side from its lower-left corner, rounded
+            outwards; x_lo > x_hi: none yet): where in an occupied cell the obstacle's surface lies,
+            finer than the cell (`robotexp.planning.targets.WallDistance` measures to it).
         scans: the number of scans and marks so far, which is also the id of the last one.
         cells_updated: cell updates so far (a cell counts once per scan or mark that touched it).
         range_max: [m] cap on the sensor model's range, or None to use each scan's `range_max`.
@@ -109,6 +114,8 @@ class OccupancyGrid:
         else:
             self.values = np.zeros(shape, np.uint8)
         self.stamp: npt.NDArray[np.int32] = np.zeros(shape, np.int32)   # last scan id per cell, 0 = never
+        self.hit_box: npt.NDArray[np.uint8] = np.zeros(shape + (4,), np.uint8)
+        self.hit_box[:, :, 0] = 255                      # no endpoint yet (x_lo > x_hi)
         self.scans = 0
         self.cells_updated = 0
         self.box: tuple[int, int, int, int] | None = None   # see touched_box
@@ -144,6 +151,7 @@ class OccupancyGrid:
         # sensor's arithmetic puts half the hits in the free cell in front of it. Nudging hits
         # HIT_DEPTH [m] into the obstacle puts them in the obstacle's cell.
         hits = ranges < rmax
+        measured = ranges
         ranges = ranges.copy()
         ranges[hits] = np.minimum(ranges[hits] + HIT_DEPTH, np.nextafter(rmax, 0.0))
         sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
@@ -157,6 +165,7 @@ class OccupancyGrid:
         else:
             cert = cast("npt.NDArray[np.uint8]", self.values)
             n = integrate_scan_himm(cert, self.stamp, self.scans, self.geo, sensor, angles, ranges, rmax)
+        note_hits(self.hit_box, self.geo, sensor, angles, measured, ranges, rmax)
         self.cells_updated += int(n)
         return int(n)
 
@@ -209,6 +218,7 @@ class OccupancyGrid:
         other.geo = GridGeometry(g.origin_x + c0 * g.cell, g.origin_y + r0 * g.cell, g.cell, r1 - r0, c1 - c0)
         other.values = self.values[r0:r1, c0:c1]
         other.stamp = self.stamp[r0:r1, c0:c1]
+        other.hit_box = self.hit_box[r0:r1, c0:c1]
         other._changes = np.zeros((64, 4), np.int32)   # a window keeps no history: ask the grid (its numbers)
         other.box = None if self.box is None else (
             max(self.box[0] - r0, 0), max(min(self.box[1] - r0, r1 - r0), 0),
@@ -361,6 +371,7 @@ class OccupancyGrid:
         other.__dict__.update(self.__dict__)
         other.values = self.values.copy()
         other.stamp = self.stamp.copy()
+        other.hit_box = self.hit_box.copy()
         other._changes = self._changes.copy()
         return other
 

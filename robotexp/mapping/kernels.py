@@ -27,6 +27,8 @@ import numpy.typing as npt
 from robotexp.mapping.geometry import GridGeometry
 
 __all__ = [
+    "HIT_STEPS",
+    "note_hits",
     "LogOddsModel",
     "clearance_mask",
     "edt_sq",
@@ -170,6 +172,52 @@ def _hit_cell(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rn
     if r < 0 or r >= geo.rows or c < 0 or c >= geo.cols:
         return -1, -1
     return r, c
+
+
+HIT_STEPS = 255     # a cell's hit box is kept in 1/HIT_STEPS of its side (uint8)
+
+
+@kernel
+def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArray[np.float64],
+              angles: npt.NDArray[np.float64], ranges: npt.NDArray[np.float64], nudged: npt.NDArray[np.float64],
+              range_max: float) -> None:
+    """Grow each hit cell's box of laser endpoints by the endpoints of one scan.
+
+    `hit_box` (rows, cols, 4) uint8 holds per cell x_lo, x_hi, y_lo, y_hi of the endpoints that fell in it,
+    in 1/HIT_STEPS of the cell's side from its lower-left corner, rounded outwards (the box holds every
+    endpoint); x_lo > x_hi: no endpoint yet. The cell of a hit is the cell the scan integration marks
+    (`_hit_cell` at the `nudged` range); its endpoint is the measured one (`ranges`), clamped into that cell.
+
+    Args:
+        hit_box: (rows, cols, 4) uint8, updated in place.
+        geo: the grid.
+        pose: float64 (3,) sensor x [m], y [m], heading [rad].
+        angles: float64 (n,) beam angles [rad] relative to the heading.
+        ranges: float64 (n,) measured ranges [m].
+        nudged: float64 (n,) the ranges the integration used (a hit nudged into its obstacle).
+        range_max: [m] beams at or beyond this range record no hit.
+    """
+    for i in range(angles.shape[0]):
+        rng = nudged[i]
+        if not (0.0 <= rng < range_max):
+            continue
+        r, c = _hit_cell(geo, pose, angles[i], rng)
+        if r < 0:
+            continue
+        a = pose[2] + angles[i]
+        fx = (pose[0] + ranges[i] * math.cos(a) - geo.origin_x) / geo.cell - c
+        fy = (pose[1] + ranges[i] * math.sin(a) - geo.origin_y) / geo.cell - r
+        fx = min(max(fx, 0.0), 1.0) * HIT_STEPS
+        fy = min(max(fy, 0.0), 1.0) * HIT_STEPS
+        xl, xh = np.uint8(math.floor(fx)), np.uint8(math.ceil(fx))
+        yl, yh = np.uint8(math.floor(fy)), np.uint8(math.ceil(fy))
+        if hit_box[r, c, 0] > hit_box[r, c, 1]:
+            hit_box[r, c, 0], hit_box[r, c, 1], hit_box[r, c, 2], hit_box[r, c, 3] = xl, xh, yl, yh
+        else:
+            hit_box[r, c, 0] = min(hit_box[r, c, 0], xl)
+            hit_box[r, c, 1] = max(hit_box[r, c, 1], xh)
+            hit_box[r, c, 2] = min(hit_box[r, c, 2], yl)
+            hit_box[r, c, 3] = max(hit_box[r, c, 3], yh)
 
 
 @kernel

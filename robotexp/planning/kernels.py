@@ -21,6 +21,8 @@ from robotexp.mapping.kernels import kernel
 
 __all__ = [
     "SQRT2",
+    "box_distance_kernel",
+    "box_offsets",
     "astar_kernel",
     "dijkstra_fill",
     "dijkstra_search",
@@ -116,6 +118,85 @@ def distance_transform_kernel(occ: npt.NDArray[np.bool_], out: npt.NDArray[np.fl
         edt_1d(f[:cols], d[:cols], v, z)
         for c in range(cols):
             out[r, c] = np.float32(math.sqrt(d[c]))
+
+
+HALF_DIAGONAL = 0.5 * SQRT2 + 1e-6     # [cells] from a cell's centre to its corners, rounded up
+
+
+def box_offsets(reach: float) -> npt.NDArray[np.float64]:
+    """(k, 3) float64 (d_row, d_col, distance) of the cells within `reach` + 2 HALF_DIAGONAL [cells] of a cell,
+    nearest first: the order `box_distance_kernel` visits them in."""
+    k = int(math.ceil(reach + 2.0 * HALF_DIAGONAL))
+    dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+    d = np.hypot(dr, dc).ravel()
+    keep = d <= reach + 2.0 * HALF_DIAGONAL
+    order = np.argsort(d[keep], kind="stable")
+    return np.ascontiguousarray(np.column_stack([dr.ravel()[keep], dc.ravel()[keep], d[keep]])[order])
+
+
+@kernel
+def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], centre: npt.NDArray[np.float32],
+                        need: npt.NDArray[np.bool_], offsets: npt.NDArray[np.float64], exact: float, reach: float,
+                        r0: int, r1: int, c0: int, c1: int, out: npt.NDArray[np.float32]) -> None:
+    """Distance [cells] from the centres of rows r0..r1, columns c0..c1 (half-open) to the nearest box of
+    laser endpoints of an occupied cell: exact up to `exact`; from there up to `reach` the distance to the
+    nearest occupied cell's centre less half a cell (a wall anywhere in its cell, within a fifth of a cell
+    of the exact value: costs beyond the hard limit need no more); beyond `reach` some value larger.
+
+    Args:
+        occ: (rows, cols) bool occupied cells.
+        hit_box: (rows, cols, 4) uint8 per cell x_lo, x_hi, y_lo, y_hi of its endpoints in 1/255 of a cell
+            from its lower-left corner (`OccupancyGrid.hit_box`); x_lo > x_hi: none, the whole cell counts.
+        centre: (rows, cols) float32 distance [cells] to the nearest occupied cell's centre
+            (`distance_transform(occ)`).
+        need: (rows, cols) bool, the cells whose distance is asked (the others get the centre distance less
+            HALF_DIAGONAL, a lower bound: e.g. the cells a plan may not enter whatever their distance).
+        offsets: `box_offsets(exact)`.
+        exact: [cells] how far the result must be exact.
+        reach: [cells] how far it must be exact or nearly (>= exact); beyond, a value larger than `reach`.
+        r0: first row.
+        r1: row past the last.
+        c0: first column.
+        c1: column past the last.
+        out: (r1 - r0, c1 - c0) float32 output.
+
+    A box lies in its cell, within HALF_DIAGONAL of the cell's centre, so a cell whose centre is farther
+    than the nearest box found so far plus HALF_DIAGONAL holds no nearer box: the cells are visited
+    nearest first and the search stops there.
+    """
+    rows, cols = occ.shape
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            d = centre[r, c]
+            if d > reach + HALF_DIAGONAL or not need[r, c]:
+                out[r - r0, c - c0] = d - HALF_DIAGONAL
+                continue
+            if d > exact + 2.0 * HALF_DIAGONAL:            # every box farther than `exact`
+                out[r - r0, c - c0] = max(d - 0.5, exact + 1e-3)
+                continue
+            best = np.inf          # squared
+            for i in range(offsets.shape[0]):
+                od = offsets[i, 2]
+                if od > d + 2.0 * HALF_DIAGONAL or (od - HALF_DIAGONAL) * (od - HALF_DIAGONAL) >= best \
+                        and od > HALF_DIAGONAL:
+                    break
+                rr = r + int(offsets[i, 0])
+                cc = c + int(offsets[i, 1])
+                if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
+                    continue
+                qy = r - rr + 0.5
+                qx = c - cc + 0.5
+                if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
+                    xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
+                else:
+                    xl = hit_box[rr, cc, 0] / 255.0
+                    xh = hit_box[rr, cc, 1] / 255.0
+                    yl = hit_box[rr, cc, 2] / 255.0
+                    yh = hit_box[rr, cc, 3] / 255.0
+                dx = max(xl - qx, 0.0, qx - xh)
+                dy = max(yl - qy, 0.0, qy - yh)
+                best = min(best, dx * dx + dy * dy)
+            out[r - r0, c - c0] = np.float32(math.sqrt(best))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,10 +1,18 @@
 """Where goal-seeking explorers may go and at what cost: the planning helpers they share.
 
 Frontier cells worth driving to (`frontier_targets`, `usable_frontier`), the traversal costs every
-plan uses (`plan_costs`: known-free cells only, walls inflated by the robot radius and a margin, a
-costly danger zone beyond), and the passable cell to plan from when the robot's own cell is not
-passable (`nearest_passable`, `passable_cell`). The frontier, metaheuristic and SRT explorers all
-plan with these; they lived in the frontier plugin before, and plugins do not import each other.
+plan uses (`plan_costs`: known-free cells only, a cell passable where the robot's disc fits with a small
+hard `MARGIN` to the walls' surface, a costly zone beyond that keeps paths centred), and the passable
+cell to plan from when the robot's own cell is not passable (`nearest_passable`, `passable_cell`). The
+frontier, metaheuristic and SRT explorers all plan with these, and the run's check of an explorer's
+"explored" asks the same passability; they lived in the frontier plugin before, and plugins do not
+import each other.
+
+The walls' surface is measured finer than the cell: each occupied cell keeps the box of the laser
+endpoints that fell in it (`OccupancyGrid.hit_box`), and a cell's distance to the walls is the distance
+from its centre to the nearest such box (`wall_distance`). A door 2 cm wider than the robot plus twice
+the margin and a cell is open to the planners wherever it lies on the grid; with distances between cell
+centres and a wall anywhere in its cell, a 10 cm grid took 10 cm more on each side.
 """
 
 from __future__ import annotations
@@ -17,40 +25,74 @@ import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning import kernels as _k
 from robotexp.planning.grid_planner import cost_grid, distance_transform
 from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
-           "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory"]
+           "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
+           "surface_distance", "passable_radius"]
 
-MARGIN = 0.05       # [m] kept between the robot and the walls by every plan
+MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
 START_REACH = 0.5   # [m] how far from the robot a plan may start when its own cell is not passable
+
+
+def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None,
+                  need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+    """(rows, cols) float32 distance [cells] from each cell's centre to the nearest box of laser endpoints
+    of an occupied cell (`OccupancyGrid.hit_box`; an occupied cell with none counts whole), exact up to
+    `exact` [cells] (None: `reach`), from there up to `reach` [cells] the distance to the nearest occupied
+    cell's centre less half a cell (costs beyond the hard limit), beyond some larger value (inf without an
+    occupied cell). `need` (rows, cols) bool: only these cells' distances are asked (None: all); the others
+    get a lower bound (e.g. the cells not free, which no plan enters)."""
+    return surface_distance(grid.occupied(), grid.hit_box, reach, exact, need)
+
+
+def surface_distance(occupied: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], reach: float,
+                     exact: float | None = None, need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+    """`wall_distance` from the cells of `occupied` (rows, cols) bool, e.g. a map's occupied cells and those
+    it ever showed firmly occupied (`WallMemory`), with their boxes of endpoints `hit_box` (rows, cols, 4)."""
+    exact = reach if exact is None else min(exact, reach)
+    occ = np.ascontiguousarray(occupied)
+    centre = distance_transform(occ)
+    out = np.empty(occ.shape, np.float32)
+    need = np.ones(occ.shape, np.bool_) if need is None else np.ascontiguousarray(need)
+    _k.box_distance_kernel(occ, np.ascontiguousarray(hit_box), centre, need, _k.box_offsets(exact), float(exact),
+                           float(reach), 0, occ.shape[0], 0, occ.shape[1], out)
+    return out
+
+
+def passable_radius(cell: float, radius: float) -> float:
+    """[cells] a cell whose `wall_distance` is at most this is blocked for a robot of `radius` [m]."""
+    return (radius + MARGIN) / cell
 
 
 def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
     """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
 
-    A cell is blocked when its centre is within radius + MARGIN + half a cell of an occupied
-    cell's centre (the wall may lie anywhere in that cell); the next `clearance` [m] is a danger
-    zone whose cost rises towards the obstacle, so paths keep off walls where there is room.
+    A cell is blocked when its centre lies within radius + MARGIN of the walls' surface (`wall_distance`:
+    the boxes of the laser endpoints in the occupied cells); the next `clearance` [m] is a danger zone
+    whose cost rises towards the obstacle, so paths keep off walls where there is room and run down the
+    middle of a door.
 
     Args:
         grid: the map.
         radius: [m] the robot's footprint radius.
-        clearance: [m] width of the danger zone beyond the inflated walls.
+        clearance: [m] width of the danger zone beyond the blocked cells.
 
     Returns:
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
-    dist = distance_transform(grid.occupied())
-    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~grid.free())
+    free = grid.free()
+    dist = wall_distance(grid, rr + dr, rr, free)
+    return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~free)
 
 
 def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
     """`plan_costs`' robot radius and danger zone width [cells]."""
-    return (radius + MARGIN) / cell + 0.5, clearance / cell
+    return passable_radius(cell, radius), clearance / cell
 
 
 class WallDistance:
@@ -67,11 +109,25 @@ class WallDistance:
         occupied: the cells to measure from, as a function of a box of the grid (rows r0..r1, cols
             c0..c1, half-open) giving its bool mask; None: the grid's occupied cells. It must change
             only where the scans changed the map (e.g. `WallMemory`'s cells ever firmly occupied).
+        surface: measure to the boxes of the laser endpoints in the occupied cells (`wall_distance`,
+            the walls' surface) rather than to the occupied cells' centres.
+        exact: with `surface`, how far [cells] the distance to the surface is exact (None: `reach`);
+            beyond, up to `reach`, as `wall_distance`.
+        free_only: with `surface`, only the free cells' distances are asked (the others get a lower
+            bound: `wall_distance`'s `need`), for costs that block every other cell anyway.
     """
 
     def __init__(self, reach: float,
-                 occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None) -> None:
-        self.k = int(math.ceil(reach)) + 1
+                 occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None,
+                 surface: bool = False, exact: float | None = None, free_only: bool = False) -> None:
+        # a box lies within half a diagonal of its cell's centre: the cells that bear on a distance
+        # within `reach` of the surface lie within `reach` + 2 half diagonals of the centres
+        self.reach = reach
+        self.exact = reach if exact is None else min(exact, reach)
+        self.k = int(math.ceil(reach)) + (3 if surface else 1)
+        self.surface = surface
+        self.free_only = free_only
+        self._offsets: npt.NDArray[np.float64] | None = None
         self.dist = np.zeros((0, 0), np.float32)
         self._grid: OccupancyGrid | None = None
         self._synced = 0
@@ -93,7 +149,15 @@ class WallDistance:
         s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
         occ = grid.window(s0, s1, t0, t1).occupied() if self._occupied is None else self._occupied(s0, s1, t0, t1)
         sub = distance_transform(occ)
-        self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
+        if self.surface:
+            if self._offsets is None:
+                self._offsets = _k.box_offsets(self.exact)
+            need = (grid.window(s0, s1, t0, t1).free() if self.free_only else np.ones(occ.shape, np.bool_))
+            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, need, self._offsets,
+                                   float(self.exact), float(self.reach), r0 - s0, r1 - s0, c0 - t0, c1 - t0,
+                                   self.dist[r0:r1, c0:c1])
+        else:
+            self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
         return r0, r1, c0, c1
 
 
@@ -146,9 +210,9 @@ class WallMemory:
 class PlanCosts:
     """`plan_costs` of a growing map, kept up to date by recomputing only the cells near what changed.
 
-    A cell's cost depends on whether it is free and on its distance to the nearest occupied cell up to
-    the robot radius plus the danger zone (beyond, the cost is 1): `WallDistance` keeps that distance
-    and the costs are recomputed in the box it recomputed. The costs equal `plan_costs` of the whole
+    A cell's cost depends on whether it is free and on its distance to the walls' surface up to the
+    robot radius plus the danger zone (beyond, the cost is 1): `WallDistance` keeps that distance
+    (`wall_distance`) and the costs are recomputed in the box it recomputed. The costs equal `plan_costs` of the whole
     map, bit for bit; unknown cells (all of them at first) are blocked.
 
     Args:
@@ -166,7 +230,7 @@ class PlanCosts:
         write to it)."""
         rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
         if self.walls is None or self.walls._grid is not grid:
-            self.walls = WallDistance(rr + dr)
+            self.walls = WallDistance(rr + dr, surface=True, exact=rr, free_only=True)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
         box = self.walls.update(grid)
         if fresh:

@@ -66,7 +66,9 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     robot's `path` (k, 2) [m] (the robot went there and looked: they stay frontier because no laser
     sees behind them from anywhere near, as inside a shelf). `walls` (rows, cols) bool, the cells the
     map ever showed firmly occupied (`WallMemory`), are walls too: a face that grazing beams wore
-    down to free is still a face, not an opening, and the unknown behind it is the wall's inside.
+    down to free is still a face, not an opening, and the unknown behind it is the wall's inside. The
+    unknown space counts where the planners would let the robot's disc go were it free (`plan_costs`'
+    passability: its radius and `MARGIN` from the walls' surface).
 
     Returns:
         (cells, area): how many such frontier cells, and the area [m^2] of the unknown space
@@ -74,7 +76,7 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     """
     from robotexp.mapping.kernels import flood8, label8
     from robotexp.planning.grid_planner import distance_transform
-    from robotexp.planning.targets import frontier_targets, passable_cell, plan_costs
+    from robotexp.planning.targets import frontier_targets, passable_cell, passable_radius, plan_costs, surface_distance
 
     geo = grid.geo
     passable = np.isfinite(plan_costs(grid, radius, 0.0))
@@ -91,10 +93,13 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
         return 0, 0.0
     reach = flood8(np.ascontiguousarray(passable), start[0], start[1])
     left = targets & (distance_transform(reach) <= radius / geo.cell + 1.5)
-    # the unknown space a robot could drive into were it free: a disc of `radius` clear of every
-    # occupied cell, connected to the robot. A gap in a wall narrower than the robot (grazing beams
-    # that freed a wall cell) opens no way to the unknown space beyond it, nor does a shelf's inside.
-    open_space = np.ascontiguousarray(distance_transform(occupied) > radius / geo.cell)
+    # the unknown space a robot could drive into were it free: where a plan would let its disc go (clear of
+    # every occupied cell's laser endpoints by the radius and the planners' margin: their passability,
+    # unknown cells counted free), connected to the robot. A gap in a wall narrower than that (grazing
+    # beams that freed or never reached a wall cell) opens no way to the unknown space beyond it, nor
+    # does a shelf's inside.
+    rr = passable_radius(geo.cell, radius)
+    open_space = np.ascontiguousarray(surface_distance(occupied, grid.hit_box, rr) > rr)
     beyond = grid.unknown() & flood8(open_space, start[0], start[1]) if open_space[start] else None
     if beyond is None or not beyond.any():
         return 0, 0.0

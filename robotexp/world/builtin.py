@@ -15,7 +15,7 @@ from robotexp.errors import WorldError
 from robotexp.robot import Pose
 from robotexp.world.model import Mover, World, segment_box
 
-__all__ = ["BUILTIN", "builtin_world", "builtin_names"]
+__all__ = ["BUILTIN", "DOOR_CENTRES", "builtin_world", "builtin_names", "rooms_in_a_row"]
 
 WALL = 0.10     # [m] thickness of built-in walls
 
@@ -157,6 +157,25 @@ def _ufmg(dynamic: bool) -> World:
     desc = "room 10 x 10 m" + (", a person walking across it" if dynamic else ", static")
     return World(name, np.array(d.boxes), np.array(d.discs).reshape(-1, 3), poses=poses, movers=movers,
                  goals=goals, description=desc)
+
+
+DOOR_CENTRES = (0.93, 3.04, 1.27, 2.71)    # [m] y of the doors' centres, room after room: off the middle,
+#                                           off the 10 cm grid, alternating sides
+
+
+def rooms_in_a_row(door: float, rooms: int = 5, size: float = 4.0) -> World:
+    """`rooms` square rooms of `size` [m] in a row along x, each joined to the next by a door `door` [m]
+    wide in a wall 0.1 m thick, the doors off the middle of the walls (`DOOR_CENTRES`, cycled): the test of
+    whether explorers drive through the doors a robot fits through. Inner faces: x 0..rooms*size,
+    y 0..size, less half a wall; the door's jambs lie exactly `door` apart.
+    """
+    d = _Drawing()
+    length = rooms * size
+    d.room(0.0, 0.0, length, size)
+    for k in range(1, rooms):
+        yc = DOOR_CENTRES[(k - 1) % len(DOOR_CENTRES)] * size / 4.0
+        d.wall(k * size, 0.0, k * size, size, doors=[(yc - door / 2 - WALL / 2, yc + door / 2 + WALL / 2)])
+    return World(f"rooms-in-a-row-{door:g}", np.array(d.boxes), poses={"first room": Pose(size / 2, size / 2, 0.0)})
 
 
 BUILTIN: dict[str, Callable[[], World]] = {

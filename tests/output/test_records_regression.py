@@ -4,9 +4,9 @@ gave before the core restructure, to the last digit; wall times aside.
 The expected figures were recorded with the code before the restructure (commit 064b793), by
 `benchmarks/regression/records_regression.py` (the full list of explorers and worlds is run there; this is the
 fast part); coverage, map IoU and the coverage curves since follow the ground truth's reachable set
-computed from the exact geometry (`robotexp.world.clearance`). A change of the run loop, the mapping, the
-planners or these explorers that alters a
-run shows here.
+computed from the exact geometry (`robotexp.world.clearance`), and both runs follow the planners' passability
+measured to the walls' surface and the path follower that drives it (recorded again then). A change of
+the run loop, the mapping, the planners or these explorers that alters a run shows here.
 """
 
 from __future__ import annotations
@@ -22,33 +22,34 @@ from robotexp.run.record import EndReason, RunRecord
 from robotexp.output.results import read_records
 
 EXPECTED = {
-    # dense, frontier, cut at 60 s of robot time; frontier as it was (before it skipped grazed wall
-    # faces, `face_reach`, which changes its runs on purpose): the run loop, the mapping and the planners
-    # still give the same records to the last digit
+    # dense, frontier, cut at 60 s of robot time; frontier without skipping grazed wall faces
+    # (`face_reach`); recorded again when the planners came to measure to the walls' surface with a 2 cm
+    # margin and the follower to steer at a carrot with the swept-disc guard (runs changed on purpose)
     ("dense", "frontier", 60.0): {
         "params": {"face_reach": 0.0},
-        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 15.0526, "robot_time_s": 60.0,
-                   "coverage": 0.1705, "map_iou": 0.15269, "visited_cells": 156, "collisions": 0,
+        "record": {"run": "dense_frontier_1_300mms_s0", "path_length_m": 15.004, "robot_time_s": 60.0,
+                   "coverage": 0.1713, "map_iou": 0.15217, "visited_cells": 171, "collisions": 0,
                    "reason": "time limit of 60 s reached", "completed": False, "nodes": None,
                    "start_pose": [-5.0, 7.5, 0.0], "time_to_coverage_90_s": None, "pose": "1",
                    "robot": "p3dx", "laser_range_m": 3.0, "cell_m": 0.1, "max_speed_m_s": 0.3, "seed": 0},
         "end": EndReason.TIME_LIMIT,
-        "curve_sha256": "9e2a221bc78a5f466966583c9942f018605dbfa899759915c4fea33835999ff9",
-        "path_sha256": "a35f4d19504488090d9b564549775ff5a70068666929953db657c1614396de1e",
+        "curve_sha256": "5c7642eda5d35e4bf487fe657149adb195e22cb71003cba33f048097278251d2",
+        "path_sha256": "6d873b59c66444015ebbf28e7123ae00351405210d6e56b1691c885922069819",
     },
-    # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension)
+    # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension);
+    # recorded again with the 2 cm margin and the new follower, as frontier above
     ("dense", "srt-laser", 4 * 3600.0): {
         "params": {"frontier": False},
-        "record": {"run": "dense_srt-laser_1_300mms_s0", "path_length_m": 235.1939, "robot_time_s": 1261.2,
-                   "coverage": 0.98683, "map_iou": 0.89186, "visited_cells": 1683, "collisions": 0, "nodes": 52,
+        "record": {"run": "dense_srt-laser_1_300mms_s0", "path_length_m": 256.6843, "robot_time_s": 1377.0,
+                   "coverage": 0.99324, "map_iou": 0.89674, "visited_cells": 1628, "collisions": 0, "nodes": 52,
                    "reason": "explored; back at the start", "completed": True,
-                   "time_to_coverage_90_s": 983.0, "path_to_coverage_90_m": 182.9542,
-                   "time_to_coverage_95_s": 1147.0, "path_to_coverage_95_m": 212.7656,
-                   "time_to_coverage_99_s": None, "path_to_coverage_99_m": None,
-                   "backtracks": 51, "detours": 0, "abandoned": 0},
+                   "time_to_coverage_90_s": 1085.0, "path_to_coverage_90_m": 203.7544,
+                   "time_to_coverage_95_s": 1231.0, "path_to_coverage_95_m": 230.4135,
+                   "time_to_coverage_99_s": 1248.0, "path_to_coverage_99_m": 233.2081,
+                   "backtracks": 51, "detours": 0, "abandoned": 1},
         "end": EndReason.EXPLORED,
-        "curve_sha256": "1e4e15f43e5c11ce7d20d97fa89d64ba7ed0e840cafceca8e4d08ddadc338011",
-        "path_sha256": "61222bf8d2ee3bc7bb30fedb18eaa672a1a926cc69a1447f18d324a5fc385358",
+        "curve_sha256": "f18a60734f97ed3a8bcba749c9b92e6ab9ffd376841f24cde221fcebcaa35de7",
+        "path_sha256": "16d6a7b62dbdb8ff91c0f857df1410fb648a3b4721fd50485f3ed47e266426e3",
     },
 }
 

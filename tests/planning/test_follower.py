@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.planning.follower import FollowerConfig, PathFollower, blocked_ahead
+from robotexp.planning.follower import (FollowerConfig, PathFollower, blocked_ahead, free_heading, roomy_cells,
+                                        scan_clearance)
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 from robotexp.sim import SimRobot
 from robotexp.world.model import World, segment_box
@@ -30,47 +31,76 @@ def scan_at(*points: tuple[float, float], offset_x: float = 0.0) -> LaserScan:
 
 
 # -- blocked_ahead -------------------------------------------------------------------------
-# corridor: 0 < x < R + clearance + max(speed, 0.05) / 2, |y| < R + 0.02.
-# With clearance 0.08 and speed 0.3: x < 0.48 and |y| < 0.27.
+# The disc of radius R swept along the command's arc for the stopping distance v^2 / (2 a_max) plus
+# REACTION (0.2 s) at v plus the clearance; a return blocks when the disc comes within R + clearance
+# of it and nearer than it is now. With v 0.3 m/s, a_max 0.5 and clearance 0.01: the centre moves
+# 0.09 + 0.06 + 0.01 = 0.16 m and a return blocks within 0.26 m of that path.
 
-def test_a_return_straight_ahead_blocks() -> None:
-    assert blocked_ahead(scan_at((0.3, 0.0)), R, 0.08, 0.3)
-
-
-def test_the_same_return_to_the_side_does_not_block() -> None:
-    assert not blocked_ahead(scan_at((0.3, 0.4)), R, 0.08, 0.3)
-    assert not blocked_ahead(scan_at((0.3, -0.4)), R, 0.08, 0.3)
+def test_a_return_straight_ahead_blocks_within_the_stopping_distance() -> None:
+    assert blocked_ahead(scan_at((0.41, 0.0)), R, 0.01, 0.3)          # 0.41 - 0.16 = 0.25 < 0.26
+    assert not blocked_ahead(scan_at((0.43, 0.0)), R, 0.01, 0.3)      # 0.27
 
 
-def test_a_return_behind_does_not_block() -> None:
-    assert not blocked_ahead(scan_at((-0.3, 0.0)), R, 0.08, 0.3)
+def test_the_swept_disc_by_hand_at_the_side() -> None:
+    assert blocked_ahead(scan_at((0.1, 0.25)), R, 0.01, 0.3)          # the disc passes 0.25 from it
+    assert not blocked_ahead(scan_at((0.1, 0.27)), R, 0.01, 0.3)      # 0.27: the robot slides past
+    assert not blocked_ahead(scan_at((0.5, 0.265)), R, 0.01, 0.3)     # a wall 1.5 cm off the robot's side
+
+
+def test_a_return_the_robot_moves_away_from_does_not_block() -> None:
+    # 0.255 m from the centre (within R + 0.01) but behind it: driving on takes the disc away
+    assert not blocked_ahead(scan_at((-0.05, 0.25)), R, 0.01, 0.3)
+    assert not blocked_ahead(scan_at((-0.3, 0.0)), R, 0.01, 0.3)
+
+
+def test_the_arc_of_a_turning_command_is_swept() -> None:
+    # w 1 rad/s at 0.3 m/s: a circle of 0.3 m radius to the left; after 0.16 m the centre is at
+    # (0.3 sin(0.533), 0.3 (1 - cos(0.533))) = (0.1525, 0.0417)
+    assert blocked_ahead(scan_at((0.2, 0.27)), R, 0.01, 0.3, 1.0)     # 0.233 m from there
+    assert not blocked_ahead(scan_at((0.2, 0.27)), R, 0.01, 0.3)      # straight on: 0.273 m at best
+    assert blocked_ahead(scan_at((0.2, -0.25)), R, 0.01, 0.3)         # straight on: 0.253 m
+    assert not blocked_ahead(scan_at((0.2, -0.25)), R, 0.01, 0.3, 1.0)
 
 
 def test_nothing_blocks_when_not_moving_forward() -> None:
-    assert not blocked_ahead(scan_at((0.3, 0.0)), R, 0.08, 0.0)
-    assert not blocked_ahead(scan_at((0.3, 0.0)), R, 0.08, -0.2)
-    assert not blocked_ahead(None, R, 0.08, 0.3)
+    assert not blocked_ahead(scan_at((0.3, 0.0)), R, 0.01, 0.0)
+    assert not blocked_ahead(scan_at((0.3, 0.0)), R, 0.01, -0.2)
+    assert not blocked_ahead(None, R, 0.01, 0.3)
 
 
-def test_corridor_edges_by_hand() -> None:
-    assert blocked_ahead(scan_at((0.3, 0.26)), R, 0.08, 0.3)         # |y| 0.26 < 0.27
-    assert not blocked_ahead(scan_at((0.3, 0.28)), R, 0.08, 0.3)
-    assert blocked_ahead(scan_at((0.47, 0.0)), R, 0.08, 0.3)         # x 0.47 < 0.48
-    assert not blocked_ahead(scan_at((0.49, 0.0)), R, 0.08, 0.3)
-    # faster: the corridor grows with the stopping distance (speed / 2): at 0.6 m/s x < 0.63
-    assert blocked_ahead(scan_at((0.6, 0.0)), R, 0.08, 0.6)
-    assert not blocked_ahead(scan_at((0.6, 0.0)), R, 0.08, 0.3)
-    # crawling: at least 0.05 m/s counts, x < 0.355
-    assert blocked_ahead(scan_at((0.35, 0.0)), R, 0.08, 0.001)
-    assert not blocked_ahead(scan_at((0.36, 0.0)), R, 0.08, 0.001)
+def test_the_swept_length_grows_with_the_speed() -> None:
+    # 0.6 m/s: 0.36 + 0.12 + 0.01 = 0.49 m, a return straight ahead blocks within 0.75 m
+    assert blocked_ahead(scan_at((0.7, 0.0)), R, 0.01, 0.6)
+    assert not blocked_ahead(scan_at((0.7, 0.0)), R, 0.01, 0.3)
+    assert not blocked_ahead(scan_at((0.76, 0.0)), R, 0.01, 0.6)
+    # crawling at 1 mm/s: 0.0102 m, within 0.2702 m
+    assert blocked_ahead(scan_at((0.265, 0.0)), R, 0.01, 0.001)
+    assert not blocked_ahead(scan_at((0.275, 0.0)), R, 0.01, 0.001)
 
 
 def test_infinite_ranges_and_sensor_offset() -> None:
     far = LaserScan(np.array([-0.1, 0.0, 0.1]), np.full(3, math.inf), 3.0)
-    assert not blocked_ahead(far, R, 0.08, 0.5)
+    assert not blocked_ahead(far, R, 0.01, 0.5)
     # a sensor 0.2 m ahead of the centre: a return 0.3 m from it is 0.5 m from the centre
-    assert not blocked_ahead(scan_at((0.3, 0.0), offset_x=0.2), R, 0.08, 0.3)
-    assert blocked_ahead(scan_at((0.2, 0.0), offset_x=0.2), R, 0.08, 0.3)
+    assert not blocked_ahead(scan_at((0.3, 0.0), offset_x=0.2), R, 0.01, 0.3)
+    assert blocked_ahead(scan_at((0.2, 0.0), offset_x=0.2), R, 0.01, 0.3)
+
+
+def test_free_heading_slides_along_a_wall_ahead() -> None:
+    # a wall across at x = 0.27 m (2 cm off the disc), at 0.08 m/s: the centre moves 0.0064 + 0.016 + 0.01
+    # = 0.0324 m, so heading a brings it within 0.26 of the wall when 0.27 - 0.0324 cos a < 0.26, i.e.
+    # a < 72 deg: the nearest free direction in 10 deg steps is 80 deg, to the left first
+    wall = scan_at(*[(0.27, y) for y in np.linspace(-1.0, 1.0, 2001)])
+    assert blocked_ahead(wall, R, 0.01, 0.08)
+    assert free_heading(wall, R, 0.01, 0.08, 0.0) == pytest.approx(math.radians(80))
+    assert free_heading(wall, R, 0.01, 0.08, math.radians(-30)) == pytest.approx(math.radians(-80))
+    assert free_heading(wall, R, 0.01, 0.08, 0.0, widest=math.radians(60)) is None
+    assert free_heading(scan_at((2.0, 0.0)), R, 0.01, 0.08, 0.3) == pytest.approx(0.3)     # free: as asked
+
+
+def test_scan_clearance_by_hand() -> None:
+    assert scan_clearance(scan_at((0.3, 0.4), (0.0, -0.6)), R) == pytest.approx(0.5 - R)
+    assert scan_clearance(None, R) == math.inf
 
 
 # -- commands by hand ----------------------------------------------------------------------
@@ -130,11 +160,13 @@ def test_remaining_by_hand() -> None:
     assert f.remaining(Pose(5.0, 5.0)) == 0.0                      # no path
     f.set_path(np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 4.0]]))
     assert f.remaining(Pose(0.0, 0.0)) == pytest.approx(7.0)
-    assert f.remaining(Pose(1.0, 1.0)) == pytest.approx(math.sqrt(2) + 7.0)  # to the first point, then along
-    f.twist(Pose(0.1, 0.0, 0.0))                                   # passes (0, 0): within the 0.2 m look-ahead
+    assert f.remaining(Pose(1.0, 1.0)) == pytest.approx(math.hypot(2.0, 1.0) + 4.0)  # to the end of the segment, on
+    f.twist(Pose(0.1, 0.0, 0.0))                                   # on the first segment
     assert f.remaining(Pose(0.1, 0.0)) == pytest.approx(2.9 + 4.0)
-    f.twist(Pose(2.9, 0.0, 0.0))                                   # passes (3, 0)
-    assert f.remaining(Pose(2.9, 0.0)) == pytest.approx(math.hypot(0.1, 4.0))
+    f.twist(Pose(2.9, 0.0, 0.0))                                   # still on the first segment
+    assert f.remaining(Pose(2.9, 0.0)) == pytest.approx(0.1 + 4.0)
+    f.twist(Pose(3.05, 0.1, math.pi / 2))                          # on the second: projected at (3, 0.1)
+    assert f.remaining(Pose(3.05, 0.1)) == pytest.approx(math.hypot(0.05, 3.9))
     f.twist(Pose(3.0, 3.9, math.pi / 2))                           # within 0.15 m of the end: done
     assert f.done and f.remaining(Pose(3.0, 3.9)) == 0.0
 
@@ -219,3 +251,38 @@ def test_turn_to_converges_on_the_simulator() -> None:
         final = robot.read()
         assert abs(wrap_angle(final.pose.theta - target)) < math.radians(5)
         assert final.true_pose is not None and final.true_pose.distance_to(Pose(0.0, 0.0)) < 1e-9
+
+
+def test_roomy_cells_by_hand() -> None:
+    passable = np.ones((5, 6), dtype=bool)
+    passable[2, 3] = False
+    roomy = roomy_cells(passable)
+    want = np.zeros((5, 6), dtype=bool)
+    want[1:4, 1:5] = True                 # off the border ...
+    want[1:4, 2:5] = False                # ... and not beside the blocked cell (2, 3)
+    assert np.array_equal(roomy, want)
+
+
+def door_wall(gap: float) -> World:
+    """The open room with a wall across it at x = 0 (0.1 m thick), a door `gap` [m] wide centred on y = 0."""
+    half = gap / 2
+    return World("door", np.array([segment_box(0, -5, 0, -half - 0.05, 0.1), segment_box(0, half + 0.05, 0, 5, 0.1)]),
+                 bounds=(-5.0, -5.0, 5.0, 5.0))
+
+
+@pytest.mark.parametrize("radius_name", ["p3dx", "kobuki"])
+def test_drives_through_a_door_3_cm_wider_than_the_robot_on_each_side(radius_name: str) -> None:
+    # approached at 45 degrees, the path's corner a cell before the door: the follower slows, turns at
+    # the corner rather than cut it, and its guard lets it through (the jambs pass 3 cm from its disc)
+    from robotexp.sim.presets import preset
+    radius = preset(radius_name).radius
+    world = door_wall(2 * radius + 0.06)
+    with SimRobot(world, robot=radius_name, pose=Pose(-0.9, -0.8, 0.0), max_speed=0.5, sonar=False) as robot:
+        f = PathFollower(robot.limits, robot.radius)
+        f.set_path(np.array([[-0.9, -0.8], [-0.4, -0.3], [-0.3, 0.0], [1.0, 0.0]]))
+        steps, poses = follow(robot, f, 600)
+        assert f.done and steps < 600
+        assert robot.collisions == 0
+        assert poses[-1].x > 0.8
+        inside = [p for p in poses if abs(p.x) < 0.1]
+        assert inside and max(abs(p.y) for p in inside) < 0.03     # within the door's 3 cm of play

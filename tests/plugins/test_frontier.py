@@ -19,8 +19,8 @@ from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import GroundTruth, ground_truth
-from robotexp.planning.targets import plan_costs
-from robotexp.robot import Pose
+from robotexp.planning.targets import plan_costs, wall_distance
+from robotexp.robot import LaserScan, Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
 from robotexp_plugins.frontier import FrontierExplorer
@@ -178,37 +178,57 @@ def tiny_grid(cell: float, size: int) -> OccupancyGrid:
     return grid
 
 
-def test_plan_costs_blocks_radius_margin_and_half_a_cell() -> None:
-    # cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.05) / 0.1 + 0.5 = 3.5 cells of (5, 5)
+def test_plan_costs_blocks_radius_and_margin_from_a_cell_without_hits() -> None:
+    # a cell marked occupied holds no laser endpoint: the wall may be anywhere in it, so the distance
+    # is to its square. Cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.02) / 0.1 = 2.7 cells of
+    # the square of (5, 5), i.e. at (dr, dc) with hypot(max(|dr| - 0.5, 0), max(|dc| - 0.5, 0)) <= 2.7
     cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0)
-    for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 3, 2.83, 3.16
-                            (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 4, 3.61, 4, 7.07
-                            (2, 5): True, (5, 1): False}.items():                          # 3, 4
+    for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 2.5, 2.12, 2.55
+                            (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 3.5, 2.92, 3.5, 6.36
+                            (2, 5): True, (5, 1): False}.items():                          # 2.5, 3.5
         assert np.isinf(cost[r, c]) == blocked, (r, c)
     # without a danger zone every other cell costs 1
     assert np.all((cost == 1.0) | np.isinf(cost))
-    dr, dc = np.meshgrid(np.arange(11) - 5, np.arange(11) - 5, indexing="ij")
-    assert np.array_equal(np.isinf(cost), dr ** 2 + dc ** 2 <= 3.5 ** 2)
+    dr, dc = np.meshgrid(np.abs(np.arange(11) - 5) - 0.5, np.abs(np.arange(11) - 5) - 0.5, indexing="ij")
+    assert np.array_equal(np.isinf(cost), np.hypot(np.maximum(dr, 0), np.maximum(dc, 0)) <= 2.7 + 1e-6)
 
 
-def test_plan_costs_half_cell_depends_on_the_cell() -> None:
-    # cell 0.05 m: (0.25 + 0.05) / 0.05 + 0.5 = 6.5 cells; without the half cell it would be 6
+def test_plan_costs_in_cells_of_5_cm() -> None:
+    # cell 0.05 m: (0.25 + 0.02) / 0.05 = 5.4 cells from the occupied cell's square
     cost = plan_costs(tiny_grid(0.05, 17), radius=0.25, clearance=0.0)
     c = 8
-    assert np.isinf(cost[c + 4, c + 5])           # sqrt(41) = 6.40 cells
-    assert np.isinf(cost[c, c + 6])               # 6
-    assert np.isfinite(cost[c + 3, c + 6])        # sqrt(45) = 6.71 cells
-    assert np.isfinite(cost[c, c + 7])
+    assert np.isinf(cost[c + 3, c + 5])           # hypot(2.5, 4.5) = 5.15 cells
+    assert np.isinf(cost[c, c + 5])               # 4.5
+    assert np.isfinite(cost[c + 4, c + 5])        # hypot(3.5, 4.5) = 5.70
+    assert np.isfinite(cost[c, c + 6])            # 5.5
+
+
+def test_plan_costs_measure_to_the_laser_endpoints_in_a_cell() -> None:
+    # a wall face at x = 1.03 m, seen from (0.55, 1.05): the endpoints lie in the cells of column 10
+    # (x 1.0..1.1) at 0.3 of a cell from their left side. A cell centre at x = 0.75 m is 0.28 m from the
+    # surface: free for a 0.25 m robot (0.27 m needed); the old rule (centres 3 cells apart, within
+    # 3.5) blocked it. x = 0.85 m is 0.18 m away: blocked.
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 21, 21))
+    angles = np.linspace(-0.4, 0.4, 41)
+    scan = LaserScan(angles, 0.48 / np.cos(angles), range_max=3.0)
+    grid.update(Pose(0.55, 1.05, 0.0), scan)
+    box = grid.hit_box[10, 10]
+    assert box.tolist()[:2] == [76, 77]           # 0.3 * 255 = 76.5, rounded outwards
+    assert box[2] <= 26 and box[3] >= 229         # endpoints 1 cm apart across the cell's height (1.0..1.1 m)
+    dist = wall_distance(grid, 10.0)
+    assert dist[10, 7] * 0.1 == pytest.approx(0.28, abs=0.001)
+    cost = plan_costs(grid, radius=0.25, clearance=0.0)
+    assert np.isfinite(cost[10, 7]) and np.isinf(cost[10, 8])
 
 
 def test_plan_costs_danger_zone_and_unknown_cells() -> None:
     grid = tiny_grid(0.1, 11)
-    # clearance 0.2 m = 2 cells beyond 3.5: cost 1 + 4 (1 - (d - 3.5) / 2) for 3.5 < d <= 5.5
+    # clearance 0.2 m = 2 cells beyond 2.7: cost 1 + 4 (1 - (d - 2.7) / 2) for 2.7 < d <= 4.7, d to the square
     cost = plan_costs(grid, radius=0.25, clearance=0.2)
-    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.5 / 2))                      # d = 4: 4.0
-    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.5 / 2))                     # d = 5: 2.0
-    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.sqrt(13) - 3.5) / 2), rel=1e-6)
-    assert cost[0, 0] == 1.0                                                       # d = 7.07
+    assert cost[5, 9] == pytest.approx(1 + 4 * (1 - 0.8 / 2))                      # d = 3.5: 3.4
+    assert cost[5, 10] == pytest.approx(1 + 4 * (1 - 1.8 / 2))                     # d = 4.5: 1.4
+    assert cost[8, 7] == pytest.approx(1 + 4 * (1 - (math.hypot(2.5, 1.5) - 2.7) / 2), rel=1e-6)
+    assert cost[0, 0] == 1.0                                                       # d = 6.36
     # unknown cells are never passable, however far from walls
     unknown_corner = OccupancyGrid(grid.geo)
     values = grid.values.copy()

@@ -206,11 +206,12 @@ def test_narrow_passage_cannot_be_mapped() -> None:
 
 
 def test_laser_candidates_need_an_open_frontier() -> None:
-    # the frontier behind the narrow passage: the nearest reachable point in sight of it is at the
-    # mouth, about 2.26 m away, beyond view = 0.5 x 3 m: not mapped
+    # the frontier behind a passage narrower than the robot plus its margins (0.5 m < 2 x (0.25 + 0.02)):
+    # the nearest reachable point in sight of it is at the mouth, about 2.2 m away, beyond view = 0.5 x
+    # 3 m: not mapped
     ex = SRTLaserExplorer(view=0.5)
     ex.reset(ctx(np.random.default_rng(0)))
-    ex.tree.add(0.0, 0.0, corridor_region(0.3), None)
+    ex.tree.add(0.0, 0.0, corridor_region(0.25), None)
     assert ex._candidate(0) is None
     ex = SRTLaserExplorer(view=0.5)
     ex.reset(ctx(np.random.default_rng(0)))

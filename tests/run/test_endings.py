@@ -173,3 +173,31 @@ def test_campaigns_take_generated_world_ranges_and_bounds(tmp_path):
     assert [r.world for r in runs] == ["generated:office:0:12x10", "generated:office:1:12x10",
                                        "generated:office:2:12x10", "generated:cave:5:12x10", "generated:cave:5:12x10"]
     assert all(r.map_bounds == (0.0, 0.0, 12.0, 10.0) for r in runs)
+
+
+def _gap_map(gap: int) -> OccupancyGrid:
+    """3 x 3 m at 0.1 m: free below y = 1.5 m, a wall in row 15 (y 1.5..1.6 m, cells marked occupied: no
+    endpoints, each counts as its whole square) with a gap of `gap` unknown cells from column 13, unknown
+    above."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 30, 30))
+    free = np.zeros((30, 30), dtype=bool)
+    free[:15, :] = True
+    wall = np.zeros((30, 30), dtype=bool)
+    wall[15, :] = True
+    wall[15, 13:13 + gap] = False
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    return grid
+
+
+def test_frontier_left_counts_unknown_space_only_through_gaps_the_planners_pass() -> None:
+    from robotexp.run.endings import frontier_left
+    # a Kobuki (0.175 m) needs 0.195 m from the walls' surface (the planners' radius plus MARGIN). In a
+    # gap of 4 cells (0.4 m) every cell centre lies 0.05 or 0.15 m from a side: closed to the planners, so
+    # the unknown beyond is not space left (between cell centres the gap's middle cells are 0.2 m from the
+    # wall cells' centres: open to a disc of the radius alone, as the check counted before)
+    assert frontier_left(_gap_map(4), Pose(1.5, 0.7, 0.0), 0.175) == (0, 0.0)
+    # 6 cells (0.6 m): the middle cells lie 0.25 m from the sides; the unknown beyond is space left, up to
+    # LEFT_REACH (2 m) from the frontier cells, above the wall
+    cells, area = frontier_left(_gap_map(6), Pose(1.5, 0.7, 0.0), 0.175)
+    assert cells > 0 and area > 2.0
