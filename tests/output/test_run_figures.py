@@ -1,5 +1,5 @@
 """The figures every run writes (robotexp.output.figures on matplotlib): the map with its legend, scale bar, crop and
-the estimated path beside the true one under localization, the coverage curve with units, the formats asked
+the estimated path beside the true one under odometry error, the coverage curve with units, the formats asked
 for, and drawing from several threads at once."""
 
 from __future__ import annotations
@@ -28,8 +28,10 @@ def _legend(fig) -> list[str]:
 @pytest.fixture(scope="module")
 def localized_run(tmp_path_factory: pytest.TempPathFactory):
     out = tmp_path_factory.mktemp("loc")
+    # without localization the odometry's drift keeps the estimated path centimetres from the true one (scan
+    # matching holds it within the 1 cm under which the figure draws one path)
     return out, run_experiment(RunSpec(world="ufmg-static", method="frontier", max_time=25, odometry="p3dx",
-                                       localize="scan-match"), out)
+                                       localize="none"), out)
 
 
 def test_a_run_with_odometry_error_shows_the_estimated_and_the_true_path(localized_run) -> None:
@@ -44,8 +46,8 @@ def test_a_run_with_odometry_error_shows_the_estimated_and_the_true_path(localiz
     true, est = (np.array(line.get_xydata()) for line in ax.lines[:2])
     np.testing.assert_allclose(true, np.array(res.run.metrics.path))
     np.testing.assert_allclose(est, np.array(res.run.metrics.estimated))
-    assert np.hypot(*(est - true).T).max() > 0.01                  # they differ: the localizer is not exact
-    assert res.record["localize"] == "scan-match" and res.record["ate_m"] > 0
+    assert np.hypot(*(est - true).T).max() > 0.01                  # they differ: the odometry drifts
+    assert res.record["localize"] == "none" and res.record["ate_m"] > 0
     assert "ATE" in ax.get_title("left") and "ufmg-static - frontier" in ax.get_title("left")
 
 
