@@ -133,9 +133,11 @@ def test_exploration_through_emulator_matches_embedded_sim() -> None:
             # 3 cm and 0.9 deg in 30 s and the paths parted within 10 s; tests/localization covers it)
             got = run_on_robot(replace(spec, localize="none"), robot, None, "ufmg-static", image=False)
     # The protocol quantises RVEL to whole deg/s, poses to 0.485 mm / 0.088 deg and ranges to 1 mm:
-    # for the first 10 s the two paths agree within 6 cm (4.2 cm measured) ...
-    path_ref, path = np.array(ref.run.metrics.path[:100]), np.array(got.run.metrics.path[:100])
-    assert np.max(np.hypot(*(path_ref - path).T)) < 0.06
+    # for the first 4 s the two paths agree within 1 cm (to the millimetre, measured); from about 4.3 s the
+    # follower's discrete choices (turning in place above 15 deg of heading error where room is tight)
+    # fall the other way on a quantised heading, and the paths part by centimetres a step ...
+    path_ref, path = np.array(ref.run.metrics.path[:40]), np.array(got.run.metrics.path[:40])
+    assert np.max(np.hypot(*(path_ref - path).T)) < 0.01
     # ... then the small differences pick other frontiers now and then, so the paths part; both runs
     # still explore the whole scene (the embedded one in 123 s of robot time) and map it alike.
     for out in (ref, got):
