@@ -215,6 +215,12 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         run.run()
     finally:
         release(robot)
+    return _outcome(run, writer)
+
+
+def _outcome(run: ExplorationRun, writer: ResultsWriter | None) -> RunOutput:
+    """A finished run's output (its record and the writer's image and plot), or the error that ended it: a
+    critical observer's, or a PluginError for an explorer that failed."""
     for observer, exc in run.observer_errors:
         if observer.critical:
             raise exc
@@ -289,14 +295,7 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
     finally:
         for robot in robots:
             robot.close()
-    for observer, exc in run.observer_errors:
-        if observer.critical:
-            raise exc
-    if run.end is EndReason.PLUGIN_ERROR:
-        raise PluginError(run.reason) from run.error
-    assert run.record is not None
-    return RunOutput(run.record, run, None if writer is None else writer.image_path,
-                     None if writer is None else writer.plot_path)
+    return _outcome(run, writer)
 
 
 def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]:
