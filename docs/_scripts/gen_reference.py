@@ -3,7 +3,8 @@
 - reference/explorers.md (at its marker): every installed explorer plugin (entry point group `robotexp.explorers`)
   with the parameters of its `__init__`, as `robotexp explore -m METHOD -p help` prints them;
 - reference/lua.md (at its marker): every function of the Lua tables (`robot`, `exploration`, `mapView`,
-  `robotView`), its arguments and its docstring, from the Lua API's `Session.lua_<table>__<name>` methods;
+  `robotView`, `team`), its arguments and its docstring, from the Lua API's `Session.lua_<table>__<name>` methods
+  (and `TeamCalls`');
 - reference/results.md (at its marker): the keys of a results.jsonl record, from `robotexp.RunRecord`'s fields, with
   the meaning given below (a field without one fails the strict build, naming it).
 
@@ -126,19 +127,20 @@ def lua_page() -> str:
     api = find_module("api", inside="lua")
     session = api.Session
     tables: dict[str, list[tuple[str, str, str]]] = {}
-    for attr in sorted(vars(session)):
+    team = find_module("team", inside="lua").TeamCalls          # the `team` table's
+    methods = {attr: f for klass in (session, team) for attr, f in vars(klass).items()}
+    for attr in sorted(methods):
         if not attr.startswith("lua_"):
             continue
         table, _, name = attr[4:].partition("__")
-        func = vars(session)[attr]
+        func = methods[attr]
         source = inspect.getsource(func)
-        usage = ""
         m = _USAGE.search(source)
-        if m:
-            usage = m.group(1) if m.group(1) is not None else ""
-            if m.group(1) is None:
-                u = re.search(r'usage\s*=\s*"([^"]*)"', source)
-                usage = u.group(1) if u else ""
+        if m and m.group(1) is not None:
+            usage = m.group(1)
+        else:               # `usage = "..."` in the function (the team table's, which check their own arguments)
+            u = re.search(r'usage\s*=\s*"([^"]*)"', source)
+            usage = u.group(1) if u else ""
         doc = inspect.getdoc(func) or ""
         tables.setdefault(table, []).append((name, usage, doc))
     out = []

@@ -17,6 +17,14 @@ plausible stamps; every tick of the run has one /odom and one /tf at the same st
                                                 samples where they changed (at most once a robot second;
                                                 `robotexp.bag.markers`)
 
+A team run (`robotexp explore --team`) records each robot under its namespace, `/robot_1`, `/robot_2`, ...
+(numbered from 1, as the team's record and files number them): /robot_1/odom, /robot_1/tf,
+/robot_1/tf_static, /robot_1/scan, /robot_1/robotexp/scan and /robot_1/ground_truth, the same messages
+as above with frames prefixed by the namespace (robot_1/odom, robot_1/base_link, robot_1/laser; map ->
+robot_1/odom is the identity). /map is the team's map (every robot's scans); with a communication range
+each robot's own map is /robot_1/map as well. /robotexp/markers are robot 1's. The `robotexp.run`
+metadata then has a `team` list: each robot's namespace, model, radius [m] and start pose.
+
 and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
 cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
 `robotexp.run.record` (the run's record, as written to results.jsonl) at the end.
@@ -52,12 +60,17 @@ if TYPE_CHECKING:
     from robotexp.world.groundtruth import GroundTruth
     from robotexp.run.record import RunRecord
 
-__all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "_check_record_path"]
+__all__ = ["BagRecorder", "EPOCH", "stamp_ns", "yaw_of", "robot_namespace", "_check_record_path"]
 
 log = logging.getLogger(__name__)
 
 EPOCH = 1_700_000_000.0     # [s] added to robot time in message stamps (a plausible wall-clock time)
 FORMAT = 1                  # version of the `robotexp.run` metadata
+
+
+def robot_namespace(robot: int) -> str:
+    """The namespace of a team's robot `robot` (0-based) in a recording: "robot_1" for the first."""
+    return f"robot_{robot + 1}"
 
 
 def stamp_ns(t: float) -> int:
@@ -82,15 +95,15 @@ def _check_record_path(path: Path) -> None:
         raise ConfigError(f"--record {path}: folder {path.parent} does not exist; create it first")
 
 
-def _laser_scan_message(ns: int, scan: LaserScan, period: float) -> bytes:
+def _laser_scan_message(ns: int, scan: LaserScan, period: float, frame: str = "laser") -> bytes:
     """A sensor_msgs/LaserScan of `scan` (frame `laser`; beams evenly spread from the first angle to the last)."""
     n = len(scan.angles)
     a0, a1 = (float(scan.angles[0]), float(scan.angles[-1])) if n else (0.0, 0.0)
-    return cdr.laser_scan(ns, "laser", a0, a1, (a1 - a0) / (n - 1) if n > 1 else 0.0, period, 0.0,
+    return cdr.laser_scan(ns, frame, a0, a1, (a1 - a0) / (n - 1) if n > 1 else 0.0, period, 0.0,
                           float(scan.range_max), scan.ranges)
 
 
-def exact_scan_message(ns: int, scan: LaserScan) -> bytes:
+def exact_scan_message(ns: int, scan: LaserScan, frame: str = "laser") -> bytes:
     """A robotexp_msgs/ExactScan of `scan`: `angles` left empty when angle_min + i * angle_increment
     gives every beam's angle exactly."""
     angles = np.asarray(scan.angles, np.float64)
@@ -98,7 +111,7 @@ def exact_scan_message(ns: int, scan: LaserScan) -> bytes:
     a0 = float(angles[0]) if n else 0.0
     inc = float((angles[-1] - angles[0]) / (n - 1)) if n > 1 else 0.0
     regular = bool(np.array_equal(a0 + np.arange(n) * inc, angles))
-    return cdr.exact_scan(ns, "laser", a0, inc, () if regular else angles, scan.ranges, float(scan.range_max),
+    return cdr.exact_scan(ns, frame, a0, inc, () if regular else angles, scan.ranges, float(scan.range_max),
                           float(scan.offset_x))
 
 
@@ -146,7 +159,7 @@ class BagRecorder(RunObserver):
         self._channels: dict[str, int] = {}
         self._schema_ids: dict[str, int] = {}
         self._seq: dict[str, int] = {}
-        self._static_done = False
+        self._static_done: set[str] = set()     # the namespaces whose /tf_static is written
         self._last_ns = 0
         self._period = 0.1
         self._closed = False
@@ -206,6 +219,11 @@ class BagRecorder(RunObserver):
                 "grid": {"origin_x": g.origin_x, "origin_y": g.origin_y, "cell": g.cell, "rows": g.rows,
                          "cols": g.cols, "model": run.grid.model, "range_max": run.grid.range_max},
                 "epoch_s": EPOCH}
+        members = getattr(run, "members", None)        # a team run (robotexp.run.team.TeamRun)
+        if members is not None:
+            meta["team"] = [{"namespace": robot_namespace(i), "robot": m.robot.model, "radius_m": m.robot.radius,
+                             "start": None if m.start_pose is None else m.start_pose.as_list()}
+                            for i, m in enumerate(members)]
         self._writer.add_metadata("robotexp.run", {"json": json.dumps(meta)})
         if run.truth is not None:
             self._write_grid("/ground_truth/map", run.truth.geo, _truth_states(run.truth), stamp_ns(0.0))
@@ -214,31 +232,41 @@ class BagRecorder(RunObserver):
         """Write the tick's odometry, transforms, true pose and (when the map took it) scan."""
         self.write_state(step.time, step.state, step.map_updated, run.period)
 
-    def write_state(self, time: float, state: RobotState, scan: bool = True, period: float = 0.1) -> None:
+    def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
+        """A team's robot's tick: as `on_step`, under the robot's namespace (/robot_1/odom, ...)."""
+        self.write_state(step.time, step.state, step.map_updated, run.period, namespace=robot_namespace(robot))
+
+    def write_state(self, time: float, state: RobotState, scan: bool = True, period: float = 0.1,
+                    namespace: str = "") -> None:
         """Write a state read at robot time `time` [s]: /odom, /tf, /ground_truth when known and, with
         `scan`, its laser scan (/scan, /robotexp/scan; /tf_static once). `robotexp connect --record`
-        calls this for each state it reads (no run, no map: such a bag replays as a robot's)."""
+        calls this for each state it reads (no run, no map: such a bag replays as a robot's). A
+        `namespace` ("robot_1") puts the topics under it and prefixes the frames with it."""
         if self._writer is None:
             raise ConfigError("BagRecorder: a recorder given a folder opens its file when a run starts")
         ns = stamp_ns(time)
         self._last_ns = ns
+        top = f"/{namespace}" if namespace else ""
+        pre = f"{namespace}/" if namespace else ""
         s = state
         p = s.pose
         v = s.velocity
-        self._write("/odom", ODOMETRY, cdr.odometry(ns, "odom", "base_link", p.x, p.y, p.theta, v.v, v.w), ns)
-        self._write("/tf", TF_MESSAGE, cdr.tf_message(ns, [("map", "odom", 0.0, 0.0, 0.0),
-                                                           ("odom", "base_link", p.x, p.y, p.theta)]), ns)
+        self._write(f"{top}/odom", ODOMETRY, cdr.odometry(ns, f"{pre}odom", f"{pre}base_link", p.x, p.y, p.theta,
+                                                           v.v, v.w), ns)
+        self._write(f"{top}/tf", TF_MESSAGE, cdr.tf_message(ns, [("map", f"{pre}odom", 0.0, 0.0, 0.0),
+                                                                 (f"{pre}odom", f"{pre}base_link", p.x, p.y,
+                                                                  p.theta)]), ns)
         t = s.true_pose
         if t is not None:
-            self._write("/ground_truth", ODOMETRY, cdr.odometry(ns, "map", "base_link_true", t.x, t.y, t.theta,
-                                                                0.0, 0.0), ns)
+            self._write(f"{top}/ground_truth", ODOMETRY, cdr.odometry(ns, "map", f"{pre}base_link_true", t.x, t.y,
+                                                                       t.theta, 0.0, 0.0), ns)
         if scan and s.laser is not None:
-            if not self._static_done:
-                self._static_done = True
-                self._write("/tf_static", TF_MESSAGE,
-                            cdr.tf_message(ns, [("base_link", "laser", s.laser.offset_x, 0.0, 0.0)]), ns)
-            self._write("/scan", LASER_SCAN, _laser_scan_message(ns, s.laser, period), ns)
-            self._write("/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser), ns)
+            if namespace not in self._static_done:
+                self._static_done.add(namespace)
+                self._write(f"{top}/tf_static", TF_MESSAGE,
+                            cdr.tf_message(ns, [(f"{pre}base_link", f"{pre}laser", s.laser.offset_x, 0.0, 0.0)]), ns)
+            self._write(f"{top}/scan", LASER_SCAN, _laser_scan_message(ns, s.laser, period, f"{pre}laser"), ns)
+            self._write(f"{top}/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser, f"{pre}laser"), ns)
         self._started = True
 
     def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
@@ -248,6 +276,10 @@ class BagRecorder(RunObserver):
         if ns != self._map_ns:
             self._map_ns = ns
             self._write_grid("/map", run.grid.geo, run.grid.states(), ns)
+            members = getattr(run, "members", None)
+            if members is not None and getattr(run, "comm_range", None) is not None:   # a map each
+                for i, m in enumerate(members):
+                    self._write_grid(f"/{robot_namespace(i)}/map", m.grid.geo, m.grid.states(), ns)
             self._write_markers(run, ns)
 
     def _write_markers(self, run: ExplorationRun, ns: int) -> None:

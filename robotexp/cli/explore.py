@@ -118,8 +118,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    map_bounds=None if bounds is None else parse_bounds(bounds),
                    odometry=odometry_error, localize=localize)
     spec.validate()
-    team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address,
-                           (record, frames, view))
+    team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address)
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}",
@@ -185,8 +184,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
 
 
 def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinator_param: tuple[str, ...],  # noqa: PLR0913
-               comm_range: float | None, robot: str, address: str | None,
-               recorders: tuple[object, ...]) -> TeamSpec | None:
+               comm_range: float | None, robot: str, address: str | None) -> TeamSpec | None:
     """The team of `--team`, checked (None without it)."""
     from robotexp.run.team import TeamSpec, parse_team
 
@@ -199,8 +197,6 @@ def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinato
         return None
     if address is not None:
         raise ConfigError("--team runs on the embedded simulator; leave out --address")
-    if any(r not in (None, False) for r in recorders):
-        raise ConfigError("--team: --record, --frames and --view show one robot; leave them out of team runs")
     spec = TeamSpec(robots=parse_team(team, robot), coordinator=coordinator,
                     coordinator_params=params(coordinator_param), comm_range=mm(comm_range, "--comm-range"),
                     poses=tuple(p.strip() for p in poses.split(";") if p.strip()) if poses else ())

@@ -2,8 +2,8 @@
 
 Units are IfTEA's at this edge: millimetres, mm/s, milliseconds, degrees; everything is SI inside.
 `Session` holds the settings and the runs of one script; `Session.functions()` gives the tables
-(`robot`, `exploration`, `mapView`, `robotView`) of plain functions the prelude wraps. Each
-function checks its arguments and raises `ScriptError` naming itself and what it expects.
+(`robot`, `exploration`, `mapView`, `robotView`; `team`: `robotexp.lua.team`) of plain functions the
+prelude wraps. Each function checks its arguments and raises `ScriptError` naming itself and what it expects.
 
 Runs. `exploration.start()` validates the settings and arms a run; `exploration.wait()` runs it to
 the end on the stepped simulator. Calls that need a result (`elapsedTime`, `pathLength`,
@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotexpError, ScriptError
 from robotexp.lua.sandbox import AddressPolicy, lua_kind
+from robotexp.lua.team import TeamCalls
 from robotexp.run.observers import RunObserver
 from robotexp.robot import Capability, Pose
 
@@ -153,7 +154,8 @@ def _positive(fname: str, usage: str, value: float, unit: str) -> float:
 
 
 class Session:
-    """The state of one script: settings, view options, the robot's pose and the runs.
+    """The state of one script: settings, view options, the robot's pose and the runs (its team's, the
+    `team` table's, in `team`: `robotexp.lua.team.TeamCalls`).
 
     Args:
         out: output folder (results.jsonl, images).
@@ -202,16 +204,18 @@ class Session:
         self._told_forced = False
         self._told_laser = False
         self._worlds: dict[str, World] = {}
+        self.team = TeamCalls(self)
 
     # -- plumbing ----------------------------------------------------------------------------------
     def functions(self) -> dict[str, dict[str, Callable[..., Any]]]:
         """The Lua tables: {table: {function name: callable}}, each callable checked and named."""
         tables: dict[str, dict[str, Callable[..., Any]]] = {}
-        for attr in dir(self):
-            if not attr.startswith("lua_"):
-                continue
-            table, _, name = attr[4:].partition("__")
-            tables.setdefault(table, {})[name] = self._entry(f"{table}.{name}", getattr(self, attr))
+        for owner in (self, self.team):
+            for attr in dir(owner):
+                if not attr.startswith("lua_"):
+                    continue
+                table, _, name = attr[4:].partition("__")
+                tables.setdefault(table, {})[name] = self._entry(f"{table}.{name}", getattr(owner, attr))
         return tables
 
     @staticmethod
@@ -263,12 +267,7 @@ class Session:
         from robotexp.experiment import run_experiment, run_on_robot
 
         self._next_frame = 0.0
-        watch = self.frame_folder is not None or self.control.deadline is not None
-        observers = ([_ScriptWatch(self)] if watch else []) + self.observers
-        if self.record_folder is not None:
-            from robotexp.bag.recorder import BagRecorder
-
-            observers.append(BagRecorder(folder=self.record_folder, world=spec.world))
+        observers = self._observers(spec)
         if self.on_robot:
             robot = self._robot()
             if self.laser is None and hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
@@ -289,6 +288,16 @@ class Session:
             self.pose = state.true_pose or state.pose
         if self.control.check():
             raise ScriptError("exploration stopped")    # the runtime reports the real reason
+
+    def _observers(self, spec: RunSpec) -> list[RunObserver]:
+        """The observers of a run of the script: its frames and --timeout, the caller's, its recorder."""
+        watch = self.frame_folder is not None or self.control.deadline is not None
+        observers = ([_ScriptWatch(self)] if watch else []) + self.observers
+        if self.record_folder is not None:
+            from robotexp.bag.recorder import BagRecorder
+
+            observers.append(BagRecorder(folder=self.record_folder, world=spec.world))
+        return observers
 
     @property
     def on_robot(self) -> bool:

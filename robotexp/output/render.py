@@ -29,7 +29,8 @@ from robotexp.robot import Pose
 if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
 
-__all__ = ["COLORS", "MapLayout", "Marker", "drawable_text", "font", "map_layout", "render_field", "render_map",
+__all__ = ["COLORS", "TEAM_COLORS", "teammates_of",
+           "MapLayout", "Marker", "drawable_text", "font", "map_layout", "render_field", "render_map",
            "save_png", "viridis", "laser_hits"]
 
 
@@ -63,6 +64,8 @@ COLORS: dict[str, RGB] = {
     "text": (30, 30, 30),
     "masked": (150, 150, 150),      # render_field: known free cells outside the field's mask
 }
+# a team's robots 2, 3, ... (path and pose), in turn; apart from every colour above
+TEAM_COLORS: tuple[RGB, ...] = ((150, 60, 200), (0, 150, 150), (200, 60, 150), (120, 90, 30), (90, 160, 20))
 GRID_ALPHA = 0.2
 TITLE_FONT = 15                     # [px]
 FOOTER_FONT = 12                    # [px]
@@ -284,6 +287,30 @@ def _draw_arrows(canvas: Image.Image, lay: MapLayout, vectors: npt.NDArray[np.fl
     canvas.paste(layer, (0, 0), mask)
 
 
+def _draw_path(draw: ImageDraw.ImageDraw, lay: MapLayout, geo: GridGeometry, path: npt.ArrayLike, color: RGB,
+               width: int) -> None:
+    """A path [m] as a polyline (one point: a dot)."""
+    k = lay.pixels_per_metre
+    pts = _as_points("path", path)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    uv = [((x - geo.origin_x) * k, lay.height - (y - geo.origin_y) * k) for x, y in pts]
+    if len(uv) >= 2:
+        draw.line(uv, fill=color, width=width, joint="curve")
+    elif uv:
+        u, v = uv[0]
+        draw.ellipse([u - width, v - width, u + width, v + width], fill=color)
+
+
+def teammates_of(run: ExplorationRun) -> list[tuple[npt.NDArray[np.float64] | None, Pose | None]]:
+    """A team run's robots 2, 3, ... as `render_map` draws them: each one's path and pose now ([] for one robot)."""
+    out: list[tuple[npt.NDArray[np.float64] | None, Pose | None]] = []
+    for m in getattr(run, "members", [])[1:]:
+        s = m.state
+        out.append((np.asarray(m.metrics.path, np.float64).reshape(-1, 2) if m.metrics.path else None,
+                    None if s is None else (s.true_pose or s.pose)))
+    return out
+
+
 def _draw_pose(draw: ImageDraw.ImageDraw, lay: MapLayout, pose: Pose, color: RGB) -> None:
     u, v = lay.to_pixel(pose.x, pose.y)
     u, v = u - lay.left, v - lay.top
@@ -372,7 +399,8 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR09
                show_grid: bool = False, laser: npt.ArrayLike | None = None,
                vectors: npt.ArrayLike | None = None, potential: npt.ArrayLike | None = None,
                title: str | None = None, max_size: int = 1400,
-               content: npt.ArrayLike | None = None) -> Image.Image:
+               content: npt.ArrayLike | None = None,
+               teammates: Sequence[tuple[npt.ArrayLike | None, Pose | None]] = ()) -> Image.Image:
     """Draw an occupancy grid north-up with optional overlays, as an RGB image.
 
     Layers, bottom to top: states (unknown (205, 205, 205), free white, occupied black, values
@@ -396,6 +424,8 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR09
         potential: (rows, cols) float in [0, 1] drawn as a viridis-like colour map on free cells.
         title: a line of text above the map.
         max_size: [px] bound on the image size when `scale` is None.
+        teammates: a team's other robots (robots 2, 3, ...): each one's path ((k, 2) [m] or None) and pose
+            now (or None), drawn as `path` and `end` are, in the colours of `TEAM_COLORS` in turn.
         content: bool (rows, cols) cells that matter (say, the known and the explorable ones): the
             image shows the box around them, the path and the poses, `CROP_MARGIN` wider, when
             that box differs from the grid by more than `CROP_SLACK` of a side (a foreign map with
@@ -417,8 +447,9 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR09
     if not np.issubdtype(grid.dtype, np.integer):
         raise ConfigError(f"render_map: states must be integers (-1/0/100), got dtype {grid.dtype}")
     if content is not None and vectors is None and potential is None:
-        poses = [(p.x, p.y) for p in (start, end) if p is not None]
+        poses = [(p.x, p.y) for p in (start, end, *(q for _, q in teammates)) if p is not None]
         extra = np.vstack([_as_points("path", path) if path is not None else np.zeros((0, 2)),
+                           *(_as_points("path", t) for t, _ in teammates if t is not None),
                            np.array(poses, dtype=np.float64).reshape(-1, 2)])
         window = content_window(_check_field("content", content, geo) != 0, geo, extra)
         if window != geo:
@@ -451,15 +482,11 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR09
     k = lay.pixels_per_metre
     dot = max(1.5, 0.04 * k)                        # [px] laser dot radius: 4 cm, at least 1.5 px
     line_w = max(2, round(max(lay.width, lay.height) / 500))
+    for i, (trail, _) in enumerate(teammates):
+        if trail is not None:
+            _draw_path(draw, lay, geo, trail, TEAM_COLORS[i % len(TEAM_COLORS)], line_w)
     if path is not None:
-        pts = _as_points("path", path)
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
-        uv = [((x - geo.origin_x) * k, lay.height - (y - geo.origin_y) * k) for x, y in pts]
-        if len(uv) >= 2:
-            draw.line(uv, fill=COLORS["path"], width=line_w, joint="curve")
-        elif uv:
-            u, v = uv[0]
-            draw.ellipse([u - line_w, v - line_w, u + line_w, v + line_w], fill=COLORS["path"])
+        _draw_path(draw, lay, geo, path, COLORS["path"], line_w)
     if laser is not None:
         for x, y in _as_points("laser", laser):
             if math.isfinite(x) and math.isfinite(y):
@@ -468,6 +495,9 @@ def render_map(states: npt.ArrayLike, geo: GridGeometry, *,  # noqa: C901, PLR09
     for pose, name in ((start, "start"), (end, "end")):
         if pose is not None:
             _draw_pose(draw, lay, pose, COLORS[name])
+    for i, (_, pose) in enumerate(teammates):
+        if pose is not None:
+            _draw_pose(draw, lay, pose, TEAM_COLORS[i % len(TEAM_COLORS)])
 
     image = Image.new("RGB", (lay.image_width, lay.image_height), COLORS["chrome"])
     chrome = ImageDraw.Draw(image)

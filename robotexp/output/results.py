@@ -22,7 +22,7 @@ from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord
 
 if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
-from robotexp.output.render import laser_hits, render_map
+from robotexp.output.render import laser_hits, render_map, teammates_of
 from robotexp.output.safefile import append_line, safe_name
 
 __all__ = ["append_jsonl", "read_jsonl", "read_records", "run_id", "take_name", "write_curve_csv", "ResultsWriter",
@@ -157,7 +157,7 @@ def map_image(run: ExplorationRun, title: str, show: tuple[str, ...] = (), *, sc
                       show_grid="grid" in show, laser=laser,
                       vectors=overlays.get("vectors") if "vectors" in show else None,
                       potential=overlays.get("potential") if "potential" in show else None,
-                      title=title)
+                      title=title, teammates=teammates_of(run))
 
 
 def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:

@@ -43,7 +43,7 @@ def _frame_image(run: ExplorationRun, scale: int | None = None, title: str | Non
     from robotexp.output.render import render_map
 
     from robotexp.output.figures import run_title
-    from robotexp.output.render import laser_hits
+    from robotexp.output.render import laser_hits, teammates_of
 
     state = run.state
     laser = laser_hits(run)
@@ -58,7 +58,8 @@ def _frame_image(run: ExplorationRun, scale: int | None = None, title: str | Non
                       end=None if state is None else (state.true_pose or state.pose),
                       laser=laser, scale=scale, title=title, max_size=FRAME_SIZE, show_grid="grid" in show,
                       potential=overlays.get("potential") if "potential" in show else None,
-                      vectors=overlays.get("vectors") if "vectors" in show else None)
+                      vectors=overlays.get("vectors") if "vectors" in show else None,
+                      teammates=teammates_of(run))
 
 
 class FrameObserver(RunObserver):
@@ -93,6 +94,10 @@ class FrameObserver(RunObserver):
             self._emit(run, step.time)
             while self._next <= step.time + run.period / 2:
                 self._next += self.every
+
+    def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
+        """A team run: a frame when one is due (at the first robot that steps at that time)."""
+        self.on_step(run, step)
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """The final frame, unless the last one shows that instant already."""

@@ -6,6 +6,8 @@
     on_step(run, step)       every control tick: the state read, whether the map took its scan,
                              and the decision (a Twist sent, a Done, or None when the run ends at
                              this tick without deciding: time limit, stop requested)
+    on_robot_step(run, i, step)  a team run (`robotexp.run.team.TeamRun`): every control tick of its
+                             robot `i` (0-based), in the robots' order; a team run has no `on_step`
     on_sample(run, t, cov)   every coverage sample (1 s of robot time by default, and once at the end)
     on_end(run, record)      once, after the robot was stopped, with the run's `RunRecord`
 
@@ -63,6 +65,9 @@ class RunObserver:
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
         """One control tick (see `StepEvent`)."""
+
+    def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
+        """One control tick of robot `robot` (0-based) of a team run (`run` is the `TeamRun`)."""
 
     def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
         """A coverage sample: robot time [s] and coverage (None without ground truth)."""

@@ -26,7 +26,7 @@ from robotexp.explorer import Explorer
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
-from robotexp.run.observers import RunObserver
+from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.run.record import EndReason, RunRecord
 from robotexp.run.teamshare import ScanExchange, SeenCells, groups_within
 
@@ -182,6 +182,9 @@ class TeamRun(ExplorationRun):
                     m._stop = self._stop
                 go_on = m._tick(states[i])
                 self._after_tick(i, m)
+                if self.observers.listening("on_robot_step"):     # recorders and views see every robot
+                    self.observers.notify("on_robot_step", self, i,
+                                          StepEvent(m.robot_time, states[i], m.mapped_now, m.decision))
                 if go_on:
                     self._give_way(i, m)
                 if not go_on:
