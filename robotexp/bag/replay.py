@@ -7,7 +7,9 @@ same stamp; the grid takes the recorded geometry,
 model and range cap, and coverage is measured against the recorded ground truth (/ground_truth/map),
 or, at another cell size, against ground truth recomputed from the recorded world. A bag from a ROS 2
 robot (/scan and /odom, optionally /tf_static base_link -> laser) replays one tick per scan, with the
-newest odometry at or before the scan; it has no ground truth, so its coverage is n/a.
+newest odometry at or before the scan; it has no ground truth, so its coverage is n/a. A team's recording
+(each robot under /robot_1, /robot_2, ...) replays its robots together in a team run
+(`replay_team`): the team's map and record, every robot's path.
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from robotexp.bag.markers import markers_of
-from robotexp.bag.reading import MAX_POSITION, TOPIC_TYPES, decode_errors, finite, read_records, refuse
+from robotexp.bag.reading import (MAX_POSITION, TEAM_TOPIC_TYPES, TOPIC_TYPES, decode_errors, finite, read_records,
+                                  refuse)
 from robotexp.bag.recorder import yaw_of
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import ConfigError, WorldError
@@ -35,10 +38,11 @@ from robotexp.world.groundtruth import GroundTruth, ground_truth
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.markers import Markers
 from robotexp.run.observers import RunObserver
+from robotexp.run.team import TeamRun
 from robotexp.run.record import EndReason
 from robotexp.robot import Capability, LaserScan, Limits, Pose, Robot, RobotState, Twist
 
-__all__ = ["Tick", "Bag", "read_bag", "replay_bag", "ReplayRobot", "ReplayExplorer"]
+__all__ = ["Tick", "Bag", "read_bag", "replay_bag", "replay_team", "ReplayRobot", "ReplayExplorer"]
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +71,7 @@ class Bag:
     truth: GroundTruth | None = None            # the recorded ground truth
     topics: dict[str, str] = field(default_factory=dict)   # topic -> schema name
     markers: list[tuple[float, Markers]] = field(default_factory=list)   # (time [s], the explorer's markers)
+    team: list[list[Tick]] = field(default_factory=list)    # a team's recording: each robot's ticks (robot 1's first)
 
 
 def _pose(msg: Any) -> Pose:
@@ -132,7 +137,7 @@ def _mount(transforms: list[Any], frame: str) -> tuple[float, float]:
     """The laser's offset ahead [m] and yaw [rad] on the robot from the static transform base_link (or
     base_footprint) -> `frame` (0, 0 when there is none; a sideways offset is not modelled: warned)."""
     for tf in transforms:
-        if tf.child_frame_id == frame and tf.header.frame_id in ("base_link", "base_footprint"):
+        if tf.child_frame_id == frame and tf.header.frame_id.rpartition("/")[2] in ("base_link", "base_footprint"):
             t = tf.transform.translation
             if abs(t.y) > 0.001:
                 log.warning("laser frame %r sits %.3f m sideways on the robot: replayed as if centred", frame, t.y)
@@ -208,7 +213,25 @@ def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
         if rm is not None and (isinstance(rm, bool) or not isinstance(rm, (int, float)) or not math.isfinite(rm)
                                or not rm > 0):
             raise ValueError(f"robotexp.run metadata: grid range_max is {rm!r}, expected a number > 0")
+    if meta.get("team") is not None:
+        _check_team(meta["team"])
     return meta
+
+
+def _check_team(team: Any) -> None:
+    """A team recording's `team` metadata: robot_1, robot_2, ... in order, each with its model and radius."""
+    from robotexp.sim.team import MAX_TEAM
+
+    if not isinstance(team, list) or not 1 <= len(team) <= MAX_TEAM:
+        raise ValueError(f"robotexp.run metadata: team is {str(team)[:60]}, expected a list of 1..{MAX_TEAM} robots")
+    for i, m in enumerate(team, start=1):
+        if not isinstance(m, dict) or m.get("namespace") != f"robot_{i}":
+            raise ValueError(f"robotexp.run metadata: team robot {i} is {str(m)[:60]}, expected namespace robot_{i}")
+        r = m.get("radius_m")
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not 0 < r <= 10:
+            raise ValueError(f"robotexp.run metadata: team robot {i}'s radius_m is {r!r}, expected 0..10 m")
+        if m.get("robot") is not None and not isinstance(m["robot"], str):
+            raise ValueError(f"robotexp.run metadata: team robot {i}'s robot is {m['robot']!r}, expected text")
 
 
 def _check_record(record: Any) -> dict[str, Any]:
@@ -223,6 +246,51 @@ def _check_record(record: Any) -> dict[str, Any]:
     return record
 
 
+@dataclass
+class _Stream:
+    """What one robot's topics hold (a team recording has one per robot, under its namespace)."""
+
+    odom: list[tuple[int, Pose, Twist]] = field(default_factory=list)
+    scans: list[tuple[int, _RawScan]] = field(default_factory=list)
+    exact: dict[int, LaserScan] = field(default_factory=dict)
+    truths: dict[int, Pose] = field(default_factory=dict)
+    statics: list[Any] = field(default_factory=list)
+
+    def take(self, topic: str, t: int, msg: Any) -> None:
+        """A message of `topic` (without the namespace) at `t` [ns]."""
+        if topic == "/odom":
+            v = msg.twist.twist
+            self.odom.append((t, _pose(msg), Twist(finite(v.linear.x, "a velocity", 1e3),
+                                                   finite(v.angular.z, "a turn rate", 1e3))))
+        elif topic == "/scan":
+            self.scans.append((t, _raw_scan(msg)))
+        elif topic == "/robotexp/scan":
+            self.exact[t] = _exact_scan(msg)
+        elif topic == "/ground_truth":
+            self.truths[t] = _pose(msg)
+        elif topic == "/tf_static":
+            self.statics.extend(msg.transforms)
+
+    def own_ticks(self, t0: int) -> list[Tick]:
+        """robotexp's own recording: one tick per /odom, with the scan and true pose of the same stamp."""
+        offset_x, yaw = _mount(self.statics, self.scans[0][1].frame) if self.scans else (0.0, 0.0)
+        by_time = {t: msg for t, msg in self.scans if t not in self.exact}
+        ticks = []
+        for t, pose, vel in self.odom:
+            raw = by_time.get(t)
+            scan = self.exact.get(t) or (None if raw is None else _scan(raw, offset_x, yaw))
+            ticks.append(Tick((t - t0) / 1e9, pose, vel, scan, self.truths.get(t)))
+        return ticks
+
+
+def _split(topic: str) -> tuple[str, str]:
+    """("robot_1", "/odom") of a team's "/robot_1/odom"; ("", topic) of any other."""
+    if topic.startswith("/robot_"):
+        ns, _, rest = topic[1:].partition("/")
+        return ns, "/" + rest
+    return "", topic
+
+
 def read_bag(path: Path) -> Bag:  # noqa: C901
     """Read a recording (see the module's docstring), within the limits of `robotexp.bag.reading`.
 
@@ -232,11 +300,7 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
     """
     if not path.is_file():
         raise ConfigError(f"{path}: no such recording; give an .mcap file (robotexp explore --record FILE.mcap)")
-    odom: list[tuple[int, Pose, Twist]] = []
-    scans: list[tuple[int, _RawScan]] = []
-    exact: dict[int, LaserScan] = {}
-    truths: dict[int, Pose] = {}
-    statics: list[Any] = []
+    streams: dict[str, _Stream] = {"": _Stream()}
     truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None = None
     marker_msgs: list[tuple[int, Markers]] = []
     meta = record = None
@@ -251,29 +315,26 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
                     elif r.name == "robotexp.run.record":
                         record = _check_record(json.loads(text or "null"))
                     continue
-                topics[r.topic] = TOPIC_TYPES[r.topic]
+                topics[r.topic] = TOPIC_TYPES.get(r.topic) or TEAM_TOPIC_TYPES[r.topic]
                 t, msg = r.time, r.msg
-                if r.topic == "/odom":
-                    v = msg.twist.twist
-                    odom.append((t, _pose(msg), Twist(finite(v.linear.x, "a velocity", 1e3),
-                                                      finite(v.angular.z, "a turn rate", 1e3))))
-                elif r.topic == "/scan":
-                    scans.append((t, _raw_scan(msg)))
-                elif r.topic == "/robotexp/scan":
-                    exact[t] = _exact_scan(msg)
-                elif r.topic == "/ground_truth":
-                    truths[t] = _pose(msg)
-                elif r.topic == "/ground_truth/map":
+                if r.topic == "/ground_truth/map":
                     truth_grid = _grid_of(msg)
-                elif r.topic == "/tf_static":
-                    statics.extend(msg.transforms)
                 elif r.topic == "/robotexp/markers":
                     marker_msgs.append((t, markers_of(msg)))
-        odom.sort(key=lambda o: o[0])
-        scans.sort(key=lambda s: s[0])
+                else:
+                    ns, topic = _split(r.topic)
+                    streams.setdefault(ns, _Stream()).take(topic, t, msg)
+        for stream in streams.values():
+            stream.odom.sort(key=lambda o: o[0])
+            stream.scans.sort(key=lambda s: s[0])
         marker_msgs.sort(key=lambda m: m[0])
+        team = [] if meta is None else [m["namespace"] for m in meta.get("team") or []]
+        if meta is not None and team:
+            return _team_bag(path, meta, record, topics, streams, team, truth_grid, marker_msgs)
+        own = streams[""]
+        odom, scans = own.odom, own.scans
         if odom and scans:
-            offset_x, yaw = _mount(statics, scans[0][1].frame)
+            offset_x, yaw = _mount(own.statics, scans[0][1].frame)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     except decode_errors() as exc:
@@ -281,20 +342,10 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
     if not odom or not scans:
         raise ConfigError(f"{path}: a replay needs /scan (sensor_msgs/LaserScan) and /odom (nav_msgs/Odometry); "
                           f"this recording has {', '.join(sorted(topics)) or 'neither'}")
-    truth = None
-    if truth_grid is not None:
-        geo, states = truth_grid
-        occupied = states == 100
-        explorable = states == 0
-        truth = GroundTruth(geo, occupied, explorable, explorable)
+    truth = _truth_of(truth_grid)
     ticks: list[Tick] = []
     if meta is not None:        # robotexp's own: one /odom per tick, scans and true poses at the same stamps
-        by_time = {t: msg for t, msg in scans if t not in exact}
-        t0 = odom[0][0]
-        for t, pose, vel in odom:
-            raw = by_time.get(t)
-            scan = exact.get(t) or (None if raw is None else _scan(raw, offset_x, yaw))
-            ticks.append(Tick((t - t0) / 1e9, pose, vel, scan, truths.get(t)))
+        ticks = own.own_ticks(odom[0][0])
     else:                       # a robot's: one tick per scan, at the newest odometry up to its stamp
         stamps = [t for t, _, _ in odom]
         t0 = None
@@ -308,10 +359,38 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
             ticks.append(Tick((t - t0) / 1e9, pose, vel, _scan(raw, offset_x, yaw)))
         if not ticks:
             raise ConfigError(f"{path}: no /scan comes after the first /odom; nothing to replay")
-    scans.clear()
-    exact.clear()
     markers = [((t - odom[0][0]) / 1e9, m) for t, m in marker_msgs] if meta is not None else []
+    streams.clear()
     return Bag(path, ticks, meta, record, truth, topics, markers)
+
+
+def _truth_of(truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None) -> GroundTruth | None:
+    """The recorded ground truth (/ground_truth/map: 100 occupied, 0 explorable)."""
+    if truth_grid is None:
+        return None
+    geo, states = truth_grid
+    explorable = states == 0
+    return GroundTruth(geo, states == 100, explorable, explorable)
+
+
+def _team_bag(path: Path, meta: dict[str, Any], record: dict[str, Any] | None, topics: dict[str, str],  # noqa: PLR0913
+              streams: dict[str, _Stream], team: list[str],
+              truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None,
+              marker_msgs: list[tuple[int, Markers]]) -> Bag:
+    """A team's recording: each robot's ticks from its namespace's topics, on one time line (the first
+    robot's first tick is time 0); `ticks` are robot 1's.
+
+    Raises:
+        ConfigError: a robot of the team has no /odom or no scan.
+    """
+    missing = [ns for ns in team if ns not in streams or not streams[ns].odom or not streams[ns].scans]
+    if missing:
+        raise ConfigError(f"{path}: a team recording needs /{missing[0]}/odom and /{missing[0]}/scan for each robot "
+                          f"of its `team` metadata; this one has {', '.join(sorted(topics)) or 'neither'}")
+    t0 = min(streams[ns].odom[0][0] for ns in team)
+    robots = [streams[ns].own_ticks(t0) for ns in team]
+    markers = [((t - t0) / 1e9, m) for t, m in marker_msgs]
+    return Bag(path, robots[0], meta, record, _truth_of(truth_grid), topics, markers, robots)
 
 
 class ReplayRobot(Robot):
@@ -473,15 +552,67 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
                    laser_range=laser_range, extra=info_extra)
     chain: list[RunObserver] = [] if out is None else [ResultsWriter(out, image=image)]
     chain.extend(observers)
-    last_t = bag.ticks[-1].time
-    run = ExplorationRun(robot, explorer, grid, truth=truth, period=meta.get("period_s", 0.1),
-                         max_time=last_t + 1.0,
-                         sample_period=meta.get("sample_period_s", 1.0), seed=int(meta.get("seed", 0)),
-                         info=info, observers=chain)
-    run_box.append(run)
-    with robot:
-        run.run()
+    if bag.team:        # a team's recording: its robots replayed together, as they ran
+        run: ExplorationRun = replay_team(bag, grid, truth, info, chain, end, reason)
+    else:
+        run = ExplorationRun(robot, explorer, grid, truth=truth, period=meta.get("period_s", 0.1),
+                             max_time=bag.ticks[-1].time + 1.0,
+                             sample_period=meta.get("sample_period_s", 1.0), seed=int(meta.get("seed", 0)),
+                             info=info, observers=chain)
+        run_box.append(run)
+        with robot:
+            run.run()
     for observer, exc in run.observer_errors:
         if observer.critical:
             raise exc
+    return run
+
+
+def replay_team(bag: Bag, grid: OccupancyGrid, truth: GroundTruth | None, info: RunInfo,  # noqa: PLR0913
+                observers: Iterable[RunObserver], end: EndReason, reason: str) -> TeamRun:
+    """Replay a team's recording: each robot's recorded ticks stepped together in a `TeamRun`, so that
+    the team's map, coverage and record come from the same code as the run's (the teammates' beams left
+    out of the map as they were, every robot's path kept), ending as the recording did (`end`, `reason`:
+    the record's); returns the finished run.
+
+    The robots drive nothing: each one's explorer hands back the recorded velocity, ending explored at
+    its last tick when the record says that robot ended so. No coordinator assigns targets (the robots
+    went where the run's coordinator sent them), and the replay keeps one map for the team whatever the
+    run's communication range (the team's map of the run held every robot's scans too)."""
+    meta = bag.meta or {}
+    rec = bag.record or {}
+    robots_meta = meta["team"]
+    listed = rec.get("robots")
+    per: list[Any] = listed if isinstance(listed, list) else []
+    n = len(bag.team)
+    longest = max(range(n), key=lambda i: (len(bag.team[i]), -i))     # its last tick is the recording's end
+    box: list[TeamRun] = []
+
+    def on_last() -> None:
+        if end is not EndReason.EXPLORED and box:
+            box[0].request_stop(reason, EndReason.STOPPED if end is EndReason.UNKNOWN else end)
+
+    robots, explorers = [], []
+    for i, ticks in enumerate(bag.team):
+        r: dict[str, Any] = per[i] if i < len(per) and isinstance(per[i], dict) else {}
+        hits = r.get("collisions")
+        extra = {"collisions": float(hits)} if isinstance(hits, int) and not isinstance(hits, bool) and hits else {}
+        robot = ReplayRobot(ticks, radius=robots_meta[i]["radius_m"], model=robots_meta[i].get("robot") or "replay",
+                            final_extra=extra, on_last=on_last if i == longest else None)
+        done = r.get("reason") if r.get("end") == EndReason.EXPLORED.value and isinstance(r.get("reason"), str) \
+            else None
+        robots.append(robot)
+        explorers.append(ReplayExplorer(robot, done, bag.markers if i == 0 else ()))
+    period = meta.get("period_s", 0.1)
+    run = TeamRun(robots, explorers, [grid] * n, SimClock(period, lambda dt: None), truth=truth, period=period,
+                  max_time=max(t[-1].time for t in bag.team) + 1.0, seed=int(meta.get("seed", 0)), info=info,
+                  observers=observers)
+    coordinator = rec.get("coordinator")
+    run.coordinator_name = coordinator if isinstance(coordinator, str) else "none"
+    box.append(run)
+    try:
+        run.run()
+    finally:
+        for robot in robots:
+            robot.close()
     return run
