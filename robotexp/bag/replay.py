@@ -534,10 +534,6 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
         if end is not EndReason.EXPLORED and run_box:
             run_box[0].request_stop(reason, EndReason.STOPPED if end is EndReason.UNKNOWN else end)
 
-    extra = {"collisions": float(rec["collisions"])} if rec.get("collisions") else {}
-    robot = ReplayRobot(bag.ticks, radius=meta.get("radius_m", 0.25), model=meta.get("robot") or "replay",
-                        final_extra=extra, on_last=on_last)
-    explorer = ReplayExplorer(robot, reason if end is EndReason.EXPLORED else None, bag.markers)
     world = meta.get("world") or bag.path.stem
     method = meta.get("method") or "replay"
     pose = meta.get("pose") or "robot"
@@ -548,13 +544,17 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
     else:
         out.mkdir(parents=True, exist_ok=True)
         name = run_id(world, method, pose, speed, int(meta.get("seed", 0)), out)
-    info = RunInfo(name=name, method=method, world=world, pose=pose, robot=robot.model, max_speed=speed,
-                   laser_range=laser_range, extra=info_extra)
+    info = RunInfo(name=name, method=method, world=world, pose=pose, robot=meta.get("robot") or "replay",
+                   max_speed=speed, laser_range=laser_range, extra=info_extra)
     chain: list[RunObserver] = [] if out is None else [ResultsWriter(out, image=image)]
     chain.extend(observers)
     if bag.team:        # a team's recording: its robots replayed together, as they ran
         run: ExplorationRun = replay_team(bag, grid, truth, info, chain, end, reason)
     else:
+        extra = {"collisions": float(rec["collisions"])} if rec.get("collisions") else {}
+        robot = ReplayRobot(bag.ticks, radius=meta.get("radius_m", 0.25), model=meta.get("robot") or "replay",
+                            final_extra=extra, on_last=on_last)
+        explorer = ReplayExplorer(robot, reason if end is EndReason.EXPLORED else None, bag.markers)
         run = ExplorationRun(robot, explorer, grid, truth=truth, period=meta.get("period_s", 0.1),
                              max_time=bag.ticks[-1].time + 1.0,
                              sample_period=meta.get("sample_period_s", 1.0), seed=int(meta.get("seed", 0)),
