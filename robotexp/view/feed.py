@@ -256,7 +256,8 @@ class Frame:
     replaces the explorer's overlays: any of "potential" (a MapLayer), "vectors" ({"spacing": m,
     "arrows": [x, y, dx, dy, ...]}) and markers ("points": {name: [x, y, ...]}, "circles": {name: [x, y,
     r, ...]}, "lines": {name: [x0, y0, x1, y1, ...]}, "polygons": {name: [[x, y, ...], ...]}), from an
-    explorer's `markers()`.
+    explorer's `markers()`. `team` gives a team's other robots (robots 2, 3, ...): each one's pose and
+    new path points.
     """
 
     time: float                                     # [s] robot time
@@ -270,6 +271,8 @@ class Frame:
     speedup: float | None = None                    # robot time per wall time, recently
     coverage: float | None = None
     rows: list[dict[str, Any]] = field(default_factory=list)   # a campaign's finished runs, appended
+    # a team's robots 2, 3, ...: each one's pose [m, m, rad] (None: unchanged) and new path points, appended
+    team: list[tuple[tuple[float, float, float] | None, list[float]]] | None = None
 
 
 @dataclass
@@ -282,6 +285,7 @@ class ViewClient:
     path: int = 0
     curve: int = 0
     rows: int = 0
+    team_paths: list[int] = field(default_factory=list)    # path items of each of a team's robots 2, 3, ...
     map_version: int = 0
     overlay_version: int = 0
     seq: int = -1
@@ -324,6 +328,8 @@ class ViewHub:
         self.speedup: float | None = None
         self.coverage: float | None = None
         self.rows: list[dict[str, Any]] = []
+        self.team: list[tuple[float, float, float] | None] = []    # a team's robots 2, 3, ...: poses
+        self.team_paths: list[list[float]] = []                     # ... and paths (x, y, ... [m])
 
     @property
     def watched(self) -> bool:
@@ -364,6 +370,7 @@ class ViewHub:
         with self._lock:
             self.time = time
             self.path, self.curve = [], []
+            self.team_paths = [[] for _ in self.team_paths]
             self.laser, self._scan = [], None
             self.epoch += 1
         self._changed()
@@ -391,6 +398,13 @@ class ViewHub:
             self.path.extend(frame.path)
             self.curve.extend(frame.curve)
             self.rows.extend(frame.rows)
+            for i, (pose, points) in enumerate(frame.team or ()):
+                if i == len(self.team):
+                    self.team.append(None)
+                    self.team_paths.append([])
+                if pose is not None:
+                    self.team[i] = pose
+                self.team_paths[i].extend(points)
             if frame.map is not None:
                 self._set_map(frame.map)
             if frame.overlays is not None:
@@ -425,13 +439,18 @@ class ViewHub:
                 if client.run != self.run:          # a new run: everything afresh
                     client.run, client.rows, client.map_version, client.overlay_version = self.run, 0, 0, 0
                     msg["meta"] = self.meta
-                client.epoch, client.path, client.curve = self.epoch, 0, 0
+                client.epoch, client.path, client.curve, client.team_paths = self.epoch, 0, 0, []
             scan = self._scan
             msg["pose"] = self.pose
             msg["laser"] = self.laser
             msg["path_from"], msg["path"] = client.path // 2, self.path[client.path:]
             msg["curve_from"], msg["curve"] = client.curve // 2, self.curve[client.curve:]
             client.path, client.curve = len(self.path), len(self.curve)
+            if self.team:
+                sent = client.team_paths + [0] * (len(self.team) - len(client.team_paths))
+                msg["team"] = [{"pose": pose, "path_from": k // 2, "path": path[k:]}
+                               for pose, path, k in zip(self.team, self.team_paths, sent, strict=True)]
+                client.team_paths = [len(path) for path in self.team_paths]
             if len(self.rows) > client.rows:
                 msg["rows_from"], msg["rows"] = client.rows, self.rows[client.rows:]
                 client.rows = len(self.rows)

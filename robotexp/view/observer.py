@@ -275,6 +275,8 @@ class ViewObserver(RunObserver):
         self._speed = SpeedMeter()
         self._pending_curve: list[float] = []
         self._coverage: float | None = None
+        self._team_time = -math.inf                 # a team's last robot time sent and paced
+        self._team_sent: list[tuple[int, tuple[float, float] | None]] = []    # robots 2, 3, ...: path kept
 
     # -- commands from the page (server thread) --
     def command(self, msg: dict[str, Any]) -> None:
@@ -322,6 +324,15 @@ class ViewObserver(RunObserver):
         halt = None if self.simulated else run.robot.stop
         pacer.wait(step.time if self.simulated else None, halt, lambda holding: self._hold(run, step.time, holding))
 
+    def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
+        """A team's robot's tick: the first robot to step at a robot time sends and paces as `on_step` does
+        (robot 1 unless it is done), every robot's scan marks the map changed."""
+        if step.map_updated:
+            self._map_dirty = True
+        if step.time > self._team_time:
+            self._team_time = step.time
+            self.on_step(run, step)
+
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:
             self._send(run, t, force=True)
@@ -360,6 +371,7 @@ class ViewObserver(RunObserver):
             else:
                 frame.scan = state.laser
         frame.path = self._new_path(run)
+        frame.team = self._teammates(run)
         frame.curve, self._pending_curve = self._pending_curve, []
         frame.coverage = self._coverage
         frame.speedup = self._speed.update(t, now)
@@ -373,6 +385,23 @@ class ViewObserver(RunObserver):
             frame.overlays = _explorer_overlays(run)
         self.hub.publish(frame)
 
+    def _teammates(self, run: ExplorationRun) -> list[tuple[tuple[float, float, float] | None, list[float]]] | None:
+        """A team's robots 2, 3, ...: each one's pose and new path points (None for one robot)."""
+        members = getattr(run, "members", None)
+        if members is None or len(members) < 2:
+            return None
+        out: list[tuple[tuple[float, float, float] | None, list[float]]] = []
+        for i, m in enumerate(members[1:]):
+            if i == len(self._team_sent):
+                self._team_sent.append((0, None))
+            sent, last = self._team_sent[i]
+            path = m.metrics.path
+            points, last = new_path_points(path, sent, len(path), last, run.grid.geo.cell / 2)
+            self._team_sent[i] = (len(path), last)
+            s = m.state
+            out.append((None if s is None else (s.pose.x, s.pose.y, s.pose.theta), points))
+        return out
+
     def _new_path(self, run: ExplorationRun) -> list[float]:
         path = run.metrics.path
         out, self._last_xy = new_path_points(path, self._path_sent, len(path), self._last_xy, run.grid.geo.cell / 2)
@@ -382,7 +411,8 @@ class ViewObserver(RunObserver):
 
 def run_meta(run: ExplorationRun, simulated: bool) -> dict[str, Any]:
     """What the view's page is told about a run when it starts (`ViewHub.start`): its map geometry,
-    robot radius, names, time limit, whether coverage is known, and the start pose."""
+    robot radius, names, time limit, whether coverage is known, the start pose, and a team's other robots
+    (`team`: each one's model and radius; [] for one robot)."""
     geo = run.grid.geo
     info = run.info
     start = run.start_pose
@@ -391,7 +421,9 @@ def run_meta(run: ExplorationRun, simulated: bool) -> dict[str, Any]:
             "radius": run.robot.radius, "title": f"{info.world} - {info.method}", "run": info.name,
             "method": info.method, "world": info.world, "robot": info.robot, "simulated": simulated,
             "max_time": run.max_time, "truth": run.truth is not None,
-            "start": None if start is None else [start.x, start.y, start.theta]}
+            "start": None if start is None else [start.x, start.y, start.theta],
+            "team": [{"robot": m.robot.model, "radius": m.robot.radius}      # a team's robots 2, 3, ...
+                     for m in getattr(run, "members", [])[1:]]}
 
 
 def potential_levels(potential: npt.NDArray[np.float64], free: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:

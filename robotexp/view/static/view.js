@@ -5,7 +5,9 @@
   const canvas = $("map"), dyn = $("dyn"), ctx = dyn.getContext("2d");
   const curveCanvas = $("curve"), cctx = curveCanvas.getContext("2d");
   const S = { meta: null, pose: null, laser: [], path: [], curve: [], overlays: {}, status: {},
-              mapVersion: 0, t: 0, controls: [] };
+              mapVersion: 0, t: 0, controls: [], team: [] };
+  // a team's robots 2, 3, ... in turn (robotexp/output/render.py TEAM_COLORS)
+  const TEAM_COLOURS = ["#963cc8", "#009696", "#c83c96", "#785a1e", "#5aa014"];
   const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
 
   function viridis(v) {
@@ -180,15 +182,28 @@
       ctx.fillStyle = "#ff8c00"; const d = Math.max(2, lw * 2.2);
       for (let i = 0; i < S.laser.length; i += 2) ctx.fillRect(T.px(S.laser[i]) - d / 2, T.py(S.laser[i + 1]) - d / 2, d, d);
     }
-    if (S.meta.start) drawRobot(T, S.meta.start, "rgba(40,170,60,0.8)", lw, false);
-    if (S.pose) drawRobot(T, S.pose, "#dc2828", lw, true);
+    if (S.meta.start) drawRobot(T, S.meta.start, "rgba(40,170,60,0.8)", lw, null);
+    S.team.forEach((m, i) => drawTeammate(T, m, i, lw));
+    if (S.pose) drawRobot(T, S.pose, "#dc2828", lw, "rgba(220,40,40,0.25)");
   }
 
-  function drawRobot(T, pose, colour, lw, filled) {
-    const [x, y, th] = pose, r = Math.max(S.meta.radius * T.k, 4);
+  function drawTeammate(T, m, i, lw) {
+    const colour = TEAM_COLOURS[i % TEAM_COLOURS.length], info = (S.meta.team || [])[i] || {};
+    if (m.path.length >= 4) {
+      ctx.strokeStyle = colour; ctx.lineWidth = lw * 1.6; ctx.lineJoin = "round"; ctx.lineCap = "round";
+      ctx.beginPath(); ctx.moveTo(T.px(m.path[0]), T.py(m.path[1]));
+      for (let k = 2; k < m.path.length; k += 2) ctx.lineTo(T.px(m.path[k]), T.py(m.path[k + 1]));
+      ctx.stroke();
+    }
+    if (m.pose) drawRobot(T, m.pose, colour, lw, colour + "40", info.radius);
+  }
+
+  // a robot's footprint (its radius, default the run's robot's) and heading; `fill`: a colour or null
+  function drawRobot(T, pose, colour, lw, fill, radius) {
+    const [x, y, th] = pose, r = Math.max((radius ?? S.meta.radius) * T.k, 4);
     const cx = T.px(x), cy = T.py(y);
     ctx.beginPath(); ctx.arc(cx, cy, r, 0, 2 * Math.PI);
-    if (filled) { ctx.fillStyle = "rgba(220,40,40,0.25)"; ctx.fill(); }
+    if (fill) { ctx.fillStyle = fill; ctx.fill(); }
     ctx.strokeStyle = colour; ctx.lineWidth = lw * 1.8; ctx.stroke();
     ctx.beginPath(); ctx.moveTo(cx, cy); ctx.lineTo(cx + Math.cos(th) * r * 1.6, cy - Math.sin(th) * r * 1.6); ctx.stroke();
   }
@@ -236,7 +251,7 @@
     if (msg.meta && msg.meta.kind === "campaign") { S.meta = msg.meta; return campaign(msg, true); }
     if (S.meta && S.meta.kind === "campaign") return campaign(msg, false);
     if (msg.meta && msg.meta.geo) {
-      S.meta = msg.meta; S.path = []; S.curve = []; S.overlays = {};
+      S.meta = msg.meta; S.path = []; S.curve = []; S.overlays = {}; S.team = [];
       $("title").textContent = msg.meta.title || "robotexp live view";
       $("run").textContent = msg.meta.run || "-";
       sizeLayers(); fitCanvas(); $("scale").textContent = scaleText(msg.meta.geo);
@@ -253,6 +268,12 @@
       S.path.length = msg.path_from * 2; for (const v of msg.path) S.path.push(v);
     }
     if (msg.curve) { S.curve.length = msg.curve_from * 2; for (const v of msg.curve) S.curve.push(v); }
+    if (msg.team) msg.team.forEach((m, i) => {
+      const mine = S.team[i] || (S.team[i] = { pose: null, path: [] });
+      if (m.pose) mine.pose = m.pose;
+      mine.path.length = m.path_from * 2; for (const v of m.path) mine.path.push(v);
+    });
+    document.body.dataset.robots = String(S.team.length + 1);
     if (msg.map) {
       await paintTiles(msg.map);
       S.mapVersion += 1; canvas.dataset.mapVersion = String(S.mapVersion);

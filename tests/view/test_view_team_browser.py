@@ -1,0 +1,77 @@
+"""`robotexp explore --team 2 --view` watched in headless Chromium: the page draws both robots (robot 1 in
+red, robot 2 and its path in its team colour) and the feed gives each teammate's pose and path."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from robotexp.output.render import TEAM_COLORS
+from robotexp.output.results import read_records
+from robotexp.view.feed import Frame, ViewClient, ViewHub
+
+from test_view_browser import _need_browser, _page
+
+ROOM = """2D-Map
+LineMinPos: 0 0
+LineMaxPos: 5000 4000
+NumLines: 5
+Cairn: RobotHome 1000 1000 0 "" ICON "start"
+LINES
+0 0 5000 0
+5000 0 5000 4000
+5000 4000 0 4000
+0 4000 0 0
+3000 1500 3000 2800
+DATA
+"""
+
+# pixels of the moving layer (#dyn) of exactly one colour
+COUNT_JS = """([r, g, b]) => { const c = document.getElementById('dyn');
+  const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  let n = 0;
+  for (let i = 0; i < d.length; i += 4) if (d[i] === r && d[i + 1] === g && d[i + 2] === b && d[i + 3] === 255) n++;
+  return n; }"""
+
+
+def test_the_hub_sends_each_teammate_its_pose_and_new_path_points() -> None:
+    hub = ViewHub()
+    hub.start({"geo": {}, "team": [{"robot": "p3dx", "radius": 0.26}]})
+    hub.publish(Frame(time=0.1, pose=(0.0, 0.0, 0.0), team=[((1.0, 2.0, 0.5), [1.0, 2.0])]))
+    client = ViewClient()
+    first = hub.message_for(client)
+    assert first is not None and first["team"] == [{"pose": (1.0, 2.0, 0.5), "path_from": 0, "path": [1.0, 2.0]}]
+    hub.publish(Frame(time=0.2, team=[(None, [1.1, 2.0])]))
+    second = hub.message_for(client)            # only the new point; the pose kept
+    assert second is not None and second["team"] == [{"pose": (1.0, 2.0, 0.5), "path_from": 1, "path": [1.1, 2.0]}]
+    late = hub.message_for(ViewClient())        # a browser that comes later gets the whole path
+    assert late is not None and late["team"][0]["path"] == [1.0, 2.0, 1.1, 2.0]
+    hub.restart(0.0)                            # a seek: the paths are sent again from the start
+    assert hub.message_for(client)["team"] == [{"pose": (1.0, 2.0, 0.5), "path_from": 0, "path": []}]
+
+
+def test_explore_team_view_in_chromium_draws_both_robots(tmp_path: Path, view_cli: Any) -> None:
+    _need_browser()
+    (tmp_path / "room.map").write_text(ROOM)
+    out = tmp_path / "out"
+    proc, url = view_cli.start("explore", "-w", str(tmp_path / "room.map"), "--team", "2", "--coordinator", "greedy",
+                               "--view", "--view-speed", "20", "--max-time", "3600", "-o", str(out))
+    with _page(url, viewport={"width": 1000, "height": 700}) as page:
+        page.wait_for_function("document.body.dataset.robots === '2' && Number(document.body.dataset.t) > 2",
+                               timeout=30_000)
+        page.click("#pause")
+        page.wait_for_function("document.body.dataset.state === 'paused'", timeout=30_000)
+        time.sleep(0.5)
+        red = page.evaluate(COUNT_JS, [220, 40, 40])                   # robot 1's outline
+        purple = page.evaluate(COUNT_JS, list(TEAM_COLORS[0]))          # robot 2's outline and path
+        assert red > 20 and purple > 20, (red, purple)
+        page.click("#stop")
+        page.wait_for_function("document.body.dataset.state === 'ended'", timeout=30_000)
+    deadline = time.monotonic() + 20
+    while not (out / "results.jsonl").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.5)
+    view_cli.interrupt(proc)
+    (record,) = read_records(out / "results.jsonl")
+    assert record.team_size == 2 and record.robot_time_s > 2
