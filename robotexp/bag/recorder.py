@@ -21,9 +21,11 @@ A team run (`robotexp explore --team`) records each robot under its namespace, `
 (numbered from 1, as the team's record and files number them): /robot_1/odom, /robot_1/tf,
 /robot_1/tf_static, /robot_1/scan, /robot_1/robotexp/scan and /robot_1/ground_truth, the same messages
 as above with frames prefixed by the namespace (robot_1/odom, robot_1/base_link, robot_1/laser; map ->
-robot_1/odom is the identity). /map is the team's map (every robot's scans); with a communication range
-each robot's own map is /robot_1/map as well. /robotexp/markers are robot 1's. The `robotexp.run`
-metadata then has a `team` list: each robot's namespace, model, radius [m] and start pose.
+robot_1/odom is the identity); a robot's /robotexp/scan is its scan as the maps took it (the beams that
+ended on a teammate, which the team does not map, read NaN). /map is the team's map (every robot's
+scans); with a communication range each robot's own map is /robot_1/map as well. /robotexp/markers are
+robot 1's. The `robotexp.run` metadata then has a `team` list: each robot's namespace, model, radius [m]
+and start pose.
 
 and two metadata records: `robotexp.run` (what a replay needs: the grid's geometry, model and range
 cap, the run's names, period and robot radius; JSON text under the key `json`) at the start and
@@ -233,15 +235,20 @@ class BagRecorder(RunObserver):
         self.write_state(step.time, step.state, step.map_updated, run.period)
 
     def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
-        """A team's robot's tick: as `on_step`, under the robot's namespace (/robot_1/odom, ...)."""
-        self.write_state(step.time, step.state, step.map_updated, run.period, namespace=robot_namespace(robot))
+        """A team's robot's tick: as `on_step`, under the robot's namespace (/robot_1/odom, ...); its
+        /robotexp/scan is the scan as the map took it (the beams that ended on a teammate read NaN)."""
+        members = getattr(run, "members", None)
+        mapped = members[robot].mapped_scan if members is not None and step.map_updated else None
+        self.write_state(step.time, step.state, step.map_updated, run.period, namespace=robot_namespace(robot),
+                         mapped=mapped)
 
-    def write_state(self, time: float, state: RobotState, scan: bool = True, period: float = 0.1,
-                    namespace: str = "") -> None:
+    def write_state(self, time: float, state: RobotState, scan: bool = True, period: float = 0.1,  # noqa: PLR0913
+                    namespace: str = "", mapped: LaserScan | None = None) -> None:
         """Write a state read at robot time `time` [s]: /odom, /tf, /ground_truth when known and, with
         `scan`, its laser scan (/scan, /robotexp/scan; /tf_static once). `robotexp connect --record`
         calls this for each state it reads (no run, no map: such a bag replays as a robot's). A
-        `namespace` ("robot_1") puts the topics under it and prefixes the frames with it."""
+        `namespace` ("robot_1") puts the topics under it and prefixes the frames with it; `mapped`: the scan
+        as the map took it, for /robotexp/scan (default: the state's)."""
         if self._writer is None:
             raise ConfigError("BagRecorder: a recorder given a folder opens its file when a run starts")
         ns = stamp_ns(time)
@@ -266,7 +273,8 @@ class BagRecorder(RunObserver):
                 self._write(f"{top}/tf_static", TF_MESSAGE,
                             cdr.tf_message(ns, [(f"{pre}base_link", f"{pre}laser", s.laser.offset_x, 0.0, 0.0)]), ns)
             self._write(f"{top}/scan", LASER_SCAN, _laser_scan_message(ns, s.laser, period, f"{pre}laser"), ns)
-            self._write(f"{top}/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, s.laser, f"{pre}laser"), ns)
+            self._write(f"{top}/robotexp/scan", EXACT_SCAN, exact_scan_message(ns, mapped or s.laser, f"{pre}laser"),
+                        ns)
         self._started = True
 
     def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:

@@ -8,7 +8,9 @@ at the view's speed, with pause / step / speed like a run, and `seek`: {"cmd": "
 last tick at or before t. The map at that tick is rebuilt by integrating the recorded scans from the
 newest checkpoint at or before it (or from the start), the same scans in the same order as the
 replay's pass, so it is the map the replay had at that tick; the path and coverage curve are the
-replay's up to it, the explorer's markers the recorded ones newest then. Results are never touched
+replay's up to it, the explorer's markers the recorded ones newest then. A team's recording plays every
+robot: its other robots' scans are integrated after robot 1's of the same tick (the run's order), and
+their poses and paths shown too (the timeline is robot 1's). Results are never touched
 by what the page does. When the recording ends, the page keeps its last state; a seek plays on from
 there. Ctrl-C ends the player.
 """
@@ -70,9 +72,18 @@ class Checkpoints(RunObserver):
 
     def on_step(self, run: ExplorationRun, step: StepEvent) -> None:
         """Keep a copy of the grid when one is due."""
-        if step.time >= self._next - 1e-9:
-            self.items.append((step.time, run.grid.copy()))
-            while self._next <= step.time + 1e-9:
+        self._keep(run, step.time)
+
+    def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
+        """A team's replay (it has no `on_step`): keep a copy of the team's grid when one is due, at a coverage
+        sample, where every robot has taken its scan of that tick."""
+        if getattr(run, "members", None) is not None:
+            self._keep(run, time)
+
+    def _keep(self, run: ExplorationRun, t: float) -> None:
+        if t >= self._next - 1e-9:
+            self.items.append((t, run.grid.copy()))
+            while self._next <= t + 1e-9:
                 self._next += self.every
 
 
@@ -106,6 +117,11 @@ class ReplayPlayer:
         self._blank = OccupancyGrid(g.geo, model=g.model, range_max=g.range_max)
         self.grid = self._blank.copy()
         self.i = 0                          # ticks integrated into `grid`
+        # a team's recording: robots 2, 3, ... (their ticks, how many are integrated, their paths in the replay)
+        self.team = bag.team[1:]
+        self._team_times = [[t.time for t in ticks] for ticks in self.team]
+        self.team_i = [0] * len(self.team)
+        self._team_paths = [m.metrics.path for m in getattr(run, "members", [])[1:]]
         self.seeks = 0
         self._seek: float | None = None
         self._lock = threading.Lock()
@@ -119,6 +135,7 @@ class ReplayPlayer:
         self._reset_sent()
 
     def _reset_sent(self) -> None:
+        self._team_sent: list[tuple[int, tuple[float, float] | None]] = [(0, None) for _ in self.team]
         self._path_sent = 0
         self._last_xy: tuple[float, float] | None = None
         self._curve_sent = 0
@@ -195,12 +212,20 @@ class ReplayPlayer:
                 self.hub.set_status(state="paused" if self.pacer.paused else "running")
 
     def _advance(self) -> None:
-        """Integrate the next tick's scan."""
+        """Integrate the next tick's scan (a team's: then the scans of its other robots at that tick, in the
+        robots' order, as the run took them)."""
         tick = self.ticks[self.i]
         if tick.scan is not None:
             self.grid.update(tick.pose, tick.scan)
             self._map_dirty = True
         self.i += 1
+        for j, ticks in enumerate(self.team):
+            while self.team_i[j] < len(ticks) and ticks[self.team_i[j]].time <= tick.time + 1e-9:
+                other = ticks[self.team_i[j]]
+                if other.scan is not None:
+                    self.grid.update(other.pose, other.scan)
+                    self._map_dirty = True
+                self.team_i[j] += 1
 
     def seek_to(self, t: float) -> None:
         """Show the recording at the last tick at or before robot time `t` [s]: the map rebuilt (from here
@@ -213,8 +238,10 @@ class ReplayPlayer:
                 ct, grid = self.checkpoints[c]
                 self.grid = grid.copy()
                 self.i = bisect.bisect_right(self.times, ct + 1e-9)
+                self.team_i = [bisect.bisect_right(times, ct + 1e-9) for times in self._team_times]
             else:
                 self.grid, self.i = self._blank.copy(), 0
+                self.team_i = [0] * len(self.team)
         while self.i <= k:
             self._advance()
         self.seeks += 1
@@ -240,6 +267,7 @@ class ReplayPlayer:
             else:
                 frame.laser = []
         frame.path = self._new_path()
+        frame.team = self._teammates() if self.team else None
         frame.curve = self._new_curve(t)
         frame.coverage = self._coverage
         frame.speedup = self._speed.update(t, now)
@@ -258,6 +286,20 @@ class ReplayPlayer:
         end = min(self.i, len(path))
         out, self._last_xy = new_path_points(path, self._path_sent, end, self._last_xy, self.run.grid.geo.cell / 2)
         self._path_sent = max(end, self._path_sent)
+        return out
+
+    def _teammates(self) -> list[tuple[tuple[float, float, float] | None, list[float]]]:
+        """A team's robots 2, 3, ... at the ticks integrated: each one's pose and new path points."""
+        out: list[tuple[tuple[float, float, float] | None, list[float]]] = []
+        for j, ticks in enumerate(self.team):
+            k = self.team_i[j]
+            p = ticks[k - 1].pose if k > 0 else None
+            path = self._team_paths[j] if j < len(self._team_paths) else []
+            sent, last = self._team_sent[j]
+            end = min(k, len(path))
+            points, last = new_path_points(path, sent, end, last, self.run.grid.geo.cell / 2)
+            self._team_sent[j] = (max(end, sent), last)
+            out.append((None if p is None else (p.x, p.y, p.theta), points))
         return out
 
     def _new_curve(self, t: float) -> list[float]:

@@ -4,6 +4,7 @@ the same record, and its frames, video and figure draw every robot."""
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from pathlib import Path
@@ -25,6 +26,8 @@ from robotexp.output.results import read_jsonl
 from robotexp.output.trajectory import read_path_csv
 from robotexp.output.video import FRAME_SIZE
 from robotexp.robot import Pose
+from robotexp.view.feed import ViewClient, ViewHub
+from robotexp.view.player import Checkpoints, ReplayPlayer
 
 # a closed 5 x 4 m room with a wall inside, as a MobileSim map (mm)
 ROOM = """2D-Map
@@ -171,3 +174,31 @@ def test_the_figure_of_a_team_recording_draws_every_path(team_bag, tmp_path):
     blue = np.all(np.abs(px - (31, 119, 180)) <= 40, axis=2) | np.all(np.abs(px - COLORS["path"]) <= 30, axis=2)
     orange = np.all(np.abs(px - (255, 127, 14)) <= 30, axis=2)        # robot 2: matplotlib's C1
     assert np.count_nonzero(blue) > 30 and np.count_nonzero(orange) > 30
+
+
+def test_the_player_shows_every_robot_and_seeks_to_the_replays_map(team_bag):
+    bag, record, _ = team_bag
+    data = read_bag(bag)
+    checkpoints = Checkpoints(2.0)
+    run = replay_bag(data, None, observers=(checkpoints,))
+    assert [round(t, 6) for t, _ in checkpoints.items] == [2.0, 4.0, 6.0, 8.0]     # a team's: at its samples
+    hub = ViewHub()
+    player = ReplayPlayer(hub, data, run, checkpoints, speed=None)
+    hub.start({"geo": {"rows": run.grid.geo.rows, "cols": run.grid.geo.cols}})
+    client = ViewClient()
+    robot2 = data.team[1]
+    for target in (8.0, 3.05, 0.0, 5.0, 8.0):       # to the end, back (from a checkpoint, from the start), ahead
+        player.seek_to(target)
+        k = bisect.bisect_right([t.time for t in robot2], target + 1e-9)
+        assert player.team_i == [k]
+        msg = hub.message_for(client)
+        p = robot2[k - 1].pose
+        (mate,) = msg["team"]
+        assert mate["pose"] == (p.x, p.y, p.theta) and mate["path_from"] == 0
+        # robot 2's path as the replay kept it, thinned to half a cell, up to that tick
+        sent = np.array(mate["path"]).reshape(-1, 2)
+        assert len(sent) >= 1 and np.allclose(sent[0], run.members[1].metrics.path[0], atol=1e-3)
+    # at the end the player's map is the replay's team map, cell for cell: every robot's scan of each tick,
+    # as the run mapped it (the recorded scans leave out the beams that ended on a teammate)
+    assert np.array_equal(player.grid.values, run.grid.values)
+    assert record["robots"][1]["end_pose"][:2] == pytest.approx([robot2[-1].pose.x, robot2[-1].pose.y], abs=1e-9)
