@@ -126,3 +126,20 @@ def test_a_team_obeys_the_sandbox_and_the_robot_number_is_checked(lua, room, tmp
         lua(code, name="s.lua", sandbox=True)
     (record,) = read_jsonl(lua.out / "results.jsonl")       # the team's run before the error is kept
     assert record["team_size"] == 3 and len(record["robots"]) == 3
+
+
+def test_the_example_team_script_runs(lua):
+    """scripts_lua/team.lua, its runs cut to 1 s of robot time: one robot, then teams of 2 and 4."""
+    script = Path(__file__).parents[2] / "scripts_lua" / "team.lua"
+    code = script.read_text().replace("exploration.setMaxTime(600000)", "exploration.setMaxTime(1000)")
+    assert code != script.read_text()
+    result = lua(code, name="team.lua", sandbox=True)
+    assert result.exit_code == 0
+    records = read_jsonl(lua.out / "results.jsonl")
+    assert [r.get("team_size") for r in records] == [None, 2, 4]
+    assert [r["coordinator"] for r in records[1:]] == ["burgard", "burgard"]
+    assert all(r["robot_time_s"] == pytest.approx(1.0) for r in records)
+    starts = [r["start_pose"][:2] for r in records]        # every run from the same start
+    assert starts == [pytest.approx([-5.0, 7.5])] * 3
+    assert sum(line.startswith("  robot ") for line in lua.lines) == 6
+    assert (lua.out / "team.png").stat().st_size > 10_000
