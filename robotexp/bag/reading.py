@@ -19,10 +19,9 @@ from typing import IO, Any
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import MAX_CELLS
-from robotexp.sim.team import MAX_TEAM
 
 __all__ = ["MAX_RECORD_BYTES", "MAX_CHUNK_BYTES", "MAX_MESSAGE_BYTES", "MAX_READ_BYTES", "MAX_POSITION", "TOPIC_TYPES",
-           "TEAM_TOPIC_TYPES", "Record", "read_records", "finite"]
+           "TEAM_TOPIC_TYPES", "MAX_ROBOTS", "Record", "read_records", "finite"]
 
 MAX_RECORD_BYTES = 128 * 2**20     # a record as stored (a compressed chunk, a message, a metadata record)
 MAX_CHUNK_BYTES = 128 * 2**20      # a chunk once decompressed
@@ -41,9 +40,12 @@ TOPIC_TYPES = {
     "/robotexp/scan": "robotexp_msgs/msg/ExactScan",
     "/robotexp/markers": "visualization_msgs/msg/MarkerArray",
 }
-# a team recording's topics: each robot's under its namespace, /robot_1 ... (`robotexp.bag.recorder`)
+# a team recording's topics: each robot's under its namespace, /robot_1 ... (`robotexp.bag.recorder`), for
+# as many robots as a team has at most (`robotexp.sim.team.MAX_TEAM`, not imported: it brings the simulator)
+MAX_ROBOTS = 64
 ROBOT_TOPICS = ("/odom", "/scan", "/ground_truth", "/tf_static", "/robotexp/scan")
-TEAM_TOPIC_TYPES = {f"/robot_{i}{topic}": TOPIC_TYPES[topic] for i in range(1, MAX_TEAM + 1) for topic in ROBOT_TOPICS}
+TEAM_TOPIC_TYPES = {f"/robot_{i}{topic}": TOPIC_TYPES[topic]
+                    for i in range(1, MAX_ROBOTS + 1) for topic in ROBOT_TOPICS}
 _MAPS = {"/ground_truth/map"}
 
 _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_METADATA, _OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0C, 0x02

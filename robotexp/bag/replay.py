@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from robotexp.bag.markers import markers_of
-from robotexp.bag.reading import (MAX_POSITION, TEAM_TOPIC_TYPES, TOPIC_TYPES, decode_errors, finite, read_records,
-                                  refuse)
+from robotexp.bag.reading import (MAX_POSITION, MAX_ROBOTS, TEAM_TOPIC_TYPES, TOPIC_TYPES, decode_errors, finite,
+                                  read_records, refuse)
 from robotexp.bag.recorder import yaw_of
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import ConfigError, WorldError
@@ -220,10 +220,8 @@ def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
 
 def _check_team(team: Any) -> None:
     """A team recording's `team` metadata: robot_1, robot_2, ... in order, each with its model and radius."""
-    from robotexp.sim.team import MAX_TEAM
-
-    if not isinstance(team, list) or not 1 <= len(team) <= MAX_TEAM:
-        raise ValueError(f"robotexp.run metadata: team is {str(team)[:60]}, expected a list of 1..{MAX_TEAM} robots")
+    if not isinstance(team, list) or not 1 <= len(team) <= MAX_ROBOTS:
+        raise ValueError(f"robotexp.run metadata: team is {str(team)[:60]}, expected a list of 1..{MAX_ROBOTS} robots")
     for i, m in enumerate(team, start=1):
         if not isinstance(m, dict) or m.get("namespace") != f"robot_{i}":
             raise ValueError(f"robotexp.run metadata: team robot {i} is {str(m)[:60]}, expected namespace robot_{i}")

@@ -202,3 +202,20 @@ def test_the_player_shows_every_robot_and_seeks_to_the_replays_map(team_bag):
     # as the run mapped it (the recorded scans leave out the beams that ended on a teammate)
     assert np.array_equal(player.grid.values, run.grid.values)
     assert record["robots"][1]["end_pose"][:2] == pytest.approx([robot2[-1].pose.x, robot2[-1].pose.y], abs=1e-9)
+
+
+def test_team_metadata_is_checked_and_every_robot_number_is_read():
+    from robotexp.bag.reading import MAX_ROBOTS, TEAM_TOPIC_TYPES
+    from robotexp.bag.replay import _check_meta
+    from robotexp.sim.team import MAX_TEAM
+
+    assert MAX_ROBOTS == MAX_TEAM and f"/robot_{MAX_TEAM}/odom" in TEAM_TOPIC_TYPES
+    good = {"namespace": "robot_1", "robot": "p3dx", "radius_m": 0.26, "start": [1.0, 1.0, 0.0]}
+    assert _check_meta({"team": [good]})["team"] == [good]
+    for team, words in (([], "expected a list of 1..64 robots"),
+                        ([dict(good, namespace="robot_2")], "team robot 1 is"),
+                        ([dict(good, radius_m=-1)], "radius_m is -1"),
+                        ([dict(good, robot=5)], "robot is 5"),
+                        ([good] * 65, "1..64 robots")):
+        with pytest.raises(ValueError, match=words):
+            _check_meta({"team": team})
