@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from robotexp.bag.replay import read_bag
 from robotexp.errors import ScriptError
 from robotexp.output.results import read_jsonl
 
@@ -34,6 +35,7 @@ exploration.setMaxTime(8000)
 team.setRobots("p3dx,kobuki")
 team.setCoordinator("greedy")
 team.setCommRange(2500)
+exploration.setRecordFolder("bags")
 local r = team.explore()
 local out = {size = r.team_size, coverage = r.coverage, coordinator = r.coordinator, comm = r.comm_range_m,
              robots = {}, results_size = exploration.results().team_size, path_mm = robot.pathLength()}
@@ -89,6 +91,10 @@ def test_a_script_drives_a_team_and_reads_its_record_and_paths(lua, room):
         assert mine["pose"] == pytest.approx([end[0] * 1000, end[1] * 1000, math.degrees(end[2])], abs=1e-3)
     a, b = got["robots"]
     assert math.dist(a["first"], b["first"]) >= 600        # spread apart at the start (footprints + 0.3 m)
+    # the script's record folder holds the team's recording: each robot under its namespace
+    bag = read_bag(lua.out / "bags" / f"{record['run']}.mcap")
+    assert [len(ticks) for ticks in bag.team] == [m["points"] for m in got["robots"]]
+    assert {"/robot_1/odom", "/robot_2/odom", "/robot_1/robotexp/scan", "/robot_2/robotexp/scan"} <= set(bag.topics)
 
 
 @pytest.mark.parametrize(("code", "message"), [
