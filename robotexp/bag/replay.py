@@ -541,7 +541,9 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
         name = safe_name(meta.get("run") or f"{world}_{method}_{pose}")    # the recording's word: one file name
     else:
         out.mkdir(parents=True, exist_ok=True)
-        name = run_id(world, method, pose, speed, int(meta.get("seed", 0)), out)
+        coordinator = rec.get("coordinator") if isinstance(rec.get("coordinator"), str) else "none"
+        label = f"{method}-team{len(bag.team)}-{coordinator}" if bag.team else method     # as the team's run
+        name = run_id(world, label, pose, speed, int(meta.get("seed", 0)), out)
     info = RunInfo(name=name, method=method, world=world, pose=pose, robot=meta.get("robot") or "replay",
                    max_speed=speed, laser_range=laser_range, extra=info_extra)
     chain: list[RunObserver] = [] if out is None else [ResultsWriter(out, image=image)]

@@ -118,13 +118,14 @@ def test_each_robot_is_recorded_under_its_namespace(team_bag):
     assert all(np.count_nonzero(m >= 0) <= np.count_nonzero(team_map >= 0) for m in own)
 
 
-def test_a_team_recording_replays_to_the_team_record(team_bag):
+def test_a_team_recording_replays_to_the_team_record(team_bag, tmp_path):
     bag, record, _ = team_bag
     data = read_bag(bag)
     assert [m["namespace"] for m in data.meta["team"]] == ["robot_1", "robot_2"]
     assert len(data.team) == 2 and data.ticks is data.team[0]
-    run = replay_bag(data, None)
+    run = replay_bag(data, tmp_path, image=False)
     r = run.record
+    assert r.run == record["run"] and (tmp_path / f"{r.run}.robot_2.path.csv").is_file()   # named as the run
     assert r.team_size == 2 and r.end.value == record["end"] and r.reason == record["reason"]
     assert r.coverage == pytest.approx(record["coverage"], abs=1e-9)
     assert r.robot_time_s == pytest.approx(record["robot_time_s"])

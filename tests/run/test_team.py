@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -205,3 +206,32 @@ def test_target_choosing_and_reactive_explorers_explore_as_a_team(method, coordi
                  world=make_room()).record
     assert r.coverage > 0.9 and r.robot == "p3dx,kobuki" and [x["robot"] for x in r.robots] == ["p3dx", "kobuki"]
     assert (r.coordinator_rounds or 0) > 0 if coordinator != "none" else r.coordinator_rounds is None
+
+
+def test_observers_see_every_robots_tick_in_the_robots_order():
+    from robotexp.run.observers import RunObserver
+
+    class Ticks(RunObserver):
+        def __init__(self):
+            self.seen, self.steps = [], 0
+
+        def on_step(self, run, step):           # a team has no single robot's tick
+            self.steps += 1
+
+        def on_robot_step(self, run, robot, step):
+            m = run.members[robot]
+            assert step.state is m.state and step.decision is m.decision
+            self.seen.append((step.time, robot, step.map_updated))
+
+    ticks = Ticks()
+    spec = RunSpec(world="conformance-room", method="frontier", max_time=3.0, laser_range=3.0)
+    out = run_team(spec, TeamSpec(robots=("p3dx", "kobuki"), coordinator="greedy"), None, image=False,
+                   world=make_room(), observers=[ticks])
+    assert ticks.steps == 0
+    per_robot = [[t for t, r, _ in ticks.seen if r == i] for i in (0, 1)]
+    # one call per tick and robot, as many as the points of its path; robot 1 first at each time
+    assert [len(p) for p in per_robot] == [len(p) for p in out.run.paths]
+    assert len(per_robot[0]) == 31 and 30 <= len(per_robot[1]) <= 31
+    assert all(b > a for p in per_robot for a, b in itertools.pairwise(p))
+    assert [r for _, r, _ in ticks.seen[:6]] == [0, 1, 0, 1, 0, 1]
+    assert all(m for _, _, m in ticks.seen[:2])                     # the first scans go into the map
