@@ -394,6 +394,8 @@ class TeamRun(ExplorationRun):
                 "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
                 "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),
             }
+            if m.robot.address is not None:      # a robot over its driver
+                fields["address"] = str(m.robot.address)
             if self.exchange is not None:
                 fields["scans_received"] = int(self.exchange.received[i])
             try:
@@ -433,6 +435,9 @@ class TeamSpec:
     coordinator_params: dict[str, Any] = field(default_factory=dict)
     comm_range: float | None = None              # [m] (None: one shared map)
     poses: tuple[str, ...] = ()                  # start poses, one per robot (names or x,y,theta in mm); () spread
+    # robots over their drivers, BACKEND:ADDRESS[+LASER:ADDRESS] each (`robotexp.run.teamrobots`; `robots`
+    # are then their backends); () simulated robots
+    members: tuple[str, ...] = ()
 
     def validate(self) -> None:
         """Raise ConfigError on a team that cannot be run."""
@@ -441,7 +446,9 @@ class TeamSpec:
 
         if not 1 <= len(self.robots) <= MAX_TEAM:
             raise ConfigError(f"--team: a team has 1..{MAX_TEAM} robots, got {len(self.robots)}")
-        for name in self.robots:
+        if self.members and len(self.members) != len(self.robots):
+            raise ConfigError(f"--team: {len(self.members)} addresses for {len(self.robots)} robots")
+        for name in () if self.members else self.robots:
             preset(name)
         if self.comm_range is not None and not (math.isfinite(self.comm_range) and self.comm_range > 0):
             raise ConfigError(f"--comm-range must be > 0 mm, got {self.comm_range * 1000:g} mm")
