@@ -53,6 +53,8 @@ class SimTeam:
                               "choose a world without them")
         self.robots = list(robots)
         self.time = 0.0
+        n = len(self.robots)
+        self._others = [np.array([j for j in range(n) if j != i], np.intp) for i in range(n)]   # rows of the peers
         self._sync()
 
     def _discs(self) -> npt.NDArray[np.float64]:
@@ -63,19 +65,20 @@ class SimTeam:
         """Tell every robot where the others stand."""
         discs = self._discs()
         for i, robot in enumerate(self.robots):
-            robot.engine.set_peers(np.delete(discs, i, axis=0))
+            robot.engine.set_peers(discs[self._others[i]])
 
     def advance(self, dt: float) -> None:
         """Advance every robot by `dt` [s], in order, each against the others where they stand."""
         discs = self._discs()
+        others = self._others
         for i, robot in enumerate(self.robots):
             if i:           # robot 0's peers are where the last tick left them (set at its end)
-                robot.engine.set_peers(np.delete(discs, i, axis=0))
+                robot.engine.set_peers(discs[others[i]])
             robot.advance(dt)
             p = robot.true_pose
             discs[i, 0], discs[i, 1] = p.x, p.y
         for i, robot in enumerate(self.robots):
-            robot.engine.set_peers(np.delete(discs, i, axis=0))
+            robot.engine.set_peers(discs[others[i]])
         self.time += dt
 
     def make_clock(self, period: float) -> Clock:

@@ -205,3 +205,20 @@ def test_target_choosing_and_reactive_explorers_explore_as_a_team(method, coordi
                  world=make_room()).record
     assert r.coverage > 0.9 and r.robot == "p3dx,kobuki" and [x["robot"] for x in r.robots] == ["p3dx", "kobuki"]
     assert (r.coordinator_rounds or 0) > 0 if coordinator != "none" else r.coordinator_rounds is None
+
+
+def test_held_targets_are_label_cells_of_every_target():
+    from robotexp.coordinator import Candidates
+    from robotexp.planning.team import label_cells
+    from robotexp.run.team import held_targets
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        k = int(rng.integers(1, 6))
+        cells = tuple(rng.integers(0, 12, (int(rng.integers(1, 9)), 2)) for _ in range(k))
+        cand = Candidates(points=np.zeros((k, 2)), cells=cells, cost=np.zeros((2, k)), positions=np.zeros((2, 2)))
+        targets = [None, np.zeros((0, 2), np.int64)] + [rng.integers(-2, 14, (int(rng.integers(1, 9)), 2))
+                                                         for _ in range(4)]
+        assert held_targets(cand, targets) == [None if t is None else label_cells(cand, t) for t in targets]
+    empty = Candidates(points=np.zeros((0, 2)), cells=(), cost=np.zeros((1, 0)), positions=np.zeros((1, 2)))
+    assert held_targets(empty, [np.ones((1, 2), np.int64)]) == [None]
