@@ -20,8 +20,13 @@ from click.testing import CliRunner
 
 from robotexp.cli import main
 from robotexp.errors import ConfigError
+from robotexp.experiment import run_team_on_robots
 from robotexp.robot import Twist
-from robotexp.run.teamrobots import emulate_team, parse_emulated, parse_members, team_starts
+from robotexp.run.observers import RunObserver
+from robotexp.run.record import EndReason
+from robotexp.run.spec import RunSpec
+from robotexp.run.team import TeamSpec
+from robotexp.run.teamrobots import connect_team, emulate_team, parse_emulated, parse_members, team_starts
 from robotexp.world.builtin import builtin_world
 from robotexp_drivers.kobuki.codec import BaseControl
 from robotexp_drivers.p3dx.robot import P3DXRobot
@@ -97,6 +102,26 @@ def test_emulated_robots_see_each_other_and_collide(emulated: dict[str, Any]) ->
         robot.command(Twist.ZERO)
         gap = math.dist((p1.sim.true_pose.x, p1.sim.true_pose.y), (b.x, b.y)) - p1.sim.radius - p2.sim.radius
         assert p1.sim.robot_collisions == 1 and 0.0 <= gap < 0.02
+
+
+def test_a_robot_lost_mid_run_ends_the_team_run_and_every_robot_stops(emulated: dict[str, Any]) -> None:
+    p1, p2, kobuki, lidar = (emulated[k] for k in ("robot 1", "robot 2", "robot 3", "laser 3"))
+    members = parse_members(f"p3dx:{p1.address},p3dx:{p2.address},kobuki:{kobuki.address}+rplidar:{lidar.address}")
+
+    class Vanish(RunObserver):
+        def on_sample(self, run: Any, t: float, coverage: float | None) -> None:
+            if t >= 2.0:
+                p2.vanish()             # robot 2's simulator crashes: its link goes silent and closes
+    robots = connect_team(members)
+    try:
+        spec = RunSpec(world="ufmg-static", method="frontier", max_time=30.0, localize="none")
+        team = TeamSpec(robots=("p3dx", "p3dx", "kobuki"), members=tuple(m.text for m in members))
+        out = run_team_on_robots(spec, team, robots, None, "ufmg-static", observers=[Vanish()], image=False)
+        assert out.record.end is EndReason.ROBOT_ERROR and out.record.robot_time_s < 10.0, out.record.reason
+        assert _wait(lambda: p1.commanded == (0, 0) and kobuki.last_base_control == BaseControl(0, 0))
+    finally:
+        for robot in robots:
+            robot.close()
 
 
 def test_both_sides_place_the_team_alike() -> None:
