@@ -221,7 +221,7 @@ def emulate_team(members: Sequence[EmulatedMember], world: str, *, pose: str | N
         ConfigError, PluginError, WorldError: bad names, options, world or poses. OSError: a port taken.
     """
     from robotexp.laser import LASER_EMULATORS
-    from robotexp.registry import EMULATORS, available, make_emulator
+    from robotexp.registry import EMULATORS, available, load, make_emulator
     from robotexp.run.laser_mount import _serve_laser, parse_laser_pose
     from robotexp.sim import SharedWorld, mounted_source
     from robotexp.sim.team import MAX_TEAM
@@ -239,7 +239,6 @@ def emulate_team(members: Sequence[EmulatedMember], world: str, *, pose: str | N
             raise ConfigError(f"robot {n}: no laser emulator {m.laser!r}; available: {', '.join(sorted(lasers))}")
     mount = parse_laser_pose(laser_pose) if laser_pose is not None else Pose(0.0, 0.0, 0.0)
     w = load_world(world)
-    from robotexp.registry import load
     radii = [float(getattr(load(EMULATORS, m.backend, object), "radius", 0.0)) for m in members]
     starts = team_starts(w, pose, radii, poses)
     shared = SharedWorld()
