@@ -65,13 +65,11 @@ def test_an_emulated_team_explores_one_world_through_the_drivers(tmp_path: Path,
     assert [r["robot"] for r in robots] == ["p3dx", "p3dx", "kobuki"]
     assert [r["address"] for r in robots] == [p1.address, p2.address, kobuki.address]
     # one frame: each robot was told it stands where the emulator put it (spread from path1, to the 1 mm of the
-    # protocol), and where each says it ended is where its simulator has it: the emulators run on at 10x
-    # while the client thinks (0.1 s of wall time is 1 s of robot time: up to 4 cm and 0.8 rad apart, measured)
-    # and the robots brake from there after the end
-    for r, start, device in zip(robots, starts, (p1, p2, kobuki), strict=True):
+    # protocol). Where each ends is not compared: the emulators run on at 10x while the client thinks (0.1 s of
+    # wall time is a second of robot time) and until the stop reaches them, so a loaded machine parts the last
+    # pose read from the simulator's by tens of centimetres
+    for r, start in zip(robots, starts, strict=True):
         assert math.dist(r["start_pose"][:2], (start.x, start.y)) < 2e-3
-        end = device.sim.true_pose
-        assert math.dist(r["end_pose"][:2], (end.x, end.y)) < 0.3
         assert r["path_length_m"] > 0.25
     # every robot explores: the team's map covers what no single start sees, measured on the world's truth
     assert record["coverage"] > 0.15 and record["robot_time_s"] == pytest.approx(20.0, abs=0.2)
