@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import weakref
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -21,6 +22,9 @@ __all__ = ["FrontierExplorer"]
 
 GIVE_UP_REACH = 2.0     # [m] frontier given up around the goal and the robot when the run's stall watch strikes
 WINDOW_MARGIN = 2       # [cells] kept around the scanned part of the map, where every plan is made
+# the plan costs of each map, by (id of the map, robot radius, clearance), as long as an explorer plans with them:
+# the explorers of a team on one map keep them once
+_SHARED_COSTS: weakref.WeakValueDictionary[tuple[int, float, float], PlanCosts] = weakref.WeakValueDictionary()
 Offset = tuple[int, int]
 
 class FrontierExplorer(Explorer):
@@ -103,9 +107,9 @@ class FrontierExplorer(Explorer):
         self.reach = 0.0            # [cells] from the goal to the frontier cells it serves
         self._now = 0.0
         self._pose_xy = (ctx.start.x, ctx.start.y)
-        self.costs = PlanCosts(ctx.radius, self.clearance)    # plan_costs, updated where the scans changed the map
         self._targets: tuple[object, npt.NDArray[np.bool_]] | None = None   # the last _frontier_targets
         self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
+        self.costs: PlanCosts | None = None           # plan_costs, updated where the scans changed the map
         self.assigned: npt.NDArray[np.int64] | None = None    # a team coordinator's target cells
 
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
@@ -113,7 +117,7 @@ class FrontierExplorer(Explorer):
         goal is kept only while its frontier cells are still frontier in the rebuilt map)."""
         self.walls_seen = None
         self._targets = None
-        self.costs = PlanCosts(self.ctx.radius, self.clearance)
+        _SHARED_COSTS.pop((id(grid), self.ctx.radius, self.clearance), None)
         self.next_plan = -math.inf
 
     def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
@@ -312,7 +316,17 @@ class FrontierExplorer(Explorer):
     def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
         """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
         rows, cols = view.shape
-        return self.costs.update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        return self._plan_costs(grid).update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+
+    def _plan_costs(self, grid: OccupancyGrid) -> PlanCosts:
+        """The `PlanCosts` of `grid` for this robot's radius and clearance, one for every explorer that plans on
+        that grid with them (a team sharing one map: the costs are a function of the map alone, bit for bit)."""
+        key = (id(grid), self.ctx.radius, self.clearance)
+        costs = _SHARED_COSTS.get(key)
+        if costs is None:
+            costs = _SHARED_COSTS[key] = PlanCosts(self.ctx.radius, self.clearance)
+        self.costs = costs          # kept while this explorer plans with it
+        return costs
 
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
         """The cells ever firmly occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""

@@ -6,7 +6,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
-__all__ = ["Clock", "SimClock", "WallClock", "PacedClock"]
+__all__ = ["Clock", "SimClock", "WallClock", "PacedClock", "TeamClock"]
 
 
 class Clock(ABC):
@@ -87,3 +87,26 @@ class PacedClock(Clock):
 
     def tick(self) -> None:
         self._time = self._wait_until(self._time + self.period)
+
+
+class TeamClock(Clock):
+    """The clock of a team of robots with clocks of their own (robots over their drivers): a tick lets one
+    `period` pass on every robot's clock, in turn (each waits for its own robot's time), so no robot is
+    read before its time has moved on by a period; `now()` is the first robot's.
+
+    Args:
+        clocks: one clock per robot (`Robot.make_clock(period)`), of the same period.
+    """
+
+    def __init__(self, clocks: list[Clock]) -> None:
+        if not clocks:
+            raise ValueError("a team clock needs one clock per robot")
+        super().__init__(clocks[0].period)
+        self.clocks = list(clocks)
+
+    def now(self) -> float:
+        return self.clocks[0].now()
+
+    def tick(self) -> None:
+        for clock in self.clocks:
+            clock.tick()

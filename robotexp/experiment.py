@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from robotexp.run.team import TeamSpec
     from robotexp.sim import SimRobot
 
-__all__ = ["RunOutput", "run_experiment", "run_on_robot", "run_team", "warm_kernels"]
+__all__ = ["RunOutput", "run_experiment", "run_on_robot", "run_team", "run_team_on_robots", "warm_kernels"]
 
 log = logging.getLogger(__name__)
 
@@ -332,3 +332,89 @@ def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]
             robot.close()
         raise
     return robots
+
+
+def run_team_on_robots(spec: RunSpec, team: TeamSpec, robots: list[Robot], out: Path | None,  # noqa: PLR0913
+                       world: World | str | None = None, *, observers: Iterable[RunObserver] = (),
+                       show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
+                       record_extra: dict[str, Any] | None = None, map_size: float = 20.0) -> RunOutput:
+    """Run `spec`'s explorer on a team of open robots (over their drivers: `robotexp.run.teamrobots`) and write
+    one record for the team under `out` (nothing when `out` is None), as `run_team` does for simulated ones.
+
+    Each robot is told where it starts (`Robot.move_to`): in `world` at `robotexp.run.teamrobots.team_starts`
+    (`team.poses`, else spread from `spec.pose`, as `robotexp emulate p3dx,p3dx,kobuki` places them), and the
+    world is ground truth for coverage; without one at `team.poses` (needed then), on a map covering
+    `spec.map_bounds`, else a square of `map_size` [m] around them, and coverage is unknown. The team's clock
+    is the robots' own (`robotexp.clock.TeamClock`). The robots are stopped at the end, not closed.
+
+    Raises:
+        WorldError, PluginError, ConfigError: bad input, before the robots move.
+        RobotError: a robot fails before the run starts (during the run it ends the run).
+        PluginError: an explorer failed during the run (the record is written first).
+        OSError: the results could not be written.
+    """
+    from robotexp.clock import TeamClock
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.registry import make_coordinator
+    from robotexp.run.team import TeamRun
+    from robotexp.run.teamrobots import team_starts
+    from robotexp.world.poses import parse_pose
+
+    spec.validate()
+    team.validate()
+    if spec.odometry != "none" or spec.localize not in ("auto", "none"):
+        raise ConfigError("--team: teams run with the robots' odometry and no localizer for now; leave out "
+                          "--odometry-error and --localize")
+    if len(robots) != len(team.robots):
+        raise ConfigError(f"team: {len(robots)} robots for {len(team.robots)} names")
+    radii = [r.radius for r in robots]
+    truth = area = None
+    if world is not None:
+        plan = plan_run(spec, world, max(radii))
+        explorer0, geo, truth, area = plan.explorer, plan.geo, plan.truth, plan.area
+        world_name, pose_label = plan.world.name, plan.pose_label
+        starts = team_starts(plan.world, spec.pose, radii, team.poses)
+    else:
+        if not team.poses:
+            raise ConfigError("--team: robots without --world need --team-poses (where each one stands, in one frame)")
+        explorer0 = make_explorer(spec.method, spec.params)
+        starts = [parse_pose(p) for p in team.poses]
+        cell = spec.cell or explorer0.preferred_cell or DEFAULT_CELL
+        half = map_size / 2
+        xs, ys = [p.x for p in starts], [p.y for p in starts]
+        geo = GridGeometry.covering(*(spec.map_bounds or (min(xs) - half, min(ys) - half, max(xs) + half,
+                                                          max(ys) + half)), cell=cell)
+        world_name, pose_label = "robots", "robots"
+    coordinator = make_coordinator(team.coordinator, team.coordinator_params)
+    if coordinator.assigns_targets and not explorer0.takes_targets:
+        raise ConfigError(f"--coordinator {team.coordinator} assigns frontier targets, and method {spec.method!r} "
+                          "does not take targets (reactive explorers run with --coordinator none)")
+    explorers = [explorer0] + [make_explorer(spec.method, spec.params) for _ in robots[1:]]
+    warm_kernels(spec, robots[0])
+    for robot, start in zip(robots, starts, strict=True):
+        robot.move_to(start)
+        robot.set_max_speed(spec.speed)
+    model, rmax = explorer0.grid_model, spec.laser_range
+    grid = OccupancyGrid(geo, model=model, range_max=rmax)
+    grids = [grid] * len(robots) if team.comm_range is None else \
+        [OccupancyGrid(geo, model=model, range_max=rmax) for _ in robots]
+    label = f"{spec.method}-team{len(robots)}-{team.coordinator}"
+    if out is None:
+        name = f"{world_name}_{label}_{pose_label}"
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        name = run_id(world_name, label, pose_label, spec.speed, spec.seed, out)
+    models = [r.model for r in robots]
+    info = RunInfo(name=name, method=spec.method, world=world_name, pose=pose_label,
+                   robot=",".join(models) if len(set(models)) > 1 else models[0], max_speed=spec.speed,
+                   laser_range=spec.laser_range, extra=dict(record_extra or {}))
+    writer = None if out is None else ResultsWriter(out, image=image, show=show)
+    chain: list[RunObserver] = [] if writer is None else [writer]
+    chain.extend(observers)
+    run = TeamRun(robots, explorers, grids, TeamClock([r.make_clock(0.1) for r in robots]),
+                  coordinator=coordinator, comm_range=team.comm_range,
+                  grid=grid if team.comm_range is not None else None, truth=truth, max_time=spec.max_time,
+                  seed=spec.seed, info=info, observers=chain, area=area)
+    run.coordinator_name = team.coordinator
+    run.run()
+    return _outcome(run, writer)

@@ -26,7 +26,8 @@ from robotexp.errors import ConfigError, PluginError
 if TYPE_CHECKING:
     from robotexp.coordinator import Coordinator
     from robotexp.explorer import Explorer
-    from robotexp.robot import Robot, RobotEmulator
+    from robotexp.robot import Pose, Robot, RobotEmulator
+    from robotexp.world.model import World
 
 __all__ = ["PluginInfo", "ROBOTS", "EXPLORERS", "EMULATORS", "available", "load", "lua_name",
            "make_explorer", "make_coordinator", "connect_robot", "make_emulator", "COORDINATORS"]
@@ -287,9 +288,10 @@ def connect_robot(backend: str, address: str, **options: Any) -> Robot:
     return cls(address, **options)
 
 
-def make_emulator(backend: str, world: str, *, pose: str | None = None, port: int | None = None,
+def make_emulator(backend: str, world: str | World, *, pose: str | Pose | None = None, port: int | None = None,
                   pty: bool = False, speedup: float = 1.0, **options: Any) -> RobotEmulator:
-    """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world`.
+    """The emulator of robot `backend` (entry-point group `robotexp.emulators`) serving `world` (a name, a
+    map path or a loaded world) from `pose` (a name, x,y,theta in mm, mm, deg, or a `Pose`).
 
     The emulator is not started: call its `start()` (and `close()`); `address` tells where it is.
     `options` (given, not None) must be named in the emulator class's `options` (mavlink: `udp`,
@@ -300,6 +302,7 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
         WorldError: unknown world or a start pose in an obstacle.
         ConfigError: a parameter out of range, or an option the emulator does not take.
     """
+    from robotexp.robot import Pose
     from robotexp.world.loader import load_world
     from robotexp.world.poses import resolve_pose
 
@@ -317,8 +320,8 @@ def make_emulator(backend: str, world: str, *, pose: str | None = None, port: in
             flag = "--odometry-error" if key == "odometry" else f"--{key.replace('_', '-')}"
             raise ConfigError(f"{flag} is not an option of the {backend!r} emulator "
                               f"(its options: {', '.join(sorted(accepted)) or 'none'})")
-    w = load_world(world)
-    start, _ = resolve_pose(w, pose, float(radius))
+    w = load_world(world) if isinstance(world, str) else world
+    start = pose if isinstance(pose, Pose) else resolve_pose(w, pose, float(radius))[0]
     kwargs: dict[str, Any] = {"pose": start, "pty": pty, "speedup": speedup, **given}
     if port is not None:
         kwargs["port"] = port

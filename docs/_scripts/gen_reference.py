@@ -83,7 +83,8 @@ RESULT_KEYS = {
     "coordinator_rounds": "team runs only: the coordinator's rounds that assigned targets (null: coordinator `none`)",
     "robots": "team runs only: one object per robot: `robot`, `start_pose`, `end_pose`, `path_length_m`, "
               "`collisions`, `robot_collisions`, `idle_time_s`, `give_way_s`, `end`, `reason`, `cells_seen`, "
-              "`scans_received` (with a communication range) and the explorer's own keys",
+              "`scans_received` (with a communication range), `address` (a robot over its driver) and the "
+              "explorer's own keys",
 }
 
 

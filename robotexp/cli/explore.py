@@ -18,6 +18,8 @@ from robotexp.run.record import EndReason
 from robotexp.view.live import end_view, start_view, view_options
 
 if TYPE_CHECKING:
+    from robotexp.experiment import RunOutput
+    from robotexp.run.spec import RunSpec
     from robotexp.run.team import TeamSpec
 
 __all__ = ["explore"]
@@ -64,9 +66,10 @@ __all__ = ["explore"]
 @click.option("--frame-every", type=float, default=1.0, show_default=True, help="Robot time between frames [s].")
 @click.option("--image-format", "image_format", default="png", show_default=True,
               help="Formats of the run's map and coverage figures, comma-separated: png, svg, pdf.")
-@click.option("--team", default=None, metavar="N|PRESET,...",
-              help="Explore with a team of simulated robots: N robots of --robot, or a list of presets "
-                   "(p3dx,p3dx,kobuki); one record for the team.")
+@click.option("--team", default=None, metavar="N|PRESET,...|BACKEND:ADDRESS,...",
+              help="Explore with a team: N simulated robots of --robot, a list of presets (p3dx,p3dx,kobuki), or "
+                   "robots over their drivers, BACKEND:ADDRESS[+LASER:ADDRESS] each (p3dx:127.0.0.1:8101,"
+                   "kobuki:/dev/ttyUSB0+rplidar:/dev/ttyUSB1); one record for the team.")
 @click.option("--team-poses", default=None, metavar="POSE;POSE;...",
               help="With --team: each robot's start pose (names or x,y,theta in mm, mm, deg), ';'-separated "
                    "(default: spread from --pose).")
@@ -99,10 +102,15 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         return
     hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
 
-    if (laser is not None or laser_pose is not None) and address is None:
-        raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address; the embedded "
-                          "simulator has its own")
-    check_laser_options(laser, laser_pose)
+    robot_team = team is not None and _robot_team(team)
+    if (laser is not None or (laser_pose is not None and not robot_team)) and address is None:
+        raise ConfigError("--laser and --laser-pose attach a laser to a robot at --address (a team's robots: "
+                          "BACKEND:ADDRESS+LASER:ADDRESS in --team); the embedded simulator has its own")
+    check_laser_options(laser, None if robot_team else laser_pose)
+    if robot_team and laser_pose is not None:
+        from robotexp.run.laser_mount import parse_laser_pose
+
+        parse_laser_pose(laser_pose)
     overlays = tuple(s for s in show.split(",") if s)
     formats = image_formats(image_format)
     unknown = set(overlays) - {"grid", "laser", "vectors", "potential"}
@@ -136,7 +144,9 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
         watchers.append(recorder)
     try:
         with compile_watch():       # the first run after an install: numba compiles, said as it happens
-            if team_spec is not None:
+            if team_spec is not None and team_spec.members:
+                result = _explore_robot_team(spec, team_spec, out, world, laser_pose, watchers, overlays, formats)
+            elif team_spec is not None:
                 from robotexp.experiment import run_team
 
                 result = run_team(spec, team_spec, out, observers=watchers, show=overlays, image=formats)
@@ -196,12 +206,59 @@ def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinato
             raise ConfigError(f"--{team_only[0].replace('_', '-')} needs --team")
         return None
     if address is not None:
-        raise ConfigError("--team runs on the embedded simulator; leave out --address")
-    spec = TeamSpec(robots=parse_team(team, robot), coordinator=coordinator,
+        raise ConfigError("--team takes the robots' addresses itself (--team p3dx:HOST:PORT,kobuki:/dev/ttyUSB0); "
+                          "leave out --address")
+    members: tuple[str, ...] = ()
+    if _robot_team(team):
+        from robotexp.run.teamrobots import check_members, parse_members
+
+        if any(r not in (None, False) for r in recorders):
+            raise ConfigError("--team over robots' addresses: --record, --frames and --view show simulated teams "
+                              "only; leave them out")
+        parsed = parse_members(team)
+        check_members(parsed)
+        members, names = tuple(m.text for m in parsed), tuple(m.backend for m in parsed)
+    else:
+        names = parse_team(team, robot)
+    spec = TeamSpec(robots=names, coordinator=coordinator, members=members,
                     coordinator_params=params(coordinator_param), comm_range=mm(comm_range, "--comm-range"),
                     poses=tuple(p.strip() for p in poses.split(";") if p.strip()) if poses else ())
     spec.validate()
+    if members and not spec.poses and source("world") == click.core.ParameterSource.DEFAULT:
+        raise ConfigError("--team: robots over their drivers need --world (ground truth and where they start, as "
+                          "`robotexp emulate` placed them) or --team-poses (where each one stands)")
     return spec
+
+
+def _robot_team(team: str) -> bool:
+    from robotexp.run.teamrobots import is_address_team
+
+    return is_address_team(team)
+
+
+def _explore_robot_team(spec: RunSpec, team: TeamSpec, out: Path, world: str,  # noqa: PLR0913
+                        laser_pose: str | None, watchers: list[RunObserver], overlays: tuple[str, ...],
+                        formats: tuple[str, ...]) -> RunOutput:
+    """`explore --team BACKEND:ADDRESS,...`: connect the robots (each stopped and closed whatever way the run
+    ends) and run the team on them; the world, when given, is ground truth and says where they start."""
+    from dataclasses import replace
+
+    from robotexp.experiment import run_team_on_robots
+    from robotexp.run.teamrobots import connect_team, parse_members
+
+    if spec.localize in ("scan-match", "slam"):
+        raise ConfigError("--team: teams run on the robots' odometry, with no localizer for now; leave out --localize")
+    given = click.get_current_context().get_parameter_source("world")
+    truth_world = None if given == click.core.ParameterSource.DEFAULT else world
+    robots = connect_team(parse_members(",".join(team.members)), laser_pose)
+    click.echo(f"robotexp: connected {len(robots)} robots: "
+               + ", ".join(f"{r.model} at {r.address}" for r in robots), err=True)
+    try:
+        return run_team_on_robots(replace(spec, localize="none"), team, robots, out, truth_world, observers=watchers,
+                                  show=overlays, image=formats)
+    finally:
+        for robot in reversed(robots):
+            robot.close()            # stops it first
 
 
 def _pose_hint(text: str | None) -> str | None:

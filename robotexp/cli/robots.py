@@ -29,21 +29,42 @@ __all__ = ["emulate", "connect"]
 @click.option("--odometry-error", default="none", show_default=True,
               help="Odometry error of the emulated robot's encoders, as explore's --odometry-error: none, p3dx, "
                    "kobuki, or key=value,... (the robot reports drifting odometry; its laser sees the truth).")
+@click.option("--team-poses", default=None, metavar="POSE;POSE;...",
+              help="A team (BACKEND a list): each robot's start pose (names or x,y,theta in mm, mm, deg), "
+                   "';'-separated (default: spread from --pose, as explore --team spreads them).")
 @handle_errors
-def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,
-            udp: str | None, laser: str | None, laser_pose: str | None, odometry_error: str) -> None:
+def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: bool, speedup: float,  # noqa: PLR0913
+            udp: str | None, laser: str | None, laser_pose: str | None, odometry_error: str,
+            team_poses: str | None) -> None:
     """Serve the simulated robot of a world over BACKEND's protocol (p3dx: replaces MobileSim), or
-    a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world."""
+    a laser (BACKEND rplidar, hokuyo, lms2xx) on a still robot of the world.
+
+    BACKEND a list (p3dx,p3dx,kobuki+rplidar:pty) serves a team in one world, where the robots see and touch
+    each other: robot i on TCP port --port + i - 1 (default 8101 + i - 1, as MobileSim; 0: free ports) or, with
+    :pty (or --pty), on a pseudo-terminal, with its laser (+NAME) beside it; it prints the --team value of
+    `robotexp explore` that drives them."""
     import time
 
     from robotexp.run.laser_mount import emulate_devices
 
     odometry = None if odometry_error.strip().lower() in ("", "none") else odometry_error
-    devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
-                              laser=laser, laser_pose=laser_pose, odometry=odometry)
+    team = "," in backend or ":" in backend or "+" in backend
+    if team_poses is not None and not team:
+        raise ConfigError("--team-poses places the robots of a team (BACKEND a list: p3dx,p3dx,kobuki)")
+    if team:
+        devices = _emulate_team(backend, world, pose, team_poses, port, pty, speedup, udp, laser, laser_pose,
+                                odometry)
+    else:
+        devices = emulate_devices(backend, world, pose=pose, port=port, pty=pty, speedup=speedup, udp=udp,
+                                  laser=laser, laser_pose=laser_pose, odometry=odometry)
     try:
         served = [(label, device) for label, device in devices if label != "simulator"]
-        if [label for label, _ in served] == ["robot"]:
+        if team:
+            for label, device in served:
+                click.echo(f"{label}: {device.address}")
+            click.echo(f"explore with: --world {world} --team {_team_value(backend, pty, devices)}")
+            click.echo(f"world {world!r}, speedup {speedup:g}; Ctrl-C stops", err=True)
+        elif [label for label, _ in served] == ["robot"]:
             click.echo(f"{backend} emulator of world {world!r} at {served[0][1].address} (speedup {speedup:g}); "
                        "Ctrl-C stops")
         else:
@@ -57,6 +78,33 @@ def emulate(backend: str, world: str, pose: str | None, port: int | None, pty: b
     finally:
         for _, device in reversed(devices):
             device.close()
+
+
+def _emulate_team(backend: str, world: str, pose: str | None, poses: str | None, port: int | None,  # noqa: PLR0913
+                  pty: bool, speedup: float, udp: str | None, laser: str | None, laser_pose: str | None,
+                  odometry: str | None) -> list[tuple[str, Any]]:
+    """The emulators of `robotexp emulate p3dx,p3dx,kobuki`, started (`robotexp.run.teamrobots.emulate_team`)."""
+    from robotexp.run.teamrobots import emulate_team, parse_emulated
+
+    if laser is not None or udp is not None:
+        raise ConfigError("a team's lasers are named per robot (p3dx,kobuki+rplidar); --laser and --udp serve one "
+                          "robot")
+    members = parse_emulated(backend, pty)
+    return emulate_team(members, world, pose=pose, poses=tuple(p.strip() for p in poses.split(";") if p.strip())
+                        if poses else (), port=port, speedup=speedup, laser_pose=laser_pose, odometry=odometry)
+
+
+def _team_value(backend: str, pty: bool, devices: list[tuple[str, Any]]) -> str:
+    """The `robotexp explore --team` value that drives the emulated team of `devices`."""
+    from robotexp.run.teamrobots import parse_emulated
+
+    members = parse_emulated(backend, pty)
+    where = dict((label, device.address) for label, device in devices)
+    items = []
+    for n, m in enumerate(members, start=1):
+        laser = "" if m.laser is None else f"+{m.laser}:{where[f'laser {n}']}"
+        items.append(f"{m.backend}:{where[f'robot {n}']}{laser}")
+    return ",".join(items)
 
 
 def _status_line(state: Any) -> str:

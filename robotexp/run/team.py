@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.coordinator import Coordinator, TeamContext
+from robotexp.coordinator import Candidates, Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
 from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
@@ -250,23 +250,25 @@ class TeamRun(ExplorationRun):
         scan = state.laser
         assert scan is not None
         p = state.pose
-        others = [m.state.true_pose or m.state.pose for j, m in enumerate(self.members)
-                  if j != robot and m.state is not None]
-        if not others:
-            return scan
-        radii = np.array([m.robot.radius for j, m in enumerate(self.members) if j != robot and m.state is not None])
-        xy = np.array([(q.x, q.y) for q in others])
         sx = p.x + scan.offset_x * math.cos(p.theta)
         sy = p.y + scan.offset_x * math.sin(p.theta)
-        near = np.hypot(xy[:, 0] - sx, xy[:, 1] - sy) <= radii + TEAMMATE_MARGIN + scan.range_max
-        if not near.any():
+        # only teammates a beam can end on (a hair of slack: the beams' own test below decides)
+        reach = TEAMMATE_MARGIN + scan.range_max + 1e-6
+        near = []
+        for j, m in enumerate(self.members):
+            if j == robot or m.state is None:
+                continue
+            q = m.state.true_pose or m.state.pose
+            r = m.robot.radius
+            if math.hypot(q.x - sx, q.y - sy) <= r + reach:
+                near.append((q.x, q.y, r))
+        if not near:
             return scan
         hit = np.isfinite(scan.ranges)
         ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
         ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
-        on = np.zeros(len(scan.ranges), bool)
-        for (x, y), r in zip(xy[near], radii[near], strict=True):
-            on |= hit & (np.hypot(ex - x, ey - y) <= r + TEAMMATE_MARGIN)
+        at = np.array(near)
+        on = hit & (np.hypot(ex[:, None] - at[:, 0], ey[:, None] - at[:, 1]) <= at[:, 2] + TEAMMATE_MARGIN).any(axis=1)
         if not on.any():
             return scan
         return replace(scan, ranges=np.where(on, np.nan, scan.ranges))
@@ -337,7 +339,7 @@ class TeamRun(ExplorationRun):
             return
         self._next_round = self.robot_time + COORDINATION_PERIOD
         from robotexp.planning.targets import PlanCosts
-        from robotexp.planning.team import label_cells, team_candidates, with_costs
+        from robotexp.planning.team import team_candidates, with_costs
 
         if not self._costs:
             radius = max(m.robot.radius for m in self.members)
@@ -351,7 +353,7 @@ class TeamRun(ExplorationRun):
             frontier = self.members[leader].explorer.target_frontier(grid)
             cand = team_candidates(grid, None, [tuple(p) for p in self._positions(robots)], radius,
                                    frontier=frontier)
-            labels = [None if (cells := self.targets[i]) is None else label_cells(cand, cells) for i in robots]
+            labels = held_targets(cand, [self.targets[i] for i in robots])
             if all(k is not None for k in labels):
                 for i, k in zip(robots, labels, strict=True):
                     assert k is not None
@@ -397,6 +399,8 @@ class TeamRun(ExplorationRun):
                 "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
                 "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),
             }
+            if m.robot.address is not None:      # a robot over its driver
+                fields["address"] = str(m.robot.address)
             if self.exchange is not None:
                 fields["scans_received"] = int(self.exchange.received[i])
             try:
@@ -426,6 +430,29 @@ class TeamRun(ExplorationRun):
         super()._sample()
 
 
+def held_targets(cand: Candidates, targets: Sequence[npt.NDArray[np.int64] | None]) -> list[int | None]:
+    """For each robot's earlier target (grid cells (m, 2), or None), the candidate that holds most of its cells
+    (the first of those that hold as many), None when none holds any: `robotexp.planning.team.label_cells` of
+    every target, with the candidates' cells gathered once."""
+    if len(cand) == 0:
+        return [None] * len(targets)
+    cells = np.concatenate(cand.cells).astype(np.int64, copy=False)
+    owner = np.repeat(np.arange(len(cand)), [len(c) for c in cand.cells])
+    span = int(cells[:, 1].max()) + 1
+    keys = cells[:, 0] * span + cells[:, 1]
+    out: list[int | None] = []
+    for t in targets:
+        if t is None or len(t) == 0:
+            out.append(None)
+            continue
+        t = np.asarray(t, np.int64).reshape(-1, 2)
+        ok = (t[:, 1] >= 0) & (t[:, 1] < span)          # a cell beyond every candidate's columns is in none
+        counts = np.bincount(owner[np.isin(keys, t[ok, 0] * span + t[ok, 1])], minlength=len(cand))
+        best = int(np.argmax(counts))
+        out.append(best if counts[best] > 0 else None)
+    return out
+
+
 @dataclass
 class TeamSpec:
     """The team of a run (`robotexp explore --team`): the robots' presets, their start poses, the
@@ -436,6 +463,9 @@ class TeamSpec:
     coordinator_params: dict[str, Any] = field(default_factory=dict)
     comm_range: float | None = None              # [m] (None: one shared map)
     poses: tuple[str, ...] = ()                  # start poses, one per robot (names or x,y,theta in mm); () spread
+    # robots over their drivers, BACKEND:ADDRESS[+LASER:ADDRESS] each (`robotexp.run.teamrobots`; `robots`
+    # are then their backends); () simulated robots
+    members: tuple[str, ...] = ()
 
     def validate(self) -> None:
         """Raise ConfigError on a team that cannot be run."""
@@ -444,7 +474,9 @@ class TeamSpec:
 
         if not 1 <= len(self.robots) <= MAX_TEAM:
             raise ConfigError(f"--team: a team has 1..{MAX_TEAM} robots, got {len(self.robots)}")
-        for name in self.robots:
+        if self.members and len(self.members) != len(self.robots):
+            raise ConfigError(f"--team: {len(self.members)} addresses for {len(self.robots)} robots")
+        for name in () if self.members else self.robots:
             preset(name)
         if self.comm_range is not None and not (math.isfinite(self.comm_range) and self.comm_range > 0):
             raise ConfigError(f"--comm-range must be > 0 mm, got {self.comm_range * 1000:g} mm")

@@ -36,8 +36,8 @@ class SeenCells:
         if box is None:
             return
         r0, r1, c0, c1 = box
-        touched = grid.stamp[r0:r1, c0:c1] == grid.scans
-        self.bits[r0:r1, c0:c1][touched] |= self._one[robot]
+        sub = self.bits[r0:r1, c0:c1]
+        np.bitwise_or(sub, self._one[robot], out=sub, where=grid.stamp[r0:r1, c0:c1] == grid.scans)
 
     def seen_by(self, robot: int) -> npt.NDArray[np.bool_]:
         """(rows, cols) bool: the cells robot `robot`'s scans touched."""

@@ -11,8 +11,8 @@ from robotexp.sim.presets import (
     preset,
 )
 from robotexp.sim.robot import SimRobot, mounted_source
-from robotexp.sim.team import SimTeam, spread_starts
+from robotexp.sim.team import SharedWorld, SimTeam, spread_starts
 
 __all__ = ["SimRobot", "mounted_source", "LaserConfig", "SonarConfig", "OdometryError", "RobotPreset", "PRESETS",
            "preset", "ODOMETRY_PRESETS", "odometry_error",
-           "SimTeam", "spread_starts"]
+           "SimTeam", "SharedWorld", "spread_starts"]

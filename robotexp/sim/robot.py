@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from contextlib import AbstractContextManager, nullcontext
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -16,6 +16,9 @@ from robotexp.robot import Capability, LaserScan, Pose, Robot, RobotState, Sonar
 from robotexp.sim.engine import Engine
 from robotexp.sim.presets import LaserConfig, OdometryError, RobotPreset, preset
 from robotexp.world.model import World
+
+if TYPE_CHECKING:
+    from robotexp.sim.team import SharedWorld
 
 __all__ = ["SimRobot", "mounted_source"]
 
@@ -84,7 +87,8 @@ class SimRobot(Robot):
         self._sonar_dirs = self._sonar_pattern()
         self._sonar_positions = np.zeros((0, 2)) if self.preset.sonar is None else self.preset.sonar.origins()
         self._sonar_positions.flags.writeable = False     # handed out with every SonarScan
-        self._scan_cache: tuple[float, LaserScan] | None = None
+        self._scan_cache: tuple[float, int, LaserScan] | None = None    # (time, moves in a shared world, scan)
+        self.shared: SharedWorld | None = None     # the world shared with robots advanced elsewhere (`SharedWorld`)
         self.engine = Engine(world, self.preset.radius, self.preset.height, rays)
         try:
             start = pose or _default_pose(world)
@@ -142,7 +146,18 @@ class SimRobot(Robot):
     # -- simulation ------------------------------------------------------------------
     def advance(self, dt: float) -> None:
         """Advance the world by `dt` [s]: movers walk, the robot accelerates towards the command and
-        moves unless that would touch an obstacle."""
+        moves unless that would touch an obstacle (in a `SharedWorld`, the other robots where they stand
+        now, one robot moving at a time)."""
+        shared = self.shared
+        if shared is None:
+            self._advance(dt)
+            return
+        with shared.lock:
+            shared.sync(self)
+            self._advance(dt)
+            shared.moves += 1
+
+    def _advance(self, dt: float) -> None:
         self._ensure_open()
         self._move_movers(dt)
         lim = self.limits
@@ -278,8 +293,9 @@ class SimRobot(Robot):
     # -- sensors ---------------------------------------------------------------------
     def scan(self) -> LaserScan:
         """The laser scan at the current instant (cast once per instant, noise included)."""
-        if self._scan_cache is not None and self._scan_cache[0] == self.time:
-            return self._scan_cache[1]
+        moves = 0 if self.shared is None else self.shared.moves     # another robot moved: the scan is new
+        if self._scan_cache is not None and self._scan_cache[:2] == (self.time, moves):
+            return self._scan_cache[2]
         cfg = self.laser_config
         p = self._true
         sx = p.x + cfg.offset_x * math.cos(p.theta)
@@ -293,11 +309,13 @@ class SimRobot(Robot):
         np.clip(ranges, 0.0, None, out=ranges)
         ranges[hit & (ranges >= cfg.range_max)] = np.nextafter(cfg.range_max, 0.0)
         scan = LaserScan(self._angles, ranges, cfg.range_max, cfg.offset_x)
-        self._scan_cache = (self.time, scan)
+        self._scan_cache = (self.time, moves, scan)
         return scan
 
     def _cast_fan(self, x: float, y: float, z: float, headings: np.ndarray, reach: float) -> np.ndarray:
         """Ranges [m] of rays of length `reach` from (x, y, z) at `headings` [rad] (inf: no hit)."""
+        if self.shared is not None:
+            self.shared.sync(self)
         origins = np.empty((len(headings), 2))
         origins[:, 0], origins[:, 1] = x, y
         fraction = self.engine.cast_from(origins, headings, reach, z)
@@ -331,6 +349,8 @@ class SimRobot(Robot):
             origins[:, 0] = np.repeat(p.x + cfg.ring_radius * np.cos(p.theta + ring), k)
             origins[:, 1] = np.repeat(p.y + cfg.ring_radius * np.sin(p.theta + ring), k)
         headings = (p.theta + self._sonar_dirs).ravel()
+        if self.shared is not None:
+            self.shared.sync(self)
         fraction = self.engine.cast_from(origins, headings, cfg.range_max, SONAR_HEIGHT)
         fraction = fraction.reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)

@@ -1,10 +1,12 @@
 """A team of simulated robots in one world (`SimTeam`): one stepped clock for all, robots that see each
 other in their laser and sonar and collide with each other, and start poses spread around a start
-(`spread_starts`)."""
+(`spread_starts`). `SharedWorld` puts robots that are advanced each by a thread of its own (the emulators
+of `robotexp emulate p3dx,p3dx,kobuki`) in one world the same way."""
 
 from __future__ import annotations
 
 import math
+import threading
 from collections import deque
 from collections.abc import Sequence
 
@@ -17,7 +19,7 @@ from robotexp.robot import Pose
 from robotexp.sim.robot import SimRobot
 from robotexp.world.groundtruth import GroundTruth
 
-__all__ = ["SimTeam", "spread_starts", "START_GAP", "MAX_TEAM"]
+__all__ = ["SimTeam", "SharedWorld", "spread_starts", "START_GAP", "MAX_TEAM"]
 
 START_GAP = 0.3         # [m] kept between two robots' footprints at the start
 START_CLEARANCE = 0.1   # [m] kept between a robot's footprint and the walls at the start
@@ -51,6 +53,8 @@ class SimTeam:
                               "choose a world without them")
         self.robots = list(robots)
         self.time = 0.0
+        n = len(self.robots)
+        self._others = [np.array([j for j in range(n) if j != i], np.intp) for i in range(n)]   # rows of the peers
         self._sync()
 
     def _discs(self) -> npt.NDArray[np.float64]:
@@ -61,19 +65,20 @@ class SimTeam:
         """Tell every robot where the others stand."""
         discs = self._discs()
         for i, robot in enumerate(self.robots):
-            robot.engine.set_peers(np.delete(discs, i, axis=0))
+            robot.engine.set_peers(discs[self._others[i]])
 
     def advance(self, dt: float) -> None:
         """Advance every robot by `dt` [s], in order, each against the others where they stand."""
         discs = self._discs()
+        others = self._others
         for i, robot in enumerate(self.robots):
             if i:           # robot 0's peers are where the last tick left them (set at its end)
-                robot.engine.set_peers(np.delete(discs, i, axis=0))
+                robot.engine.set_peers(discs[others[i]])
             robot.advance(dt)
             p = robot.true_pose
             discs[i, 0], discs[i, 1] = p.x, p.y
         for i, robot in enumerate(self.robots):
-            robot.engine.set_peers(np.delete(discs, i, axis=0))
+            robot.engine.set_peers(discs[others[i]])
         self.time += dt
 
     def make_clock(self, period: float) -> Clock:
@@ -90,6 +95,45 @@ class SimTeam:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class SharedWorld:
+    """Simulated robots of one world, each advanced by its own caller (an emulator's serving thread, on its own
+    clock), that see and touch each other as a `SimTeam`'s do.
+
+    A robot that joined (`join`) is told where the others stand (`sync`) each time it moves or casts rays;
+    its moves hold `lock`, so one robot moves at a time, against the others where they stand then.
+
+    Raises (from `join`):
+        ConfigError: a robot of another world, one that joined already, a world with moving obstacles, or
+            more than MAX_TEAM robots.
+    """
+
+    def __init__(self) -> None:
+        self.robots: list[SimRobot] = []
+        self.lock = threading.Lock()
+        self.moves = 0          # the robots' steps so far (a scan cast before the last one is out of date)
+
+    def join(self, robot: SimRobot) -> None:
+        """Put `robot` in the shared world (it stands where it stands; the others now see it)."""
+        if robot.shared is not None:
+            raise ConfigError("shared world: the robot is in a shared world already")
+        if self.robots and robot.world is not self.robots[0].world:
+            raise ConfigError("shared world: every robot must stand in the same world")
+        if robot.world.movers:
+            raise ConfigError(f"shared world: world {robot.world.name!r} has moving obstacles, which teams do not "
+                              "support yet; choose a world without them")
+        if len(self.robots) >= MAX_TEAM:
+            raise ConfigError(f"shared world: {MAX_TEAM} robots at most")
+        with self.lock:
+            self.robots.append(robot)
+            robot.shared = self
+
+    def sync(self, robot: SimRobot) -> None:
+        """Tell `robot` where the others stand now."""
+        discs = [(p.x, p.y, r.radius, r.preset.height) for r in self.robots if r is not robot
+                 for p in (r.true_pose,)]
+        robot.engine.set_peers(np.array(discs, np.float64).reshape(-1, 4))
 
 
 def spread_starts(truth: GroundTruth, start: Pose, radii: Sequence[float], free: SimRobot | None = None,

@@ -235,3 +235,20 @@ def test_observers_see_every_robots_tick_in_the_robots_order():
     assert all(b > a for p in per_robot for a, b in itertools.pairwise(p))
     assert [r for _, r, _ in ticks.seen[:6]] == [0, 1, 0, 1, 0, 1]
     assert all(m for _, _, m in ticks.seen[:2])                     # the first scans go into the map
+
+
+def test_held_targets_are_label_cells_of_every_target():
+    from robotexp.coordinator import Candidates
+    from robotexp.planning.team import label_cells
+    from robotexp.run.team import held_targets
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        k = int(rng.integers(1, 6))
+        cells = tuple(rng.integers(0, 12, (int(rng.integers(1, 9)), 2)) for _ in range(k))
+        cand = Candidates(points=np.zeros((k, 2)), cells=cells, cost=np.zeros((2, k)), positions=np.zeros((2, 2)))
+        targets = [None, np.zeros((0, 2), np.int64)] + [rng.integers(-2, 14, (int(rng.integers(1, 9)), 2))
+                                                         for _ in range(4)]
+        assert held_targets(cand, targets) == [None if t is None else label_cells(cand, t) for t in targets]
+    empty = Candidates(points=np.zeros((0, 2)), cells=(), cost=np.zeros((1, 0)), positions=np.zeros((1, 2)))
+    assert held_targets(empty, [np.ones((1, 2), np.int64)]) == [None]

@@ -10,7 +10,7 @@ import pytest
 from robotexp.errors import ConfigError, WorldError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose, Twist
-from robotexp.sim import SimRobot, SimTeam, preset, spread_starts
+from robotexp.sim import SharedWorld, SimRobot, SimTeam, preset, spread_starts
 from robotexp.world.groundtruth import ground_truth
 from robotexp.world.model import World, segment_box
 
@@ -100,3 +100,32 @@ def test_spread_starts_keep_apart_off_the_walls_in_the_start_region():
         assert max(math.hypot(p.x - 1.0, p.y - 1.5) for p in starts) < 2.0
         with pytest.raises(WorldError, match="room for"):
             spread_starts(truth, Pose(1.0, 1.5, 0.0), [radius] * 200, free=first)
+
+
+def test_robots_of_a_shared_world_advanced_apart_see_and_stop_at_each_other():
+    # what `robotexp emulate p3dx,p3dx` serves: each robot advanced on its own (here: in turn, by hand)
+    world = hall()
+    a = SimRobot(world, pose=Pose(2.0, 1.5, 0.0), sonar=False)
+    b = SimRobot(world, pose=Pose(5.0, 1.5, math.pi), sonar=False)
+    shared = SharedWorld()
+    try:
+        shared.join(a)
+        shared.join(b)
+        scan = a.read().laser
+        ahead = int(np.argmin(np.abs(scan.angles)))
+        assert scan.ranges[ahead] == pytest.approx(3.0 - b.radius, abs=1e-6)
+        b.command(Twist(0.3, 0.0))
+        for _ in range(20):          # b drives towards a (0.47 m in 2 s from standstill); a sees it there
+            b.advance(0.1)
+        assert 4.4 < b.true_pose.x < 4.6
+        assert a.scan().ranges[ahead] == pytest.approx(b.true_pose.x - 2.0 - b.radius, abs=1e-6)  # a's time: 0 s
+        for _ in range(100):         # on until it touches a: it stops there, one collision with a robot
+            b.advance(0.1)
+        gap = b.true_pose.x - a.true_pose.x - a.radius - b.radius
+        assert 0.0 <= gap < 0.01 and b.collisions == b.robot_collisions == 1 and b.read().stalled
+        with SimRobot(hall(), pose=Pose(8.0, 1.5, 0.0), sonar=False) as elsewhere, \
+                pytest.raises(ConfigError, match="same world"):
+            shared.join(elsewhere)
+    finally:
+        a.close()
+        b.close()

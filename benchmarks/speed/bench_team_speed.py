@@ -1,0 +1,204 @@
+"""Speed of a team: eight simulated P3-DX exploring a large map together (frontier, a coordinator), robot time /
+wall time of the control loop, before and after the team's hot spots were reworked, measured in one process.
+
+The "before" run puts back, for its duration, what the team code did before (kept below as it was): every
+robot's frontier explorer kept its own plan costs of the one map they share, the scan filter that keeps
+teammates out of the map built its arrays for every teammate, the simulator's tick deleted rows out of
+the robots' array for each robot, the coordinator's round matched each robot's target to the candidates
+cell by cell in Python, and the cells each robot saw were marked through a boolean index. The "after" run is
+the code as it is. Both runs must give the same record (path, coverage, collisions: the rework changes no
+result), which the script checks.
+
+Figures: team time (the one clock all robots share) / wall time of the loop, and robot-seconds (team time
+x robots) / wall time; the single robot's ratio on the same map and time, measured alongside, bounds what a
+team of n can reach on team time: each of its robots costs at least one single robot's steps.
+
+Run (maps are not in the repository; any ROS .yaml or MobileSim .map):
+
+    taskset -c 1 nice -n 5 python benchmarks/speed/bench_team_speed.py /work/shared/maps/ipa_office_h.yaml
+        [--robots 8] [--coordinator greedy] [--max-time 120] [--repeat 1] [--no-record]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))   # perflog
+
+from bench_cost_growth import CpuClock  # noqa: E402
+from perflog import Figure, record  # noqa: E402
+
+from robotexp.experiment import run_experiment, run_team  # noqa: E402
+from robotexp.run.spec import RunSpec  # noqa: E402
+from robotexp.run.team import TEAMMATE_MARGIN, TeamRun, TeamSpec  # noqa: E402
+from robotexp.run.teamshare import SeenCells  # noqa: E402
+from robotexp.sim.team import SimTeam  # noqa: E402
+
+
+# -- the team code as it was (the "before" run) --------------------------------------------------------
+def _without_teammates_before(self: TeamRun, robot: int, state: Any) -> Any:
+    scan = state.laser
+    p = state.pose
+    others = [m.state.true_pose or m.state.pose for j, m in enumerate(self.members)
+              if j != robot and m.state is not None]
+    if not others:
+        return scan
+    radii = np.array([m.robot.radius for j, m in enumerate(self.members) if j != robot and m.state is not None])
+    xy = np.array([(q.x, q.y) for q in others])
+    sx = p.x + scan.offset_x * math.cos(p.theta)
+    sy = p.y + scan.offset_x * math.sin(p.theta)
+    near = np.hypot(xy[:, 0] - sx, xy[:, 1] - sy) <= radii + TEAMMATE_MARGIN + scan.range_max
+    if not near.any():
+        return scan
+    hit = np.isfinite(scan.ranges)
+    ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
+    ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
+    on = np.zeros(len(scan.ranges), bool)
+    for (x, y), r in zip(xy[near], radii[near], strict=True):
+        on |= hit & (np.hypot(ex - x, ey - y) <= r + TEAMMATE_MARGIN)
+    if not on.any():
+        return scan
+    return replace(scan, ranges=np.where(on, np.nan, scan.ranges))
+
+
+def _advance_before(self: SimTeam, dt: float) -> None:
+    discs = self._discs()
+    for i, robot in enumerate(self.robots):
+        if i:
+            robot.engine.set_peers(np.delete(discs, i, axis=0))
+        robot.advance(dt)
+        p = robot.true_pose
+        discs[i, 0], discs[i, 1] = p.x, p.y
+    for i, robot in enumerate(self.robots):
+        robot.engine.set_peers(np.delete(discs, i, axis=0))
+    self.time += dt
+
+
+def _plan_costs_before(self: Any, grid: Any) -> Any:
+    from robotexp.planning.targets import PlanCosts
+
+    if getattr(self, "_own_costs", None) is None:
+        self._own_costs = PlanCosts(self.ctx.radius, self.clearance)
+    return self._own_costs
+
+
+def _held_targets_before(cand: Any, targets: Any) -> list[int | None]:
+    from robotexp.planning.team import label_cells
+
+    return [None if t is None else label_cells(cand, t) for t in targets]
+
+
+def _note_before(self: SeenCells, robot: int, grid: Any) -> None:
+    box = grid.changed_box(grid.scans - 1)
+    if box is None:
+        return
+    r0, r1, c0, c1 = box
+    touched = grid.stamp[r0:r1, c0:c1] == grid.scans
+    self.bits[r0:r1, c0:c1][touched] |= self._one[robot]
+
+
+def _before() -> list[tuple[Any, str, Any]]:
+    """What the "before" run patches: (owner, attribute, value)."""
+    import robotexp.run.team as team_module
+    from robotexp_plugins.frontier import FrontierExplorer
+
+    return [(TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
+            (FrontierExplorer, "_plan_costs", _plan_costs_before), (team_module, "held_targets", _held_targets_before),
+            (SeenCells, "note", _note_before)]
+
+
+def _team(spec: RunSpec, team: TeamSpec, patches: list[tuple[Any, str, Any]]) -> tuple[Any, float, float]:
+    """The record of a team run with `patches` in place, its wall time with set-up [s] and the CPU time of
+    its loop [s]."""
+    saved = [(owner, name, owner.__dict__[name]) for owner, name, _ in patches]
+    for owner, name, value in patches:
+        setattr(owner, name, value)
+    try:
+        clock = CpuClock()
+        t0 = time.perf_counter()
+        out = run_team(spec, team, None, image=False, observers=[clock])
+        return out.record, time.perf_counter() - t0, clock.figures()[0]
+    finally:
+        for owner, name, value in saved:
+            setattr(owner, name, value)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("map", type=Path, help="a large map (ROS .yaml or MobileSim .map)")
+    ap.add_argument("--robots", type=int, default=8)
+    ap.add_argument("--coordinator", default="greedy")
+    ap.add_argument("--max-time", type=float, default=120.0, help="[s] robot time of each run")
+    ap.add_argument("--repeat", type=int, default=1, help="before/after pairs (the best CPU time of each counts)")
+    ap.add_argument("--no-record", action="store_true", help="print only, write no benchmarks/results file")
+    args = ap.parse_args()
+    if not args.map.is_file():
+        print(f"bench_team_speed: no map {str(args.map)!r}", file=sys.stderr)
+        return 2
+    world = str(args.map)
+    # warm-up: the kernels compiled (or loaded from the cache) before anything is timed
+    run_team(RunSpec(world="ufmg-static", method="frontier", max_time=5.0),
+             TeamSpec(robots=("p3dx",) * 2, coordinator=args.coordinator), None, image=False)
+    spec = RunSpec(world=world, method="frontier", max_time=args.max_time)
+    team = TeamSpec(robots=("p3dx",) * args.robots, coordinator=args.coordinator)
+    print(f"load average before: {os.getloadavg()[0]:.1f} (1 min)")
+    clock = CpuClock()
+    single = run_experiment(spec, None, image=False, observers=[clock]).record
+    one_cpu = single.robot_time_s / clock.figures()[0]
+    rows = []
+    for _ in range(args.repeat):        # before and after in turn: a load that comes and goes hits both
+        rows.append(("before", *_team(spec, team, _before())))
+        rows.append(("after", *_team(spec, team, [])))
+    keys = ("path_length_m", "coverage", "collisions", "robot_collisions", "overlap_ratio", "reason", "robot_time_s")
+    first = rows[0][1]
+    same = all(r[k] == first[k] for _, r, _, _ in rows for k in keys) and \
+        all([x["path_length_m"] for x in r.robots] == [x["path_length_m"] for x in first.robots] for _, r, _, _ in rows)
+    n = args.robots
+    one = single.robot_time_s / single.wall_time_s
+    print(f"{Path(world).stem}, {n} P3-DX, frontier, coordinator {args.coordinator}, {args.max_time:g} s of robot time")
+    print(f"  one robot alone: {one:.0f}x on wall time, {one_cpu:.0f}x on CPU time (loop): a team of {n} costs at "
+          f"least {n} robots' steps, ~{one_cpu / n:.0f}x on team time")
+    for label, r, total, cpu in rows:
+        print(f"  {label:>6}: coverage {r.coverage:.4f}, path {r.path_length_m:.1f} m, loop {r.wall_time_s:.2f} s wall "
+              f"(with set-up {total:.2f} s), {cpu:.2f} s CPU: team time / wall {r.robot_time_s / r.wall_time_s:.1f}x, "
+              f"/ CPU {r.robot_time_s / cpu:.1f}x; robot-seconds / CPU {n * r.robot_time_s / cpu:.0f}x")
+    best = {label: min(cpu for lab, _, _, cpu in rows if lab == label) for label in ("before", "after")}
+    wall = {label: min(r.wall_time_s for lab, r, _, _ in rows if lab == label) for label in ("before", "after")}
+    t = first.robot_time_s
+    print(f"  best of {args.repeat}: CPU before {best['before']:.2f} s, after {best['after']:.2f} s: the loop "
+          f"{best['before'] / best['after']:.2f}x faster; team time / CPU {t / best['before']:.1f}x -> "
+          f"{t / best['after']:.1f}x, robot-seconds / CPU {n * t / best['before']:.0f}x -> "
+          f"{n * t / best['after']:.0f}x; "
+          f"same record in every run: {same}; load average after: {os.getloadavg()[0]:.1f}")
+    if not same:
+        print("bench_team_speed: the rework changed the record", file=sys.stderr)
+        return 1
+    if not args.no_record:
+        label = f"{Path(world).stem}, {n} P3-DX, {args.coordinator}, {args.max_time:g} s"
+        record("team-speed", [
+            Figure(f"{label}: team time / CPU time of the loop, before", round(t / best["before"], 1), "x"),
+            Figure(f"{label}: team time / CPU time of the loop, after", round(t / best["after"], 1), "x"),
+            Figure(f"{label}: robot-seconds / CPU time of the loop, after", round(n * t / best["after"]), "x",
+                   "team time x robots"),
+            Figure(f"{label}: team time / wall time of the loop, after", round(t / wall["after"], 1), "x"),
+            Figure(f"{Path(world).stem}: one robot alone, robot time / CPU time of the loop", round(one_cpu), "x",
+                   "a team of n on team time stays below this / n"),
+        ], title="A team of eight robots on a large map", parameters={"map": Path(world).name, "robots": n,
+                                                                      "coordinator": args.coordinator,
+                                                                      "max_time_s": args.max_time,
+                                                                      "repeat": args.repeat})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
