@@ -126,7 +126,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
                    map_bounds=None if bounds is None else parse_bounds(bounds),
                    odometry=odometry_error, localize=localize)
     spec.validate()
-    team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address)
+    team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address,
+                           (record, frames, view))
     writable_folder(out)
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}",
@@ -194,7 +195,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
 
 
 def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinator_param: tuple[str, ...],  # noqa: PLR0913
-               comm_range: float | None, robot: str, address: str | None) -> TeamSpec | None:
+               comm_range: float | None, robot: str, address: str | None,
+               recorders: tuple[object, ...]) -> TeamSpec | None:
     """The team of `--team`, checked (None without it)."""
     from robotexp.run.team import TeamSpec, parse_team
 
