@@ -38,20 +38,30 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: pe
 from perflog import Figure, record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
+CLOCKS = ("wall", "cpu")
 NAMES = {"none": "without localization", "scan-match": "with scan matching",
          "slam": "with scan matching and loop closure"}
 # one run in a fresh process, its figures printed as JSON on the last line (argv[1]: the settings)
 RUNNER = """
-import json, sys
+import json, sys, time
 from robotexp.experiment import run_experiment
+from robotexp.run.loop import ExplorationRun
 from robotexp.run.spec import RunSpec
 a = json.loads(sys.argv[1])
 run_experiment(RunSpec(world="ufmg-static", method=a["method"], max_time=5.0, odometry=a["odometry"],
                        localize=a["mode"]), None, image=False)     # warm-up: compile / load the kernels
+loop, cpu = ExplorationRun._loop, []
+def timed(self):                                                   # the control loop's CPU time
+    t0 = time.process_time()
+    try:
+        loop(self)
+    finally:
+        cpu.append(time.process_time() - t0)
+ExplorationRun._loop = timed
 r = run_experiment(RunSpec(world=a["world"], method=a["method"], speed=a["speed"], max_time=a["max_time"],
                            odometry=a["odometry"], localize=a["mode"]), None, image=False).record
-print(json.dumps({k: r.get(k) for k in ("robot_time_s", "wall_time_s", "ate_m", "coverage", "matches",
-                                        "loop_closure")}))
+out = {k: r.get(k) for k in ("robot_time_s", "wall_time_s", "ate_m", "coverage", "matches", "loop_closure")}
+print(json.dumps({**out, "loop_cpu_s": cpu[-1]}))
 """
 
 
@@ -81,11 +91,36 @@ def _run(path: Path, settings: dict[str, object]) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def _ratio(r: dict) -> float:
-    return r["robot_time_s"] / max(r["wall_time_s"], 1e-9)
+def _ratio(r: dict, clock: str) -> float:
+    """Robot time / the control loop's wall (`clock` "wall") or CPU ("cpu") time."""
+    return r["robot_time_s"] / max(r["wall_time_s"] if clock == "wall" else r["loop_cpu_s"], 1e-9)
 
 
-def main() -> None:  # noqa: C901
+def _figures(best: dict[tuple[str, str, str], float], last: dict[tuple[str, str], dict], modes: list[str],
+             repeats: int) -> list[Figure]:
+    """Print this tree's ratios of each mode (wall and CPU time); their figures."""
+    figures = []
+    for mode in modes:
+        r, name = last["this", mode], NAMES.get(mode, mode)
+        lc = r.get("loop_closure") or {}
+        wall, cpu = best["this", mode, "wall"], best["this", mode, "cpu"]
+        plain_wall, plain_cpu = best["this", "none", "wall"], best["this", "none", "cpu"]
+        print(f"  {name}: {wall:.0f}x real time, {cpu:.0f}x CPU time (ATE {r['ate_m']} m, coverage {r['coverage']}, "
+              f"robot {r['robot_time_s']:.0f} s, matches {r.get('matches')}{', ' + str(lc) if lc else ''})"
+              + ("" if mode == "none" else f"; its share of the wall time {1 - wall / plain_wall:.1%}, of the CPU "
+                 f"time {1 - cpu / plain_cpu:.1%}"))
+        figures += [Figure(f"{name}: robot time / wall time", wall, "x", f"best of {repeats}"),
+                    Figure(f"{name}: robot time / CPU time", cpu, "x", f"best of {repeats}")]
+        if mode != "none":
+            figures += [Figure(f"{name} / without (wall time)", wall / plain_wall, "x"),
+                        Figure(f"{name} / without (CPU time)", cpu / plain_cpu, "x")]
+        if lc.get("update_ms") is not None:
+            figures.append(Figure(f"{name}: {lc['backend']} update per keyframe (median)", float(lc["update_ms"]),
+                                  "ms", f"{lc['keyframes']} keyframes, {lc['loops']} loop edges"))
+    return figures
+
+
+def main() -> None:
     """Run the modes (of both checkouts with --against) and print the ratios."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--world", default="dense")
@@ -110,7 +145,7 @@ def main() -> None:  # noqa: C901
         sys.exit(2)
 
     tmp = Path(tempfile.mkdtemp(prefix="localize-speed-"))
-    best: dict[tuple[str, str], float] = {}
+    best: dict[tuple[str, str, str], float] = {}
     last: dict[tuple[str, str], dict] = {}
     try:
         trees = {"this": _importable(ROOT, tmp / "this")}
@@ -121,38 +156,26 @@ def main() -> None:  # noqa: C901
                 for tree, path in trees.items():
                     r = _run(path, {"world": args.world, "method": args.method, "speed": args.speed / 1000,
                                     "max_time": args.max_time, "odometry": args.odometry, "mode": mode})
-                    best[tree, mode] = max(best.get((tree, mode), 0.0), _ratio(r))
+                    for clock in CLOCKS:
+                        best[tree, mode, clock] = max(best.get((tree, mode, clock), 0.0), _ratio(r, clock))
                     last[tree, mode] = r
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    plain = best["this", "none"]
     print(f"{args.world} / {args.method} at {args.speed:g} mm/s, odometry {args.odometry}, "
-          f"{args.max_time:g} s of robot time, best of {args.repeats}:")
-    print(f"  without localization: {plain:.0f}x real time (ATE {last['this', 'none']['ate_m']} m)")
-    figures = [Figure("without localization: robot time / wall time", plain, "x", f"best of {args.repeats}")]
-    for mode in modes[1:]:
-        loc, r = best["this", mode], last["this", mode]
-        lc = r.get("loop_closure") or {}
-        name = NAMES.get(mode, mode)
-        print(f"  {name}: {loc:.0f}x real time (ATE {r['ate_m']} m, coverage {r['coverage']}, "
-              f"robot {r['robot_time_s']:.0f} s, matches {r.get('matches')}{', ' + str(lc) if lc else ''}); "
-              f"its share of the wall time {1 - loc / plain:.1%}")
-        figures += [Figure(f"{name}: robot time / wall time", loc, "x", f"best of {args.repeats}"),
-                    Figure(f"{name} / without", loc / plain, "x")]
-        if lc.get("update_ms") is not None:
-            figures.append(Figure(f"{name}: {lc['backend']} update per keyframe (median)", float(lc["update_ms"]),
-                                  "ms", f"{lc['keyframes']} keyframes, {lc['loops']} loop edges"))
+          f"{args.max_time:g} s of robot time, best of {args.repeats} (robot time / the control loop's wall "
+          f"time, and / its CPU time):")
+    figures = _figures(best, last, modes, args.repeats)
     if args.against is not None:
         other = _label(args.against)
         print(f"  against {other} ({args.against}), run beside it:")
         for mode in modes:
-            ratio = best["this", mode] / best["other", mode]
             o = last["other", mode]
-            print(f"    {NAMES.get(mode, mode)}: {best['other', mode]:.0f}x there (ATE {o['ate_m']} m, coverage "
-                  f"{o['coverage']}), {best['this', mode]:.0f}x here: {ratio:.2f} times as fast")
-            figures.append(Figure(f"{NAMES.get(mode, mode)}: this tree / {other}", ratio, "x",
-                                  f"{best['this', mode]:.0f}x against {best['other', mode]:.0f}x real time, "
-                                  "run beside each other"))
+            print(f"    {NAMES.get(mode, mode)}: ATE {o['ate_m']} m, coverage {o['coverage']} there")
+            for clock in CLOCKS:
+                here, there = best["this", mode, clock], best["other", mode, clock]
+                print(f"      {clock}: {there:.0f}x there, {here:.0f}x here: {here / there:.2f} times as fast")
+                figures.append(Figure(f"{NAMES.get(mode, mode)}, {clock} time: this tree / {other}", here / there,
+                                      "x", f"{here:.0f}x against {there:.0f}x real time, run beside each other"))
     if not args.no_record:
         record("localize-speed", figures, title="A run with scan-matching localization (and loop closure) against the "
                "same run without it",
