@@ -549,8 +549,7 @@ class OnlineGraph:
         old = loc.grid
         n = len(self.keyframes)
         P, M = self._poses.a, self._mapped.a
-        reach = min(old.range_max if old.range_max is not None else self.matcher_config.range_max,
-                    self._scan_reach) + old.geo.cell      # no farther than the scans reach
+        reach = (old.range_max if old.range_max is not None else self.matcher_config.range_max) + old.geo.cell
         if not math.isfinite(reach):
             reach = max(max((float(np.nanmax(np.where(np.isfinite(k.scan.ranges), k.scan.ranges, 0.0)))
                              for k in self.keyframes if k.scan is not None), default=0.0), 1.0) + old.geo.cell
