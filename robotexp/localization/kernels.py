@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "search", "refine", "bilinear",
-           "hit_points", "wall_offset", "hit_value", "refine_hits", "objective_hits", "mean_hits", "warm"]
+           "hit_points", "wall_offset", "hit_value", "refine_hits", "objective_hits", "mean_hits", "add_hits", "warm"]
 
 kernel = numba.njit(cache=True, nogil=True)
 
@@ -615,6 +615,36 @@ def mean_field(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
     return _sums(field, ox, oy, cell, px, py, x, y, th)[0] / max(px.shape[0], 1)
 
 
+@kernel
+def add_hits(sum_x: npt.NDArray[np.float32], sum_y: npt.NDArray[np.float32], count: npt.NDArray[np.float32],
+             ox: float, oy: float, cell: float, x: float, y: float, th: float, offset_x: float,
+             ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64], range_max: float, depth: float) -> None:
+    """`HitMap.add` in place: each finite range in (0, range_max), `depth` [m] beyond the hit, in the cell a beam
+    is in just after it (a point on a cell border in the cell the beam goes on into), adds its offset from the
+    cell's centre [cells] to `sum_x`, `sum_y` and 1 to `count` (float32 sums, in beam order). The robot is at
+    (x, y, th), the laser `offset_x` [m] ahead of it; the grid's lower-left corner at (ox, oy) [m]."""
+    rows, cols = count.shape
+    sx = x + offset_x * math.cos(th)
+    sy = y + offset_x * math.sin(th)
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        if not (math.isfinite(r) and r > 0.0 and r < range_max):
+            continue
+        r += depth
+        a = angles[i] + th
+        dx = math.cos(a)
+        dy = math.sin(a)
+        gx = (sx + r * dx - ox) / cell
+        gy = (sy + r * dy - oy) / cell
+        c = math.ceil(gx) - 1 if dx < 0.0 else math.floor(gx)
+        w = math.ceil(gy) - 1 if dy < 0.0 else math.floor(gy)
+        if w < 0 or w >= rows or c < 0 or c >= cols:
+            continue
+        sum_x[w, c] += np.float32(gx - c - 0.5)
+        sum_y[w, c] += np.float32(gy - w - 0.5)
+        count[w, c] += np.float32(1.0)
+
+
 _warmed = False
 
 
@@ -643,4 +673,5 @@ def warm() -> None:
     refine_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 2, 0.0, 0.0, 0.0, 1.0, 1.0)
     objective_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
     mean_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0)
+    add_hits(off, off.copy(), off.copy(), 0.0, 0.0, 0.05, 0.1, 0.1, 0.0, 0.0, px, py, 3.0, 1e-4)
     _warmed = True

@@ -150,24 +150,10 @@ class HitMap:
         in the cell the beam goes on into. (With the cell under the point, a wall face on a border had its
         hits counted in the free cell in front of it and its occupied cell matched at its centre, half a
         cell behind the face.)"""
-        r = np.asarray(scan.ranges, np.float64)
-        a = np.asarray(scan.angles, np.float64)
-        ok = np.isfinite(r) & (r > 0.0) & (r < min(scan.range_max, range_max))
-        if not ok.any():
-            return
-        r, a = r[ok] + HIT_DEPTH, a[ok] + pose.theta
-        dx, dy = np.cos(a), np.sin(a)
         g = self.geo
-        gx = (pose.x + scan.offset_x * math.cos(pose.theta) + r * dx - g.origin_x) / g.cell
-        gy = (pose.y + scan.offset_x * math.sin(pose.theta) + r * dy - g.origin_y) / g.cell
-        # the cell a beam is in just after the point (`robotexp.mapping.kernels._hit_cell`'s rule)
-        col = np.where(dx < 0.0, np.ceil(gx) - 1, np.floor(gx)).astype(np.intp)
-        row = np.where(dy < 0.0, np.ceil(gy) - 1, np.floor(gy)).astype(np.intp)
-        ok = (row >= 0) & (row < g.rows) & (col >= 0) & (col < g.cols)
-        row, col = row[ok], col[ok]
-        np.add.at(self.sum_x, (row, col), (gx[ok] - col - 0.5).astype(np.float32))
-        np.add.at(self.sum_y, (row, col), (gy[ok] - row - 0.5).astype(np.float32))
-        np.add.at(self.count, (row, col), np.float32(1.0))
+        K.add_hits(self.sum_x, self.sum_y, self.count, g.origin_x, g.origin_y, g.cell, pose.x, pose.y, pose.theta,
+                   scan.offset_x, np.ascontiguousarray(scan.ranges, np.float64),
+                   np.ascontiguousarray(scan.angles, np.float64), min(scan.range_max, range_max), HIT_DEPTH)
 
     def offsets(self, r0: int, r1: int, c0: int, c1: int) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
         """Mean hit offsets [cells] of the cells [r0, r1) x [c0, c1) (0 where no hit was recorded)."""

@@ -9,7 +9,8 @@ within `radius` of a keyframe at least `min_path` metres back along the path, th
 against a submap of the old keyframes around it (`posegraph._submap`); a good, well-conditioned match
 whose correction lies within the gate of the drift the path between them can have adds a loop edge,
 weighted by a Cauchy kernel (a wrong edge pulls little). The graph is optimised by GTSAM's iSAM2 when
-`gtsam` can be imported (an update per keyframe: a fraction of a millisecond), else by the sparse
+`gtsam` can be imported (an update per `isam_batch` keyframes or loop edge: a fraction of a millisecond a
+keyframe), else by the sparse
 Gauss-Newton of `posegraph.optimize` after each loop edge. When a loop edge moves the current keyframe
 by more than `apply_xy` or `apply_theta`, the correction is applied: the localizer's pose moves with its
 keyframe and its matching map is rebuilt from the keyframes at their corrected poses, and `rebuilds`
@@ -94,6 +95,7 @@ class OnlineLoopConfig:
             the older ones keep their node in the graph and drop the scan. 0: every scan kept.
         bin_xy: [m] the side of a bin ...
         bin_theta: [rad] ... and its heading sector.
+        isam_batch: new keyframes go to iSAM2 this many at a time (at once when a loop edge comes: `_Isam2`).
     """
 
     radius: float = 2.5
@@ -123,13 +125,14 @@ class OnlineLoopConfig:
     scans_per_bin: int = 4
     bin_xy: float = 0.5
     bin_theta: float = math.radians(45.0)
+    isam_batch: int = 8
 
     def __post_init__(self) -> None:
         if self.backend not in ("auto", "isam2", "sparse"):
             raise ConfigError(f"loop closure: backend must be auto, isam2 or sparse, got {self.backend!r}")
-        if self.every < 1 or self.submap < 0 or self.min_points < 1 or self.scans_per_bin < 0:
-            raise ConfigError(f"loop closure: every, min_points >= 1 and submap, scans_per_bin >= 0 expected, "
-                              f"got {self}")
+        if min(self.every, self.min_points, self.isam_batch) < 1 or self.submap < 0 or self.scans_per_bin < 0:
+            raise ConfigError(f"loop closure: every, min_points, isam_batch >= 1 and submap, scans_per_bin >= 0 "
+                              f"expected, got {self}")
         if not (self.bin_xy > 0 and self.bin_theta > 0 and self.rebuild_xy >= 0):
             raise ConfigError(f"loop closure: bin_xy, bin_theta > 0 and rebuild_xy >= 0 expected, got {self}")
         if not (self.radius > 0 and self.min_path > 0 and self.loop_xy > 0 and self.loop_theta > 0
@@ -202,9 +205,12 @@ class _PoseArray:
 
 
 class _Isam2:
-    """The iSAM2 back end: Pose2 keys 0..n-1, a tight prior on node 0."""
+    """The iSAM2 back end: Pose2 keys 0..n-1, a tight prior on node 0. New keyframes and their sequential edges
+    wait until `batch` of them are due, or a loop edge comes (`add`), and go to iSAM2 in one update: until a loop
+    edge joins them, the estimate of a chain's new nodes is their initial guesses anyway (the chain composed),
+    and a call costs about as much for one keyframe as for eight."""
 
-    def __init__(self, cauchy: float) -> None:
+    def __init__(self, cauchy: float, batch: int = 1) -> None:
         import gtsam
 
         self.g = gtsam
@@ -213,8 +219,12 @@ class _Isam2:
         params.relinearizeSkip = 1
         self.isam = gtsam.ISAM2(params)
         self.cauchy = cauchy
-        self.times: list[float] = []
+        self.batch = batch
+        self.times: list[float] = []         # [s] each update's time per keyframe it added (at least one)
         self._sorted: list[float] = []       # the same, in order (the median at every keyframe, without a sort)
+        self._graph = gtsam.NonlinearFactorGraph()
+        self._values = gtsam.Values()
+        self._waiting = 0                    # keyframes waiting for the next update
 
     def _noise(self, info: npt.NDArray[np.float64], robust: bool) -> Any:
         g = self.g
@@ -224,24 +234,36 @@ class _Isam2:
         return g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Cauchy.Create(self.cauchy), base)
 
     def add(self, k: int, guess: Pose, edges: list[Edge]) -> None:
-        """Node `k` (None edges: the first) with its initial estimate and its edges, one iSAM2 update."""
+        """Node `k` (-1: none, only edges) with its initial estimate and its edges; an iSAM2 update once `batch`
+        keyframes wait or an edge is a loop edge."""
         g = self.g
-        graph = g.NonlinearFactorGraph()
-        values = g.Values()
         if k >= 0:
-            values.insert(k, g.Pose2(guess.x, guess.y, guess.theta))
+            self._values.insert(k, g.Pose2(guess.x, guess.y, guess.theta))
+            self._waiting += 1
             if k == 0:
-                graph.add(g.PriorFactorPose2(0, g.Pose2(guess.x, guess.y, guess.theta),
-                                             g.noiseModel.Diagonal.Sigmas(np.array([1e-6, 1e-6, 1e-8]))))
+                self._graph.add(g.PriorFactorPose2(0, g.Pose2(guess.x, guess.y, guess.theta),
+                                                   g.noiseModel.Diagonal.Sigmas(np.array([1e-6, 1e-6, 1e-8]))))
         for e in edges:
-            graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(e.z.x, e.z.y, e.z.theta), self._noise(e.info, e.loop)))
+            self._graph.add(g.BetweenFactorPose2(e.i, e.j, g.Pose2(e.z.x, e.z.y, e.z.theta),
+                                                 self._noise(e.info, e.loop)))
+        if self._waiting >= self.batch or any(e.loop for e in edges):
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand the waiting keyframes and edges to iSAM2 (one update)."""
+        if self._waiting == 0 and self._graph.size() == 0:
+            return
         t0 = time.perf_counter()
-        self.isam.update(graph, values)
-        self.times.append(time.perf_counter() - t0)
-        bisect.insort(self._sorted, self.times[-1])
+        self.isam.update(self._graph, self._values)
+        dt = (time.perf_counter() - t0) / max(self._waiting, 1)
+        self.times.append(dt)
+        bisect.insort(self._sorted, dt)
+        self._graph = self.g.NonlinearFactorGraph()
+        self._values = self.g.Values()
+        self._waiting = 0
 
     def median(self) -> float | None:
-        """[s] the median update time so far (None before the first)."""
+        """[s] the median update time per keyframe so far (None before the first)."""
         n = len(self._sorted)
         if n == 0:
             return None
@@ -253,7 +275,8 @@ class _Isam2:
             self.isam.update()
 
     def poses(self) -> npt.NDArray[np.float64]:
-        """(n, 3) the current estimate."""
+        """(n, 3) the current estimate (the waiting keyframes handed over first)."""
+        self.flush()
         est = self.isam.calculateEstimate()
         return np.asarray(self.g.utilities.extractPose2(est), np.float64).reshape(-1, 3)
 
@@ -273,7 +296,7 @@ class OnlineGraph:
         loops: loop edges added; `tried`: loop matches attempted; `refused`: by which test they failed.
         rebuilds: corrections applied (the matching map rebuilt that many times).
         backend: "isam2" or "sparse".
-        update_times: [s] the back end's update time at every keyframe (iSAM2 only).
+        update_times: [s] the back end's time per keyframe of each update (iSAM2 only).
     """
 
     def __init__(self, localizer: Localizer, matcher: MatcherConfig, config: OnlineLoopConfig | None = None) -> None:
@@ -294,13 +317,15 @@ class OnlineGraph:
         if want == "isam2" and not have_gtsam():
             raise ConfigError("loop closure: the iSAM2 back end needs gtsam (pip install 'robotexp[slam]')")
         self.backend = want
-        self._isam = _Isam2(c.cauchy) if want == "isam2" else None
+        self._isam = _Isam2(c.cauchy, c.isam_batch) if want == "isam2" else None
         self._path = 0.0
         self._anchor: Pose | None = None     # the localizer's pose at the last keyframe (its frame)
         self._loc: Pose | None = None        # the localizer's last pose
         self._inc = Pose(0.0, 0.0, 0.0)      # the chain's motion since the last keyframe
         self.jumps = 0
         self.corridor_loops = 0
+        self._scan_reach = 0.0               # [m] the farthest a keyframe's scan reaches from the robot
+        self._last_submap: tuple[tuple[Any, ...], OccupancyGrid, HitMap] | None = None   # see `_submap_of`
 
     @property
     def update_times(self) -> list[float]:
@@ -363,6 +388,7 @@ class OnlineGraph:
         self._poses.append((guess.x, guess.y, guess.theta))
         self._mapped.append((pose.x, pose.y, pose.theta))     # the localizer mapped the scan at its own pose
         self._paths.append(self._path)
+        self._scan_reach = max(self._scan_reach, scan.range_max + abs(scan.offset_x))
         self.keyframes.append(Keyframe(self._poses, len(self.keyframes), scan, odom, self._path, status, pose))
         drop = self.bins.add(len(self.keyframes) - 1, guess)
         if drop is not None:
@@ -403,9 +429,7 @@ class OnlineGraph:
         if hi <= lo:
             return None
         window = [k for k in range(lo, hi) if self.keyframes[k].scan is not None]
-        scans = [self.keyframes[k].scan for k in window]
-        grid, hits = _submap(P[window], scans, window.index(j), len(window),  # type: ignore[arg-type]
-                             self.localizer.grid.geo.cell, mc.range_max + wxy)
+        grid, hits = self._submap_of(window, j, mc.range_max + wxy)
         sm = ScanMatcher(replace(mc, window_xy=wxy, window_theta=wth, min_score=c.min_score, prior=0.0,
                                  motion_sigma_xy=wxy, motion_sigma_theta=wth, accept_score=2.0))
         px, py = scan_points(cur.scan, mc.range_max)
@@ -424,6 +448,20 @@ class OnlineGraph:
             info = self._corridor_info(m.info, m.pose.theta)
             self.corridor_loops += 1
         return Edge(j, n, relative(self.keyframes[j].pose, m.pose), info, loop=True)
+
+    def _submap_of(self, window: list[int], j: int, reach: float) -> tuple[OccupancyGrid, HitMap]:
+        """The submap of the keyframes `window` around `j` (`posegraph._submap`), the last one again when it was
+        of the same keyframes at the same poses (consecutive tries near one old keyframe: 92 of 227 in a
+        600 s dense frontier run). `reach` beyond every scan's own makes no difference to it (see `_submap`)."""
+        cell = self.localizer.grid.geo.cell
+        P = self._poses.a[window]
+        key = (tuple(window), P.tobytes(), None if reach >= self._scan_reach + cell else reach)
+        if self._last_submap is not None and self._last_submap[0] == key:
+            return self._last_submap[1], self._last_submap[2]
+        scans = [self.keyframes[k].scan for k in window]
+        grid, hits = _submap(P, scans, window.index(j), len(window), cell, reach)  # type: ignore[arg-type]
+        self._last_submap = (key, grid, hits)
+        return grid, hits
 
     def _corridor_info(self, h: npt.NDArray[np.float64], theta: float) -> npt.NDArray[np.float64]:
         """A loop edge's information where its scan does not fix the position along one direction (a corridor):

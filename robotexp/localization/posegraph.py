@@ -183,8 +183,11 @@ def _submap(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], centre: 
             reach: float) -> tuple[OccupancyGrid, HitMap]:
     lo, hi = max(centre - k, 0), min(centre + k + 1, len(scans))
     xy = poses[lo:hi, :2]
+    # the grid covers what the scans can touch: their own reach when shorter than `reach` (a 3 m laser's
+    # submap is 9x smaller than one padded by a 12 m matcher cap, and holds the same cells)
+    own = max(s.range_max + abs(s.offset_x) for s in scans[lo:hi]) + cell
     geo = GridGeometry.covering(float(xy[:, 0].min()), float(xy[:, 1].min()), float(xy[:, 0].max()),
-                                float(xy[:, 1].max()), cell, margin=reach)
+                                float(xy[:, 1].max()), cell, margin=min(reach, own))
     grid = OccupancyGrid(geo, p_occ=0.9, p_free=0.4, range_max=reach)
     hits = HitMap(geo)
     for m in range(lo, hi):

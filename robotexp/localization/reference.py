@@ -13,7 +13,7 @@ from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES,
 from robotexp.localization.posegraph import Edge, _wrap, check_edges
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
-           "wall_offset_ref", "refine_hits_ref", "optimize_ref"]
+           "wall_offset_ref", "refine_hits_ref", "optimize_ref", "add_hits_ref"]
 
 
 def splat_field_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
@@ -330,3 +330,23 @@ def optimize_ref(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int
         if np.abs(step).max() < 1e-6:
             break
     return x
+
+
+def add_hits_ref(sum_x: npt.NDArray[np.float32], sum_y: npt.NDArray[np.float32], count: npt.NDArray[np.float32],
+                 ox: float, oy: float, cell: float, x: float, y: float, th: float, offset_x: float,
+                 ranges: npt.NDArray[np.float64], angles: npt.NDArray[np.float64], range_max: float,
+                 depth: float) -> None:
+    """Every beam at once, accumulated with `np.add.at`."""
+    r, a = np.asarray(ranges, np.float64), np.asarray(angles, np.float64)
+    ok = np.isfinite(r) & (r > 0.0) & (r < range_max)
+    r, a = r[ok] + depth, a[ok] + th
+    dx, dy = np.cos(a), np.sin(a)
+    gx = (x + offset_x * math.cos(th) + r * dx - ox) / cell
+    gy = (y + offset_x * math.sin(th) + r * dy - oy) / cell
+    col = np.where(dx < 0.0, np.ceil(gx) - 1, np.floor(gx)).astype(np.intp)
+    row = np.where(dy < 0.0, np.ceil(gy) - 1, np.floor(gy)).astype(np.intp)
+    ok = (row >= 0) & (row < count.shape[0]) & (col >= 0) & (col < count.shape[1])
+    row, col = row[ok], col[ok]
+    np.add.at(sum_x, (row, col), (gx[ok] - col - 0.5).astype(np.float32))
+    np.add.at(sum_y, (row, col), (gy[ok] - row - 0.5).astype(np.float32))
+    np.add.at(count, (row, col), np.float32(1.0))

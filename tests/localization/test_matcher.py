@@ -10,6 +10,7 @@ import pytest
 from robotexp.localization import HitMap, Localizer, ScanMatcher, ate, compose, relative, scan_points
 from robotexp.localization import kernels as K
 from robotexp.localization.reference import (
+    add_hits_ref,
     bilinear_ref,
     pool_max_ref,
     refine_ref,
@@ -176,6 +177,27 @@ def test_field_is_centred_on_the_mean_hit_point() -> None:
     # at the centre of cell (4, 5), 0.8 cell right and 0.2 cell above the hit mean: d^2 = 0.68 cells^2
     assert f[4, 5] == pytest.approx(math.exp(-0.68 * 0.01 / 0.02), rel=1e-6)
     assert f[4, 5] > f[4, 3]            # the side the hits lean to is the stronger
+
+
+def test_hit_sums_match_numpy() -> None:
+    """`kernels.add_hits` (what `HitMap.add` runs) against `np.add.at`: bit for bit, over beams that miss, hit
+    twice in one cell, end on cell borders (both directions), leave the grid, or are NaN, inf, 0 or negative."""
+    rng = np.random.default_rng(5)
+    ranges = rng.uniform(0.05, 2.5, 181)
+    ranges[:6] = [np.nan, np.inf, 0.0, -1.0, 3.0, 2.9999]
+    angles = np.radians(np.linspace(-90.0, 90.0, 181))
+    angles[10:14] = [0.0, math.pi, math.pi / 2, -math.pi / 2]
+    ranges[10:14] = [0.5, 0.5, 0.3, 0.3]      # from (1.0, 1.0), no offset and depth: on borders of 0.1 m cells
+    for pose, offset, depth in ((Pose(1.0, 1.0, 0.0), 0.0, 0.0), (Pose(1.23, 0.87, 0.6), 0.12, 1e-4),
+                                (Pose(0.1, 2.0, -2.0), 0.05, 1e-4)):
+        got = [np.zeros((20, 24), np.float32) for _ in range(3)]
+        ref = [np.zeros((20, 24), np.float32) for _ in range(3)]
+        for _ in range(2):                            # sums over two scans
+            K.add_hits(*got, 0.0, 0.0, 0.1, pose.x, pose.y, pose.theta, offset, ranges, angles, 3.0, depth)
+            add_hits_ref(*ref, 0.0, 0.0, 0.1, pose.x, pose.y, pose.theta, offset, ranges, angles, 3.0, depth)
+        assert got[2].sum() > 100 and np.count_nonzero(got[2] == 4.0) > 0
+        for g, r in zip(got, ref, strict=True):
+            assert np.array_equal(g, r)
 
 
 def test_search_matches_numpy(field_and_scan) -> None:   # type: ignore[no-untyped-def]
