@@ -28,6 +28,7 @@ RELATIVE_FLAT = 1e-12   # |v| at or below this times the largest neighbouring 1 
 WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the scanned and covered cells
 TIGHT = FollowerConfig()    # where the path follower turns in place rather than drive round, bvp does too
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
+GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -118,7 +119,12 @@ class BVPExplorer(Explorer):
       run's stall watch sees no progress (`give_up`), the next update starts the free cells over at
       p = 1 and runs `flush_sweeps` per cell of the window's rows + columns (information crosses it a
       few times over): relaxed from below, the field has no stale bump, so the descent leads to the
-      goals. Then the thesis's sweeps again. A run that never stalls is the thesis's, bit for bit.
+      goals. Then the thesis's sweeps again. The goal cells within `GIVE_UP_REACH` of the robot at the
+      strike are given up (walls from then on, potential 1): unknown space the robot was drawn to and could
+      not resolve in the stall window, such as the inside of a rack seen through a gap in its outline
+      whose channel the descent leads into and the guard never lets the robot through (a production hall:
+      four such pockets held a run at 0.997 until it stalled). A run that never stalls is the thesis's,
+      bit for bit.
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
@@ -192,12 +198,15 @@ class BVPExplorer(Explorer):
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
+        self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at a stall (walls from then on)
+        self._pose_xy = (ctx.start.x, ctx.start.y)
 
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: the wall distances are recomputed and the field is relaxed anew from
         below at the next update (as after `give_up`), so that no goal or wall of the old map lingers in it."""
         if self.q.shape != (0, 0):
             self.walls = WallDistance(self._inflate_cells(grid), surface=True)
+            self.given_up[:] = False        # cells of the old map
             self.flush = True
         self.next_update = -math.inf
 
@@ -211,6 +220,7 @@ class BVPExplorer(Explorer):
             self.q[0, :] = self.q[-1, :] = 0.0
             self.q[:, 0] = self.q[:, -1] = 0.0
             self.covered = np.zeros((rows, cols), np.bool_)
+            self.given_up = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
             self.walls = WallDistance(self._inflate_cells(grid), surface=True)
 
@@ -264,6 +274,7 @@ class BVPExplorer(Explorer):
         self.walls.update(grid)         # distances to the walls, recomputed near what the scans changed
         dist = self.walls.dist[off[0]:off[0] + rows, off[1]:off[1] + cols]
         wall = (dist <= self._inflate_cells(grid)) | view.occupied()    # with no inflation: the occupied cells
+        wall |= self.given_up[off[0]:off[0] + rows, off[1]:off[1] + cols]
         covered = self.covered[off[0]:off[0] + rows, off[1]:off[1] + cols]
         goal = view.unknown() & ~covered & ~wall
         return wall, goal
@@ -336,6 +347,7 @@ class BVPExplorer(Explorer):
         """Update the potential when due, then steer along its descent (eqs. 3.2-3.5)."""
         pose = state.pose
         self._ensure(grid)
+        self._pose_xy = (pose.x, pose.y)
         self._cover(grid, pose.x, pose.y)
         if state.time >= self.next_update:
             wall, goal, off = self.update_potential(grid)
@@ -382,9 +394,22 @@ class BVPExplorer(Explorer):
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run saw no progress for a while (its stall watch): the field under the robot may still
         show goals that are gone. Relax it anew at the next update (see the class); False when that
-        cannot help (`flush_sweeps` 0, or no field yet)."""
+        cannot help (`flush_sweeps` 0, or no field yet). The goal cells near the robot are given up (see the
+        class)."""
         if self.flush_sweeps == 0 or self.updates == 0:
             return False
+        self._ensure(grid)
+        geo = grid.geo
+        k = int(math.ceil(GIVE_UP_REACH / geo.cell))
+        r0, c0 = geo.cell_of(*self._pose_xy)
+        rs = slice(max(r0 - k, 0), max(min(r0 + k + 1, geo.rows), 0))
+        cs = slice(max(c0 - k, 0), max(min(c0 + k + 1, geo.cols), 0))
+        goal = self.fixed[1:-1, 1:-1][rs, cs] & (self.q[1:-1, 1:-1][rs, cs] == 1.0)      # q = 1: a goal cell
+        rr, cc = np.mgrid[rs, cs]
+        x, y = self._pose_xy
+        cx, cy = geo.origin_x + (cc + 0.5) * geo.cell, geo.origin_y + (rr + 0.5) * geo.cell
+        near = np.hypot(cx - x, cy - y) <= GIVE_UP_REACH
+        self.given_up[rs, cs] |= goal & near
         self.flush = True
         self.next_update = -math.inf
         return True

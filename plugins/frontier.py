@@ -25,6 +25,7 @@ WINDOW_MARGIN = 2       # [cells] kept around the scanned part of the map, where
 # the plan costs of each map, by (id of the map, robot radius, clearance), as long as an explorer plans with them:
 # the explorers of a team on one map keep them once
 _SHARED_COSTS: weakref.WeakValueDictionary[tuple[int, float, float], PlanCosts] = weakref.WeakValueDictionary()
+GOAL_BOX_MARGIN = 3     # [cells] beyond the smallest group kept around a goal's cells, where `_goal_open` looks
 Offset = tuple[int, int]
 
 class FrontierExplorer(Explorer):
@@ -190,12 +191,25 @@ class FrontierExplorer(Explorer):
         return True
 
     def _goal_open(self, grid: OccupancyGrid) -> bool:
-        """True while the robot is on its way to a goal whose frontier cells are not all resolved."""
+        """True while the robot is on its way to a goal whose frontier cells are not all resolved.
+
+        Asked at every refresh of the path, so it looks only near the goal's cells: `_frontier_targets` of the
+        box around them grown by the smallest group kept and a few cells, within the scanned window. A group
+        holding a goal cell that reaches that box's edge has more cells than the smallest group kept, and
+        every other cell of the box is classed as on the whole window (its neighbours lie in the box): the
+        same answer as the whole window's targets, at a cost that follows the goal, not the map."""
         if self.goal is None or self.follower.done or len(self.goal_cells) == 0:
             return False
         view, off = known_window(grid, WINDOW_MARGIN)
-        local = self.goal_cells - off
-        return bool(self._frontier_targets(grid, view, off)[local[:, 0], local[:, 1]].any())
+        view_box = (off[0], off[0] + view.shape[0], off[1], off[1] + view.shape[1])
+        grow = self._min_cells(grid) + GOAL_BOX_MARGIN
+        r0 = max(int(self.goal_cells[:, 0].min()) - grow, view_box[0])
+        r1 = min(int(self.goal_cells[:, 0].max()) + grow + 1, view_box[1])
+        c0 = max(int(self.goal_cells[:, 1].min()) - grow, view_box[2])
+        c1 = min(int(self.goal_cells[:, 1].max()) + grow + 1, view_box[3])
+        local = self.goal_cells - (r0, c0)
+        targets = self._targets_of(grid, grid.window(r0, r1, c0, c1), (r0, c0))
+        return bool(targets[local[:, 0], local[:, 1]].any())
 
     def _replan_path(self, pose: Pose, grid: OccupancyGrid) -> bool:
         """A fresh path to the current goal on the current map; False when it cannot be reached."""
@@ -293,24 +307,32 @@ class FrontierExplorer(Explorer):
     def _frontier_targets(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
         """`frontier_targets` of the groups large enough to matter, blacklisted cells left out, on the
         window `view` of `grid` whose cell (0, 0) is `off`."""
-        min_cells = self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
-        if self.blacklist.shape != grid.shape:
-            self.blacklist = np.zeros(grid.shape, dtype=bool)
-        rows, cols = view.shape
         # the same map (no scan since), window and blacklist give the same targets: computed once a step
         key = (id(grid), grid.scans, self.blacklist_events, off, view.shape)
         if self._targets is not None and self._targets[0] == key:
             return self._targets[1]
+        targets = self._targets_of(grid, view, off)
+        targets.flags.writeable = False
+        self._targets = (key, targets)
+        return targets
+
+    def _min_cells(self, grid: OccupancyGrid) -> int:
+        """The smallest frontier group kept [cells]."""
+        return self.min_group_cells or max(1, int(math.ceil(2 * self.ctx.radius / grid.geo.cell)))
+
+    def _targets_of(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
+        """`_frontier_targets` computed afresh on the window `view` of `grid` whose cell (0, 0) is `off`."""
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        rows, cols = view.shape
         skip = self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols]
         if self.face_reach > 0:
             # a cell beside a wall that grazing beams wore away is still a wall face
             near = self._memory(grid).distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols] < 1.5
             skip = skip | near
-        targets = frontier_targets(view, min_cells, skip)
+        targets = frontier_targets(view, self._min_cells(grid), skip)
         if self.face_reach > 0 and targets.any():
             targets &= self._opening(grid, view, off)
-        targets.flags.writeable = False
-        self._targets = (key, targets)
         return targets
 
     def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:

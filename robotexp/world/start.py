@@ -4,8 +4,10 @@ The free place nearest a map's centre can be a closet, a pocket between furnitur
 outside of a laser-built map. Instead: the places where the robot fits, by the ground truth's own
 definition (`robotexp.world.clearance.reach_regions`: exact clearance from the obstacle shapes
 greater than the robot radius, connected through passages it fits through), are split into their
-connected regions; regions touching the edge of the map's box are left out when another exists
-(they leak out of an unclosed outline); the largest region left (by area) is the one the run
+connected regions; regions touching the edge of the map's box are left out when a closed one of some
+size exists (they leak out of an unclosed outline): one of at least `INNER_SHARE` of the largest
+region's area or `INNER_AREA` (a pocket among the clutter or noise of a laser map whose building runs
+off the image's edge is no building to explore); the largest region left (by area) is the one the run
 explores, and the start is a point well inside it: among its cells with the most clearance (at least
 `WELL_INSIDE`, or the region's best when it has none that clear), the one nearest the region's
 centroid. Ground truth and coverage then count what the robot can reach from there: that region.
@@ -23,16 +25,19 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose
 from robotexp.world.model import World
 
-__all__ = ["StartChoice", "WELL_INSIDE", "chosen_start", "default_start"]
+__all__ = ["INNER_AREA", "INNER_SHARE", "StartChoice", "WELL_INSIDE", "chosen_start", "default_start"]
 
 WELL_INSIDE = 0.75          # [m] clearance of a start "well inside" its region
+INNER_SHARE = 0.05          # a closed region this share of the largest region's area is preferred to the
+INNER_AREA = 100.0          # [m^2] ... or this large: regions that reach the map's edge
 MAX_CELLS = 4_000_000       # the search grid is coarsened beyond this many cells
 
 
 @dataclass(frozen=True)
 class StartChoice:
-    """The default start and why: `area` [m^2] of its region, `regions` found, `edge` True when every
-    region touched the map's edge (the map's outline is not closed where the robot fits)."""
+    """The default start and why: `area` [m^2] of its region, `regions` found, `edge` True when its
+    region touches the map's edge (the map's outline is not closed where the robot fits, and no closed region
+    large enough exists)."""
 
     pose: Pose
     area: float
@@ -44,7 +49,7 @@ class StartChoice:
         where = f"({self.pose.x:.2f}, {self.pose.y:.2f}) m"
         why = f"largest of {self.regions} regions where the robot fits, {self.area:.1f} m2"
         if self.edge:
-            why += "; every region reaches the map's edge (outline not closed)"
+            why += "; it reaches the map's edge (outline not closed)"
         return f"default start {where}: {why}"
 
 
@@ -84,6 +89,7 @@ def default_start(world: World, radius: float, *, cell: float = 0.05) -> StartCh
                           regions.coarse[0], regions.coarse[-1], regions.coarse[:, 0], regions.coarse[:, -1]])
     inner = sizes.copy()
     inner[np.unique(rim)] = 0.0
+    inner[inner < min(INNER_SHARE * float(sizes.max()), INNER_AREA)] = 0.0
     edge = not inner.any()
     best = int(np.argmax(sizes if edge else inner))
     region = labels == best

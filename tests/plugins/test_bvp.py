@@ -220,3 +220,26 @@ def test_a_stall_relaxes_the_stale_field_and_the_run_goes_on() -> None:
     assert record["completed"] and record["reason"].startswith("explored"), record["reason"]
     assert record["coverage"] > 0.99 and record["collisions"] == 0
     assert not BVPExplorer(flush_sweeps=0).give_up(OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 4, 4)))
+
+
+def test_a_stall_gives_up_the_goals_near_the_robot() -> None:
+    # the room's 1.2 m opening leads into a 0.5 m stub of known corridor, then unknown space: goals the
+    # robot at (4.8, 2.5) m is drawn to. At a strike the goal cells within GIVE_UP_REACH (2 m) of it become
+    # walls, the farther ones stay goals, and with nothing left that its region touches the run is done
+    from robotexp_plugins.bvp import GIVE_UP_REACH
+
+    grid = _room(opening=True)
+    ex = _explorer()
+    assert isinstance(ex.step(_state(4.8, 2.5, 0.0, scan=_empty_scan()), grid), Twist)
+    _, goal = ex.boundary(grid)
+    cells = np.argwhere(goal)
+    xy = grid.geo.centers_of(cells)
+    d = np.hypot(xy[:, 0] - 4.8, xy[:, 1] - 2.5)
+    assert (d <= GIVE_UP_REACH).any() and (d > GIVE_UP_REACH).any()
+    assert ex.give_up(grid)
+    given = ex.given_up[cells[:, 0], cells[:, 1]]
+    assert given.tolist() == (d <= GIVE_UP_REACH).tolist()
+    wall, goal = ex.boundary(grid)
+    assert wall[ex.given_up].all() and not goal[ex.given_up].any()
+    decision = ex.step(_state(4.8, 2.5, 0.0, t=1.0, scan=_empty_scan()), grid)
+    assert isinstance(decision, Done) and decision.reason.startswith("explored")

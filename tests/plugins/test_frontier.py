@@ -382,3 +382,35 @@ def test_firmly_occupied_thresholds() -> None:
     himm = OccupancyGrid(geo, model="himm")
     himm.values[0] = [3, 5, 6, 15]
     assert himm.firmly_occupied()[0].tolist() == [False, False, True, True]
+
+
+class _CheckedGoalOpen(FrontierExplorer):
+    """Frontier whose look near the goal is checked against the whole scanned window at every refresh."""
+
+    def reset(self, ctx) -> None:  # type: ignore[no-untyped-def]
+        super().reset(ctx)
+        self.answers: list[tuple[bool, bool]] = []
+
+    def _goal_open(self, grid: OccupancyGrid) -> bool:
+        near = super()._goal_open(grid)
+        if self.goal is not None and not self.follower.done and len(self.goal_cells):
+            from robotexp.planning.targets import known_window
+            view, off = known_window(grid, 2)
+            local = self.goal_cells - off
+            self.answers.append((near, bool(self._frontier_targets(grid, view, off)[local[:, 0], local[:, 1]].any())))
+        return near
+
+
+def test_the_goal_is_open_near_it_as_on_the_whole_window() -> None:
+    # whether the goal's frontier is still there is asked near the goal only; along a whole run through a
+    # door (the groups split, shrink below the smallest kept and vanish) the answer is the whole window's
+    world = door_room()
+    geo = GridGeometry.covering(*world.bounds, cell=CELL, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=RANGE)
+    explorer = _CheckedGoalOpen(min_group_cells=10)     # groups 1 m long: their size matters
+    with SimRobot(world, pose=START, seed=0, laser=LaserConfig(range_max=RANGE), max_speed=0.5, sonar=False) as robot:
+        run = ExplorationRun(robot, explorer, grid, max_time=600.0, seed=0).run()  # type: ignore[arg-type]
+    assert run.completed
+    assert len(explorer.answers) >= 10
+    assert all(near == whole for near, whole in explorer.answers)
+    assert {whole for _, whole in explorer.answers} == {True, False}       # both answers were asked for

@@ -57,6 +57,21 @@ def test_regions_that_reach_the_map_edge_are_left_out_when_a_closed_one_exists()
     assert choice.edge and "outline not closed" in choice.describe()
 
 
+def test_a_pocket_among_clutter_does_not_outweigh_a_building_open_to_the_map_edge():
+    # the same U open to the edge (7.9 x 5.95 m, 7.4 x 5.7 m2 where the centre fits) and, beside it, a closed
+    # 1 x 1 m box (0.4 x 0.4 m2 where the centre fits: 0.4 % of the U, below INNER_SHARE): the U is explored
+    u = ((4, 0, 12, 0), (12, 0, 12, 6), (4, 0, 4, 6))
+    pocket = ((0, 0, 1, 0), (1, 0, 1, 1), (1, 1, 0, 1), (0, 1, 0, 0))
+    choice = default_start(World("pocket", walls(*u, *pocket)), 0.25)
+    assert 4 < choice.pose.x < 12 and 0 < choice.pose.y < 6 and choice.edge
+    assert choice.area == pytest.approx(7.4 * 5.7, rel=0.02)
+    # a closed room of 5 % of the U's area or more is still preferred to it: 2.2 x 2.2 m, 1.6 x 1.6 m2 (6 %)
+    room = ((0, 0, 2.2, 0), (2.2, 0, 2.2, 2.2), (2.2, 2.2, 0, 2.2), (0, 2.2, 0, 0))
+    choice = default_start(World("room", walls(*u, *room)), 0.25)
+    assert choice.pose.x < 2.2 and not choice.edge
+    assert choice.area == pytest.approx(1.6 * 1.6, rel=0.02)
+
+
 def test_nowhere_to_fit_is_one_clear_error():
     world = World("tight", walls((0, 0, 0.4, 0), (0.4, 0, 0.4, 0.4), (0.4, 0.4, 0, 0.4), (0, 0.4, 0, 0)))
     with pytest.raises(WorldError, match="no place where a robot of radius 0.25 m fits"):
