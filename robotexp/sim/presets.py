@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.robot import Limits
+from robotexp.robot import Footprint, Limits
 
 __all__ = ["LaserConfig", "SonarConfig", "OdometryError", "ODOMETRY_PRESETS", "odometry_error", "RobotPreset",
            "PRESETS", "preset", "P3DX_SONAR", "P3DX_SONAR_ARIA"]
@@ -196,7 +196,8 @@ P3DX_SONAR_ARIA = SonarConfig(angles_deg=P3DX_SONAR.angles_deg,
 
 @dataclass(frozen=True)
 class RobotPreset:
-    """What the simulator needs to know of a robot model."""
+    """What the simulator needs to know of a robot model. `radius` is half the footprint's width (what the
+    planners keep from walls); `footprint` the outline the simulator collides with (None: a disc of `radius`)."""
 
     name: str
     radius: float             # [m]
@@ -205,12 +206,25 @@ class RobotPreset:
     limits: Limits
     laser: LaserConfig = field(default_factory=LaserConfig)
     sonar: SonarConfig | None = None
+    footprint: Footprint | None = None
+
+    def __post_init__(self) -> None:
+        if self.footprint is None:
+            object.__setattr__(self, "footprint", Footprint.disc(self.radius))
+
+    @property
+    def outline(self) -> Footprint:
+        """The robot's outline (`footprint`, never None once built)."""
+        assert self.footprint is not None
+        return self.footprint
 
 
 PRESETS: dict[str, RobotPreset] = {
-    # Pioneer P3-DX: radius 250 mm (SPEC), wheel base ~330 mm, ARIA's default limits are far above
-    # the thesis's 100 mm/s; 1.2 m/s and 300 deg/s are the robot's own maxima.
-    "p3dx": RobotPreset("p3dx", radius=0.25, height=0.25, wheel_base=0.33,
+    # Pioneer P3-DX: a 455 x 381 mm body (the maker's data sheet), so passages must be wider than
+    # 381 mm and turning in place sweeps a 297 mm radius; wheel base ~330 mm; ARIA's default limits are
+    # far above the thesis's 100 mm/s; 1.2 m/s and 300 deg/s are the robot's own maxima.
+    "p3dx": RobotPreset("p3dx", radius=0.1905, height=0.25, wheel_base=0.33,
+                        footprint=Footprint.rectangle(0.455, 0.381),
                         limits=Limits(v_max=1.2, w_max=math.radians(300), a_max=0.3,
                                       alpha_max=math.radians(100)),
                         sonar=P3DX_SONAR),

@@ -17,7 +17,7 @@ from robotexp.robot import Pose
 from robotexp.run.record import EndReason
 from robotexp.run.spec import RunSpec
 from robotexp.run.team import TeamRun, TeamSpec, parse_team
-from robotexp.sim import SimRobot, SimTeam
+from robotexp.sim import SimRobot, SimTeam, preset
 from robotexp.testing.explorer_contract import make_room
 from robotexp.world.model import World, segment_box
 
@@ -45,7 +45,7 @@ def test_a_team_run_writes_one_record_with_the_team_keys(tmp_path):
     assert 0 < r.overlap_ratio < 1
     assert r.coverage > 0.9 and r.time_to_coverage_90_s is not None
     starts = [x["start_pose"] for x in robots]
-    assert math.dist(starts[0][:2], starts[1][:2]) >= 2 * 0.26 + 0.3 - 1e-9
+    assert math.dist(starts[0][:2], starts[1][:2]) >= 2 * preset("p3dx").outline.swing + 0.3 - 1e-9
     assert seen[0] > 0 and seen[1] > 0
     # one line in results.jsonl (checked against the schema by conftest), read back as it was written
     lines = (tmp_path / "results.jsonl").read_text().splitlines()
@@ -165,7 +165,7 @@ def test_teammates_are_not_mapped_as_walls_but_the_explorers_see_them():
         raw.update(robots[0].read().pose, robots[0].read().laser)
         run = TeamRun(robots, [Look(), Look()], [grid, grid], team.make_clock(0.1), max_time=5.0)
         run.run()
-    r = robots[0].radius
+    r = robots[0].footprint.swing                     # a teammate is seen as the disc its body turns in
     assert seen == pytest.approx([2.0 - r, 2.0 - r])        # each explorer saw the other robot ahead
     rows, cols = np.nonzero(raw.occupied())
     xy = geo.centers_of(np.stack([rows, cols], axis=1))
@@ -188,13 +188,17 @@ def test_a_robot_gives_way_to_a_moving_teammate_of_a_smaller_number_ahead():
         # Drive has no laser check: robot 1 stops for robot 0, which drives on into it
         run = TeamRun(robots, [Drive(11.0), Drive(1.0)], [grid, grid], team.make_clock(0.1), max_time=8.0)
         run.run()
-    r = robots[0].radius
+    body = robots[0].footprint
+    r = body.swing              # the robots keep apart the discs they turn in
     first, second = run.record.robots
     gap = 3.0 - 2 * r
     assert second["give_way_s"] > 0 and first["give_way_s"] == 0
-    # robot 1 drove until the gap closed to 0.6 m (half of it each, both at the same speed), then braked
-    assert (gap - 0.6) / 2 < second["path_length_m"] < (gap - 0.6) / 2 + 0.25
-    assert first["path_length_m"] + second["path_length_m"] == pytest.approx(gap, abs=0.03)
+    # robot 1 drove until the gap closed to 0.6 m (half of it each, both at the same speed), then braked: at
+    # most its stopping distance at 0.5 m/s (a_max 0.3 m/s^2) and one control period further
+    lim = robots[1].limits
+    assert (gap - 0.6) / 2 < second["path_length_m"] < (gap - 0.6) / 2 + 0.5 ** 2 / (2 * lim.a_max) + 0.5 * 0.1
+    # robot 0 drives on until its body's front touches robot 1's disc
+    assert first["path_length_m"] + second["path_length_m"] == pytest.approx(3.0 - body.length / 2 - r, abs=0.03)
     assert run.record.robot_collisions == 2 and first["robot_collisions"] == second["robot_collisions"] == 1
 
 
