@@ -16,7 +16,7 @@ import numpy.typing as npt
 from robotexp import (ConfigError, Done, Explorer, ExplorerContext, Footprint, LaserScan, Pose, RobotState, Twist,
                       wrap_angle)
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, ScanMemory, blocked_ahead, footprint_blocked, free_heading
+from robotexp.planning.follower import GRAIN, FollowerConfig, ScanMemory, blocked_ahead, footprint_blocked, free_heading
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 
@@ -339,6 +339,7 @@ class BVPExplorer(Explorer):
         pose = state.pose
         self._ensure(grid)
         self._cover(grid, pose.x, pose.y)
+        self._memory.see_map(grid)
         if state.time >= self.next_update:
             wall, goal, off = self.update_potential(grid)
             self._goal, self._goal_off = goal, off
@@ -393,7 +394,7 @@ class BVPExplorer(Explorer):
         lim = self.ctx.limits
         creep = TIGHT.tight_speed
         for cv, cw in ((v, w), (0.0, w), (creep, w), (creep, 0.0)):
-            if not footprint_blocked(pts, foot, self.clearance, cv, cw, lim.a_max, lim.alpha_max):
+            if not footprint_blocked(pts, foot, self.clearance + GRAIN, cv, cw, lim.a_max, lim.alpha_max):
                 return cv, cw
         return 0.0, 0.0
 

@@ -139,6 +139,7 @@ class FrontierExplorer(Explorer):
         if self.face_reach > 0:
             self._memory(grid).note(grid)
         self._pose_xy = (pose.x, pose.y)
+        self.follower.memory.see_map(grid)
         if self.homing:
             if self.follower.done:
                 return Done("explored; back at the start")

@@ -160,6 +160,7 @@ class MetaheuristicExplorer(Explorer):
         """Follow the path to the target; choose a new target when it is reached or resolved."""
         pose, now = state.pose, state.time
         self._mark_visited(pose, grid)
+        self.follower.memory.see_map(grid)
         if self.follower.done and self.face is not None:
             twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x),
                                                   state.laser)

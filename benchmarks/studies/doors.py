@@ -41,13 +41,14 @@ def main() -> None:
     ap.add_argument("--methods", default="frontier,bvp,srt-laser,meta-ga,meta-firefly")
     ap.add_argument("--robots", default="p3dx,kobuki")
     ap.add_argument("--max-time", type=float, default=1800.0)
+    ap.add_argument("--door", type=float, help="door width [m] for every robot (default: 0.65 P3-DX, 0.50 Kobuki)")
     args = ap.parse_args()
     total = 0.0
     wins = 0
     n = 0
     for method in args.methods.split(","):
         for robot in args.robots.split(","):
-            f = run(method, robot, args.max_time)
+            f = run(method, robot, args.max_time, args.door)
             total += float(f["wall"])      # type: ignore[arg-type]
             wins += bool(f["ok"])
             n += 1

@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, PathFollower, ScanMemory, footprint_blocked, path_points
+from robotexp.planning.follower import GRAIN, FollowerConfig, PathFollower, ScanMemory, footprint_blocked, path_points
 from robotexp.planning.grid_planner import astar
 from robotexp.planning.targets import passable_cell, plan_costs
 
@@ -184,7 +184,7 @@ class SRTExplorer(Explorer):
         if self.uses_sonar and not ctx.outline.round:
             ctx = replace(ctx, radius=ctx.outline.swing)
         super().reset(ctx)
-        self._memory = ScanMemory(reach=ctx.outline.swing + 0.6, scans=80)     # every scan of the last 8 s or so
+        self._memory = ScanMemory(reach=ctx.outline.swing + 0.6)
         self.tree = SRTTree()
         self.follower = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint, memory=self._memory)
         self.settler = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint, memory=self._memory,
@@ -253,6 +253,7 @@ class SRTExplorer(Explorer):
         self._grid = grid
         self._now = state.time
         if not self.ctx.outline.round:
+            self._memory.see_map(grid)
             self._memory.note(pose, state.laser)
         if self.phase is Phase.SENSE:
             twist, region = self._sense(state)
@@ -284,6 +285,8 @@ class SRTExplorer(Explorer):
         robot sweeps turning, `Footprint.swing` + `TURN_MARGIN`) of (x, y) [m], each cell taken as its whole
         square, and (x, y) lies in a free cell."""
         grid = self._grid
+        if grid is None:
+            return False
         geo = grid.geo
         reach = self.ctx.outline.swing + TURN_MARGIN if reach is None else reach
         r, c = geo.cell_of(x, y)
@@ -308,6 +311,7 @@ class SRTExplorer(Explorer):
         length = math.hypot(dx, dy)
         if length < 1e-9:
             return None
+        assert self._grid is not None
         width = self.ctx.outline.half_width - self._grid.geo.cell      # the cells' squares are conservative
         s = length
         while s <= length + TURN_AHEAD:
@@ -332,7 +336,8 @@ class SRTExplorer(Explorer):
         if foot.round:
             return False
         lim = self.ctx.limits
-        return footprint_blocked(self._memory.points(state.pose), foot, 0.01, 0.0, rate, lim.a_max, lim.alpha_max)
+        return footprint_blocked(self._memory.points(state.pose), foot, 0.01 + GRAIN, 0.0, rate, lim.a_max,
+                                 lim.alpha_max)
 
     def _turn(self, pose: Pose, state: RobotState) -> Twist | Done:
         """Turn on the spot to face the target, then drive. A rectangular robot drives the planner's path

@@ -17,6 +17,7 @@ corners sweep a wider disc than its width, so where a turn in place would bring 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,14 +25,18 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import simplify
 from robotexp.robot import Footprint, LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "footprint_blocked", "free_heading",
+__all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "footprint_blocked",
+           "free_heading",
            "path_points", "roomy_cells", "scan_clearance"]
 
 REACTION = 0.2          # [s] of motion at the commanded speed added to the stopping distance the guard checks
 SWEEP_STEP = 0.02       # [m] between the disc positions the guard checks along the arc
+TIGHT_TURN_RATE = 1.0   # [rad/s] a rectangle's fastest turn where the laser shows little room
+BACK_OUT = 0.1          # [m] a rectangle backs out of a tight place only over ground it just drove straight in on
 GRAIN = 0.02            # [m] the recent returns a rectangle's guard checks are kept one per square this wide
 TURN_STEP = math.radians(3)     # [rad] between the headings the guard checks as a rectangle turns
 
@@ -168,6 +173,30 @@ def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64],
     return bool(((d < reach) & (d < d0[:, None] - 1e-4)).any())
 
 
+def map_points(grid: OccupancyGrid, x: float, y: float, reach: float) -> npt.NDArray[np.float64]:
+    """(k, 2) world points [m] of the obstacles `grid` holds within about `reach` [m] of (x, y): the corners
+    of the box of laser endpoints in each occupied cell (`OccupancyGrid.hit_box`; a cell with none: its
+    own corners). What the laser saw of the walls round the robot, however long ago."""
+    geo = grid.geo
+    r, c = geo.cell_of(x, y)
+    k = int(math.ceil(reach / geo.cell)) + 1
+    r0, c0, r1, c1 = max(r - k, 0), max(c - k, 0), min(r + k + 1, geo.rows), min(c + k + 1, geo.cols)
+    if r1 <= r0 or c1 <= c0:
+        return np.zeros((0, 2))
+    win = grid.window(r0, r1, c0, c1)
+    rr, cc = np.nonzero(win.occupied())
+    if len(rr) == 0:
+        return np.zeros((0, 2))
+    box = win.hit_box[rr, cc].astype(np.float64) / 255.0
+    none = box[:, 0] > box[:, 1]
+    box[none] = (0.0, 1.0, 0.0, 1.0)
+    x0 = geo.origin_x + (c0 + cc) * geo.cell
+    y0 = geo.origin_y + (r0 + rr) * geo.cell
+    xs = x0[:, None] + geo.cell * box[:, [0, 1, 0, 1]]
+    ys = y0[:, None] + geo.cell * box[:, [2, 2, 3, 3]]
+    return np.column_stack([xs.ravel(), ys.ravel()])
+
+
 class ScanMemory:
     """The laser returns near the robot from its last `scans` scans, kept in the world frame: a forward
     laser does not see what a rectangle's rear corners swing into as it turns, but it saw it a moment ago.
@@ -177,12 +206,18 @@ class ScanMemory:
         scans: how many scans are kept.
     """
 
-    def __init__(self, reach: float = 1.0, scans: int = 30) -> None:
+    def __init__(self, reach: float = 1.0, scans: int = 150) -> None:
         self.reach = reach
         self.scans = scans
         self._kept: list[npt.NDArray[np.float64]] = []
         self._last: LaserScan | None = None
         self._merged: npt.NDArray[np.float64] | None = None
+        self.grid: OccupancyGrid | None = None
+
+    def see_map(self, grid: OccupancyGrid | None) -> None:
+        """Check against the obstacles of `grid` too (`map_points`): it remembers what the scans kept here
+        have forgotten, behind the robot."""
+        self.grid = grid
 
     def note(self, pose: Pose, scan: LaserScan | None) -> None:
         """Keep the returns of `scan`, read at `pose`, within `reach` (a scan noted twice is kept once)."""
@@ -199,14 +234,15 @@ class ScanMemory:
 
     def points(self, pose: Pose) -> npt.NDArray[np.float64]:
         """(k, 2) [m] the kept returns within `reach` of `pose`, in the robot frame at `pose`."""
-        if not self._kept:
+        fixed = np.zeros((0, 2)) if self.grid is None else map_points(self.grid, pose.x, pose.y, self.reach)
+        if not self._kept and not len(fixed):
             return np.zeros((0, 2))
-        if self._merged is None:        # one point per GRAIN square: the same wall seen scan after scan
+        if self._merged is None and self._kept:        # one point per GRAIN square: the same wall seen scan after scan
             world = np.concatenate(self._kept[::-1])
             keys = np.floor(world / GRAIN).astype(np.int64)
             _, first = np.unique(keys[:, 0] * (1 << 32) + keys[:, 1], return_index=True)
             self._merged = world[first]
-        world = self._merged
+        world = fixed if self._merged is None else np.concatenate([self._merged, fixed])
         dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
         near = dx * dx + dy * dy < self.reach * self.reach
         c, s = math.cos(pose.theta), math.sin(pose.theta)
@@ -285,6 +321,7 @@ class PathFollower:
         # the returns a rectangle's guard checks (an explorer that sees every scan may share its own)
         self.memory = memory or ScanMemory(reach=(self.footprint.swing if self.footprint else radius) + 0.6)
         self._pose = Pose(0.0, 0.0, 0.0)
+        self._trail: deque[Pose] = deque(maxlen=100)      # a rectangle's own recent poses (`_came_straight`)
         self.config = config or FollowerConfig()
         self.path: npt.NDArray[np.float64] = np.zeros((0, 2))
         self._xy: list[tuple[float, float]] = []
@@ -379,6 +416,10 @@ class PathFollower:
         cfg, lim = self.config, self.limits
         err = wrap_angle(math.atan2(ty - pose.y, tx - pose.x) - pose.theta)
         w = max(-lim.w_max, min(lim.w_max, cfg.k_turn * err))
+        if self.footprint is not None and tight < 1.0:
+            # a rectangle turning where room is tight turns slowly: its guard sweeps the angle it needs to
+            # stop (w^2 / 2 alpha), and a fast turn's sweeps a whole turn
+            w = max(-TIGHT_TURN_RATE, min(TIGHT_TURN_RATE, w))
         if abs(err) > cfg.tight_turn + tight * (cfg.turn_in_place - cfg.tight_turn):
             if self.footprint is None or not self._blocked(scan, 0.0, w):
                 self.blocked = False
@@ -396,20 +437,49 @@ class PathFollower:
         return Twist(max(0.0, v), w)
 
     def _squeeze(self, scan: LaserScan | None, w: float, to_end: float) -> Twist:
-        """A rectangle whose corner would touch turning in place: turn while creeping forward, else creep
-        straight out of the narrow place, else wait (`blocked`)."""
+        """A rectangle whose corner would touch turning in place: turn while creeping forward, else turn
+        the other way round, else creep straight out of the narrow place, else back out over the ground it
+        came straight in on (a forward laser does not see behind), else wait (`blocked`)."""
         v = min(self.config.tight_speed, math.sqrt(2 * self.limits.a_max * max(to_end, 0.0)))
-        for command in (Twist(v, w), Twist(v, 0.0), Twist(-self.config.tight_speed, 0.0)):
-            if command.v != 0 and not self._blocked(scan, command.v, command.w):
+        back = Twist(-self.config.tight_speed, 0.0) if self._came_straight() else Twist.ZERO
+        for command in (Twist(v, w), Twist(0.0, -w), Twist(v, 0.0), back):
+            if command != Twist.ZERO and not self._blocked(scan, command.v, command.w):
                 self.blocked = False
                 return command
         self.blocked = True
         return Twist.ZERO
 
+    def _came_straight(self) -> bool:
+        """True when the ground it would back over is known: the map (`ScanMemory.see_map`) holds every cell
+        under the body moved BACK_OUT m back as free, or the robot's own recent poses include one BACK_OUT m
+        or more straight behind it, at its heading (the body stood there)."""
+        p = self._pose
+        grid = self.memory.grid
+        if grid is not None and self.footprint is not None:
+            f = self.footprint
+            u, v = np.meshgrid(np.linspace(-f.length / 2 - BACK_OUT, f.length / 2, 12),
+                               np.linspace(-f.width / 2, f.width / 2, 6))
+            c, s = math.cos(p.theta), math.sin(p.theta)
+            cells = np.column_stack([(p.x + c * u - s * v).ravel(), (p.y + s * u + c * v).ravel()])
+            rc = np.floor((cells - [grid.geo.origin_x, grid.geo.origin_y]) / grid.geo.cell).astype(np.int64)
+            lo, hi = rc.min(axis=0), rc.max(axis=0)
+            if (lo >= 0).all() and hi[1] < grid.geo.rows and hi[0] < grid.geo.cols:
+                free = grid.window(int(lo[1]), int(hi[1]) + 1, int(lo[0]), int(hi[0]) + 1).free()
+                if free[rc[:, 1] - lo[1], rc[:, 0] - lo[0]].all():
+                    return True
+        c, s = math.cos(p.theta), math.sin(p.theta)
+        for q in self._trail:
+            dx, dy = q.x - p.x, q.y - p.y
+            behind, aside = -(c * dx + s * dy), abs(-s * dx + c * dy)
+            if behind >= BACK_OUT and aside < 0.02 and abs(wrap_angle(q.theta - p.theta)) < math.radians(5):
+                return True
+        return False
+
     def _note(self, pose: Pose, scan: LaserScan | None) -> None:
         self._pose = pose
         if self.footprint is not None:
             self.memory.note(pose, scan)
+            self._trail.append(pose)
 
     def _blocked(self, scan: LaserScan | None, v: float, w: float) -> bool:
         """The guard (`blocked_ahead`) for the command (v, w) with this robot's outline; a rectangle's
@@ -420,7 +490,8 @@ class PathFollower:
         pts = self.memory.points(self._pose)
         if v < 0:       # backing up is driving forward in the mirror image (x -> -x, turns reversed)
             pts, v, w = pts * np.array([-1.0, 1.0]), -v, -w
-        return footprint_blocked(pts, self.footprint, self.config.clearance, v, w, lim.a_max, lim.alpha_max)
+        # the returns are kept one per GRAIN square: a corner may lie that much between them
+        return footprint_blocked(pts, self.footprint, self.config.clearance + GRAIN, v, w, lim.a_max, lim.alpha_max)
 
     def turn_to(self, pose: Pose, heading: float, scan: LaserScan | None = None) -> tuple[Twist, bool]:
         """Turn in place to `heading` [rad]; returns the command and whether it is over: reached (5 deg),
@@ -430,6 +501,8 @@ class PathFollower:
         if abs(err) < math.radians(5):
             return Twist.ZERO, True
         w = max(-self.limits.w_max, min(self.limits.w_max, self.config.k_turn * err))
+        if self.footprint is not None:
+            w = max(-TIGHT_TURN_RATE, min(TIGHT_TURN_RATE, w))
         if self.footprint is not None and self._blocked(scan, 0.0, w):
             return Twist.ZERO, True
         return Twist(0.0, w), False

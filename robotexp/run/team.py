@@ -247,13 +247,15 @@ class TeamRun(ExplorationRun):
 
     def _keep_clear(self, robot: int, m: ExplorationRun, d: Twist, s: RobotState) -> None:
         """The robots tell each other where they stand: a command whose sweep (`footprint_blocked`, the
-        robot's own outline along the command's arc or turn) would bring the body within TEAMMATE_CLEARANCE
-        of a teammate's disc is cut to its turn alone, or to a stop; a teammate the laser cannot see (lower
-        than the laser, or behind it) is not driven into."""
+        robot's own outline along the command's arc or turn) would bring the body within TEAMMATE_CLEARANCE,
+        plus the stopping distance of the fastest teammate near, of a teammate's disc is cut to its turn
+        alone, or to a stop; a teammate the laser cannot see (lower than the laser, or behind it) is not
+        driven into."""
         from robotexp.planning.follower import footprint_blocked
 
         p = s.true_pose or s.pose
         rings = []
+        closing = 0.0       # [m] the farthest a moving teammate may still come before it stops
         for j, other in enumerate(self.members):
             t = other.state
             if j == robot or t is None:
@@ -262,6 +264,8 @@ class TeamRun(ExplorationRun):
             if math.hypot(q.x - p.x, q.y - p.y) > 2.0 + other.robot.footprint.swing:
                 continue
             r = other.robot.footprint.swing
+            v = abs(t.velocity.v)
+            closing = max(closing, v * v / (2.0 * max(other.robot.limits.a_max, 1e-6)) + v * 0.2)
             rings.append(np.column_stack([q.x + r * np.cos(_RING), q.y + r * np.sin(_RING)]))
         if not rings:
             return
@@ -271,8 +275,8 @@ class TeamRun(ExplorationRun):
         pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])
         foot, lim = m.robot.footprint, m.robot.limits
         for cmd in (d, Twist(0.0, d.w), Twist.ZERO):
-            if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE, max(cmd.v, 0.0), cmd.w,
-                                                          lim.a_max, lim.alpha_max):
+            if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE + closing, max(cmd.v, 0.0),
+                                                          cmd.w, lim.a_max, lim.alpha_max):
                 break
         if cmd != d:
             m.robot.command(cmd)

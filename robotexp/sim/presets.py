@@ -236,9 +236,12 @@ PRESETS: dict[str, RobotPreset] = {
 
 
 def preset(name: str, **changes: object) -> RobotPreset:
-    """The preset called `name`, with fields replaced by `changes`. Raises ConfigError."""
+    """The preset called `name`, with fields replaced by `changes` (a new `radius` without a `footprint`
+    makes the robot a disc of that radius). Raises ConfigError."""
     try:
         base = PRESETS[name]
     except KeyError:
         raise ConfigError(f"unknown robot preset {name!r} (available: {', '.join(PRESETS)})") from None
+    if "radius" in changes and "footprint" not in changes:
+        changes = {**changes, "footprint": None}
     return replace(base, **changes) if changes else base   # type: ignore[arg-type]

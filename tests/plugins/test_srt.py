@@ -434,7 +434,8 @@ def test_blocked_way_back_is_detoured_end_to_end() -> None:
     for region in (r0, r1):
         grid.mark_free(region.mask(geo))
     blocked = World("room+box", np.vstack([world.boxes, [[-1.75, 0.0, 0.15, 0.4, 0.0]]]), world.discs)
-    with SimRobot(blocked, robot=ROUND_P3DX, pose=Pose(-0.5, 0.0, math.pi), seed=1, max_speed=0.3, sonar=False) as robot:
+    with SimRobot(blocked, robot=ROUND_P3DX, pose=Pose(-0.5, 0.0, math.pi), seed=1, max_speed=0.3,
+                  sonar=False) as robot:
         clock = robot.make_clock(0.1)
         ex.current = 1                                    # at node 1, going back to its parent
         ex.target, ex.target_node = (-3.0, 0.0), 0
