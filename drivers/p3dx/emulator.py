@@ -178,8 +178,7 @@ class P3DXEmulator(EmulatorBase):
 
     label = "p3dx emulator"
     join_timeout = 5.0
-    # robotexp.robot.RobotEmulator: the disc the simulated body turns in (the start pose must leave it room) [m]
-    radius = math.hypot(c.BODY_LENGTH_MM, c.BODY_WIDTH_MM) / 2000.0
+    radius = c.ROBOT_RADIUS_MM / 1000.0          # robotexp.robot.RobotEmulator: the simulated footprint [m]
     options = frozenset({"odometry"})            # `robotexp emulate p3dx --odometry-error SPEC`
 
     def __init__(self, world: World | str, *, pose: Pose | str | None = None, port: int = c.SIM_TCP_PORT,  # noqa: PLR0913

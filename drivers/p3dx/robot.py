@@ -20,8 +20,8 @@ from types import MappingProxyType
 import numpy as np
 
 from robotexp import (
-    Capability, ConnectionLost, Footprint, LaserScan, Limits, Pose, ProtocolError, RobotError, RobotState, SonarScan,
-    Twist, compose_pose, relative_pose, wrap_angle)
+    Capability, ConnectionLost, LaserScan, Limits, Pose, ProtocolError, RobotError, RobotState, SonarScan, Twist,
+    compose_pose, relative_pose, wrap_angle)
 from robotexp_drivers.backend import StreamBackend, reads_until, require_positive
 
 from . import codec as k
@@ -69,12 +69,7 @@ class P3DXRobot(StreamBackend):
 
     name = "p3dx"
     capabilities = frozenset({Capability.SONAR, Capability.LASER, Capability.MOVE_TO})
-    radius = c.BODY_WIDTH_MM / 2000.0          # half the body's width: what the planners keep from walls
-
-    @property
-    def footprint(self) -> Footprint:
-        """The P3-DX's 455 x 381 mm body."""
-        return Footprint.rectangle(c.BODY_LENGTH_MM / 1000.0, c.BODY_WIDTH_MM / 1000.0)
+    radius = c.ROBOT_RADIUS_MM / 1000.0
     # with a laser device mounted (robotexp.run.laser_mount.robot_options): no simulated-laser packets
     mounted_laser_options: Mapping[str, object] = MappingProxyType({"laser": False})
     _join_timeout = 2.0

@@ -220,14 +220,19 @@ class RobotPreset:
 
 
 PRESETS: dict[str, RobotPreset] = {
-    # Pioneer P3-DX: a 455 x 381 mm body (the maker's data sheet), so passages must be wider than
-    # 381 mm and turning in place sweeps a 297 mm radius; wheel base ~330 mm; ARIA's default limits are
-    # far above the thesis's 100 mm/s; 1.2 m/s and 300 deg/s are the robot's own maxima.
-    "p3dx": RobotPreset("p3dx", radius=0.1905, height=0.25, wheel_base=0.33,
-                        footprint=Footprint.rectangle(0.455, 0.381),
+    # Pioneer P3-DX: radius 250 mm (SPEC), wheel base ~330 mm, ARIA's default limits are far above
+    # the thesis's 100 mm/s; 1.2 m/s and 300 deg/s are the robot's own maxima.
+    "p3dx": RobotPreset("p3dx", radius=0.25, height=0.25, wheel_base=0.33,
                         limits=Limits(v_max=1.2, w_max=math.radians(300), a_max=0.3,
                                       alpha_max=math.radians(100)),
                         sonar=P3DX_SONAR),
+    # The P3-DX as its 455 x 381 mm body (the maker's data sheet): passages open from 381 mm, turning in
+    # place sweeps a 297 mm radius (the simulator collides with the rectangle, the guards sweep it).
+    "p3dx-body": RobotPreset("p3dx-body", radius=0.1905, height=0.25, wheel_base=0.33,
+                             footprint=Footprint.rectangle(0.455, 0.381),
+                             limits=Limits(v_max=1.2, w_max=math.radians(300), a_max=0.3,
+                                           alpha_max=math.radians(100)),
+                             sonar=P3DX_SONAR),
     # Kobuki: radius ~175 mm, wheel base 230 mm (kobuki.md), 0.7 m/s and 180 deg/s.
     "kobuki": RobotPreset("kobuki", radius=0.175, height=0.12, wheel_base=0.23,
                           limits=Limits(v_max=0.7, w_max=math.pi, a_max=0.5, alpha_max=math.pi),

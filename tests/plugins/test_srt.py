@@ -13,8 +13,8 @@ from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ground_truth
-from robotexp.robot import Footprint, Limits, Pose
-from robotexp.sim import SimRobot, preset
+from robotexp.robot import Limits, Pose
+from robotexp.sim import SimRobot
 from robotexp.world.model import World, segment_box
 from robotexp_plugins.srt import (
     BallRegion,
@@ -31,10 +31,6 @@ from robotexp_plugins.srt import (
 )
 from robotexp_plugins.srt.core import Phase
 from robotexp_plugins.srt.regions import reachable_points
-
-# the thesis's robot, a 0.5 m disc: these check SRT as the thesis defines it (a rectangular P3-DX:
-# tests/plugins/test_doors.py)
-ROUND_P3DX = preset("p3dx", radius=0.25, footprint=Footprint.disc(0.25))
 
 LIMITS = Limits(v_max=0.3, w_max=2.0, a_max=0.5, alpha_max=2.0)
 
@@ -255,7 +251,7 @@ def test_explores_a_small_room_and_returns_to_the_start(method: type) -> None:
     truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
     explorer = method()
     grid = OccupancyGrid(geo)
-    with SimRobot(world, robot=ROUND_P3DX, pose=start, seed=1, max_speed=0.5, sonar=explorer.uses_sonar) as robot:
+    with SimRobot(world, pose=start, seed=1, max_speed=0.5, sonar=explorer.uses_sonar) as robot:
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=1500.0, seed=3).run()
         end = robot.read().true_pose
     assert run.completed, run.reason
@@ -361,7 +357,7 @@ def test_star_sweep_closes_a_blind_gap_of_the_ring() -> None:
     room = room_world()
     world = World("gap", room.boxes, np.array([[1.5 * math.cos(math.radians(70)), 1.5 * math.sin(math.radians(70)),
                                                 0.15]]))
-    with SimRobot(world, robot=ROUND_P3DX, pose=Pose(0.0, 0.0, 0.0), seed=0, sonar=True) as robot:
+    with SimRobot(world, pose=Pose(0.0, 0.0, 0.0), seed=0, sonar=True) as robot:
         state = robot.read()
         assert state.sonar is not None
         single = star_from_sonar(0.0, 0.0, 0.0, state.sonar.angles, state.sonar.ranges, state.sonar.range_max)
@@ -434,8 +430,7 @@ def test_blocked_way_back_is_detoured_end_to_end() -> None:
     for region in (r0, r1):
         grid.mark_free(region.mask(geo))
     blocked = World("room+box", np.vstack([world.boxes, [[-1.75, 0.0, 0.15, 0.4, 0.0]]]), world.discs)
-    with SimRobot(blocked, robot=ROUND_P3DX, pose=Pose(-0.5, 0.0, math.pi), seed=1, max_speed=0.3,
-                  sonar=False) as robot:
+    with SimRobot(blocked, pose=Pose(-0.5, 0.0, math.pi), seed=1, max_speed=0.3, sonar=False) as robot:
         clock = robot.make_clock(0.1)
         ex.current = 1                                    # at node 1, going back to its parent
         ex.target, ex.target_node = (-3.0, 0.0), 0
@@ -526,7 +521,7 @@ def test_srt_star_goes_through_a_door_with_the_frontier_rescue(frontier: bool) -
     truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
     explorer = SRTStarExplorer(frontier=frontier)
     grid = OccupancyGrid(geo)
-    with SimRobot(world, robot=ROUND_P3DX, pose=start, seed=1, max_speed=0.5, sonar=True) as robot:
+    with SimRobot(world, pose=start, seed=1, max_speed=0.5, sonar=True) as robot:
         run = ExplorationRun(robot, explorer, grid, truth=truth, max_time=3000.0, seed=3).run()
         end = robot.read().true_pose
     assert run.completed, run.reason
@@ -642,7 +637,7 @@ def test_laser_rescue_looks_behind_an_obstacle_the_thesis_leaves_unseen(rescue: 
     world, start = shadow_room(), Pose(0.8, 1.5, 0.0)
     geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)  # type: ignore[misc]
     truth = ground_truth(world, geo, robot_radius=0.25, laser_range=3.0, start=start)
-    with SimRobot(world, robot=ROUND_P3DX, pose=start, seed=0, max_speed=0.3, sonar=False) as robot:
+    with SimRobot(world, pose=start, seed=0, max_speed=0.3, sonar=False) as robot:
         run = ExplorationRun(robot, SRTLaserExplorer(frontier=rescue), OccupancyGrid(geo, range_max=3.0),
                              truth=truth, max_time=900.0, seed=0).run()
     cov = run.coverage()

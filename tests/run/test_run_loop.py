@@ -107,8 +107,7 @@ def test_done_ends_the_run_completed(robot: RecordingSim, truth: GroundTruth) ->
     assert robot.commands[0] == Twist(SPEED, 0.0)
     # the context told the explorer what it may know
     ctx = explorer.ctx
-    assert ctx.radius == robot.radius == 0.1905 and ctx.footprint == robot.footprint  # half the P3-DX's width
-    assert ctx.laser_range == RANGE and ctx.period == 0.1
+    assert ctx.radius == 0.25 and ctx.laser_range == RANGE and ctx.period == 0.1
     assert ctx.start == START and ctx.limits == robot.limits and not ctx.sonar
     assert explorer.first_draw == np.random.default_rng(11).random()
     assert run.start_pose == START
@@ -280,8 +279,8 @@ def test_collisions_are_counted(truth: GroundTruth) -> None:
         run = ExplorationRun(robot, Straight(x_end=20.0), new_grid(), truth=truth, max_time=8.0).run()
     assert run.metrics.collisions == 1
     assert run.reason == "time limit of 8 s reached"
-    # stopped with its front at the wall's face (x = 9.95 m): centre half the P3-DX's length before it
-    assert run.metrics.path[-1][0] == pytest.approx(9.95 - 0.455 / 2, abs=0.02)
+    # stopped with its edge at the wall's face (x = 9.95 m): centre at 9.7 m
+    assert run.metrics.path[-1][0] == pytest.approx(9.95 - 0.25, abs=0.02)
 
 
 class SlowLaserSim(RecordingSim):

@@ -1,5 +1,5 @@
-"""A rectangular robot (the P3-DX's 455 x 381 mm body): the simulator collides with the rectangle, turning
-included; the guard sweeps it; the ground truth opens passages wider than its width."""
+"""A rectangular robot (the `p3dx-body` preset: the P3-DX's 455 x 381 mm body): the simulator collides with
+the rectangle, turning included; the guard sweeps it; the ground truth opens passages wider than its width."""
 
 from __future__ import annotations
 
@@ -27,8 +27,9 @@ def wall_world() -> World:
     return World("wall", np.array([[WALL_X + 0.05, 0.0, 0.05, 5.0, 0.0]]), bounds=(-3.0, -5.0, 2.1, 5.0))
 
 
-def test_the_p3dx_preset_is_its_body() -> None:
-    p = preset("p3dx")
+def test_the_p3dx_body_preset_is_its_body() -> None:
+    assert preset("p3dx").outline == Footprint.disc(0.25)
+    p = preset("p3dx-body")
     assert (p.outline.length, p.outline.width, p.outline.round) == (L, W, False)
     assert p.radius == pytest.approx(W / 2)
     assert p.outline.swing == pytest.approx(math.hypot(L / 2, W / 2))       # 0.2967 m
@@ -67,8 +68,8 @@ def test_the_simulator_collides_with_the_rectangle(world: str) -> None:
         w = World("wall", w.boxes, bounds=w.bounds, collision="index")
     gap = 0.20      # [m] from the centre to the wall: more than half the width, less than half the length
     with pytest.raises(WorldError, match="0.455 x 0.381"):
-        SimRobot(w, robot="p3dx", pose=Pose(WALL_X - gap, 0.0, 0.0))
-    with SimRobot(w, robot="p3dx", pose=Pose(WALL_X - gap, 0.0, math.pi / 2)) as robot:
+        SimRobot(w, robot="p3dx-body", pose=Pose(WALL_X - gap, 0.0, 0.0))
+    with SimRobot(w, robot="p3dx-body", pose=Pose(WALL_X - gap, 0.0, math.pi / 2)) as robot:
         robot.command(Twist(0.0, -0.5))       # turning towards the wall: a corner reaches it
         for _ in range(40):
             robot.advance(0.1)
@@ -123,7 +124,7 @@ def test_scan_memory_keeps_what_the_laser_no_longer_sees() -> None:
 
 
 def test_a_door_two_cm_wider_than_the_body_is_reachable() -> None:
-    radius = preset("p3dx").radius
+    radius = preset("p3dx-body").radius
     for door, open_ in ((W + 0.02, True), (W - 0.02, False)):
         world = rooms_in_a_row(door, rooms=2)
         geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)

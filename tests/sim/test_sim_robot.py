@@ -191,20 +191,18 @@ def test_driving_into_a_wall_stalls_once() -> None:
         drive(robot, Twist(0.5, 0.0), 12.0)          # reaches the wall after ~5 s, then pushes
         state = robot.read()
         assert state.true_pose is not None
-        front = robot.footprint.length / 2          # the P3-DX's body reaches 227.5 mm ahead of its centre
-        assert state.true_pose.x == pytest.approx(WALL_X - front, abs=0.002)
-        assert state.true_pose.x <= WALL_X - front + 1e-9
+        assert state.true_pose.x == pytest.approx(WALL_X - robot.radius, abs=0.002)
+        assert state.true_pose.x <= WALL_X - robot.radius + 1e-9
         assert state.stalled and state.bumpers == (True,)
         assert state.velocity.v == 0.0
         assert robot.collisions == 1 and state.extra["collisions"] == 1.0
         drive(robot, Twist(0.5, 0.0), 10.0)          # keeps pushing: still one collision
         assert robot.collisions == 1 and robot.read().stalled
-        assert robot.read().true_pose.x == pytest.approx(WALL_X - front, abs=0.002)
+        assert robot.read().true_pose.x == pytest.approx(WALL_X - robot.radius, abs=0.002)
 
 
 def test_rotation_in_place_when_stalled() -> None:
-    # a round robot: its heading cannot touch (a rectangle's corners can: tests/sim/test_footprint.py)
-    with SimRobot(wall_world(), robot="kobuki", pose=Pose(0.0, 0.0, 0.0)) as robot:
+    with SimRobot(wall_world(), pose=Pose(0.0, 0.0, 0.0)) as robot:
         drive(robot, Twist(0.5, 0.0), 8.0)
         before = robot.read()
         assert before.stalled and before.velocity.w == 0.0
@@ -375,11 +373,9 @@ def test_mover_blocked_by_robot_waits() -> None:
             robot.advance(DT)
         x, y = robot.mover_positions()[0]
         assert x == 1.5
-        # it stops before coming within its 0.05 m margin of the body's side (half the P3-DX's width),
-        # give or take one step
+        # it stops before coming within its 0.05 m margin: centres 0.55 m apart, give or take one step
         gap = 0.5 - y
-        near = robot.footprint.width / 2 + 0.25 + 0.05
-        assert near - 1e-3 < gap <= near + 0.5 * DT + 1e-3
+        assert 0.55 - 1e-3 < gap <= 0.55 + 0.5 * DT + 1e-3
         assert _mover_xy(robot, 0) == pytest.approx((x, y), abs=1e-12)
         for _ in range(30):
             robot.advance(DT)

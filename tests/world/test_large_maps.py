@@ -108,7 +108,7 @@ def test_a_point_map_is_a_few_merged_boxes_and_the_robot_stops_at_its_wall(tmp_p
             robot.advance(0.05)
         assert robot.collisions == 1
         # stopped touching the inner face x = 4.97 m of the east wall
-        assert robot.true_pose.x + robot.footprint.length / 2 == pytest.approx(4.97, abs=0.01)
+        assert robot.true_pose.x + robot.radius == pytest.approx(4.97, abs=0.01)
 
 
 def test_check_grid_size_names_the_cell_count_and_the_memory():
