@@ -13,9 +13,10 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, RobotState, Twist, wrap_angle
+from robotexp import (ConfigError, Done, Explorer, ExplorerContext, Footprint, LaserScan, Pose, RobotState, Twist,
+                      wrap_angle)
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, blocked_ahead, free_heading
+from robotexp.planning.follower import GRAIN, FollowerConfig, ScanMemory, blocked_ahead, footprint_blocked, free_heading
 from robotexp.planning.targets import MARGIN, WallDistance
 from robotexp.planning.harmonic import descent, descent_field, flood4, relax, touches
 
@@ -195,6 +196,7 @@ class BVPExplorer(Explorer):
         self.flat_steps = 0
         self.cover_box: tuple[int, int, int, int] | None = None    # rows, cols (half-open) of `covered`
         self.walls = WallDistance(0.0, surface=True)
+        self._memory = ScanMemory(reach=ctx.outline.swing + 0.6)
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
@@ -349,6 +351,7 @@ class BVPExplorer(Explorer):
         self._ensure(grid)
         self._pose_xy = (pose.x, pose.y)
         self._cover(grid, pose.x, pose.y)
+        self._memory.see_map(grid)
         if state.time >= self.next_update:
             wall, goal, off = self.update_potential(grid)
             self._goal, self._goal_off = goal, off
@@ -386,10 +389,26 @@ class BVPExplorer(Explorer):
         v = speed_law(self.v, varphi, room, v_max=lim.v_max, r_max=self.r_max, eta=self.eta)
         if room < TIGHT.tight and abs(varphi) > TIGHT.tight_turn:
             v = 0.0             # little room (a door the field leads through): face the descent first
-        if blocked_ahead(state.laser, self.ctx.radius, self.clearance, v, w, lim.a_max):
-            v = 0.0
+        foot = self.ctx.outline
+        if foot.round:
+            if blocked_ahead(state.laser, self.ctx.radius, self.clearance, v, w, lim.a_max):
+                v = 0.0
+        else:
+            v, w = self._guard_box(foot, pose, state, v, w)
         self.v = v
         return Twist(v, w)
+
+    def _guard_box(self, foot: Footprint, pose: Pose, state: RobotState, v: float, w: float) -> tuple[float, float]:
+        """The guard for a rectangular robot, against its recent scans (`ScanMemory`): the command, else
+        the turn in place, else a turn while creeping forward, else creeping straight, else wait."""
+        self._memory.note(pose, state.laser)
+        pts = self._memory.points(pose)
+        lim = self.ctx.limits
+        creep = TIGHT.tight_speed
+        for cv, cw in ((v, w), (0.0, w), (creep, w), (creep, 0.0)):
+            if not footprint_blocked(pts, foot, self.clearance + GRAIN, cv, cw, lim.a_max, lim.alpha_max):
+                return cv, cw
+        return 0.0, 0.0
 
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run saw no progress for a while (its stall watch): the field under the robot may still

@@ -94,7 +94,7 @@ class FrontierExplorer(Explorer):
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
         super().reset(ctx)
-        self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.follower = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint)
         self.blacklist = np.zeros((0, 0), dtype=bool)     # frontier cells given up on
         self.blacklist_events = 0
         self.goal_cells = np.zeros((0, 2), dtype=np.int64)
@@ -144,12 +144,14 @@ class FrontierExplorer(Explorer):
         if self.face_reach > 0:
             self._memory(grid).note(grid)
         self._pose_xy = (pose.x, pose.y)
+        self.follower.memory.see_map(grid)
         if self.homing:
             if self.follower.done:
                 return Done("explored; back at the start")
             return self.follower.twist(pose, state.laser)
         if self.follower.done and self.face is not None:
-            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x))
+            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x),
+                                                  state.laser)
             if not facing:
                 return twist
             # we stand by these frontier cells and look their way: those still frontier cannot be

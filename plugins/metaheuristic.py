@@ -124,7 +124,7 @@ class MetaheuristicExplorer(Explorer):
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
         super().reset(ctx)
-        self.follower = PathFollower(ctx.limits, ctx.radius)
+        self.follower = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint)
         self.costs = PlanCosts(ctx.radius, self.clearance)     # plan_costs, updated where the scans changed the map
         self.visited = np.zeros((0, 0), dtype=bool)
         self.blacklist = np.zeros((0, 0), dtype=bool)
@@ -160,8 +160,10 @@ class MetaheuristicExplorer(Explorer):
         """Follow the path to the target; choose a new target when it is reached or resolved."""
         pose, now = state.pose, state.time
         self._mark_visited(pose, grid)
+        self.follower.memory.see_map(grid)
         if self.follower.done and self.face is not None:
-            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x))
+            twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x),
+                                                  state.laser)
             if not facing:
                 return twist
             self._give_up_open(grid)        # stood there and looked: what is left cannot be resolved

@@ -29,7 +29,8 @@ _EXPORTS = {
     "ExplorationRun": "robotexp.run.loop", "RunInfo": "robotexp.run.loop",
     "Twist": "robotexp.robot", "Pose": "robotexp.robot", "RobotState": "robotexp.robot",
     "LaserScan": "robotexp.robot", "SonarScan": "robotexp.robot", "Limits": "robotexp.robot",
-    "Robot": "robotexp.robot", "Capability": "robotexp.robot", "RobotEmulator": "robotexp.robot",
+    "Footprint": "robotexp.robot", "Robot": "robotexp.robot", "Capability": "robotexp.robot",
+    "RobotEmulator": "robotexp.robot",
     "wrap_angle": "robotexp.robot", "compose_pose": "robotexp.robot", "relative_pose": "robotexp.robot",
     "Clock": "robotexp.clock", "PacedClock": "robotexp.clock",
     "Laser": "robotexp.laser", "LaserGeometry": "robotexp.laser", "StampedScan": "robotexp.laser",
@@ -51,8 +52,8 @@ _EXPORTS = {
 __all__ = [
     "__version__",
     "Explorer", "ExplorerContext", "Done", "ExplorationRun", "RunInfo",
-    "Twist", "Pose", "RobotState", "LaserScan", "SonarScan", "Limits", "Robot", "Capability", "RobotEmulator",
-    "wrap_angle", "compose_pose", "relative_pose", "Clock", "PacedClock",
+    "Twist", "Pose", "RobotState", "LaserScan", "SonarScan", "Limits", "Footprint", "Robot", "Capability",
+    "RobotEmulator", "wrap_angle", "compose_pose", "relative_pose", "Clock", "PacedClock",
     "Laser", "LaserGeometry", "StampedScan", "ScanSource", "PoseHistory", "scan_in_robot_frame",
     "OccupancyGrid", "GridGeometry",
     "RunSpec", "RunOutput", "run_experiment", "run_on_robot", "RunObserver", "StepEvent", "RunRecord", "EndReason",
@@ -77,7 +78,8 @@ if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
     from robotexp.run.observers import RunObserver, StepEvent
     from robotexp.run.record import EndReason, RunRecord
-    from robotexp.robot import (Capability, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState, SonarScan, Twist,
+    from robotexp.robot import (Capability, Footprint, LaserScan, Limits, Pose, Robot, RobotEmulator, RobotState,
+                                SonarScan, Twist,
                                 compose_pose, relative_pose, wrap_angle)
     from robotexp.world.loader import load_world
     from robotexp.world.model import World

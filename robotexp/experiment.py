@@ -311,7 +311,7 @@ def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]
     try:
         from robotexp.sim import preset
 
-        radii = [preset(name).radius for name in team.robots]
+        radii = [preset(name).outline.swing for name in team.robots]     # each must have room to turn
         if team.poses:
             starts = [resolve_pose(plan.world, p, r)[0] for p, r in zip(team.poses, radii, strict=True)]
             for i in range(len(starts)):

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.robot import Limits, Pose, RobotState, Twist
+from robotexp.robot import Footprint, Limits, Pose, RobotState, Twist
 
 if TYPE_CHECKING:
     from robotexp.localization.correction import FrameCorrection
@@ -52,6 +52,17 @@ class ExplorerContext:
     sonar: bool = False            # the robot has a sonar ring
     goals: dict[str, list[tuple[float, float]]] = field(default_factory=dict)   # [m] the world's waypoint lists
     start_name: str | None = None  # the name of the start pose in the world, when it has one
+    footprint: Footprint | None = None   # the robot's outline (None: a disc of `radius`)
+
+    def __post_init__(self) -> None:
+        if self.footprint is None:
+            self.footprint = Footprint.disc(self.radius)
+
+    @property
+    def outline(self) -> Footprint:
+        """The robot's outline (`footprint`, never None once built)."""
+        assert self.footprint is not None
+        return self.footprint
 
 
 class Explorer(ABC):

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from robotexp.world.model import World
 
 __all__ = [
-    "Pose", "Twist", "Limits", "LaserScan", "SonarScan", "RobotState", "Robot", "Capability", "RobotEmulator",
+    "Pose", "Twist", "Limits", "Footprint", "LaserScan", "SonarScan", "RobotState", "Robot", "Capability",
+    "RobotEmulator",
     "wrap_angle", "new_scan",
 ]
 
@@ -92,6 +93,52 @@ class Limits:
         v = 0.0 if math.isnan(twist.v) else max(-self.v_max, min(self.v_max, twist.v))
         w = 0.0 if math.isnan(twist.w) else max(-self.w_max, min(self.w_max, twist.w))
         return Twist(v, w)
+
+
+@dataclass(frozen=True, slots=True)
+class Footprint:
+    """The robot's outline on the floor in its own frame (x forward, y left), centred on the point it
+    turns about: a disc (`round`, diameter `length` == `width`) or a `length` x `width` rectangle [m].
+
+    A passage is open to the robot when it is wider than `width` (the robot crosses it straight, so a
+    rectangle needs the room to turn before and after); turning in place sweeps a disc of `swing` [m].
+    """
+
+    length: float           # [m] along the heading
+    width: float            # [m] across it
+    round: bool = False
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.length) and math.isfinite(self.width) and self.length > 0 and self.width > 0):
+            raise ConfigError(f"footprint: length and width must be finite and > 0 m, got {self.length} x {self.width}")
+        if self.round and self.length != self.width:
+            raise ConfigError(f"footprint: a disc has one diameter, got {self.length} x {self.width}")
+
+    @classmethod
+    def disc(cls, radius: float) -> Footprint:
+        """A round robot of `radius` [m]."""
+        return cls(2.0 * radius, 2.0 * radius, True)
+
+    @classmethod
+    def rectangle(cls, length: float, width: float) -> Footprint:
+        """A rectangular robot `length` [m] along its heading, `width` [m] across, turning about its centre."""
+        return cls(float(length), float(width), False)
+
+    @property
+    def half_width(self) -> float:
+        """[m] half the width: the radius of the widest disc inside (a passage must be twice as wide)."""
+        return self.width / 2.0
+
+    @property
+    def swing(self) -> float:
+        """[m] the radius of the disc the robot sweeps turning in place (a disc's own radius)."""
+        return self.width / 2.0 if self.round else math.hypot(self.length / 2.0, self.width / 2.0)
+
+    def distance(self, x: npt.NDArray[np.float64], y: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """[m] from the outline to the robot-frame points (`x`, `y`) (same shapes), 0 inside."""
+        if self.round:
+            return np.maximum(np.hypot(x, y) - self.width / 2.0, 0.0)
+        return np.hypot(np.maximum(np.abs(x) - self.length / 2.0, 0.0), np.maximum(np.abs(y) - self.width / 2.0, 0.0))
 
 
 @dataclass(frozen=True)
@@ -191,7 +238,13 @@ class Robot(ABC):
     address: str | None = None                             # where the robot is reached (None: in-process)
     by_address: ClassVar[bool] = True                      # constructed as cls(address, **options) to connect
     limits: Limits
-    radius: float = 0.25                                   # [m] footprint for planning
+    radius: float = 0.25                                   # [m] half the footprint's width (planners' clearance)
+
+    @property
+    def footprint(self) -> Footprint:
+        """The robot's outline (a backend with a non-round robot says its own; the default is a disc of
+        `radius`)."""
+        return Footprint.disc(self.radius)
     _closed: bool = True                                   # close() skips half-built robots
 
     def __init_subclass__(cls, **kwargs: object) -> None:

@@ -19,7 +19,7 @@ from robotexp.experiment import run_experiment
 from robotexp.run.spec import RunSpec
 from robotexp.world.builtin import rooms_in_a_row
 
-DOORS = {"p3dx": 0.65, "kobuki": 0.50}      # [m] door width per robot preset
+DOORS = {"p3dx": 0.65, "kobuki": 0.50, "p3dx-body": 0.65}      # [m] door width per robot preset
 
 
 def run(method: str, robot: str, max_time: float, door: float | None = None) -> dict[str, object]:
@@ -39,15 +39,16 @@ def run(method: str, robot: str, max_time: float, door: float | None = None) -> 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--methods", default="frontier,bvp,srt-laser,meta-ga,meta-firefly")
-    ap.add_argument("--robots", default="p3dx,kobuki")
+    ap.add_argument("--robots", default="p3dx,kobuki,p3dx-body")
     ap.add_argument("--max-time", type=float, default=1800.0)
+    ap.add_argument("--door", type=float, help="door width [m] for every robot (default: 0.65 P3-DX, 0.50 Kobuki)")
     args = ap.parse_args()
     total = 0.0
     wins = 0
     n = 0
     for method in args.methods.split(","):
         for robot in args.robots.split(","):
-            f = run(method, robot, args.max_time)
+            f = run(method, robot, args.max_time, args.door)
             total += float(f["wall"])      # type: ignore[arg-type]
             wins += bool(f["ok"])
             n += 1

@@ -72,7 +72,7 @@ import socket
 from collections.abc import Callable
 from dataclasses import replace
 
-from robotexp import ConfigError, Pose, Twist, wrap_angle
+from robotexp import ConfigError, Footprint, Pose, Twist, wrap_angle
 from robotexp.sim import LaserConfig, OdometryError, SimRobot, preset
 from robotexp.world.model import World
 from robotexp_drivers.backend import require_positive
@@ -166,8 +166,9 @@ class MavlinkEmulator(StreamEmulator):
         self._init_stream(speedup)
         self.tick, self.battery_mv = tick, battery_mv
         self.obstacle_distance = obstacle_distance
-        rover = replace(preset("p3dx"), name="rover", radius=ROVER_RADIUS, limits=ROVER_LIMITS, sonar=None,
-                       laser=LaserConfig(beams=C.OBSTACLE_SECTORS, fov=2 * math.pi, range_max=scan_range))
+        rover = replace(preset("p3dx"), name="rover", radius=ROVER_RADIUS, footprint=Footprint.disc(ROVER_RADIUS),
+                        limits=ROVER_LIMITS, sonar=None,
+                        laser=LaserConfig(beams=C.OBSTACLE_SECTORS, fov=2 * math.pi, range_max=scan_range))
         self.sim = SimRobot(world, robot=rover, pose=pose, seed=seed, sonar=False, laser_in_state=False,
                             odometry=odometry_model(odometry))
         self.codec = MavlinkCodec(C.VEHICLE_SYSTEM_ID, C.VEHICLE_COMPONENT_ID)

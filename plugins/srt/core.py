@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import TYPE_CHECKING, ClassVar
 
@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.follower import FollowerConfig, PathFollower, path_points
+from robotexp.planning.follower import GRAIN, FollowerConfig, PathFollower, ScanMemory, footprint_blocked, path_points
 from robotexp.planning.grid_planner import astar
 from robotexp.planning.targets import passable_cell, plan_costs
 
@@ -48,6 +48,10 @@ if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
 
 __all__ = ["Node", "SRTTree", "SRTExplorer", "Phase"]
+
+TURN_MARGIN = 0.03      # [m] kept between a rectangular robot turning at a node and the mapped walls
+TURN_STEP_BACK = 0.05   # [m] a target where it cannot turn moves back towards its node by this much at a time
+TURN_AHEAD = 1.0        # [m] how far beyond a target in a door its node may move to where the robot can turn
 
 
 @dataclass
@@ -174,12 +178,17 @@ class SRTExplorer(Explorer):
     arrive_tolerance = 0.3   # [m] a way back that stalls this close to its node counts as arrived
 
     def reset(self, ctx: ExplorerContext) -> None:
-        """Start a new run: an empty tree, perceiving at the start pose."""
+        """Start a new run: an empty tree, perceiving at the start pose. On a sonar map (`_laser_rectangle`
+        False) a rectangular robot is grown the disc it sweeps turning (`Footprint.swing`): its nodes and
+        straight ways then fit it at any heading."""
+        if self.uses_sonar and not ctx.outline.round:
+            ctx = replace(ctx, radius=ctx.outline.swing)
         super().reset(ctx)
+        self._memory = ScanMemory(reach=ctx.outline.swing + 0.6)
         self.tree = SRTTree()
-        self.follower = PathFollower(ctx.limits, ctx.radius)
-        self.settler = PathFollower(ctx.limits, ctx.radius, FollowerConfig(goal_tolerance=self.settle_tolerance,
-                                                                          lookahead=0.05))
+        self.follower = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint, memory=self._memory)
+        self.settler = PathFollower(ctx.limits, ctx.radius, footprint=ctx.footprint, memory=self._memory,
+                                    config=FollowerConfig(goal_tolerance=self.settle_tolerance, lookahead=0.05))
         self.current: int | None = None       # the node the robot is at (or left from)
         self.target: tuple[float, float] | None = None
         self.target_node: int | None = None   # node the target is (None: a new candidate)
@@ -243,6 +252,9 @@ class SRTExplorer(Explorer):
         pose = state.pose
         self._grid = grid
         self._now = state.time
+        if not self.ctx.outline.round:
+            self._memory.see_map(grid)
+            self._memory.note(pose, state.laser)
         if self.phase is Phase.SENSE:
             twist, region = self._sense(state)
             if region is None:
@@ -258,13 +270,88 @@ class SRTExplorer(Explorer):
         if self.phase is Phase.MOVE:
             return self._move(pose, state)
         # HOME: at the root, nothing left to explore
-        twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
+        twist, facing = self.follower.turn_to(pose, self.ctx.start.theta, state.laser)
         return Done("explored; back at the start") if facing else twist
 
+    def _laser_rectangle(self) -> bool:
+        """A rectangular robot whose map is the laser's: its nodes go where it can turn (`_turnable_target`)
+        and it drives between them on the planner's path (`rectangle_path`). A sonar map (SRT-Star's) is
+        too sparse to say where the robot can turn: there the robot keeps the straight ways and its
+        guard."""
+        return not self.ctx.outline.round and not self.uses_sonar
+
+    def _turnable(self, x: float, y: float, reach: float | None = None) -> bool:
+        """True when no cell the map holds occupied lies within `reach` [m] (default: the disc a rectangular
+        robot sweeps turning, `Footprint.swing` + `TURN_MARGIN`) of (x, y) [m], each cell taken as its whole
+        square, and (x, y) lies in a free cell."""
+        grid = self._grid
+        if grid is None:
+            return False
+        geo = grid.geo
+        reach = self.ctx.outline.swing + TURN_MARGIN if reach is None else reach
+        r, c = geo.cell_of(x, y)
+        if not geo.contains(r, c) or not grid.window(r, r + 1, c, c + 1).free()[0, 0]:
+            return False
+        k = int(math.ceil(reach / geo.cell)) + 1
+        r0, c0 = max(r - k, 0), max(c - k, 0)
+        if r + k + 1 <= r0 or c + k + 1 <= c0 or r0 >= geo.rows or c0 >= geo.cols:
+            return False
+        rr, cc = np.nonzero(grid.window(r0, r + k + 1, c0, c + k + 1).occupied())
+        dx = np.maximum(np.abs(geo.origin_x + (c0 + cc + 0.5) * geo.cell - x) - geo.cell / 2, 0.0)
+        dy = np.maximum(np.abs(geo.origin_y + (r0 + rr + 0.5) * geo.cell - y) - geo.cell / 2, 0.0)
+        return not bool((dx * dx + dy * dy < reach * reach).any())
+
+    def _turnable_target(self, node: Node, cand: tuple[float, float]) -> tuple[float, float] | None:
+        """A rectangular robot senses by turning in place at its next node: the candidate; else, when the
+        candidate lies in a passage (a door), the nearest point up to `TURN_AHEAD` beyond it on the same
+        line, over mapped free cells as wide as the robot, where it can turn (`_turnable`); else the
+        point nearest it on the way back to `node` where it can; None when there is none beyond
+        `TURN_STEP_BACK` of the node."""
+        dx, dy = cand[0] - node.x, cand[1] - node.y
+        length = math.hypot(dx, dy)
+        if length < 1e-9:
+            return None
+        assert self._grid is not None
+        width = self.ctx.outline.half_width - self._grid.geo.cell      # the cells' squares are conservative
+        s = length
+        while s <= length + TURN_AHEAD:
+            x, y = node.x + dx * s / length, node.y + dy * s / length
+            if not self._turnable(x, y, width):     # (a free cell, nothing mapped as wide as the robot)
+                break
+            if self._turnable(x, y):
+                return x, y
+            s += TURN_STEP_BACK
+        s = length
+        while s >= TURN_STEP_BACK:
+            x, y = node.x + dx * s / length, node.y + dy * s / length
+            if self._turnable(x, y):
+                return x, y
+            s -= TURN_STEP_BACK
+        return None
+
+    def _turn_blocked(self, state: RobotState, rate: float) -> bool:
+        """True when turning in place at `rate` [rad/s] would bring a corner of a rectangular robot onto a
+        return of its recent scans (a round robot never is): its sweep then ends with what it saw."""
+        foot = self.ctx.outline
+        if foot.round:
+            return False
+        lim = self.ctx.limits
+        return footprint_blocked(self._memory.points(state.pose), foot, 0.01 + GRAIN, 0.0, rate, lim.a_max,
+                                 lim.alpha_max)
+
     def _turn(self, pose: Pose, state: RobotState) -> Twist | Done:
-        """Turn on the spot to face the target, then drive."""
+        """Turn on the spot to face the target, then drive. A rectangular robot drives the planner's path
+        instead (`rectangle_path`), which crosses a door square to it: its straight way may not fit."""
         assert self.target is not None
-        twist, facing = self.follower.turn_to(pose, math.atan2(self.target[1] - pose.y, self.target[0] - pose.x))
+        if self._laser_rectangle() and self._grid is not None:
+            path = self.rectangle_path(pose, self.target, self._grid)
+            if path is not None:
+                self.follower.set_path(path)
+                self.phase = Phase.MOVE
+                self._best, self._progress_t = math.inf, state.time
+                return self._move(pose, state)
+        twist, facing = self.follower.turn_to(pose, math.atan2(self.target[1] - pose.y, self.target[0] - pose.x),
+                                              state.laser)
         if not facing:
             return twist
         self.follower.set_path(np.array([[pose.x, pose.y], self.target]))
@@ -341,6 +428,8 @@ class SRTExplorer(Explorer):
         """Lines 7-19: a valid candidate, else back to the parent, else (root) done."""
         assert self.current is not None
         cand = self._candidate(self.current)
+        if cand is not None and self._laser_rectangle():
+            cand = self._turnable_target(self.tree.nodes[self.current], cand)
         if cand is not None:
             self.target, self.target_node = cand, None
         else:
@@ -365,7 +454,7 @@ class SRTExplorer(Explorer):
         if self.target is None:
             self.phase = Phase.HOME
             self.follower.clear()
-            twist, facing = self.follower.turn_to(pose, self.ctx.start.theta)
+            twist, facing = self.follower.turn_to(pose, self.ctx.start.theta, state.laser)
             return Done("explored; back at the start") if facing else twist
         self.phase = Phase.TURN
         return self._turn(pose, state)
@@ -450,7 +539,25 @@ class SRTExplorer(Explorer):
             return None
         return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo), [goal]])
 
+    def rectangle_path(self, pose: Pose, goal: tuple[float, float], grid: OccupancyGrid
+                       ) -> npt.NDArray[np.float64] | None:
+        """A path (k, 2) [m] from `pose` to `goal` [m] over the mapped free space (A* on `plan_costs` of
+        `grid` for half the robot's width, clearance a cost), string-pulled; None when there is none."""
+        cost = plan_costs(grid, self.ctx.radius, 0.3)
+        passable = np.isfinite(cost)
+        geo = grid.geo
+        begin = passable_cell(geo, passable, pose.x, pose.y)
+        end = passable_cell(geo, passable, *goal)
+        if begin is None or end is None:
+            return None
+        cells = astar(cost, begin, end)
+        if cells is None:
+            return None
+        return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo), [goal]])
+
     def _detour(self, pose: Pose) -> npt.NDArray[np.float64] | None:
         if self._grid is None or self.target is None:
             return None
+        if self._laser_rectangle():
+            return self.rectangle_path(pose, self.target, self._grid)
         return self.detour(pose, self.target, self._grid)

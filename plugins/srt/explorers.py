@@ -309,9 +309,10 @@ class _SweepingSRT(SRTExplorer):
         if self._last_heading is not None:
             self._turned += abs(wrap_angle(pose.theta - self._last_heading))
         self._last_heading = pose.theta
-        if self.sweep.complete() or self._turned > 2 * math.pi + 0.2:
+        rate = min(self.ctx.limits.w_max, self.sweep_rate)
+        if self.sweep.complete() or self._turned > 2 * math.pi + 0.2 or self._turn_blocked(state, rate):
             return Twist.ZERO, self._region(pose.x, pose.y)
-        return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
+        return Twist(0.0, rate), None
 
     @abstractmethod
     def _region(self, x: float, y: float) -> SafeRegion:
@@ -356,7 +357,7 @@ class SRTBallExplorer(_SweepingSRT):
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run; d_min follows from the robot radius unless given."""
         super().reset(ctx)
-        self.d_min = _d_min(self.name, self.alpha, self.d_min_param, ctx.radius)
+        self.d_min = _d_min(self.name, self.alpha, self.d_min_param, self.ctx.radius)
 
     def _region(self, x: float, y: float) -> SafeRegion:
         ball = self.sweep.ball(x, y)
@@ -440,7 +441,7 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
         super().reset(ctx)
-        self.offset = self.offset_param if self.offset_param is not None else ctx.radius + self.margin
+        self.offset = self.offset_param if self.offset_param is not None else self.ctx.radius + self.margin
 
     def _region(self, x: float, y: float) -> SafeRegion:
         return self.sweep.polygon(x, y)
@@ -602,7 +603,7 @@ class SRTStarExplorer(_FrontierRescue):
             raise ConfigError("srt-star: needs a sonar ring, and the robot reports none; use a robot with "
                               "sonar (e.g. --robot p3dx)")
         super().reset(ctx)
-        self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * ctx.radius
+        self.d_min = self.d_min_param if self.d_min_param is not None else 2.0 * self.ctx.radius
 
     def _begin_sense(self) -> None:
         self._apexes: list[np.ndarray] = []
@@ -617,7 +618,7 @@ class SRTStarExplorer(_FrontierRescue):
         if sonar is None:
             raise ConfigError("srt-star: the robot state carries no sonar reading; use a robot with sonar")
         if self._face is not None:        # a rescue: look at the frontier first (the laser maps it too)
-            twist, facing = self.follower.turn_to(p, math.atan2(self._face[1] - p.y, self._face[0] - p.x))
+            twist, facing = self.follower.turn_to(p, math.atan2(self._face[1] - p.y, self._face[0] - p.x), state.laser)
             if not facing:
                 return twist, None
             self._face = None
@@ -635,8 +636,9 @@ class SRTStarExplorer(_FrontierRescue):
         if self._last_heading is not None:
             self._turned += abs(wrap_angle(p.theta - self._last_heading))
         self._last_heading = p.theta
-        if self._turned < largest_gap(sonar.angles) + self.extra_turn:
-            return Twist(0.0, min(self.ctx.limits.w_max, self.sweep_rate)), None
+        rate = min(self.ctx.limits.w_max, self.sweep_rate)
+        if self._turned < largest_gap(sonar.angles) + self.extra_turn and not self._turn_blocked(state, rate):
+            return Twist(0.0, rate), None
         apexes, axes = np.vstack(self._apexes), np.concatenate(self._axes)
         ranges, echo = np.concatenate(self._ranges), np.concatenate(self._echo)
         star = star_from_sweep(p.x, p.y, apexes, axes, ranges, self.cone, self.bins, body=self.ctx.radius, echo=echo)

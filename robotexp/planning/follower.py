@@ -8,11 +8,16 @@ place at a smaller heading error, so that it passes where the plan passes. A gua
 only when the robot's disc, swept along the command's arc for its stopping distance, would come within
 `FollowerConfig.clearance` of a laser return it is approaching: the same geometry as the planners' (a
 disc and the walls' surface), so it trips on an imminent collision, not on a wall it slides along.
+
+A rectangular robot (`robotexp.robot.Footprint`) is guarded with its own outline, turning included: its
+corners sweep a wider disc than its width, so where a turn in place would bring a corner onto a return
+(a door it crosses straight) it turns while creeping forward along the path, or waits.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,14 +25,20 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import simplify
-from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
+from robotexp.robot import Footprint, LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["PathFollower", "FollowerConfig", "blocked_ahead", "free_heading", "path_points", "roomy_cells",
-           "scan_clearance"]
+__all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "footprint_blocked",
+           "free_heading",
+           "path_points", "roomy_cells", "scan_clearance"]
 
 REACTION = 0.2          # [s] of motion at the commanded speed added to the stopping distance the guard checks
 SWEEP_STEP = 0.02       # [m] between the disc positions the guard checks along the arc
+TIGHT_TURN_RATE = 1.0   # [rad/s] a rectangle's fastest turn where the laser shows little room
+BACK_OUT = 0.1          # [m] a rectangle backs out of a tight place only over ground it just drove straight in on
+GRAIN = 0.02            # [m] the recent returns a rectangle's guard checks are kept one per square this wide
+TURN_STEP = math.radians(3)     # [rad] between the headings the guard checks as a rectangle turns
 
 
 @dataclass(frozen=True)
@@ -72,28 +83,74 @@ def _points_norms(scan: LaserScan | None) -> tuple[npt.NDArray[np.float64], npt.
     return _POINTS[1], _POINTS[2]          # type: ignore[return-value]
 
 
-def scan_clearance(scan: LaserScan | None, radius: float) -> float:
-    """[m] from the robot's disc of `radius` to the nearest laser return (inf without one)."""
-    norms = _points_norms(scan)[1]
+def scan_clearance(scan: LaserScan | None, radius: float, footprint: Footprint | None = None) -> float:
+    """[m] from the robot's disc of `radius` (or its rectangular `footprint`) to the nearest laser return
+    (inf without one)."""
+    pts, norms = _points_norms(scan)
     if len(norms) == 0:
         return math.inf
+    if footprint is not None and not footprint.round:
+        return float(footprint.distance(pts[:, 0], pts[:, 1]).min())
     return float(norms.min()) - radius
 
 
-def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed: float, turn: float = 0.0,
-                  a_max: float = 0.5) -> bool:
+def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed: float, turn: float = 0.0,  # noqa: PLR0913
+                  a_max: float = 0.5, footprint: Footprint | None = None, alpha_max: float = 2.0) -> bool:
     """True when driving at (`speed` [m/s], `turn` [rad/s]) would bring the robot's disc of `radius` [m]
     within `clearance` [m] of a laser return it is approaching, before it could stop.
 
     The disc is swept along the command's arc for the stopping distance speed^2 / (2 `a_max`) plus
     `REACTION` s at `speed` plus `clearance`; a return counts when some position on that arc is nearer
     than radius + clearance and nearer than the disc's centre is now (a wall the robot slides along, or
-    moves away from, does not stop it). Not moving forward never blocks.
+    moves away from, does not stop it). Not moving forward never blocks a disc. A rectangular
+    `footprint` is swept instead, heading included, so turning in place (stopping angle
+    turn^2 / (2 `alpha_max`) plus `REACTION` s of turn) can block too.
     """
-    if scan is None or speed <= 0:
+    if scan is None:
+        return False
+    if footprint is not None and not footprint.round:
+        if speed <= 0 and turn == 0:
+            return False
+        return footprint_blocked(_points_norms(scan)[0], footprint, clearance, speed, turn, a_max, alpha_max)
+    if speed <= 0:
         return False
     pts, norms = _points_norms(scan)
     return _sweep_blocked(pts, norms, radius, clearance, speed, turn, a_max)
+
+
+def footprint_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: float, speed: float,  # noqa: PLR0913
+                      turn: float, a_max: float = 0.5, alpha_max: float = 2.0) -> bool:
+    """`blocked_ahead` for a robot of outline `foot` against robot-frame points `pts` (k, 2) [m] (a scan's
+    returns, or `ScanMemory.points`): its poses along the command's arc (or its turn in place) for the
+    stopping distance (or angle), each checked against the points it is approaching."""
+    speed = max(speed, 0.0)
+    if len(pts) == 0 or (speed == 0 and turn == 0):
+        return False
+    reach = foot.swing + clearance
+    if speed > 0:
+        length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+        k = turn / speed
+        steps = max(length / SWEEP_STEP, abs(k) * length / TURN_STEP)   # the corners move as it turns
+        s = np.linspace(0.0, length, max(2, int(math.ceil(steps)) + 1))[1:]
+        th = k * s
+        if abs(k) < 1e-9:
+            cx, cy = s, np.zeros_like(s)
+        else:
+            cx, cy = np.sin(th) / k, (1.0 - np.cos(th)) / k
+    else:
+        angle = turn * turn / (2.0 * max(alpha_max, 1e-6)) + abs(turn) * REACTION + math.radians(2)
+        th = math.copysign(1.0, turn) * np.linspace(0.0, angle, max(2, int(math.ceil(angle / TURN_STEP)) + 1))[1:]
+        cx = cy = np.zeros_like(th)
+        length = 0.0
+    near = np.hypot(pts[:, 0], pts[:, 1]) < length + reach
+    if not near.any():
+        return False
+    pts = pts[near]
+    d0 = foot.distance(pts[:, 0], pts[:, 1])
+    c, sn = np.cos(th)[None, :], np.sin(th)[None, :]
+    dx, dy = pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :]
+    d = foot.distance(c * dx + sn * dy, -sn * dx + c * dy)
+    return bool(((d < clearance) & (d < d0[:, None] - 1e-4)).any())
 
 
 def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float, clearance: float,
@@ -114,6 +171,89 @@ def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64],
         cx, cy = np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k
     d = np.hypot(pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :])
     return bool(((d < reach) & (d < d0[:, None] - 1e-4)).any())
+
+
+def map_points(grid: OccupancyGrid, x: float, y: float, reach: float) -> npt.NDArray[np.float64]:
+    """(k, 2) world points [m] of the obstacles `grid` holds within about `reach` [m] of (x, y): the corners
+    of the box of laser endpoints in each occupied cell (`OccupancyGrid.hit_box`; a cell with none: its
+    own corners). What the laser saw of the walls round the robot, however long ago."""
+    geo = grid.geo
+    r, c = geo.cell_of(x, y)
+    k = int(math.ceil(reach / geo.cell)) + 1
+    r0, c0, r1, c1 = max(r - k, 0), max(c - k, 0), min(r + k + 1, geo.rows), min(c + k + 1, geo.cols)
+    if r1 <= r0 or c1 <= c0:
+        return np.zeros((0, 2))
+    win = grid.window(r0, r1, c0, c1)
+    rr, cc = np.nonzero(win.occupied())
+    if len(rr) == 0:
+        return np.zeros((0, 2))
+    box = win.hit_box[rr, cc].astype(np.float64) / 255.0
+    none = box[:, 0] > box[:, 1]
+    box[none] = (0.0, 1.0, 0.0, 1.0)
+    x0 = geo.origin_x + (c0 + cc) * geo.cell
+    y0 = geo.origin_y + (r0 + rr) * geo.cell
+    xs = x0[:, None] + geo.cell * box[:, [0, 1, 0, 1]]
+    ys = y0[:, None] + geo.cell * box[:, [2, 2, 3, 3]]
+    return np.column_stack([xs.ravel(), ys.ravel()])
+
+
+class ScanMemory:
+    """The laser returns near the robot from its last `scans` scans, kept in the world frame: a forward
+    laser does not see what a rectangle's rear corners swing into as it turns, but it saw it a moment ago.
+
+    Args:
+        reach: [m] returns farther than this from the robot are not kept.
+        scans: how many scans are kept.
+    """
+
+    def __init__(self, reach: float = 1.0, scans: int = 150) -> None:
+        self.reach = reach
+        self.scans = scans
+        self._kept: list[npt.NDArray[np.float64]] = []
+        self._last: LaserScan | None = None
+        self._merged: npt.NDArray[np.float64] | None = None
+        self.grid: OccupancyGrid | None = None
+
+    def see_map(self, grid: OccupancyGrid | None) -> None:
+        """Check against the obstacles of `grid` too (`map_points`): it remembers what the scans kept here
+        have forgotten, behind the robot."""
+        self.grid = grid
+
+    def note(self, pose: Pose, scan: LaserScan | None) -> None:
+        """Keep the returns of `scan`, read at `pose`, within `reach` (a scan noted twice is kept once)."""
+        if scan is None or scan is self._last:
+            return
+        self._last = scan
+        pts, norms = _points_norms(scan)
+        near = pts[norms < self.reach]
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        world = np.column_stack([pose.x + c * near[:, 0] - s * near[:, 1], pose.y + s * near[:, 0] + c * near[:, 1]])
+        self._kept.append(world)
+        del self._kept[:-self.scans]
+        self._merged = None
+
+    def points(self, pose: Pose) -> npt.NDArray[np.float64]:
+        """(k, 2) [m] the kept returns within `reach` of `pose`, in the robot frame at `pose`."""
+        fixed = np.zeros((0, 2)) if self.grid is None else map_points(self.grid, pose.x, pose.y, self.reach)
+        if not self._kept and not len(fixed):
+            return np.zeros((0, 2))
+        if self._merged is None and self._kept:        # one point per GRAIN square: the same wall seen scan after scan
+            world = np.concatenate(self._kept[::-1])
+            keys = np.floor(world / GRAIN).astype(np.int64)
+            _, first = np.unique(keys[:, 0] * (1 << 32) + keys[:, 1], return_index=True)
+            self._merged = world[first]
+        world = fixed if self._merged is None else np.concatenate([self._merged, fixed])
+        dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
+        near = dx * dx + dy * dy < self.reach * self.reach
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        dx, dy = dx[near], dy[near]
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
+
+    def clear(self) -> None:
+        """Forget every return."""
+        self._kept = []
+        self._last = None
+        self._merged = None
 
 
 def free_heading(scan: LaserScan | None, radius: float, clearance: float, speed: float, heading: float,
@@ -173,9 +313,15 @@ def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
 class PathFollower:
     """Follows one path at a time; `twist()` returns the command and `done` says when it arrived."""
 
-    def __init__(self, limits: Limits, radius: float, config: FollowerConfig | None = None) -> None:
+    def __init__(self, limits: Limits, radius: float, config: FollowerConfig | None = None,
+                 footprint: Footprint | None = None, memory: ScanMemory | None = None) -> None:
         self.limits = limits
         self.radius = radius
+        self.footprint = footprint if footprint is not None and not footprint.round else None   # None: a disc
+        # the returns a rectangle's guard checks (an explorer that sees every scan may share its own)
+        self.memory = memory or ScanMemory(reach=(self.footprint.swing if self.footprint else radius) + 0.6)
+        self._pose = Pose(0.0, 0.0, 0.0)
+        self._trail: deque[Pose] = deque(maxlen=100)      # a rectangle's own recent poses (`_came_straight`)
         self.config = config or FollowerConfig()
         self.path: npt.NDArray[np.float64] = np.zeros((0, 2))
         self._xy: list[tuple[float, float]] = []
@@ -222,7 +368,8 @@ class PathFollower:
         if to_end < cfg.goal_tolerance:
             self.done = True
             return Twist.ZERO
-        room = scan_clearance(scan, self.radius)
+        self._note(pose, scan)
+        room = scan_clearance(scan, self.radius, self.footprint)
         tight = min(1.0, max(0.0, room / cfg.tight)) if cfg.tight > 0 else 1.0   # 0: no room to spare, 1: plenty
         ahead = cfg.lookahead * (0.5 + 0.5 * tight)
         tx, ty = self._carrot(pose, ahead)
@@ -269,22 +416,93 @@ class PathFollower:
         cfg, lim = self.config, self.limits
         err = wrap_angle(math.atan2(ty - pose.y, tx - pose.x) - pose.theta)
         w = max(-lim.w_max, min(lim.w_max, cfg.k_turn * err))
+        if self.footprint is not None and tight < 1.0:
+            # a rectangle turning where room is tight turns slowly: its guard sweeps the angle it needs to
+            # stop (w^2 / 2 alpha), and a fast turn's sweeps a whole turn
+            w = max(-TIGHT_TURN_RATE, min(TIGHT_TURN_RATE, w))
         if abs(err) > cfg.tight_turn + tight * (cfg.turn_in_place - cfg.tight_turn):
-            self.blocked = False
-            return Twist(0.0, w)
+            if self.footprint is None or not self._blocked(scan, 0.0, w):
+                self.blocked = False
+                return Twist(0.0, w)
+            return self._squeeze(scan, w, to_end)
         v = lim.v_max * math.cos(err) * min(1.0, to_end / 0.5 + 0.2)
         # braking distance v^2 / 2a must fit in what is left of the path
         v = min(v, math.sqrt(2 * lim.a_max * max(to_end, 0.0)) + 0.02)
         v = min(v, cfg.tight_speed + tight * lim.v_max)
-        self.blocked = blocked_ahead(scan, self.radius, cfg.clearance, v, w, lim.a_max)
+        self.blocked = self._blocked(scan, v, w)
         if self.blocked:
-            return Twist(0.0, w)
+            if self.footprint is None or not self._blocked(scan, 0.0, w):
+                return Twist(0.0, w)
+            return self._squeeze(scan, w, to_end)
         return Twist(max(0.0, v), w)
 
-    def turn_to(self, pose: Pose, heading: float) -> tuple[Twist, bool]:
-        """Turn in place to `heading` [rad]; returns the command and whether it is reached (5 deg)."""
+    def _squeeze(self, scan: LaserScan | None, w: float, to_end: float) -> Twist:
+        """A rectangle whose corner would touch turning in place: turn while creeping forward, else turn
+        the other way round, else creep straight out of the narrow place, else back out over the ground it
+        came straight in on (a forward laser does not see behind), else wait (`blocked`)."""
+        v = min(self.config.tight_speed, math.sqrt(2 * self.limits.a_max * max(to_end, 0.0)))
+        back = Twist(-self.config.tight_speed, 0.0) if self._came_straight() else Twist.ZERO
+        for command in (Twist(v, w), Twist(0.0, -w), Twist(v, 0.0), back):
+            if command != Twist.ZERO and not self._blocked(scan, command.v, command.w):
+                self.blocked = False
+                return command
+        self.blocked = True
+        return Twist.ZERO
+
+    def _came_straight(self) -> bool:
+        """True when the ground it would back over is known: the map (`ScanMemory.see_map`) holds every cell
+        under the body moved BACK_OUT m back as free, or the robot's own recent poses include one BACK_OUT m
+        or more straight behind it, at its heading (the body stood there)."""
+        p = self._pose
+        grid = self.memory.grid
+        if grid is not None and self.footprint is not None:
+            f = self.footprint
+            u, v = np.meshgrid(np.linspace(-f.length / 2 - BACK_OUT, f.length / 2, 12),
+                               np.linspace(-f.width / 2, f.width / 2, 6))
+            c, s = math.cos(p.theta), math.sin(p.theta)
+            cells = np.column_stack([(p.x + c * u - s * v).ravel(), (p.y + s * u + c * v).ravel()])
+            rc = np.floor((cells - [grid.geo.origin_x, grid.geo.origin_y]) / grid.geo.cell).astype(np.int64)
+            lo, hi = rc.min(axis=0), rc.max(axis=0)
+            if (lo >= 0).all() and hi[1] < grid.geo.rows and hi[0] < grid.geo.cols:
+                free = grid.window(int(lo[1]), int(hi[1]) + 1, int(lo[0]), int(hi[0]) + 1).free()
+                if free[rc[:, 1] - lo[1], rc[:, 0] - lo[0]].all():
+                    return True
+        c, s = math.cos(p.theta), math.sin(p.theta)
+        for q in self._trail:
+            dx, dy = q.x - p.x, q.y - p.y
+            behind, aside = -(c * dx + s * dy), abs(-s * dx + c * dy)
+            if behind >= BACK_OUT and aside < 0.02 and abs(wrap_angle(q.theta - p.theta)) < math.radians(5):
+                return True
+        return False
+
+    def _note(self, pose: Pose, scan: LaserScan | None) -> None:
+        self._pose = pose
+        if self.footprint is not None:
+            self.memory.note(pose, scan)
+            self._trail.append(pose)
+
+    def _blocked(self, scan: LaserScan | None, v: float, w: float) -> bool:
+        """The guard (`blocked_ahead`) for the command (v, w) with this robot's outline; a rectangle's
+        against the returns of its recent scans too (`ScanMemory`)."""
+        lim = self.limits
+        if self.footprint is None:
+            return blocked_ahead(scan, self.radius, self.config.clearance, v, w, lim.a_max)
+        pts = self.memory.points(self._pose)
+        if v < 0:       # backing up is driving forward in the mirror image (x -> -x, turns reversed)
+            pts, v, w = pts * np.array([-1.0, 1.0]), -v, -w
+        # the returns are kept one per GRAIN square: a corner may lie that much between them
+        return footprint_blocked(pts, self.footprint, self.config.clearance + GRAIN, v, w, lim.a_max, lim.alpha_max)
+
+    def turn_to(self, pose: Pose, heading: float, scan: LaserScan | None = None) -> tuple[Twist, bool]:
+        """Turn in place to `heading` [rad]; returns the command and whether it is over: reached (5 deg),
+        or, for a rectangular robot with `scan`, as far as it can turn without a corner touching."""
+        self._note(pose, scan)
         err = wrap_angle(heading - pose.theta)
         if abs(err) < math.radians(5):
             return Twist.ZERO, True
         w = max(-self.limits.w_max, min(self.limits.w_max, self.config.k_turn * err))
+        if self.footprint is not None:
+            w = max(-TIGHT_TURN_RATE, min(TIGHT_TURN_RATE, w))
+        if self.footprint is not None and self._blocked(scan, 0.0, w):
+            return Twist.ZERO, True
         return Twist(0.0, w), False

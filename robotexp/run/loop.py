@@ -276,7 +276,8 @@ class ExplorationRun:
             radius=robot.radius, limits=robot.limits, period=self.period, start=state.pose,
             laser_range=state.laser.range_max if state.laser else 0.0,
             rng=self.rng if self.rng is not None else np.random.default_rng(self.seed),
-            sonar=state.sonar is not None, goals=self.goals, start_name=self.start_name)
+            sonar=state.sonar is not None, goals=self.goals, start_name=self.start_name,
+            footprint=robot.footprint)
         if self._explorer_call(self.explorer.reset, ctx) is _FAILED:
             return None
         self.observers.notify("on_start", self)

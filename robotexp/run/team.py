@@ -44,6 +44,8 @@ GIVE_WAY_GAP = 0.6              # [m] a robot gives way to a teammate ahead clos
 GIVE_WAY_ANGLE = math.radians(75)   # [rad] "ahead": within this of the heading
 GIVE_WAY_SPEED = 0.02           # [m/s] a teammate slower than this stands still
 TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
+TEAMMATE_CLEARANCE = 0.03       # [m] a robot's body swept along its command keeps this from a teammate's disc
+_RING = np.linspace(-math.pi, math.pi, 24, endpoint=False)     # points on a teammate's disc for that check
 LEAVE_TOL = 0.3                 # [m] how far a robot's centre may stray past the exploration area
 _END_ORDER = (EndReason.PLUGIN_ERROR, EndReason.ROBOT_ERROR, EndReason.INTERRUPTED, EndReason.STOPPED,
               EndReason.STALLED, EndReason.TIME_LIMIT, EndReason.EXPLORED)
@@ -227,7 +229,10 @@ class TeamRun(ExplorationRun):
         closing speed."""
         d = m.decision
         s = m.state
-        if not isinstance(d, Twist) or d.v <= 0.0 or s is None:
+        if not isinstance(d, Twist) or s is None:
+            return
+        self._keep_clear(robot, m, d, s)
+        if d.v <= 0.0:
             return
         p = s.true_pose or s.pose
         for j in range(robot):
@@ -237,11 +242,48 @@ class TeamRun(ExplorationRun):
                 continue
             q = t.true_pose or t.pose
             dx, dy = q.x - p.x, q.y - p.y
-            gap = math.hypot(dx, dy) - m.robot.radius - other.robot.radius
+            gap = math.hypot(dx, dy) - m.robot.footprint.swing - other.robot.footprint.swing
             if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
                 m.robot.command(Twist(0.0, d.w))
                 self.gave_way[robot] += 1
                 return
+
+    def _keep_clear(self, robot: int, m: ExplorationRun, d: Twist, s: RobotState) -> None:
+        """The robots tell each other where they stand: a command whose sweep (`footprint_blocked`, the
+        robot's own outline along the command's arc or turn) would bring the body within TEAMMATE_CLEARANCE,
+        plus the stopping distance of the fastest teammate near, of a teammate's disc is cut to its turn
+        alone, or to a stop; a teammate the laser cannot see (lower than the laser, or behind it) is not
+        driven into."""
+        from robotexp.planning.follower import footprint_blocked
+
+        p = s.true_pose or s.pose
+        rings = []
+        closing = 0.0       # [m] the farthest a moving teammate may still come before it stops
+        for j, other in enumerate(self.members):
+            t = other.state
+            if j == robot or t is None:
+                continue
+            q = t.true_pose or t.pose
+            if math.hypot(q.x - p.x, q.y - p.y) > 2.0 + other.robot.footprint.swing:
+                continue
+            r = other.robot.footprint.swing
+            v = abs(t.velocity.v)
+            closing = max(closing, v * v / (2.0 * max(other.robot.limits.a_max, 1e-6)) + v * 0.2)
+            rings.append(np.column_stack([q.x + r * np.cos(_RING), q.y + r * np.sin(_RING)]))
+        if not rings:
+            return
+        world = np.concatenate(rings)
+        c, sn = math.cos(p.theta), math.sin(p.theta)
+        dx, dy = world[:, 0] - p.x, world[:, 1] - p.y
+        pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])
+        foot, lim = m.robot.footprint, m.robot.limits
+        for cmd in (d, Twist(0.0, d.w), Twist.ZERO):
+            if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE + closing, max(cmd.v, 0.0),
+                                                          cmd.w, lim.a_max, lim.alpha_max):
+                break
+        if cmd != d:
+            m.robot.command(cmd)
+            self.gave_way[robot] += 1
 
     def _without_teammates(self, robot: int, state: RobotState) -> LaserScan:
         """Robot `robot`'s scan for the maps: the beams that end on a teammate (within its radius plus
@@ -259,7 +301,7 @@ class TeamRun(ExplorationRun):
             if j == robot or m.state is None:
                 continue
             q = m.state.true_pose or m.state.pose
-            r = m.robot.radius
+            r = m.robot.footprint.swing          # a teammate is the disc it turns in
             if math.hypot(q.x - sx, q.y - sy) <= r + reach:
                 near.append((q.x, q.y, r))
         if not near:

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
+from robotexp.robot import Footprint
 from robotexp.world.raycast import RayIndex
 from robotexp.world.model import World
 
@@ -67,15 +68,18 @@ with _quiet_stdout():
 
 
 class Engine:
-    """A pybullet client with the static obstacles of `world`, its movers and one robot cylinder.
+    """A pybullet client with the static obstacles of `world`, its movers and one robot body (a cylinder,
+    or a box for a rectangular footprint).
 
     Args:
         world: the environment.
         robot_radius, robot_height: [m] the robot cylinder.
         rays: "exact" (the `robotexp.world.raycast` kernel, default) or "pybullet" (Bullet's ray test).
+        footprint: the robot's outline (None: a disc of `robot_radius`).
     """
 
-    def __init__(self, world: World, robot_radius: float, robot_height: float, rays: str = "exact") -> None:
+    def __init__(self, world: World, robot_radius: float, robot_height: float, rays: str = "exact",
+                 footprint: Footprint | None = None) -> None:
         if rays not in ("exact", "pybullet"):
             raise ConfigError(f"sim: rays must be 'exact' or 'pybullet', got {rays!r}")
         self.rays = rays
@@ -89,16 +93,23 @@ class Engine:
         with _quiet_stdout():      # pybullet prints its build time on the first connect
             self.client = pb.connect(pb.DIRECT)
         self._robot_z = robot_height / 2
-        self._robot_radius = robot_radius
+        self._foot = footprint or Footprint.disc(robot_radius)
+        self._robot_radius = self._foot.swing        # the disc that holds the body whatever its heading
         self._robot_xy = (0.0, 0.0)
+        self._robot_theta = 0.0
         self._peers = np.zeros((0, 4))      # the other robots of a team: [x, y, radius, height] [m]
         self.statics: list[int] = []
         try:
             if self._bodies:
                 self._add_statics(world)
             self._static_set = frozenset(self.statics)
-            shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=robot_radius, height=robot_height,
-                                            physicsClientId=self.client)
+            if self._foot.round:
+                shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=self._foot.width / 2, height=robot_height,
+                                                physicsClientId=self.client)
+            else:
+                shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[self._foot.length / 2, self._foot.width / 2,
+                                                                          robot_height / 2],
+                                                physicsClientId=self.client)
             self.robot = pb.createMultiBody(0, shape, basePosition=[0, 0, self._robot_z],
                                             physicsClientId=self.client)
             # Out of every collision-filter group: ray casts skip it (they start inside it and Bullet
@@ -134,11 +145,12 @@ class Engine:
             self.statics.append(pb.createMultiBody(0, shape, basePosition=[cx, cy, WALL_HEIGHT / 2],
                                                    physicsClientId=self.client))
 
-    def place_robot(self, x: float, y: float) -> None:
-        """Put the robot cylinder at (x, y) [m] (it is round: heading does not matter)."""
+    def place_robot(self, x: float, y: float, theta: float = 0.0) -> None:
+        """Put the robot at (x, y) [m] heading `theta` [rad] (a round robot's heading does not matter)."""
         self._robot_xy = (x, y)
-        pb.resetBasePositionAndOrientation(self.robot, [x, y, self._robot_z], [0, 0, 0, 1],
-                                           physicsClientId=self.client)
+        self._robot_theta = theta
+        quat = [0.0, 0.0, 0.0, 1.0] if self._foot.round else [0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2)]
+        pb.resetBasePositionAndOrientation(self.robot, [x, y, self._robot_z], quat, physicsClientId=self.client)
 
     def place_mover(self, index: int, x: float, y: float, height: float) -> None:
         """Put mover `index` at (x, y) [m]."""
@@ -153,25 +165,30 @@ class Engine:
         self._peers = np.asarray(discs, np.float64).reshape(-1, 4)
 
     def peer_near(self, margin: float) -> bool:
-        """True when another robot of the team is within `margin` [m] of the robot cylinder."""
+        """True when another robot of the team (a disc) is within `margin` [m] of the robot's body."""
         if not len(self._peers):
             return False
         x, y = self._robot_xy
         p = self._peers
-        return bool((np.hypot(p[:, 0] - x, p[:, 1] - y) < p[:, 2] + self._robot_radius + margin).any())
+        c, s = math.cos(self._robot_theta), math.sin(self._robot_theta)
+        dx, dy = p[:, 0] - x, p[:, 1] - y
+        gap = self._foot.distance(c * dx + s * dy, -s * dx + c * dy)
+        return bool((gap < p[:, 2] + margin).any())
 
     def robot_collides(self, include_movers: bool = True) -> bool:
-        """True when the robot cylinder, where it was last placed, touches an obstacle."""
+        """True when the robot's body, where it was last placed, touches an obstacle."""
         return self.robot_near_obstacle(0.0, include_movers)
 
     def robot_near_obstacle(self, margin: float, include_movers: bool = True) -> bool:
-        """True when an obstacle is within `margin` [m] of the robot cylinder."""
+        """True when an obstacle is within `margin` [m] of the robot's body."""
         x, y = self._robot_xy
         if include_movers and self.peer_near(margin):
             return True
         if not self._bodies:
             assert self._index is not None
-            if self._index.near(x, y, self._robot_radius + margin):
+            foot = self._foot
+            if (self._index.near(x, y, foot.width / 2 + margin) if foot.round else
+                    self._index.near_box(x, y, self._robot_theta, foot.length / 2, foot.width / 2, margin)):
                 return True
             return include_movers and any(pb.getClosestPoints(self.robot, body, margin, physicsClientId=self.client)
                                           for body in self.movers)
@@ -192,7 +209,7 @@ class Engine:
         """Cast rays from `origins` to `ends` (n lists of [x, y, z] [m]); return the hit fraction (n,),
         1.0 for no hit. Plain lists cross into pybullet faster than arrays.
 
-        The robot cylinder is filtered out of ray tests, so the robot never sees itself.
+        The robot's body is filtered out of ray tests, so the robot never sees itself.
         """
         hits: Any = pb.rayTestBatch(origins, ends, physicsClientId=self.client)
         return np.array([h[2] if h[0] >= 0 else 1.0 for h in hits], dtype=np.float64)

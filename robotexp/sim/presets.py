@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.robot import Limits
+from robotexp.robot import Footprint, Limits
 
 __all__ = ["LaserConfig", "SonarConfig", "OdometryError", "ODOMETRY_PRESETS", "odometry_error", "RobotPreset",
            "PRESETS", "preset", "P3DX_SONAR", "P3DX_SONAR_ARIA"]
@@ -196,7 +196,8 @@ P3DX_SONAR_ARIA = SonarConfig(angles_deg=P3DX_SONAR.angles_deg,
 
 @dataclass(frozen=True)
 class RobotPreset:
-    """What the simulator needs to know of a robot model."""
+    """What the simulator needs to know of a robot model. `radius` is half the footprint's width (what the
+    planners keep from walls); `footprint` the outline the simulator collides with (None: a disc of `radius`)."""
 
     name: str
     radius: float             # [m]
@@ -205,6 +206,17 @@ class RobotPreset:
     limits: Limits
     laser: LaserConfig = field(default_factory=LaserConfig)
     sonar: SonarConfig | None = None
+    footprint: Footprint | None = None
+
+    def __post_init__(self) -> None:
+        if self.footprint is None:
+            object.__setattr__(self, "footprint", Footprint.disc(self.radius))
+
+    @property
+    def outline(self) -> Footprint:
+        """The robot's outline (`footprint`, never None once built)."""
+        assert self.footprint is not None
+        return self.footprint
 
 
 PRESETS: dict[str, RobotPreset] = {
@@ -214,6 +226,13 @@ PRESETS: dict[str, RobotPreset] = {
                         limits=Limits(v_max=1.2, w_max=math.radians(300), a_max=0.3,
                                       alpha_max=math.radians(100)),
                         sonar=P3DX_SONAR),
+    # The P3-DX as its 455 x 381 mm body (the maker's data sheet): passages open from 381 mm, turning in
+    # place sweeps a 297 mm radius (the simulator collides with the rectangle, the guards sweep it).
+    "p3dx-body": RobotPreset("p3dx-body", radius=0.1905, height=0.25, wheel_base=0.33,
+                             footprint=Footprint.rectangle(0.455, 0.381),
+                             limits=Limits(v_max=1.2, w_max=math.radians(300), a_max=0.3,
+                                           alpha_max=math.radians(100)),
+                             sonar=P3DX_SONAR),
     # Kobuki: radius ~175 mm, wheel base 230 mm (kobuki.md), 0.7 m/s and 180 deg/s.
     "kobuki": RobotPreset("kobuki", radius=0.175, height=0.12, wheel_base=0.23,
                           limits=Limits(v_max=0.7, w_max=math.pi, a_max=0.5, alpha_max=math.pi),
@@ -222,9 +241,12 @@ PRESETS: dict[str, RobotPreset] = {
 
 
 def preset(name: str, **changes: object) -> RobotPreset:
-    """The preset called `name`, with fields replaced by `changes`. Raises ConfigError."""
+    """The preset called `name`, with fields replaced by `changes` (a new `radius` without a `footprint`
+    makes the robot a disc of that radius). Raises ConfigError."""
     try:
         base = PRESETS[name]
     except KeyError:
         raise ConfigError(f"unknown robot preset {name!r} (available: {', '.join(PRESETS)})") from None
+    if "radius" in changes and "footprint" not in changes:
+        changes = {**changes, "footprint": None}
     return replace(base, **changes) if changes else base   # type: ignore[arg-type]

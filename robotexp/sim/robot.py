@@ -12,7 +12,7 @@ import numpy.typing as npt
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import WorldError
 from robotexp.laser import ScanSource
-from robotexp.robot import Capability, LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.robot import Capability, Footprint, LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
 from robotexp.sim.engine import Engine
 from robotexp.sim.presets import LaserConfig, OdometryError, RobotPreset, preset
 from robotexp.world.model import World
@@ -89,13 +89,13 @@ class SimRobot(Robot):
         self._sonar_positions.flags.writeable = False     # handed out with every SonarScan
         self._scan_cache: tuple[float, int, LaserScan] | None = None    # (time, moves in a shared world, scan)
         self.shared: SharedWorld | None = None     # the world shared with robots advanced elsewhere (`SharedWorld`)
-        self.engine = Engine(world, self.preset.radius, self.preset.height, rays)
+        self.engine = Engine(world, self.preset.radius, self.preset.height, rays, self.footprint)
         try:
             start = pose or _default_pose(world)
             self._true = start
             self._odom = start
             self._check_free(start)
-            self.engine.place_robot(start.x, start.y)
+            self.engine.place_robot(start.x, start.y, start.theta)
             self._place_movers()
         except Exception:
             self.engine.close()
@@ -141,7 +141,7 @@ class SimRobot(Robot):
         self._vel = self._cmd = Twist.ZERO
         self._stalled = self._in_contact = False
         self._scan_cache = None
-        self.engine.place_robot(pose.x, pose.y)
+        self.engine.place_robot(pose.x, pose.y, pose.theta)
 
     # -- simulation ------------------------------------------------------------------
     def advance(self, dt: float) -> None:
@@ -164,16 +164,19 @@ class SimRobot(Robot):
         v = approach(self._vel.v, self._cmd.v, lim.a_max * dt)
         w = approach(self._vel.w, self._cmd.w, lim.alpha_max * dt)
         vt, wt = self._wheel_motion(v, w)
-        # split long steps so contacts are found close to where they happen
-        n = max(1, math.ceil(abs(vt) * dt / (self.radius / 5)))
+        # split long steps so contacts are found close to where they happen (a rectangle's corners move
+        # as it turns: turning in place can touch too)
+        round_body = self.footprint.round
+        sweep = abs(vt) + (0.0 if round_body else abs(wt) * self.footprint.swing)
+        n = max(1, math.ceil(sweep * dt / (self.radius / 5)))
         h = dt / n
         blocked = False
         for _ in range(n):
             new = _integrate(self._true, vt, wt, h)
-            self.engine.place_robot(new.x, new.y)
-            if vt != 0.0 and self.engine.robot_collides():
+            self.engine.place_robot(new.x, new.y, new.theta)
+            if (vt != 0.0 or not round_body) and self.engine.robot_collides():
                 new = self._last_free(vt, wt, h)      # stop where the robot touches
-                self.engine.place_robot(new.x, new.y)
+                self.engine.place_robot(new.x, new.y, new.theta)
                 blocked = True
             self._odometry_step(self._true, new)
             self._true = new
@@ -181,6 +184,8 @@ class SimRobot(Robot):
                 break
         if blocked:
             v = 0.0
+            if not round_body:
+                w = 0.0         # a rectangle stopped by a corner stops turning too
             if not self._in_contact:
                 self.collisions += 1
                 if self.engine.peer_near(CONTACT_MARGIN):
@@ -207,17 +212,20 @@ class SimRobot(Robot):
         return (vl + vr) / 2, (vr - vl) / b
 
     def _last_free(self, v: float, w: float, h: float) -> Pose:
-        """The farthest pose along this sub-step that does not touch (bisection to ~h/64)."""
+        """The farthest pose along this sub-step that does not touch (bisection to ~h/64). A round robot
+        keeps turning (its heading cannot touch); a rectangle stops turning where it touches too."""
         lo, hi = 0.0, 1.0
         for _ in range(6):
             mid = (lo + hi) / 2
             p = _integrate(self._true, v, w, h * mid)
-            self.engine.place_robot(p.x, p.y)
+            self.engine.place_robot(p.x, p.y, p.theta)
             if self.engine.robot_collides():
                 hi = mid
             else:
                 lo = mid
         p = _integrate(self._true, v, w, h * lo)
+        if not self.footprint.round:
+            return p
         return Pose(p.x, p.y, _integrate(self._true, v, w, h).theta)
 
     def _odometry_step(self, old: Pose, new: Pose) -> None:
@@ -265,6 +273,11 @@ class SimRobot(Robot):
             self.engine.place_mover(i, x, y, mover.height)
 
     @property
+    def footprint(self) -> Footprint:
+        """The preset's outline: the body the simulator collides with."""
+        return self.preset.outline
+
+    @property
     def true_pose(self) -> Pose:
         """Where the robot really is (not what odometry believes)."""
         return self._true
@@ -283,12 +296,12 @@ class SimRobot(Robot):
         if not (xmin <= pose.x <= xmax and ymin <= pose.y <= ymax):
             raise WorldError(f"start pose ({pose.x:.3f}, {pose.y:.3f}) m is outside world {self.world.name!r} "
                              f"(x {xmin:.2f}..{xmax:.2f}, y {ymin:.2f}..{ymax:.2f} m)")
-        self.engine.place_robot(pose.x, pose.y)
+        self.engine.place_robot(pose.x, pose.y, pose.theta)
         collides = self.engine.robot_collides(include_movers=False)
-        self.engine.place_robot(self._true.x, self._true.y)
+        self.engine.place_robot(self._true.x, self._true.y, self._true.theta)
         if collides:
             raise WorldError(f"start pose ({pose.x:.3f}, {pose.y:.3f}) m in world {self.world.name!r} "
-                             f"touches an obstacle (robot radius {self.radius:.3f} m): choose a free pose")
+                             f"touches an obstacle ({_outline(self.footprint)}): choose a free pose")
 
     # -- sensors ---------------------------------------------------------------------
     def scan(self) -> LaserScan:
@@ -355,6 +368,13 @@ class SimRobot(Robot):
         fraction = fraction.reshape(len(ring), k).min(axis=1)
         ranges = np.where(fraction >= 1.0, np.inf, fraction * cfg.range_max)
         return SonarScan(ring, ranges, cfg.range_max, self._sonar_positions)
+
+def _outline(foot: Footprint) -> str:
+    """The robot's outline in words, for messages."""
+    if foot.round:
+        return f"robot radius {foot.width / 2:.3f} m"
+    return f"robot {foot.length:.3f} x {foot.width:.3f} m"
+
 
 def approach(current: float, target: float, step: float) -> float:
     """Move `current` towards `target` by at most `step`."""

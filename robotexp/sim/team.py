@@ -58,7 +58,7 @@ class SimTeam:
         self._sync()
 
     def _discs(self) -> npt.NDArray[np.float64]:
-        return np.array([[r.true_pose.x, r.true_pose.y, r.radius, r.preset.height] for r in self.robots],
+        return np.array([[r.true_pose.x, r.true_pose.y, r.footprint.swing, r.preset.height] for r in self.robots],
                         np.float64).reshape(-1, 4)
 
     def _sync(self) -> None:
@@ -131,7 +131,7 @@ class SharedWorld:
 
     def sync(self, robot: SimRobot) -> None:
         """Tell `robot` where the others stand now."""
-        discs = [(p.x, p.y, r.radius, r.preset.height) for r in self.robots if r is not robot
+        discs = [(p.x, p.y, r.footprint.swing, r.preset.height) for r in self.robots if r is not robot
                  for p in (r.true_pose,)]
         robot.engine.set_peers(np.array(discs, np.float64).reshape(-1, 4))
 
@@ -193,4 +193,4 @@ def _clear(free: SimRobot | None, x: float, y: float, radius: float) -> bool:
     try:
         return not engine.robot_near_obstacle(START_CLEARANCE + radius - free.radius, include_movers=False)
     finally:
-        engine.place_robot(here.x, here.y)
+        engine.place_robot(here.x, here.y, here.theta)

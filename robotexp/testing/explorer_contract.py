@@ -271,7 +271,7 @@ def _trial(cls: type[Explorer], explorer: Explorer, label: str, watch: _ClockWat
         ctx = ExplorerContext(radius=sim.radius, limits=sim.limits, period=PERIOD, start=state.pose,
                               laser_range=state.laser.range_max if state.laser else 0.0,
                               rng=np.random.default_rng(seed), sonar=state.sonar is not None,
-                              goals=dict(world.goals), start_name="start")
+                              goals=dict(world.goals), start_name="start", footprint=sim.footprint)
         with watch:
             _call(label, "reset", explorer.reset, ctx)
         t0 = state.time

@@ -26,7 +26,7 @@ import numpy.typing as npt
 
 from robotexp.mapping.kernels import kernel
 
-__all__ = ["RayIndex", "bucket_window", "cast_rays", "shapes_near"]
+__all__ = ["RayIndex", "box_distance", "bucket_window", "cast_rays", "shapes_near", "shapes_near_box"]
 
 MAX_BUCKETS = 1 << 20       # a bucket grid never exceeds this many cells
 
@@ -96,6 +96,14 @@ class RayIndex:
         """True when a shape lies within `reach` [m] of the point (x, y) [m] (touching counts)."""
         return bool(shapes_near(self.shapes, self.starts, self.items, self.origin[0], self.origin[1], self.bucket,
                                 self.rows, self.cols, float(x), float(y), float(reach)))
+
+    def near_box(self, x: float, y: float, theta: float, half_length: float, half_width: float,  # noqa: PLR0913
+                 reach: float) -> bool:
+        """True when a shape lies within `reach` [m] of the rectangle centred at (x, y) [m], its half
+        length `half_length` [m] along `theta` [rad] and half width `half_width` [m] across (touching counts)."""
+        return bool(shapes_near_box(self.shapes, self.starts, self.items, self.origin[0], self.origin[1], self.bucket,
+                                    self.rows, self.cols, float(x), float(y), math.cos(theta), math.sin(theta),
+                                    float(half_length), float(half_width), float(reach)))
 
     def cast(self, origins: npt.NDArray[np.float64], headings: npt.NDArray[np.float64], reach: float, z: float,
              movers: npt.NDArray[np.float64] | None = None) -> npt.NDArray[np.float64]:
@@ -260,5 +268,69 @@ def shapes_near(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], 
                 k = items[j]
                 if shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
                                    shapes[k, 5], shapes[k, 6], x, y) <= reach:
+                    return True
+    return False
+
+
+@kernel
+def _separated(ax: float, ay: float, a1: float, b1: float, c1: float, s1: float,  # noqa: PLR0913
+               bx: float, by: float, a2: float, b2: float, c2: float, s2: float) -> bool:
+    """True when two rectangles (centre, half extents, cos and sin of their heading) do not overlap: one of
+    their four edge directions separates their projections."""
+    dx, dy = bx - ax, by - ay
+    for k in range(4):
+        if k == 0:
+            ux, uy = c1, s1
+        elif k == 1:
+            ux, uy = -s1, c1
+        elif k == 2:
+            ux, uy = c2, s2
+        else:
+            ux, uy = -s2, c2
+        ra = a1 * abs(ux * c1 + uy * s1) + b1 * abs(-ux * s1 + uy * c1)
+        rb = a2 * abs(ux * c2 + uy * s2) + b2 * abs(-ux * s2 + uy * c2)
+        if abs(ux * dx + uy * dy) > ra + rb:
+            return True
+    return False
+
+
+@kernel
+def box_distance(ax: float, ay: float, a1: float, b1: float, c1: float, s1: float,  # noqa: PLR0913
+                 bx: float, by: float, a2: float, b2: float, c2: float, s2: float) -> float:
+    """Distance [m] between two rectangles (centre, half extents, cos and sin of their heading), 0 when they
+    overlap. Apart, the nearest points of two convex polygons include a corner of one of them."""
+    if not _separated(ax, ay, a1, b1, c1, s1, bx, by, a2, b2, c2, s2):
+        return 0.0
+    best = math.inf
+    for i in range(4):
+        u = 1.0 if i < 2 else -1.0
+        v = 1.0 if i % 2 == 0 else -1.0
+        # a corner of the first against the second, then a corner of the second against the first
+        d = shape_distance(0.0, bx, by, a2, b2, c2, s2, ax + c1 * u * a1 - s1 * v * b1, ay + s1 * u * a1 + c1 * v * b1)
+        best = min(best, d)
+        d = shape_distance(0.0, ax, ay, a1, b1, c1, s1, bx + c2 * u * a2 - s2 * v * b2, by + s2 * u * a2 + c2 * v * b2)
+        best = min(best, d)
+    return best
+
+
+@kernel
+def shapes_near_box(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],  # noqa: PLR0913
+                    gx: float, gy: float, bucket: float, rows: int, cols: int, x: float, y: float, c: float, s: float,
+                    half_length: float, half_width: float, reach: float) -> bool:
+    """True when a shape of the bucket grid (see `cast_rays`) lies within `reach` [m] of the rectangle at
+    (x, y) [m] with half extents (`half_length`, `half_width`) [m] along the heading (cos `c`, sin `s`)."""
+    r0, r1, c0, c1 = bucket_window(gx, gy, bucket, rows, cols, x, y, reach + math.hypot(half_length, half_width))
+    for r in range(r0, r1 + 1):
+        for cc in range(c0, c1 + 1):
+            cell = r * cols + cc
+            for j in range(starts[cell], starts[cell + 1]):
+                k = items[j]
+                if shapes[k, 0] == 0.0:
+                    d = box_distance(x, y, half_length, half_width, c, s, shapes[k, 1], shapes[k, 2], shapes[k, 3],
+                                     shapes[k, 4], shapes[k, 5], shapes[k, 6])
+                else:   # a disc: its centre against the rectangle, less its radius
+                    d = shape_distance(0.0, x, y, half_length, half_width, c, s, shapes[k, 1], shapes[k, 2]) \
+                        - shapes[k, 3]
+                if d <= reach:
                     return True
     return False

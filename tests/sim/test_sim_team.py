@@ -33,15 +33,17 @@ def test_a_robot_sees_another_in_its_laser_where_the_wall_was():
         a, b = team.robots
         scan = a.read().laser
         ahead = int(np.argmin(np.abs(scan.angles)))
-        # the beam straight ahead ends on the other robot's cylinder: 3 m between centres, minus its radius
-        assert scan.ranges[ahead] == pytest.approx(3.0 - b.radius, abs=1e-6)
+        # the beam straight ahead ends on the other robot's cylinder (the disc its body turns in): 3 m between
+        # centres, minus its radius
+        assert scan.ranges[ahead] == pytest.approx(3.0 - b.footprint.swing, abs=1e-6)
     with SimRobot(world, pose=Pose(2.0, 1.5, 0.0), sonar=False) as alone:
         assert alone.read().laser.ranges[ahead] == math.inf      # 3 m laser, the far wall 8 m away
 
 
 def test_robots_that_drive_into_each_other_stop_and_count_one_collision_each():
     world = hall()
-    r = preset("p3dx").radius
+    body = preset("p3dx").outline
+    touch = body.length / 2 + body.swing     # each robot's body against the disc the other turns in
     with team_of(world, Pose(3.0, 1.5, 0.0), Pose(4.0, 1.5, math.pi)) as team:
         a, b = team.robots
         a.command(Twist(0.3, 0.0))
@@ -50,7 +52,7 @@ def test_robots_that_drive_into_each_other_stop_and_count_one_collision_each():
         for _ in range(40):
             clock.tick()
         gap = math.hypot(a.true_pose.x - b.true_pose.x, a.true_pose.y - b.true_pose.y)
-        assert 2 * r - 1e-9 <= gap <= 2 * r + 0.02          # stopped where they touch, not through each other
+        assert touch - 1e-9 <= gap <= touch + 0.02          # stopped where they touch, not through each other
         assert (a.collisions, b.collisions) == (1, 1)
         assert (a.robot_collisions, b.robot_collisions) == (1, 1)
         assert a.read().stalled and b.read().stalled
