@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -231,6 +230,19 @@ def _outcome(run: ExplorationRun, writer: ResultsWriter | None) -> RunOutput:
                      None if writer is None else writer.plot_path)
 
 
+def _check_team(spec: RunSpec, team: TeamSpec, odometry: str) -> None:
+    """The run's and the team's settings checked; a team runs with `odometry` and no localizer.
+
+    Raises:
+        ConfigError: a bad setting.
+    """
+    spec.validate()
+    team.validate()
+    if spec.odometry != "none" or spec.localize not in ("auto", "none"):
+        raise ConfigError(f"--team: teams run with {odometry} and no localizer for now; leave out "
+                          "--odometry-error and --localize")
+
+
 def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
              show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
              record_extra: dict[str, Any] | None = None, world: World | None = None) -> RunOutput:
@@ -250,11 +262,7 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
     from robotexp.run.team import TeamRun
     from robotexp.sim import SimTeam, preset
 
-    spec.validate()
-    team.validate()
-    if spec.odometry != "none" or spec.localize not in ("auto", "none"):
-        raise ConfigError("--team: teams run with exact odometry and no localizer for now; leave out "
-                          "--odometry-error and --localize")
+    _check_team(spec, team, "exact odometry")
     radii = [preset(name).radius for name in team.robots]
     plan = plan_run(spec, spec.world if world is None else world, max(radii))
     coordinator = make_coordinator(team.coordinator, team.coordinator_params)
@@ -302,9 +310,7 @@ def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]
     """The team's simulated robots at their starts: `team.poses`, else spread from the plan's start."""
     from dataclasses import replace
 
-    from robotexp.errors import WorldError
     from robotexp.sim.team import spread_starts
-    from robotexp.world.poses import resolve_pose
 
     first = sim_robot(replace(spec, robot=team.robots[0]), plan.world, plan.start, sonar=plan.explorer.uses_sonar)
     robots = [first]
@@ -313,13 +319,9 @@ def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]
 
         radii = [preset(name).outline.swing for name in team.robots]     # each must have room to turn
         if team.poses:
-            starts = [resolve_pose(plan.world, p, r)[0] for p, r in zip(team.poses, radii, strict=True)]
-            for i in range(len(starts)):
-                for j in range(i):
-                    gap = math.hypot(starts[i].x - starts[j].x, starts[i].y - starts[j].y)
-                    if gap < radii[i] + radii[j]:
-                        raise WorldError(f"--team-poses: robots {j + 1} and {i + 1} overlap ({gap * 1000:.0f} mm "
-                                         "apart); give poses farther apart")
+            from robotexp.run.teamrobots import listed_starts
+
+            starts = listed_starts(plan.world, team.poses, radii)
             first.move_to(starts[0])
         else:
             starts = spread_starts(plan.truth, plan.start, radii, free=first)
@@ -360,11 +362,7 @@ def run_team_on_robots(spec: RunSpec, team: TeamSpec, robots: list[Robot], out: 
     from robotexp.run.teamrobots import team_starts
     from robotexp.world.poses import parse_pose
 
-    spec.validate()
-    team.validate()
-    if spec.odometry != "none" or spec.localize not in ("auto", "none"):
-        raise ConfigError("--team: teams run with the robots' odometry and no localizer for now; leave out "
-                          "--odometry-error and --localize")
+    _check_team(spec, team, "the robots' odometry")
     if len(robots) != len(team.robots):
         raise ConfigError(f"team: {len(robots)} robots for {len(team.robots)} names")
     radii = [r.radius for r in robots]

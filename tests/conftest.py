@@ -129,6 +129,28 @@ class ViewCli:
         return rest
 
 
+# a closed 5 x 4 m room with a wall inside, as a MobileSim map (mm): the world of the team tests
+TEAM_ROOM = """2D-Map
+LineMinPos: 0 0
+LineMaxPos: 5000 4000
+NumLines: 5
+Cairn: RobotHome 1000 1000 0 "" ICON "start"
+LINES
+0 0 5000 0
+5000 0 5000 4000
+5000 4000 0 4000
+0 4000 0 0
+3000 1500 3000 2800
+DATA
+"""
+
+
+@pytest.fixture(scope="session")
+def team_room() -> str:
+    """The text of the team tests' map (`TEAM_ROOM`)."""
+    return TEAM_ROOM
+
+
 @pytest.fixture
 def view_cli() -> Iterator[ViewCli]:
     """Start live-view commands; any still running at the end of the test is killed."""

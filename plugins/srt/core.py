@@ -526,24 +526,16 @@ class SRTExplorer(Explorer):
         string-pulled; the ends are the exact pose and goal. An extension of the thesis, whose
         robot always retraces the tree edge.
         """
-        cost = plan_costs(grid, self.ctx.radius, 0.3)
-        cost[~self.tree.union_mask(grid)] = np.inf
-        passable = np.isfinite(cost)
-        geo = grid.geo
-        begin = passable_cell(geo, passable, pose.x, pose.y)
-        end = passable_cell(geo, passable, *goal)
-        if begin is None or end is None:
-            return None
-        cells = astar(cost, begin, end)
-        if cells is None:
-            return None
-        return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo), [goal]])
+        return self.rectangle_path(pose, goal, grid, within_tree=True)
 
-    def rectangle_path(self, pose: Pose, goal: tuple[float, float], grid: OccupancyGrid
-                       ) -> npt.NDArray[np.float64] | None:
+    def rectangle_path(self, pose: Pose, goal: tuple[float, float], grid: OccupancyGrid,
+                       within_tree: bool = False) -> npt.NDArray[np.float64] | None:
         """A path (k, 2) [m] from `pose` to `goal` [m] over the mapped free space (A* on `plan_costs` of
-        `grid` for half the robot's width, clearance a cost), string-pulled; None when there is none."""
+        `grid` for half the robot's width, clearance a cost; `within_tree`: inside the union of the safe
+        regions), string-pulled; None when there is none."""
         cost = plan_costs(grid, self.ctx.radius, 0.3)
+        if within_tree:
+            cost[~self.tree.union_mask(grid)] = np.inf
         passable = np.isfinite(cost)
         geo = grid.geo
         begin = passable_cell(geo, passable, pose.x, pose.y)

@@ -147,6 +147,25 @@ def connect_team(members: Sequence[TeamMember], laser_pose: str | None = None) -
     return robots
 
 
+def listed_starts(world: World, poses: Sequence[str], radii: Sequence[float]) -> list[Pose]:
+    """The poses `poses` (names or x,y,theta) in `world` of robots whose bodies turn in discs of `radii` [m],
+    one each.
+
+    Raises:
+        WorldError: a pose that is not free, or two that overlap. ConfigError: a malformed pose.
+    """
+    from robotexp.world.poses import resolve_pose
+
+    starts = [resolve_pose(world, p, r)[0] for p, r in zip(poses, radii, strict=True)]
+    for i in range(len(starts)):
+        for j in range(i):
+            gap = math.hypot(starts[i].x - starts[j].x, starts[i].y - starts[j].y)
+            if gap < radii[i] + radii[j]:
+                raise WorldError(f"--team-poses: robots {j + 1} and {i + 1} overlap ({gap * 1000:.0f} mm "
+                                 "apart); give poses farther apart")
+    return starts
+
+
 def team_starts(world: World, pose: str | None, radii: Sequence[float], poses: Sequence[str] = ()) -> list[Pose]:
     """Where the robots of `radii` [m] start in `world`: `poses` (names or x,y,theta in mm, mm, deg), else
     spread from `pose` (`robotexp.sim.team.spread_starts` on the reachable cells of a 100 mm grid, the
@@ -157,19 +176,11 @@ def team_starts(world: World, pose: str | None, radii: Sequence[float], poses: S
     """
     from robotexp.run.spec import DEFAULT_CELL, RunSpec, plan_run
     from robotexp.sim import SimRobot, preset, spread_starts
-    from robotexp.world.poses import resolve_pose
 
     if poses:
         if len(poses) != len(radii):
             raise ConfigError(f"--team-poses: {len(poses)} poses for {len(radii)} robots; give one each")
-        starts = [resolve_pose(world, p, r)[0] for p, r in zip(poses, radii, strict=True)]
-        for i in range(len(starts)):
-            for j in range(i):
-                gap = math.hypot(starts[i].x - starts[j].x, starts[i].y - starts[j].y)
-                if gap < radii[i] + radii[j]:
-                    raise WorldError(f"--team-poses: robots {j + 1} and {i + 1} overlap ({gap * 1000:.0f} mm "
-                                     "apart); give poses farther apart")
-        return starts
+        return listed_starts(world, poses, radii)
     rmax = max(radii)
     plan = plan_run(RunSpec(world=world.name, method="frontier", pose=pose, cell=DEFAULT_CELL), world, rmax)
     free = SimRobot(world, robot=preset("kobuki"), pose=plan.start, sonar=False)

@@ -29,30 +29,16 @@ from robotexp.robot import Pose
 from robotexp.view.feed import ViewClient, ViewHub
 from robotexp.view.player import Checkpoints, ReplayPlayer
 
-# a closed 5 x 4 m room with a wall inside, as a MobileSim map (mm)
-ROOM = """2D-Map
-LineMinPos: 0 0
-LineMaxPos: 5000 4000
-NumLines: 5
-Cairn: RobotHome 1000 1000 0 "" ICON "start"
-LINES
-0 0 5000 0
-5000 0 5000 4000
-5000 4000 0 4000
-0 4000 0 0
-3000 1500 3000 2800
-DATA
-"""
 ROBOT_TOPICS = {"odom": "nav_msgs/msg/Odometry", "tf": "tf2_msgs/msg/TFMessage", "tf_static": "tf2_msgs/msg/TFMessage",
                 "scan": "sensor_msgs/msg/LaserScan", "robotexp/scan": "robotexp_msgs/msg/ExactScan",
                 "ground_truth": "nav_msgs/msg/Odometry", "map": "nav_msgs/msg/OccupancyGrid"}
 
 
 @pytest.fixture(scope="module")
-def team_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Path]:
+def team_bag(tmp_path_factory: pytest.TempPathFactory, team_room: str) -> tuple[Path, dict, Path]:
     """An 8 s run of two robots with a communication range (a map each), recorded, frames every 4 s."""
     tmp = tmp_path_factory.mktemp("teambag")
-    (tmp / "room.map").write_text(ROOM)
+    (tmp / "room.map").write_text(team_room)
     bag = tmp / "team.mcap"
     res = CliRunner().invoke(main, ["explore", "-w", str(tmp / "room.map"), "--team", "2", "--coordinator", "greedy",
                                     "--comm-range", "2500", "--max-time", "8", "-o", str(tmp / "out"),

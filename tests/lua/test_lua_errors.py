@@ -34,7 +34,7 @@ from robotexp.errors import ConfigError, ScriptError
      r"ExplorationMethod.FRONTIER"),
     ('exploration.setMethod("nope")', r"unknown method; available: .*ExplorationMethod.FRONTIER"),
     ('exploration.setWorld("atlantis")', r"^s.lua:1: exploration.setWorld: .*atlantis"),
-    ('robot.setModel("r2d2")', r"unknown robot; available: p3dx, kobuki"),
+    ('robot.setModel("r2d2")', r"unknown robot; available: p3dx, p3dx-body, kobuki"),
     ("exploration.setMapLimits(0, 0, -1, 5)", r"expected xmin < xmax and ymin < ymax"),
     ("exploration.setCellSize(1)", r"expected 5..2000 mm"),
 ])

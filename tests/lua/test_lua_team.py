@@ -13,20 +13,6 @@ from robotexp.bag.replay import read_bag
 from robotexp.errors import ScriptError
 from robotexp.output.results import read_jsonl
 
-# a closed 5 x 4 m room with a wall inside, as a MobileSim map (mm)
-ROOM = """2D-Map
-LineMinPos: 0 0
-LineMaxPos: 5000 4000
-NumLines: 5
-Cairn: RobotHome 1000 1000 0 "" ICON "start"
-LINES
-0 0 5000 0
-5000 0 5000 4000
-5000 4000 0 4000
-0 4000 0 0
-3000 1500 3000 2800
-DATA
-"""
 
 SCRIPT = """
 exploration.setWorld("room.map")
@@ -62,9 +48,9 @@ print(table.concat(parts, ", ") .. "]}")
 
 
 @pytest.fixture
-def room(lua) -> Path:
+def room(lua, team_room) -> Path:
     lua.out.mkdir(parents=True, exist_ok=True)
-    (lua.out / "room.map").write_text(ROOM)
+    (lua.out / "room.map").write_text(team_room)
     return lua.out / "room.map"
 
 
@@ -101,7 +87,7 @@ def test_a_script_drives_a_team_and_reads_its_record_and_paths(lua, room):
     ("team.setRobots(0)", r"^s.lua:1: team.setRobots\(0\): a team has 1..64 robots$"),
     ("team.setRobots(65)", r"team.setRobots\(65\): a team has 1..64 robots"),
     ("team.setRobots(2.5)", r"team.setRobots\(count_or_presets\): expected an integer 1..64 or a string of presets"),
-    ('team.setRobots("p3dx,roomba")', r"unknown robot preset 'roomba'; available: p3dx, kobuki"),
+    ('team.setRobots("p3dx,roomba")', r"unknown robot preset 'roomba'; available: p3dx, p3dx-body, kobuki"),
     ('team.setRobots(string.rep("p3dx,", 65))', r"a team has 1..64 robots, got 65"),
     ('team.setCoordinator("nobody")', r"team.setCoordinator\('nobody'\): unknown coordinator; available: .*burgard"),
     ("team.setCommRange(-1)", r"team.setCommRange\(range_mm\): expected a range > 0 mm or nil, got -1"),
@@ -121,9 +107,9 @@ def test_wrong_team_calls_are_one_line_naming_the_function(lua, code, message):
     assert not (lua.out / "results.jsonl").exists()
 
 
-def test_a_team_obeys_the_sandbox_and_the_robot_number_is_checked(lua, room, tmp_path):
+def test_a_team_obeys_the_sandbox_and_the_robot_number_is_checked(lua, room, tmp_path, team_room):
     outside = tmp_path / "elsewhere.map"
-    outside.write_text(ROOM)
+    outside.write_text(team_room)
     with pytest.raises(ScriptError, match=r"exploration.setWorld\(.*\): refused by --sandbox"):
         lua(f'exploration.setWorld("{outside}")\nteam.explore()', name="s.lua", sandbox=True)
     code = ('exploration.setWorld("room.map")\nexploration.setMaxTime(1000)\nteam.setRobots(3)\nteam.explore()\n'

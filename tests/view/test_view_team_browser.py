@@ -13,19 +13,6 @@ from robotexp.view.feed import Frame, ViewClient, ViewHub
 
 from test_view_browser import _need_browser, _page
 
-ROOM = """2D-Map
-LineMinPos: 0 0
-LineMaxPos: 5000 4000
-NumLines: 5
-Cairn: RobotHome 1000 1000 0 "" ICON "start"
-LINES
-0 0 5000 0
-5000 0 5000 4000
-5000 4000 0 4000
-0 4000 0 0
-3000 1500 3000 2800
-DATA
-"""
 
 # pixels of the moving layer (#dyn) of exactly one colour
 COUNT_JS = """([r, g, b]) => { const c = document.getElementById('dyn');
@@ -51,9 +38,9 @@ def test_the_hub_sends_each_teammate_its_pose_and_new_path_points() -> None:
     assert hub.message_for(client)["team"] == [{"pose": (1.0, 2.0, 0.5), "path_from": 0, "path": []}]
 
 
-def test_explore_team_view_in_chromium_draws_both_robots(tmp_path: Path, view_cli: Any) -> None:
+def test_explore_team_view_in_chromium_draws_both_robots(tmp_path: Path, view_cli: Any, team_room: str) -> None:
     _need_browser()
-    (tmp_path / "room.map").write_text(ROOM)
+    (tmp_path / "room.map").write_text(team_room)
     out = tmp_path / "out"
     proc, url = view_cli.start("explore", "-w", str(tmp_path / "room.map"), "--team", "2", "--coordinator", "greedy",
                                "--view", "--view-speed", "20", "--max-time", "3600", "-o", str(out))
