@@ -227,27 +227,3 @@ def test_every_lua_function_documents_itself_laser_noise_included() -> None:
     for words in ("+-`uniform_mm` [mm]", "`sigma_mm` [mm]", "robot.setLaserNoise(0)", "--noise-uniform",
                   "laser_uniform_mm", "ScriptError"):
         assert words in doc, words
-
-
-def test_an_explorer_whose_reset_fails_keeps_its_own_error() -> None:
-    from test_run_loop import GEO, RecordingSim, Straight
-
-    from robotexp.run.loop import ExplorationRun
-    from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.run.record import EndReason
-
-    class SetUpInReset(Straight):
-        """Counts what `reset` sets up, and `reset` fails first."""
-
-        def reset(self, ctx) -> None:
-            raise RuntimeError("no map of the building")
-
-        def result_fields(self) -> dict[str, object]:
-            return {"legs": len(self.legs)}              # type: ignore[attr-defined]  # set in reset
-
-    with RecordingSim() as robot:
-        run = ExplorationRun(robot, SetUpInReset(), OccupancyGrid(GEO)).run()
-    assert run.end is EndReason.PLUGIN_ERROR and isinstance(run.error, RuntimeError)
-    assert run.reason.endswith("reset raised RuntimeError: no map of the building")
-    assert run.record is not None and run.record.end is EndReason.PLUGIN_ERROR
-    assert "legs" not in run.record.method_fields

@@ -321,3 +321,25 @@ def test_a_scan_handed_out_twice_is_mapped_once(truth: GroundTruth) -> None:
     n = len(steps.updated)
     assert n >= 40 and grid.scans == sum(steps.updated) == (n + 1) // 2
     assert steps.updated[:4] == [True, False, True, False]
+
+
+def test_an_explorer_whose_reset_fails_keeps_its_own_error() -> None:
+    from robotexp.run.loop import ExplorationRun
+    from robotexp.mapping.grid import OccupancyGrid
+    from robotexp.run.record import EndReason
+
+    class SetUpInReset(Straight):
+        """Counts what `reset` sets up, and `reset` fails first."""
+
+        def reset(self, ctx) -> None:
+            raise RuntimeError("no map of the building")
+
+        def result_fields(self) -> dict[str, object]:
+            return {"legs": len(self.legs)}              # type: ignore[attr-defined]  # set in reset
+
+    with RecordingSim() as robot:
+        run = ExplorationRun(robot, SetUpInReset(), OccupancyGrid(GEO)).run()
+    assert run.end is EndReason.PLUGIN_ERROR and isinstance(run.error, RuntimeError)
+    assert run.reason.endswith("reset raised RuntimeError: no map of the building")
+    assert run.record is not None and run.record.end is EndReason.PLUGIN_ERROR
+    assert "legs" not in run.record.method_fields
