@@ -35,7 +35,8 @@ def main() -> int:
     ap.add_argument("--team", default="4", help="robots in a team, comma-separated sizes (2,4,8: a scaling study)")
     ap.add_argument("--coordinators", default="none,greedy,burgard,minpos")
     ap.add_argument("--seeds", default="0", help="comma-separated")
-    ap.add_argument("--poses", default="1", help="start poses of the world, comma-separated")
+    ap.add_argument("--poses", default="1", help="start poses of the world, comma-separated ('default': the "
+                                                  "default start, for a map that names none)")
     ap.add_argument("--max-time", type=float, default=1800.0, help="[s] robot time of each run")
     ap.add_argument("--out", type=Path, default=Path("out/team_study"))
     ap.add_argument("--figures", type=Path, default=None, help="folder of the figures (default: OUT)")
@@ -53,7 +54,8 @@ def main() -> int:
     print(header)
     t0 = time.perf_counter()
     for pose, seed in cases:
-        spec = RunSpec(world=args.world, method="frontier", pose=pose, seed=seed, max_time=args.max_time)
+        spec = RunSpec(world=args.world, method="frontier", pose=None if pose == "default" else pose, seed=seed,
+                       max_time=args.max_time)
         single = run_experiment(spec, args.out, image=False)
         settings = [("1 robot", single)]
         for size in sizes:
