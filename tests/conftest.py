@@ -9,7 +9,7 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -143,6 +143,23 @@ LINES
 3000 1500 3000 2800
 DATA
 """
+
+
+def _one_line_error(result: Any, words: Iterable[str], out: Path) -> None:
+    """A command's bad input: exit status 2, one line `robotexp: error: ...` holding each of `words`, and no
+    results written to `out`."""
+    assert result.exit_code == 2, result.output
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("robotexp: error: "), result.output
+    for w in words:
+        assert w in lines[0], lines[0]
+    assert not (out / "results.jsonl").exists()
+
+
+@pytest.fixture(scope="session")
+def one_line_error() -> Callable[[Any, Iterable[str], Path], None]:
+    """The check of a command's bad input (`_one_line_error`): (CliRunner result, words, output folder)."""
+    return _one_line_error
 
 
 @pytest.fixture(scope="session")

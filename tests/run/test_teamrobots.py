@@ -151,14 +151,9 @@ def test_both_sides_place_the_team_alike() -> None:
     ("p3dx:127.0.0.1:1", ["--world", "dense", "--localize", "slam"], ["no localizer"]),
 ])
 def test_bad_team_addresses_are_one_line_and_exit_2(tmp_path: Path, team: str, extra: list[str],
-                                                    words: list[str]) -> None:
+                                                    words: list[str], one_line_error) -> None:
     result = CliRunner().invoke(main, ["explore", "--team", team, "--out", str(tmp_path / "out"), *extra])
-    assert result.exit_code == 2, result.output
-    lines = [x for x in result.output.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("robotexp: error: "), result.output
-    for w in words:
-        assert w in lines[0], lines[0]
-    assert not (tmp_path / "out" / "results.jsonl").exists()
+    one_line_error(result, words, tmp_path / "out")
 
 
 def test_emulate_serves_a_team_and_prints_the_team_explore_drives() -> None:
