@@ -213,6 +213,18 @@ class ScanMemory:
         self._last: LaserScan | None = None
         self._merged: npt.NDArray[np.float64] | None = None
         self.grid: OccupancyGrid | None = None
+        # ((x, y, id of the map, its scans), the map's wall points there): `_map_walls`
+        self._walls: tuple[tuple[float, float, int, int], npt.NDArray[np.float64]] | None = None
+
+    def _map_walls(self, pose: Pose) -> npt.NDArray[np.float64]:
+        """`map_points` of the map near `pose`, gathered once per position and map update (the guard asks
+        for several commands at one pose)."""
+        if self.grid is None:
+            return np.zeros((0, 2))
+        key = (pose.x, pose.y, id(self.grid), self.grid.scans)
+        if self._walls is None or self._walls[0] != key:
+            self._walls = (key, map_points(self.grid, pose.x, pose.y, self.reach))
+        return self._walls[1]
 
     def see_map(self, grid: OccupancyGrid | None) -> None:
         """Check against the obstacles of `grid` too (`map_points`): it remembers what the scans kept here
@@ -234,7 +246,7 @@ class ScanMemory:
 
     def points(self, pose: Pose) -> npt.NDArray[np.float64]:
         """(k, 2) [m] the kept returns within `reach` of `pose`, in the robot frame at `pose`."""
-        fixed = np.zeros((0, 2)) if self.grid is None else map_points(self.grid, pose.x, pose.y, self.reach)
+        fixed = self._map_walls(pose)
         if not self._kept and not len(fixed):
             return np.zeros((0, 2))
         if self._merged is None and self._kept:        # one point per GRAIN square: the same wall seen scan after scan
@@ -254,6 +266,7 @@ class ScanMemory:
         self._kept = []
         self._last = None
         self._merged = None
+        self._walls = None
 
 
 def free_heading(scan: LaserScan | None, radius: float, clearance: float, speed: float, heading: float,
