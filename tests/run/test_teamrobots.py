@@ -72,7 +72,7 @@ def test_an_emulated_team_explores_one_world_through_the_drivers(tmp_path: Path,
         assert math.dist(r["start_pose"][:2], (start.x, start.y)) < 2e-3
     # the robots drive (one may stand behind another for most of 20 s: 0.07 m seen)
     paths = [r["path_length_m"] for r in robots]
-    assert sum(paths) > 1.5 and sorted(paths)[1] > 0.25, paths
+    assert sum(paths) > 1.5 and sorted(paths)[1] > 0.25, robots
     # every robot explores: the team's map covers what no single start sees, measured on the world's truth
     assert record["coverage"] > 0.15
     # each robot's time is its own stream's: the first robot past 20 s ends the run, and the team's time (robot
