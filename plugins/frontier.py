@@ -13,7 +13,8 @@ from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotSt
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
-from robotexp.planning.targets import PlanCosts, WallMemory, frontier_targets, known_window, passable_cell
+from robotexp.planning.targets import (PlanCosts, WallMemory, frontier_targets, known_window, passable_cell,
+                                      wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -328,14 +329,10 @@ class FrontierExplorer(Explorer):
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         rows, cols = view.shape
         skip = self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        if self.face_reach > 0:
-            # a cell beside a wall that grazing beams wore away is still a wall face
-            near = self._memory(grid).distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols] < 1.5
-            skip = skip | near
-        targets = frontier_targets(view, self._min_cells(grid), skip)
-        if self.face_reach > 0 and targets.any():
-            targets &= self._opening(grid, view, off)
-        return targets
+        if self.face_reach <= 0:
+            return frontier_targets(view, self._min_cells(grid), skip)
+        face, opening = wall_face_cells(self._memory(grid), grid, view, off, self.face_reach)
+        return frontier_targets(view, self._min_cells(grid), skip | face) & opening
 
     def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
         """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
@@ -357,21 +354,6 @@ class FrontierExplorer(Explorer):
         if self.walls_seen is None:
             self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
         return self.walls_seen
-
-    def _opening(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.bool_]:
-        """Bool (window): cells with an unknown 4-neighbour farther than `face_reach` from every cell
-        ever firmly occupied. Beams grazing a wall clear stretches of its face, whose unknown neighbours are the
-        wall's inside, a cell or two from the hits on either face, and wear the face's cells down to
-        unknown or free (log-odds); an opening leads into unknown space away from walls."""
-        rows, cols = view.shape
-        dist = self._memory(grid).distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        deep = view.unknown() & (dist > self.face_reach / grid.geo.cell)
-        out = np.zeros_like(deep)
-        out[1:, :] |= deep[:-1, :]
-        out[:-1, :] |= deep[1:, :]
-        out[:, 1:] |= deep[:, :-1]
-        out[:, :-1] |= deep[:, 1:]
-        return out
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],
                     off: Offset) -> tuple[int, int] | None:

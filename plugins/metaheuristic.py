@@ -31,7 +31,7 @@ are those of the whole map, bit for bit, at a cost that follows the explored par
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -51,7 +51,11 @@ from robotexp.planning.metaheuristics import (
 )
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import PlanCosts, known_window, passable_cell, usable_frontier
+from robotexp.planning.targets import (PlanCosts, WallMemory, known_window, passable_cell, usable_frontier,
+                                      wall_face_cells)
+
+if TYPE_CHECKING:
+    from robotexp.localization import FrameCorrection
 
 __all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "MetaheuristicExplorer", "search_domain"]
 
@@ -83,11 +87,17 @@ class MetaheuristicExplorer(Explorer):
             targets that resolve frontier (elsewhere a target was replaced by the `fallbacks` anyway).
             Over every reachable cell the searches spent most of their population where the surface is
             flat, and sometimes ended on a weak frontier across the map: see `FireflyExplorer`.
+        face_reach: [m] (an extension, as in the frontier plugin) a FRONTIER cell needs an unknown
+            4-neighbour farther than this from every cell the map has ever shown firmly occupied, and
+            no such cell within 1.5 cells (`robotexp.planning.targets.wall_face_cells`): the worn faces
+            of walls and the unknown inside thick or laser-built walls, seen through their gaps, are no
+            frontier (no look resolves them; on a laser-built map dozens of such cells kept the count
+            above `min_frontier` until the stall watch ended the run). 0: the map's walls of the moment.
     """
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
         "min_frontier": (1, 1_000_000), "min_opening": (0, 1_000_000), "replan_period": (None, 3600.0),
-        "goal_timeout": (None, 86400.0), "clearance": (0.0, 10.0)}
+        "goal_timeout": (None, 86400.0), "clearance": (0.0, 10.0), "face_reach": (0.0, 10.0)}
 
     preferred_cell: ClassVar[float | None] = SANTOS_CELL
     takes_targets = True
@@ -95,7 +105,7 @@ class MetaheuristicExplorer(Explorer):
 
     def __init__(self, *, objective: str = "proportional", min_frontier: int = 20, min_opening: int | None = None,
                  replan_period: float = 2.0, goal_timeout: float = 20.0, clearance: float = 0.3,
-                 near_frontier: bool = True) -> None:
+                 near_frontier: bool = True, face_reach: float = 0.25) -> None:
         if objective not in FORMS:
             raise ConfigError(f"{self.name}: objective must be one of {', '.join(FORMS)}, got {objective!r}")
         if min_frontier < 1:
@@ -107,6 +117,8 @@ class MetaheuristicExplorer(Explorer):
                 raise ConfigError(f"{self.name}: {key} must be > 0 s, got {value}")
         if clearance < 0:
             raise ConfigError(f"{self.name}: clearance must be >= 0 m, got {clearance}")
+        if not (math.isfinite(face_reach) and face_reach >= 0):
+            raise ConfigError(f"{self.name}: face_reach must be >= 0 m, got {face_reach}")
         self.params = params_for(objective)
         self.min_frontier = int(min_frontier)
         self.min_opening = min_opening
@@ -114,6 +126,7 @@ class MetaheuristicExplorer(Explorer):
         self.goal_timeout = goal_timeout
         self.clearance = clearance
         self.near_frontier = bool(near_frontier)
+        self.face_reach = face_reach
 
     def search(self, surface: npt.NDArray[np.float64], origin: Offset, shape: tuple[int, int]) -> SearchResult:
         """The target search on an objective surface (overridden by each plugin), in the cells of the
@@ -128,6 +141,7 @@ class MetaheuristicExplorer(Explorer):
         self.costs = PlanCosts(ctx.radius, self.clearance)     # plan_costs, updated where the scans changed the map
         self.visited = np.zeros((0, 0), dtype=bool)
         self.blacklist = np.zeros((0, 0), dtype=bool)
+        self.walls_seen: WallMemory | None = None      # cells ever firmly occupied (with face_reach > 0)
         self.last_xy: tuple[float, float] | None = None
         self.target: tuple[int, int] | None = None
         self.target_cells = np.zeros((0, 2), dtype=np.int64)     # the frontier cells near the target
@@ -140,6 +154,10 @@ class MetaheuristicExplorer(Explorer):
         self.fallbacks = 0                  # searches that ended with no frontier within reach
         self.frontier_left = 0
         self.assigned: npt.NDArray[np.int64] | None = None     # a team coordinator's target cells
+
+    def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
+        """Loop closure rebuilt the map: the memory of the walls seen is started anew from it."""
+        self.walls_seen = None
 
     def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
         """A team coordinator's target: the search runs on the frontier among these cells (None: all of
@@ -160,6 +178,8 @@ class MetaheuristicExplorer(Explorer):
         """Follow the path to the target; choose a new target when it is reached or resolved."""
         pose, now = state.pose, state.time
         self._mark_visited(pose, grid)
+        if self.face_reach > 0:
+            self._memory(grid).note(grid)
         self.follower.memory.see_map(grid)
         if self.follower.done and self.face is not None:
             twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x),
@@ -198,14 +218,21 @@ class MetaheuristicExplorer(Explorer):
                 self.visited[r, c] = True
         self.last_xy = (pose.x, pose.y)
 
-    def _opening_left(self, frontier: npt.NDArray[np.bool_], cell: float) -> bool:
+    def _opening_left(self, frontier: npt.NDArray[np.bool_], cell: float,
+                      wide: npt.NDArray[np.bool_] | None = None) -> bool:
         """True when an 8-connected group of the usable `frontier` has at least `min_opening` cells
-        (None: the robot's diameter in cells of `cell` [m]; 0: never)."""
+        (None: the robot's diameter in cells of `cell` [m]; 0: never). With `wide` (the frontier before
+        the `face_reach` test of what lies beyond it, a superset of `frontier`), a group of `wide` that
+        holds a cell of `frontier` is measured: a door's frontier spans its width, while the unknown
+        beyond it lies far enough from the frame only in its middle."""
         need = self.min_opening if self.min_opening is not None else int(math.ceil(2 * self.ctx.radius / cell))
         if need <= 0 or not frontier.any():
             return False
-        labels, n = label8(np.ascontiguousarray(frontier))
-        return bool(np.bincount(labels.ravel(), minlength=n + 1)[1:].max() >= need)
+        labels, n = label8(np.ascontiguousarray(frontier if wide is None else wide))
+        sizes = np.bincount(labels.ravel(), minlength=n + 1)
+        if wide is not None:
+            sizes[np.setdiff1d(np.arange(n + 1), labels[frontier])] = 0
+        return bool(sizes[1:].max() >= need)
 
     def _reach_cells(self, grid: OccupancyGrid) -> float:
         return 3.0 * self.params.sigma_f * SANTOS_CELL / grid.geo.cell + 1.0
@@ -221,6 +248,28 @@ class MetaheuristicExplorer(Explorer):
         keep = np.zeros(len(cells), dtype=bool)
         keep[inside] = frontier[local[inside, 0], local[inside, 1]]
         return cells[keep]
+
+    def _frontier(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset, reachable: npt.NDArray[np.bool_],
+                  reach: float) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+        """FRONTIER on the window `view` of `grid` from `off`: `usable_frontier` without the cells given up
+        on and, with `face_reach`, without wall faces and the insides of walls (`wall_face_cells`); and
+        the same before the test of the unknown beyond (`_opening_left` measures openings on it)."""
+        if self.blacklist.shape != grid.shape:
+            self.blacklist = np.zeros(grid.shape, dtype=bool)
+        rows, cols = view.shape
+        skip = self.blacklist[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        if self.face_reach <= 0:
+            front = usable_frontier(view, reachable, reach, skip)
+            return front, front
+        face, opening = wall_face_cells(self._memory(grid), grid, view, off, self.face_reach)
+        wide = usable_frontier(view, reachable, reach, skip | face)
+        return wide & opening, wide
+
+    def _memory(self, grid: OccupancyGrid) -> WallMemory:
+        """The cells ever firmly occupied, with distances exact to `face_reach` and the 8-neighbours."""
+        if self.walls_seen is None:
+            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
+        return self.walls_seen
 
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run saw no progress for a while (its stall watch): blacklist the target's frontier cells
@@ -259,9 +308,9 @@ class MetaheuristicExplorer(Explorer):
         reachable = flood(passable, start[0], start[1], False)
         reach = self._reach_cells(grid)
         window = (slice(off[0], off[0] + wr), slice(off[1], off[1] + wc))
-        frontier = usable_frontier(view, reachable, reach, self.blacklist[window])
+        frontier, wide = self._frontier(grid, view, off, reachable, reach)
         self.frontier_left = int(np.count_nonzero(frontier))
-        if self.frontier_left < self.min_frontier and not self._opening_left(frontier, geo.cell):
+        if self.frontier_left < self.min_frontier and not self._opening_left(frontier, geo.cell, wide):
             return False
         frontier = self._assigned_part(frontier, off)
         target = None if self.target is None else (self.target[0] - off[0], self.target[1] - off[1])

@@ -207,6 +207,28 @@ class WallMemory:
         return self.walls.dist
 
 
+def wall_face_cells(memory: WallMemory, grid: OccupancyGrid, view: OccupancyGrid, off: tuple[int, int],
+                    face_reach: float) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """What a wall's face is, asked of the walls the map has ever shown (`memory`), on the window `view` of
+    `grid` whose cell (0, 0) is `off`: (face, opening), each bool of the window's shape.
+
+    face: cells within 1.5 cells of a cell ever firmly occupied (a cell beside a wall that grazing beams
+    wore away is still a wall face). opening: cells with an unknown 4-neighbour farther than `face_reach`
+    [m] from every cell ever firmly occupied. Beams grazing a wall clear stretches of its face, whose
+    unknown neighbours are the wall's inside, a cell or two from the hits on either face, and wear the
+    face's cells down to unknown or free (log-odds); an opening leads into unknown space away from walls.
+    """
+    rows, cols = view.shape
+    dist = memory.distance(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+    deep = view.unknown() & (dist > face_reach / grid.geo.cell)
+    opening = np.zeros_like(deep)
+    opening[1:, :] |= deep[:-1, :]
+    opening[:-1, :] |= deep[1:, :]
+    opening[:, 1:] |= deep[:, :-1]
+    opening[:, :-1] |= deep[:, 1:]
+    return dist < 1.5, opening
+
+
 class PlanCosts:
     """`plan_costs` of a growing map, kept up to date by recomputing only the cells near what changed.
 

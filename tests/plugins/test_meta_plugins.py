@@ -130,6 +130,57 @@ def test_usable_frontier_drops_wall_faces_and_unreachable_cells() -> None:
     assert np.array_equal(np.argwhere(usable_frontier(grid, reachable, 0.5)), [[3, 2], [4, 2], [5, 2], [6, 2]])
 
 
+def _meta_frontier(explorer: MetaheuristicExplorer, grid: OccupancyGrid, reachable: np.ndarray) -> np.ndarray:
+    """The explorer's FRONTIER on `grid` now (whole map, within 3 cells of `reachable`)."""
+    from robotexp.planning.targets import known_window
+
+    if explorer.face_reach > 0:
+        explorer._memory(grid).note(grid)
+    view, off = known_window(grid, 2)
+    rows, cols = view.shape
+    out = np.zeros(grid.shape, bool)
+    out[off[0]:off[0] + rows, off[1]:off[1] + cols] = explorer._frontier(
+        grid, view, off, reachable[off[0]:off[0] + rows, off[1]:off[1] + cols], 3.0)[0]
+    return out
+
+
+def test_worn_face_and_inside_of_a_shelf_are_no_frontier() -> None:
+    """A shelf 0.5 m deep seen from the aisles on both sides (rows 20 and 30 at 5 cm), whose near face
+    grazing beams wore free over 0.55 m: its unknown inside then borders free cells, frontier that no look
+    resolves (each look wears the face again). With the walls the explorer has seen (`face_reach`, as the
+    frontier plugin) the face is no FRONTIER; the aisles' open east ends stay FRONTIER but for their cells
+    within face_reach of the shelf; `face_reach=0` keeps the map's walls of the moment and counts the face."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, CELL, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[31:45, 5:40] = True        # aisles either side of the shelf (rows 20-30)
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[30, 5:40] = True             # the shelf's faces; rows 21-29 never seen
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    ctx = ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1, start=Pose(1.0, 1.0, 0.0),
+                          laser_range=RANGE, rng=np.random.default_rng(0))
+    old, new = ExhaustiveExplorer(face_reach=0.0), ExhaustiveExplorer()
+    old.reset(ctx)
+    new.reset(ctx)
+    reachable = free.copy()
+    _meta_frontier(new, grid, reachable)                # the explorer notes the walls the map shows
+    worn = np.zeros(grid.shape, bool)
+    worn[30, 10:21] = True
+    grid.mark_free(worn)                                # grazing beams wore 11 face cells down to free
+    got_old, got_new = _meta_frontier(old, grid, reachable), _meta_frontier(new, grid, reachable)
+    assert got_old[30, 11:20].all()                     # the face, counted by the map's walls of the moment
+    assert not got_new[29:32, 9:22].any()
+    opening = np.zeros(grid.shape, bool)
+    opening[6:19, 39] = opening[32:44, 39] = True      # the aisles' east ends, unknown beyond
+    assert not (got_new & ~got_old).any() and (got_old & opening).sum() == 25
+    # 0.25 m = 5 cells: the east ends' cells of rows 16-18 and 32-34 see unknown only near the shelf's corners
+    keep = opening.copy()
+    keep[16:19, 39] = keep[32:35, 39] = False
+    assert np.array_equal(got_new & opening, keep)
+    with pytest.raises(ConfigError, match="face_reach"):
+        GAExplorer(face_reach=-1.0)
+
+
 def test_astar_keeps_off_the_danger_zone() -> None:
     # a 30 x 40 free room with a wall along the bottom row; start and goal 2 cells above the wall
     occ = np.zeros((30, 40), dtype=bool)
@@ -177,15 +228,19 @@ def door_grid() -> OccupancyGrid:
 
 @pytest.mark.parametrize("min_opening", [None, 0])
 def test_a_door_as_wide_as_the_robot_is_a_target_below_min_frontier(min_opening: int | None) -> None:
-    # Santos's rule alone (min_opening=0) ends at 16 < 20 usable frontier cells with the room behind
+    # Santos's rule alone (min_opening=0) ends below 20 usable frontier cells with the room behind
     # the door unseen (a real map's start facing away from a corridor ended so at 0.69); the opening
-    # rule (default: the robot's diameter, 10 cells) makes the door a target.
+    # rule (default: the robot's diameter, 10 cells) makes the door a target. Of the door's 16 openings,
+    # face_reach (0.25 m = 5 cells) keeps the 10 whose unknown neighbour (column 71) lies more than 5
+    # cells from the frame's cells (39, 70) and (58, 70): rows 44-53; the opening rule measures the
+    # door's whole line of usable cells.
     grid = door_grid()
-    ex = ExhaustiveExplorer(min_opening=min_opening)
-    ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
-                             laser_range=RANGE, rng=np.random.default_rng(0)))
-    ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
-    assert ex.frontier_left == 16
+    for face_reach, usable in ((0.0, 16), (0.25, 10)):
+        ex = ExhaustiveExplorer(min_opening=min_opening, face_reach=face_reach)
+        ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
+                                 laser_range=RANGE, rng=np.random.default_rng(0)))
+        ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
+        assert ex.frontier_left == usable
     if min_opening is None:
         assert ex.target is not None and 60 <= ex.target[1] <= 70 and 40 <= ex.target[0] < 58
     else:
