@@ -198,7 +198,9 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         name = f"{world_name}_{spec.method}_{pose_label}"
     else:
         out.mkdir(parents=True, exist_ok=True)
-        name = run_id(world_name, spec.method, pose_label, spec.speed, spec.seed, out)
+        # a robot other than the default is in the name: runs of one map with several robots tell apart by file
+        label = spec.method if robot.model == RunSpec.robot else f"{spec.method}-{robot.model}"
+        name = run_id(world_name, label, pose_label, spec.speed, spec.seed, out)
     info = RunInfo(name=name, method=spec.method, world=world_name, pose=pose_label, robot=robot.model,
                    max_speed=spec.speed, laser_range=spec.laser_range, extra=extra)
     writer = None if out is None else ResultsWriter(out, image=image, show=show)

@@ -32,3 +32,13 @@ def test_two_explore_processes_into_one_folder(tmp_path: Path) -> None:
             assert (out / f"{name}{suffix}").is_file(), name + suffix
         assert len((out / f"{name}.coverage.csv").read_text().splitlines()) > 3       # the run's own samples
         assert f"{name}:" in "".join(outputs)
+
+
+def test_a_robot_other_than_the_default_is_in_the_run_name(tmp_path: Path) -> None:
+    from robotexp.experiment import run_experiment
+    from robotexp.run.spec import RunSpec
+
+    names = [run_experiment(RunSpec(world="ufmg-static", method="frontier", robot=robot, max_time=1.0),
+                            tmp_path).record["run"] for robot in ("p3dx", "kobuki", "p3dx-body")]
+    assert names == ["ufmg-static_frontier_path1_300mms_s0", "ufmg-static_frontier-kobuki_path1_300mms_s0",
+                     "ufmg-static_frontier-p3dx-body_path1_300mms_s0"]
