@@ -149,7 +149,7 @@ class FrontierExplorer(Explorer):
         if self.homing:
             if self.follower.done:
                 return Done("explored; back at the start")
-            return self.follower.twist(pose, state.laser)
+            return self.follower.twist(pose, state.laser, state.velocity)
         if self.follower.done and self.face is not None:
             twist, facing = self.follower.turn_to(pose, math.atan2(self.face[1] - pose.y, self.face[0] - pose.x),
                                                   state.laser)
@@ -168,7 +168,7 @@ class FrontierExplorer(Explorer):
             if not (self._goal_open(grid) and self._replan_path(pose, grid)) and not self._plan(pose, grid):
                 return self._finish(pose, grid)
             self.next_plan = now + self.replan_period
-        return self.follower.twist(pose, state.laser)
+        return self.follower.twist(pose, state.laser, state.velocity)
 
     def give_up(self, grid: OccupancyGrid) -> bool:
         """The run saw no progress for a while (its stall watch): blacklist the current goal's frontier

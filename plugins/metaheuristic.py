@@ -203,7 +203,7 @@ class MetaheuristicExplorer(Explorer):
                 opening = ", no opening as wide as the robot" if self.min_opening != 0 else ""
                 return Done(f"fewer than {self.min_frontier} usable frontier cells left{opening}")
             self.next_plan = now + self.replan_period
-        return self.follower.twist(pose, state.laser)
+        return self.follower.twist(pose, state.laser, state.velocity)
 
     def _mark_visited(self, pose: Pose, grid: OccupancyGrid) -> None:
         geo = grid.geo

@@ -361,7 +361,7 @@ class SRTExplorer(Explorer):
 
     def _move(self, pose: Pose, state: RobotState) -> Twist | Done:
         """Drive the straight segment to the target."""
-        twist = self.follower.twist(pose, state.laser)
+        twist = self.follower.twist(pose, state.laser, state.velocity)
         if not self.follower.done:
             return self._watch(pose, state, twist)
         self._detoured = 0
@@ -462,7 +462,7 @@ class SRTExplorer(Explorer):
     def _settle(self, pose: Pose, state: RobotState) -> Twist | Done:
         """Drive onto the current node's position (it was reached within the follower's tolerance),
         so the next move starts where its straight way was validated; give up after `stuck_timeout`."""
-        twist = self.settler.twist(pose, state.laser)
+        twist = self.settler.twist(pose, state.laser, state.velocity)
         if self.settler.done or state.time - self._progress_t > self.stuck_timeout:
             self.settler.clear()
             return self._leave(pose, state)

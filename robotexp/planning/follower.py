@@ -29,8 +29,8 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import simplify
 from robotexp.robot import Footprint, LaserScan, Limits, Pose, Twist, wrap_angle
 
-__all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "footprint_blocked",
-           "free_heading",
+__all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "drift_blocked", "drift_poses",
+           "footprint_blocked", "free_heading",
            "path_points", "roomy_cells", "scan_clearance"]
 
 REACTION = 0.2          # [s] of motion at the commanded speed added to the stopping distance the guard checks
@@ -149,6 +149,56 @@ def footprint_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: 
     d0 = foot.distance(pts[:, 0], pts[:, 1])
     c, sn = np.cos(th)[None, :], np.sin(th)[None, :]
     dx, dy = pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :]
+    d = foot.distance(c * dx + sn * dy, -sn * dx + c * dy)
+    return bool(((d < clearance) & (d < d0[:, None] - 1e-4)).any())
+
+
+DRIFT_STEP = 0.02       # [s] between the poses `drift_blocked` predicts
+DRIFT_SPEED = 0.05      # [m/s] below this the robot's motion is the command's (the arc's guard alone)
+
+
+def drift_poses(v0: float, w0: float, v: float, w: float, a_max: float, alpha_max: float
+                ) -> npt.NDArray[np.float64]:
+    """(k, 3) robot-frame poses (x, y, heading) the robot passes through when, moving at (`v0`, `w0`) now, it
+    is told (`v`, `w`) for `REACTION` s and then to stop: speed and turn rate change at most at `a_max` and
+    `alpha_max` (the turn rate keeps going toward `w` while the speed falls to 0). The robot's own motion,
+    not the command's arc: a robot swinging left at 1.5 rad/s told to turn right still swings left for
+    most of a second."""
+    a, alpha = max(a_max, 1e-6), max(alpha_max, 1e-6)
+    x = y = th = 0.0
+    out = []
+    t, vv, ww = 0.0, max(v0, 0.0), w0
+    limit = REACTION + (max(v0, v, 0.0) / a) * 2.0 + 1.0
+    while t < limit:
+        target = max(v, 0.0) if t < REACTION else 0.0
+        vv += max(-a * DRIFT_STEP, min(a * DRIFT_STEP, target - vv))
+        ww += max(-alpha * DRIFT_STEP, min(alpha * DRIFT_STEP, w - ww))
+        th += ww * DRIFT_STEP
+        x += vv * math.cos(th) * DRIFT_STEP
+        y += vv * math.sin(th) * DRIFT_STEP
+        t += DRIFT_STEP
+        out.append((x, y, th))
+        if t >= REACTION and vv <= 0.0:
+            break
+    return np.array(out)
+
+
+def drift_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: float, v0: float, w0: float,  # noqa: PLR0913
+                  v: float, w: float, a_max: float, alpha_max: float) -> bool:
+    """True when the motion `drift_poses` predicts brings the outline `foot` within `clearance` [m] of a
+    robot-frame point of `pts` (k, 2) it is approaching (nearer than the outline is now); False while the
+    robot moves slower than `DRIFT_SPEED` (its motion is then the command's)."""
+    if len(pts) == 0 or v0 < DRIFT_SPEED:
+        return False
+    poses = drift_poses(v0, w0, v, w, a_max, alpha_max)
+    travel = float(np.hypot(*np.diff(np.vstack([[0.0, 0.0], poses[:, :2]]), axis=0).T).sum())
+    near = np.hypot(pts[:, 0], pts[:, 1]) < travel + foot.swing + clearance
+    if not near.any():
+        return False
+    pts = pts[near]
+    d0 = foot.distance(pts[:, 0], pts[:, 1])
+    c, sn = np.cos(poses[:, 2])[None, :], np.sin(poses[:, 2])[None, :]
+    dx, dy = pts[:, None, 0] - poses[None, :, 0], pts[:, None, 1] - poses[None, :, 1]
     d = foot.distance(c * dx + sn * dy, -sn * dx + c * dy)
     return bool(((d < clearance) & (d < d0[:, None] - 1e-4)).any())
 
@@ -342,6 +392,7 @@ class PathFollower:
         self._index = 0
         self.done = True
         self.blocked = False
+        self._velocity: Twist | None = None     # the robot's own velocity at the last `twist`, when told
 
     def set_path(self, points: npt.NDArray[np.float64]) -> None:
         """Follow `points` (k, 2) [m] from the first to the last."""
@@ -371,9 +422,12 @@ class PathFollower:
         i = min(self._index + 1, len(self._xy) - 1)          # the end of the segment it is on, then along
         return math.hypot(self._xy[i][0] - pose.x, self._xy[i][1] - pose.y) + self._after[i]
 
-    def twist(self, pose: Pose, scan: LaserScan | None = None) -> Twist:
-        """The command that follows the path from `pose`; zero once done."""
+    def twist(self, pose: Pose, scan: LaserScan | None = None, velocity: Twist | None = None) -> Twist:
+        """The command that follows the path from `pose`; zero once done. With the robot's `velocity` now
+        (`RobotState.velocity`) the guard also sweeps the motion the robot will make from it (`drift_blocked`),
+        not only the command's arc."""
         cfg = self.config
+        self._velocity = velocity
         if self.done:
             return Twist.ZERO
         end = self.path[-1]
@@ -499,12 +553,26 @@ class PathFollower:
         against the returns of its recent scans too (`ScanMemory`)."""
         lim = self.limits
         if self.footprint is None:
-            return blocked_ahead(scan, self.radius, self.config.clearance, v, w, lim.a_max)
+            if blocked_ahead(scan, self.radius, self.config.clearance, v, w, lim.a_max):
+                return True
+            return self._drifts(_points_norms(scan)[0] if scan is not None else np.zeros((0, 2)),
+                                Footprint.disc(self.radius), self.config.clearance, v, w)
         pts = self.memory.points(self._pose)
         if v < 0:       # backing up is driving forward in the mirror image (x -> -x, turns reversed)
-            pts, v, w = pts * np.array([-1.0, 1.0]), -v, -w
+            return footprint_blocked(pts * np.array([-1.0, 1.0]), self.footprint, self.config.clearance + GRAIN,
+                                     -v, -w, lim.a_max, lim.alpha_max)
         # the returns are kept one per GRAIN square: a corner may lie that much between them
-        return footprint_blocked(pts, self.footprint, self.config.clearance + GRAIN, v, w, lim.a_max, lim.alpha_max)
+        if footprint_blocked(pts, self.footprint, self.config.clearance + GRAIN, v, w, lim.a_max, lim.alpha_max):
+            return True
+        return self._drifts(pts, self.footprint, self.config.clearance + GRAIN, v, w)
+
+    def _drifts(self, pts: npt.NDArray[np.float64], foot: Footprint, clearance: float, v: float, w: float) -> bool:
+        """`drift_blocked` from the robot's velocity at this `twist` (False when it was not told)."""
+        vel = self._velocity
+        if vel is None:
+            return False
+        lim = self.limits
+        return drift_blocked(pts, foot, clearance, vel.v, vel.w, v, w, lim.a_max, lim.alpha_max)
 
     def turn_to(self, pose: Pose, heading: float, scan: LaserScan | None = None) -> tuple[Twist, bool]:
         """Turn in place to `heading` [rad]; returns the command and whether it is over: reached (5 deg),
