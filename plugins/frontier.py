@@ -12,7 +12,8 @@ import numpy.typing as npt
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
+from robotexp.planning.grid_planner import astar, nearest_goal
+from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, frontier_targets, known_window, passable_cell,
                                       wall_face_cells)
 
@@ -270,10 +271,10 @@ class FrontierExplorer(Explorer):
         # stand within a robot radius (plus the inflation) of a frontier cell
         # stand on or right by a frontier cell where possible (inside the room, not in its door);
         # frontier cells in pockets too narrow for the robot are looked at from up to a metre away
-        dist = distance_transform(targets)
+        # the cells within reach of a target: a disc around each target, not a distance transform of the window
         found = None
         for reach in (self.ctx.radius / geo.cell + 1.5, (self.ctx.radius + 1.0) / geo.cell):
-            found = nearest_goal(cost, start, (dist <= reach) & passable)
+            found = nearest_goal(cost, start, near_cells(targets, reach) & passable)
             if found is not None:
                 self.reach = reach
                 break
@@ -372,14 +373,16 @@ class FrontierExplorer(Explorer):
         if len(self.goal_cells) == 0:
             self.face = None
             return
-        # look at the unknown 4-neighbours of those frontier cells: they are what must be seen
-        unknown = view.unknown()
-        rows, cols = unknown.shape
+        # look at the unknown 4-neighbours of those frontier cells: they are what must be seen (the window's
+        # unknown cells asked only around them)
+        rows, cols = view.shape
+        b0, d0 = max(r0 - 1, 0), max(c0 - 1, 0)
+        unknown = view.window(b0, goal_rc[0] + k + 2, d0, goal_rc[1] + k + 2).unknown()
         seen_from: list[tuple[int, int]] = []
         for r, c in local:
             for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
                 rr, cc = r + dr, c + dc
-                if 0 <= rr < rows and 0 <= cc < cols and unknown[rr, cc]:
+                if 0 <= rr < rows and 0 <= cc < cols and unknown[rr - b0, cc - d0]:
                     seen_from.append((rr + off[0], cc + off[1]))
         centre = np.mean(seen_from, axis=0) if seen_from else self.goal_cells.mean(axis=0)
         self.face = (geo.origin_x + (centre[1] + 0.5) * geo.cell, geo.origin_y + (centre[0] + 0.5) * geo.cell)

@@ -57,12 +57,19 @@ def _grid(a: npt.ArrayLike, what: str, dtype: type[_T]) -> npt.NDArray[_T]:
 
 
 def _costs(cost: npt.ArrayLike, where: str) -> npt.NDArray[np.float64]:
+    return _costs_low(cost, where)[0]
+
+
+def _costs_low(cost: npt.ArrayLike, where: str) -> tuple[npt.NDArray[np.float64], float]:
+    """The checked costs (float64, C-contiguous) and their smallest value (NaN if any is NaN: one pass finds
+    both a bad cost and the smallest one; inf when every cell is blocked)."""
     c = _grid(cost, f"{where}: cost", np.float64)
-    if np.isnan(c).any() or (c < 0).any():
+    low = float(c.min())
+    if math.isnan(low) or low < 0:
         bad = np.argwhere(np.isnan(c) | (c < 0))[0]
         raise ConfigError(f"{where}: cost[{bad[0]}, {bad[1]}] = {c[bad[0], bad[1]]}; costs must be "
                           f">= 0 or inf (blocked), never NaN or negative")
-    return c
+    return c, low
 
 
 def _mask(mask: npt.ArrayLike, shape: tuple[int, ...], what: str) -> npt.NDArray[np.bool_]:
@@ -236,11 +243,10 @@ def astar(cost: npt.ArrayLike, start_rc: Sequence[int], goal_rc: Sequence[int]) 
     Raises:
         ConfigError: malformed cost, start or goal outside the grid.
     """
-    c = _costs(cost, "astar")
+    c, low = _costs_low(cost, "astar")
     sr, sc = _cell(start_rc, c.shape, "astar: start_rc")
     gr, gc = _cell(goal_rc, c.shape, "astar: goal_rc")
-    finite = c[np.isfinite(c)]
-    min_cost = float(finite.min()) if finite.size else 0.0
+    min_cost = low if math.isfinite(low) else 0.0       # the smallest finite cost (inf only when none is)
     cols = c.shape[1]
     parent = np.empty(c.size, dtype=np.int32)
     length = _k.astar_kernel(c, sr * cols + sc, gr * cols + gc, min_cost, parent)
@@ -271,7 +277,7 @@ def nearest_goal(cost: npt.ArrayLike, start_rc: Sequence[int],
     dist = np.empty(c.size, dtype=np.float64)
     parent = np.empty(c.size, dtype=np.int32)
     cols = c.shape[1]
-    found = _k.dijkstra_search(c, r * cols + col, g, math.inf, dist, parent)
+    found = _k.nearest_goal_kernel(c, r * cols + col, g, dist, parent)
     if found < 0:
         return None
     return (found // cols, found % cols), _k.trace_path(parent, cols, found), float(dist[found])

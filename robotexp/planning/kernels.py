@@ -26,6 +26,7 @@ __all__ = [
     "astar_kernel",
     "dijkstra_fill",
     "dijkstra_search",
+    "nearest_goal_kernel",
     "distance_transform_kernel",
     "edt_1d",
     "line_of_sight_kernel",
@@ -255,22 +256,27 @@ def _pop(heap: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], size: int,
 @kernel
 def _dijkstra(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bool_],
               use_goal: bool, max_dist: float, dist: npt.NDArray[np.float64],
-              parent: npt.NDArray[np.int32]) -> int:
+              parent: npt.NDArray[np.int32], lazy: bool) -> int:
+    # `seen` marks the cells whose dist, parent and pos hold this search's values; the others are set
+    # when the search first reaches them, so a search costs the cells it reaches (and a byte per
+    # cell), not the grid. Eager (`lazy` False): every other cell gets inf and -1 at the end.
     rows, cols = cost.shape
     n = rows * cols
     c = cost.ravel()
     g = goal.ravel()
-    dist[:] = np.inf
-    parent[:] = -1
+    seen = np.zeros(n, dtype=np.bool_)
+    found = -1
     if math.isinf(c[start]):
-        return -1
-    pos = np.full(n, _UNSEEN, dtype=np.int64)
+        _settle_unseen(seen, dist, parent, lazy)
+        return found
+    pos = np.empty(n, dtype=np.int64)
     heap = np.empty(n, dtype=np.int64)
+    seen[start] = True
+    parent[start] = -1
     dist[start] = 0.0
     heap[0] = start
     pos[start] = 0
     size = 1
-    found = -1
     while size > 0:
         u = _pop(heap, pos, size, dist, dist)
         size -= 1
@@ -291,6 +297,11 @@ def _dijkstra(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bo
                 if (dr == 0 and dc == 0) or vc < 0 or vc >= cols:
                     continue
                 w = vr * cols + vc
+                if not seen[w]:
+                    seen[w] = True
+                    dist[w] = np.inf
+                    parent[w] = -1
+                    pos[w] = _UNSEEN
                 if pos[w] == _CLOSED or math.isinf(c[w]):
                     continue
                 if dr != 0 and dc != 0:
@@ -314,7 +325,20 @@ def _dijkstra(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bo
         w = heap[i]
         dist[w] = np.inf
         parent[w] = -1
+    _settle_unseen(seen, dist, parent, lazy)
     return found
+
+
+@kernel
+def _settle_unseen(seen: npt.NDArray[np.bool_], dist: npt.NDArray[np.float64], parent: npt.NDArray[np.int32],
+                   lazy: bool) -> None:
+    """An eager search's cells it never reached: inf and -1 (a lazy one leaves them undefined)."""
+    if lazy:
+        return
+    for i in range(seen.size):
+        if not seen[i]:
+            dist[i] = np.inf
+            parent[i] = -1
 
 
 @kernel
@@ -336,7 +360,16 @@ def dijkstra_search(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray
     Returns:
         Flat index of the goal cell reached, or -1 when none is reachable within `max_dist`.
     """
-    return _dijkstra(cost, start, goal, True, max_dist, dist, parent)
+    return _dijkstra(cost, start, goal, True, max_dist, dist, parent, False)
+
+
+@kernel
+def nearest_goal_kernel(cost: npt.NDArray[np.float64], start: int, goal: npt.NDArray[np.bool_],
+                        dist: npt.NDArray[np.float64], parent: npt.NDArray[np.int32]) -> int:
+    """`dijkstra_search` without a distance bound that leaves the cells it never reached alone: `dist` and
+    `parent` are defined only on the cells it settled (the goal found and the path to it), and a search
+    costs the cells it reaches, not the grid (the goal and the path are those of `dijkstra_search`)."""
+    return _dijkstra(cost, start, goal, True, np.inf, dist, parent, True)
 
 
 @kernel
@@ -344,7 +377,7 @@ def dijkstra_fill(cost: npt.NDArray[np.float64], start: int, max_dist: float,
                   dist: npt.NDArray[np.float64], parent: npt.NDArray[np.int32]) -> None:
     """Dijkstra from `start` over every cell within `max_dist` (see `dijkstra_search`)."""
     no_goal = np.zeros((1, 1), dtype=np.bool_)
-    _dijkstra(cost, start, no_goal, False, max_dist, dist, parent)
+    _dijkstra(cost, start, no_goal, False, max_dist, dist, parent, False)
 
 
 @kernel
@@ -361,8 +394,8 @@ def astar_kernel(cost: npt.NDArray[np.float64], start: int, goal: int, min_cost:
         start: flat index of the start cell.
         goal: flat index of the goal cell.
         min_cost: smallest finite cell cost (>= 0).
-        parent: (rows * cols,) int32 output: previous cell on the path (-1 for the start and
-            unexplored cells); follow it back from `goal`.
+        parent: (rows * cols,) int32 output: previous cell on the path (-1 for the start; only the cells
+            the search reached are written): follow it back from `goal`.
 
     Returns:
         Path cost [cost units] from start to goal, ``inf`` when the goal is unreachable.
@@ -370,16 +403,20 @@ def astar_kernel(cost: npt.NDArray[np.float64], start: int, goal: int, min_cost:
     rows, cols = cost.shape
     n = rows * cols
     c = cost.ravel()
-    parent[:] = -1
     if math.isinf(c[start]) or math.isinf(c[goal]):
         return np.inf
     gr = goal // cols
     gc = goal - gr * cols
-    g = np.full(n, np.inf, dtype=np.float64)
+    # `seen` marks the cells whose g, parent and pos hold this search's values (set when the search
+    # first reaches a cell): a search costs the cells it reaches and a byte per cell, not the grid
+    seen = np.zeros(n, dtype=np.bool_)
+    g = np.empty(n, dtype=np.float64)
     f = np.empty(n, dtype=np.float64)
     h = np.empty(n, dtype=np.float64)
-    pos = np.full(n, _UNSEEN, dtype=np.int64)
+    pos = np.empty(n, dtype=np.int64)
     heap = np.empty(n, dtype=np.int64)
+    seen[start] = True
+    parent[start] = -1
     sr = start // cols
     ar = abs(sr - gr)
     ac = abs(start - sr * cols - gc)
@@ -408,6 +445,10 @@ def astar_kernel(cost: npt.NDArray[np.float64], start: int, goal: int, min_cost:
                 if (dr == 0 and dc == 0) or vc < 0 or vc >= cols:
                     continue
                 w = vr * cols + vc
+                if not seen[w]:
+                    seen[w] = True
+                    g[w] = np.inf
+                    pos[w] = _UNSEEN
                 if pos[w] == _CLOSED or math.isinf(c[w]):
                     continue
                 # the same step rule as dijkstra_search, written out: a shared helper measured

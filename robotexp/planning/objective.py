@@ -132,26 +132,57 @@ def _separable_sum(src_r: npt.NDArray[np.int64], src_c: npt.NDArray[np.int64], t
                    tmp: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
     """out[r, c] = sum over sources k of taps[r - r_k + R] * taps[c - c_k + R] (|offsets| <= R).
 
-    Row pass: scatter each source's taps along its row into `tmp` (only the sources are visited).
-    Column pass: out = tmp convolved with the taps along the columns (dense, contiguous rows).
+    Row pass: scatter each source's taps along its row into `tmp` (only the sources are visited), noting
+    the columns lo..hi of each row it wrote. Column pass: out = tmp convolved with the taps along the
+    columns, over each row's written columns only: the others hold exact zeros, whose terms (+0.0) leave
+    every sum as it is, so the result is that of the dense pass bit for bit (`separable_sum_reference`) at
+    the cost of the rows and columns near a source.
     """
     rows, cols = out.shape
     half = (taps.size - 1) // 2
     tmp[:, :] = 0.0
-    used = np.zeros(rows, dtype=np.bool_)
+    lo = np.full(rows, cols, dtype=np.int64)
+    hi = np.zeros(rows, dtype=np.int64)
     for i in range(src_r.size):
         r = src_r[i]
         c = src_c[i]
-        used[r] = True
-        for cc in range(max(c - half, 0), min(c + half + 1, cols)):
+        c0, c1 = max(c - half, 0), min(c + half + 1, cols)
+        lo[r] = min(lo[r], c0)
+        hi[r] = max(hi[r], c1)
+        for cc in range(c0, c1):
             tmp[r, cc] += taps[cc - c + half]
     out[:, :] = 0.0
     for r in range(rows):
         for rr in range(max(r - half, 0), min(r + half + 1, rows)):
-            if used[rr]:
-                w = taps[rr - r + half]
-                for c in range(cols):
-                    out[r, c] += w * tmp[rr, c]
+            a, b = lo[rr], hi[rr]
+            if b > a:
+                _axpy(out[r, a:b], taps[rr - r + half], tmp[rr, a:b])
+
+
+@kernel
+def _axpy(out: npt.NDArray[np.float64], w: float, x: npt.NDArray[np.float64]) -> None:
+    """out += w x, element by element (1-D, one size)."""
+    for i in range(out.size):
+        out[i] += w * x[i]
+
+
+def separable_sum_reference(src_r: npt.NDArray[np.int64], src_c: npt.NDArray[np.int64], taps: npt.NDArray[np.float64],
+                            shape: tuple[int, int]) -> npt.NDArray[np.float64]:
+    """`_separable_sum` in plain numpy, the dense passes in the kernel's order (each sum over the rows in
+    ascending order): the reference the kernel is tested against, bit for bit."""
+    rows, cols = shape
+    half = (taps.size - 1) // 2
+    tmp = np.zeros(shape, np.float64)
+    for i in range(src_r.size):
+        r, c = int(src_r[i]), int(src_c[i])
+        lo, hi = max(c - half, 0), min(c + half + 1, cols)
+        tmp[r, lo:hi] += taps[lo - c + half:hi - c + half]
+    out = np.zeros(shape, np.float64)
+    for k in range(-half, half + 1):        # out[r] += taps[k + half] * tmp[r + k], k ascending
+        r0, r1 = max(-k, 0), min(rows - k, rows)
+        if r1 > r0:
+            out[r0:r1] += taps[k + half] * tmp[r0 + k:r1 + k]
+    return out
 
 
 def gaussian_sum(mask: npt.NDArray[np.bool_], sigma: float) -> npt.NDArray[np.float64]:

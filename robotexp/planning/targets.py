@@ -24,7 +24,9 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.errors import ConfigError
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.kernels import label8
 from robotexp.planning import kernels as _k
 from robotexp.planning.grid_planner import cost_grid, distance_transform
 from robotexp.planning.reach import probe_cells
@@ -356,13 +358,19 @@ def frontier_targets(grid: OccupancyGrid, min_cells: int,
     Returns:
         (rows, cols) bool.
     """
-    mask = np.zeros(grid.shape, dtype=bool)
+    if min_cells < 1:
+        raise ConfigError(f"frontier_targets: min_cells must be >= 1, got {min_cells}")
+    # the cells of `grid.frontier_groups(min_cells)` as one mask: labels and group sizes, no loop over groups
+    labels, k = label8(grid.frontier())
+    if k == 0:
+        return np.zeros(grid.shape, dtype=bool)
+    large = np.bincount(labels.ravel(), minlength=k + 1) >= min_cells
+    large[0] = False
     drop = grid.near_occupied()
     if skip is not None:
         drop |= skip
-    for cells in grid.frontier_groups(min_cells):
-        keep = cells[~drop[cells[:, 0], cells[:, 1]]]
-        mask[keep[:, 0], keep[:, 1]] = True
+    mask: npt.NDArray[np.bool_] = large[labels]
+    mask &= ~drop
     return mask
 
 

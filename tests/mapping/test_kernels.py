@@ -13,6 +13,7 @@ from robotexp.mapping.kernels import (
     LogOddsModel,
     clearance_mask,
     edt_sq,
+    flood,
     flood8,
     frontier_mask,
     integrate_scan_himm,
@@ -483,6 +484,28 @@ def test_flood8_matches_bfs():
     np.testing.assert_array_equal(flood8(mask, r0, c0), ref)
     assert 10 < ref.sum() < mask.sum()
     assert not flood8(mask, -1, 0).any() and not flood8(~mask, r0, c0).any()
+
+
+@pytest.mark.parametrize("seed", [10, 11])
+def test_flood_4_connected_matches_bfs(seed):
+    """flood(..., diagonal=False): the 4-connected component, which a diagonal touch does not join."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((31, 29)) < 0.64
+    r0, c0 = np.argwhere(mask)[11]
+    ref = np.zeros_like(mask)
+    ref[r0, c0] = True
+    queue = deque([(r0, c0)])
+    while queue:
+        r, c = queue.popleft()
+        for rr, cc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
+            if 0 <= rr < 31 and 0 <= cc < 29 and mask[rr, cc] and not ref[rr, cc]:
+                ref[rr, cc] = True
+                queue.append((rr, cc))
+    np.testing.assert_array_equal(flood(mask, r0, c0, False), ref)
+    assert 10 < ref.sum() < flood(mask, r0, c0, True).sum()
+    corner = np.array([[1, 0], [0, 1]], bool)
+    assert flood(corner, 0, 0, False).sum() == 1 and flood(corner, 0, 0, True).sum() == 2
+    assert not flood(mask, 31, 0, False).any()
 
 
 def test_edt_matches_brute_force():

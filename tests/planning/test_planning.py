@@ -380,3 +380,35 @@ def test_simplify_keeps_visible_subsequence(seed):
     for a, b in itertools.pairwise(short):
         assert line_of_sight(free, a, b)
         assert all(free[c] for c in ref_touched(tuple(a), tuple(b), free.shape))
+
+
+@pytest.mark.parametrize("seed", SEEDS[:3])
+def test_searches_in_a_large_grid_cost_what_they_reach_and_find_the_same_paths(seed):
+    """A* and nearest_goal set up only the cells they reach: the same scene inside a large blocked grid gives
+    the same paths, cell for cell, and nearest_goal the goal and path of the eager early-exit Dijkstra."""
+    rng = np.random.default_rng(300 + seed)
+    cost = random_cost(rng, (21, 24), blocked=0.15)
+    start, goal = (3, 4), (17, 20)
+    cost[start] = cost[goal] = 1.0
+    goals = np.zeros(cost.shape, bool)
+    goals[goal] = goals[15, 2] = True
+    shift = np.array([200, 300])
+    big = np.full((400, 500), np.inf)
+    big[200:221, 300:324] = cost
+    big_goals = np.zeros(big.shape, bool)
+    big_goals[200:221, 300:324] = goals
+    small_path = astar(cost, start, goal)
+    big_path = astar(big, tuple(shift + start), tuple(shift + goal))
+    assert small_path is not None and big_path is not None
+    np.testing.assert_array_equal(big_path - shift, small_path)
+    found = []
+    for c, g, s in ((cost, goals, start), (big, big_goals, tuple(shift + start))):
+        got = nearest_goal(c, s, g)
+        dist, parent = dijkstra(c, s, goal_mask=g)
+        reached = np.argwhere(np.isfinite(dist) & g)
+        assert got is not None and len(reached) == 1
+        assert tuple(reached[0]) == got[0] and got[2] == dist[got[0]]
+        np.testing.assert_array_equal(got[1], path_from_parents(parent, c.shape[1], got[0]))
+        found.append(got)
+    assert tuple(np.array(found[1][0]) - shift) == found[0][0] and found[1][2] == found[0][2]
+    np.testing.assert_array_equal(found[1][1] - shift, found[0][1])

@@ -11,7 +11,8 @@ import numpy as np
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.planning.follower import PathFollower, path_points
 from robotexp.robot import Limits
-from robotexp.planning.targets import nearest_passable, passable_cell
+from robotexp.mapping.grid import OccupancyGrid
+from robotexp.planning.targets import frontier_targets, nearest_passable, passable_cell
 
 GEO = GridGeometry(origin_x=-1.0, origin_y=2.0, cell=0.1, rows=10, cols=8)
 PLUGINS = Path(__file__).resolve().parents[2] / "plugins"
@@ -70,3 +71,30 @@ def test_no_plugin_imports_another_plugin() -> None:
                 if parts[0] == "robotexp_plugins" and len(parts) > 1 and parts[1] != own:
                     offenders.append(f"{path.relative_to(PLUGINS)}:{node.lineno} imports {name}")
     assert offenders == []
+
+
+def test_frontier_targets_are_the_large_groups_cells_less_the_dropped_ones() -> None:
+    """frontier_targets (labels and group sizes) equals its definition, group by group through
+    `frontier_groups`: the cells of groups of at least min_cells, less wall faces and skipped cells."""
+    rng = np.random.default_rng(7)
+    geo = GridGeometry(0.0, 0.0, 0.1, 60, 80)
+    shape = (geo.rows, geo.cols)
+    grid = OccupancyGrid(geo)
+    free = np.zeros(shape, bool)
+    for _ in range(25):             # rooms of free space, some touching: groups of many sizes
+        r, c = int(rng.integers(0, 55)), int(rng.integers(0, 75))
+        free[r:r + int(rng.integers(1, 12)), c:c + int(rng.integers(1, 12))] = True
+    grid.mark_free(free)
+    grid.mark_occupied((rng.random(shape) < 0.02) & free)
+    skip = rng.random(shape) < 0.05
+    for min_cells in (1, 3, 8, 40):
+        ref = np.zeros(shape, bool)
+        drop = grid.near_occupied() | skip
+        groups = grid.frontier_groups(min_cells)
+        for cells in groups:
+            keep = cells[~drop[cells[:, 0], cells[:, 1]]]
+            ref[keep[:, 0], keep[:, 1]] = True
+        got = frontier_targets(grid, min_cells, skip)
+        np.testing.assert_array_equal(got, ref)
+    assert frontier_targets(grid, 1).sum() > frontier_targets(grid, 40).sum() > 0
+    assert not frontier_targets(OccupancyGrid(geo), 1).any()
