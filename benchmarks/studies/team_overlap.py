@@ -8,7 +8,8 @@ second robot) in one of:
 
 - start: in the first `--start` seconds (the robots stand together where they start);
 - transit: the robot's goal is farther than `--far` [m] (straight line) from it: it crosses the map;
-- near: the robot is within `--far` of its goal, or has none.
+- near: the robot is within `--far` of its goal, or has none;
+- late: the team's map covers 95 % or more (the last frontiers, which draw every robot).
 
 Also the seconds robots spent driving to a coordinator target none of whose cells is frontier any more
 (`stale s`: sampled once a second). Prints a row per run and the sums per coordinator.
@@ -48,8 +49,9 @@ def main() -> int:
     class Tally(RunObserver):
         def __init__(self) -> None:
             self.mine: np.ndarray | None = None
-            self.counts = {"start": 0, "transit": 0, "near": 0}
+            self.counts = {"start": 0, "transit": 0, "near": 0, "late": 0}
             self.stale = 0.0
+            self.coverage = 0.0
 
         def on_robot_step(self, run: Any, robot: int, step: Any) -> None:
             if not step.map_updated:
@@ -73,6 +75,8 @@ def main() -> int:
         def _phase(self, run: Any, robot: int) -> str:
             if run.robot_time < args.start:
                 return "start"
+            if self.coverage >= 0.95:
+                return "late"
             m = run.members[robot]
             goal = getattr(m.explorer, "goal", None)
             p = m.state.true_pose or m.state.pose
@@ -81,6 +85,7 @@ def main() -> int:
             return "near"
 
         def on_sample(self, run: Any, time: float, coverage: float | None) -> None:
+            self.coverage = coverage or 0.0
             for m in run.members:
                 cells = getattr(m.explorer, "assigned", None)
                 if cells is None or len(cells) == 0 or m.end.value != "unknown":
@@ -94,7 +99,7 @@ def main() -> int:
                     self.stale += 1.0
 
     print(f"{'coordinator':<12} {'pose':>4} {'overlap':>7} {'seen':>7} {'start':>6} {'transit':>7} {'near':>6} "
-          f"{'stale s':>7} {'t95 s':>6} {'cov':>6}")
+          f"{'late':>6} {'stale s':>7} {'t95 s':>6} {'cov':>6}")
     sums: dict[str, list[float]] = {}
     for pose in args.poses.split(","):
         spec = RunSpec(world=args.world, method="frontier", pose=None if pose == "default" else pose,
@@ -107,15 +112,16 @@ def main() -> int:
             seen, several = out.run.seen.counts()
             c = tally.counts
             print(f"{name:<12} {pose:>4} {r.overlap_ratio:>7.3f} {seen:>7} {c['start'] / seen:>6.3f} "
-                  f"{c['transit'] / seen:>7.3f} {c['near'] / seen:>6.3f} {tally.stale:>7.0f} "
+                  f"{c['transit'] / seen:>7.3f} {c['near'] / seen:>6.3f} {c['late'] / seen:>6.3f} {tally.stale:>7.0f} "
                   f"{r.time_to_coverage_95_s or math.nan:>6.0f} {r.coverage:>6.4f}", flush=True)
-            s = sums.setdefault(name, [0.0] * 4)
-            for k, v in enumerate((c["start"] / seen, c["transit"] / seen, c["near"] / seen, tally.stale)):
+            s = sums.setdefault(name, [0.0] * 5)
+            for k, v in enumerate((c["start"] / seen, c["transit"] / seen, c["near"] / seen, c["late"] / seen,
+                                   tally.stale)):
                 s[k] += v
     n = len(args.poses.split(","))
-    print("\nmeans: start, transit, near (shares of the cells seen), stale s")
+    print("\nmeans: start, transit, near, late (shares of the cells seen), stale s")
     for name, s in sums.items():
-        print(f"{name:<12} " + " ".join(f"{v / n:.3f}" for v in s[:3]) + f" {s[3] / n:.0f}")
+        print(f"{name:<12} " + " ".join(f"{v / n:.3f}" for v in s[:4]) + f" {s[4] / n:.0f}")
     return 0
 
 
