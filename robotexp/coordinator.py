@@ -2,12 +2,13 @@
 `Candidates`).
 
 A team run (`robotexp explore --team N`) runs one explorer per robot. A coordinator that assigns targets
-(`assigns_targets`) is asked, whenever a robot of the team has no target, which frontier target each
-robot without one should drive to (one that `reassigns`: at every round, for every robot); the explorers that take targets (`Explorer.takes_targets`: frontier,
-the metaheuristics) then choose their goal among the frontier cells of the target they were given. A
-coordinator only decides: it gets the candidate targets with the path cost from every robot and returns
-an index per robot; it never plans, reads clocks or holds a robot. Its randomness comes from
-`TeamContext.rng`. Coordinators are plugins of the `robotexp.coordinators` entry-point group.
+(`assigns_targets`) is asked, whenever a robot of the team has no target, which frontier target each robot
+without one should drive to (one that `reassigns`: at every round, for every robot); the explorers that
+take targets (`Explorer.takes_targets`: frontier, the metaheuristics) then choose their goal among the
+frontier cells of the target they were given. A coordinator only decides: it gets the candidate targets
+with the path cost from every robot and returns an index per robot; it never plans, reads clocks or holds
+a robot. Its randomness comes from `TeamContext.rng`. Coordinators are plugins of the
+`robotexp.coordinators` entry-point group.
 """
 
 from __future__ import annotations
