@@ -59,7 +59,10 @@ class BurgardCoordinator(Coordinator):
     range (the chance that the assigned robot's sensor covers it, linear in distance). Then, robot by
     robot, the free robot and target with the largest utility minus `beta` times the robot's path cost,
     divided by `cost_scale` (or by the robot's largest finite cost), are paired and the target's
-    neighbours are discounted the same way.
+    neighbours are discounted the same way. The paper's assignment gives every robot its target point each
+    time it runs; it runs here at every round (`reassigns`), on the frontier the team's scans left, so a
+    robot is not held to a target whose neighbourhood a teammate's scans have since taken (the robot told
+    its current target again drives on undisturbed).
 
     Args:
         beta: weight of the cost against the utility (the paper's beta; 1 weighs them equally).
@@ -69,6 +72,7 @@ class BurgardCoordinator(Coordinator):
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
         "beta": (0.0, 100.0), "cost_scale": (0.0, 10000.0)}
+    reassigns = True
 
     def __init__(self, *, beta: float = 1.0, cost_scale: float = 0.0) -> None:
         if not (math.isfinite(beta) and beta >= 0):
@@ -115,7 +119,13 @@ class MinPosCoordinator(Coordinator):
     """MinPos (Bautin, Simonin and Charpillet 2012, "MinPos: a novel frontier allocation algorithm for
     multi-robot exploration"): each free robot goes to the target where it ranks best, its rank at a
     target being how many robots are nearer to it by path; ties go to the nearer target. Robots that
-    already have a target count in the ranks as well."""
+    already have a target count in the ranks as well. As in the paper, the allocation is recomputed for
+    every robot at every round (`reassigns`): a robot that passes a frontier where it ranks better turns
+    to it, and one whose target a teammate now reaches first is sent elsewhere. A robot on its way to a
+    target of the best rank keeps it (the nearer target breaks only the other ties): two robots about as
+    far from two targets would otherwise swap them back and forth as their paths change by a cell."""
+
+    reassigns = True
 
     def assign(self, candidates: Candidates, kept: Sequence[int | None]) -> list[int | None]:
         """Each free robot the target of its lowest rank, nearest on a tie."""
@@ -131,5 +141,6 @@ class MinPosCoordinator(Coordinator):
             rank = (cost < mine[None, :]).sum(axis=0).astype(np.float64)
             rank[~reachable] = np.inf
             best = np.flatnonzero(rank == rank.min())
-            out[i] = int(best[np.argmin(mine[best])])
+            held = candidates.held[i] if i < len(candidates.held) else None
+            out[i] = held if held in best else int(best[np.argmin(mine[best])])
         return out

@@ -2,12 +2,13 @@
 `Candidates`).
 
 A team run (`robotexp explore --team N`) runs one explorer per robot. A coordinator that assigns targets
-(`assigns_targets`) is asked, whenever a robot of the team has no target, which frontier target each
-robot without one should drive to; the explorers that take targets (`Explorer.takes_targets`: frontier,
-the metaheuristics) then choose their goal among the frontier cells of the target they were given. A
-coordinator only decides: it gets the candidate targets with the path cost from every robot and returns
-an index per robot; it never plans, reads clocks or holds a robot. Its randomness comes from
-`TeamContext.rng`. Coordinators are plugins of the `robotexp.coordinators` entry-point group.
+(`assigns_targets`) is asked, whenever a robot of the team has no target, which frontier target each robot
+without one should drive to (one that `reassigns`: at every round, for every robot); the explorers that
+take targets (`Explorer.takes_targets`: frontier, the metaheuristics) then choose their goal among the
+frontier cells of the target they were given. A coordinator only decides: it gets the candidate targets
+with the path cost from every robot and returns an index per robot; it never plans, reads clocks or holds
+a robot. Its randomness comes from `TeamContext.rng`. Coordinators are plugins of the
+`robotexp.coordinators` entry-point group.
 """
 
 from __future__ import annotations
@@ -32,12 +33,15 @@ class Candidates:
         cells: k arrays (m_i, 2) of the grid cells (row, col) of the frontier each target stands for.
         cost: (n, k) [m] the length of the shortest path from each robot to each target (inf: unreachable).
         positions: (n, 2) [m] where each robot stands.
+        held: for a coordinator that `reassigns`, the target each robot is on its way to (None: none; ():
+            not told), for it to keep a robot on its way where another target is no better.
     """
 
     points: npt.NDArray[np.float64]
     cells: tuple[npt.NDArray[np.int64], ...]
     cost: npt.NDArray[np.float64]
     positions: npt.NDArray[np.float64]
+    held: tuple[int | None, ...] = ()
 
     @property
     def robots(self) -> int:
@@ -67,6 +71,10 @@ class Coordinator(ABC):
     """
 
     assigns_targets: ClassVar[bool] = True
+    # True: every round asks for the targets of all robots anew (`assign` gets no kept target), as MinPos
+    # recomputes its allocation at every step; False: a robot keeps its target until its frontier is
+    # resolved (or it gives it up), and rounds run only when some robot has none
+    reassigns: ClassVar[bool] = False
     # the inclusive range of each numeric parameter, {name: (low, high)} (None: open on that side)
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {}
 

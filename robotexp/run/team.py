@@ -375,8 +375,11 @@ class TeamRun(ExplorationRun):
     # -- coordination -------------------------------------------------------------------------
     def _coordinate(self, active: Sequence[int]) -> None:
         """A coordinator round when one is due: for each group of robots that can talk, the frontier
-        targets of its first robot's grid; robots whose target is still among them keep it, the others
-        get one from the coordinator."""
+        targets of its first robot's grid. A robot holds its target while some of the cells it was given
+        are still frontier on its own explorer's map (not resolved by anyone's scans, not given up on);
+        robots that hold one keep it and the others get one from the coordinator, or, with a coordinator
+        that `reassigns`, every robot's target is chosen anew at every round (a robot told its held target
+        again drives on undisturbed)."""
         if self.coordinator is None or not active or self.robot_time < self._next_round - self.period / 2:
             return
         self._next_round = self.robot_time + COORDINATION_PERIOD
@@ -386,6 +389,7 @@ class TeamRun(ExplorationRun):
         if not self._costs:
             radius = max(m.robot.radius for m in self.members)
             self._costs = [PlanCosts(radius, 0.3) for _ in self.members]
+        anew = self.coordinator.reassigns
         for group in groups_within(self._positions(active), self.comm_range):
             robots = [active[g] for g in group]
             leader = robots[0]
@@ -395,21 +399,20 @@ class TeamRun(ExplorationRun):
             frontier = self.members[leader].explorer.target_frontier(grid)
             cand = team_candidates(grid, None, [tuple(p) for p in self._positions(robots)], radius,
                                    frontier=frontier)
-            labels = held_targets(cand, [self.targets[i] for i in robots])
-            if all(k is not None for k in labels):
-                for i, k in zip(robots, labels, strict=True):
-                    assert k is not None
-                    self.targets[i] = cand.cells[k]
+            labels = [k if k is not None and self._pursued(i) else None
+                      for i, k in zip(robots, held_targets(cand, [self.targets[i] for i in robots]), strict=True)]
+            if not anew and all(k is not None for k in labels):
                 continue
-            cand = with_costs(cand, grid, self._costs[leader], radius)
-            kept = [k if k is not None and math.isfinite(cand.cost[j, k]) else None for j, k in enumerate(labels)]
+            cand = self._own_frontier(robots, with_costs(cand, grid, self._costs[leader], radius))
+            labels = [k if k is not None and math.isfinite(cand.cost[j, k]) else None for j, k in enumerate(labels)]
             self.rounds += 1
-            chosen = self.coordinator.assign(cand, kept)
+            if anew:
+                cand = replace(cand, held=tuple(labels))
+            chosen = self.coordinator.assign(cand, [None] * len(robots) if anew else labels)
             for j, i in enumerate(robots):
                 k = chosen[j] if j < len(chosen) else None
-                if k is not None and k == kept[j]:
-                    self.targets[i] = cand.cells[k]
-                    continue
+                if k is not None and k == labels[j]:
+                    continue            # the robot drives on to the cells it was given
                 if k is None or not (0 <= k < len(cand)) or not math.isfinite(cand.cost[j, k]):
                     if self.targets[i] is not None:
                         self.targets[i] = None
@@ -417,6 +420,33 @@ class TeamRun(ExplorationRun):
                     continue
                 self.targets[i] = cand.cells[k]
                 self.members[i].explorer.assign_targets(cand.cells[k])
+
+    def _own_frontier(self, robots: Sequence[int], cand: Candidates) -> Candidates:
+        """`cand` with the cost of each robot to each target none of whose cells is among the robot's own frontier
+        (`target_frontier` of its explorer on its map: cells it gave up on, or its map shows resolved) set to
+        inf: a robot is not sent to a target it would not choose a goal in."""
+        if len(cand) == 0:
+            return cand
+        cells = np.concatenate(cand.cells).astype(np.int64, copy=False)
+        owner = np.repeat(np.arange(len(cand)), [len(c) for c in cand.cells])
+        cost = cand.cost.copy()
+        for j, i in enumerate(robots):
+            m = self.members[i]
+            got = m.explorer.target_frontier(m.grid)
+            if got is not None:
+                cost[j, ~_any_in(got, cells, owner, len(cand))] = math.inf
+        return replace(cand, cost=cost)
+
+    def _pursued(self, robot: int) -> bool:
+        """Robot `robot`'s explorer still has some of its target's cells among its own frontier (`target_frontier`
+        on its map: cells resolved or given up on are not); True for an explorer that tells none."""
+        cells = self.targets[robot]
+        m = self.members[robot]
+        got = m.explorer.target_frontier(m.grid)
+        if cells is None or got is None:
+            return cells is not None
+        cells = np.asarray(cells, np.int64).reshape(-1, 2)
+        return bool(_any_in(got, cells, np.zeros(len(cells), np.int64), 1)[0])
 
     # -- the record ---------------------------------------------------------------------------
     def team_record(self) -> RunRecord:
@@ -470,6 +500,18 @@ class TeamRun(ExplorationRun):
         self.metrics.path_length = sum(m.metrics.path_length for m in self.members)
         self.metrics.collisions = sum(m.metrics.collisions for m in self.members)
         super()._sample()
+
+
+def _any_in(frontier: tuple[npt.NDArray[np.bool_], tuple[int, int]], cells: npt.NDArray[np.int64],
+            owner: npt.NDArray[np.int64], groups: int) -> npt.NDArray[np.bool_]:
+    """For each of `groups` groups of grid `cells` ((m, 2), the group of each in `owner`), whether some cell
+    is set in `frontier` (a bool mask of a window of the grid and the window's (row, col) offset)."""
+    mask, off = frontier
+    local = cells - np.asarray(off, np.int64)
+    inside = (local[:, 0] >= 0) & (local[:, 0] < mask.shape[0]) & (local[:, 1] >= 0) & (local[:, 1] < mask.shape[1])
+    on = np.zeros(len(cells), bool)
+    on[inside] = mask[local[inside, 0], local[inside, 1]]
+    return np.bincount(owner[on], minlength=groups) > 0
 
 
 def held_targets(cand: Candidates, targets: Sequence[npt.NDArray[np.int64] | None]) -> list[int | None]:

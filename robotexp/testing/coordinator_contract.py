@@ -4,11 +4,12 @@ A plugin author calls it from a test (``robotexp.check_coordinator(MyCoordinator
 call it for every installed coordinator. It checks, in this order, and raises `PluginError` naming the
 plugin and the first rule broken:
 
-1. the class subclasses `Coordinator` and `assigns_targets` is a bool;
+1. the class subclasses `Coordinator` and `assigns_targets` and `reassigns` are bools;
 2. every `__init__` parameter is keyword-only with a default, every name in `parameter_bounds` is one of
    them and its default lies within its bounds, and the class builds with the defaults alone;
 3. on `cases` seeded random rounds (2 to 6 robots, 0 to 12 targets, some unreachable from some robots,
-   some robots keeping a target), `assign` returns a list with one entry per robot, each None or the
+   some robots keeping a target, some told the target they are on their way to (`Candidates.held`)),
+   `assign` returns a list with one entry per robot, each None or the
    index of a target; a robot that keeps a target keeps it; no robot gets a target it cannot reach; a
    coordinator that assigns targets gives every robot without one that can reach some target a target;
    the candidates it was given are unchanged;
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -60,8 +61,9 @@ def check_coordinator(cls: type, *, name: str | None = None, cases: int = 40, se
     label = f"coordinator {name or getattr(cls, '__name__', repr(cls))!r}"
     if not (isinstance(cls, type) and issubclass(cls, Coordinator)):
         raise PluginError(f"{label}: {cls!r} is not a subclass of robotexp.Coordinator")
-    if not isinstance(cls.assigns_targets, bool):
-        raise PluginError(f"{label}: assigns_targets must be a bool, got {cls.assigns_targets!r}")
+    for flag in ("assigns_targets", "reassigns"):
+        if not isinstance(getattr(cls, flag), bool):
+            raise PluginError(f"{label}: {flag} must be a bool, got {getattr(cls, flag)!r}")
     _check_parameters(cls, label)
     first, second = _build(cls, label), _build(cls, label)
     for c in (first, second):
@@ -72,10 +74,15 @@ def check_coordinator(cls: type, *, name: str | None = None, cases: int = 40, se
         n, k = int(rng.integers(2, 7)), int(rng.integers(0, 13))
         cand = random_candidates(rng, n, k)
         kept: list[int | None] = [None] * n
+        held: list[int | None] = [None] * n
         for i in range(n):
             reachable = np.flatnonzero(np.isfinite(cand.cost[i]))
             if len(reachable) and rng.random() < 0.3:
-                kept[i] = int(rng.choice(reachable))
+                kept[i] = held[i] = int(rng.choice(reachable))
+            elif len(reachable) and rng.random() < 0.3:
+                held[i] = int(rng.choice(reachable))
+        if rng.random() < 0.5:
+            cand = replace(cand, held=tuple(held))
         before = (cand.points.copy(), cand.cost.copy(), [c.copy() for c in cand.cells])
         out = _assign(first, cand, kept, label, case)
         _check_round(cls, cand, kept, out, label, case)

@@ -83,3 +83,19 @@ def test_none_assigns_nothing():
     c = ready(NoCoordinator(), size=1)
     assert not c.assigns_targets
     assert c.assign(cand, [None]) == [None]
+
+
+def test_minpos_and_burgard_choose_every_robots_target_anew_and_minpos_keeps_a_held_one_on_a_tie():
+    from dataclasses import replace
+
+    assert MinPosCoordinator.reassigns and BurgardCoordinator.reassigns
+    assert not GreedyCoordinator.reassigns
+    # robot 0 ranks 0 at both targets (robot 1 is farther from both); the nearer is target 1 (3 < 4), but
+    # robot 0 is on its way to target 0, which ranks as well: it keeps it
+    cand = round_of([(0, 0), (5, 0)], [[4.0, 3.0], [6.0, 8.0]])
+    assert ready(MinPosCoordinator()).assign(cand, [None, None]) == [1, 0]
+    assert ready(MinPosCoordinator()).assign(replace(cand, held=(0, None)), [None, None]) == [0, 0]
+    # a held target of a worse rank is left: robot 0 ranks 1 at its target 1 (robot 1 is 2 m away, robot 0
+    # 3 m) and 0 at target 0; robot 1 ranks 1 at its target 0 and 0 at target 1: they swap
+    cand = round_of([(0, 0), (5, 0)], [[4.0, 3.0], [6.0, 2.0]])
+    assert ready(MinPosCoordinator()).assign(replace(cand, held=(1, 0)), [None, None]) == [0, 1]

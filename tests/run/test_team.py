@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from robotexp import Done, Explorer, PluginError, RunRecord, Twist
+from robotexp import Coordinator, Done, Explorer, PluginError, RunRecord, Twist
 from robotexp.errors import ConfigError
 from robotexp.experiment import run_team
 from robotexp.mapping.geometry import GridGeometry
@@ -261,3 +261,96 @@ def test_held_targets_are_label_cells_of_every_target():
         assert held_targets(cand, targets) == [None if t is None else label_cells(cand, t) for t in targets]
     empty = Candidates(points=np.zeros((0, 2)), cells=(), cost=np.zeros((1, 0)), positions=np.zeros((1, 2)))
     assert held_targets(empty, [np.ones((1, 2), np.int64)]) == [None]
+
+
+class Hold(Explorer):
+    """Stands still and tells the team its frontier: the 4 x 4-cell patches of `phases` (patch names per phase),
+    the phase changing after the steps of `after`; records the targets it is given."""
+
+    takes_targets = True
+
+    def __init__(self, patches, phases, after=(15, 35)) -> None:
+        self.patches, self.phases, self.after = patches, phases, after
+        self.steps = 0
+        self.given: list[tuple[int, str | None]] = []
+
+    def step(self, state, grid):
+        self.steps += 1
+        return Twist(0.0, 0.0)
+
+    def target_frontier(self, grid):
+        mask = np.zeros(grid.shape, bool)
+        for name in self.phases[sum(self.steps >= a for a in self.after)]:
+            cells = self.patches[name]
+            mask[cells[:, 0], cells[:, 1]] = True
+        return mask, (0, 0)
+
+    def assign_targets(self, cells):
+        name = None if cells is None else next(k for k, v in self.patches.items()
+                                               if {tuple(c) for c in v} == {tuple(c) for c in cells})
+        self.given.append((self.steps, name))
+
+
+def _patch(geo, x, y):
+    """4 x 4 cells by (x, y) [m], within one 1 m square of the team's targets."""
+    r, c = geo.cell_of(x, y)
+    r, c = r // 10 * 10 + 3, c // 10 * 10 + 3
+    return np.array([(r + i, c + j) for i in range(4) for j in range(4)], np.int64)
+
+
+def run_held(coordinator, phases0, phases1):
+    world = hall()
+    geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
+    grid = OccupancyGrid(geo, range_max=3.0)
+    patches = {"A": _patch(geo, 3.5, 1.0), "B": _patch(geo, 6.5, 1.0)}
+    explorers = [Hold(patches, phases0), Hold(patches, phases1)]
+    # both face east: robot 0 maps the hall from 2 m to 5 m (A), robot 1 from 4.5 m to 7.5 m (B)
+    robots = [SimRobot(world, pose=Pose(2.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(4.5, 1.0, 0.0), sonar=False)]
+    with SimTeam(robots) as team:
+        TeamRun(robots, explorers, [grid, grid], team.make_clock(0.1), coordinator=coordinator, max_time=4.55).run()
+    return [e.given for e in explorers]
+
+
+class Sides(Coordinator):
+    """Robot 0 the reachable target farthest west (east with `east`), robot 1 the other way; records the kept
+    targets and costs it was asked with."""
+
+    def __init__(self, *, east: bool = False) -> None:
+        self.east = east
+        self.asked: list[tuple[list[int | None], np.ndarray]] = []
+
+    def assign(self, candidates, kept):
+        self.asked.append((list(kept), candidates.cost.copy()))
+        west = list(np.argsort(candidates.points[:, 0], kind="stable"))
+        out = list(kept)
+        for i, order in enumerate((west[::-1], west) if self.east else (west, west[::-1])):
+            if out[i] is None:
+                out[i] = next((int(k) for k in order if math.isfinite(candidates.cost[i, k])), None)
+        return out
+
+
+def test_a_target_leaves_the_robot_when_its_cells_leave_its_own_frontier():
+    c = Sides()
+    # target A at 3.5 m, B at 6.5 m. After 1.5 s robot 1's own frontier lacks B (it gave B up), after 3.5 s
+    # A is resolved on both maps
+    given = run_held(c, [("A", "B"), ("A", "B"), ("B",)], [("A", "B"), ("A",), ()])
+    # t 0: nothing mapped, nothing reachable; t 1: robot 0 takes A, robot 1 B; t 2: B left robot 1's own
+    # frontier: robot 1 is free and B costs it inf (robot 0 keeps A); t 3: both hold A, no round; t 4: A
+    # is gone, robot 0 gets B, robot 1 (its frontier empty) none
+    assert [k for k, _ in c.asked] == [[None, None], [None, None], [0, None], [None, None]]
+    assert np.isfinite(c.asked[1][1]).all()
+    assert math.isinf(c.asked[2][1][1, 1]) and math.isfinite(c.asked[2][1][0, 1])
+    assert c.asked[3][1].shape == (2, 1) and math.isinf(c.asked[3][1][1, 0]) and math.isfinite(c.asked[3][1][0, 0])
+    assert given == [[(10, "A"), (40, "B")], [(10, "B"), (20, "A"), (40, None)]]
+
+
+def test_a_coordinator_that_reassigns_is_asked_for_every_robot_at_every_round():
+    class Anew(Sides):
+        reassigns = True
+
+    c = Anew(east=True)
+    given = run_held(c, [("A", "B")] * 2 + [("A",)], [("A", "B")] * 2 + [("A",)])
+    # a round every second (t 0 .. 4), every robot free in each; a robot given its target again is not told anew
+    assert [k for k, _ in c.asked] == [[None, None]] * 5
+    assert given == [[(10, "B"), (40, "A")], [(10, "A")]]
