@@ -172,11 +172,11 @@ def drift_poses(v0: float, w0: float, v: float, w: float, a_max: float, alpha_ma
     still swings left for most of a second."""
     a, alpha = max(a_max, 1e-6), max(alpha_max, 1e-6)
     v0 = max(v0, 0.0)
-    react = np.arange(1, int(round(REACTION / DRIFT_STEP)) + 1) * DRIFT_STEP
+    react = np.arange(1, int(round(REACTION / DRIFT_STEP)) + 1, dtype=np.float64) * DRIFT_STEP
     speed = _ramp(v0, max(v, 0.0), a, react)
     stop = np.arange(1, int(math.ceil(speed[-1] / (a * DRIFT_STEP))) + 1) * DRIFT_STEP
     speed = np.concatenate([speed, np.maximum(speed[-1] - a * stop, 0.0)])
-    t = np.arange(len(speed) + 1) * DRIFT_STEP
+    t = np.arange(len(speed) + 1, dtype=np.float64) * DRIFT_STEP
     turn = _ramp(w0, w, alpha, t)
     heading = np.cumsum(turn[1:] + turn[:-1]) * (DRIFT_STEP / 2.0)          # the trapezoid rule
     step = (speed + np.concatenate([[v0], speed[:-1]])) * (DRIFT_STEP / 2.0)
