@@ -145,10 +145,16 @@ def footprint_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: 
     near = np.hypot(pts[:, 0], pts[:, 1]) < length + reach
     if not near.any():
         return False
-    pts = pts[near]
+    return _poses_blocked(pts[near], foot, clearance, cx, cy, th)
+
+
+def _poses_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: float, x: npt.NDArray[np.float64],
+                   y: npt.NDArray[np.float64], th: npt.NDArray[np.float64]) -> bool:
+    """True when the outline `foot` at one of the robot-frame poses (`x`, `y`, `th`) comes within `clearance`
+    [m] of a point of `pts` (k, 2) that it is nearer to than the outline is now (the robot approaches it)."""
     d0 = foot.distance(pts[:, 0], pts[:, 1])
     c, sn = np.cos(th)[None, :], np.sin(th)[None, :]
-    dx, dy = pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :]
+    dx, dy = pts[:, None, 0] - x[None, :], pts[:, None, 1] - y[None, :]
     d = foot.distance(c * dx + sn * dy, -sn * dx + c * dy)
     return bool(((d < clearance) & (d < d0[:, None] - 1e-4)).any())
 
@@ -201,13 +207,8 @@ def drift_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: floa
     near = np.hypot(pts[:, 0], pts[:, 1]) < travel + foot.swing + clearance
     if not near.any():
         return False
-    pts = pts[near]
     poses = drift_poses(v0, w0, v, w, a_max, alpha_max)
-    d0 = foot.distance(pts[:, 0], pts[:, 1])
-    c, sn = np.cos(poses[:, 2])[None, :], np.sin(poses[:, 2])[None, :]
-    dx, dy = pts[:, None, 0] - poses[None, :, 0], pts[:, None, 1] - poses[None, :, 1]
-    d = foot.distance(c * dx + sn * dy, -sn * dx + c * dy)
-    return bool(((d < clearance) & (d < d0[:, None] - 1e-4)).any())
+    return _poses_blocked(pts[near], foot, clearance, poses[:, 0], poses[:, 1], poses[:, 2])
 
 
 def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float, clearance: float,
