@@ -168,6 +168,31 @@ def team_room() -> str:
     return TEAM_ROOM
 
 
+def _shelf_aisles(cell: float) -> tuple[Any, Any, Any]:
+    """A 60 x 60 map of `cell` [m] cells: two aisles (rows 5-19 and 31-44, columns 5-39) either side of a
+    shelf whose two faces (rows 20 and 30) were seen occupied; its inside (rows 21-29) never seen, the
+    aisles' east ends open onto unknown space. Returns (grid, free, wall), the last two bool masks."""
+    import numpy as np
+
+    from robotexp.mapping.geometry import GridGeometry
+    from robotexp.mapping.grid import OccupancyGrid
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, cell, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:20, 5:40] = free[31:45, 5:40] = True
+    wall = np.zeros(grid.shape, bool)
+    wall[20, 5:40] = wall[30, 5:40] = True
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    return grid, free, wall
+
+
+@pytest.fixture
+def shelf_aisles() -> Callable[[float], tuple[Any, Any, Any]]:
+    """The wall-face tests' map (`_shelf_aisles`): cell size [m] -> (grid, free, wall)."""
+    return _shelf_aisles
+
+
 @pytest.fixture
 def view_cli() -> Iterator[ViewCli]:
     """Start live-view commands; any still running at the end of the test is killed."""

@@ -466,21 +466,26 @@ def test_label8_diagonal_touch_joins():
     assert k == 2 and labels.tolist() == [[1, 0, 0], [0, 1, 0], [0, 0, 0], [2, 2, 0]]
 
 
-def test_flood8_matches_bfs():
-    rng = np.random.default_rng(8)
-    mask = rng.random((30, 30)) < 0.62
-    r0, c0 = np.argwhere(mask)[17]
+def _bfs(mask: np.ndarray, r0: int, c0: int, steps: list[tuple[int, int]]) -> np.ndarray:
+    """The reference flood: the cells of `mask` a breadth-first search from (r0, c0) reaches by `steps`."""
     ref = np.zeros_like(mask)
     ref[r0, c0] = True
     queue = deque([(r0, c0)])
     while queue:
         r, c = queue.popleft()
-        for dr in (-1, 0, 1):
-            for dc in (-1, 0, 1):
-                rr, cc = r + dr, c + dc
-                if 0 <= rr < 30 and 0 <= cc < 30 and mask[rr, cc] and not ref[rr, cc]:
-                    ref[rr, cc] = True
-                    queue.append((rr, cc))
+        for dr, dc in steps:
+            rr, cc = r + dr, c + dc
+            if 0 <= rr < mask.shape[0] and 0 <= cc < mask.shape[1] and mask[rr, cc] and not ref[rr, cc]:
+                ref[rr, cc] = True
+                queue.append((rr, cc))
+    return ref
+
+
+def test_flood8_matches_bfs():
+    rng = np.random.default_rng(8)
+    mask = rng.random((30, 30)) < 0.62
+    r0, c0 = np.argwhere(mask)[17]
+    ref = _bfs(mask, r0, c0, [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)])
     np.testing.assert_array_equal(flood8(mask, r0, c0), ref)
     assert 10 < ref.sum() < mask.sum()
     assert not flood8(mask, -1, 0).any() and not flood8(~mask, r0, c0).any()
@@ -492,15 +497,7 @@ def test_flood_4_connected_matches_bfs(seed):
     rng = np.random.default_rng(seed)
     mask = rng.random((31, 29)) < 0.64
     r0, c0 = np.argwhere(mask)[11]
-    ref = np.zeros_like(mask)
-    ref[r0, c0] = True
-    queue = deque([(r0, c0)])
-    while queue:
-        r, c = queue.popleft()
-        for rr, cc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-            if 0 <= rr < 31 and 0 <= cc < 29 and mask[rr, cc] and not ref[rr, cc]:
-                ref[rr, cc] = True
-                queue.append((rr, cc))
+    ref = _bfs(mask, r0, c0, [(-1, 0), (1, 0), (0, -1), (0, 1)])
     np.testing.assert_array_equal(flood(mask, r0, c0, False), ref)
     assert 10 < ref.sum() < flood(mask, r0, c0, True).sum()
     corner = np.array([[1, 0], [0, 1]], bool)

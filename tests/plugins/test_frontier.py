@@ -8,6 +8,7 @@ drive to see everything. Each run takes well under a second of wall time.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -277,19 +278,13 @@ def test_grazed_wall_face_is_no_frontier_but_an_opening_is() -> None:
         FrontierExplorer(face_reach=-1.0)
 
 
-def test_worn_face_of_a_deep_shelf_is_no_frontier() -> None:
+def test_worn_face_of_a_deep_shelf_is_no_frontier(shelf_aisles: Callable[[float], tuple]) -> None:
     """A shelf 1 m deep whose face was seen (occupied) and then worn free over 1.1 m by grazing beams
     (log-odds: a pass cancels a hit): its unknown inside lies 0.5 m from the walls left on the map, but
     one cell from walls the explorer saw; no target there. The room's open east end stays a target."""
     from robotexp.planning.targets import WallMemory, distance_transform
 
-    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
-    free = np.zeros(grid.shape, bool)
-    free[5:20, 5:40] = free[31:45, 5:40] = True        # aisles either side of the shelf (rows 20-30)
-    wall = np.zeros(grid.shape, bool)
-    wall[20, 5:40] = wall[30, 5:40] = True             # the shelf's faces; rows 21-29 never seen
-    grid.mark_free(free)
-    grid.mark_occupied(wall)
+    grid, free, wall = shelf_aisles(0.1)     # aisles either side of the shelf's faces, rows 20 and 30
     old, new = FrontierExplorer(face_reach=0.0), FrontierExplorer()
     _frontier_of(old, grid)
     _frontier_of(new, grid)

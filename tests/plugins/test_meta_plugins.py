@@ -7,6 +7,7 @@ SimRobot with ground truth. The built-in worlds are measured in the report (too 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -144,19 +145,13 @@ def _meta_frontier(explorer: MetaheuristicExplorer, grid: OccupancyGrid, reachab
     return out
 
 
-def test_worn_face_and_inside_of_a_shelf_are_no_frontier() -> None:
+def test_worn_face_and_inside_of_a_shelf_are_no_frontier(shelf_aisles: Callable[[float], tuple]) -> None:
     """A shelf 0.5 m deep seen from the aisles on both sides (rows 20 and 30 at 5 cm), whose near face
     grazing beams wore free over 0.55 m: its unknown inside then borders free cells, frontier that no look
     resolves (each look wears the face again). With the walls the explorer has seen (`face_reach`, as the
     frontier plugin) the face is no FRONTIER; the aisles' open east ends stay FRONTIER but for their cells
     within face_reach of the shelf; `face_reach=0` keeps the map's walls of the moment and counts the face."""
-    grid = OccupancyGrid(GridGeometry(0.0, 0.0, CELL, 60, 60))
-    free = np.zeros(grid.shape, bool)
-    free[5:20, 5:40] = free[31:45, 5:40] = True        # aisles either side of the shelf (rows 20-30)
-    wall = np.zeros(grid.shape, bool)
-    wall[20, 5:40] = wall[30, 5:40] = True             # the shelf's faces; rows 21-29 never seen
-    grid.mark_free(free)
-    grid.mark_occupied(wall)
+    grid, free, _ = shelf_aisles(CELL)       # aisles either side of the shelf's faces, rows 20 and 30
     ctx = ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1, start=Pose(1.0, 1.0, 0.0),
                           laser_range=RANGE, rng=np.random.default_rng(0))
     old, new = ExhaustiveExplorer(face_reach=0.0), ExhaustiveExplorer()
