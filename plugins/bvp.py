@@ -81,8 +81,9 @@ class BVPExplorer(Explorer):
       door then had no gradient and stalled in our 40 mm/s runs); q keeps those tiny values down
       to 1e-308, so the gradient keeps its direction.
     - Configuration space (`inflate`, default the robot radius plus `INFLATE_MARGIN`, the 2 cm the
-      planners keep): cells whose centre lies within inflate of the walls' surface (the laser endpoints
-      in the occupied cells: `robotexp.planning.targets.wall_distance`) are obstacles (potential 1)
+      planners keep): cells whose every point (the centre and eight more a third of a cell apart, as the
+      planners judge a cell: `robotexp.planning.targets.cell_points`) lies within inflate of the walls'
+      surface (the laser endpoints in the occupied cells: `wall_distance`) are obstacles (potential 1)
       too, as in Connolly & Grupen's planner, so the descent never leads into a gap the robot cannot
       pass and unknown cells right by walls (their unseen faces) are not goals. A door the robot fits
       with 2 cm to spare is a channel of the configuration space a cell or two wide: the guard (the
@@ -207,7 +208,7 @@ class BVPExplorer(Explorer):
         """Loop closure rebuilt the map: the wall distances are recomputed and the field is relaxed anew from
         below at the next update (as after `give_up`), so that no goal or wall of the old map lingers in it."""
         if self.q.shape != (0, 0):
-            self.walls = WallDistance(self._inflate_cells(grid), surface=True)
+            self.walls = WallDistance(self._inflate_cells(grid), surface=True, points=True)
             self.given_up[:] = False        # cells of the old map
             self.flush = True
         self.next_update = -math.inf
@@ -224,7 +225,7 @@ class BVPExplorer(Explorer):
             self.covered = np.zeros((rows, cols), np.bool_)
             self.given_up = np.zeros((rows, cols), np.bool_)
             self.cover_box = None
-            self.walls = WallDistance(self._inflate_cells(grid), surface=True)
+            self.walls = WallDistance(self._inflate_cells(grid), surface=True, points=True)
 
     def _cover(self, grid: OccupancyGrid, x: float, y: float) -> None:
         geo = grid.geo
@@ -282,7 +283,7 @@ class BVPExplorer(Explorer):
         return wall, goal
 
     def _inflate_cells(self, grid: OccupancyGrid) -> float:
-        """[cells] a cell whose centre is this near the walls' surface (the laser endpoints in the occupied
+        """[cells] a cell whose every point is this near the walls' surface (the laser endpoints in the occupied
         cells: `wall_distance`) is a wall."""
         inflate = self.ctx.radius + INFLATE_MARGIN if self.inflate is None else self.inflate
         return inflate / grid.geo.cell

@@ -367,7 +367,11 @@ class MetaheuristicExplorer(Explorer):
 
     def _follow(self, path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_], pose: Pose,
                 grid: OccupancyGrid, off: Offset) -> None:
-        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y), off)
+        """Follow `path` (cells of the window `passable` whose cell (0, 0) is `off`) through the points of
+        its cells the costs planned with (`PlanCosts.points`)."""
+        rows, cols = passable.shape
+        points = None if self.costs is None else self.costs.points[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        self.follower.follow_cells(path, passable, grid.geo, (pose.x, pose.y), off, points)
 
 
 def search_domain(surface: npt.NDArray[np.float64], reachable: npt.NDArray[np.bool_], frontier: npt.NDArray[np.bool_],

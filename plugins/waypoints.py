@@ -30,7 +30,7 @@ import numpy.typing as npt
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import astar, cost_grid
-from robotexp.planning.targets import passable_radius, wall_distance
+from robotexp.planning.targets import cell_points, passable_radius, wall_distance
 
 __all__ = ["WaypointsExplorer", "attractive_force", "repulsive_force", "scan_points", "SECTORS"]
 
@@ -268,7 +268,8 @@ class WaypointsExplorer(Explorer):
         if not occ.any():
             return None
         radius = passable_radius(geo.cell, self.ctx.radius)       # the planners' passability (the walls' surface)
-        dist = wall_distance(grid, radius + self.influence / geo.cell)
+        points = np.zeros(grid.shape, np.uint8)        # the point of each cell a plan passes through
+        dist = wall_distance(grid, radius + self.influence / geo.cell, points=points, below=radius)
         cost = cost_grid(dist, robot_radius_cells=radius, danger_radius_cells=self.influence / geo.cell,
                          danger_cost=4.0)
         start, end = geo.cell_of(pose.x, pose.y), geo.cell_of(*goal)
@@ -279,7 +280,7 @@ class WaypointsExplorer(Explorer):
         cells = astar(cost, start, end)
         if cells is None or len(cells) < 2:
             return None
-        pts = np.array([geo.center_of(int(r), int(c)) for r, c in cells], dtype=np.float64)
+        pts = cell_points(geo, cells, points)
         along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
         i = min(int(np.searchsorted(along, self.lookahead)), len(pts) - 1)
         return float(pts[i, 0]), float(pts[i, 1])

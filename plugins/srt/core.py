@@ -533,7 +533,8 @@ class SRTExplorer(Explorer):
         """A path (k, 2) [m] from `pose` to `goal` [m] over the mapped free space (A* on `plan_costs` of
         `grid` for half the robot's width, clearance a cost; `within_tree`: inside the union of the safe
         regions), string-pulled; None when there is none."""
-        cost = plan_costs(grid, self.ctx.radius, 0.3)
+        points = np.zeros(grid.shape, np.uint8)
+        cost = plan_costs(grid, self.ctx.radius, 0.3, points)
         if within_tree:
             cost[~self.tree.union_mask(grid)] = np.inf
         passable = np.isfinite(cost)
@@ -545,7 +546,7 @@ class SRTExplorer(Explorer):
         cells = astar(cost, begin, end)
         if cells is None:
             return None
-        return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo), [goal]])
+        return np.vstack([[pose.x, pose.y], path_points(cells, passable, geo, points=points), [goal]])
 
     def _detour(self, pose: Pose) -> npt.NDArray[np.float64] | None:
         if self._grid is None or self.target is None:

@@ -27,6 +27,7 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import simplify
+from robotexp.planning.targets import cell_points
 from robotexp.robot import Footprint, LaserScan, Limits, Pose, Twist, wrap_angle
 
 __all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahead", "drift_blocked", "drift_poses",
@@ -363,9 +364,11 @@ def roomy_cells(passable: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
 
 
 def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
-                geo: GridGeometry, offset: tuple[int, int] = (0, 0)) -> npt.NDArray[np.float64]:
-    """The world points [m] (k, 2) of a planner path: the cell centres of `cells`, string-pulled across
-    the `roomy_cells` of `passable` (every cell kept where the path runs through tight places).
+                geo: GridGeometry, offset: tuple[int, int] = (0, 0),
+                points: npt.NDArray[np.uint8] | None = None) -> npt.NDArray[np.float64]:
+    """The world points [m] (k, 2) of a planner path: the points of `cells` a plan passes through (their
+    centres, or the points `points` names: `cell_points`), string-pulled across the `roomy_cells` of
+    `passable` whose point is their centre (every cell kept where the path runs through tight places).
 
     Args:
         cells: (n, 2) int (row, col) cells of a path, consecutive ones 8-neighbours (as from `astar`).
@@ -373,12 +376,17 @@ def path_points(cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_],
         geo: the grid's geometry.
         offset: (row, col) of `passable`'s cell (0, 0) in `geo` (a window of the grid, as
             `OccupancyGrid.window`); `cells` are the window's.
+        points: (rows, cols) uint8 the point of each cell of the window (`plan_costs`' `points`), or None
+            (the centres).
 
     Returns:
         (k, 2) float64, k <= n.
     """
-    kept = simplify(cells, roomy_cells(np.asarray(passable, dtype=bool))) if len(cells) > 2 else cells
-    return geo.centers_of(np.asarray(kept) + np.asarray(offset, dtype=np.int64))
+    passable = np.asarray(passable, dtype=bool)
+    if points is not None:
+        passable = passable & (points == 0)
+    kept = simplify(cells, roomy_cells(passable)) if len(cells) > 2 else cells
+    return cell_points(geo, kept, points, offset)
 
 
 class PathFollower:
@@ -412,10 +420,11 @@ class PathFollower:
         self.done = len(self.path) == 0
 
     def follow_cells(self, cells: npt.NDArray[np.integer], passable: npt.NDArray[np.bool_], geo: GridGeometry,
-                     start: tuple[float, float], offset: tuple[int, int] = (0, 0)) -> None:
-        """Follow a planner path of cells (`path_points`, with its `offset`), its first point moved to
-        `start` (x, y) [m], the robot's exact position."""
-        pts = path_points(cells, passable, geo, offset)
+                     start: tuple[float, float], offset: tuple[int, int] = (0, 0),
+                     points: npt.NDArray[np.uint8] | None = None) -> None:
+        """Follow a planner path of cells (`path_points`, with its `offset` and `points`), its first point
+        moved to `start` (x, y) [m], the robot's exact position."""
+        pts = path_points(cells, passable, geo, offset, points)
         pts[0] = start
         self.set_path(pts if len(pts) > 1 else np.vstack([pts, pts]))
 

@@ -23,6 +23,9 @@ __all__ = [
     "SQRT2",
     "box_distance_kernel",
     "box_offsets",
+    "best_point_kernel",
+    "SUB_POINTS",
+    "SUB_REACH",
     "astar_kernel",
     "dijkstra_fill",
     "dijkstra_search",
@@ -198,6 +201,82 @@ def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint
                 dy = max(yl - qy, 0.0, qy - yh)
                 best = min(best, dx * dx + dy * dy)
             out[r - r0, c - c0] = np.float32(math.sqrt(best))
+
+
+# The points of a cell a plan may pass through (row, col offsets [cells] from its centre): its centre
+# first, then the eight others of a 3 x 3 lattice a third of a cell apart (the four beside the centre
+# before the four corners), so that a gap whose admissible band for the robot's centre is a third of a
+# cell wide holds one, wherever it lies.
+SUB_POINTS = np.array([(0.0, 0.0), (-1.0, 0.0), (0.0, -1.0), (0.0, 1.0), (1.0, 0.0),
+                       (-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]) / 3.0
+SUB_REACH = math.sqrt(2.0) / 3.0 + 1e-6     # [cells] from a cell's centre to its farthest point, rounded up
+
+
+@kernel
+def best_point_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], need: npt.NDArray[np.bool_],
+                      offsets: npt.NDArray[np.float64], below: float, r0: int, r1: int, c0: int, c1: int,
+                      dist: npt.NDArray[np.float32], code: npt.NDArray[np.uint8]) -> None:
+    """Cells blocked at their centre but not at another of their `SUB_POINTS`: for each cell of rows
+    r0..r1, columns c0..c1 (half-open) asked (`need`) whose centre's distance `dist` to the walls' surface is
+    at most `below` [cells] but within `SUB_REACH` of it, the distance from each other point of the cell to
+    the nearest box of laser endpoints (as `box_distance_kernel`); when the largest exceeds `below` the cell
+    takes that distance and `code` the point's index in `SUB_POINTS` (the first on a tie), else its code
+    is 0 (the centre). Every other cell's code is 0.
+
+    Args:
+        occ: (rows, cols) bool occupied cells.
+        hit_box: (rows, cols, 4) uint8 boxes of laser endpoints (`box_distance_kernel`).
+        need: (rows, cols) bool, the cells asked.
+        offsets: `box_offsets(below + 1)`: every cell whose box may lie within `below` + `SUB_REACH` of a point.
+        below: [cells] the distance a cell's centre must exceed to be passable.
+        r0: first row.
+        r1: row past the last.
+        c0: first column.
+        c1: column past the last.
+        dist: (r1 - r0, c1 - c0) float32 the centres' distances (`box_distance_kernel`, exact up to
+            `below`), updated in place.
+        code: (r1 - r0, c1 - c0) uint8 output.
+    """
+    rows, cols = occ.shape
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            code[r - r0, c - c0] = 0
+            d = dist[r - r0, c - c0]
+            if d > below or d <= below - SUB_REACH or not need[r, c]:
+                continue
+            far = -1.0
+            pick = 0
+            for k in range(1, SUB_POINTS.shape[0]):
+                py = 0.5 + SUB_POINTS[k, 0]
+                px = 0.5 + SUB_POINTS[k, 1]
+                best = np.inf          # squared
+                for i in range(offsets.shape[0]):
+                    lo = offsets[i, 2] - HALF_DIAGONAL - SUB_REACH    # no box in this cell or a later one is nearer
+                    if lo > 0.0 and lo * lo >= best:
+                        break
+                    rr = r + int(offsets[i, 0])
+                    cc = c + int(offsets[i, 1])
+                    if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
+                        continue
+                    qy = r - rr + py
+                    qx = c - cc + px
+                    if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
+                        xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
+                    else:
+                        xl = hit_box[rr, cc, 0] / 255.0
+                        xh = hit_box[rr, cc, 1] / 255.0
+                        yl = hit_box[rr, cc, 2] / 255.0
+                        yh = hit_box[rr, cc, 3] / 255.0
+                    dx = max(xl - qx, 0.0, qx - xh)
+                    dy = max(yl - qy, 0.0, qy - yh)
+                    best = min(best, dx * dx + dy * dy)
+                far_k = math.sqrt(best) if best < np.inf else below + 1.0
+                if far_k > far:
+                    far = far_k
+                    pick = k
+            if far > below:
+                dist[r - r0, c - c0] = np.float32(min(far, below + 1.0))
+                code[r - r0, c - c0] = pick
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,18 +1,20 @@
 """Where goal-seeking explorers may go and at what cost: the planning helpers they share.
 
-Frontier cells worth driving to (`frontier_targets`, `usable_frontier`), the traversal costs every
-plan uses (`plan_costs`: known-free cells only, a cell passable where the robot's disc fits with a small
-hard `MARGIN` to the walls' surface, a costly zone beyond that keeps paths centred), and the passable
-cell to plan from when the robot's own cell is not passable (`nearest_passable`, `passable_cell`). The
-frontier, metaheuristic and SRT explorers all plan with these, and the run's check of an explorer's
-"explored" asks the same passability; they lived in the frontier plugin before, and plugins do not
-import each other.
+Frontier cells worth driving to (`frontier_targets`, `usable_frontier`), the traversal costs every plan
+uses (`plan_costs`: known-free cells only, a cell passable where the robot's disc fits at one of its
+points with a small hard `MARGIN` to the walls' surface, a costly zone beyond that keeps paths centred),
+and the passable cell to plan from when the robot's own cell is not passable (`nearest_passable`,
+`passable_cell`). The frontier, metaheuristic and SRT explorers all plan with these, and the run's check
+of an explorer's "explored" asks the same passability; they lived in the frontier plugin before, and
+plugins do not import each other.
 
 The walls' surface is measured finer than the cell: each occupied cell keeps the box of the laser
 endpoints that fell in it (`OccupancyGrid.hit_box`), and a cell's distance to the walls is the distance
-from its centre to the nearest such box (`wall_distance`). A door 2 cm wider than the robot plus twice
-the margin and a cell is open to the planners wherever it lies on the grid; with distances between cell
-centres and a wall anywhere in its cell, a 10 cm grid took 10 cm more on each side.
+from its centre to the nearest such box (`wall_distance`). A plan may pass through a cell at its centre
+or, where the centre is too near a wall, at another of nine points a third of a cell apart
+(`cell_points`): a gap is open to the planners wherever it lies on the grid when it is wider than the
+robot plus twice the margin by a third of a cell and a little; judged at the centres only, it took a
+whole cell more (a 0.6 m gap closed to a 0.5 m robot on 10 cm cells).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
-           "surface_distance", "passable_radius"]
+           "surface_distance", "passable_radius", "cell_points"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -41,27 +43,40 @@ START_REACH = 0.5   # [m] how far from the robot a plan may start when its own c
 
 
 def wall_distance(grid: OccupancyGrid, reach: float, exact: float | None = None,
-                  need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+                  need: npt.NDArray[np.bool_] | None = None, points: npt.NDArray[np.uint8] | None = None,
+                  below: float | None = None) -> npt.NDArray[np.float32]:
     """(rows, cols) float32 distance [cells] from each cell's centre to the nearest box of laser endpoints
     of an occupied cell (`OccupancyGrid.hit_box`; an occupied cell with none counts whole), exact up to
     `exact` [cells] (None: `reach`), from there up to `reach` [cells] the distance to the nearest occupied
     cell's centre less half a cell (costs beyond the hard limit), beyond some larger value (inf without an
     occupied cell). `need` (rows, cols) bool: only these cells' distances are asked (None: all); the others
-    get a lower bound (e.g. the cells not free, which no plan enters)."""
-    return surface_distance(grid.occupied(), grid.hit_box, reach, exact, need)
+    get a lower bound (e.g. the cells not free, which no plan enters). `points`, `below`: as
+    `surface_distance`."""
+    return surface_distance(grid.occupied(), grid.hit_box, reach, exact, need, points, below)
 
 
 def surface_distance(occupied: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], reach: float,
-                     exact: float | None = None, need: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float32]:
+                     exact: float | None = None, need: npt.NDArray[np.bool_] | None = None,
+                     points: npt.NDArray[np.uint8] | None = None, below: float | None = None
+                     ) -> npt.NDArray[np.float32]:
     """`wall_distance` from the cells of `occupied` (rows, cols) bool, e.g. a map's occupied cells and those
-    it ever showed firmly occupied (`WallMemory`), with their boxes of endpoints `hit_box` (rows, cols, 4)."""
+    it ever showed firmly occupied (`WallMemory`), with their boxes of endpoints `hit_box` (rows, cols, 4).
+
+    `points` (rows, cols) uint8: filled with each cell's point (`cell_points`), and the distance is then
+    that point's: a cell within `below` [cells] (None: `exact`; at most `exact`) of the surface at its centre
+    but farther at another of its points (a third of a cell apart) takes that point (`best_point_kernel`)."""
     exact = reach if exact is None else min(exact, reach)
+    below = exact if below is None else min(below, exact)
     occ = np.ascontiguousarray(occupied)
     centre = distance_transform(occ)
     out = np.empty(occ.shape, np.float32)
     need = np.ones(occ.shape, np.bool_) if need is None else np.ascontiguousarray(need)
-    _k.box_distance_kernel(occ, np.ascontiguousarray(hit_box), centre, need, _k.box_offsets(exact), float(exact),
+    box = np.ascontiguousarray(hit_box)
+    _k.box_distance_kernel(occ, box, centre, need, _k.box_offsets(exact), float(exact),
                            float(reach), 0, occ.shape[0], 0, occ.shape[1], out)
+    if points is not None:
+        _k.best_point_kernel(occ, box, need, _k.box_offsets(below + 1.0), float(below), 0, occ.shape[0],
+                             0, occ.shape[1], out, points)
     return out
 
 
@@ -70,26 +85,45 @@ def passable_radius(cell: float, radius: float) -> float:
     return (radius + MARGIN) / cell
 
 
-def plan_costs(grid: OccupancyGrid, radius: float, clearance: float) -> npt.NDArray[np.float32]:
+def plan_costs(grid: OccupancyGrid, radius: float, clearance: float,
+               points: npt.NDArray[np.uint8] | None = None) -> npt.NDArray[np.float32]:
     """Traversal costs on `grid` for a robot of `radius` [m]: only known-free cells are passable.
 
-    A cell is blocked when its centre lies within radius + MARGIN of the walls' surface (`wall_distance`:
-    the boxes of the laser endpoints in the occupied cells); the next `clearance` [m] is a danger zone
-    whose cost rises towards the obstacle, so paths keep off walls where there is room and run down the
-    middle of a door.
+    A cell is blocked when each of its points (its centre and eight more a third of a cell apart:
+    `cell_points`) lies within radius + MARGIN of the walls' surface (`wall_distance`: the boxes of the
+    laser endpoints in the occupied cells); a plan passes through a cell at its centre, or at the point
+    `points` names where the centre is too near. The next `clearance` [m] is a danger zone whose cost rises
+    towards the obstacle, so paths keep off walls where there is room and run down the middle of a door.
 
     Args:
         grid: the map.
         radius: [m] the robot's footprint radius.
         clearance: [m] width of the danger zone beyond the blocked cells.
+        points: (rows, cols) uint8 filled with each cell's point (`cell_points`), or None.
 
     Returns:
         (rows, cols) float32 costs, inf where blocked (as `cost_grid`).
     """
     rr, dr = _cost_radii(grid.geo.cell, radius, clearance)
     free = grid.free()
-    dist = wall_distance(grid, rr + dr, rr, free)
+    code = np.zeros(grid.shape, np.uint8) if points is None else points
+    dist = surface_distance(grid.occupied(), grid.hit_box, rr + dr, rr, free, code)
     return cost_grid(dist, robot_radius_cells=rr, danger_radius_cells=dr, danger_cost=DANGER_COST, blocked=~free)
+
+
+def cell_points(geo: GridGeometry, cells: npt.ArrayLike, points: npt.NDArray[np.uint8] | None = None,
+                offset: tuple[int, int] = (0, 0)) -> npt.NDArray[np.float64]:
+    """(k, 2) world (x, y) [m] where a plan passes through the (k, 2) (row, col) `cells`: their centres, or
+    the point of a cell that `points` (the window's uint8 codes from `plan_costs` / `PlanCosts.points`,
+    indexed by `cells`) names, an index into `SUB_POINTS` (0 the centre). `offset`: (row, col) in `geo` of
+    the window's cell (0, 0)."""
+    rc = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    xy = geo.centers_of(rc + np.asarray(offset, dtype=np.int64))
+    if points is not None and len(rc):
+        shift = _k.SUB_POINTS[points[rc[:, 0], rc[:, 1]]] * geo.cell
+        xy[:, 0] += shift[:, 1]
+        xy[:, 1] += shift[:, 0]
+    return xy
 
 
 def _cost_radii(cell: float, radius: float, clearance: float) -> tuple[float, float]:
@@ -117,11 +151,15 @@ class WallDistance:
             beyond, up to `reach`, as `wall_distance`.
         free_only: with `surface`, only the free cells' distances are asked (the others get a lower
             bound: `wall_distance`'s `need`), for costs that block every other cell anyway.
+        points: with `surface`, a cell within `exact` of the surface at its centre but farther at another
+            of its points (`cell_points`) takes that point's distance, and `code` (rows, cols) uint8 names
+            the point (`surface_distance`'s `points`).
     """
 
     def __init__(self, reach: float,
                  occupied: Callable[[int, int, int, int], npt.NDArray[np.bool_]] | None = None,
-                 surface: bool = False, exact: float | None = None, free_only: bool = False) -> None:
+                 surface: bool = False, exact: float | None = None, free_only: bool = False,
+                 points: bool = False) -> None:
         # a box lies within half a diagonal of its cell's centre: the cells that bear on a distance
         # within `reach` of the surface lie within `reach` + 2 half diagonals of the centres
         self.reach = reach
@@ -129,8 +167,11 @@ class WallDistance:
         self.k = int(math.ceil(reach)) + (3 if surface else 1)
         self.surface = surface
         self.free_only = free_only
+        self.points = points and surface
         self._offsets: npt.NDArray[np.float64] | None = None
+        self._point_offsets = _k.box_offsets(self.exact + 1.0) if self.points else None
         self.dist = np.zeros((0, 0), np.float32)
+        self.code = np.zeros((0, 0), np.uint8)
         self._grid: OccupancyGrid | None = None
         self._synced = 0
         self._occupied = occupied
@@ -141,6 +182,7 @@ class WallDistance:
         the cells recomputed, None when none was."""
         if self._grid is not grid or self.dist.shape != grid.shape or grid.scans < self._synced:
             self.dist = np.full(grid.shape, np.inf, np.float32)
+            self.code = np.zeros(grid.shape if self.points else (0, 0), np.uint8)
             self._grid, self._synced = grid, 0
         box = grid.changed_box(self._synced)
         self._synced = grid.scans
@@ -155,9 +197,12 @@ class WallDistance:
             if self._offsets is None:
                 self._offsets = _k.box_offsets(self.exact)
             need = (grid.window(s0, s1, t0, t1).free() if self.free_only else np.ones(occ.shape, np.bool_))
-            _k.box_distance_kernel(occ, np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1]), sub, need, self._offsets,
-                                   float(self.exact), float(self.reach), r0 - s0, r1 - s0, c0 - t0, c1 - t0,
-                                   self.dist[r0:r1, c0:c1])
+            hits = np.ascontiguousarray(grid.hit_box[s0:s1, t0:t1])
+            _k.box_distance_kernel(occ, hits, sub, need, self._offsets, float(self.exact), float(self.reach),
+                                   r0 - s0, r1 - s0, c0 - t0, c1 - t0, self.dist[r0:r1, c0:c1])
+            if self._point_offsets is not None:
+                _k.best_point_kernel(occ, hits, need, self._point_offsets, float(self.exact), r0 - s0, r1 - s0,
+                                     c0 - t0, c1 - t0, self.dist[r0:r1, c0:c1], self.code[r0:r1, c0:c1])
         else:
             self.dist[r0:r1, c0:c1] = sub[r0 - s0:r1 - s0, c0 - t0:c1 - t0]
         return r0, r1, c0, c1
@@ -249,12 +294,18 @@ class PlanCosts:
         self.cost = np.zeros((0, 0), np.float32)
         self.walls: WallDistance | None = None
 
+    @property
+    def points(self) -> npt.NDArray[np.uint8]:
+        """(rows, cols) uint8 each cell's point a plan passes through, as `plan_costs`' `points` (`cell_points`),
+        as of the last `update` (the cache's own array: do not write to it)."""
+        return self.walls.code if self.walls is not None else np.zeros((0, 0), np.uint8)
+
     def update(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
         """The costs of `grid` now, (rows, cols) float32 as `plan_costs` (the cache's own array: do not
         write to it)."""
         rr, dr = _cost_radii(grid.geo.cell, self.radius, self.clearance)
         if self.walls is None or self.walls._grid is not grid:
-            self.walls = WallDistance(rr + dr, surface=True, exact=rr, free_only=True)
+            self.walls = WallDistance(rr + dr, surface=True, exact=rr, free_only=True, points=True)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
         box = self.walls.update(grid)
         if fresh:

@@ -12,7 +12,8 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.planning.follower import PathFollower, path_points
 from robotexp.robot import Limits
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.planning.targets import frontier_targets, nearest_passable, passable_cell
+from robotexp.planning.kernels import SUB_POINTS
+from robotexp.planning.targets import frontier_targets, nearest_passable, passable_cell, surface_distance
 
 GEO = GridGeometry(origin_x=-1.0, origin_y=2.0, cell=0.1, rows=10, cols=8)
 PLUGINS = Path(__file__).resolve().parents[2] / "plugins"
@@ -98,3 +99,45 @@ def test_frontier_targets_are_the_large_groups_cells_less_the_dropped_ones() -> 
         np.testing.assert_array_equal(got, ref)
     assert frontier_targets(grid, 1).sum() > frontier_targets(grid, 40).sum() > 0
     assert not frontier_targets(OccupancyGrid(geo), 1).any()
+
+
+def _surface_reference(occ: np.ndarray, hit_box: np.ndarray, qy: np.ndarray, qx: np.ndarray) -> np.ndarray:
+    """Distance [cells] from points (qy, qx) [cells from the grid's lower-left corner] to the nearest box of
+    laser endpoints of an occupied cell (a whole cell where it holds none): every box, by brute force."""
+    rr, cc = np.nonzero(occ)
+    box = hit_box[rr, cc].astype(np.float64) / 255.0
+    whole = box[:, 0] > box[:, 1]
+    box[whole] = (0.0, 1.0, 0.0, 1.0)
+    xl, xh, yl, yh = cc + box[:, 0], cc + box[:, 1], rr + box[:, 2], rr + box[:, 3]
+    dx = np.maximum(np.maximum(xl - qx[..., None], 0.0), qx[..., None] - xh)
+    dy = np.maximum(np.maximum(yl - qy[..., None], 0.0), qy[..., None] - yh)
+    return np.hypot(dx, dy).min(axis=-1)
+
+
+def test_cell_points_against_a_brute_force_reference() -> None:
+    # walls with random boxes of laser endpoints (and some whole cells) on a 40 x 40 grid; a cell within
+    # `below` of the surface at its centre takes the farthest of its other eight points when that one is
+    # farther than `below`, else it stays blocked at its centre's distance
+    rng = np.random.default_rng(3)
+    occ = rng.random((40, 40)) < 0.04
+    lo = rng.integers(0, 200, (40, 40, 2))
+    hit_box = np.zeros((40, 40, 4), np.uint8)
+    hit_box[..., 0], hit_box[..., 1] = lo[..., 0], lo[..., 0] + rng.integers(0, 56, (40, 40))
+    hit_box[..., 2], hit_box[..., 3] = lo[..., 1], lo[..., 1] + rng.integers(0, 56, (40, 40))
+    hit_box[rng.random((40, 40)) < 0.3, :2] = (1, 0)             # no endpoint: the whole cell
+    below = 2.7
+    points = np.zeros((40, 40), np.uint8)
+    dist = surface_distance(occ, hit_box, below + 2.0, below, None, points)
+    rows, cols = np.mgrid[0:40, 0:40]
+    each = np.stack([_surface_reference(occ, hit_box, rows + 0.5 + dy, cols + 0.5 + dx) for dy, dx in SUB_POINTS])
+    centre, farthest = each[0], each[1:].max(axis=0)
+    moved = (centre <= below) & (farthest > below)
+    assert 20 < np.count_nonzero(moved) < np.count_nonzero(centre <= below)
+    assert np.array_equal(points != 0, moved)
+    # the point named is the farthest (ties: any of them), its distance the cell's up to below + 1
+    named = np.take_along_axis(each, points[None].astype(np.intp), axis=0)[0]
+    assert np.allclose(named[moved], farthest[moved], atol=1e-9)
+    assert np.allclose(dist[moved], np.minimum(farthest[moved], below + 1.0), atol=1e-5)
+    # the others keep the distance from their centre where it is exact (up to `below`)
+    near = ~moved & (centre <= below)
+    assert np.allclose(dist[near], centre[near], atol=1e-5)

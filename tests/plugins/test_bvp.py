@@ -148,10 +148,19 @@ def test_descends_towards_the_opening() -> None:
 def test_guard_stops_forward_motion_into_a_return() -> None:
     g = _room(opening=True)
     ex = _explorer(sweeps=400)
+    first = ex.step(_state(4.0, 2.5, 0.0, scan=_empty_scan()), g)
+    assert isinstance(first, Twist) and ex.phi is not None
+    heading = ex.phi                         # facing the descent, with nothing in the way it drives on
+    ahead = ex.step(_state(4.0, 2.5, heading, 0.1, _empty_scan()), g)
+    assert isinstance(ahead, Twist) and ahead.v > 0.0
     ranges = np.full(181, math.inf)
-    ranges[90] = 0.3                         # straight ahead, 5 cm from the robot's edge
+    ranges[90] = 0.3                         # straight ahead, 5 cm from the robot's edge: slowly on
     scan = LaserScan(np.linspace(-math.pi / 2, math.pi / 2, 181), ranges, 3.0)
-    out = ex.step(_state(4.0, 2.5, 0.0, scan=scan), g)
+    slow = ex.step(_state(4.0, 2.5, heading, 0.2, scan), g)
+    assert isinstance(slow, Twist) and 0.0 < slow.v < ahead.v
+    ranges[90] = 0.255                       # 5 mm from its edge, within the guard's 1 cm: no further
+    scan = LaserScan(np.linspace(-math.pi / 2, math.pi / 2, 181), ranges, 3.0)
+    out = ex.step(_state(4.0, 2.5, heading, 0.3, scan), g)
     assert isinstance(out, Twist) and out.v == 0.0 and ex.v == 0.0
 
 

@@ -176,10 +176,18 @@ def test_plan_costs_kept_up_to_date_equal_the_whole_computation() -> None:
         pose = Pose(rng.uniform(0, 11), rng.uniform(-1, 6), rng.uniform(-math.pi, math.pi))
         grid.update(pose, LaserScan(angles, rng.uniform(0.2, 3.5, angles.size), 3.0))
         if k % 7 == 3:
-            assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+            assert_same_costs(cache, grid)
     wall = np.zeros(grid.shape, bool)
     wall[40:43, 20:90] = True
     grid.mark_occupied(wall)
-    assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3))
+    assert_same_costs(cache, grid)
     other = grid.copy()                                   # another grid: computed afresh
-    assert np.array_equal(cache.update(other), plan_costs(other, 0.25, 0.3))
+    assert_same_costs(cache, other)
+    assert np.count_nonzero(cache.points) > 50            # cells passable only off their centre, among the scans
+
+
+def assert_same_costs(cache: PlanCosts, grid: OccupancyGrid) -> None:
+    """The cache's costs and cell points equal `plan_costs` of the whole grid."""
+    points = np.zeros(grid.shape, np.uint8)
+    assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3, points))
+    assert np.array_equal(cache.points, points)

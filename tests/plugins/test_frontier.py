@@ -20,7 +20,7 @@ from robotexp.run.loop import ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import GroundTruth, ground_truth
-from robotexp.planning.targets import plan_costs, wall_distance
+from robotexp.planning.targets import cell_points, plan_costs, wall_distance
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
@@ -92,6 +92,18 @@ def test_return_home_ends_at_the_start() -> None:
     plain = explore(door_room())
     # driving home costs path: it is at least the distance from where plain exploration ended
     assert out.run.metrics.path_length > plain.run.metrics.path_length
+
+
+def test_goes_through_a_slit_no_cell_centre_clears() -> None:
+    # a 0.6 m slit (y 1.7..2.3 m) for a 0.5 m robot: its centre must keep within y 1.97..2.03 (the 2 cm
+    # margin a side), and the cells' centres there lie at 1.95 and 2.05; a point a third of a cell off
+    # the centre (1.983, 2.017) clears both faces
+    out = explore(gap_room(0.6))
+    run = out.run
+    assert run.completed and run.reason == "no reachable frontier left"
+    assert max(x for x, _ in run.metrics.path) > 3.5                 # through the slit
+    assert run.metrics.collisions == 0
+    assert run.coverage() is not None and run.coverage() >= 0.99
 
 
 def test_a_region_behind_a_slit_narrower_than_the_robot_does_not_trap_the_run() -> None:
@@ -181,27 +193,36 @@ def tiny_grid(cell: float, size: int) -> OccupancyGrid:
 
 def test_plan_costs_blocks_radius_and_margin_from_a_cell_without_hits() -> None:
     # a cell marked occupied holds no laser endpoint: the wall may be anywhere in it, so the distance
-    # is to its square. Cell 0.1 m, radius 0.25 m: blocked within (0.25 + 0.02) / 0.1 = 2.7 cells of
-    # the square of (5, 5), i.e. at (dr, dc) with hypot(max(|dr| - 0.5, 0), max(|dc| - 0.5, 0)) <= 2.7
-    cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0)
-    for (r, c), blocked in {(5, 5): True, (5, 8): True, (7, 7): True, (8, 6): True,       # 0, 2.5, 2.12, 2.55
-                            (5, 9): False, (8, 7): False, (9, 5): False, (0, 0): False,   # 3.5, 2.92, 3.5, 6.36
-                            (2, 5): True, (5, 1): False}.items():                          # 2.5, 3.5
+    # is to its square. Cell 0.1 m, radius 0.25 m: blocked where every point of the cell (its centre and
+    # eight more a third of a cell away) lies within (0.25 + 0.02) / 0.1 = 2.7 cells of the square of
+    # (5, 5). The farthest point of the cell at (dr, dc) lies a third of a cell farther out on each axis
+    # off the centre line: hypot(max(|dr| - 1/2 + 1/3, 0), max(|dc| - 1/2 + 1/3, 0))
+    points = np.zeros((11, 11), np.uint8)
+    cost = plan_costs(tiny_grid(0.1, 11), radius=0.25, clearance=0.0, points=points)
+    for (r, c), blocked in {(5, 5): True, (5, 7): True, (7, 7): True, (7, 6): True,       # 0, 1.83, 2.59, 2.01
+                            (5, 8): False, (8, 6): False, (2, 5): False,                  # 2.83, 2.95, 2.83
+                            (5, 9): False, (8, 7): False, (0, 0): False}.items():         # centres 3.5, 2.92, 6.36
         assert np.isinf(cost[r, c]) == blocked, (r, c)
+    # at their centres (5, 8), (8, 6) and (2, 5) lie 2.5, 2.55 and 2.5 cells off: they pass at the point a
+    # third of a cell farther out, which the plan names (`SUB_POINTS`: 3 is (0, +1/3), 8 (+1/3, +1/3), 1
+    # (-1/3, 0)); a cell whose centre is clear keeps its centre (0)
+    assert (points[5, 8], points[8, 6], points[2, 5], points[5, 9], points[0, 0]) == (3, 8, 1, 0, 0)
+    assert cell_points(GridGeometry(0.0, 0.0, 0.1, 11, 11), [(5, 8), (8, 6), (5, 9)], points) == \
+        pytest.approx(np.array([[0.85 + 0.1 / 3, 0.55], [0.65 + 0.1 / 3, 0.85 + 0.1 / 3], [0.95, 0.55]]))
     # without a danger zone every other cell costs 1
     assert np.all((cost == 1.0) | np.isinf(cost))
-    dr, dc = np.meshgrid(np.abs(np.arange(11) - 5) - 0.5, np.abs(np.arange(11) - 5) - 0.5, indexing="ij")
+    dr, dc = np.meshgrid(np.abs(np.arange(11) - 5) - 1 / 6, np.abs(np.arange(11) - 5) - 1 / 6, indexing="ij")
     assert np.array_equal(np.isinf(cost), np.hypot(np.maximum(dr, 0), np.maximum(dc, 0)) <= 2.7 + 1e-6)
 
 
 def test_plan_costs_in_cells_of_5_cm() -> None:
-    # cell 0.05 m: (0.25 + 0.02) / 0.05 = 5.4 cells from the occupied cell's square
+    # cell 0.05 m: (0.25 + 0.02) / 0.05 = 5.4 cells from the occupied cell's square, at the cell's best point
     cost = plan_costs(tiny_grid(0.05, 17), radius=0.25, clearance=0.0)
     c = 8
-    assert np.isinf(cost[c + 3, c + 5])           # hypot(2.5, 4.5) = 5.15 cells
-    assert np.isinf(cost[c, c + 5])               # 4.5
-    assert np.isfinite(cost[c + 4, c + 5])        # hypot(3.5, 4.5) = 5.70
-    assert np.isfinite(cost[c, c + 6])            # 5.5
+    assert np.isinf(cost[c + 2, c + 5])           # hypot(1.83, 4.83) = 5.17 cells
+    assert np.isinf(cost[c, c + 5])               # 4.83
+    assert np.isfinite(cost[c + 3, c + 5])        # hypot(2.83, 4.83) = 5.60 (its centre: hypot(2.5, 4.5) = 5.15)
+    assert np.isfinite(cost[c, c + 6])            # 5.83
 
 
 def test_plan_costs_measure_to_the_laser_endpoints_in_a_cell() -> None:
