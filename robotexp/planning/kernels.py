@@ -23,6 +23,7 @@ __all__ = [
     "SQRT2",
     "box_distance_kernel",
     "box_offsets",
+    "box_sq",
     "best_point_kernel",
     "SUB_POINTS",
     "SUB_REACH",
@@ -139,6 +140,22 @@ def box_offsets(reach: float) -> npt.NDArray[np.float64]:
 
 
 @kernel
+def box_sq(hit_box: npt.NDArray[np.uint8], rr: int, cc: int, qy: float, qx: float) -> float:
+    """Squared distance [cells^2] from the point (qy, qx) [cells from the lower-left corner of cell (rr, cc)] to
+    that cell's box of laser endpoints (`box_distance_kernel`'s `hit_box`; none: the whole cell)."""
+    if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
+        xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
+    else:
+        xl = hit_box[rr, cc, 0] / 255.0
+        xh = hit_box[rr, cc, 1] / 255.0
+        yl = hit_box[rr, cc, 2] / 255.0
+        yh = hit_box[rr, cc, 3] / 255.0
+    dx = max(xl - qx, 0.0, qx - xh)
+    dy = max(yl - qy, 0.0, qy - yh)
+    return dx * dx + dy * dy
+
+
+@kernel
 def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8], centre: npt.NDArray[np.float32],
                         need: npt.NDArray[np.bool_], offsets: npt.NDArray[np.float64], exact: float, reach: float,
                         r0: int, r1: int, c0: int, c1: int, out: npt.NDArray[np.float32]) -> None:
@@ -188,18 +205,7 @@ def box_distance_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint
                 cc = c + int(offsets[i, 1])
                 if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
                     continue
-                qy = r - rr + 0.5
-                qx = c - cc + 0.5
-                if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
-                    xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
-                else:
-                    xl = hit_box[rr, cc, 0] / 255.0
-                    xh = hit_box[rr, cc, 1] / 255.0
-                    yl = hit_box[rr, cc, 2] / 255.0
-                    yh = hit_box[rr, cc, 3] / 255.0
-                dx = max(xl - qx, 0.0, qx - xh)
-                dy = max(yl - qy, 0.0, qy - yh)
-                best = min(best, dx * dx + dy * dy)
+                best = min(best, box_sq(hit_box, rr, cc, r - rr + 0.5, c - cc + 0.5))
             out[r - r0, c - c0] = np.float32(math.sqrt(best))
 
 
@@ -258,18 +264,7 @@ def best_point_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8]
                     cc = c + int(offsets[i, 1])
                     if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
                         continue
-                    qy = r - rr + py
-                    qx = c - cc + px
-                    if hit_box[rr, cc, 0] > hit_box[rr, cc, 1]:
-                        xl, xh, yl, yh = 0.0, 1.0, 0.0, 1.0
-                    else:
-                        xl = hit_box[rr, cc, 0] / 255.0
-                        xh = hit_box[rr, cc, 1] / 255.0
-                        yl = hit_box[rr, cc, 2] / 255.0
-                        yh = hit_box[rr, cc, 3] / 255.0
-                    dx = max(xl - qx, 0.0, qx - xh)
-                    dy = max(yl - qy, 0.0, qy - yh)
-                    best = min(best, dx * dx + dy * dy)
+                    best = min(best, box_sq(hit_box, rr, cc, r - rr + py, c - cc + px))
                 far_k = math.sqrt(best) if best < np.inf else below + 1.0
                 if far_k > far:
                     far = far_k
