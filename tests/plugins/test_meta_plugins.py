@@ -231,7 +231,7 @@ def test_a_door_as_wide_as_the_robot_is_a_target_below_min_frontier(min_opening:
     # door's whole line of usable cells.
     grid = door_grid()
     for face_reach, usable in ((0.0, 16), (0.25, 10)):
-        ex = ExhaustiveExplorer(min_opening=min_opening, face_reach=face_reach)
+        ex = ExhaustiveExplorer(min_opening=min_opening, face_reach=face_reach, last_look=False)
         ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
                                  laser_range=RANGE, rng=np.random.default_rng(0)))
         ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
@@ -242,6 +242,30 @@ def test_a_door_as_wide_as_the_robot_is_a_target_below_min_frontier(min_opening:
         assert ex.target is None
         done = ex.step(RobotState(0.1, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
         assert isinstance(done, Done) and done.reason == "fewer than 20 usable frontier cells left"
+
+
+def test_last_look_at_frontier_the_robot_never_came_near() -> None:
+    # Santos's rule ends below 20 usable cells (the door: 16, with min_opening 0); with `last_look` the
+    # robot first drives to within a radius and 1.5 cells of the door's frontier (column 70, 2.5 m from
+    # the robot), and once its path has passed within 1.5 m of every usable cell the run ends
+    grid = door_grid()
+    ex = ExhaustiveExplorer(min_opening=0, face_reach=0.0)
+    ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
+                             laser_range=RANGE, rng=np.random.default_rng(0)))
+    out = ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
+    assert isinstance(out, Twist) and ex.frontier_left == 16
+    assert ex.target is not None and 40 <= ex.target[0] < 58 and 70 - (0.25 / CELL + 1.5) <= ex.target[1] <= 70
+    # the robot steps to y = 2.45 m and drives along it to x = 2.3 m: the door's cells (x 3.55 m) lie
+    # within 1.5 m of its path
+    for k, x in enumerate(np.arange(1.0, 2.31, 0.05)):
+        ex.next_plan = math.inf                       # no plan on the way
+        ex.step(RobotState(0.1 * (k + 1), Pose(float(x), 2.45, 0.0), Twist.ZERO), grid)
+    ex.next_plan = -math.inf
+    ex.follower.clear()
+    ex.face = None
+    done = ex.step(RobotState(10.0, Pose(2.3, 2.45, 0.0), Twist.ZERO), grid)
+    assert isinstance(done, Done) and done.reason == "fewer than 20 usable frontier cells left"
+    assert ex.result_fields()["look_path_m"] == pytest.approx(0.45 + 1.3, abs=1e-6)    # up to y = 2.45 m, along it
 
 
 def test_reachable_cells_by_flood_are_dijkstras() -> None:
