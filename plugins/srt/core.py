@@ -201,6 +201,9 @@ class SRTExplorer(Explorer):
         self._best = math.inf
         self._progress_t = 0.0
         self._now = 0.0                      # [s] the robot time of the step
+        self._planned_move = False           # the move at hand drives the planner's path (`_drives_map_path`)
+        self.passed = np.zeros((0, 0), dtype=bool)      # the cells the robot's centre has been in
+        self._planned_nodes: set[int] = set()    # nodes reached on the planner's path from their parent
         self._begin_sense()
 
     def result_fields(self) -> dict[str, object]:
@@ -252,6 +255,11 @@ class SRTExplorer(Explorer):
         pose = state.pose
         self._grid = grid
         self._now = state.time
+        if self.passed.shape != grid.shape:
+            self.passed = np.zeros(grid.shape, dtype=bool)
+        r, c = grid.geo.cell_of(pose.x, pose.y)
+        if grid.geo.contains(r, c):
+            self.passed[r, c] = True
         if not self.ctx.outline.round:
             self._memory.see_map(grid)
             self._memory.note(pose, state.laser)
@@ -279,6 +287,17 @@ class SRTExplorer(Explorer):
         too sparse to say where the robot can turn: there the robot keeps the straight ways and its
         guard."""
         return not self.ctx.outline.round and not self.uses_sonar
+
+    def _drives_map_path(self) -> bool:
+        """True when the move at hand follows the planner's path on the map (`rectangle_path`) rather than a
+        straight way: always for a rectangular robot (`_laser_rectangle`); for a move to a candidate that
+        the tree's regions do not lead to (a variant's rescue through the map, `_planned_move`), the way
+        back from it to its node, and the way back up to the parent from a node reached so."""
+        if self._laser_rectangle() or self._planned_move:
+            return True
+        current, back = self.current, self.target_node
+        return (back is not None and current is not None and current in self._planned_nodes
+                and self.tree.nodes[current].parent == back)
 
     def _turnable(self, x: float, y: float, reach: float | None = None) -> bool:
         """True when no cell the map holds occupied lies within `reach` [m] (default: the disc a rectangular
@@ -343,7 +362,7 @@ class SRTExplorer(Explorer):
         """Turn on the spot to face the target, then drive. A rectangular robot drives the planner's path
         instead (`rectangle_path`), which crosses a door square to it: its straight way may not fit."""
         assert self.target is not None
-        if self._laser_rectangle() and self._grid is not None:
+        if self._drives_map_path() and self._grid is not None:
             path = self.rectangle_path(pose, self.target, self._grid)
             if path is not None:
                 self.follower.set_path(path)
@@ -404,14 +423,19 @@ class SRTExplorer(Explorer):
 
     def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
         self.current = self.tree.add(pose.x, pose.y, region, self.current, t=self._now)
+        if self._planned_move:
+            self._planned_nodes.add(self.current)
         self._mark(region, grid)
 
-    @staticmethod
-    def _mark(region: SafeRegion, grid: OccupancyGrid) -> None:
-        """Mark a safe region into the map: its cells free (unless occupied), its obstacle points occupied."""
+    def _mark(self, region: SafeRegion, grid: OccupancyGrid) -> None:
+        """Mark a safe region into the map: its cells free (unless occupied), and with the sonar ring (whose
+        map holds nothing else of them) its obstacle points occupied. A laser's scans map the obstacles
+        themselves, finer than its sweep: a sweep's obstacle points (the shortest reading of each bin) stand
+        in front of surfaces seen aslant, and marked as certain walls they had closed the 0.6 m way out of
+        a cluttered room to the 0.5 m disc (ipa_lab_a)."""
         free = region.mask(grid.geo) & ~grid.occupied()
         grid.mark_free(free)
-        obstacles = region.obstacle_points()
+        obstacles = region.obstacle_points() if self.uses_sonar else np.zeros((0, 2))
         if len(obstacles):
             occ = np.zeros(grid.shape, dtype=bool)
             geo = grid.geo
@@ -427,6 +451,7 @@ class SRTExplorer(Explorer):
     def _choose(self, pose: Pose, state: RobotState) -> Twist | Done:
         """Lines 7-19: a valid candidate, else back to the parent, else (root) done."""
         assert self.current is not None
+        self._planned_move = False
         cand = self._candidate(self.current)
         if cand is not None and self._laser_rectangle():
             cand = self._turnable_target(self.tree.nodes[self.current], cand)
@@ -551,6 +576,6 @@ class SRTExplorer(Explorer):
     def _detour(self, pose: Pose) -> npt.NDArray[np.float64] | None:
         if self._grid is None or self.target is None:
             return None
-        if self._laser_rectangle():
+        if self._drives_map_path():
             return self.rectangle_path(pose, self.target, self._grid)
         return self.detour(pose, self.target, self._grid)

@@ -19,9 +19,10 @@ import numpy as np
 from robotexp import ConfigError, ExplorerContext, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ray_tree
-from robotexp.mapping.kernels import flood8, view_free
-from robotexp.planning.grid_planner import distance_transform, line_of_sight
-from robotexp.planning.targets import MARGIN, frontier_targets
+from robotexp.mapping.kernels import flood8, label8, view_free
+from robotexp.planning.grid_planner import distance_transform, line_of_sight, nearest_goal
+from robotexp.planning.reach import near_cells
+from robotexp.planning.targets import MARGIN, cell_points, frontier_targets, passable_cell, plan_costs
 
 from .core import SRTExplorer
 from .regions import (
@@ -145,15 +146,22 @@ class _FrontierRescue(SRTExplorer):
         rescue each (nav2's depot: 44 rescues among its shelves, then a stall at 0.95). The map's edge
         counts as a wall: through a wall's unmarked cells the unknown strip outside a building (the
         run's map has 0.5 m around the world) is no space a robot fits in (the sparse hall's walls)."""
+        beyond = self._space_beyond(grid, x, y)
+        if beyond is None:
+            return np.ones(grid.shape, dtype=bool)       # the node itself is too near an obstacle: no filter
+        return np.asarray(distance_transform(beyond) <= 1.5)
+
+    def _space_beyond(self, grid: OccupancyGrid, x: float, y: float) -> np.ndarray | None:
+        """Bool (rows, cols): the unknown cells a robot disc could drive into from (x, y) [m] were they free
+        (`_open_beyond`); None when (x, y) is too near an obstacle to say."""
         geo = grid.geo
         occ = grid.occupied().copy()
         occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True     # the map's edge is a wall to the robot too
         open_space = np.ascontiguousarray(distance_transform(occ) > self.ctx.radius / geo.cell)
         r, c = geo.cell_of(x, y)
         if not geo.contains(r, c) or not open_space[r, c]:
-            return np.ones(grid.shape, dtype=bool)       # the node itself is too near an obstacle: no filter
-        beyond = grid.unknown() & flood8(open_space, r, c)
-        return np.asarray(distance_transform(beyond) <= 1.5)
+            return None
+        return np.asarray(grid.unknown() & flood8(open_space, r, c))
 
     def _frontier_candidate(self, index: int) -> tuple[float, float] | None:
         """The rescue: a point of the region, reachable in a straight line, from which a frontier cell of
@@ -406,6 +414,11 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
         node_gap: [m] no candidate this close to an existing node (every move opens new ground).
         frontier: when no frontier vertex maps to a candidate, look at the map's frontier before going
             back to the parent (False: the thesis's tree alone).
+        map_rescue: with `frontier`, at the root with no candidate left (where the run would end), drive
+            on the planner's path over the map (`rectangle_path`) to the nearest place within a robot radius
+            and a cell and a half of a frontier cell the map shows open beyond, and go on from a node there
+            (False: end). A passage the robot fits with a few centimetres to spare (a 0.6 m gap for the 0.5 m
+            disc) holds no ray of the shrunk polygon unless a node stands right before it.
         d_min: [m] shortest move (the thesis needs none: 0; at least `step` is used).
         step: [m] sampling step of the shrunk region along each direction.
         sweep_rate, bins, max_nodes, stuck_timeout, failed_radius: see `SRTBallExplorer`.
@@ -418,9 +431,12 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
 
     name = "srt-laser"
     RESCUE_SIGHT = True
+    MAP_RESCUE_AREA = 2.0   # [m2] the least piece of unknown space a map rescue goes to (`map_rescue`) ...
+    MAP_RESCUE_SHARE = 0.05     # ... and as a share of the known free area (as the run's LEFT_AREA, LEFT_SHARE)
+    MAP_RESCUE_LOOKED = 1.5     # [m] frontier this near the robot's way was looked at (as the run's APPROACHED)
 
     def __init__(self, *, offset: float | None = None, margin: float = MARGIN, view: float = 0.8, tries: int = 20,  # noqa: PLR0913
-                 tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True,
+                 tolerance: float = 0.1, node_gap: float = 0.3, frontier: bool = True, map_rescue: bool = True,
                  d_min: float = 0.0, step: float = 0.05, sweep_rate: float = 0.8, bins: int = 360,
                  max_nodes: int = 1000, stuck_timeout: float = 8.0, failed_radius: float = 0.3) -> None:
         super().__init__(sweep_rate=sweep_rate, bins=bins, max_nodes=max_nodes, stuck_timeout=stuck_timeout,
@@ -437,11 +453,14 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
             raise ConfigError(f"srt-laser: tolerance and node_gap must be >= 0 m, got {tolerance} and {node_gap}")
         self.view, self.tries, self.tolerance, self.node_gap = view, tries, tolerance, node_gap
         self.frontier = frontier
+        self.map_rescue = map_rescue
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run."""
         super().reset(ctx)
         self.offset = self.offset_param if self.offset_param is not None else self.ctx.radius + self.margin
+        self.map_rescues = 0
+        self._map_tried = np.zeros((0, 0), dtype=bool)        # frontier cells a map rescue aimed near
 
     def _region(self, x: float, y: float) -> SafeRegion:
         return self.sweep.polygon(x, y)
@@ -460,7 +479,70 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
         cand = self._vertex_candidate(index)
         if cand is None and self._rescue_allowed():
             cand = self._frontier_candidate(index)
+        if cand is None and self.frontier and self.map_rescue and self.tree.nodes[index].parent is None:
+            cand = self._map_candidate(index)
         return cand
+
+    def _map_candidate(self, index: int) -> tuple[float, float] | None:
+        """`map_rescue`: the point [m] a plan passes through in the cell nearest node `index` by the planner's
+        path (`plan_costs`, the cells' points: `cell_points`) within a robot radius and a cell and a half of
+        a frontier cell (`frontier_cells`' kind, from anywhere on the map) beside a piece of unknown space of
+        at least `MAP_RESCUE_AREA` and `MAP_RESCUE_SHARE` of the known free area that the map shows open to
+        the robot (`_space_beyond`), farther than `MAP_RESCUE_LOOKED` from where the robot has been, and not
+        within `RESCUE_RADIUS` of one an earlier map rescue aimed at; None when there is none. Cells near
+        candidates abandoned from the node are left out."""
+        grid = self._grid
+        if grid is None:
+            return None
+        geo = grid.geo
+        node = self.tree.nodes[index]
+        min_cells = max(1, int(math.ceil(2 * self.ctx.radius / geo.cell)))
+        if self._map_tried.shape != grid.shape:
+            self._map_tried = np.zeros(grid.shape, dtype=bool)
+        beyond = self._space_beyond(grid, node.x, node.y)
+        if beyond is None or not beyond.any():
+            return None
+        # only unknown space whose neglect would make the ending premature (as the run's check counts it): a
+        # piece of at least MAP_RESCUE_AREA and MAP_RESCUE_SHARE of the known free area; smaller ones (the
+        # inside of a shelf seen through its gaps, a wall's unseen cells) were chased for an hour
+        labels, k = label8(np.ascontiguousarray(beyond))
+        least = max(self.MAP_RESCUE_AREA, self.MAP_RESCUE_SHARE * float(np.count_nonzero(grid.free())) * geo.cell ** 2)
+        large = np.bincount(labels.ravel(), minlength=k + 1) * geo.cell ** 2 >= least
+        large[0] = False
+        front = frontier_targets(grid, min_cells, self._map_tried) & (distance_transform(large[labels]) <= 1.5)
+        if self.passed.shape == grid.shape and self.passed.any():      # not where the robot came near and looked
+            front &= distance_transform(self.passed) > self.MAP_RESCUE_LOOKED / geo.cell
+        if not front.any():
+            return None
+        points = np.zeros(grid.shape, np.uint8)
+        cost = plan_costs(grid, self.ctx.radius, 0.3, points)
+        passable = np.isfinite(cost)
+        start = passable_cell(geo, passable, node.x, node.y)
+        if start is None:
+            return None
+        goals = near_cells(front, self.ctx.radius / geo.cell + 1.5) & passable
+        if node.failed:
+            cells = np.argwhere(goals)
+            goals[tuple(cells[self._near_failed(index, cell_points(geo, cells, points))].T)] = False
+        found = nearest_goal(cost, start, goals)
+        if found is None:
+            return None
+        goal, _, _ = found
+        point = cell_points(geo, [goal], points)[0]
+        cells = np.argwhere(front)
+        near = int(np.argmin(np.hypot(cells[:, 0] - goal[0], cells[:, 1] - goal[1])))
+        self._planned_move = True
+        self.map_rescues += 1
+        # each map rescue is tried once: the frontier within RESCUE_RADIUS of its cell is not aimed at again
+        c = geo.centers_of(cells)
+        tried = cells[np.hypot(c[:, 0] - c[near, 0], c[:, 1] - c[near, 1]) <= self.RESCUE_RADIUS]
+        self._map_tried[tried[:, 0], tried[:, 1]] = True
+        return self._take_rescue(grid, cells, (int(cells[near, 0]), int(cells[near, 1])),
+                                 geo.centers_of(cells[near:near + 1])[0], point)
+
+    def result_fields(self) -> dict[str, object]:
+        """As `_FrontierRescue`, plus `map_rescues`: rescues driven on the planner's path (`map_rescue`)."""
+        return {**super().result_fields(), "map_rescues": self.map_rescues}
 
     def _rescue_view(self) -> float:
         return self.view * self.ctx.laser_range

@@ -681,3 +681,54 @@ def test_laser_rescue_finds_the_point_that_sees_a_room_through_its_door() -> Non
     assert 3.9 < x < 5.0 and y < 1.8                        # in front of the door
     assert math.hypot(x - 3.35, y - 2.95) <= ex._rescue_view()
     assert ex.rescues == 1 and ex._face == pytest.approx((3.35, 2.95))
+
+
+def gap_grid() -> OccupancyGrid:
+    """A known 3 x 3 m room around (0, 0) (cells 0.1 m, walls a cell thick) whose east wall (x 1.5..1.6 m)
+    has a 0.6 m gap (y -0.3..0.3 m) onto 9.6 m2 of unknown space (x 1.6..4 m)."""
+    geo = GridGeometry(-2.0, -2.0, 0.1, 40, 60)
+    room = np.zeros((40, 60), dtype=bool)
+    room[5:35, 5:35] = True                              # x, y in -1.5..1.5 m
+    wall = np.zeros((40, 60), dtype=bool)
+    wall[4:36, 4:36] = True
+    wall[5:35, 5:35] = False
+    wall[17:23, 35] = False                              # the gap: rows 17..22 (y -0.3..0.3), column 35
+    room[17:23, 35] = True
+    grid = OccupancyGrid(geo)
+    grid.mark_free(room)
+    grid.mark_occupied(wall)
+    return grid
+
+
+def test_map_rescue_drives_the_planners_path_to_the_frontier() -> None:
+    # at the root with no candidate the robot takes the planner's path to the nearest place within a
+    # radius and 1.5 cells (0.4 m) of the frontier the map shows open beyond (the gap's cells, x 1.55 m),
+    # drives it (and its way back) on the map, and aims there once
+    ex = SRTLaserExplorer()
+    ex.reset(ctx(np.random.default_rng(0)))
+    ex.tree.add(0.0, 0.0, ring(1.0), None)
+    ex.current = 0
+    ex._grid = gap_grid()
+    cand = ex._map_candidate(0)
+    assert cand is not None and 1.55 - 0.4 - 0.1 <= cand[0] <= 1.55 and abs(cand[1]) <= 0.3
+    assert ex._planned_move and ex._drives_map_path() and ex.map_rescues == 1 and ex.rescues == 1
+    assert ex._map_candidate(0) is None                 # the gap's frontier was aimed at
+    # a node reached so is left for its parent on the map too
+    ex._planned_move = False
+    ex.tree.add(float(cand[0]), float(cand[1]), ring(1.0), 0)
+    ex._planned_nodes.add(1)
+    ex.current, ex.target_node = 1, 0
+    assert ex._drives_map_path()
+
+
+def test_a_laser_sweep_leaves_obstacles_to_the_scans() -> None:
+    # a region's obstacle points (the shortest reading of each bin) go into the map as walls only from
+    # the sonar ring; a laser's scans map the obstacles themselves
+    n = 36
+    a = -math.pi + (np.arange(n) + 0.5) * 2 * math.pi / n
+    region = PolygonRegion(0.0, 0.0, a, np.full(n, 1.0), np.zeros(n, bool))       # every vertex a hit
+    for explorer, sonar, walls in ((SRTLaserExplorer(), False, False), (SRTStarExplorer(), True, True)):
+        explorer.reset(ctx(np.random.default_rng(0), sonar=sonar))
+        grid = OccupancyGrid(GridGeometry(-2.0, -2.0, 0.1, 40, 40))
+        explorer._mark(region, grid)
+        assert grid.free()[20, 20] and grid.occupied().any() == walls
