@@ -61,6 +61,7 @@ __all__ = ["ExhaustiveExplorer", "FireflyExplorer", "GAExplorer", "Metaheuristic
 
 WINDOW_MARGIN = 2       # [cells] kept around the scanned part of the map, where every plan is made
 LOOK_REACH = 1.5        # [m] frontier this near the robot's path was looked at from close by (`last_look`)
+LOOK_AREA = 2.0         # [m2] the least piece of unknown space behind frontier a last look is for
 Offset = tuple[int, int]
 
 
@@ -96,9 +97,9 @@ class MetaheuristicExplorer(Explorer):
             above `min_frontier` until the stall watch ended the run). 0: the map's walls of the moment.
         last_look: (an extension) below `min_frontier`, before the run ends the robot drives to look from
             close by (within `LOOK_REACH` of its path) at each usable frontier cell, faces and walls left
-            out, that it never came that near: a few cells beside a corner whose walls the laser never
-            closed may lead into unknown space a robot fits in, and only a look tells. False: Santos's
-            rule alone.
+            out, that it never came that near and that borders a piece of unknown space of at least
+            `LOOK_AREA`: a few cells beside a corner whose walls the laser never closed may lead into
+            unknown space a robot fits in, and only a look tells. False: Santos's rule alone.
     """
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
@@ -372,12 +373,27 @@ class MetaheuristicExplorer(Explorer):
                    now: float) -> bool:
         """Drive to the nearest cell within a robot radius and a cell and a half of a cell of `frontier` (on
         the window `window`: (view, its cell (0, 0) in `grid`)) farther than `LOOK_REACH` from every cell the
-        robot passed; False when there is none (or no way there)."""
+        robot passed and beside a piece of unknown space of at least `LOOK_AREA`; False when there is none
+        (or no way there)."""
         view, off = window
         rows, cols = frontier.shape
         cell = grid.geo.cell
         passed = self.visited[off[0]:off[0] + rows, off[1]:off[1] + cols]
         away = frontier & (distance_transform(passed) > LOOK_REACH / cell) if passed.any() else frontier
+        if not away.any():
+            return False
+        # only beside a piece of unknown space of at least LOOK_AREA: the unknown inside a rack or a table's
+        # outline seen through its gaps is less (looking at each such speck stalled a warehouse run)
+        labels, k = label8(np.ascontiguousarray(view.unknown()))
+        large = np.bincount(labels.ravel(), minlength=k + 1) * cell ** 2 >= LOOK_AREA
+        # a piece that reaches the window's edge inside the map goes on beyond it (all unknown there)
+        gr, gc = grid.shape
+        for edge, inside in ((labels[0, :], off[0] > 0), (labels[-1, :], off[0] + rows < gr),
+                             (labels[:, 0], off[1] > 0), (labels[:, -1], off[1] + cols < gc)):
+            if inside:
+                large[edge] = True
+        large[0] = False
+        away &= distance_transform(large[labels]) <= 1.5
         if not away.any():
             return False
         reach = self.ctx.radius / cell + 1.5

@@ -266,6 +266,15 @@ def test_last_look_at_frontier_the_robot_never_came_near() -> None:
     done = ex.step(RobotState(10.0, Pose(2.3, 2.45, 0.0), Twist.ZERO), grid)
     assert isinstance(done, Done) and done.reason == "fewer than 20 usable frontier cells left"
     assert ex.result_fields()["look_path_m"] == pytest.approx(0.45 + 1.3, abs=1e-6)    # up to y = 2.45 m, along it
+    # a closet of 0.2 m2 behind the door (closed by walls all round): no look is worth it
+    closet = np.zeros(grid.shape, dtype=bool)
+    closet[38:60, 71:76] = True
+    closet[39:59, 71:75] = False
+    grid.mark_occupied(closet)
+    ex = ExhaustiveExplorer(min_opening=0, face_reach=0.0)
+    ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
+                             laser_range=RANGE, rng=np.random.default_rng(0)))
+    assert isinstance(ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid), Done)
 
 
 def test_reachable_cells_by_flood_are_dijkstras() -> None:
