@@ -165,6 +165,13 @@ class MetaheuristicExplorer(Explorer):
         self.frontier_left = 0
         self.assigned: npt.NDArray[np.int64] | None = None     # a team coordinator's target cells
 
+    @property
+    def backtracking(self) -> bool:
+        """True on a last look (`last_look`): the run's stall watch (`robotexp.run.endings.StallWatch`) does not
+        count that time, which confirms what the map shows rather than map anything new. The looks are
+        bounded: each brings the robot within `LOOK_REACH` of cells it never came near, or gives them up."""
+        return self._looking and self.target is not None
+
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: the memory of the walls seen is started anew from it."""
         self.walls_seen = None

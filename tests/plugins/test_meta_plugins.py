@@ -255,6 +255,7 @@ def test_last_look_at_frontier_the_robot_never_came_near() -> None:
     out = ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
     assert isinstance(out, Twist) and ex.frontier_left == 16
     assert ex.target is not None and 40 <= ex.target[0] < 58 and 70 - (0.25 / CELL + 1.5) <= ex.target[1] <= 70
+    assert ex.backtracking          # a look maps nothing new: the run's stall watch does not count it
     # the robot steps to y = 2.45 m and drives along it to x = 2.3 m: the door's cells (x 3.55 m) lie
     # within 1.5 m of its path
     for k, x in enumerate(np.arange(1.0, 2.31, 0.05)):
