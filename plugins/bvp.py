@@ -30,6 +30,7 @@ WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the sc
 TIGHT = FollowerConfig()    # where the path follower turns in place rather than drive round, bvp does too
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
+TRAP_REACH = 1.0        # [m] a stale peak of the field this near the robot holds it (see `trap_time`)
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -124,8 +125,17 @@ class BVPExplorer(Explorer):
       strike are given up (walls from then on, potential 1): unknown space the robot was drawn to and could
       not resolve in the stall window, such as the inside of a rack seen through a gap in its outline
       whose channel the descent leads into and the guard never lets the robot through (a production hall:
-      four such pockets held a run at 0.997 until it stalled). A run that never stalls is the thesis's,
-      bit for bit.
+      four such pockets held a run at 0.997 until it stalled).
+    - Stale peaks (beyond the thesis): a harmonic field, and one relaxed from below, has no interior
+      maximum of q (the discrete maximum principle: each free cell is the mean of its neighbours, or below
+      it). When goals vanish (a pocket or a room resolved) the field relaxes from above, and the cells
+      they pulled stay at a peak until the sweeps wear it down below the pull of the goals left; on a
+      large floor that pull is 1e-10 or less (tens of metres through the aisles), so the peak takes
+      minutes of 30 sweeps a second to fall that far, and the robot circles on it. When a free cell within
+      `TRAP_REACH` of the robot has stayed a peak (q above 0, no less than its four neighbours, above the
+      least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall
+      (`flush_sweeps`), without giving up any goal. A run where that never happens and that never stalls
+      is the thesis's, bit for bit (`trap_time=0` turns it off).
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
@@ -144,13 +154,17 @@ class BVPExplorer(Explorer):
         epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
         direction: [rad] the preferred direction v of eq. 3.6.
         epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
-        flush_sweeps: after a stall, sweeps per cell of the window's rows + columns (>= 0; 0: none).
+        flush_sweeps: after a stall or a trap, sweeps per cell of the window's rows + columns (>= 0; 0:
+            none, and no relaxing anew at all).
+        trap_time: [s] robot time the robot may stay by a stale peak of the field before it is relaxed
+            anew (0: never).
     """
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
         "sweeps": (1, 10_000), "update_period": (None, 3600.0), "r_max": (None, 10.0), "eta": (None, 1.0),
         "k_turn": (None, 100.0), "inflate": (0.0, 10.0), "clearance": (0.0, 10.0), "epsilon": (-1.0, 1.0),
-        "direction": (-math.tau, math.tau), "epsilon_grad": (-1.0, 1.0), "flush_sweeps": (0, 1000)}
+        "direction": (-math.tau, math.tau), "epsilon_grad": (-1.0, 1.0), "flush_sweeps": (0, 1000),
+        "trap_time": (0.0, 3600.0)}
 
     grid_model = "himm"
     preferred_cell = 0.1
@@ -158,7 +172,7 @@ class BVPExplorer(Explorer):
     def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,  # noqa: PLR0913
                  k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.01,
                  epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0,
-                 flush_sweeps: int = 4) -> None:
+                 flush_sweeps: int = 4, trap_time: float = 5.0) -> None:
         if not (isinstance(sweeps, int) and sweeps >= 1):
             raise ConfigError(f"bvp: sweeps must be an integer >= 1, got {sweeps!r}")
         if not (isinstance(flush_sweeps, int) and flush_sweeps >= 0):
@@ -170,6 +184,8 @@ class BVPExplorer(Explorer):
             raise ConfigError(f"bvp: eta must be within (0, 1], got {eta}")
         if inflate is not None and not (math.isfinite(inflate) and inflate >= 0):
             raise ConfigError(f"bvp: inflate must be >= 0 m or None, got {inflate}")
+        if not (math.isfinite(trap_time) and trap_time >= 0):
+            raise ConfigError(f"bvp: trap_time must be >= 0 s (0: never), got {trap_time}")
         if not clearance >= 0:
             raise ConfigError(f"bvp: clearance must be >= 0 m, got {clearance}")
         for name, value in (("epsilon", epsilon), ("epsilon_grad", epsilon_grad)):
@@ -181,7 +197,7 @@ class BVPExplorer(Explorer):
         self.sweeps, self.update_period, self.r_max, self.eta = sweeps, update_period, r_max, eta
         self.k_turn, self.inflate, self.clearance = k_turn, inflate, clearance
         self.epsilon, self.direction, self.epsilon_grad = epsilon, direction, epsilon_grad
-        self.flush_sweeps = flush_sweeps
+        self.flush_sweeps, self.trap_time = flush_sweeps, trap_time
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run: empty potential, no heading, speed 0."""
@@ -200,6 +216,8 @@ class BVPExplorer(Explorer):
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
         self.flushes = 0
+        self.traps = 0              # flushes started by a stale peak by the robot (`trap_time`)
+        self._trapped_since: float | None = None
         self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at a stall (walls from then on)
         self._pose_xy = (ctx.start.x, ctx.start.y)
 
@@ -358,6 +376,7 @@ class BVPExplorer(Explorer):
             if self.explored(grid, wall, goal, pose.x, pose.y, off):
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
+            self._watch_trap(grid, state.time)
         r, c = grid.geo.cell_of(pose.x, pose.y)
         if not grid.geo.contains(r, c):
             return Done("stopped: the robot left the map")
@@ -432,6 +451,45 @@ class BVPExplorer(Explorer):
         self.flush = True
         self.next_update = -math.inf
         return True
+
+    def _watch_trap(self, grid: OccupancyGrid, time: float) -> None:
+        """After an update: when a stale peak has stayed within `TRAP_REACH` of the robot for `trap_time`,
+        relax the field anew from below at the next update (see the class)."""
+        if self.trap_time <= 0 or self.flush_sweeps == 0:
+            return
+        if not self._peak_near(grid):
+            self._trapped_since = None
+            return
+        if self._trapped_since is None:
+            self._trapped_since = time
+        if time - self._trapped_since >= self.trap_time - 1e-9:
+            self._trapped_since = None
+            self.flush = True
+            self.traps += 1
+            self.next_update = -math.inf
+
+    def _peak_near(self, grid: OccupancyGrid) -> bool:
+        """True when a free cell within `TRAP_REACH` of the robot is a peak of q: above 0, no less than any
+        of its 4 neighbours and above the least of them (impossible where each cell is the mean of its
+        neighbours or below it)."""
+        geo = grid.geo
+        k = int(math.ceil(TRAP_REACH / geo.cell))
+        r, c = geo.cell_of(*self._pose_xy)
+        r0, r1 = max(r - k, 0), min(r + k + 1, geo.rows)
+        c0, c1 = max(c - k, 0), min(c + k + 1, geo.cols)
+        if r1 <= r0 or c1 <= c0:
+            return False
+        q = self.q
+        mid = q[1 + r0:1 + r1, 1 + c0:1 + c1]
+        near = np.stack([q[r0:r1, 1 + c0:1 + c1], q[2 + r0:2 + r1, 1 + c0:1 + c1],
+                         q[1 + r0:1 + r1, c0:c1], q[1 + r0:1 + r1, 2 + c0:2 + c1]])
+        peak = ~self.fixed[1 + r0:1 + r1, 1 + c0:1 + c1] & (mid > 0) & (mid >= near.max(axis=0)) \
+            & (mid > near.min(axis=0))
+        if not peak.any():
+            return False
+        rr, cc = np.nonzero(peak)
+        dist = np.hypot(rr + r0 - r, cc + c0 - c) * geo.cell
+        return bool((dist <= TRAP_REACH).any())
 
     def _toward_nearest_goal(self, grid: OccupancyGrid, r: int, c: int) -> float | None:
         """Heading [rad] to the nearest goal (unknown) cell, or None when there is none.
