@@ -31,6 +31,7 @@ TIGHT = FollowerConfig()    # where the path follower turns in place rather than
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
 TRAP_REACH = 1.0        # [m] a stale peak of the field this near the robot holds it (see `trap_time`)
+TRAP_FLUSH = 1          # sweeps per cell of the window's rows + columns when a stale peak starts the flush
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -215,6 +216,7 @@ class BVPExplorer(Explorer):
         self._memory = ScanMemory(reach=ctx.outline.swing + 0.6)
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
+        self._flush_per_cell = self.flush_sweeps   # ... with this many sweeps per cell of its rows + cols
         self.flushes = 0
         self.traps = 0              # flushes started by a stale peak by the robot (`trap_time`)
         self._trapped_since: float | None = None
@@ -227,7 +229,7 @@ class BVPExplorer(Explorer):
         if self.q.shape != (0, 0):
             self.walls = WallDistance(self._inflate_cells(grid), surface=True)
             self.given_up[:] = False        # cells of the old map
-            self.flush = True
+            self.flush, self._flush_per_cell = True, self.flush_sweeps
         self.next_update = -math.inf
 
     # -- the potential ---------------------------------------------------------------
@@ -329,7 +331,7 @@ class BVPExplorer(Explorer):
             # start over from p = 1 on the free cells: relaxed from below, the field has no stale
             # bump (no interior extremum) anywhere, and every cell's value comes from the goals now
             inner[~(wall | goal)] = 0.0
-            sweeps += self.flush_sweeps * (rows + cols)
+            sweeps += self._flush_per_cell * (rows + cols)
             self.flush = False
             self.flushes += 1
         relax(self.q, self.fixed, sweeps,
@@ -448,7 +450,7 @@ class BVPExplorer(Explorer):
         cx, cy = geo.origin_x + (cc + 0.5) * geo.cell, geo.origin_y + (rr + 0.5) * geo.cell
         near = np.hypot(cx - x, cy - y) <= GIVE_UP_REACH
         self.given_up[rs, cs] |= goal & near
-        self.flush = True
+        self.flush, self._flush_per_cell = True, self.flush_sweeps
         self.next_update = -math.inf
         return True
 
@@ -464,6 +466,8 @@ class BVPExplorer(Explorer):
             self._trapped_since = time
         if time - self._trapped_since >= self.trap_time - 1e-9:
             self._trapped_since = None
+            if not self.flush:
+                self._flush_per_cell = min(TRAP_FLUSH, self.flush_sweeps)
             self.flush = True
             self.traps += 1
             self.next_update = -math.inf
