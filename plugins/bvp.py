@@ -31,7 +31,7 @@ TIGHT = FollowerConfig()    # where the path follower turns in place rather than
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
 TRAP_REACH = 1.0        # [m] a stale peak of the field this near the robot holds it (see `trap_time`)
-TRAP_FLUSH = 1          # sweeps per cell of the window's rows + columns when a stale peak starts the flush
+TRAP_FLUSH = 1          # sweeps per cell of the free cells' rows + columns when a stale peak starts the flush
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -120,7 +120,7 @@ class BVPExplorer(Explorer):
       the sweep order, so on a large window the field under the robot still shows goals long gone
       (a room it has just explored keeps pulling it back while the unknown lies 20 m away). When the
       run's stall watch sees no progress (`give_up`), the next update starts the free cells over at
-      p = 1 and runs `flush_sweeps` per cell of the window's rows + columns (information crosses it a
+      p = 1 and runs `flush_sweeps` per cell of the rows + columns of the free cells' box (information crosses it a
       few times over): relaxed from below, the field has no stale bump, so the descent leads to the
       goals. Then the thesis's sweeps again. The goal cells within `GIVE_UP_REACH` of the robot at the
       strike are given up (walls from then on, potential 1): unknown space the robot was drawn to and could
@@ -134,9 +134,11 @@ class BVPExplorer(Explorer):
       large floor that pull is 1e-10 or less (tens of metres through the aisles), so the peak takes
       minutes of 30 sweeps a second to fall that far, and the robot circles on it. When a free cell within
       `TRAP_REACH` of the robot has stayed a peak (q above 0, no less than its four neighbours, above the
-      least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall
-      (`flush_sweeps`), without giving up any goal. A run where that never happens and that never stalls
-      is the thesis's, bit for bit (`trap_time=0` turns it off).
+      least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall,
+      with `TRAP_FLUSH` (1) sweep per cell of the free cells' rows + columns (at most `flush_sweeps`), and no
+      goal given up: relaxed from below, the field has no peak, and the 30 sweeps a second that follow
+      raise it towards the harmonic field without making one. A run where that never happens and that
+      never stalls is the thesis's, bit for bit (`trap_time=0` turns it off).
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
@@ -155,7 +157,7 @@ class BVPExplorer(Explorer):
         epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
         direction: [rad] the preferred direction v of eq. 3.6.
         epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
-        flush_sweeps: after a stall or a trap, sweeps per cell of the window's rows + columns (>= 0; 0:
+        flush_sweeps: after a stall or a trap, sweeps per cell of the free cells' rows + columns (>= 0; 0:
             none, and no relaxing anew at all).
         trap_time: [s] robot time the robot may stay by a stale peak of the field before it is relaxed
             anew (0: never).
@@ -330,8 +332,13 @@ class BVPExplorer(Explorer):
         if self.flush:
             # start over from p = 1 on the free cells: relaxed from below, the field has no stale
             # bump (no interior extremum) anywhere, and every cell's value comes from the goals now
-            inner[~(wall | goal)] = 0.0
-            sweeps += self._flush_per_cell * (rows + cols)
+            free = ~(wall | goal)
+            inner[free] = 0.0
+            # the rows + columns of the box of the free cells: those of the window but for its margin, and
+            # the same however far the map reaches beyond the window
+            rs, cs = np.flatnonzero(free.any(axis=1)), np.flatnonzero(free.any(axis=0))
+            if rs.size:
+                sweeps += self._flush_per_cell * (int(rs[-1] - rs[0]) + 1 + int(cs[-1] - cs[0]) + 1)
             self.flush = False
             self.flushes += 1
         relax(self.q, self.fixed, sweeps,
