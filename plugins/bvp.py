@@ -120,8 +120,8 @@ class BVPExplorer(Explorer):
       the sweep order, so on a large window the field under the robot still shows goals long gone
       (a room it has just explored keeps pulling it back while the unknown lies 20 m away). When the
       run's stall watch sees no progress (`give_up`), the next update starts the free cells over at
-      p = 1 and runs `flush_sweeps` per cell of the rows + columns of the free cells' box (information crosses it a
-      few times over): relaxed from below, the field has no stale bump, so the descent leads to the
+      p = 1 and runs `flush_sweeps` per cell of the rows + columns of the free cells' box (information
+      crosses it a few times over): relaxed from below, the field has no stale bump, so the descent leads to the
       goals. Then the thesis's sweeps again. The goal cells within `GIVE_UP_REACH` of the robot at the
       strike are given up (walls from then on, potential 1): unknown space the robot was drawn to and could
       not resolve in the stall window, such as the inside of a rack seen through a gap in its outline
@@ -137,8 +137,8 @@ class BVPExplorer(Explorer):
       least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall,
       with `TRAP_FLUSH` (1) sweep per cell of the free cells' rows + columns (at most `flush_sweeps`), and no
       goal given up: relaxed from below, the field has no peak, and the 30 sweeps a second that follow
-      raise it towards the harmonic field without making one. A run where that never happens and that
-      never stalls is the thesis's, bit for bit (`trap_time=0` turns it off).
+      raise it towards the harmonic field without making one until goals vanish again. A run where that
+      never happens and that never stalls is the thesis's, bit for bit (`trap_time=0` turns it off).
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
