@@ -275,10 +275,10 @@ def _room_off_a_hall() -> tuple[OccupancyGrid, npt.NDArray[np.bool_]]:
 def test_a_stale_peak_by_the_robot_is_relaxed_away(trap_time: float) -> None:
     """The robot stands in a room by a pocket it has just resolved, 33 m from the only goal left (the hall's
     west end). The field in the room, relaxed with the pocket as a goal, is a peak of q that the thesis's 30
-    sweeps a second wear down far slower than it would have to fall (the pull of the west end through the
-    hall is about 1e-14): 10 s later the descent still leads the robot east, away from the door, to the
-    peak. With `trap_time` (the default 5 s) the field is relaxed anew from below once the peak has held
-    the robot that long, and the descent leads west, to the door."""
+    sweeps a second wear down by a decade in about 15 s, while the pull of the west end through the hall
+    is about 3e-20 (the converged field): 10 s later the descent still leads the robot east, away from the
+    door, to the peak. With `trap_time` (the default 5 s) the field is relaxed anew from below once the
+    peak has held the robot that long, and the descent leads west, to the door."""
     g, pocket = _room_off_a_hall()
     ex = _explorer(trap_time=trap_time)
     x, y = 33.8, 3.0                            # 0.8 m west of the pocket's centre, 1.3 m east of the door
