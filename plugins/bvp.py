@@ -131,7 +131,7 @@ class BVPExplorer(Explorer):
       maximum of q (the discrete maximum principle: each free cell is the mean of its neighbours, or below
       it). When goals vanish (a pocket or a room resolved) the field relaxes from above, and the cells
       they pulled stay at a peak until the sweeps wear it down below the pull of the goals left; on a
-      large floor that pull is 1e-10 or less (tens of metres through the aisles), so the peak takes
+      large floor that pull is 1e-5 to 1e-17 (tens of metres through the aisles), so the peak takes
       minutes of 30 sweeps a second to fall that far, and the robot circles on it. When a free cell within
       `TRAP_REACH` of the robot has stayed a peak (q above 0, no less than its four neighbours, above the
       least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall,
