@@ -30,6 +30,8 @@ WINDOW_MARGIN = 2       # [cells] kept beyond the walls' inflation around the sc
 TIGHT = FollowerConfig()    # where the path follower turns in place rather than drive round, bvp does too
 INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (default inflate): the planners' margin
 GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
+TRAP_REACH = 1.0        # [m] a stale peak of the field this near the robot holds it (see `trap_time`)
+TRAP_FLUSH = 1          # sweeps per cell of the free cells' rows + columns when a stale peak starts the flush
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -119,14 +121,25 @@ class BVPExplorer(Explorer):
       the sweep order, so on a large window the field under the robot still shows goals long gone
       (a room it has just explored keeps pulling it back while the unknown lies 20 m away). When the
       run's stall watch sees no progress (`give_up`), the next update starts the free cells over at
-      p = 1 and runs `flush_sweeps` per cell of the window's rows + columns (information crosses it a
-      few times over): relaxed from below, the field has no stale bump, so the descent leads to the
+      p = 1 and runs `flush_sweeps` per cell of the rows + columns of the free cells' box (information
+      crosses it a few times over): relaxed from below, the field has no stale bump, so the descent leads to the
       goals. Then the thesis's sweeps again. The goal cells within `GIVE_UP_REACH` of the robot at the
       strike are given up (walls from then on, potential 1): unknown space the robot was drawn to and could
       not resolve in the stall window, such as the inside of a rack seen through a gap in its outline
       whose channel the descent leads into and the guard never lets the robot through (a production hall:
-      four such pockets held a run at 0.997 until it stalled). A run that never stalls is the thesis's,
-      bit for bit.
+      four such pockets held a run at 0.997 until it stalled).
+    - Stale peaks (beyond the thesis): a harmonic field, and one relaxed from below, has no interior
+      maximum of q (the discrete maximum principle: each free cell is the mean of its neighbours, or below
+      it). When goals vanish (a pocket or a room resolved) the field relaxes from above, and the cells
+      they pulled stay at a peak until the sweeps wear it down below the pull of the goals left; on a
+      large floor that pull is 1e-5 to 1e-17 (tens of metres through the aisles), so the peak takes
+      minutes of 30 sweeps a second to fall that far, and the robot circles on it. When a free cell within
+      `TRAP_REACH` of the robot has stayed a peak (q above 0, no less than its four neighbours, above the
+      least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall,
+      with `TRAP_FLUSH` (1) sweep per cell of the free cells' rows + columns (at most `flush_sweeps`), and no
+      goal given up: relaxed from below, the field has no peak, and the 30 sweeps a second that follow
+      raise it towards the harmonic field without making one until goals vanish again. A run where that
+      never happens and that never stalls is the thesis's, bit for bit (`trap_time=0` turns it off).
     - Perturbed fields (off by default, the thesis's runs are harmonic): eq. 3.6 with v = (cos
       `direction`, sin `direction`) and `epsilon`, eq. 3.7 with a constant eps(r) = `epsilon_grad`,
       discretised by central differences in cell units (see `robotexp.planning.harmonic`). With
@@ -145,13 +158,17 @@ class BVPExplorer(Explorer):
         epsilon: eq. 3.6 strength [1/cell], within [-1, 1].
         direction: [rad] the preferred direction v of eq. 3.6.
         epsilon_grad: eq. 3.7 eps(r) [1/cell], within [-1, 1].
-        flush_sweeps: after a stall, sweeps per cell of the window's rows + columns (>= 0; 0: none).
+        flush_sweeps: after a stall or a trap, sweeps per cell of the free cells' rows + columns (>= 0; 0:
+            none, and no relaxing anew at all).
+        trap_time: [s] robot time the robot may stay by a stale peak of the field before it is relaxed
+            anew (0: never).
     """
 
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {
         "sweeps": (1, 10_000), "update_period": (None, 3600.0), "r_max": (None, 10.0), "eta": (None, 1.0),
         "k_turn": (None, 100.0), "inflate": (0.0, 10.0), "clearance": (0.0, 10.0), "epsilon": (-1.0, 1.0),
-        "direction": (-math.tau, math.tau), "epsilon_grad": (-1.0, 1.0), "flush_sweeps": (0, 1000)}
+        "direction": (-math.tau, math.tau), "epsilon_grad": (-1.0, 1.0), "flush_sweeps": (0, 1000),
+        "trap_time": (0.0, 3600.0)}
 
     grid_model = "himm"
     preferred_cell = 0.1
@@ -159,7 +176,7 @@ class BVPExplorer(Explorer):
     def __init__(self, *, sweeps: int = 30, update_period: float = 1.0, r_max: float = 0.2, eta: float = 0.5,  # noqa: PLR0913
                  k_turn: float = 1.5, inflate: float | None = None, clearance: float = 0.01,
                  epsilon: float = 0.0, direction: float = 0.0, epsilon_grad: float = 0.0,
-                 flush_sweeps: int = 4) -> None:
+                 flush_sweeps: int = 4, trap_time: float = 5.0) -> None:
         if not (isinstance(sweeps, int) and sweeps >= 1):
             raise ConfigError(f"bvp: sweeps must be an integer >= 1, got {sweeps!r}")
         if not (isinstance(flush_sweeps, int) and flush_sweeps >= 0):
@@ -171,6 +188,8 @@ class BVPExplorer(Explorer):
             raise ConfigError(f"bvp: eta must be within (0, 1], got {eta}")
         if inflate is not None and not (math.isfinite(inflate) and inflate >= 0):
             raise ConfigError(f"bvp: inflate must be >= 0 m or None, got {inflate}")
+        if not (math.isfinite(trap_time) and trap_time >= 0):
+            raise ConfigError(f"bvp: trap_time must be >= 0 s (0: never), got {trap_time}")
         if not clearance >= 0:
             raise ConfigError(f"bvp: clearance must be >= 0 m, got {clearance}")
         for name, value in (("epsilon", epsilon), ("epsilon_grad", epsilon_grad)):
@@ -182,7 +201,7 @@ class BVPExplorer(Explorer):
         self.sweeps, self.update_period, self.r_max, self.eta = sweeps, update_period, r_max, eta
         self.k_turn, self.inflate, self.clearance = k_turn, inflate, clearance
         self.epsilon, self.direction, self.epsilon_grad = epsilon, direction, epsilon_grad
-        self.flush_sweeps = flush_sweeps
+        self.flush_sweeps, self.trap_time = flush_sweeps, trap_time
 
     def reset(self, ctx: ExplorerContext) -> None:
         """Start a new run: empty potential, no heading, speed 0."""
@@ -200,7 +219,10 @@ class BVPExplorer(Explorer):
         self._memory = ScanMemory(reach=ctx.outline.swing + 0.6)
         self._goal_off = (0, 0)
         self.flush = False          # the next update relaxes the field anew from below (`give_up`)
+        self._flush_per_cell = self.flush_sweeps   # ... with this many sweeps per cell of its rows + cols
         self.flushes = 0
+        self.traps = 0              # flushes started by a stale peak by the robot (`trap_time`)
+        self._trapped_since: float | None = None
         self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at a stall (walls from then on)
         self._pose_xy = (ctx.start.x, ctx.start.y)
 
@@ -210,7 +232,7 @@ class BVPExplorer(Explorer):
         if self.q.shape != (0, 0):
             self.walls = WallDistance(self._inflate_cells(grid), surface=True, points=True)
             self.given_up[:] = False        # cells of the old map
-            self.flush = True
+            self.flush, self._flush_per_cell = True, self.flush_sweeps
         self.next_update = -math.inf
 
     # -- the potential ---------------------------------------------------------------
@@ -311,8 +333,13 @@ class BVPExplorer(Explorer):
         if self.flush:
             # start over from p = 1 on the free cells: relaxed from below, the field has no stale
             # bump (no interior extremum) anywhere, and every cell's value comes from the goals now
-            inner[~(wall | goal)] = 0.0
-            sweeps += self.flush_sweeps * (rows + cols)
+            free = ~(wall | goal)
+            inner[free] = 0.0
+            # the rows + columns of the box of the free cells: those of the window but for its margin, and
+            # the same however far the map reaches beyond the window
+            rs, cs = np.flatnonzero(free.any(axis=1)), np.flatnonzero(free.any(axis=0))
+            if rs.size:
+                sweeps += self._flush_per_cell * (int(rs[-1] - rs[0]) + 1 + int(cs[-1] - cs[0]) + 1)
             self.flush = False
             self.flushes += 1
         relax(self.q, self.fixed, sweeps,
@@ -359,6 +386,7 @@ class BVPExplorer(Explorer):
             if self.explored(grid, wall, goal, pose.x, pose.y, off):
                 return Done("explored: no reachable free cell touches an unknown cell")
             self.next_update = state.time + self.update_period - 1e-9
+            self._watch_trap(grid, state.time)
         r, c = grid.geo.cell_of(pose.x, pose.y)
         if not grid.geo.contains(r, c):
             return Done("stopped: the robot left the map")
@@ -430,9 +458,50 @@ class BVPExplorer(Explorer):
         cx, cy = geo.origin_x + (cc + 0.5) * geo.cell, geo.origin_y + (rr + 0.5) * geo.cell
         near = np.hypot(cx - x, cy - y) <= GIVE_UP_REACH
         self.given_up[rs, cs] |= goal & near
-        self.flush = True
+        self.flush, self._flush_per_cell = True, self.flush_sweeps
         self.next_update = -math.inf
         return True
+
+    def _watch_trap(self, grid: OccupancyGrid, time: float) -> None:
+        """After an update: when a stale peak has stayed within `TRAP_REACH` of the robot for `trap_time`,
+        relax the field anew from below at the next update (see the class)."""
+        if self.trap_time <= 0 or self.flush_sweeps == 0:
+            return
+        if not self._peak_near(grid):
+            self._trapped_since = None
+            return
+        if self._trapped_since is None:
+            self._trapped_since = time
+        if time - self._trapped_since >= self.trap_time - 1e-9:
+            self._trapped_since = None
+            if not self.flush:
+                self._flush_per_cell = min(TRAP_FLUSH, self.flush_sweeps)
+            self.flush = True
+            self.traps += 1
+            self.next_update = -math.inf
+
+    def _peak_near(self, grid: OccupancyGrid) -> bool:
+        """True when a free cell within `TRAP_REACH` of the robot is a peak of q: above 0, no less than any
+        of its 4 neighbours and above the least of them (impossible where each cell is the mean of its
+        neighbours or below it)."""
+        geo = grid.geo
+        k = int(math.ceil(TRAP_REACH / geo.cell))
+        r, c = geo.cell_of(*self._pose_xy)
+        r0, r1 = max(r - k, 0), min(r + k + 1, geo.rows)
+        c0, c1 = max(c - k, 0), min(c + k + 1, geo.cols)
+        if r1 <= r0 or c1 <= c0:
+            return False
+        q = self.q
+        mid = q[1 + r0:1 + r1, 1 + c0:1 + c1]
+        near = np.stack([q[r0:r1, 1 + c0:1 + c1], q[2 + r0:2 + r1, 1 + c0:1 + c1],
+                         q[1 + r0:1 + r1, c0:c1], q[1 + r0:1 + r1, 2 + c0:2 + c1]])
+        peak = ~self.fixed[1 + r0:1 + r1, 1 + c0:1 + c1] & (mid > 0) & (mid >= near.max(axis=0)) \
+            & (mid > near.min(axis=0))
+        if not peak.any():
+            return False
+        rr, cc = np.nonzero(peak)
+        dist = np.hypot(rr + r0 - r, cc + c0 - c) * geo.cell
+        return bool((dist <= TRAP_REACH).any())
 
     def _toward_nearest_goal(self, grid: OccupancyGrid, r: int, c: int) -> float | None:
         """Heading [rad] to the nearest goal (unknown) cell, or None when there is none.
