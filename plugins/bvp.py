@@ -32,6 +32,7 @@ INFLATE_MARGIN = MARGIN  # [m] the walls grow by the robot radius plus this (def
 GIVE_UP_REACH = 2.0     # [m] goal cells given up around the robot when the run's stall watch strikes
 TRAP_REACH = 1.0        # [m] a stale peak of the field this near the robot holds it (see `trap_time`)
 TRAP_FLUSH = 1          # sweeps per cell of the free cells' rows + columns when a stale peak starts the flush
+TRAP_SETTLE = 30.0      # [s] of robot time before a peak by the robot may count as stale (see `trap_time`)
 
 
 def speed_law(v_prev: float, varphi: float, d: float, *, v_max: float, r_max: float, eta: float) -> float:
@@ -135,7 +136,9 @@ class BVPExplorer(Explorer):
       large floor that pull is 1e-5 to 1e-17 (tens of metres through the aisles), so the peak takes
       minutes of 30 sweeps a second to fall that far, and the robot circles on it. When a free cell within
       `TRAP_REACH` of the robot has stayed a peak (q above 0, no less than its four neighbours, above the
-      least of them) for `trap_time` of robot time, the field is relaxed anew from below as after a stall,
+      least of them) for `trap_time` of robot time, after the first `TRAP_SETTLE` of the run (the first field,
+      relaxing from q = 1 everywhere, is all peaks; a flush then had led the P3-DX body into a door's jamb),
+      the field is relaxed anew from below as after a stall,
       with `TRAP_FLUSH` (1) sweep per cell of the free cells' rows + columns (at most `flush_sweeps`), and no
       goal given up: relaxed from below, the field has no peak, and the 30 sweeps a second that follow
       raise it towards the harmonic field without making one until goals vanish again. A run where that
@@ -223,6 +226,7 @@ class BVPExplorer(Explorer):
         self.flushes = 0
         self.traps = 0              # flushes started by a stale peak by the robot (`trap_time`)
         self._trapped_since: float | None = None
+        self._trap_t0: float | None = None      # [s] robot time of the first update watched for a trap
         self.given_up = np.zeros((0, 0), np.bool_)        # goal cells given up at a stall (walls from then on)
         self._pose_xy = (ctx.start.x, ctx.start.y)
 
@@ -466,6 +470,10 @@ class BVPExplorer(Explorer):
         """After an update: when a stale peak has stayed within `TRAP_REACH` of the robot for `trap_time`,
         relax the field anew from below at the next update (see the class)."""
         if self.trap_time <= 0 or self.flush_sweeps == 0:
+            return
+        if self._trap_t0 is None:
+            self._trap_t0 = time
+        if time - self._trap_t0 < TRAP_SETTLE:      # the first field, relaxing from q = 1, is all peaks: not stale
             return
         if not self._peak_near(grid):
             self._trapped_since = None
