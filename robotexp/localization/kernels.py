@@ -39,7 +39,7 @@ __all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "sear
 
 kernel = numba.njit(cache=True, nogil=True)
 
-# `hit_points`: (index of the occupied cells (rows, cols) int32, their wall segments (n, 6) float64)
+# `hit_points`: (index of the occupied cells (rows, cols) int32, their wall segments (n, 8) float64)
 HitSegments = tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]
 
 DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace (the least Levenberg-Marquardt damping)
@@ -187,6 +187,7 @@ def bilinear(field: npt.NDArray[np.float64], gx: float, gy: float) -> tuple[floa
 
 LINE_RATIO = 0.1   # hit points of a 3 x 3 block this close to a line (eigenvalue ratio) make a wall segment
 OVERLAP = 0.01     # [cells] a cell's wall segment reaches this far beyond the cell (no crack between neighbours)
+OPEN_REACH = 1.5   # [cells] a wall segment goes on this far past an end beyond which the map has seen nothing
 
 
 @kernel
@@ -200,18 +201,25 @@ def _clip(h: float, u: float, lo: float, hi: float) -> tuple[float, float]:
 
 
 @kernel
-def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]  # noqa: C901
-               ) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]:
+def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],  # noqa: C901
+               known: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]:
     """The hit point of every occupied cell in grid coordinates [cells] (cell (r, c) spans [c, c + 1) in x)
     and the wall segment through it, as (index, segments): index (rows, cols) int32 numbers the occupied
-    cells in row order (-1 elsewhere), segments (n, 6) holds each one's x, y, ux, uy, t0, t1.
+    cells in row order (-1 elsewhere), segments (n, 8) holds each one's x, y, ux, uy, t0, t1, open0, open1.
 
     The segment is the points (x, y) + t (ux, uy), t0 <= t <= t1: the line through the hit point clipped
     to the cell (OVERLAP wider), so that the segments of a wall's cells join up with neither gap nor
     overhang. A cell's hit point lies (off_x, off_y) [cells] from its centre (as in `splat_field`); the
     direction is the principal axis of the hit points of the occupied cells of the 3 x 3 block around it
     when they lie along a line (smaller / larger eigenvalue of their scatter below LINE_RATIO, at least
-    two of them), else (0, 0) and t0 = t1 = 0: a lone point."""
+    two of them), else (0, 0) and t0 = t1 = 0: a lone point.
+
+    open0 (open1) is 1.0 where the wall may go on past the t0 (t1) end: a cell 0.5 or 1.5 cells beyond it
+    along the line lies in the grid, is not occupied and the map has never seen it (`known` false). That
+    end is where the map stopped seeing the wall (the laser's reach), not where the wall ends, and
+    `wall_offset` carries the segment on by OPEN_REACH there: a scan point on the wall just past the
+    mapped part is not pulled back to the end (in a corridor, such pulls took a few percent off every
+    metre driven)."""
     rows, cols = occ.shape
     index = np.full((rows, cols), -1, np.int32)
     n = 0
@@ -220,7 +228,7 @@ def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y
             if occ[r, c]:
                 index[r, c] = n
                 n += 1
-    seg = np.empty((n, 6))
+    seg = np.zeros((n, 8))
     for r in range(rows):
         for c in range(cols):
             i = index[r, c]
@@ -272,6 +280,17 @@ def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y
             seg[i, 3] = uy
             seg[i, 4] = t0
             seg[i, 5] = t1
+            if ux != 0.0 or uy != 0.0:
+                for end in range(2):
+                    t = t0 if end == 0 else t1
+                    sign = -1.0 if end == 0 else 1.0
+                    for beyond in (0.5, 1.5):
+                        bx = seg[i, 0] + (t + sign * beyond) * ux
+                        by = seg[i, 1] + (t + sign * beyond) * uy
+                        bc = math.floor(bx)
+                        br = math.floor(by)
+                        if 0 <= br < rows and 0 <= bc < cols and not occ[br, bc] and not known[br, bc]:
+                            seg[i, 6 + end] = 1.0
     return index, seg
 
 
@@ -300,7 +319,8 @@ def wall_offset(hits: HitSegments, gx: float, gy: float, reach: int
     # rings of cells around (r0, c0), nearest first: a cell k rings out is at least k - 1 - OVERLAP cells away,
     # so once that exceeds the best distance no farther cell can win (the result is the row-order scan's)
     for k in range(reach + 1):
-        if k >= 2 and (k - 1 - OVERLAP) * (k - 1 - OVERLAP) > best:
+        near = k - 1 - OVERLAP - OPEN_REACH     # the least distance of a segment of a cell k rings out
+        if near > 0 and near * near > best:
             break
         for r in range(max(r0 - k, 0), min(r0 + k + 1, rows)):
             edge = r == r0 - k or r == r0 + k
@@ -316,8 +336,10 @@ def wall_offset(hits: HitSegments, gx: float, gy: float, reach: int
                 ux = seg[i, 2]
                 uy = seg[i, 3]
                 t = dx * ux + dy * uy
-                inside = seg[i, 4] < t < seg[i, 5]
-                t = min(max(t, seg[i, 4]), seg[i, 5])
+                lo = seg[i, 4] - OPEN_REACH * seg[i, 6]
+                hi = seg[i, 5] + OPEN_REACH * seg[i, 7]
+                inside = lo < t < hi
+                t = min(max(t, lo), hi)
                 dx -= t * ux
                 dy -= t * uy
                 q = dx * dx + dy * dy
@@ -669,7 +691,7 @@ def warm() -> None:
     refine(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0, 2, 0.0, 0.0, 0.0, 1.0, 1.0)
     objective(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
     mean_field(f, 0.0, 0.0, 0.05, px, py, 0.0, 0.0, 0.0)
-    hits = hit_points(occ, off, off)
+    hits = hit_points(occ, off, off, np.ones((8, 8), np.bool_))
     refine_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 2, 0.0, 0.0, 0.0, 1.0, 1.0)
     objective_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
     mean_hits(hits, 0.0, 0.0, 0.05, 0.05, 3, px, py, 0.0, 0.0, 0.0)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.localization.kernels import DAMPING, LINE_RATIO, OVERLAP, RETRIES, HitSegments
+from robotexp.localization.kernels import DAMPING, LINE_RATIO, OPEN_REACH, OVERLAP, RETRIES, HitSegments
 from robotexp.localization.posegraph import Edge, _wrap, check_edges
 
 __all__ = ["splat_field_ref", "pool_max_ref", "search_ref", "bilinear_ref", "refine_ref", "hit_points_ref",
@@ -148,12 +148,13 @@ def refine_ref(field: npt.NDArray[np.float64], ox: float, oy: float, cell: float
     return x, y, th, mean, h
 
 
-def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32]
-                   ) -> HitSegments:
+def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],
+                   known: npt.NDArray[np.bool_]) -> HitSegments:
     """Hit points as arrays; each cell's direction from np.linalg.eigh of its 3 x 3 block's scatter, its
-    segment from the line's crossings of the cell's four sides; then the occupied cells in row order."""
+    segment from the line's crossings of the cell's four sides, each end open where a cell 0.5 or 1.5 cells
+    beyond it along the line is in the grid, free and never seen; then the occupied cells in row order."""
     rows, cols = occ.shape
-    out = np.full((6, rows, cols), np.nan)
+    out = np.full((8, rows, cols), np.nan)
     rr, cc = np.nonzero(occ)
     out[0, rr, cc] = cc + 0.5 + off_x[rr, cc].astype(np.float64)
     out[1, rr, cc] = rr + 0.5 + off_y[rr, cc].astype(np.float64)
@@ -175,6 +176,12 @@ def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], o
                 span = np.array([a.max(), b.min()])
         out[2, r, c], out[3, r, c] = u
         out[4, r, c], out[5, r, c] = span
+        for end, (t, sign) in enumerate(((span[0], -1.0), (span[1], 1.0))):
+            beyond = [np.floor(np.array([out[0, r, c], out[1, r, c]]) + (t + sign * d) * u).astype(int)
+                      for d in (0.5, 1.5)]
+            out[6 + end, r, c] = float(u.any() and any(0 <= b[1] < rows and 0 <= b[0] < cols
+                                                       and not occ[b[1], b[0]] and not known[b[1], b[0]]
+                                                       for b in beyond))
     index = np.full((rows, cols), -1, np.int32)
     index[rr, cc] = np.arange(len(rr), dtype=np.int32)          # np.nonzero: row order
     return index, np.ascontiguousarray(out[:, rr, cc].T)
@@ -196,7 +203,8 @@ def wall_offset_ref(hits: HitSegments, gx: npt.NDArray[np.float64], gy: npt.NDAr
     rc, cc = np.clip(r, 0, rows - 1), np.clip(c, 0, cols - 1)
     idx = index[rc, cc]
     ok &= idx >= 0
-    hx, hy, ux, uy, t0, t1 = (seg[np.maximum(idx, 0), k] for k in range(6))
+    hx, hy, ux, uy, t0, t1, open0, open1 = (seg[np.maximum(idx, 0), k] for k in range(8))
+    t0, t1 = t0 - OPEN_REACH * open0, t1 + OPEN_REACH * open1
     dx, dy = gx[:, None] - hx, gy[:, None] - hy
     t = dx * ux + dy * uy
     interior = (t0 < t) & (t < t1)

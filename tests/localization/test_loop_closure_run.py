@@ -37,7 +37,10 @@ def test_the_runs_map_is_rebuilt_from_every_scan_at_the_corrected_keyframes() ->
     grid = OccupancyGrid(geo, range_max=4.0)
     told = Told()
     with RingRobot(truth, odom) as inner:
-        robot = LocalizedRobot(inner, GridGeometry.covering(-1, -1, 11, 11, 0.05), range_max=4.0, loop_closure=True)
+        # without skip_unseen the matches drift round the ring (the ends of the walls mapped so far pull the scans
+        # back along them), and loop closure has a correction to make when the ring closes
+        robot = LocalizedRobot(inner, GridGeometry.covering(-1, -1, 11, 11, 0.05), range_max=4.0, loop_closure=True,
+                               skip_unseen=False)
         tracker = LoopClosureTracker("slam", "test", robot)
         run = SimpleNamespace(grid=grid, explorer=told, info=SimpleNamespace(extra={}), state=None)
         for k in range(len(truth)):
