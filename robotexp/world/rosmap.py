@@ -34,7 +34,6 @@ log = logging.getLogger(__name__)
 
 _REQUIRED = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 _MODES = ("trinary", "scale", "raw")
-_KEY = re.compile(r"([A-Za-z_][\w.-]*)[ \t]*:(?:[ \t]+(.*))?$")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _PLAIN_NAME = re.compile(r"[\w./-]+", re.ASCII)
 _FREE, _UNKNOWN, _OCCUPIED = 254, 205, 0     # ROS 1 map_saver pixel values
@@ -280,73 +279,52 @@ def _read_text(path: Path, src: str) -> str:
 
 
 def _parse_yaml(text: str, src: str) -> dict[str, _Entry]:
-    """The top-level `key: value` pairs of a map YAML (values: scalars or lists of scalars)."""
+    """The top-level `key: value` pairs of a map YAML (values: scalars or lists of scalars), read by PyYAML's
+    composer as map_server's YAML reader would read them (block or flow style, quotes, comments, anchors),
+    each with its line. Nested mappings under keys robotexp does not read are left out."""
+    import yaml  # type: ignore[import-untyped]  # PyYAML: a dependency (map YAML files)
+
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.context_mark or exc.problem_mark
+        where = f"{src}:{mark.line + 1}" if mark is not None else src
+        what = " ".join(part for part in (exc.context, exc.problem) if part)
+        raise WorldError(f"{where}: not valid YAML ({what}), expected 'key: value' lines") from None
+    except yaml.YAMLError as exc:
+        raise WorldError(f"{src}: not valid YAML ({exc}), expected 'key: value' lines") from None
+    if root is None:
+        return {}
+    if not isinstance(root, yaml.MappingNode):
+        raise WorldError(f"{src}:{root.start_mark.line + 1}: {_node_text(root)!r} is not a mapping, expected "
+                         "'key: value' lines")
     entries: dict[str, _Entry] = {}
-    open_key: str | None = None             # a key with no inline value: a block may follow
-    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
-    for number, raw in enumerate(lines, start=1):
-        body = _strip_comment(raw).rstrip()
-        if not body.strip() or body.strip() in ("---", "..."):
-            continue
-        if body[0] in " \t-":
-            item = body.strip()
-            if open_key is None:
-                raise WorldError(f"{src}:{number}: indented line {item[:40]!r} outside any key, "
-                                 "expected 'key: value' lines")
-            entry = entries[open_key]
-            if item.startswith("- ") or item == "-":
-                items = entry.value if isinstance(entry.value, list) else []
-                entries[open_key] = _Entry(items + [_unquote(item[1:].strip(), src, number)],
-                                           entry.line)
-            # else: a nested mapping under a key map_server does not read; skipped
-            continue
-        match = _KEY.match(body)
-        if not match:
-            raise WorldError(f"{src}:{number}: cannot parse {body.strip()[:40]!r}, expected a "
-                             "'key: value' line")
-        key, value = match.group(1), (match.group(2) or "").strip()
+    for key_node, node in root.value:
+        number = key_node.start_mark.line + 1
+        if not isinstance(key_node, yaml.ScalarNode):
+            raise WorldError(f"{src}:{number}: a key that is not a name, expected 'key: value' lines")
+        key = key_node.value
         if key in entries:
-            raise WorldError(f"{src}:{number}: key {key!r} repeated (first on line "
-                             f"{entries[key].line}), expected each key once")
-        if value.startswith("["):
-            if not value.endswith("]"):
-                raise WorldError(f"{src}:{number}: key {key!r}: unclosed list {value[:40]!r}, "
-                                 "expected '[a, b, c]' on one line")
-            inner = value[1:-1].strip()
-            parts = [_unquote(p.strip(), src, number) for p in inner.split(",")] if inner else []
-            entries[key] = _Entry(parts, number)
-        else:
-            entries[key] = _Entry(_unquote(value, src, number), number)
-        open_key = key if not value else None
+            raise WorldError(f"{src}:{number}: key {key!r} repeated (first on line {entries[key].line}), "
+                             "expected each key once")
+        if isinstance(node, yaml.ScalarNode):
+            entries[key] = _Entry(node.value, number)
+        elif isinstance(node, yaml.SequenceNode) and all(isinstance(n, yaml.ScalarNode) for n in node.value):
+            entries[key] = _Entry([n.value for n in node.value], number)
+        elif key in _REQUIRED or key == "mode":
+            raise WorldError(f"{src}:{number}: key {key!r}: {_node_text(node)!r} is not a value or a list of "
+                             "values")
+        # else: a nested mapping under a key map_server does not read; left out
     return entries
 
 
-def _strip_comment(line: str) -> str:
-    """`line` without a `#` comment (one at the start or after a blank, outside quotes)."""
-    quote = ""
-    for i, ch in enumerate(line):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "\"'" and (i == 0 or line[i - 1] in " \t[,:"):
-            quote = ch
-        elif ch == "#" and (i == 0 or line[i - 1] in " \t"):
-            return line[:i]
-    return line
-
-
-def _unquote(text: str, src: str, number: int) -> str:
-    """A scalar without its quotes; escaped quotes and backslashes are unescaped."""
-    if len(text) >= 1 and text[0] in "\"'":
-        quote = text[0]
-        if len(text) < 2 or text[-1] != quote:
-            raise WorldError(f"{src}:{number}: unclosed quote in {text[:40]!r}, expected a "
-                             f"string ending with {quote}")
-        inner = text[1:-1]
-        if quote == "'":
-            return inner.replace("''", "'")
-        return inner.replace('\\"', '"').replace("\\\\", "\\")
-    return text
+def _node_text(node: object) -> str:
+    """A short text of a YAML node for a message."""
+    mark = getattr(node, "start_mark", None)
+    end = getattr(node, "end_mark", None)
+    if mark is not None and end is not None and mark.buffer is not None:
+        return str(mark.buffer[mark.index:end.index])[:40]
+    return str(getattr(node, "value", ""))[:40]
 
 
 def _scalar(entry: _Entry, key: str, src: str) -> str:

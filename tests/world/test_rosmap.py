@@ -149,7 +149,7 @@ def test_crlf_yaml(tmp_path):
     (yaml_text(origin="1.0"), 3, "key 'origin'"),
     (yaml_text(origin="[1.0, x, 0]"), 3, "key 'origin': bad number 'x'"),
     (yaml_text(origin="[0, 0, 0.5]"), 3, "yaw 0.5 is not supported"),
-    (yaml_text(origin="[0, 0, 0"), 3, "unclosed list"),
+    (yaml_text(origin="[0, 0, 0"), 3, "not valid YAML (while parsing a flow sequence"),
     (yaml_text(negate="2"), 4, "key 'negate'"),
     (yaml_text(occupied="1.5"), 5, "key 'occupied_thresh': 1.5 is outside [0, 1]"),
     (yaml_text(free="-0.1"), 6, "key 'free_thresh': -0.1 is outside [0, 1]"),
@@ -158,10 +158,12 @@ def test_crlf_yaml(tmp_path):
     (yaml_text(mode="fancy"), 7, "key 'mode': unknown mode 'fancy'"),
     (yaml_text("nothere.pgm"), 1, "key 'image': image"),
     (yaml_text("''"), 1, "key 'image' is empty"),
-    (yaml_text('"map.pgm'), 1, "unclosed quote"),
+    (yaml_text('"map.pgm'), 1, "while scanning a quoted scalar"),
     (yaml_text() + "resolution: 0.1\n", 8, "key 'resolution' repeated (first on line 2)"),
-    (yaml_text() + "just words\n", 8, "cannot parse 'just words'"),
-    ("  indented: 1\n" + yaml_text(), 1, "indented line"),
+    (yaml_text() + "just words\n", 8, "could not find expected ':'"),
+    ("  indented: 1\n" + yaml_text(), 2, "not valid YAML"),
+    (yaml_text().replace("negate: 0", "negate: {a: 1}"), 4, "key 'negate': '{a: 1}' is not a value"),
+    ("- image\n- map.pgm\n", 1, "is not a mapping"),
     (yaml_text().replace("image: map.pgm", "image: [a, b]"), 1, "key 'image' is a list"),
 ])
 def test_bad_yaml_names_file_line_and_key(tmp_path, yaml, line, fragment):
@@ -172,6 +174,24 @@ def test_bad_yaml_names_file_line_and_key(tmp_path, yaml, line, fragment):
     prefix = f"{path}:{line}: " if line is not None else f"{path}: "
     assert message.startswith(prefix), message
     assert fragment in message, message
+
+
+def test_flow_style_and_nested_keys_read_as_map_server_reads_them(tmp_path):
+    """The same map in YAML's flow style, with comments, quotes, a block list and a nested mapping under a key
+    map_server does not read: the same grid and geometry as the plain block-style file."""
+    block = write_map(tmp_path, pgm_p5(PIXELS), yaml_text())
+    plain = load_ros_grid(block)
+    flow = tmp_path / "flow.yaml"
+    flow.write_text("# a map in flow style\n{image: 'map.pgm', resolution: 0.05, origin: [-1.5, 2.25, 0.0],\n"
+                    " negate: 0, occupied_thresh: 0.65, free_thresh: 0.196, mode: trinary}\n")
+    listed = tmp_path / "listed.yaml"
+    listed.write_text('image: "map.pgm"\nresolution: 0.05\norigin:\n  - -1.5\n  - 2.25\n  - 0.0\nnegate: 0\n'
+                      "occupied_thresh: 0.65   # ROS defaults\nfree_thresh: 0.196\nmode: trinary\n"
+                      "extra:\n  made_by: someone\n  date: [2024, 1, 1]\n")
+    for path in (flow, listed):
+        values, geo = load_ros_grid(path)
+        np.testing.assert_array_equal(values, plain[0])
+        assert geo == plain[1]
 
 
 def test_unreadable_files(tmp_path):
