@@ -39,6 +39,7 @@ _PLAIN_NAME = re.compile(r"[\w./-]+", re.ASCII)
 _FREE, _UNKNOWN, _OCCUPIED = 254, 205, 0     # ROS 1 map_saver pixel values
 MIN_RESOLUTION = 1e-4       # [m/pixel] 0.1 mm: finer is a corrupted file
 MAX_COORD = 1e6             # [m] 1000 km: a map reaching farther is a corrupted file
+MAX_YAML_BYTES = 1 << 20    # a map YAML is a few lines; a larger file is not one
 
 
 @dataclass(frozen=True)
@@ -266,6 +267,9 @@ def _read_text(path: Path, src: str) -> str:
     except OSError as exc:
         raise WorldError(f"{src}: cannot read the map YAML ({exc.strerror or exc}), "
                          "expected a readable map_server .yaml file") from exc
+    if len(data) > MAX_YAML_BYTES:
+        raise WorldError(f"{src}: {len(data)} bytes, expected a map_server .yaml file of at most "
+                         f"{MAX_YAML_BYTES} bytes (a few lines of keys)")
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -293,6 +297,8 @@ def _parse_yaml(text: str, src: str) -> dict[str, _Entry]:
         raise WorldError(f"{where}: not valid YAML ({what}), expected 'key: value' lines") from None
     except yaml.YAMLError as exc:
         raise WorldError(f"{src}: not valid YAML ({exc}), expected 'key: value' lines") from None
+    except RecursionError:
+        raise WorldError(f"{src}: YAML nested too deeply, expected 'key: value' lines") from None
     if root is None:
         return {}
     if not isinstance(root, yaml.MappingNode):

@@ -194,6 +194,17 @@ def test_flow_style_and_nested_keys_read_as_map_server_reads_them(tmp_path):
         assert geo == plain[1]
 
 
+def test_hostile_yaml_is_one_line(tmp_path):
+    """Nesting deeper than Python's recursion and a file far larger than a map YAML: a WorldError each."""
+    path = tmp_path / "deep.yaml"
+    path.write_text("image: " + "[" * 20000 + "]" * 20000 + "\n")
+    with pytest.raises(WorldError, match="nested too deeply"):
+        load_ros_grid(path)
+    path.write_text(yaml_text() + "# padding\n" * 200_000)
+    with pytest.raises(WorldError, match="expected a map_server .yaml file of at most"):
+        load_ros_grid(path)
+
+
 def test_unreadable_files(tmp_path):
     with pytest.raises(WorldError, match="cannot read the map YAML"):
         load_ros_grid(tmp_path / "none.yaml")
