@@ -23,15 +23,22 @@ from robotexp_drivers.p3dx.robot import P3DXRobot
 
 
 def _drive(robot: P3DXRobot, seconds: float) -> None:
-    """An arc, then a stop held until the robot stands (robot time, from the robot's own states)."""
+    """An arc, then a stop held until the robot stands: at least 1 s of robot time, and its reported velocity
+    zero for 0.5 s of it (robot time, from the robot's own states; a busy host delays the stop's packets)."""
     t0 = robot.read().time
     while robot.read().time - t0 < seconds:
         robot.command(Twist(0.3, 0.15))
         time.sleep(0.02)
-    t1 = robot.read().time
-    while robot.read().time - t1 < 1.0:
+    t1 = still = robot.read().time
+    while True:
         robot.command(Twist.ZERO)
         time.sleep(0.02)
+        state = robot.read()
+        if abs(state.velocity.v) > 1e-4 or abs(state.velocity.w) > 1e-4:
+            still = state.time
+        if state.time - t1 >= 1.0 and state.time - still >= 0.5:
+            return
+        assert state.time - t1 < 20.0, "the robot did not stop within 20 s of robot time"
 
 
 def _gap(a: Pose, b: Pose) -> float:
