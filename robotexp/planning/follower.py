@@ -36,6 +36,9 @@ __all__ = ["GRAIN", "PathFollower", "FollowerConfig", "ScanMemory", "blocked_ahe
 
 REACTION = 0.2          # [s] of motion at the commanded speed added to the stopping distance the guard checks
 SWEEP_STEP = 0.02       # [m] between the disc positions the guard checks along the arc
+GRAZE = 0.005           # [m] a return within reach that the swept disc comes at most this much nearer to is one the
+                        # robot slides along (beside it, not ahead): it does not block ...
+MIN_GAP = 0.002         # [m] ... unless the disc would come within this of touching it
 TIGHT_TURN_RATE = 1.0   # [rad/s] a rectangle's fastest turn where the laser shows little room
 BACK_OUT = 0.1          # [m] a rectangle backs out of a tight place only over ground it just drove straight in on
 GRAIN = 0.02            # [m] the recent returns a rectangle's guard checks are kept one per square this wide
@@ -102,9 +105,11 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
 
     The disc is swept along the command's arc for the stopping distance speed^2 / (2 `a_max`) plus
     `REACTION` s at `speed` plus `clearance`; a return counts when some position on that arc is nearer
-    than radius + clearance and nearer than the disc's centre is now (a wall the robot slides along, or
-    moves away from, does not stop it). Not moving forward never blocks a disc. A rectangular
-    `footprint` is swept instead, heading included, so turning in place (stopping angle
+    than radius + clearance and more than `GRAZE` nearer than the disc's centre is now, or within `MIN_GAP`
+    of the disc (a wall the robot slides along, or moves away from, does not stop it: a return a few
+    degrees ahead of the robot's side, already within radius + clearance, comes a millimetre nearer as the
+    robot drives on, and stopping for it left a robot standing for good). Not moving forward never blocks a
+    disc. A rectangular `footprint` is swept instead, heading included, so turning in place (stopping angle
     turn^2 / (2 `alpha_max`) plus `REACTION` s of turn) can block too.
     """
     if scan is None:
@@ -229,7 +234,7 @@ def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64],
     else:
         cx, cy = np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k
     d = np.hypot(pts[:, None, 0] - cx[None, :], pts[:, None, 1] - cy[None, :])
-    return bool(((d < reach) & (d < d0[:, None] - 1e-4)).any())
+    return bool(((d < reach) & ((d < d0[:, None] - GRAZE) | (d < radius + MIN_GAP))).any())
 
 
 def map_points(grid: OccupancyGrid, x: float, y: float, reach: float) -> npt.NDArray[np.float64]:
