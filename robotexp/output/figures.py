@@ -214,14 +214,17 @@ def _vector_layer(ax: Axes, vectors: npt.ArrayLike, geo: GridGeometry, free: npt
 
 def _scale_bar(ax: Axes, width: float, height: float) -> None:
     """A 1-2-5 scale bar near a tenth of the view's `width` [m], above the map's upper right corner (the title
-    is left-aligned), so it never hides a part of the map."""
+    is left-aligned), or beside it when the map was narrowed to fit, so it never hides a part of the map."""
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar   # untyped: Any ([tool.mypy] overrides)
 
     length = _nice_length(width / 2)
-    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "lower right", pad=0.1, borderpad=0.2,
-                                  color="black", frameon=False, size_vertical=height / 120, label_top=True,
-                                  bbox_to_anchor=(1.0, 1.0), bbox_transform=ax.transAxes,
-                                  fontproperties={"size": FONT_SIZE}))
+    # a map narrowed to fit the figure's height leaves room on its right, and its title runs past the axes'
+    # right edge: the bar goes beside the map's upper right corner instead of above it
+    beside = ax.get_position().x1 < 0.8
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, f"{length:g} m", "upper left" if beside else "lower right",
+                                  pad=0.1, borderpad=0.2, color="black", frameon=False, size_vertical=height / 120,
+                                  label_top=True, bbox_to_anchor=(1.02, 1.0) if beside else (1.0, 1.0),
+                                  bbox_transform=ax.transAxes, fontproperties={"size": FONT_SIZE}))
 
 
 def _map_axes(figure: Any, width: float, aspect: float, *, legend_rows: int, colour_bar: bool
