@@ -39,8 +39,9 @@ __all__ = ["kernel", "mean_field", "objective", "splat_field", "pool_max", "sear
 
 kernel = numba.njit(cache=True, nogil=True)
 
-# `hit_points`: (index of the occupied cells (rows, cols) int32, their wall segments (n, 8) float64)
-HitSegments = tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]
+# `hit_points`: (index of the occupied cells (rows, cols) int32, their wall segments (n, 8) float64, how far [cells]
+# the open ends carry a segment on: OPEN_REACH when some end is open, else 0)
+HitSegments = tuple[npt.NDArray[np.int32], npt.NDArray[np.float64], float]
 
 DAMPING = 1e-4     # added to the normal matrix's diagonal, times its trace (the least Levenberg-Marquardt damping)
 RETRIES = 4        # tries of a step with ten times more damping each before Gauss-Newton stops
@@ -202,10 +203,11 @@ def _clip(h: float, u: float, lo: float, hi: float) -> tuple[float, float]:
 
 @kernel
 def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y: npt.NDArray[np.float32],  # noqa: C901
-               known: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64]]:
+               known: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.int32], npt.NDArray[np.float64], float]:
     """The hit point of every occupied cell in grid coordinates [cells] (cell (r, c) spans [c, c + 1) in x)
-    and the wall segment through it, as (index, segments): index (rows, cols) int32 numbers the occupied
-    cells in row order (-1 elsewhere), segments (n, 8) holds each one's x, y, ux, uy, t0, t1, open0, open1.
+    and the wall segment through it, as (index, segments, reach): index (rows, cols) int32 numbers the occupied
+    cells in row order (-1 elsewhere), segments (n, 8) holds each one's x, y, ux, uy, t0, t1, open0, open1, and
+    reach is OPEN_REACH when some end is open, else 0 (`wall_offset`'s search stops the sooner).
 
     The segment is the points (x, y) + t (ux, uy), t0 <= t <= t1: the line through the hit point clipped
     to the cell (OVERLAP wider), so that the segments of a wall's cells join up with neither gap nor
@@ -229,6 +231,7 @@ def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y
                 index[r, c] = n
                 n += 1
     seg = np.zeros((n, 8))
+    ext = 0.0
     for r in range(rows):
         for c in range(cols):
             i = index[r, c]
@@ -291,7 +294,8 @@ def hit_points(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], off_y
                         br = math.floor(by)
                         if 0 <= br < rows and 0 <= bc < cols and not occ[br, bc] and not known[br, bc]:
                             seg[i, 6 + end] = 1.0
-    return index, seg
+                            ext = OPEN_REACH
+    return index, seg, ext
 
 
 @kernel
@@ -307,7 +311,7 @@ def wall_offset(hits: HitSegments, gx: float, gy: float, reach: int
         the segment's direction where that point lies inside it ((0, 0) at an end or a lone point: the
         offset then moves with (gx, gy) in both directions). Ties go to the first cell in row order.
     """
-    index, seg = hits
+    index, seg, ext = hits
     rows, cols = index.shape
     c0 = math.floor(gx)
     r0 = math.floor(gy)
@@ -317,10 +321,11 @@ def wall_offset(hits: HitSegments, gx: float, gy: float, reach: int
     bx = by = bux = buy = 0.0
     br = bc = -1
     # rings of cells around (r0, c0), nearest first: a cell k rings out is at least k - 1 - OVERLAP cells away,
-    # so once that exceeds the best distance no farther cell can win (the result is the row-order scan's)
+    # less the open ends' reach `ext`, so once that exceeds the best distance no farther cell can win (the result
+    # is the row-order scan's)
     for k in range(reach + 1):
-        near = k - 1 - OVERLAP - OPEN_REACH     # the least distance of a segment of a cell k rings out
-        if near > 0 and near * near > best:
+        near = k - 1 - OVERLAP - ext     # the least distance of a segment of a cell k rings out
+        if k >= 2 and near > 0 and near * near > best:
             break
         for r in range(max(r0 - k, 0), min(r0 + k + 1, rows)):
             edge = r == r0 - k or r == r0 + k

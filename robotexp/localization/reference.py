@@ -184,14 +184,15 @@ def hit_points_ref(occ: npt.NDArray[np.bool_], off_x: npt.NDArray[np.float32], o
                                                        for b in beyond))
     index = np.full((rows, cols), -1, np.int32)
     index[rr, cc] = np.arange(len(rr), dtype=np.int32)          # np.nonzero: row order
-    return index, np.ascontiguousarray(out[:, rr, cc].T)
+    seg = np.ascontiguousarray(out[:, rr, cc].T)
+    return index, seg, OPEN_REACH if (seg[:, 6:] > 0).any() else 0.0
 
 
 def wall_offset_ref(hits: HitSegments, gx: npt.NDArray[np.float64], gy: npt.NDArray[np.float64],
                     reach: int) -> tuple[npt.NDArray[np.float64], ...]:
     """`wall_offset` at arrays of grid coordinates: every cell of the neighbourhood at once, the first nearest."""
     gx, gy = np.asarray(gx, np.float64), np.asarray(gy, np.float64)
-    index, seg = hits
+    index, seg, _ = hits
     rows, cols = index.shape
     c0, r0 = np.floor(gx).astype(np.int64), np.floor(gy).astype(np.int64)
     inside = (c0 >= 0) & (r0 >= 0) & (c0 < cols) & (r0 < rows)

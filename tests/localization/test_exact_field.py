@@ -58,7 +58,8 @@ def test_hit_points_and_wall_offsets_match_numpy() -> None:
     occ, off_x, off_y = occ_and_offsets()
     known = np.random.default_rng(5).uniform(size=occ.shape) < 0.6      # 40 % of the cells never seen
     hits = K.hit_points(occ, off_x, off_y, known)
-    (index, got), (ref_index, ref) = hits, hit_points_ref(occ, off_x, off_y, known)
+    (index, got, ext), (ref_index, ref, ref_ext) = hits, hit_points_ref(occ, off_x, off_y, known)
+    assert ext == ref_ext == K.OPEN_REACH
     assert np.array_equal(index, ref_index) and np.array_equal(index >= 0, occ) and len(got) == occ.sum()
     assert np.allclose(got[:, :2], ref[:, :2], atol=1e-12)
     # directions: the same line (an eigenvector's sign is free: the segment's ends then swap sign)
