@@ -78,7 +78,8 @@ class MetaheuristicExplorer(Explorer):
             8-connected group of usable frontier cells has at least this many cells: an opening as
             wide as the robot, such as a 0.9 m door into an unseen room (14-16 usable cells at 5 cm,
             the cells beside the frame being wall faces) or the corridor behind a robot whose laser
-            never looked back. None: the robot's diameter in the run's cells; 0: Santos's rule alone.
+            never looked back; the targets are then chosen among such groups' cells alone. None: the robot's
+            diameter in the run's cells; 0: Santos's rule alone.
         replan_period: [s] robot time between path refreshes.
         goal_timeout: [s] without progress before a target's frontier is given up on.
         clearance: [m] width of the danger zone beyond the robot radius (A* costs).
@@ -238,21 +239,22 @@ class MetaheuristicExplorer(Explorer):
                 self.visited[r, c] = True
         self.last_xy = (pose.x, pose.y)
 
-    def _opening_left(self, frontier: npt.NDArray[np.bool_], cell: float,
-                      wide: npt.NDArray[np.bool_] | None = None) -> bool:
-        """True when an 8-connected group of the usable `frontier` has at least `min_opening` cells
-        (None: the robot's diameter in cells of `cell` [m]; 0: never). With `wide` (the frontier before
+    def _openings(self, frontier: npt.NDArray[np.bool_], cell: float,
+                  wide: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+        """The cells of the usable `frontier` in an 8-connected group of at least `min_opening` cells (None:
+        the robot's diameter in cells of `cell` [m]; 0: never, an empty mask). With `wide` (the frontier before
         the `face_reach` test of what lies beyond it, a superset of `frontier`), a group of `wide` that
         holds a cell of `frontier` is measured: a door's frontier spans its width, while the unknown
         beyond it lies far enough from the frame only in its middle."""
         need = self.min_opening if self.min_opening is not None else int(math.ceil(2 * self.ctx.radius / cell))
         if need <= 0 or not frontier.any():
-            return False
+            return np.zeros_like(frontier)
         labels, n = label8(np.ascontiguousarray(frontier if wide is None else wide))
         sizes = np.bincount(labels.ravel(), minlength=n + 1)
         if wide is not None:
             sizes[np.setdiff1d(np.arange(n + 1), labels[frontier])] = 0
-        return bool(sizes[1:].max() >= need)
+        sizes[0] = 0
+        return frontier & (sizes >= need)[labels]
 
     def _reach_cells(self, grid: OccupancyGrid) -> float:
         return 3.0 * self.params.sigma_f * SANTOS_CELL / grid.geo.cell + 1.0
@@ -273,7 +275,7 @@ class MetaheuristicExplorer(Explorer):
                   reach: float) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """FRONTIER on the window `view` of `grid` from `off`: `usable_frontier` without the cells given up
         on and, with `face_reach`, without wall faces and the insides of walls (`wall_face_cells`); and
-        the same before the test of the unknown beyond (`_opening_left` measures openings on it)."""
+        the same before the test of the unknown beyond (`_openings` measures openings on it)."""
         if self.blacklist.shape != grid.shape:
             self.blacklist = np.zeros(grid.shape, dtype=bool)
         rows, cols = view.shape
@@ -330,8 +332,14 @@ class MetaheuristicExplorer(Explorer):
         window = (slice(off[0], off[0] + wr), slice(off[1], off[1] + wc))
         frontier, wide = self._frontier(grid, view, off, reachable, reach)
         self.frontier_left = int(np.count_nonzero(frontier))
-        if self.frontier_left < self.min_frontier and not self._opening_left(frontier, geo.cell, wide):
-            return self.last_look and self._look_last(pose, grid, (view, off), wide, cost, start, now)
+        if self.frontier_left < self.min_frontier:
+            # below c the run goes on for the openings alone: the search runs on them, not on the specks
+            # beside them (each a trip that resolves a cell or two: on a large floor the trips from speck
+            # to speck added no space for three stall windows while a door was left)
+            openings = self._openings(frontier, geo.cell, wide)
+            if not openings.any():
+                return self.last_look and self._look_last(pose, grid, (view, off), wide, cost, start, now)
+            frontier = openings
         frontier = self._assigned_part(frontier, off)
         target = None if self.target is None else (self.target[0] - off[0], self.target[1] - off[1])
         if (target is not None and not self.follower.done and 0 <= target[0] < wr and 0 <= target[1] < wc

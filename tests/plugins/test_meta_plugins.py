@@ -244,6 +244,23 @@ def test_a_door_as_wide_as_the_robot_is_a_target_below_min_frontier(min_opening:
         assert isinstance(done, Done) and done.reason == "fewer than 20 usable frontier cells left"
 
 
+def test_below_min_frontier_the_target_is_the_opening_not_a_speck() -> None:
+    # Below c the run goes on for the door alone, so the door is the target: two specks of unknown in the
+    # room, 1 m from the robot (4 usable cells each), are nearer than the door (10 usable cells, 2.5 m)
+    # and over all 18 cells the objective takes a speck (on a large floor such trips, a cell or two each,
+    # went on for three stall windows while a door was left)
+    grid = door_grid()
+    for r, c in ((30, 40), (50, 40)):
+        grid.values[r, c] = 0.0
+    ex = ExhaustiveExplorer(face_reach=0.25, last_look=False)
+    ex.reset(ExplorerContext(radius=0.25, limits=Limits(0.5, 1.0), period=0.1, start=Pose(1.0, 2.0, 0.0),
+                             laser_range=RANGE, rng=np.random.default_rng(0)))
+    ex.step(RobotState(0.0, Pose(1.0, 2.0, 0.0), Twist.ZERO), grid)
+    assert ex.frontier_left == 18
+    assert ex.target is not None and 60 <= ex.target[1] <= 70 and 40 <= ex.target[0] < 58
+    assert len(ex.target_cells) and (ex.target_cells[:, 1] == 70).all()
+
+
 def test_last_look_at_frontier_the_robot_never_came_near() -> None:
     # Santos's rule ends below 20 usable cells (the door: 16, with min_opening 0); with `last_look` the
     # robot first drives to within a radius and 1.5 cells of the door's frontier (column 70, 2.5 m from
