@@ -4,7 +4,11 @@
 [m^2] of newly known space for `window` seconds of robot time, that is a strike: the explorer is
 asked to give up its current target (`Explorer.give_up(grid)`, which blacklists it; an explorer
 without targets has nothing to give up) and the window starts again; a gain clears the strikes.
-After `strikes` strikes in a row the run ends as stalled (`completed` false). The window grows with
+After `strikes` strikes in a row the run ends as stalled (`completed` false). A window in which the
+explorer's own count of the frontier it has left (an int attribute `frontier_left`, when it has one)
+fell below its lowest since the last gain is no strike either: looking at the last specks of frontier
+across a large floor resolves them a few cells a trip and maps less than `min_gain`, and the count
+can fall only so often before the explorer's own end. The window grows with
 the map, so that a long transit across a large building to a far frontier is not taken for a stall:
 by default the time to drive `TRANSIT_FACTOR` times round the map's half perimeter at the robot's
 top speed, within `MIN_WINDOW`..`MAX_WINDOW` (bounds stretched for a robot slower than `SLOW_SPEED`, so
@@ -160,6 +164,7 @@ class StallWatch:
         self.best = -1              # most known cells so far
         self.since = 0.0            # [s] robot time of the last gain (or strike)
         self._gain_cells = 1
+        self.least_left: int | None = None     # the explorer's lowest `frontier_left` since the last gain
 
     def start(self, grid: OccupancyGrid, v_max: float) -> None:
         """Size the window for `grid` and a robot of top speed `v_max` [m/s]; reset the counts."""
@@ -171,6 +176,7 @@ class StallWatch:
         self._gain_cells = max(1, int(math.ceil(self.min_gain / geo.cell ** 2)))
         self.strikes = self.given_up = 0
         self.best, self.since = -1, 0.0
+        self.least_left = None
 
     def sample(self, time: float, grid: OccupancyGrid, explorer: Any) -> str | None:
         """Account the map at robot time `time` [s]; at a strike ask `explorer.give_up(grid)`.
@@ -186,10 +192,17 @@ class StallWatch:
             # moves up a finite tree) gains nothing by design; the window starts when it is done
             self.since = time
             return None
+        left = getattr(explorer, "frontier_left", None)
+        left = left if isinstance(left, int) and not isinstance(left, bool) else None
         if known >= self.best + self._gain_cells or self.best < 0:
-            self.best, self.since, self.strikes = known, time, 0
+            self.best, self.since, self.strikes, self.least_left = known, time, 0, left
             return None
         if time - self.since < self.window:
+            return None
+        if left is not None and self.least_left is not None and left < self.least_left:
+            # the explorer resolved frontier to a new low: progress that maps too little to count as a
+            # gain, bounded (the count is a natural number and must fall each window)
+            self.least_left, self.since, self.strikes = left, time, 0
             return None
         self.strikes += 1
         self.since = time

@@ -178,3 +178,41 @@ def test_time_an_explorer_spends_backtracking_is_no_stall():
     explorer.backtracking = False  # type: ignore[attr-defined]
     assert watch.sample(68.9, grid, explorer) is None and watch.strikes == 0
     assert watch.sample(69.0, grid, explorer) is None and watch.strikes == 1
+
+
+def test_a_window_in_which_the_explorer_resolved_frontier_to_a_new_low_is_no_strike():
+    # the last specks of frontier on a large floor: each look resolves a few cells and maps less than the
+    # gain. A window whose end finds the explorer's `frontier_left` below its lowest since the last gain
+    # is no strike; one that does not (the same count, or a count back up) is
+    grid = room_grid(False)
+    watch, explorer = StallWatch(window=10.0), Giver(has_target=False)
+    explorer.frontier_left = 12  # type: ignore[attr-defined]
+    watch.start(grid, 0.3)
+    assert watch.sample(0.0, grid, explorer) is None and watch.least_left == 12
+    explorer.frontier_left = 9  # type: ignore[attr-defined]
+    assert watch.sample(10.0, grid, explorer) is None and watch.strikes == 0 and watch.least_left == 9
+    explorer.frontier_left = 11  # type: ignore[attr-defined]
+    assert watch.sample(20.0, grid, explorer) is None and watch.strikes == 1
+    explorer.frontier_left = 9  # type: ignore[attr-defined]
+    assert watch.sample(30.0, grid, explorer) is None and watch.strikes == 2     # no lower than 9
+    explorer.frontier_left = 4  # type: ignore[attr-defined]
+    assert watch.sample(40.0, grid, explorer) is None and watch.strikes == 0
+    # it ends: the count cannot fall forever
+    reasons = [watch.sample(float(t), grid, explorer) for t in (50, 60, 70)]
+    assert reasons[:2] == [None, None] and reasons[2] is not None and reasons[2].startswith("stalled")
+    # a gain sets the low to the count at the gain (new space brings new frontier)
+    watch.start(grid, 0.3)
+    assert watch.sample(0.0, grid, explorer) is None and watch.least_left == 4
+    more = np.zeros((GEO.rows, GEO.cols), dtype=bool)
+    more[52:58, 70:90] = True
+    grid.mark_free(more)
+    explorer.frontier_left = 30  # type: ignore[attr-defined]
+    assert watch.sample(5.0, grid, explorer) is None and watch.least_left == 30
+    explorer.frontier_left = 25  # type: ignore[attr-defined]
+    assert watch.sample(15.0, grid, explorer) is None and watch.strikes == 0
+    # an explorer without the count (or with something else in its place) is watched on space alone
+    other = Giver(has_target=False)
+    other.frontier_left = True  # type: ignore[attr-defined]
+    watch.start(grid, 0.3)
+    assert watch.sample(0.0, grid, other) is None and watch.least_left is None
+    assert watch.sample(10.0, grid, other) is None and watch.strikes == 1
