@@ -173,6 +173,7 @@ class SRTExplorer(Explorer):
                               f"got {settle_tolerance} and {detour_after}")
         self.max_nodes, self.stuck_timeout, self.failed_radius = max_nodes, stuck_timeout, failed_radius
         self.settle_tolerance, self.detour_after = settle_tolerance, detour_after
+        self.skip_back = False      # a variant's extension: back to the nearest ancestor with a candidate (`_skip_up`)
 
     name = "srt"
     arrive_tolerance = 0.3   # [m] a way back that stalls this close to its node counts as arrived
@@ -204,21 +205,28 @@ class SRTExplorer(Explorer):
         self._planned_move = False           # the move at hand drives the planner's path (`_drives_map_path`)
         self.passed = np.zeros((0, 0), dtype=bool)      # the cells the robot's centre has been in
         self._planned_nodes: set[int] = set()    # nodes reached on the planner's path from their parent
+        self._pending: tuple[int, tuple[float, float], bool] | None = None   # (node, its candidate, planned)
+        self._skipping = False               # the move at hand goes back past the parent (`_skip_up`)
+        self._rescue_from: int | None = None     # the node a rescue through the map is planned from (`_skip_up`)
+        self.skipped = 0                     # nodes passed on the way back without stopping
         self._begin_sense()
 
     def result_fields(self) -> dict[str, object]:
-        """`nodes`: the size of the tree; `backtracks`: moves back to a parent; `detours`: planned
-        detours on the way back; `abandoned`: candidates given up."""
+        """`nodes`: the size of the tree; `backtracks`: moves back up the tree; `detours`: planned
+        detours on the way back; `abandoned`: candidates given up; `skipped`: nodes passed on the way back
+        without stopping (`skip_back`)."""
         return {"nodes": len(self.tree), "backtracks": self.backtracks, "detours": self.detours,
-                "abandoned": self.abandoned}
+                "abandoned": self.abandoned, "skipped": self.skipped}
 
     @property
     def backtracking(self) -> bool:
-        """True while the robot drives back to a node of the tree (to the parent, or re-centres on its node
-        before leaving it): the run's stall watch (`robotexp.run.endings.StallWatch`) does not count this time,
-        in which SRT maps nothing by design. The way back is bounded (each move goes up the finite tree;
-        a move without progress is abandoned after `stuck_timeout`)."""
-        return self.phase is Phase.SETTLE or (self.phase in (Phase.TURN, Phase.MOVE) and self.target_node is not None)
+        """True while the robot drives back to a node of the tree (to the parent or an ancestor, or re-centres on
+        its node before leaving it) or across the map to a variant's rescue through the map: the run's stall
+        watch (`robotexp.run.endings.StallWatch`) does not count this time, in which SRT maps nothing by design.
+        Both are bounded (each move goes up the finite tree; each rescue through the map aims at frontier no
+        earlier one aimed at; a move without progress is abandoned after `stuck_timeout`)."""
+        moving = self.phase in (Phase.TURN, Phase.MOVE)
+        return self.phase is Phase.SETTLE or (moving and (self.target_node is not None or self._planned_move))
 
     def markers(self) -> dict[str, dict[str, object]]:
         """What the live view draws (robotexp.view): the tree's nodes and edges, each node's safe region
@@ -293,7 +301,7 @@ class SRTExplorer(Explorer):
         straight way: always for a rectangular robot (`_laser_rectangle`); for a move to a candidate that
         the tree's regions do not lead to (a variant's rescue through the map, `_planned_move`), the way
         back from it to its node, and the way back up to the parent from a node reached so."""
-        if self._laser_rectangle() or self._planned_move:
+        if self._laser_rectangle() or self._planned_move or self._skipping:
             return True
         current, back = self.current, self.target_node
         return (back is not None and current is not None and current in self._planned_nodes
@@ -363,7 +371,13 @@ class SRTExplorer(Explorer):
         instead (`rectangle_path`), which crosses a door square to it: its straight way may not fit."""
         assert self.target is not None
         if self._drives_map_path() and self._grid is not None:
-            path = self.rectangle_path(pose, self.target, self._grid)
+            # a way back past the parent: inside the union of the safe regions, the ways the tree drove
+            path = self.detour(pose, self.target, self._grid) if self._skipping else None
+            if path is None:
+                path = self.rectangle_path(pose, self.target, self._grid)
+            if path is None and self._skipping and self.current is not None:
+                self._back_to_parent()          # no way there on the map: up one node, as the thesis
+                return self._turn(pose, state)
             if path is not None:
                 self.follower.set_path(path)
                 self.phase = Phase.MOVE
@@ -419,6 +433,7 @@ class SRTExplorer(Explorer):
                     follower._index = index
         if self.phase is Phase.SENSE and self.tree.nodes:
             self._begin_sense()
+        self._pending = None        # the candidate found on the way back is looked for again on arrival
         self._best = math.inf
 
     def _add_node(self, pose: Pose, region: SafeRegion, grid: OccupancyGrid) -> None:
@@ -449,12 +464,15 @@ class SRTExplorer(Explorer):
             grid.mark_occupied(occ)
 
     def _choose(self, pose: Pose, state: RobotState) -> Twist | Done:
-        """Lines 7-19: a valid candidate, else back to the parent, else (root) done."""
+        """Lines 7-19: a valid candidate, else back to the parent (with `skip_back`, to the nearest ancestor
+        that has one), else (root) done."""
         assert self.current is not None
-        self._planned_move = False
-        cand = self._candidate(self.current)
-        if cand is not None and self._laser_rectangle():
-            cand = self._turnable_target(self.tree.nodes[self.current], cand)
+        pending, self._pending, self._skipping = self._pending, None, False
+        cand: tuple[float, float] | None
+        if pending is not None and pending[0] == self.current:     # found on the way back (`_skip_up`)
+            cand, self._planned_move = pending[1], pending[2]
+        else:
+            cand = self._node_candidate(self.current)
         if cand is not None:
             self.target, self.target_node = cand, None
         else:
@@ -463,16 +481,67 @@ class SRTExplorer(Explorer):
                 self.target, self.target_node = None, None
             else:
                 self.backtracks += 1
-                node = self.tree.nodes[parent]
-                self.target, self.target_node = (node.x, node.y), parent
+                up = self._skip_up(parent) if self.skip_back else parent
+                if self._pending is not None and self._pending[2]:
+                    # a candidate on the planner's path (srt-laser's map rescue at the root): driven to from
+                    # here on that path, as from its node, and the new node hangs from that node
+                    (_, cand, self._planned_move), self._pending = self._pending, None
+                    self.current, self.target, self.target_node = up, cand, None
+                else:
+                    node = self.tree.nodes[up]
+                    self.target, self.target_node = (node.x, node.y), up
+                    self._skipping = up != parent
         self._detoured = 0
         here = self.tree.nodes[self.current]
-        if math.hypot(here.x - pose.x, here.y - pose.y) > self.settle_tolerance:
+        straight = not (self._skipping or (self.skip_back and self._planned_move))
+        if straight and math.hypot(here.x - pose.x, here.y - pose.y) > self.settle_tolerance:
             self.phase = Phase.SETTLE
             self.settler.set_path(np.array([[pose.x, pose.y], [here.x, here.y]]))
             self._progress_t = state.time
             return self._settle(pose, state)
         return self._leave(pose, state)
+
+    def _node_candidate(self, index: int) -> tuple[float, float] | None:
+        """VALIDATE at node `index`: a candidate (for a rectangular robot on a laser map, where it can turn),
+        or None; `_planned_move` says whether the move to it drives the planner's path."""
+        self._planned_move = False
+        cand = self._candidate(index)
+        if cand is not None and self._laser_rectangle():
+            cand = self._turnable_target(self.tree.nodes[index], cand)
+        return cand
+
+    def _skip_up(self, parent: int) -> int:
+        """`skip_back` (an extension): the nearest of `parent` and its ancestors with a candidate (VALIDATE at
+        each, as the robot would on arriving there), else the root. The robot drives there on a path through
+        the union of the safe regions (`detour`) instead of up the tree edge by edge, turning and re-centring
+        at every node: those were two fifths of srt-laser's time on a large floor. The candidate found is
+        kept for the arrival."""
+        index = parent
+        self._rescue_from = self.current    # a rescue through the map: the nearest to the robot, not to its node
+        try:
+            while True:
+                cand = self._node_candidate(index)
+                if cand is not None:
+                    self._pending = (index, cand, self._planned_move)
+                    self._planned_move = False
+                    return index
+                up = self.tree.nodes[index].parent
+                if up is None:
+                    return index
+                self.skipped += 1
+                index = up
+        finally:
+            self._rescue_from = None
+
+    def _back_to_parent(self) -> None:
+        """A way back past the parent has no path: go back to the parent instead (what was found on the way
+        is found again there)."""
+        assert self.current is not None
+        parent = self.tree.nodes[self.current].parent
+        if parent is not None:
+            node = self.tree.nodes[parent]
+            self.target, self.target_node = (node.x, node.y), parent
+        self._pending, self._skipping = None, False
 
     def _leave(self, pose: Pose, state: RobotState) -> Twist | Done:
         """At the node: turn towards the target, or (no target) to the start heading at the root."""
@@ -522,6 +591,11 @@ class SRTExplorer(Explorer):
             self._detoured = 0
             self.current = self.target_node
             return self._choose(pose, state)
+        if self._skipping:                  # a way back past the parent that stalled: up one node instead
+            self._back_to_parent()
+            self.phase = Phase.TURN
+            self._best, self._progress_t = math.inf, state.time
+            return Twist.ZERO
         if self.target_node is not None or self.target is None:
             return Done(f"stuck on the way back to node {self.target_node} (no progress for "
                         f"{self.stuck_timeout:g} s; no detour through the safe regions)")

@@ -38,9 +38,10 @@ EXPECTED = {
     },
     # dense, srt-laser, to its end: the thesis's srt-laser (without the frontier rescue, an extension);
     # recorded again with the 2 cm margin and the new follower, as frontier above, and again (the map, not the
-    # path) when the sweeps' obstacle points stopped going into the map as walls
+    # path) when the sweeps' obstacle points stopped going into the map as walls; the thesis's way back too,
+    # node by node (`skip_back`, an extension)
     ("dense", "srt-laser", 4 * 3600.0): {
-        "params": {"frontier": False},
+        "params": {"frontier": False, "skip_back": False},
         "record": {"run": "dense_srt-laser_1_300mms_s0", "path_length_m": 256.6843, "robot_time_s": 1377.0,
                    "coverage": 0.995, "map_iou": 0.90309, "visited_cells": 1628, "collisions": 0, "nodes": 52,
                    "reason": "explored; back at the start", "completed": True,
