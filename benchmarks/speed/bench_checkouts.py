@@ -25,7 +25,10 @@ from perflog import Figure, record  # noqa: E402
 CHILD = """
 import json, sys, time
 from robotexp.experiment import run_experiment
-from robotexp.run.spec import RunSpec
+try:
+    from robotexp.run.spec import RunSpec
+except ImportError:     # a checkout from before the run package
+    from robotexp.experiment import RunSpec
 world, method, robot = sys.argv[1:4]
 run_experiment(RunSpec(world=world, method=method, robot=robot, max_time=5.0), None, image=False)
 t0 = time.process_time()
