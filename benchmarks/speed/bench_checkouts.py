@@ -81,7 +81,13 @@ def main() -> None:
                              Figure(f"{what}: CPU per robot-second after", per["after"], "ms")],
                title="A whole run in two checkouts (before and after a change)",
                parameters={"world": args.world, "method": args.method, "robot": args.robot, "repeats": args.repeats,
-                           "before": str(args.before), "after": str(args.after)})
+                           "before": _named(args.before), "after": _named(args.after)})
+
+
+def _named(tree: Path) -> str:
+    """`tree` with the commit it holds, when it is a git checkout (a temporary path alone names nothing)."""
+    done = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short=10", "HEAD"], capture_output=True, text=True)
+    return f"{tree} (commit {done.stdout.strip()})" if done.returncode == 0 and done.stdout.strip() else str(tree)
 
 
 if __name__ == "__main__":
