@@ -49,22 +49,27 @@ class PluginInfo:
     version: str
 
 
-_SCANS: dict[tuple[str, tuple[tuple[str, int], ...]], dict[str, PluginInfo]] = {}
+_SCANS: dict[tuple[tuple[str, int], ...], dict[str, dict[str, PluginInfo] | PluginError]] = {}
 
 
 def available(group: str) -> dict[str, PluginInfo]:
     """Every entry point of `group`, by name, sorted. Raises PluginError on a name in two
     distributions or a malformed name.
 
-    The scan (0.5 s: every installed distribution's metadata is parsed) is kept while sys.path and
-    the modification times of its folders are unchanged (an install adds a folder to one of them),
-    so a campaign worker making runs one after another scans once."""
-    key = (group, tuple((entry, _mtime_ns(entry)) for entry in sys.path))
-    found = _SCANS.get(key)
-    if found is None:
+    One scan (0.5 s: every installed distribution's metadata is parsed) finds the entry points of every
+    robotexp group; it is kept while sys.path and the modification times of its folders are unchanged (an
+    install adds a folder to one of them), so a campaign worker making runs one after another scans once,
+    and a run that asks for a second group later opens no file then (a live view's clients may hold all the
+    process may open)."""
+    key = tuple((entry, _mtime_ns(entry)) for entry in sys.path)
+    groups = _SCANS.get(key)
+    if groups is None:
         if len(_SCANS) > 16:
             _SCANS.clear()
-        found = _SCANS[key] = _scan(group)
+        groups = _SCANS[key] = _scan()
+    found = groups.get(group, {})
+    if isinstance(found, PluginError):
+        raise PluginError(str(found))
     return dict(found)
 
 
@@ -75,9 +80,11 @@ def _mtime_ns(entry: str) -> int:
         return -1
 
 
-def _scan(group: str) -> dict[str, PluginInfo]:
-    """`available` without the cache."""
-    found: dict[str, PluginInfo] = {}
+def _scan() -> dict[str, dict[str, PluginInfo] | PluginError]:
+    """`available` of every robotexp group without the cache: by group, its entry points or the error a
+    lookup of the group raises."""
+    found: dict[str, dict[str, PluginInfo]] = {}
+    errors: dict[str, PluginError] = {}
     seen_dists: set[str] = set()
     for dist in distributions():
         dist_name = dist.metadata["Name"] or "?"
@@ -86,18 +93,23 @@ def _scan(group: str) -> dict[str, PluginInfo]:
             continue
         seen_dists.add(key)
         for ep in dist.entry_points:
-            if ep.group != group:
+            group = ep.group
+            if not group.startswith("robotexp.") or group in errors:
                 continue
             if not _NAME.match(ep.name):
-                raise PluginError(f"{group}: plugin name {ep.name!r} of {dist_name} is not lowercase "
-                                  "letters, digits and '-'")
+                errors[group] = PluginError(f"{group}: plugin name {ep.name!r} of {dist_name} is not lowercase "
+                                            "letters, digits and '-'")
+                continue
             info = PluginInfo(ep.name, ep.value, dist_name, dist.version)
-            other = found.get(ep.name)
+            other = found.setdefault(group, {}).get(ep.name)
             if other is not None and other.distribution != dist_name:
-                raise PluginError(f"{group}: the name {ep.name!r} is claimed by both {other.distribution} "
-                                  f"and {dist_name}: uninstall one of them")
-            found[ep.name] = info
-    return dict(sorted(found.items()))
+                errors[group] = PluginError(f"{group}: the name {ep.name!r} is claimed by both {other.distribution} "
+                                            f"and {dist_name}: uninstall one of them")
+                continue
+            found[group][ep.name] = info
+    groups: dict[str, dict[str, PluginInfo] | PluginError] = {g: dict(sorted(v.items())) for g, v in found.items()}
+    groups.update(errors)
+    return groups
 
 
 def load(group: str, name: str, base: type) -> type:

@@ -144,3 +144,25 @@ def test_a_malformed_name_is_refused(site: Path) -> None:
     _install_metadata(site, "robotexp-shouty", "1.0", "[robotexp.explorers]\nBig_Name = robotexp.explorer:Explorer\n")
     with pytest.raises(PluginError, match="plugin name 'Big_Name' of robotexp-shouty is not lowercase"):
         available(EXPLORERS)
+
+
+def test_one_scan_serves_every_group(site: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # a run asks for a second group (say, its coordinators) at its end, when a live view's idle clients
+    # may hold every file the process may open: the first scan read every robotexp group, and the second
+    # lookup opens no distribution's metadata
+    import robotexp.registry as registry
+    _install_metadata(site, "robotexp-extra", "1.0",
+                      "[robotexp.coordinators]\nrelay = robotexp.coordinator:Coordinator\n"
+                      "[console_scripts]\nNot_Ours = robotexp.cli:main\n")
+    calls: list[int] = []
+    real = registry.distributions
+
+    def counted() -> object:
+        calls.append(1)
+        return real()
+
+    monkeypatch.setattr(registry, "distributions", counted)
+    assert "frontier" in available(EXPLORERS) and len(calls) == 1
+    coordinators = available("robotexp.coordinators")
+    assert coordinators["relay"].distribution == "robotexp-extra" and "none" in coordinators
+    assert len(calls) == 1 and available("robotexp.nothing") == {}
