@@ -53,13 +53,14 @@ def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
 
 def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
     # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
-    # kill still counts from the script's start, so the child stops its run at --timeout and writes it
+    # kill still counts from the script's start, so the child stops its run at --timeout and writes it.
+    # The run is meta-firefly's on dense (about 6 s of CPU, where frontier's takes 1.3 s and ended within the 2 s)
     slow = tmp_path / "slow"
     slow.mkdir()
     (slow / "sitecustomize.py").write_text("import time\ntime.sleep(1.5)\n")
     script, out = tmp_path / "s.lua", tmp_path / "out"
-    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(3600000); exploration.start()\n'
-                      'exploration.wait(); print("not reached")')
+    script.write_text('exploration.setWorld("dense"); exploration.setMethod("meta-firefly")\n'
+                      'exploration.setMaxTime(3600000); exploration.start(); exploration.wait(); print("not reached")')
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(slow), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
                            "--timeout", "2"], capture_output=True, text=True, env=env, timeout=60)

@@ -135,6 +135,8 @@ def test_idle_connections_never_cost_the_record(tmp_path: Path) -> None:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
+        if proc.stdout is not None:         # a child that ended early leaves its pipe to this test, not the next
+            proc.stdout.close()
     text = "".join(lines)
     assert "Traceback" not in text, text
     records = read_records(out / "results.jsonl")
