@@ -12,6 +12,7 @@ import click
 from robotexp.cli.common import compile_watch, fail, handle_errors, image_formats, mm, params
 from robotexp.cli.progress import Progress
 from robotexp.errors import ConfigError, WorldError
+from robotexp.registry import make_explorer
 from robotexp.output.safefile import writable_folder
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import EndReason
@@ -129,6 +130,9 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     team_spec = _team_spec(team, team_poses, coordinator, coordinator_param, comm_range, robot, address,
                            (record, frames, view))
     writable_folder(out)
+    # the method and its parameters before anything starts: the plugins' scan reads every installed
+    # distribution's metadata, which a live view's clients could leave no file descriptor for
+    make_explorer(spec.method, spec.params)
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(f"{Path(world).stem} {method}", notice=None if hint is None else f"robotexp: {hint}",
                         say_start=address is None)
