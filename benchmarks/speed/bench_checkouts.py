@@ -1,7 +1,8 @@
 """Speed of a whole run in two checkouts: the same `robotexp` run (default: frontier on `dense`, to its end)
 timed in a child process of each checkout in turn, pinned to one core, `--repeats` times each, alternating
 so that both see the same machine. Each child runs the explorer once to warm numba's cache, then times
-the run (CPU time of the process: robot time / CPU, and the whole run's CPU seconds).
+the run (CPU time of the process: robot time / CPU, and the whole run's CPU seconds) and the process time
+spent in a few methods (`PARTS`, where the checkout has them): where a difference comes from.
 
 Run: python benchmarks/speed/bench_checkouts.py --before /work/main --after . [--python-before PY]
          [--python-after PY] [--world dense] [--method frontier] [--robot p3dx] [--repeats 3] [--core 1]
@@ -31,17 +32,41 @@ except ImportError:     # a checkout from before the run package
     from robotexp.experiment import RunSpec
 world, method, robot = sys.argv[1:4]
 run_experiment(RunSpec(world=world, method=method, robot=robot, max_time=5.0), None, image=False)
+parts = {}
+def timed(module, cls, name):
+    # the process time spent in one method, where the checkout has it
+    import importlib
+    try:
+        owner = getattr(importlib.import_module(module), cls)
+    except (ImportError, AttributeError):
+        return
+    real, label = getattr(owner, name), f"{cls}.{name}"
+    def wrapper(*a, **k):
+        t = time.process_time()
+        try:
+            return real(*a, **k)
+        finally:
+            parts[label] = parts.get(label, 0.0) + time.process_time() - t
+    setattr(owner, name, wrapper)
+for spec in PARTS:
+    timed(*spec)
 t0 = time.process_time()
 out = run_experiment(RunSpec(world=world, method=method, robot=robot), None, image=False)
 cpu = time.process_time() - t0
 r = out.record
-print(json.dumps({"cpu": cpu, "robot": r["robot_time_s"], "coverage": r["coverage"], "reason": r["reason"]}))
+print(json.dumps({"cpu": cpu, "robot": r["robot_time_s"], "coverage": r["coverage"], "reason": r["reason"],
+                  "parts": parts}))
 """
+# the methods whose process time each run also reports (module, class, method): the map's scan integration,
+# the planners' costs, the path follower, the memory of walls
+PARTS = [("robotexp.mapping.grid", "OccupancyGrid", "update"), ("robotexp.planning.targets", "PlanCosts", "update"),
+         ("robotexp.planning.follower", "PathFollower", "twist"), ("robotexp.planning.targets", "WallMemory", "note")]
 
 
 def once(checkout: Path, python: str, args: argparse.Namespace) -> dict[str, float]:
     """One timed run in `checkout`'s code."""
-    cmd = ["taskset", "-c", str(args.core), python, "-c", CHILD, args.world, args.method, args.robot]
+    cmd = ["taskset", "-c", str(args.core), python, "-c", f"PARTS = {PARTS!r}\n" + CHILD, args.world, args.method,
+           args.robot]
     done = subprocess.run(cmd, cwd=checkout, capture_output=True, text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -72,13 +97,20 @@ def main() -> None:
     print(f"median whole-run CPU: before {cpu['before']:.1f} s, after {cpu['after']:.1f} s "
           f"(after / before {cpu['after'] / cpu['before']:.2f}); CPU per robot-second: before {per['before']:.2f} ms, "
           f"after {per['after']:.2f} ms")
+    labels = sorted({label for v in got.values() for r in v for label in r.get("parts", {})})
+    part = {s: {label: statistics.median(r.get("parts", {}).get(label, 0.0) for r in v) for label in labels}
+            for s, v in got.items()}
+    for label in labels:
+        print(f"  {label}: before {part['before'][label]:.3f} s, after {part['after'][label]:.3f} s")
     if not args.no_record:
         what = f"{args.method} on {args.world} ({args.robot}), whole run"
         record("checkouts", [Figure(f"{what}: CPU before", cpu["before"], "s"),
                              Figure(f"{what}: CPU after", cpu["after"], "s"),
                              Figure(f"{what}: after / before", cpu["after"] / cpu["before"], "x"),
                              Figure(f"{what}: CPU per robot-second before", per["before"], "ms"),
-                             Figure(f"{what}: CPU per robot-second after", per["after"], "ms")],
+                             Figure(f"{what}: CPU per robot-second after", per["after"], "ms")]
+               + [Figure(f"{what}: in {label} {s}", part[s][label], "s", "process time spent in the method")
+                  for label in labels for s in ("before", "after")],
                title="A whole run in two checkouts (before and after a change)",
                parameters={"world": args.world, "method": args.method, "robot": args.robot, "repeats": args.repeats,
                            "before": _named(args.before), "after": _named(args.after)})
