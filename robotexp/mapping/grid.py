@@ -28,6 +28,7 @@ from robotexp.mapping.kernels import (
     integrate_scan_logodds,
     label8,
     note_hits,
+    nudged_ranges,
 )
 from robotexp.robot import LaserScan, Pose
 
@@ -150,14 +151,12 @@ class OccupancyGrid:
         # A hit lies on the obstacle's surface; when that surface is a cell border, rounding in the
         # sensor's arithmetic puts half the hits in the free cell in front of it. Nudging hits
         # HIT_DEPTH [m] into the obstacle puts them in the obstacle's cell.
-        hits = ranges < rmax
         measured = ranges
-        ranges = ranges.copy()
-        ranges[hits] = np.minimum(ranges[hits] + HIT_DEPTH, np.nextafter(rmax, 0.0))
+        ranges = nudged_ranges(ranges, rmax, HIT_DEPTH)
         sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
                            pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
         self.scans += 1
-        self._note_disc(float(sensor[0]), float(sensor[1]), rmax)
+        self._note(*note_hits(self.hit_box, self.geo, sensor, angles, measured, ranges, rmax))
         if self.model == "logodds":
             lm = LogOddsModel(self.l_free, self.l_occ, -self.l_clamp, self.l_clamp, rmax)
             logodds = cast("npt.NDArray[np.float32]", self.values)
@@ -165,13 +164,12 @@ class OccupancyGrid:
         else:
             cert = cast("npt.NDArray[np.uint8]", self.values)
             n = integrate_scan_himm(cert, self.stamp, self.scans, self.geo, sensor, angles, ranges, rmax)
-        note_hits(self.hit_box, self.geo, sensor, angles, measured, ranges, rmax)
         self.cells_updated += int(n)
         return int(n)
 
     def touched_box(self) -> tuple[int, int, int, int] | None:
         """Rows r0..r1 and columns c0..c1 (half-open) that hold every cell a scan or mark has touched so far
-        (a scan's box is its sensor's reach, so the box may be a little larger); None before the first.
+        (a scan's box is the box of its beams, so the box may be a little larger); None before the first.
 
         Every cell outside it is unknown: whole-map work (planning, frontier, potentials) can be done
         on `window` of this box grown by a margin, at a cost that follows the explored part of the
@@ -240,18 +238,6 @@ class OccupancyGrid:
             b = self.box
             r0, r1, c0, c1 = min(r0, b[0]), max(r1, b[1]), min(c0, b[2]), max(c1, b[3])
         self.box = (r0, r1, c0, c1)
-
-    def _note_disc(self, x: float, y: float, reach: float) -> None:
-        """Grow `box` by the cells within `reach` [m] of (x, y) (a cell of slack on each side)."""
-        g = self.geo
-        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(reach)):
-            self._note(0, g.rows, 0, g.cols)
-            return
-        r0 = math.floor((y - reach - g.origin_y) / g.cell) - 1
-        r1 = math.floor((y + reach - g.origin_y) / g.cell) + 2
-        c0 = math.floor((x - reach - g.origin_x) / g.cell) - 1
-        c1 = math.floor((x + reach - g.origin_x) / g.cell) + 2
-        self._note(r0, r1, c0, c1)
 
     def occupied(self) -> npt.NDArray[np.bool_]:
         """Bool (rows, cols): occupied cells (log-odds > 0; HIMM certainty > 2)."""

@@ -115,6 +115,12 @@ def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, leng
     r = min(max(_forward_index(gy + t_in * dy, dy), 0), rows - 1)
     sx = 1 if dx > 0.0 else -1
     sy = 1 if dy > 0.0 else -1
+    # the next border's index offset per axis (1 ahead when moving up, 0 when moving down) and the
+    # inverse direction (a multiplication per step instead of a division)
+    bx = 1 if dx > 0.0 else 0
+    by = 1 if dy > 0.0 else 0
+    ix = 1.0 / dx if dx != 0.0 else 0.0
+    iy = 1.0 / dy if dy != 0.0 else 0.0
     cap = cells.shape[0]
     n = 0
     while n < cap:
@@ -122,18 +128,8 @@ def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, leng
         cells[n, 1] = c
         n += 1
         # Parameters of the next vertical / horizontal border, from the indices (no drift).
-        if dx > 0.0:
-            tx = (c + 1 - gx) / dx
-        elif dx < 0.0:
-            tx = (c - gx) / dx
-        else:
-            tx = math.inf
-        if dy > 0.0:
-            ty = (r + 1 - gy) / dy
-        elif dy < 0.0:
-            ty = (r - gy) / dy
-        else:
-            ty = math.inf
+        tx = (c + bx - gx) * ix if dx != 0.0 else math.inf
+        ty = (r + by - gy) * iy if dy != 0.0 else math.inf
         if min(tx, ty) > glen:
             return n, True
         if tx < ty - _TOL:
@@ -174,19 +170,38 @@ def _hit_cell(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rn
     return r, c
 
 
+@kernel
+def nudged_ranges(ranges: npt.NDArray[np.float64], range_max: float, depth: float) -> npt.NDArray[np.float64]:
+    """A copy of `ranges` [m] with each hit (a range below `range_max`) moved `depth` [m] further, but not to
+    `range_max` or beyond; NaN, inf and the ranges at or beyond `range_max` are kept as they are."""
+    out = ranges.copy()
+    below = np.nextafter(range_max, 0.0)
+    for i in range(out.shape[0]):
+        if out[i] < range_max:
+            out[i] = min(out[i] + depth, below)
+    return out
+
+
 HIT_STEPS = 255     # a cell's hit box is kept in 1/HIT_STEPS of its side (uint8)
 
 
 @kernel
 def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArray[np.float64],
               angles: npt.NDArray[np.float64], ranges: npt.NDArray[np.float64], nudged: npt.NDArray[np.float64],
-              range_max: float) -> None:
-    """Grow each hit cell's box of laser endpoints by the endpoints of one scan.
+              range_max: float) -> tuple[int, int, int, int]:
+    """Grow each hit cell's box of laser endpoints by the endpoints of one scan; return the box of cells
+    the scan's beams cross or end in.
 
     `hit_box` (rows, cols, 4) uint8 holds per cell x_lo, x_hi, y_lo, y_hi of the endpoints that fell in it,
     in 1/HIT_STEPS of the cell's side from its lower-left corner, rounded outwards (the box holds every
     endpoint); x_lo > x_hi: no endpoint yet. The cell of a hit is the cell the scan integration marks
     (`_hit_cell` at the `nudged` range); its endpoint is the measured one (`ranges`), clamped into that cell.
+
+    The box returned, rows r0..r1 and columns c0..c1 (half-open, not clipped to the grid), holds every cell
+    the integration (`integrate_scan_logodds`) may touch: the box of the sensor's cell and each beam's end
+    (its `nudged` range, or `range_max` for a beam that records no hit; NaN and negative ranges are skipped,
+    as the integration skips them), a cell of slack on each side for rounding. A beam is a segment, so its
+    cells lie in the box of its ends. A pose or an end not finite: the whole grid.
 
     Args:
         hit_box: (rows, cols, 4) uint8, updated in place.
@@ -197,27 +212,41 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
         nudged: float64 (n,) the ranges the integration used (a hit nudged into its obstacle).
         range_max: [m] beams at or beyond this range record no hit.
     """
+    x0 = (pose[0] - geo.origin_x) / geo.cell
+    y0 = (pose[1] - geo.origin_y) / geo.cell
+    xl, xh, yl, yh = x0, x0, y0, y0
     for i in range(angles.shape[0]):
         rng = nudged[i]
-        if not (0.0 <= rng < range_max):
-            continue
-        r, c = _hit_cell(geo, pose, angles[i], rng)
-        if r < 0:
+        if math.isnan(rng) or rng < 0.0:
             continue
         a = pose[2] + angles[i]
-        fx = (pose[0] + ranges[i] * math.cos(a) - geo.origin_x) / geo.cell - c
-        fy = (pose[1] + ranges[i] * math.sin(a) - geo.origin_y) / geo.cell - r
+        dx = math.cos(a)
+        dy = math.sin(a)
+        end = min(rng, range_max) / geo.cell
+        xl, xh = min(xl, x0 + end * dx), max(xh, x0 + end * dx)
+        yl, yh = min(yl, y0 + end * dy), max(yh, y0 + end * dy)
+        if rng >= range_max:
+            continue
+        r = _forward_index((pose[1] + rng * dy - geo.origin_y) / geo.cell, dy)     # `_hit_cell`
+        c = _forward_index((pose[0] + rng * dx - geo.origin_x) / geo.cell, dx)
+        if r < 0 or r >= geo.rows or c < 0 or c >= geo.cols:
+            continue
+        fx = (pose[0] + ranges[i] * dx - geo.origin_x) / geo.cell - c
+        fy = (pose[1] + ranges[i] * dy - geo.origin_y) / geo.cell - r
         fx = min(max(fx, 0.0), 1.0) * HIT_STEPS
         fy = min(max(fy, 0.0), 1.0) * HIT_STEPS
-        xl, xh = np.uint8(math.floor(fx)), np.uint8(math.ceil(fx))
-        yl, yh = np.uint8(math.floor(fy)), np.uint8(math.ceil(fy))
+        hxl, hxh = np.uint8(math.floor(fx)), np.uint8(math.ceil(fx))
+        hyl, hyh = np.uint8(math.floor(fy)), np.uint8(math.ceil(fy))
         if hit_box[r, c, 0] > hit_box[r, c, 1]:
-            hit_box[r, c, 0], hit_box[r, c, 1], hit_box[r, c, 2], hit_box[r, c, 3] = xl, xh, yl, yh
+            hit_box[r, c, 0], hit_box[r, c, 1], hit_box[r, c, 2], hit_box[r, c, 3] = hxl, hxh, hyl, hyh
         else:
-            hit_box[r, c, 0] = min(hit_box[r, c, 0], xl)
-            hit_box[r, c, 1] = max(hit_box[r, c, 1], xh)
-            hit_box[r, c, 2] = min(hit_box[r, c, 2], yl)
-            hit_box[r, c, 3] = max(hit_box[r, c, 3], yh)
+            hit_box[r, c, 0] = min(hit_box[r, c, 0], hxl)
+            hit_box[r, c, 1] = max(hit_box[r, c, 1], hxh)
+            hit_box[r, c, 2] = min(hit_box[r, c, 2], hyl)
+            hit_box[r, c, 3] = max(hit_box[r, c, 3], hyh)
+    if not (math.isfinite(xl) and math.isfinite(xh) and math.isfinite(yl) and math.isfinite(yh)):
+        return 0, geo.rows, 0, geo.cols         # a pose or a reach not finite: the whole grid
+    return math.floor(yl) - 1, math.floor(yh) + 2, math.floor(xl) - 1, math.floor(xh) + 2
 
 
 @kernel

@@ -74,6 +74,31 @@ def test_touched_box_holds_every_touched_cell(model: str) -> None:
     assert box is not None and box[1] == 80 and box[3] == 120
 
 
+@pytest.mark.parametrize("model", ["logodds", "himm"])
+def test_each_scan_changes_only_cells_in_its_box_and_the_box_is_its_beams(model: str) -> None:
+    """Per scan, every cell whose value, stamp or box of endpoints changed lies in `changed_box` of that scan,
+    and the box is the box of the beams' ends (a cell of slack), not the laser's reach: beams that hit 0.5 m
+    off span 12 cells, not the 163 of an 8 m reach."""
+    geo = GridGeometry(-5.0, -5.0, 0.1, 100, 100)
+    grid = OccupancyGrid(geo, model=model)  # type: ignore[arg-type]
+    rng = np.random.default_rng(5)
+    angles = np.linspace(-math.pi, math.pi, 181, endpoint=False)
+    for k in range(30):
+        pose = Pose(rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-math.pi, math.pi))
+        ranges = rng.choice([0.3, 0.5, 2.0, 8.0, math.inf, math.nan], size=angles.size) if k else np.full(181, 0.5)
+        before = (grid.values.copy(), grid.stamp.copy(), grid.hit_box.copy())
+        grid.update(pose, LaserScan(angles, ranges, 8.0))
+        changed = ((grid.values != before[0]) | (grid.stamp != before[1]) | (grid.hit_box != before[2]).any(axis=2))
+        box = grid.changed_box(grid.scans - 1)
+        assert box is not None
+        r0, r1, c0, c1 = box
+        inside = np.zeros_like(changed)
+        inside[r0:r1, c0:c1] = True
+        assert not (changed & ~inside).any()
+        if k == 0:
+            assert r1 - r0 <= 13 and c1 - c0 <= 13 and changed.any()
+
+
 def test_window_shares_the_arrays_and_refuses_empty() -> None:
     geo = GridGeometry(0.0, 0.0, 0.1, 30, 40)
     grid = OccupancyGrid(geo)
