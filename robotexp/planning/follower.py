@@ -27,6 +27,7 @@ from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.grid_planner import simplify
+from robotexp.planning.kernels import scan_points_kernel, sweep_blocked_kernel
 from robotexp.planning.targets import cell_points
 from robotexp.robot import Footprint, LaserScan, Limits, Pose, Twist, wrap_angle
 
@@ -76,14 +77,11 @@ def _points_norms(scan: LaserScan | None) -> tuple[npt.NDArray[np.float64], npt.
         return np.zeros((0, 2)), np.zeros(0)
     if _POINTS[0] is not scan:
         if _TRIG[0] is not scan.angles:          # a robot's scans share one array of beam angles
-            _TRIG[:] = [scan.angles, np.cos(scan.angles), np.sin(scan.angles)]
-        r = scan.ranges
-        ok = r < scan.range_max                  # False for NaN and inf too
-        rr = r[ok]
-        pts = np.empty((len(rr), 2))
-        pts[:, 0] = scan.offset_x + rr * _TRIG[1][ok]      # type: ignore[index]
-        pts[:, 1] = rr * _TRIG[2][ok]                      # type: ignore[index]
-        _POINTS[:] = [scan, pts, rr if scan.offset_x == 0 else np.hypot(pts[:, 0], pts[:, 1])]
+            angles = np.asarray(scan.angles, np.float64)
+            _TRIG[:] = [scan.angles, np.cos(angles), np.sin(angles)]
+        pts, norms = scan_points_kernel(np.ascontiguousarray(scan.ranges, np.float64), _TRIG[1], _TRIG[2],  # type: ignore[arg-type]
+                                        float(scan.offset_x), float(scan.range_max))
+        _POINTS[:] = [scan, pts, norms]
     return _POINTS[1], _POINTS[2]          # type: ignore[return-value]
 
 
@@ -220,6 +218,14 @@ def drift_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: floa
 def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float, clearance: float,
                    speed: float, turn: float, a_max: float) -> bool:
     """`blocked_ahead` on the robot-frame points `pts` (k, 2) [m] at distances `norms` (k,), for speed > 0."""
+    length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+    steps = max(1, int(math.ceil(length / SWEEP_STEP)))
+    return bool(sweep_blocked_kernel(pts, norms, radius, clearance, length, turn / speed, steps, GRAZE, MIN_GAP))
+
+
+def sweep_blocked_reference(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float,
+                            clearance: float, speed: float, turn: float, a_max: float) -> bool:
+    """`_sweep_blocked` in numpy (the kernel's reference)."""
     length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
     reach = radius + clearance
     near = norms < length + reach        # the rest cannot be reached
@@ -402,6 +408,7 @@ class PathFollower:
         self.limits = limits
         self.radius = radius
         self.footprint = footprint if footprint is not None and not footprint.round else None   # None: a disc
+        self._disc = Footprint.disc(radius)
         # the returns a rectangle's guard checks (an explorer that sees every scan may share its own)
         self.memory = memory or ScanMemory(reach=(self.footprint.swing if self.footprint else radius) + 0.6)
         self._pose = Pose(0.0, 0.0, 0.0)
@@ -578,7 +585,7 @@ class PathFollower:
             if blocked_ahead(scan, self.radius, self.config.clearance, v, w, lim.a_max):
                 return True
             return self._drifts(_points_norms(scan)[0] if scan is not None else np.zeros((0, 2)),
-                                Footprint.disc(self.radius), self.config.clearance, v, w)
+                                self._disc, self.config.clearance, v, w)
         pts = self.memory.points(self._pose)
         if v < 0:       # backing up is driving forward in the mirror image (x -> -x, turns reversed)
             return footprint_blocked(pts * np.array([-1.0, 1.0]), self.footprint, self.config.clearance + GRAIN,

@@ -34,7 +34,9 @@ __all__ = [
     "distance_transform_kernel",
     "edt_1d",
     "line_of_sight_kernel",
+    "scan_points_kernel",
     "simplify_kernel",
+    "sweep_blocked_kernel",
     "trace_path",
 ]
 
@@ -648,3 +650,59 @@ def simplify_kernel(path: npt.NDArray[np.int32], passable: npt.NDArray[np.bool_]
             keep[anchor] = True
             count += 1
     return count
+
+
+@kernel
+def sweep_blocked_kernel(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float,  # noqa: PLR0913
+                         clearance: float, length: float, curvature: float, steps: int, graze: float,
+                         min_gap: float) -> bool:
+    """True when a disc of `radius` [m] swept from the origin along the arc of `curvature` [1/m] leaving
+    along +x, at the `steps` positions `length` / `steps` apart up to `length` [m], comes within
+    `clearance` of one of the robot-frame points `pts` (k, 2) [m] (at distances `norms` (k,) from the
+    origin) and either more than `graze` nearer to it than the disc is now, or within `min_gap` of touching
+    it (`robotexp.planning.follower.blocked_ahead`'s rule).
+    """
+    reach = radius + clearance
+    straight = abs(curvature) < 1e-9
+    for i in range(pts.shape[0]):
+        d0 = norms[i]
+        if d0 >= length + reach:        # no position of the arc comes within reach
+            continue
+        px = pts[i, 0]
+        py = pts[i, 1]
+        for j in range(1, steps + 1):
+            s = length if j == steps else j * (length / steps)
+            if straight:
+                cx, cy = s, 0.0
+            else:
+                cx = math.sin(curvature * s) / curvature
+                cy = (1.0 - math.cos(curvature * s)) / curvature
+            d = math.hypot(px - cx, py - cy)
+            if d < reach and (d < d0 - graze or d < radius + min_gap):
+                return True
+    return False
+
+
+@kernel
+def scan_points_kernel(ranges: npt.NDArray[np.float64], cos: npt.NDArray[np.float64], sin: npt.NDArray[np.float64],
+                       offset_x: float, range_max: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(k, 2) robot-frame points [m] of a scan's returns (the `ranges` below `range_max`, NaN and inf left
+    out), along beams of direction (`cos`, `sin`) from a sensor `offset_x` [m] ahead of the robot's centre,
+    and (k,) their distances [m] from the centre."""
+    n = 0
+    for i in range(ranges.shape[0]):
+        if ranges[i] < range_max:
+            n += 1
+    pts = np.empty((n, 2))
+    norms = np.empty(n)
+    j = 0
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        if r < range_max:
+            x = offset_x + r * cos[i]
+            y = r * sin[i]
+            pts[j, 0] = x
+            pts[j, 1] = y
+            norms[j] = r if offset_x == 0.0 else math.hypot(x, y)
+            j += 1
+    return pts, norms

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from robotexp.errors import ConfigError
-from robotexp.planning.follower import (FollowerConfig, PathFollower, blocked_ahead, free_heading, roomy_cells,
-                                        scan_clearance)
+from robotexp.planning.follower import (FollowerConfig, PathFollower, _sweep_blocked, blocked_ahead, free_heading,
+                                        roomy_cells, scan_clearance, sweep_blocked_reference)
 from robotexp.robot import LaserScan, Limits, Pose, Twist, wrap_angle
 from robotexp.sim import SimRobot
 from robotexp.world.model import World, segment_box
@@ -102,6 +102,22 @@ def test_infinite_ranges_and_sensor_offset() -> None:
     # a sensor 0.2 m ahead of the centre: a return 0.3 m from it is 0.5 m from the centre
     assert not blocked_ahead(scan_at((0.3, 0.0), offset_x=0.2), R, 0.01, 0.3)
     assert blocked_ahead(scan_at((0.2, 0.0), offset_x=0.2), R, 0.01, 0.3)
+
+
+def test_the_sweep_kernel_agrees_with_its_numpy_reference() -> None:
+    """The swept-disc guard's kernel against the numpy sweep it replaces, on returns scattered round the robot
+    at the blocking distances (both outcomes occur), straight, turning either way and crawling."""
+    rng = np.random.default_rng(11)
+    outcomes = []
+    for _ in range(400):
+        n = int(rng.integers(0, 30))
+        pts = rng.uniform(-0.2, 0.8, size=(n, 2)) * [1.0, 0.6] + [0.0, rng.uniform(-0.2, 0.2)]
+        norms = np.hypot(pts[:, 0], pts[:, 1])
+        speed, turn = float(rng.choice([0.001, 0.05, 0.3, 0.6])), float(rng.choice([0.0, 1e-10, 0.8, -1.5]))
+        want = sweep_blocked_reference(pts, norms, R, 0.01, speed, turn, 0.5)
+        assert _sweep_blocked(pts, norms, R, 0.01, speed, turn, 0.5) == want
+        outcomes.append(want)
+    assert 50 < sum(outcomes) < 350
 
 
 def test_free_heading_slides_along_a_wall_ahead() -> None:
