@@ -246,28 +246,33 @@ def best_point_kernel(occ: npt.NDArray[np.bool_], hit_box: npt.NDArray[np.uint8]
         code: (r1 - r0, c1 - c0) uint8 output.
     """
     rows, cols = occ.shape
+    n = SUB_POINTS.shape[0]
+    best = np.empty(n)          # squared, per point (index 0, the centre, unused)
     for r in range(r0, r1):
         for c in range(c0, c1):
             code[r - r0, c - c0] = 0
             d = dist[r - r0, c - c0]
             if d > below or d <= below - SUB_REACH or not need[r, c]:
                 continue
+            best[:] = np.inf
+            worst = np.inf          # the largest of the points' best so far
+            for i in range(offsets.shape[0]):
+                lo = offsets[i, 2] - HALF_DIAGONAL - SUB_REACH    # no box in this cell or a later one is nearer
+                if lo > 0.0 and lo * lo >= worst:
+                    break
+                rr = r + int(offsets[i, 0])
+                cc = c + int(offsets[i, 1])
+                if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
+                    continue
+                worst = 0.0
+                for k in range(1, n):
+                    best[k] = min(best[k], box_sq(hit_box, rr, cc, r - rr + (0.5 + SUB_POINTS[k, 0]),
+                                                  c - cc + (0.5 + SUB_POINTS[k, 1])))
+                    worst = max(worst, best[k])
             far = -1.0
             pick = 0
-            for k in range(1, SUB_POINTS.shape[0]):
-                py = 0.5 + SUB_POINTS[k, 0]
-                px = 0.5 + SUB_POINTS[k, 1]
-                best = np.inf          # squared
-                for i in range(offsets.shape[0]):
-                    lo = offsets[i, 2] - HALF_DIAGONAL - SUB_REACH    # no box in this cell or a later one is nearer
-                    if lo > 0.0 and lo * lo >= best:
-                        break
-                    rr = r + int(offsets[i, 0])
-                    cc = c + int(offsets[i, 1])
-                    if rr < 0 or rr >= rows or cc < 0 or cc >= cols or not occ[rr, cc]:
-                        continue
-                    best = min(best, box_sq(hit_box, rr, cc, r - rr + py, c - cc + px))
-                far_k = math.sqrt(best) if best < np.inf else below + 1.0
+            for k in range(1, n):
+                far_k = math.sqrt(best[k]) if best[k] < np.inf else below + 1.0
                 if far_k > far:
                     far = far_k
                     pick = k
