@@ -90,12 +90,12 @@ def main() -> None:
         for side, (checkout, python) in (sides.items() if k % 2 == 0 else reversed(sides.items())):
             r = once(checkout, python, args)
             got[side].append(r)
-            print(f"{side:<6} cpu {r['cpu']:6.1f} s robot {r['robot']:7.1f} s ratio {r['robot'] / r['cpu']:6.1f} "
+            print(f"{side:<6} cpu {r['cpu']:6.3f} s robot {r['robot']:7.1f} s ratio {r['robot'] / r['cpu']:6.1f} "
                   f"coverage {r['coverage']} {r['reason']}", flush=True)
     cpu = {s: statistics.median(r["cpu"] for r in v) for s, v in got.items()}
     per = {s: statistics.median(r["cpu"] / r["robot"] * 1000 for r in v) for s, v in got.items()}
-    print(f"median whole-run CPU: before {cpu['before']:.1f} s, after {cpu['after']:.1f} s "
-          f"(after / before {cpu['after'] / cpu['before']:.2f}); CPU per robot-second: before {per['before']:.2f} ms, "
+    print(f"median whole-run CPU: before {cpu['before']:.3f} s, after {cpu['after']:.3f} s "
+          f"(after / before {cpu['after'] / cpu['before']:.3f}); CPU per robot-second: before {per['before']:.2f} ms, "
           f"after {per['after']:.2f} ms")
     labels = sorted({label for v in got.values() for r in v for label in r.get("parts", {})})
     part = {s: {label: statistics.median(r.get("parts", {}).get(label, 0.0) for r in v) for label in labels}
