@@ -209,6 +209,7 @@ class SRTExplorer(Explorer):
         self._skipping = False               # the move at hand goes back past the parent (`_skip_up`)
         self._rescue_from: int | None = None     # the node a rescue through the map is planned from (`_skip_up`)
         self.skipped = 0                     # nodes passed on the way back without stopping
+        self._skip_count = 0                 # those of the way back at hand (`_skip_up`; undone by `_back_to_parent`)
         self._begin_sense()
 
     def result_fields(self) -> dict[str, object]:
@@ -518,6 +519,7 @@ class SRTExplorer(Explorer):
         kept for the arrival."""
         index = parent
         self._rescue_from = self.current    # a rescue through the map: the nearest to the robot, not to its node
+        self._skip_count = 0
         try:
             while True:
                 cand = self._node_candidate(index)
@@ -528,10 +530,11 @@ class SRTExplorer(Explorer):
                 up = self.tree.nodes[index].parent
                 if up is None:
                     return index
-                self.skipped += 1
+                self._skip_count += 1
                 index = up
         finally:
             self._rescue_from = None
+            self.skipped += self._skip_count
 
     def _back_to_parent(self) -> None:
         """A way back past the parent has no path: go back to the parent instead (what was found on the way
@@ -542,6 +545,8 @@ class SRTExplorer(Explorer):
             node = self.tree.nodes[parent]
             self.target, self.target_node = (node.x, node.y), parent
         self._pending, self._skipping = None, False
+        self.skipped -= self._skip_count         # the nodes of that way are not passed: they are gone up to again
+        self._skip_count = 0
 
     def _leave(self, pose: Pose, state: RobotState) -> Twist | Done:
         """At the node: turn towards the target, or (no target) to the start heading at the root."""

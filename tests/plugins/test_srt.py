@@ -749,3 +749,20 @@ def test_skip_back_drives_to_the_ancestor_with_a_candidate_not_up_the_tree_node_
     assert thesis["skipped"] == 0 and skip["skipped"] > skip["backtracks"]
     assert skip["robot_time_s"] < 0.9 * thesis["robot_time_s"]
     assert skip["path_length_m"] < 0.9 * thesis["path_length_m"]
+
+
+def test_nodes_counted_skipped_only_when_the_way_back_past_them_is_driven() -> None:
+    # a chain root - 1 - 2 - 3 with no candidate at 2 and 1: from 3 the way back skips 2 and 1 to the root
+    # (two nodes passed); when that way stalls and the robot goes up one node instead (`_back_to_parent`),
+    # the nodes are not passed: the count goes back
+    ex = SRTLaserExplorer()
+    ex.reset(ctx(np.random.default_rng(0)))
+    for i in range(4):
+        ex.tree.add(float(i), 0.0, BallRegion(float(i), 0.0, 1.0), None if i == 0 else i - 1)
+    ex._node_candidate = lambda index: (5.0, 5.0) if index == 0 else None   # type: ignore[method-assign]
+    ex.current = 3
+    assert ex._skip_up(2) == 0 and ex.skipped == 2
+    ex._back_to_parent()
+    assert ex.skipped == 0 and ex.target_node == 2
+    ex.current = 2
+    assert ex._skip_up(1) == 0 and ex.skipped == 1
