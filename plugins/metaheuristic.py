@@ -40,7 +40,7 @@ from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotSt
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.mapping.kernels import flood, label8
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, distance_transform, nearest_goal
+from robotexp.planning.grid_planner import astar, nearest_goal
 from robotexp.planning.metaheuristics import (
     FireflyConfig,
     GAConfig,
@@ -51,8 +51,8 @@ from robotexp.planning.metaheuristics import (
 )
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import (PlanCosts, WallMemory, known_window, passable_cell, usable_frontier,
-                                      wall_face_cells)
+from robotexp.planning.targets import (PlanCosts, WallMemory, away_from, beside_large_unknown, known_window,
+                                      passable_cell, usable_frontier, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -394,21 +394,15 @@ class MetaheuristicExplorer(Explorer):
         rows, cols = frontier.shape
         cell = grid.geo.cell
         passed = self.visited[off[0]:off[0] + rows, off[1]:off[1] + cols]
-        away = frontier & (distance_transform(passed) > LOOK_REACH / cell) if passed.any() else frontier
+        away = away_from(frontier, passed, LOOK_REACH / cell)
         if not away.any():
             return False
         # only beside a piece of unknown space of at least LOOK_AREA: the unknown inside a rack or a table's
-        # outline seen through its gaps is less (looking at each such speck stalled a warehouse run)
-        labels, k = label8(np.ascontiguousarray(view.unknown()))
-        large = np.bincount(labels.ravel(), minlength=k + 1) * cell ** 2 >= LOOK_AREA
-        # a piece that reaches the window's edge inside the map goes on beyond it (all unknown there)
+        # outline seen through its gaps is less (looking at each such speck stalled a warehouse run); a piece
+        # that reaches the window's edge inside the map goes on beyond it (all unknown there)
         gr, gc = grid.shape
-        for edge, inside in ((labels[0, :], off[0] > 0), (labels[-1, :], off[0] + rows < gr),
-                             (labels[:, 0], off[1] > 0), (labels[:, -1], off[1] + cols < gc)):
-            if inside:
-                large[edge] = True
-        large[0] = False
-        away &= distance_transform(large[labels]) <= 1.5
+        away &= beside_large_unknown(view.unknown(), LOOK_AREA, cell,
+                                     (off[0] > 0, off[0] + rows < gr, off[1] > 0, off[1] + cols < gc))
         if not away.any():
             return False
         reach = self.ctx.radius / cell + 1.5

@@ -19,10 +19,11 @@ import numpy as np
 from robotexp import ConfigError, ExplorerContext, Pose, RobotState, Twist, wrap_angle
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ray_tree
-from robotexp.mapping.kernels import flood8, label8, view_free
+from robotexp.mapping.kernels import flood8, view_free
 from robotexp.planning.grid_planner import distance_transform, line_of_sight, nearest_goal
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import MARGIN, cell_points, frontier_targets, passable_cell, plan_costs
+from robotexp.planning.targets import (MARGIN, away_from, beside_large_unknown, cell_points, frontier_targets,
+                                       passable_cell, plan_costs)
 
 from .core import SRTExplorer
 from .regions import (
@@ -514,13 +515,10 @@ class SRTLaserExplorer(_FrontierRescue, _SweepingSRT):
         # only unknown space whose neglect would make the ending premature (as the run's check counts it): a
         # piece of at least MAP_RESCUE_AREA and MAP_RESCUE_SHARE of the known free area; smaller ones (the
         # inside of a shelf seen through its gaps, a wall's unseen cells) were chased for an hour
-        labels, k = label8(np.ascontiguousarray(beyond))
         least = max(self.MAP_RESCUE_AREA, self.MAP_RESCUE_SHARE * float(np.count_nonzero(grid.free())) * geo.cell ** 2)
-        large = np.bincount(labels.ravel(), minlength=k + 1) * geo.cell ** 2 >= least
-        large[0] = False
-        front = frontier_targets(grid, min_cells, self._map_tried) & (distance_transform(large[labels]) <= 1.5)
-        if self.passed.shape == grid.shape and self.passed.any():      # not where the robot came near and looked
-            front &= distance_transform(self.passed) > self.MAP_RESCUE_LOOKED / geo.cell
+        front = frontier_targets(grid, min_cells, self._map_tried) & beside_large_unknown(beyond, least, geo.cell)
+        if self.passed.shape == grid.shape:      # not where the robot came near and looked
+            front = away_from(front, self.passed, self.MAP_RESCUE_LOOKED / geo.cell)
         if not front.any():
             return None
         points = np.zeros(grid.shape, np.uint8)

@@ -35,7 +35,7 @@ from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
-           "surface_distance", "passable_radius", "cell_points"]
+           "surface_distance", "passable_radius", "cell_points", "beside_large_unknown", "away_from"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -423,6 +423,29 @@ def frontier_targets(grid: OccupancyGrid, min_cells: int,
     mask: npt.NDArray[np.bool_] = large[labels]
     mask &= ~drop
     return mask
+
+
+def beside_large_unknown(unknown: npt.NDArray[np.bool_], least: float, cell: float,
+                         open_edges: tuple[bool, bool, bool, bool] = (False, False, False, False)
+                         ) -> npt.NDArray[np.bool_]:
+    """Bool, `unknown`'s shape: the cells within a cell and a half of an 8-connected piece of `unknown` of at
+    least `least` [m^2] (cells of `cell` [m]): what a robot would still map from there, where smaller pieces
+    (the inside of a rack or a table's outline seen through its gaps, a wall's unseen cells) are not worth a
+    trip. `open_edges` (bottom, top, left, right rows/columns) says which edges of `unknown` are not the map's:
+    a piece reaching such an edge goes on beyond it and counts as large."""
+    labels, k = label8(np.ascontiguousarray(unknown))
+    large = np.bincount(labels.ravel(), minlength=k + 1) * cell ** 2 >= least
+    for edge, beyond in zip((labels[0, :], labels[-1, :], labels[:, 0], labels[:, -1]), open_edges, strict=True):
+        if beyond:
+            large[edge] = True
+    large[0] = False
+    return distance_transform(large[labels]) <= 1.5
+
+
+def away_from(cells: npt.NDArray[np.bool_], been: npt.NDArray[np.bool_], reach: float) -> npt.NDArray[np.bool_]:
+    """`cells` (bool) less those within `reach` [cells] of a cell of `been` (where the robot has been and
+    looked: what is still unknown there no laser sees from anywhere near)."""
+    return cells & (distance_transform(been) > reach) if been.any() else cells
 
 
 def usable_frontier(grid: OccupancyGrid, reachable: npt.NDArray[np.bool_], reach_cells: float,

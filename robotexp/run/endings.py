@@ -80,7 +80,8 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
     """
     from robotexp.mapping.kernels import flood8, label8
     from robotexp.planning.grid_planner import distance_transform
-    from robotexp.planning.targets import frontier_targets, passable_cell, passable_radius, plan_costs, surface_distance
+    from robotexp.planning.targets import (away_from, frontier_targets, passable_cell, passable_radius, plan_costs,
+                                          surface_distance)
 
     geo = grid.geo
     passable = np.isfinite(plan_costs(grid, radius, 0.0))
@@ -113,8 +114,7 @@ def frontier_left(grid: OccupancyGrid, pose: Pose, radius: float,
         cells = cells[geo.contains_cells(cells)]
         been = np.zeros(grid.shape, dtype=bool)
         been[cells[:, 0], cells[:, 1]] = True
-        if been.any():
-            left &= distance_transform(been) > APPROACHED / geo.cell
+        left = away_from(left, been, APPROACHED / geo.cell)
     n = int(np.count_nonzero(left))
     if n == 0:
         return 0, 0.0

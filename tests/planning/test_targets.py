@@ -13,7 +13,8 @@ from robotexp.planning.follower import PathFollower, path_points
 from robotexp.robot import Limits
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.kernels import SUB_POINTS
-from robotexp.planning.targets import frontier_targets, nearest_passable, passable_cell, surface_distance
+from robotexp.planning.targets import (away_from, beside_large_unknown, frontier_targets, nearest_passable, passable_cell,
+                                      surface_distance)
 
 GEO = GridGeometry(origin_x=-1.0, origin_y=2.0, cell=0.1, rows=10, cols=8)
 PLUGINS = Path(__file__).resolve().parents[2] / "plugins"
@@ -141,3 +142,30 @@ def test_cell_points_against_a_brute_force_reference() -> None:
     # the others keep the distance from their centre where it is exact (up to `below`)
     near = ~moved & (centre <= below)
     assert np.allclose(dist[near], centre[near], atol=1e-5)
+
+
+def test_beside_large_unknown_by_hand() -> None:
+    # 10 cm cells: a 2 x 2-cell speck (0.04 m2) and a 5 x 6-cell piece (0.30 m2) in a 12 x 20 window
+    unknown = np.zeros((12, 20), bool)
+    unknown[2:4, 2:4] = True
+    unknown[5:10, 12:18] = True
+    near = beside_large_unknown(unknown, 0.25, 0.1)
+    assert not near[:5, :8].any()                            # nothing beside the speck
+    assert near[4, 13] and near[8, 11] and near[10, 18]      # beside the piece (diagonal: 1.41 cells)
+    assert not near[8, 10] and not near[3, 15]               # two cells off
+    assert beside_large_unknown(unknown, 0.04, 0.1)[1, 1]    # the speck is large enough for 0.04 m2
+    # a speck on an edge that is not the map's goes on beyond it: large; on the map's edge: not
+    edge = np.zeros((12, 20), bool)
+    edge[0:2, 5:7] = True
+    assert not beside_large_unknown(edge, 0.25, 0.1).any()
+    assert beside_large_unknown(edge, 0.25, 0.1, (True, False, False, False))[2, 6]
+    assert not beside_large_unknown(edge, 0.25, 0.1, (False, True, True, True)).any()
+
+
+def test_away_from_by_hand() -> None:
+    cells = np.zeros((5, 9), bool)
+    cells[2, :] = True
+    been = np.zeros_like(cells)
+    assert np.array_equal(away_from(cells, been, 2.0), cells)        # nowhere been: all kept
+    been[2, 0] = True
+    assert np.array_equal(np.flatnonzero(away_from(cells, been, 2.0)[2]), np.arange(3, 9))   # 3 cells on
