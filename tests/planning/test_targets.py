@@ -13,8 +13,8 @@ from robotexp.planning.follower import PathFollower, path_points
 from robotexp.robot import Limits
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.kernels import SUB_POINTS
-from robotexp.planning.targets import (away_from, beside_large_unknown, frontier_targets, nearest_passable, passable_cell,
-                                      surface_distance)
+from robotexp.planning.targets import (away_from, beside_large_unknown, frontier_targets, nearest_passable,
+                                      passable_cell, surface_distance)
 
 GEO = GridGeometry(origin_x=-1.0, origin_y=2.0, cell=0.1, rows=10, cols=8)
 PLUGINS = Path(__file__).resolve().parents[2] / "plugins"
