@@ -244,8 +244,8 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
             hit_box[r, c, 1] = max(hit_box[r, c, 1], hxh)
             hit_box[r, c, 2] = min(hit_box[r, c, 2], hyl)
             hit_box[r, c, 3] = max(hit_box[r, c, 3], hyh)
-    if not (math.isfinite(xl) and math.isfinite(xh) and math.isfinite(yl) and math.isfinite(yh)):
-        return 0, geo.rows, 0, geo.cols         # a pose or a reach not finite: the whole grid
+    if not (abs(xl) < 1e15 and abs(xh) < 1e15 and abs(yl) < 1e15 and abs(yh) < 1e15):
+        return 0, geo.rows, 0, geo.cols         # a pose or a reach not finite (or beyond an index): the whole grid
     return math.floor(yl) - 1, math.floor(yh) + 2, math.floor(xl) - 1, math.floor(xh) + 2
 
 
