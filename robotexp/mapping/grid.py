@@ -137,7 +137,8 @@ class OccupancyGrid:
         """Integrate one laser scan taken at robot pose `pose`; return the cell updates it made.
 
         The sensor sits `scan.offset_x` [m] ahead of the robot centre along the heading; beam
-        angles are relative to the heading. NaN ranges are skipped.
+        angles are relative to the heading. NaN ranges are skipped; a scan from a pose not finite changes
+        nothing (it is counted in `scans`).
 
         Raises:
             ConfigError: `scan.angles` and `scan.ranges` differ in shape.
@@ -156,6 +157,9 @@ class OccupancyGrid:
         sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
                            pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
         self.scans += 1
+        if not (math.isfinite(sensor[0]) and math.isfinite(sensor[1]) and math.isfinite(sensor[2])):
+            self._note(0, 0, 0, 0)          # a pose not known: the scan changes nothing
+            return 0
         self._note(*note_hits(self.hit_box, self.geo, sensor, angles, measured, ranges, rmax))
         if self.model == "logodds":
             lm = LogOddsModel(self.l_free, self.l_occ, -self.l_clamp, self.l_clamp, rmax)

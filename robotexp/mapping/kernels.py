@@ -182,6 +182,7 @@ def nudged_ranges(ranges: npt.NDArray[np.float64], range_max: float, depth: floa
     return out
 
 
+BOX_LIMIT = 1e15    # [cells] `note_hits`' box beyond this (or not finite) is the whole grid
 HIT_STEPS = 255     # a cell's hit box is kept in 1/HIT_STEPS of its side (uint8)
 
 
@@ -201,7 +202,7 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
     the integration (`integrate_scan_logodds`) may touch: the box of the sensor's cell and each beam's end
     (its `nudged` range, or `range_max` for a beam that records no hit; NaN and negative ranges are skipped,
     as the integration skips them), a cell of slack on each side for rounding. A beam is a segment, so its
-    cells lie in the box of its ends. A pose or an end not finite: the whole grid.
+    cells lie in the box of its ends. A pose or an end not finite (or beyond any index): the whole grid.
 
     Args:
         hit_box: (rows, cols, 4) uint8, updated in place.
@@ -214,6 +215,9 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
     """
     x0 = (pose[0] - geo.origin_x) / geo.cell
     y0 = (pose[1] - geo.origin_y) / geo.cell
+    if not (abs(x0) < BOX_LIMIT and abs(y0) < BOX_LIMIT and math.isfinite(pose[2])):
+        return 0, geo.rows, 0, geo.cols         # a pose not finite, or beyond any index: no hit has a cell
+    whole = False
     xl, xh, yl, yh = x0, x0, y0, y0
     for i in range(angles.shape[0]):
         rng = nudged[i]
@@ -223,6 +227,9 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
         dx = math.cos(a)
         dy = math.sin(a)
         end = min(rng, range_max) / geo.cell
+        if whole or not end < BOX_LIMIT:        # a reach not finite, or beyond any index: the whole grid
+            whole = True
+            end = 0.0
         xl, xh = min(xl, x0 + end * dx), max(xh, x0 + end * dx)
         yl, yh = min(yl, y0 + end * dy), max(yh, y0 + end * dy)
         if rng >= range_max:
@@ -244,8 +251,8 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
             hit_box[r, c, 1] = max(hit_box[r, c, 1], hxh)
             hit_box[r, c, 2] = min(hit_box[r, c, 2], hyl)
             hit_box[r, c, 3] = max(hit_box[r, c, 3], hyh)
-    if not (abs(xl) < 1e15 and abs(xh) < 1e15 and abs(yl) < 1e15 and abs(yh) < 1e15):
-        return 0, geo.rows, 0, geo.cols         # a pose or a reach not finite (or beyond an index): the whole grid
+    if whole or not (abs(xl) < BOX_LIMIT and abs(xh) < BOX_LIMIT and abs(yl) < BOX_LIMIT and abs(yh) < BOX_LIMIT):
+        return 0, geo.rows, 0, geo.cols
     return math.floor(yl) - 1, math.floor(yh) + 2, math.floor(xl) - 1, math.floor(xh) + 2
 
 

@@ -99,13 +99,18 @@ def test_each_scan_changes_only_cells_in_its_box_and_the_box_is_its_beams(model:
             assert r1 - r0 <= 13 and c1 - c0 <= 13 and changed.any()
 
 
-def test_a_scan_from_a_pose_or_with_a_reach_not_finite_or_out_of_bounds_changes_the_whole_grid_box() -> None:
+def test_a_scan_beyond_any_index_changes_the_whole_grid_box_and_one_from_a_pose_not_finite_nothing() -> None:
     grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 50, 50))
     angles = np.linspace(-1.0, 1.0, 5)
     for pose, range_max, r in [(Pose(1e300, 2.0, 0.0), 8.0, 1.0), (Pose(2.0, 2.0, 0.0), 1e300, 1e299),
-                               (Pose(2.0, 2.0, 0.0), math.inf, math.inf), (Pose(math.nan, 2.0, 0.0), 8.0, 1.0)]:
+                               (Pose(2.0, 2.0, 0.0), math.inf, math.inf)]:
         grid.update(pose, LaserScan(angles, np.full(5, r), range_max))
         assert grid.changed_box(grid.scans - 1) == (0, 50, 0, 50)
+    before = grid.values.copy()
+    for pose in (Pose(math.nan, 2.0, 0.0), Pose(2.0, math.inf, 0.0), Pose(2.0, 2.0, math.nan)):   # changes nothing
+        assert grid.update(pose, LaserScan(angles, np.full(5, 1.0), 8.0)) == 0
+        assert grid.changed_box(grid.scans - 1) is None
+    assert np.array_equal(grid.values, before)
     grid.update(Pose(2.0, 2.0, 0.0), LaserScan(angles, np.full(5, 1.0), 8.0))
     assert grid.changed_box(grid.scans - 1) == (10, 30, 19, 32)
 
