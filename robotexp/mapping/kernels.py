@@ -18,7 +18,7 @@ ends in the cell behind that face, where the obstacle is. A beam passing through
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -68,6 +68,92 @@ def _forward_index(g: float, d: float) -> int:
     return math.floor(g)
 
 
+WRITE, LOGODDS, HIMM = 0, 1, 2     # what `_walk` does at each cell a beam crosses
+
+
+@kernel
+def _walk(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, length: float,  # noqa: PLR0913
+          cells: npt.NDArray[np.int64], cap: int, mode: int, values: npt.NDArray[Any], stamp: npt.NDArray[np.int32],
+          scan_id: int, hit: bool, l_free: float, l_min: float, l_max: float) -> tuple[int, bool, int]:
+    """Visit the cells a beam crosses, in order from the sensor (at most `cap`): WRITE them into `cells`, or
+    (LOGODDS, HIMM) lower each one this scan has not touched yet in `values` (log-odds: add `l_free` and clamp
+    to [l_min, l_max]; HIMM certainty: less 1, floor 0) and stamp it `scan_id`, leaving out the end cell of a
+    beam that ends in the grid with a `hit`. One walk serves the beam traversal (`traverse`) and the scan
+    integration, which would otherwise write the cells out and read them back.
+
+    Returns:
+        (n, ended, lowered): the cells visited, whether the last holds the beam end (False when the beam
+        left the grid, or never entered it, before its end), and the cells lowered.
+    """
+    cell = geo.cell
+    rows = geo.rows
+    cols = geo.cols
+    gx = (x0 - geo.origin_x) / cell
+    gy = (y0 - geo.origin_y) / cell
+    glen = length / cell
+    # Slab clipping of the ray (t >= 0, in cells) against the grid box.
+    t_in = 0.0
+    t_out = math.inf
+    if dx != 0.0:
+        ta = (0.0 - gx) / dx
+        tb = (cols - gx) / dx
+        t_in = max(t_in, min(ta, tb))
+        t_out = min(t_out, max(ta, tb))
+    elif gx < 0.0 or gx >= cols:
+        return 0, False, 0
+    if dy != 0.0:
+        ta = (0.0 - gy) / dy
+        tb = (rows - gy) / dy
+        t_in = max(t_in, min(ta, tb))
+        t_out = min(t_out, max(ta, tb))
+    elif gy < 0.0 or gy >= rows:
+        return 0, False, 0
+    if t_in >= t_out or t_in > glen:
+        return 0, False, 0
+    c = min(max(_forward_index(gx + t_in * dx, dx), 0), cols - 1)
+    r = min(max(_forward_index(gy + t_in * dy, dy), 0), rows - 1)
+    sx = 1 if dx > 0.0 else -1
+    sy = 1 if dy > 0.0 else -1
+    # the next border's index offset per axis (1 ahead when moving up, 0 when moving down) and the
+    # inverse direction (a multiplication per step instead of a division)
+    bx = 1 if dx > 0.0 else 0
+    by = 1 if dy > 0.0 else 0
+    ix = 1.0 / dx if dx != 0.0 else 0.0
+    iy = 1.0 / dy if dy != 0.0 else 0.0
+    n = 0
+    lowered = 0
+    while n < cap:
+        n += 1
+        # Parameters of the next vertical / horizontal border, from the indices (no drift).
+        tx = (c + bx - gx) * ix if dx != 0.0 else math.inf
+        ty = (r + by - gy) * iy if dy != 0.0 else math.inf
+        end = min(tx, ty) > glen
+        if mode == WRITE:
+            cells[n - 1, 0] = r
+            cells[n - 1, 1] = c
+        elif not (end and hit) and stamp[r, c] != scan_id:
+            stamp[r, c] = scan_id
+            if mode == LOGODDS:
+                # Sum in float64 (explicitly: NumPy would keep float32), round once on the store.
+                v = np.float64(values[r, c]) + l_free
+                values[r, c] = min(max(v, l_min), l_max)
+            else:
+                values[r, c] = max(int(values[r, c]) - 1, 0)
+            lowered += 1
+        if end:
+            return n, True, lowered
+        if tx < ty - _TOL:
+            c += sx
+        elif ty < tx - _TOL:
+            r += sy
+        else:                 # through a corner (within 1e-9 cell): step diagonally
+            c += sx
+            r += sy
+        if c < 0 or c >= cols or r < 0 or r >= rows:
+            return n, False, lowered
+    return n, False, lowered
+
+
 @kernel
 def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, length: float,
              cells: npt.NDArray[np.int64]) -> tuple[int, bool]:
@@ -86,75 +172,9 @@ def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, leng
         (n, ended): the number of cells written and whether the last one holds the beam end
         (False when the beam left the grid, or never entered it, before its end).
     """
-    cell = geo.cell
-    rows = geo.rows
-    cols = geo.cols
-    gx = (x0 - geo.origin_x) / cell
-    gy = (y0 - geo.origin_y) / cell
-    glen = length / cell
-    # Slab clipping of the ray (t >= 0, in cells) against the grid box.
-    t_in = 0.0
-    t_out = math.inf
-    if dx != 0.0:
-        ta = (0.0 - gx) / dx
-        tb = (cols - gx) / dx
-        t_in = max(t_in, min(ta, tb))
-        t_out = min(t_out, max(ta, tb))
-    elif gx < 0.0 or gx >= cols:
-        return 0, False
-    if dy != 0.0:
-        ta = (0.0 - gy) / dy
-        tb = (rows - gy) / dy
-        t_in = max(t_in, min(ta, tb))
-        t_out = min(t_out, max(ta, tb))
-    elif gy < 0.0 or gy >= rows:
-        return 0, False
-    if t_in >= t_out or t_in > glen:
-        return 0, False
-    c = min(max(_forward_index(gx + t_in * dx, dx), 0), cols - 1)
-    r = min(max(_forward_index(gy + t_in * dy, dy), 0), rows - 1)
-    sx = 1 if dx > 0.0 else -1
-    sy = 1 if dy > 0.0 else -1
-    # the next border's index offset per axis (1 ahead when moving up, 0 when moving down) and the
-    # inverse direction (a multiplication per step instead of a division)
-    bx = 1 if dx > 0.0 else 0
-    by = 1 if dy > 0.0 else 0
-    ix = 1.0 / dx if dx != 0.0 else 0.0
-    iy = 1.0 / dy if dy != 0.0 else 0.0
-    cap = cells.shape[0]
-    n = 0
-    while n < cap:
-        cells[n, 0] = r
-        cells[n, 1] = c
-        n += 1
-        # Parameters of the next vertical / horizontal border, from the indices (no drift).
-        tx = (c + bx - gx) * ix if dx != 0.0 else math.inf
-        ty = (r + by - gy) * iy if dy != 0.0 else math.inf
-        if min(tx, ty) > glen:
-            return n, True
-        if tx < ty - _TOL:
-            c += sx
-        elif ty < tx - _TOL:
-            r += sy
-        else:                 # through a corner (within 1e-9 cell): step diagonally
-            c += sx
-            r += sy
-        if c < 0 or c >= cols or r < 0 or r >= rows:
-            return n, False
-    return n, False
-
-
-@kernel
-def _beam(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rng: float, range_max: float,
-          cells: npt.NDArray[np.int64]) -> tuple[int, int]:
-    """Trace one beam into `cells`; return (cells crossed, cells before the hit cell).
-
-    The two are equal when the beam records no hit (max range, or its end lies beyond the grid).
-    """
-    a = pose[2] + angle
-    hit = rng < range_max
-    n, ended = traverse(geo, pose[0], pose[1], math.cos(a), math.sin(a), rng if hit else range_max, cells)
-    return n, (n - 1 if (hit and ended) else n)
+    n, ended, _ = _walk(geo, x0, y0, dx, dy, length, cells, cells.shape[0], WRITE, np.empty((0, 0), np.float32),
+                        np.empty((0, 0), np.int32), 0, False, 0.0, 0.0, 0.0)
+    return n, ended
 
 
 @kernel
@@ -285,7 +305,6 @@ def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[
     Returns:
         The number of cells this scan updated.
     """
-    cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
     touched = 0
     for i in range(angles.shape[0]):        # hits first: they need no traversal
         rng = ranges[i]
@@ -299,20 +318,16 @@ def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[
         v = np.float64(logodds[r, c]) + model.l_occ
         logodds[r, c] = min(max(v, model.l_min), model.l_max)
         touched += 1
+    cap = geo.rows + geo.cols + 1
+    no_cells = np.empty((0, 2), np.int64)   # `_walk` lowers the cells, it does not write them out
     for i in range(angles.shape[0]):        # then the free cells no hit claimed
         rng = ranges[i]
         if math.isnan(rng) or rng < 0.0:
             continue
-        n, n_free = _beam(geo, pose, angles[i], rng, model.range_max, cells)
-        for j in range(n_free):
-            r = cells[j, 0]
-            c = cells[j, 1]
-            if stamp[r, c] == scan_id:
-                continue
-            stamp[r, c] = scan_id
-            v = np.float64(logodds[r, c]) + model.l_free
-            logodds[r, c] = min(max(v, model.l_min), model.l_max)
-            touched += 1
+        a = pose[2] + angles[i]
+        hit = rng < model.range_max
+        touched += _walk(geo, pose[0], pose[1], math.cos(a), math.sin(a), rng if hit else model.range_max, no_cells,
+                         cap, LOGODDS, logodds, stamp, scan_id, hit, model.l_free, model.l_min, model.l_max)[2]
     return touched
 
 
@@ -326,7 +341,6 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
     updated at most once per scan and a hit wins, as in `integrate_scan_logodds`, whose `stamp`,
     `scan_id`, clipping and return value this follows; `range_max` is in [m].
     """
-    cells = np.empty((geo.rows + geo.cols + 1, 2), np.int64)
     touched = 0
     for i in range(angles.shape[0]):        # hits first: they need no traversal
         rng = ranges[i]
@@ -338,19 +352,16 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
         stamp[r, c] = scan_id
         cert[r, c] = min(int(cert[r, c]) + 3, 15)
         touched += 1
+    cap = geo.rows + geo.cols + 1
+    no_cells = np.empty((0, 2), np.int64)   # `_walk` lowers the cells, it does not write them out
     for i in range(angles.shape[0]):        # then the free cells no hit claimed
         rng = ranges[i]
         if math.isnan(rng) or rng < 0.0:
             continue
-        n, n_free = _beam(geo, pose, angles[i], rng, range_max, cells)
-        for j in range(n_free):
-            r = cells[j, 0]
-            c = cells[j, 1]
-            if stamp[r, c] == scan_id:
-                continue
-            stamp[r, c] = scan_id
-            cert[r, c] = max(int(cert[r, c]) - 1, 0)
-            touched += 1
+        a = pose[2] + angles[i]
+        hit = rng < range_max
+        touched += _walk(geo, pose[0], pose[1], math.cos(a), math.sin(a), rng if hit else range_max, no_cells,
+                         cap, HIMM, cert, stamp, scan_id, hit, 0.0, 0.0, 0.0)[2]
     return touched
 
 
