@@ -54,7 +54,13 @@ def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
 def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
     # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
     # kill still counts from the script's start, so the child stops its run at --timeout and writes it.
-    # The run is meta-firefly's on dense (about 6 s of CPU, where frontier's takes 1.3 s and ended within the 2 s)
+    # The run is meta-firefly's on dense (about 6 s of CPU, where frontier's takes 1.3 s and ended within the 2 s).
+    # Its kernels are compiled first (a kernel's first compilation is one step no timeout interrupts: on a fresh
+    # install it outlasted the grace and the child was killed mid-compile)
+    warm = subprocess.run([sys.executable, "-m", "robotexp.cli", "explore", "--world", "dense", "-m", "meta-firefly",
+                           "--max-time", "5", "-o", str(tmp_path / "warm")],
+                          capture_output=True, text=True, timeout=300)
+    assert warm.returncode == 0, warm.stderr
     slow = tmp_path / "slow"
     slow.mkdir()
     (slow / "sitecustomize.py").write_text("import time\ntime.sleep(1.5)\n")
