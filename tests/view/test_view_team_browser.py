@@ -42,8 +42,9 @@ def test_explore_team_view_in_chromium_draws_both_robots(tmp_path: Path, view_cl
     _need_browser()
     (tmp_path / "room.map").write_text(team_room)
     out = tmp_path / "out"
+    # the team explores the room in 15 s of robot time: at 5x the page has 3 s to pause it before it ends
     proc, url = view_cli.start("explore", "-w", str(tmp_path / "room.map"), "--team", "2", "--coordinator", "greedy",
-                               "--view", "--view-speed", "20", "--max-time", "3600", "-o", str(out))
+                               "--view", "--view-speed", "5", "--max-time", "3600", "-o", str(out))
     with _page(url, viewport={"width": 1000, "height": 700}) as page:
         page.wait_for_function("document.body.dataset.robots === '2' && Number(document.body.dataset.t) > 2",
                                timeout=30_000)
