@@ -178,11 +178,9 @@ def traverse(geo: GridGeometry, x0: float, y0: float, dx: float, dy: float, leng
 
 
 @kernel
-def _hit_cell(geo: GridGeometry, pose: npt.NDArray[np.float64], angle: float, rng: float) -> tuple[int, int]:
-    """(row, col) of the cell a hit at range `rng` [m] ends in, as `traverse` ends; (-1, -1) off the grid."""
-    a = pose[2] + angle
-    dx = math.cos(a)
-    dy = math.sin(a)
+def _hit_cell(geo: GridGeometry, pose: npt.NDArray[np.float64], dx: float, dy: float, rng: float) -> tuple[int, int]:
+    """(row, col) of the cell a hit at range `rng` [m] along the unit direction (`dx`, `dy`) from the sensor
+    at `pose` ends in, as `traverse` ends; (-1, -1) off the grid."""
     r = _forward_index((pose[1] + rng * dy - geo.origin_y) / geo.cell, dy)
     c = _forward_index((pose[0] + rng * dx - geo.origin_x) / geo.cell, dx)
     if r < 0 or r >= geo.rows or c < 0 or c >= geo.cols:
@@ -254,9 +252,8 @@ def note_hits(hit_box: npt.NDArray[np.uint8], geo: GridGeometry, pose: npt.NDArr
         yl, yh = min(yl, y0 + end * dy), max(yh, y0 + end * dy)
         if rng >= range_max:
             continue
-        r = _forward_index((pose[1] + rng * dy - geo.origin_y) / geo.cell, dy)     # `_hit_cell`
-        c = _forward_index((pose[0] + rng * dx - geo.origin_x) / geo.cell, dx)
-        if r < 0 or r >= geo.rows or c < 0 or c >= geo.cols:
+        r, c = _hit_cell(geo, pose, dx, dy, rng)
+        if r < 0:
             continue
         fx = (pose[0] + ranges[i] * dx - geo.origin_x) / geo.cell - c
         fy = (pose[1] + ranges[i] * dy - geo.origin_y) / geo.cell - r
@@ -310,7 +307,8 @@ def integrate_scan_logodds(logodds: npt.NDArray[np.float32], stamp: npt.NDArray[
         rng = ranges[i]
         if not (0.0 <= rng < model.range_max):
             continue
-        r, c = _hit_cell(geo, pose, angles[i], rng)
+        a = pose[2] + angles[i]
+        r, c = _hit_cell(geo, pose, math.cos(a), math.sin(a), rng)
         if r < 0 or stamp[r, c] == scan_id:
             continue
         stamp[r, c] = scan_id
@@ -346,7 +344,8 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
         rng = ranges[i]
         if not (0.0 <= rng < range_max):
             continue
-        r, c = _hit_cell(geo, pose, angles[i], rng)
+        a = pose[2] + angles[i]
+        r, c = _hit_cell(geo, pose, math.cos(a), math.sin(a), rng)
         if r < 0 or stamp[r, c] == scan_id:
             continue
         stamp[r, c] = scan_id

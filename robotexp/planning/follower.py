@@ -122,6 +122,12 @@ def blocked_ahead(scan: LaserScan | None, radius: float, clearance: float, speed
     return _sweep_blocked(pts, norms, radius, clearance, speed, turn, a_max)
 
 
+def _sweep_length(speed: float, a_max: float, clearance: float) -> float:
+    """[m] how far the guard sweeps the robot along a command at `speed` [m/s]: its stopping distance
+    speed^2 / (2 `a_max`), `REACTION` s at `speed`, and `clearance`."""
+    return speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+
+
 def footprint_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: float, speed: float,  # noqa: PLR0913
                       turn: float, a_max: float = 0.5, alpha_max: float = 2.0) -> bool:
     """`blocked_ahead` for a robot of outline `foot` against robot-frame points `pts` (k, 2) [m] (a scan's
@@ -132,7 +138,7 @@ def footprint_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: 
         return False
     reach = foot.swing + clearance
     if speed > 0:
-        length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+        length = _sweep_length(speed, a_max, clearance)
         k = turn / speed
         steps = max(length / SWEEP_STEP, abs(k) * length / TURN_STEP)   # the corners move as it turns
         s = np.linspace(0.0, length, max(2, int(math.ceil(steps)) + 1))[1:]
@@ -218,7 +224,7 @@ def drift_blocked(pts: npt.NDArray[np.float64], foot: Footprint, clearance: floa
 def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float, clearance: float,
                    speed: float, turn: float, a_max: float) -> bool:
     """`blocked_ahead` on the robot-frame points `pts` (k, 2) [m] at distances `norms` (k,), for speed > 0."""
-    length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+    length = _sweep_length(speed, a_max, clearance)
     steps = max(1, int(math.ceil(length / SWEEP_STEP)))
     return bool(sweep_blocked_kernel(pts, norms, radius, clearance, length, turn / speed, steps, GRAZE, MIN_GAP))
 
@@ -226,7 +232,7 @@ def _sweep_blocked(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64],
 def sweep_blocked_reference(pts: npt.NDArray[np.float64], norms: npt.NDArray[np.float64], radius: float,
                             clearance: float, speed: float, turn: float, a_max: float) -> bool:
     """`_sweep_blocked` in numpy (the kernel's reference)."""
-    length = speed * speed / (2.0 * max(a_max, 1e-6)) + speed * REACTION + clearance
+    length = _sweep_length(speed, a_max, clearance)
     reach = radius + clearance
     near = norms < length + reach        # the rest cannot be reached
     if not near.any():
