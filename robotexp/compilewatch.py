@@ -40,11 +40,15 @@ class CompileWatch:
             kernels (first run after an install, ~90 s; cached for the next runs)..."), after each
             kernel ("  localization kernels: 3 compiled (search), 41 s"), and when the run moves on.
         clock: wall clock [s].
+        busy: called with True when a kernel starts compiling and with False when it and the kernels it
+            compiled on the way are done (a step that cannot be interrupted meanwhile).
     """
 
-    def __init__(self, say: Callable[[str], None], clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, say: Callable[[str], None], clock: Callable[[], float] = time.monotonic,
+                 busy: Callable[[bool], None] | None = None) -> None:
         self.say = say
         self.clock = clock
+        self.busy = busy
         self.compiled: dict[str, int] = {}        # group label -> kernels compiled
         self._started: dict[str, float] = {}      # group label -> when its first kernel started
         self._open: str | None = None             # the group being compiled
@@ -70,6 +74,8 @@ class CompileWatch:
         label, expected = group
         with self._lock:
             self._depth += 1
+            if self._depth == 1 and self.busy is not None:
+                self.busy(True)
             if self._depth == 1 and self._open != label:   # a kernel another one calls is part of the caller
                 self._finish()
                 self._open = label
@@ -85,6 +91,8 @@ class CompileWatch:
         name = getattr(getattr(event.data.get("dispatcher"), "py_func", None), "__name__", "?")
         with self._lock:
             self._depth = max(self._depth - 1, 0)
+            if self._depth == 0 and self.busy is not None:
+                self.busy(False)
             if self._depth > 0 or self._open is None:
                 return                              # counted with the kernel that called it
             label = self._open

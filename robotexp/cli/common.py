@@ -96,10 +96,11 @@ def image_formats(text: str) -> tuple[str, ...]:
     return fmts
 
 
-def compile_watch(tty: bool | None = None) -> Any:
+def compile_watch(tty: bool | None = None, busy: Callable[[bool], None] | None = None) -> Any:
     """A `robotexp.compilewatch.CompileWatch` that tells stderr, as it happens, that numba compiles the
     kernels of a group (the first run after an install) and how far it got: on a terminal (`tty`,
-    default: whether stderr is one) one line redrawn per group, else a line per kernel."""
+    default: whether stderr is one) one line redrawn per group, else a line per kernel; `busy` is told
+    when a compilation starts and ends."""
     from robotexp.compilewatch import CompileWatch
 
     redraw = sys.stderr.isatty() if tty is None else tty
@@ -115,4 +116,4 @@ def compile_watch(tty: bool | None = None) -> Any:
             click.echo("", err=True)
             drawn[0] = False
         click.echo(text if step else f"robotexp: {text}", err=True)
-    return CompileWatch(say)
+    return CompileWatch(say, busy=busy)

@@ -16,13 +16,15 @@ from robotexp.view.live import end_view, parse_speed, start_view, view_options
 
 __all__ = ["run_lua"]
 
-def _say_ready(fd: int) -> None:
-    """Tell the supervisor the script starts (its --timeout runs from now); once."""
+def _tell_supervisor(fd: int | None, what: bytes) -> None:
+    """One byte to the supervisor (`robotexp.lua.supervise`): READY once the script starts (its --timeout
+    runs from then), COMPILING / COMPILED around a numba compilation (one step its kill waits for)."""
+    if fd is None:
+        return
     import os
 
     try:
-        os.write(fd, b"r")
-        os.close(fd)
+        os.write(fd, what)
     except OSError:
         pass
 
@@ -48,7 +50,8 @@ def _say_ready(fd: int) -> None:
 @click.option("--tty-progress", is_flag=True, hidden=True,
               help="Redraw the progress line (the child's stderr is a pipe to a terminal).")
 @click.option("--ready-fd", type=int, default=None, hidden=True,
-              help="A pipe to write one byte to when the script starts (robotexp.lua.supervise's child).")
+              help="A pipe to tell the supervisor when the script starts and when numba compiles "
+                   "(robotexp.lua.supervise's child).")
 @click.option("--max-write", type=float, default=None,
               help="Limit of what the script writes to files [MB] (default: none; 512 with --sandbox).")
 @click.option("--record", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
@@ -106,14 +109,17 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(None, enabled=True if tty_progress else None)      # each run of the script
     try:
-        with compile_watch(True if tty_progress else None):
+        from robotexp.lua.supervise import COMPILED, COMPILING, READY
+
+        with compile_watch(True if tty_progress else None,
+                           busy=lambda on: _tell_supervisor(ready_fd, COMPILING if on else COMPILED)):
             result = run_script(script, out=out, world=world, robot=robot, sandbox=sandbox, timeout=timeout,
                                 emit=click.echo, notice=lambda text: click.echo(f"robotexp: {text}", err=True),
                                 max_memory=None if memory is None else int(memory * 2**20),
                                 allow_addresses=allow_address, retire=True,
                                 observers=(progress,) if live is None else (progress, live.observer),
                                 record=record, max_write=None if written is None else int(written * 2**20),
-                                on_start=None if ready_fd is None else lambda: _say_ready(ready_fd))
+                                on_start=lambda: _tell_supervisor(ready_fd, READY))
     except BaseException:
         end_view(live, interrupted=True)
         raise

@@ -13,6 +13,10 @@ in-process) and watches it:
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
   are; a timeout exits 1, Ctrl-C 130;
+- a numba compilation (the first run of a method after an install) is one step the child cannot
+  stop in; the child says when one starts and ends (COMPILING, COMPILED on the same pipe), and the
+  kill at --timeout waits for it to end (`COMPILE_HOLD` s at most) and `TIMEOUT_GRACE` s more, so the
+  child stops at its next step and writes the run in progress;
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
 - the child's output is relayed to the parent's stdout and stderr as it comes, not by lines (a
   redrawn progress line too), in chunks of at most `CHUNK` bytes (a script writing gigabytes without a
@@ -35,13 +39,17 @@ import click
 
 from robotexp.lifeline import die_with_parent
 
-__all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE"]
+__all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE", "COMPILE_HOLD", "READY", "COMPILING", "COMPILED"]
 
 TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it writes the run it stopped)
 INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
 _POLL = 0.05            # [s]
 CHUNK = 65536           # [bytes] the most of the child's output the parent holds at once
 STARTUP_GRACE = 60.0    # [s] for the child to start its script, on top of the timeout (it normally says so)
+# [s] the longest numba compilation the kill at --timeout waits for: every kernel group of a real robot
+# with scan matching compiles in about 120 s on a loaded 2-core machine (robotexp.compilewatch.GROUPS)
+COMPILE_HOLD = 300.0
+READY, COMPILING, COMPILED = b"r", b"c", b"d"   # what the child says on its pipe, a byte each
 
 
 def _records(path: Path) -> int:
@@ -73,12 +81,12 @@ def _relay(stream: IO[bytes], target: BinaryIO, failures: list[OSError | ValueEr
         stream.close()
 
 
-def _said(fd: int) -> bool:
-    """True once the child wrote to the (non-blocking) pipe `fd`."""
+def _heard(fd: int) -> bytes:
+    """What the child wrote to the (non-blocking) pipe `fd` since the last call."""
     try:
-        return bool(os.read(fd, 1))
+        return os.read(fd, 4096)
     except BlockingIOError:
-        return False
+        return b""
 
 
 def _tell(text: str) -> None:
@@ -89,8 +97,9 @@ def _tell(text: str) -> None:
         pass
 
 
-def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,  # noqa: C901
-              timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE) -> int:
+def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,  # noqa: C901, PLR0912, PLR0915
+              timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE,
+              compile_hold: float = COMPILE_HOLD, child: list[str] | None = None) -> int:
     """Run `robotexp run ARGS` in a child process; return its exit status (see the module docstring).
 
     Args:
@@ -100,6 +109,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         timeout: [s] the script's --timeout, or None.
         timeout_grace: [s] after `timeout` before the child is killed.
         interrupt_grace: [s] after Ctrl-C before the child is killed.
+        compile_hold: [s] the longest compilation the kill at the timeout waits for.
+        child: the child's command before its arguments (default: this Python, `-m robotexp.cli.lua_child`).
 
     Returns:
         The exit status: the child's, 1 after a kill at the timeout, 130 after Ctrl-C.
@@ -109,7 +120,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     start = time.monotonic()
     ready, ready_w = os.pipe()          # the child writes a byte there when its script starts
     os.set_blocking(ready, False)
-    cmd = [sys.executable, "-m", "robotexp.cli.lua_child", *args, f"--ready-fd={ready_w}"]
+    cmd = [*(child or [sys.executable, "-m", "robotexp.cli.lua_child"]), *args, f"--ready-fd={ready_w}"]
     try:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 preexec_fn=die_with_parent, pass_fds=(ready_w,))
@@ -123,6 +134,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         t.start()
     kill_at = None if timeout is None else start + timeout + timeout_grace + STARTUP_GRACE
     started = False                 # the child said its script started: its timeout runs from then
+    compiling: float | None = None  # since when the child compiles (it said COMPILING, not yet COMPILED)
+    held = False                    # the kill at the timeout waited for a compilation (said once)
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
     interrupted = False
     try:
@@ -130,12 +143,25 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             try:
                 while proc.poll() is None:
                     now = time.monotonic()
-                    if not started and _said(ready):
-                        started = True
-                        if timeout is not None:
-                            at = now + timeout + timeout_grace
-                            kill_at = at if kill_at is None else min(kill_at, at)
-                    if kill_at is not None and now >= kill_at:
+                    for said in _heard(ready):
+                        if said == READY[0] and not started:
+                            started = True
+                            if timeout is not None:
+                                at = now + timeout + timeout_grace
+                                kill_at = at if kill_at is None else min(kill_at, at)
+                        elif said == COMPILING[0]:
+                            compiling = now
+                        elif said == COMPILED[0]:
+                            compiling = None
+                            if held and kill_at is not None and not interrupted:
+                                kill_at = max(kill_at, now + timeout_grace)   # the child's next step stops it
+                    if kill_at is not None and now >= kill_at and not interrupted and compiling is not None \
+                            and started and now - compiling < compile_hold:
+                        if not held:
+                            _tell(f"robotexp: {script}: --timeout: numba is compiling kernels (a step that cannot "
+                                  f"be interrupted); the run stops when it ends (at most {compile_hold:g} s)")
+                        held = True
+                    elif kill_at is not None and now >= kill_at:
                         why = "interrupted" if interrupted else "timeout"
                         proc.kill()
                         proc.wait()

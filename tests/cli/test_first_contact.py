@@ -198,6 +198,17 @@ def test_compilation_is_said_at_once_per_group_with_progress() -> None:
     assert len(lines) == 6
 
 
+def test_compilation_tells_busy_when_it_starts_and_when_it_ends() -> None:
+    # the supervisor of `robotexp run` holds its kill at --timeout while numba compiles (robotexp.lua.supervise)
+    from robotexp.compilewatch import CompileWatch
+
+    told: list[object] = []
+    with CompileWatch(lambda text: told.append(text.split(" (")[0]), busy=told.append):
+        _kernel_of("robotexp.mapping.kernels")(1.0)
+        _kernel_of("numpy_user_code")(1.0)                   # not robotexp's: not told
+    assert told == [True, "compiling the map kernels", False, "  map kernels: 1 compiled", "  map kernels ready"]
+
+
 def test_explore_says_the_compilation_before_the_run_goes_on(tmp_path: Path, monkeypatch) -> None:
     import robotexp.experiment as experiment
 

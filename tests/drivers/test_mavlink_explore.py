@@ -39,5 +39,8 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_
         assert wait_for(lambda: emu.last_twist == Twist.ZERO)
         assert emu.sim.collisions == 0
     assert embedded["coverage"] > 0.9
-    assert record["coverage"] == pytest.approx(embedded["coverage"], abs=0.02)
+    assert record["coverage"] == pytest.approx(embedded["coverage"], abs=0.02), (
+        f"through MAVLink: {record['reason']}, {record['robot_time_s']:.0f} s of robot time, "
+        f"path {record['path_length_m']:.1f} m; embedded: {embedded['reason']}, {embedded['robot_time_s']:.0f} s, "
+        f"path {embedded['path_length_m']:.1f} m")
     assert embedded["completed"], embedded["reason"]

@@ -55,8 +55,8 @@ def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
     # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
     # kill still counts from the script's start, so the child stops its run at --timeout and writes it.
     # The run is meta-firefly's on dense (about 6 s of CPU, where frontier's takes 1.3 s and ended within the 2 s).
-    # Its kernels are compiled first (a kernel's first compilation is one step no timeout interrupts: on a fresh
-    # install it outlasted the grace and the child was killed mid-compile)
+    # Its kernels are compiled first, so that a run, not a compilation, is in progress at the timeout (the kill
+    # waiting for a compilation is tested below)
     warm = subprocess.run([sys.executable, "-m", "robotexp.cli", "explore", "--world", "dense", "-m", "meta-firefly",
                            "--max-time", "5", "-o", str(tmp_path / "warm")],
                           capture_output=True, text=True, timeout=300)
@@ -185,3 +185,50 @@ def test_a_results_file_made_a_folder_during_the_run_keeps_the_record(lua):
     (rescued,) = lua.out.glob("*.record.json")
     (record,) = [json.loads(x) for x in rescued.read_text().splitlines()]
     assert record["run"] == rescued.name.removesuffix(".record.json") and record["robot_time_s"] > 0
+
+
+# A stand-in for the script's process: it says on the supervisor's pipe that its script starts and that a
+# compilation starts, stays in it for HOLD s (one step it cannot stop in), says it ended (unless told not to),
+# then stops as a timed-out child does: it writes its run and exits 1.
+STAND_IN = """
+import os, sys, time
+fd = int([a for a in sys.argv if a.startswith("--ready-fd=")][0].split("=")[1])
+out, hold, ends = sys.argv[1], float(sys.argv[2]), sys.argv[3] == "ends"
+os.write(fd, b"r")
+os.write(fd, b"c")
+time.sleep(hold)
+if ends:
+    os.write(fd, b"d")
+    with open(os.path.join(out, "results.jsonl"), "a") as f:
+        f.write('{"run": "stopped at the timeout"}\\n')
+    sys.exit(1)
+time.sleep(60)
+"""
+
+
+def _stand_in(tmp_path, hold: float, ends: bool, compile_hold: float) -> tuple[int, float, str]:
+    """Supervise the stand-in with a 0.5 s timeout (1 s grace): its exit status, the seconds it took, stderr."""
+    script = tmp_path / "stand_in.py"
+    script.write_text(STAND_IN)
+    code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
+            f"sys.exit(supervise([{str(tmp_path)!r}, {str(hold)!r}, {'ends' if ends else 'hangs'!r}], script='s.lua', "
+            f"out=Path({str(tmp_path)!r}), timeout=0.5, compile_hold={compile_hold!r}, "
+            f"child=[sys.executable, {str(script)!r}]))")
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    return proc.returncode, time.monotonic() - t0, proc.stderr
+
+
+def test_the_kill_at_the_timeout_waits_for_a_compilation_to_end(tmp_path):
+    # in the compilation at the timeout for 2.5 s, more than the 1 s grace: not killed, the run it stops is written
+    code, took, err = _stand_in(tmp_path, hold=2.5, ends=True, compile_hold=30.0)
+    assert code == 1 and took >= 2.5, err
+    assert "numba is compiling kernels" in err and "killed" not in err, err
+    assert (tmp_path / "results.jsonl").read_text() == '{"run": "stopped at the timeout"}\n'
+
+
+def test_a_compilation_that_never_ends_is_killed_after_the_hold(tmp_path):
+    code, took, err = _stand_in(tmp_path, hold=60.0, ends=False, compile_hold=2.0)
+    assert code == 1 and 2.0 <= took < 2.0 + 0.5 + 1.0 + 3.0, (took, err)
+    assert "stopped by --timeout after 0.5 s (it did not stop by itself within 1 s: killed)" in err
+    assert not (tmp_path / "results.jsonl").exists()
