@@ -89,6 +89,7 @@ def _plan_costs_before(self: Any, grid: Any) -> Any:
 
     if getattr(self, "_own_costs", None) is None:
         self._own_costs = PlanCosts(self.ctx.radius, self.clearance)
+    self.costs = self._own_costs        # the explorer's planner reads each cell's best point from it
     return self._own_costs
 
 

@@ -9,7 +9,7 @@ OUT/team_study.md, and the figures (the coverage curves of the first start, the 
 coordinator) to `--figures`.
 
     python benchmarks/studies/team_study.py [--world dense] [--team 4 | 2,4,8]
-        [--coordinators none,greedy,burgard,minpos] [--poses 1] [--seeds 0] [--max-time 1800]
+        [--coordinators none,greedy,burgard,minpos,burgard:beta=4] [--poses 1] [--seeds 0] [--max-time 1800]
         [--out out/team_study] [--figures docs/figures]
 
 docs/how-to/teams.md: ``python benchmarks/studies/team_study.py --poses 1,2,3,4,5,6,7,8,9 --figures docs/figures``.
@@ -24,6 +24,11 @@ import time
 from pathlib import Path
 
 
+def _slug(name: str) -> str:
+    """A coordinator with its parameters as a file name: burgard:beta=4 -> burgard_beta4."""
+    return name.replace(":", "_").replace("=", "")
+
+
 def main() -> int:
     from robotexp.experiment import run_experiment, run_team
     from robotexp.output.figures import curve_figure, run_map_figure, save_figure
@@ -33,7 +38,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="dense")
     ap.add_argument("--team", default="4", help="robots in a team, comma-separated sizes (2,4,8: a scaling study)")
-    ap.add_argument("--coordinators", default="none,greedy,burgard,minpos")
+    ap.add_argument("--coordinators", default="none,greedy,burgard,minpos",
+                    help="comma-separated; a coordinator's parameters after colons: burgard:beta=4:cost_scale=10")
     ap.add_argument("--seeds", default="0", help="comma-separated")
     ap.add_argument("--poses", default="1", help="start poses of the world, comma-separated ('default': the "
                                                   "default start, for a map that names none)")
@@ -60,8 +66,11 @@ def main() -> int:
         settings = [("1 robot", single)]
         for size in sizes:
             for name in coordinators:
-                team = TeamSpec(robots=("p3dx",) * size, coordinator=name)
-                settings.append((f"{size} {name}", run_team(spec, team, args.out, image=False)))
+                coordinator, *params = name.split(":")
+                team = TeamSpec(robots=("p3dx",) * size, coordinator=coordinator,
+                                coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in params)})
+                where = args.out / _slug(name) if params else args.out    # one results file per parameter set
+                settings.append((f"{size} {name}", run_team(spec, team, where, image=False)))
         base = single.record.time_to_coverage_95_s
         for label, output in settings:
             r = output.record
@@ -80,7 +89,7 @@ def main() -> int:
                 if r.team_size is not None:
                     fig = run_map_figure(output.run)
                     size = "" if sizes == [4] else f"{r.team_size}_"
-                    save_figure(fig, figures / f"teams_{args.world}_{size}{r.coordinator}", ("png",))
+                    save_figure(fig, figures / f"teams_{args.world}_{size}{_slug(label.split(' ', 1)[1])}", ("png",))
     table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
              "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for label, rs in rows.items():
