@@ -12,7 +12,7 @@ import numpy.typing as npt
 from robotexp import ConfigError, Done, Explorer, ExplorerContext, Pose, RobotState, Twist
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
-from robotexp.planning.grid_planner import astar, nearest_goal
+from robotexp.planning.grid_planner import Cell, Path, astar, nearest_goal
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, frontier_targets, known_window, passable_cell,
                                       wall_face_cells)
@@ -267,19 +267,16 @@ class FrontierExplorer(Explorer):
         targets = self._frontier_targets(grid, view, off)
         if not targets.any():
             return False
-        targets = self._assigned_part(targets, off)
-        # stand within a robot radius (plus the inflation) of a frontier cell
-        # stand on or right by a frontier cell where possible (inside the room, not in its door);
-        # frontier cells in pockets too narrow for the robot are looked at from up to a metre away
-        # the cells within reach of a target: a disc around each target, not a distance transform of the window
-        found = None
-        for reach in (self.ctx.radius / geo.cell + 1.5, (self.ctx.radius + 1.0) / geo.cell):
-            found = nearest_goal(cost, start, near_cells(targets, reach) & passable)
-            if found is not None:
-                self.reach = reach
-                break
+        assigned = self._assigned_part(targets, off)
+        found = self._nearest(cost, passable, start, assigned, geo.cell)
+        if found is None and assigned is not targets:
+            # the coordinator's target has no cell this robot can stand by: it chooses alone (a team run
+            # must not end a robot's exploration on a target only the team's path costs thought reachable)
+            assigned = targets
+            found = self._nearest(cost, passable, start, targets, geo.cell)
         if found is None:
             return False
+        targets = assigned
         goal_rc, path, _ = found
         gx, gy = geo.center_of(goal_rc[0] + off[0], goal_rc[1] + off[1])
         if self.goal is None or math.hypot(gx - self.goal[0], gy - self.goal[1]) > geo.cell * 1.5:
@@ -289,6 +286,20 @@ class FrontierExplorer(Explorer):
         self._aim(targets, goal_rc, view, grid, off)
         self._follow(path, passable, pose, grid, off)
         return True
+
+    def _nearest(self, cost: npt.NDArray[np.float32], passable: npt.NDArray[np.bool_], start: tuple[int, int],
+                 targets: npt.NDArray[np.bool_], cell: float) -> tuple[Cell, Path, float] | None:
+        """The nearest cell (`nearest_goal`: the cell, the path, its cost) where the robot stands by one of
+        `targets`: on or right by a frontier cell where possible (within a robot radius plus 1.5 cells: inside
+        the room, not in its door), else within a metre of one (frontier cells in pockets too narrow for the
+        robot); None when there is none. `reach` [cells] is set to the distance used."""
+        # the cells within reach of a target: a disc around each target, not a distance transform of the window
+        for reach in (self.ctx.radius / cell + 1.5, (self.ctx.radius + 1.0) / cell):
+            found = nearest_goal(cost, start, near_cells(targets, reach) & passable)
+            if found is not None:
+                self.reach = reach
+                return found
+        return None
 
     def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], Offset]:
         """The frontier cells the next plan would choose among (walls' faces and cells given up on left out),

@@ -430,3 +430,27 @@ def test_the_goal_is_open_near_it_as_on_the_whole_window() -> None:
     assert len(explorer.answers) >= 10
     assert all(near == whole for near, whole in explorer.answers)
     assert {whole for _, whole in explorer.answers} == {True, False}       # both answers were asked for
+
+
+def test_a_coordinators_target_it_cannot_reach_leaves_the_robot_exploring() -> None:
+    """A team's coordinator gives the robot a frontier it cannot reach (a patch seen through a gap, no way
+    there on the map): the robot chooses alone among the frontier it can reach (its room's edges, unknown
+    beyond), it does not end its exploration while that is left."""
+    from robotexp.explorer import ExplorerContext
+    from robotexp import Done
+    from robotexp.robot import Limits, Twist
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 60, 60))
+    free = np.zeros(grid.shape, bool)
+    free[5:30, 5:30] = True             # the robot's room, unknown all round
+    free[45:52, 45:52] = True           # a patch beyond unknown space: frontier all round, no way to it
+    grid.mark_free(free)
+    explorer = FrontierExplorer()
+    explorer.reset(ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1,
+                                   start=Pose(1.0, 1.0, 0.0), laser_range=3.0, rng=np.random.default_rng(0)))
+    patch = np.argwhere(_targets_now(explorer, grid) & (np.arange(60)[:, None] >= 45))
+    assert len(patch) >= 20
+    explorer.assign_targets(patch)
+    decision = explorer.step(_state(), grid)
+    assert isinstance(decision, Twist) and not isinstance(decision, Done)
+    assert explorer.goal is not None and max(explorer.goal) < 3.0      # in its room
