@@ -186,7 +186,8 @@ def main() -> int:
         return 1
     if not args.no_record:
         label = f"{Path(world).stem}, {n} P3-DX, {args.coordinator}, {args.max_time:g} s"
-        record("team-speed", [
+        # one record per coordinator ("team-speed": greedy's, the default)
+        record("team-speed" if args.coordinator == "greedy" else f"team-speed-{args.coordinator}", [
             Figure(f"{label}: team time / CPU time of the loop, before", round(t / best["before"], 1), "x"),
             Figure(f"{label}: team time / CPU time of the loop, after", round(t / best["after"], 1), "x"),
             Figure(f"{label}: robot-seconds / CPU time of the loop, after", round(n * t / best["after"]), "x",
