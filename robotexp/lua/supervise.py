@@ -118,7 +118,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     results = out / "results.jsonl"
     before = _records(results)
     start = time.monotonic()
-    ready, ready_w = os.pipe()          # the child writes a byte there when its script starts
+    ready, ready_w = os.pipe()          # the child says there when its script starts and when it compiles
     os.set_blocking(ready, False)
     cmd = [*(child or [sys.executable, "-m", "robotexp.cli.lua_child"]), *args, f"--ready-fd={ready_w}"]
     try:
