@@ -264,19 +264,18 @@ class FrontierExplorer(Explorer):
         start = self._start_cell(pose, grid, passable, off)
         if start is None:
             return False
-        targets = self._frontier_targets(grid, view, off)
-        if not targets.any():
+        frontier = self._frontier_targets(grid, view, off)
+        if not frontier.any():
             return False
-        assigned = self._assigned_part(targets, off)
-        found = self._nearest(cost, passable, start, assigned, geo.cell)
-        if found is None and assigned is not targets:
+        targets = self._assigned_part(frontier, off)
+        found = self._nearest(cost, passable, start, targets, geo.cell)
+        if found is None and targets is not frontier:
             # the coordinator's target has no cell this robot can stand by: it chooses alone (a team run
             # must not end a robot's exploration on a target only the team's path costs thought reachable)
-            assigned = targets
+            targets = frontier
             found = self._nearest(cost, passable, start, targets, geo.cell)
         if found is None:
             return False
-        targets = assigned
         goal_rc, path, _ = found
         gx, gy = geo.center_of(goal_rc[0] + off[0], goal_rc[1] + off[1])
         if self.goal is None or math.hypot(gx - self.goal[0], gy - self.goal[1]) > geo.cell * 1.5:

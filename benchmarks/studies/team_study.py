@@ -63,16 +63,16 @@ def main() -> int:
         spec = RunSpec(world=args.world, method="frontier", pose=None if pose == "default" else pose, seed=seed,
                        max_time=args.max_time)
         single = run_experiment(spec, args.out, image=False)
-        settings = [("1 robot", single)]
+        settings = [("1 robot", "", single)]
         for size in sizes:
             for name in coordinators:
                 coordinator, *params = name.split(":")
                 team = TeamSpec(robots=("p3dx",) * size, coordinator=coordinator,
                                 coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in params)})
                 where = args.out / _slug(name) if params else args.out    # one results file per parameter set
-                settings.append((f"{size} {name}", run_team(spec, team, where, image=False)))
+                settings.append((f"{size} {name}", _slug(name), run_team(spec, team, where, image=False)))
         base = single.record.time_to_coverage_95_s
-        for label, output in settings:
+        for label, slug, output in settings:
             r = output.record
             t95 = r.time_to_coverage_95_s
             share = None if t95 is None or not base else t95 / base
@@ -89,7 +89,7 @@ def main() -> int:
                 if r.team_size is not None:
                     fig = run_map_figure(output.run)
                     size = "" if sizes == [4] else f"{r.team_size}_"
-                    save_figure(fig, figures / f"teams_{args.world}_{size}{_slug(label.split(' ', 1)[1])}", ("png",))
+                    save_figure(fig, figures / f"teams_{args.world}_{size}{slug}", ("png",))
     table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
              "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for label, rs in rows.items():
