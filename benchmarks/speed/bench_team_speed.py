@@ -5,7 +5,10 @@ The "before" run puts back, for its duration, what the team code did before (kep
 robot's frontier explorer kept its own plan costs of the one map they share, the scan filter that keeps
 teammates out of the map built its arrays for every teammate, the simulator's tick deleted rows out of
 the robots' array for each robot, the coordinator's round matched each robot's target to the candidates
-cell by cell in Python, and the cells each robot saw were marked through a boolean index. The "after" run is
+cell by cell in Python, the cells each robot saw were marked through a boolean index, the distances kept
+near what the scans changed (plan costs, each explorer's wall memory) were recomputed on one box holding
+every scan since the last update (robots far apart: most of the map), and the team's traffic rules
+looked at each teammate in turn in Python. The "after" run is
 the code as it is. Both runs must give the same record (path, coverage, collisions: the rework changes no
 result), which the script checks.
 
@@ -40,7 +43,19 @@ from perflog import Figure, record  # noqa: E402
 
 from robotexp.experiment import run_experiment, run_team  # noqa: E402
 from robotexp.run.spec import RunSpec  # noqa: E402
-from robotexp.run.team import TEAMMATE_MARGIN, TeamRun, TeamSpec  # noqa: E402
+from robotexp.mapping.grid import OccupancyGrid  # noqa: E402
+from robotexp.robot import Twist, wrap_angle  # noqa: E402
+from robotexp.run.record import EndReason  # noqa: E402
+from robotexp.run.team import (  # noqa: E402
+    _RING,
+    GIVE_WAY_ANGLE,
+    GIVE_WAY_GAP,
+    GIVE_WAY_SPEED,
+    TEAMMATE_CLEARANCE,
+    TEAMMATE_MARGIN,
+    TeamRun,
+    TeamSpec,
+)
 from robotexp.run.teamshare import SeenCells  # noqa: E402
 from robotexp.sim.team import SimTeam  # noqa: E402
 
@@ -108,6 +123,67 @@ def _note_before(self: SeenCells, robot: int, grid: Any) -> None:
     self.bits[r0:r1, c0:c1][touched] |= self._one[robot]
 
 
+def _changed_boxes_before(self: OccupancyGrid, since: int, grow: int = 0) -> list[tuple[int, int, int, int]]:
+    box = self.changed_box(since)        # one bounding box of every scan since: robots far apart span the map
+    return [] if box is None else [box]
+
+
+def _give_way_before(self: TeamRun, robot: int, m: Any) -> None:
+    d = m.decision
+    s = m.state
+    if not isinstance(d, Twist) or s is None:
+        return
+    self._keep_clear(robot, m, d, s)
+    if d.v <= 0.0:
+        return
+    p = s.true_pose or s.pose
+    for j in range(robot):
+        other = self.members[j]
+        t = other.state
+        if t is None or other.end is not EndReason.UNKNOWN or abs(t.velocity.v) < GIVE_WAY_SPEED:
+            continue
+        q = t.true_pose or t.pose
+        dx, dy = q.x - p.x, q.y - p.y
+        gap = math.hypot(dx, dy) - m.robot.footprint.swing - other.robot.footprint.swing
+        if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
+            m.robot.command(Twist(0.0, d.w))
+            self.gave_way[robot] += 1
+            return
+
+
+def _keep_clear_before(self: TeamRun, robot: int, m: Any, d: Twist, s: Any) -> None:
+    from robotexp.planning.follower import footprint_blocked
+
+    p = s.true_pose or s.pose
+    rings = []
+    closing = 0.0
+    for j, other in enumerate(self.members):
+        t = other.state
+        if j == robot or t is None:
+            continue
+        q = t.true_pose or t.pose
+        if math.hypot(q.x - p.x, q.y - p.y) > 2.0 + other.robot.footprint.swing:
+            continue
+        r = other.robot.footprint.swing
+        v = abs(t.velocity.v)
+        closing = max(closing, v * v / (2.0 * max(other.robot.limits.a_max, 1e-6)) + v * 0.2)
+        rings.append(np.column_stack([q.x + r * np.cos(_RING), q.y + r * np.sin(_RING)]))
+    if not rings:
+        return
+    world = np.concatenate(rings)
+    c, sn = math.cos(p.theta), math.sin(p.theta)
+    dx, dy = world[:, 0] - p.x, world[:, 1] - p.y
+    pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])
+    foot, lim = m.robot.footprint, m.robot.limits
+    for cmd in (d, Twist(0.0, d.w), Twist.ZERO):
+        if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE + closing, max(cmd.v, 0.0),
+                                                      cmd.w, lim.a_max, lim.alpha_max):
+            break
+    if cmd != d:
+        m.robot.command(cmd)
+        self.gave_way[robot] += 1
+
+
 def _before() -> list[tuple[Any, str, Any]]:
     """What the "before" run patches: (owner, attribute, value)."""
     import robotexp.run.team as team_module
@@ -115,7 +191,8 @@ def _before() -> list[tuple[Any, str, Any]]:
 
     return [(TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
             (FrontierExplorer, "_plan_costs", _plan_costs_before), (team_module, "held_targets", _held_targets_before),
-            (SeenCells, "note", _note_before)]
+            (SeenCells, "note", _note_before), (OccupancyGrid, "changed_boxes", _changed_boxes_before),
+            (TeamRun, "_give_way", _give_way_before), (TeamRun, "_keep_clear", _keep_clear_before)]
 
 
 def _team(spec: RunSpec, team: TeamSpec, patches: list[tuple[Any, str, Any]]) -> tuple[Any, float, float]:

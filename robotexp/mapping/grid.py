@@ -27,6 +27,7 @@ from robotexp.mapping.kernels import (
     integrate_scan_himm,
     integrate_scan_logodds,
     label8,
+    merge_boxes,
     note_hits,
     nudged_ranges,
 )
@@ -197,6 +198,21 @@ class OccupancyGrid:
         if len(a) == 0:
             return None
         return int(a[:, 0].min()), int(a[:, 1].max()), int(a[:, 2].min()), int(a[:, 3].max())
+
+    def changed_boxes(self, since: int, grow: int = 0) -> list[tuple[int, int, int, int]]:
+        """The cells `changed_box` holds, as separate boxes: each scan's or mark's box after the `since`-th,
+        those whose boxes grown by `grow` cells overlap or touch merged into their bounding box (repeatedly,
+        so no two of the boxes returned do); [] when none changed.
+
+        Several robots mapping one grid far apart change a few small boxes; their single bounding box
+        would be most of the map. A consumer that recomputes near what changed, `grow` cells around it,
+        does the work of these boxes instead.
+        """
+        since = max(since, 0)
+        if since == self.scans - 1:
+            box = self.changed_box(since)
+            return [] if box is None else [box]
+        return [(r0, r1, c0, c1) for r0, r1, c0, c1 in merge_boxes(self._changes[since:self.scans], int(grow)).tolist()]
 
     def window(self, r0: int, r1: int, c0: int, c1: int) -> OccupancyGrid:
         """The rows r0..r1 and columns c0..c1 (half-open, clipped to the grid) as an `OccupancyGrid` that

@@ -415,6 +415,36 @@ def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[
 
 
 @kernel
+def merge_boxes(boxes: npt.NDArray[np.int32], grow: int) -> npt.NDArray[np.int32]:
+    """The non-empty boxes (n, 4) int32 rows r0..r1, cols c0..c1 (half-open), those whose boxes grown by `grow`
+    cells overlap or touch replaced by their bounding box, repeatedly until no two of the result do: (m, 4)
+    int32, in the order each merged box was last grown."""
+    out = np.empty((len(boxes), 4), np.int32)
+    m = 0
+    for i in range(len(boxes)):
+        r0, r1, c0, c1 = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        if r1 <= r0 or c1 <= c0:
+            continue
+        merged = True
+        while merged:       # absorb every box the grown current one meets; again with the grown result
+            merged = False
+            j = 0
+            while j < m:
+                if (out[j, 0] - grow <= r1 + grow and r0 - grow <= out[j, 1] + grow
+                        and out[j, 2] - grow <= c1 + grow and c0 - grow <= out[j, 3] + grow):
+                    r0, r1 = min(r0, out[j, 0]), max(r1, out[j, 1])
+                    c0, c1 = min(c0, out[j, 2]), max(c1, out[j, 3])
+                    out[j] = out[m - 1]
+                    m -= 1
+                    merged = True
+                else:
+                    j += 1
+        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = r0, r1, c0, c1
+        m += 1
+    return out[:m].copy()
+
+
+@kernel
 def frontier_mask(free: npt.NDArray[np.bool_], unknown: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """Bool (rows, cols): free cells with an unknown 4-neighbour (outside the grid is not unknown)."""
     rows, cols = free.shape

@@ -176,18 +176,21 @@ class WallDistance:
         self._synced = 0
         self._occupied = occupied
 
-    def update(self, grid: OccupancyGrid) -> tuple[int, int, int, int] | None:
+    def update(self, grid: OccupancyGrid) -> list[tuple[int, int, int, int]]:
         """Bring `dist` up to `grid` (a grid other than the last one, or with fewer scans, is started
-        afresh: no cell occupied yet, all inf); return the box (rows r0..r1, cols c0..c1, half-open) of
-        the cells recomputed, None when none was."""
+        afresh: no cell occupied yet, all inf); return the boxes (rows r0..r1, cols c0..c1, half-open) of
+        the cells recomputed, [] when none was (one box near each part of the map the scans changed:
+        `OccupancyGrid.changed_boxes`)."""
         if self._grid is not grid or self.dist.shape != grid.shape or grid.scans < self._synced:
             self.dist = np.full(grid.shape, np.inf, np.float32)
             self.code = np.zeros(grid.shape if self.points else (0, 0), np.uint8)
             self._grid, self._synced = grid, 0
-        box = grid.changed_box(self._synced)
+        boxes = grid.changed_boxes(self._synced, self.k)
         self._synced = grid.scans
-        if box is None:
-            return None
+        return [self._recompute(grid, box) for box in boxes]
+
+    def _recompute(self, grid: OccupancyGrid, box: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+        """Recompute the cells within `k` of `box` from the occupied cells within 2 `k`; return their box."""
         k, (rows, cols) = self.k, grid.shape
         r0, r1, c0, c1 = max(box[0] - k, 0), min(box[1] + k, rows), max(box[2] - k, 0), min(box[3] + k, cols)
         s0, s1, t0, t1 = max(r0 - k, 0), min(r1 + k, rows), max(c0 - k, 0), min(c1 + k, cols)
@@ -240,11 +243,10 @@ class WallMemory:
             self._grid, self._synced = grid, 0
         if grid.scans == self._synced:
             return
-        box = grid.changed_box(self._synced)
+        boxes = grid.changed_boxes(self._synced)
         self._synced = grid.scans
-        if box is not None:
-            r0, r1, c0, c1 = box
-            self.ever[r0:r1, c0:c1] |= grid.firmly_occupied(box)
+        for r0, r1, c0, c1 in boxes:
+            self.ever[r0:r1, c0:c1] |= grid.firmly_occupied((r0, r1, c0, c1))
 
     def distance(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
         """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever firmly occupied
@@ -307,11 +309,10 @@ class PlanCosts:
         if self.walls is None or self.walls._grid is not grid:
             self.walls = WallDistance(rr + dr, surface=True, exact=rr, free_only=True, points=True)
         fresh = self.walls._grid is not grid or self.cost.shape != grid.shape or grid.scans < self.walls._synced
-        box = self.walls.update(grid)
+        boxes = self.walls.update(grid)
         if fresh:
             self.cost = np.full(grid.shape, np.inf, np.float32)     # unknown cells are blocked
-        if box is not None:
-            r0, r1, c0, c1 = box
+        for r0, r1, c0, c1 in boxes:
             self.cost[r0:r1, c0:c1] = cost_grid(self.walls.dist[r0:r1, c0:c1], robot_radius_cells=rr,
                                                 danger_radius_cells=dr, danger_cost=DANGER_COST,
                                                 blocked=~grid.window(r0, r1, c0, c1).free())

@@ -145,6 +145,12 @@ class TeamRun(ExplorationRun):
         self.metrics.estimated = self.members[0].metrics.estimated
         self._costs = list(costs)
         self._next_round = 0.0
+        # where each robot stands as the robots tell each other (its state's pose, NaN before it has one) and
+        # how fast it drives: robot i's row is its latest step's, the rows of the robots after it last tick's
+        self._xy = np.full((n, 2), np.nan)
+        self._speed = np.zeros(n)
+        self._swing = np.array([r.footprint.swing for r in robots], np.float64)
+        self._brake = np.array([2.0 * max(r.limits.a_max, 1e-6) for r in robots], np.float64)
 
     @property
     def paths(self) -> list[list[tuple[float, float]]]:
@@ -161,6 +167,8 @@ class TeamRun(ExplorationRun):
                 self.reason, self.end, self.error = m.reason, m.end, m.error
                 return
             states.append(state)
+        for i in range(n):
+            self._stand(i)
         self.state = states[0]
         self.start_pose = self.members[0].start_pose
         self._t0 = states[0].time
@@ -207,8 +215,21 @@ class TeamRun(ExplorationRun):
             self.clock.tick()
             states = [m.robot.read() for m in self.members]
 
+    def _stand(self, i: int) -> None:
+        """Member `i` tells the others where it stands and how fast it drives (its state now)."""
+        s = self.members[i].state
+        if s is None:
+            self._xy[i] = np.nan
+            self._speed[i] = 0.0
+            return
+        p = s.true_pose or s.pose
+        self._xy[i] = (p.x, p.y)
+        self._speed[i] = abs(s.velocity.v)
+
     def _after_tick(self, i: int, m: ExplorationRun) -> None:
-        """What the team takes from member `i`'s step: the cells its scan touched, its scan for the others."""
+        """What the team takes from member `i`'s step: where it stands, the cells its scan touched, its scan
+        for the others."""
+        self._stand(i)
         if not m.mapped_now:
             return
         self.seen.note(i, m.grid)
@@ -235,15 +256,11 @@ class TeamRun(ExplorationRun):
         if d.v <= 0.0:
             return
         p = s.true_pose or s.pose
-        for j in range(robot):
-            other = self.members[j]
-            t = other.state
-            if t is None or other.end is not EndReason.UNKNOWN or abs(t.velocity.v) < GIVE_WAY_SPEED:
-                continue
-            q = t.true_pose or t.pose
-            dx, dy = q.x - p.x, q.y - p.y
-            gap = math.hypot(dx, dy) - m.robot.footprint.swing - other.robot.footprint.swing
-            if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
+        dx, dy = self._xy[:robot, 0] - p.x, self._xy[:robot, 1] - p.y
+        gap = np.hypot(dx, dy) - self._swing[robot] - self._swing[:robot]
+        for j in np.flatnonzero((gap < GIVE_WAY_GAP) & (self._speed[:robot] >= GIVE_WAY_SPEED)).tolist():
+            if (self.members[j].end is EndReason.UNKNOWN
+                    and abs(wrap_angle(math.atan2(dy[j], dx[j]) - p.theta)) < GIVE_WAY_ANGLE):
                 m.robot.command(Twist(0.0, d.w))
                 self.gave_way[robot] += 1
                 return
@@ -257,22 +274,16 @@ class TeamRun(ExplorationRun):
         from robotexp.planning.follower import footprint_blocked
 
         p = s.true_pose or s.pose
-        rings = []
-        closing = 0.0       # [m] the farthest a moving teammate may still come before it stops
-        for j, other in enumerate(self.members):
-            t = other.state
-            if j == robot or t is None:
-                continue
-            q = t.true_pose or t.pose
-            if math.hypot(q.x - p.x, q.y - p.y) > 2.0 + other.robot.footprint.swing:
-                continue
-            r = other.robot.footprint.swing
-            v = abs(t.velocity.v)
-            closing = max(closing, v * v / (2.0 * max(other.robot.limits.a_max, 1e-6)) + v * 0.2)
-            rings.append(np.column_stack([q.x + r * np.cos(_RING), q.y + r * np.sin(_RING)]))
-        if not rings:
+        near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
+        near[robot] = False
+        if not near.any():
             return
-        world = np.concatenate(rings)
+        v = self._speed[near]
+        closing = max(float(np.max(v * v / self._brake[near] + v * 0.2)), 0.0)   # [m] the farthest a moving
+        #                                                               teammate near may still come before it stops
+        xy, r = self._xy[near], self._swing[near, None]
+        world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
+                                 (xy[:, 1, None] + r * np.sin(_RING)).ravel()])
         c, sn = math.cos(p.theta), math.sin(p.theta)
         dx, dy = world[:, 0] - p.x, world[:, 1] - p.y
         pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])
@@ -296,21 +307,15 @@ class TeamRun(ExplorationRun):
         sy = p.y + scan.offset_x * math.sin(p.theta)
         # only teammates a beam can end on (a hair of slack: the beams' own test below decides)
         reach = TEAMMATE_MARGIN + scan.range_max + 1e-6
-        near = []
-        for j, m in enumerate(self.members):
-            if j == robot or m.state is None:
-                continue
-            q = m.state.true_pose or m.state.pose
-            r = m.robot.footprint.swing          # a teammate is the disc it turns in
-            if math.hypot(q.x - sx, q.y - sy) <= r + reach:
-                near.append((q.x, q.y, r))
-        if not near:
+        near = np.hypot(self._xy[:, 0] - sx, self._xy[:, 1] - sy) <= self._swing + reach   # a teammate is the
+        near[robot] = False                                                                # disc it turns in
+        if not near.any():
             return scan
         hit = np.isfinite(scan.ranges)
         ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
         ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
-        at = np.array(near)
-        on = hit & (np.hypot(ex[:, None] - at[:, 0], ey[:, None] - at[:, 1]) <= at[:, 2] + TEAMMATE_MARGIN).any(axis=1)
+        at, r = self._xy[near], self._swing[near]
+        on = hit & (np.hypot(ex[:, None] - at[:, 0], ey[:, None] - at[:, 1]) <= r + TEAMMATE_MARGIN).any(axis=1)
         if not on.any():
             return scan
         return replace(scan, ranges=np.where(on, np.nan, scan.ranges))

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.ndimage import distance_transform_edt
 
 from robotexp.errors import ConfigError
 from robotexp.run.loop import ExplorationRun
@@ -25,7 +26,7 @@ from robotexp.planning.harmonic import (
     gauss_seidel_ref,
     relax,
 )
-from robotexp.planning.targets import PlanCosts, frontier_targets, known_window, plan_costs
+from robotexp.planning.targets import PlanCosts, WallMemory, frontier_targets, known_window, plan_costs
 from robotexp.robot import LaserScan, Pose
 from robotexp.sim import LaserConfig, SimRobot
 from robotexp.world.model import World, segment_box
@@ -113,6 +114,29 @@ def test_a_scan_beyond_any_index_changes_the_whole_grid_box_and_one_from_a_pose_
     assert np.array_equal(grid.values, before)
     grid.update(Pose(2.0, 2.0, 0.0), LaserScan(angles, np.full(5, 1.0), 8.0))
     assert grid.changed_box(grid.scans - 1) == (10, 30, 19, 32)
+
+
+def test_changed_boxes_keep_scans_far_apart_separate_and_merge_the_near_ones() -> None:
+    """Two scans 6 m apart change two boxes of about 1 m, not their 7 m bounding box; boxes that overlap or
+    touch once grown by `grow` cells are one box, and merging goes on with the merged box."""
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 100, 100))
+    angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
+    scan = LaserScan(angles, np.full(90, 0.5), 8.0)
+    each = []
+    for x, y in ((1.0, 1.0), (7.0, 7.0), (1.3, 1.0)):
+        grid.update(Pose(x, y, 0.0), scan)
+        each.append(grid.changed_box(grid.scans - 1))
+    assert each == [(4, 16, 3, 17), (64, 76, 63, 77), (4, 16, 6, 20)]       # 0.5 m beams and cells of slack
+    assert grid.changed_box(0) == (4, 76, 3, 77)                             # the one box: 72 x 74 cells
+    assert sorted(grid.changed_boxes(0)) == [(4, 16, 3, 20), (64, 76, 63, 77)]      # 12 x 17 and 12 x 14
+    assert sorted(grid.changed_boxes(1)) == [(4, 16, 6, 20), (64, 76, 63, 77)]
+    assert grid.changed_boxes(2) == [each[2]] and grid.changed_boxes(3) == []
+    # rows 48 cells apart: grown by 24 they touch (16 + 24 = 40 = 64 - 24), by 23 they do not
+    assert grid.changed_boxes(0, 24) == [(4, 76, 3, 77)]
+    assert sorted(grid.changed_boxes(0, 23)) == [(4, 16, 3, 20), (64, 76, 63, 77)]
+    # a third box that meets both merges all three, in whichever order they come
+    grid.update(Pose(4.0, 4.0, 0.0), LaserScan(angles, np.full(90, 3.2), 8.0))
+    assert grid.changed_boxes(0) == [(4, 76, 3, 77)]
 
 
 def test_window_shares_the_arrays_and_refuses_empty() -> None:
@@ -232,3 +256,27 @@ def assert_same_costs(cache: PlanCosts, grid: OccupancyGrid) -> None:
     points = np.zeros(grid.shape, np.uint8)
     assert np.array_equal(cache.update(grid), plan_costs(grid, 0.25, 0.3, points))
     assert np.array_equal(cache.points, points)
+
+
+def test_wall_memory_noted_after_scans_far_apart_has_the_exact_distance_within_reach() -> None:
+    """Two robots mapping one grid 8 m apart, the memory noted every third scan (as each explorer of a team
+    notes it at its own step): the cells ever firmly occupied and their distance within `reach` are those of
+    the whole grid's (scipy's exact transform), computed box by box."""
+    geo = GridGeometry(0.0, 0.0, 0.1, 120, 120)
+    grid = OccupancyGrid(geo)
+    memory = WallMemory(4.0)
+    rng = np.random.default_rng(11)
+    angles = np.linspace(-math.pi, math.pi, 181, endpoint=False)
+    every = np.zeros(grid.shape, bool)
+    for k in range(45):
+        x, y = (2.0, 2.0) if k % 2 else (10.0, 10.0)
+        pose = Pose(x + rng.uniform(-0.3, 0.3), y + rng.uniform(-0.3, 0.3), rng.uniform(-math.pi, math.pi))
+        grid.update(pose, LaserScan(angles, rng.choice([0.8, 1.2, 1.5], size=angles.size), 3.0))
+        if k % 3 == 2:
+            dist = memory.distance(grid)
+            every |= grid.firmly_occupied()
+            assert np.array_equal(memory.ever, every)
+            exact = distance_transform_edt(~every)
+            near = exact <= 4.0
+            assert near.sum() > 500
+            assert np.allclose(dist[near], exact[near], atol=1e-5) and (dist[~near] > 4.0).all()
