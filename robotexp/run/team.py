@@ -28,6 +28,7 @@ from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.run.record import EndReason, RunRecord
+from robotexp.planning.targets import WallMemory
 from robotexp.run.teamshare import ScanExchange, SeenCells, groups_within
 
 if TYPE_CHECKING:
@@ -136,6 +137,7 @@ class TeamRun(ExplorationRun):
         self.comm_range = comm_range
         self.exchange = None if comm_range is None else ScanExchange(grids)
         self.seen = SeenCells(grid.shape, n)
+        self.walls = WallMemory(1.5)        # the team grid's cells ever firmly occupied, for the end's check
         self.gave_way = [0] * n             # periods each robot gave way to a teammate
         self.idle = [0] * n                 # ticks each robot stood idle (done, or commanded to stand still)
         self.targets: list[npt.NDArray[np.int64] | None] = [None] * n     # each robot's coordinator target
@@ -228,14 +230,16 @@ class TeamRun(ExplorationRun):
 
     def _after_tick(self, i: int, m: ExplorationRun) -> None:
         """What the team takes from member `i`'s step: where it stands, the cells its scan touched, its scan
-        for the others."""
+        for the others, the walls its scan (or its explorer) showed on the team's grid."""
         self._stand(i)
+        if m.mapped_now:
+            self.seen.note(i, m.grid)
+            if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
+                self.exchange.log(i, m.state.pose, m.mapped_scan)
+                self.grid.update(m.state.pose, m.mapped_scan)
+        self.walls.note(self.grid)          # after every scan, and every change an explorer made
         if not m.mapped_now:
             return
-        self.seen.note(i, m.grid)
-        if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
-            self.exchange.log(i, m.state.pose, m.mapped_scan)
-            self.grid.update(m.state.pose, m.mapped_scan)
         p = m.state.true_pose or m.state.pose if m.state is not None else None
         if self.area is not None and p is not None:
             from robotexp.world.bounds import inside
@@ -365,7 +369,7 @@ class TeamRun(ExplorationRun):
             s = self.members[0].state
             assert s is not None
             left = unexplored_left(self.grid, s.pose, self.members[0].robot.radius,
-                                   np.asarray(self.members[0].metrics.path))
+                                   np.asarray(self.members[0].metrics.path), self.walls.ever)
             if left is not None:
                 self.end = EndReason.STOPPED
                 self.reason = (f"stopped: the explorers ended ({m.reason}) with {left[0]} frontier cells left that "
