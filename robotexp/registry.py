@@ -171,25 +171,26 @@ def make_coordinator(name: str, params: dict[str, Any]) -> Coordinator:
     """
     from robotexp.coordinator import Coordinator
 
-    return _make(load(COORDINATORS, name, Coordinator), name, params)
+    return _make(load(COORDINATORS, name, Coordinator), name, params, "coordinator")
 
 
-def _make(cls: type, method: str, params: dict[str, Any]) -> Any:
-    """`cls(**params)`, every parameter checked against its annotation and declared bounds."""
+def _make(cls: type, method: str, params: dict[str, Any], kind: str = "method") -> Any:
+    """`cls(**params)`, every parameter checked against its annotation and declared bounds (errors name the
+    plugin as `kind` NAME: a method, a coordinator)."""
     accepted = _parameter_names(cls)
     unknown = [key for key in params if accepted is not None and key not in accepted]
     if unknown:
         listing = ", ".join(accepted) if accepted else "none"
-        raise ConfigError(f"method {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
-    params = {key: _typed_parameter(method, cls, key, value) for key, value in params.items()}
+        raise ConfigError(f"{kind} {method!r}: unknown parameter(s) {', '.join(unknown)}; its parameters: {listing}")
+    params = {key: _typed_parameter(method, cls, key, value, kind) for key, value in params.items()}
     bounds = parameter_bounds(cls)
     for key, value in params.items():
         if key in bounds:
-            check_bounds(method, key, value, bounds[key])
+            check_bounds(method, key, value, bounds[key], kind)
     try:
         return cls(**params)
     except TypeError as exc:
-        raise ConfigError(f"method {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
+        raise ConfigError(f"{kind} {method!r}: {exc} (parameters given: {', '.join(params) or 'none'})") from exc
 
 
 _KINDS = {bool: "true or false", int: "a whole number", float: "a number", str: "a string"}
@@ -219,7 +220,8 @@ def bounds_text(bounds: tuple[float | None, float | None]) -> str:
     return f">= {_number(lo)}" if lo is not None else f"<= {_number(hi)}" if hi is not None else ""
 
 
-def check_bounds(method: str, key: str, value: Any, bounds: tuple[float | None, float | None]) -> None:
+def check_bounds(method: str, key: str, value: Any, bounds: tuple[float | None, float | None],
+                 kind: str = "method") -> None:
     """Refuse a numeric `value` of parameter `key` outside its declared (inclusive) `bounds`; a value
     that is not a number (None, a boolean, a string, a list) is left to the parameter's type check.
 
@@ -230,11 +232,11 @@ def check_bounds(method: str, key: str, value: Any, bounds: tuple[float | None, 
         return
     lo, hi = bounds
     if hi is not None and value > hi:
-        raise ConfigError(f"method {method!r}: parameter {key!r} must be <= {_number(hi)}, got {_number(value)}")
+        raise ConfigError(f"{kind} {method!r}: parameter {key!r} must be <= {_number(hi)}, got {_number(value)}")
     if lo is not None and value < lo:
-        raise ConfigError(f"method {method!r}: parameter {key!r} must be >= {_number(lo)}, got {_number(value)}")
+        raise ConfigError(f"{kind} {method!r}: parameter {key!r} must be >= {_number(lo)}, got {_number(value)}")
     if value != value:
-        raise ConfigError(f"method {method!r}: parameter {key!r} must be a number in {bounds_text(bounds)}, "
+        raise ConfigError(f"{kind} {method!r}: parameter {key!r} must be a number in {bounds_text(bounds)}, "
                           f"got {value}")
 
 
@@ -255,7 +257,7 @@ def _parameter_names(cls: type) -> list[str] | None:
     return names
 
 
-def _typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
+def _typed_parameter(method: str, cls: type, key: str, value: Any, what: str = "method") -> Any:
     """`value` for the keyword `key` of `cls`, checked against its annotation (bool, int, float, str,
     or one of these or None); a whole float for an int and an int for a float are converted.
     Parameters without such an annotation pass unchecked. Raises ConfigError."""
@@ -277,7 +279,7 @@ def _typed_parameter(method: str, cls: type, key: str, value: Any) -> Any:
             return int(value)
         if kind is float and number:
             return float(value)
-    raise ConfigError(f"method {method!r}: parameter {key!r} must be {' or '.join(_KINDS[k] for k in kinds)}, "
+    raise ConfigError(f"{what} {method!r}: parameter {key!r} must be {' or '.join(_KINDS[k] for k in kinds)}, "
                       f"got {value!r}")
 
 

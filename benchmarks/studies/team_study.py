@@ -55,7 +55,7 @@ def main() -> int:
     except RobotexpError as exc:
         print(f"team_study: {exc}", file=sys.stderr)
         return 2
-    name = Path(args.world).stem if args.world.endswith((".yaml", ".map")) else args.world   # in file names
+    stem = Path(args.world).stem if args.world.endswith((".yaml", ".map")) else args.world   # in file names
     seeds = [int(s) for s in args.seeds.split(",")]
     cases = [(pose, seed) for pose in args.poses.split(",") for seed in seeds]
     coordinators = args.coordinators.split(",")
@@ -98,7 +98,7 @@ def main() -> int:
                 if r.team_size is not None:
                     fig = run_map_figure(output.run)
                     size = "" if sizes == [4] else f"{r.team_size}_"
-                    save_figure(fig, figures / f"teams_{name}_{size}{slug}", ("png",))
+                    save_figure(fig, figures / f"teams_{stem}_{size}{slug}", ("png",))
     table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
              "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for label, rs in rows.items():
@@ -108,9 +108,9 @@ def main() -> int:
     print("\nmedians\n" + "\n".join(table))
     (args.out / "team_study.md").write_text("\n".join(table) + "\n", encoding="utf-8")
     fig = curve_figure(curves, xlabel="robot time [s]", ylabel="coverage [%]",
-                       title=f"{name}: one robot and teams of {args.team} (frontier, start {cases[0][0]})",
+                       title=f"{stem}: one robot and teams of {args.team} (frontier, start {cases[0][0]})",
                        hlines=[95.0])
-    save_figure(fig, figures / f"teams_{name}_{'' if sizes == [4] else 'scaling_'}coverage", ("png",))
+    save_figure(fig, figures / f"teams_{stem}_{'' if sizes == [4] else 'scaling_'}coverage", ("png",))
     print(f"\n{len(cases) * (1 + len(sizes) * len(coordinators))} runs in {time.perf_counter() - t0:.0f} s; records in "
           f"{args.out / 'results.jsonl'}, figures in {figures}")
     return 0

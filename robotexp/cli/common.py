@@ -71,14 +71,15 @@ def mm(value: float | None, what: str) -> float | None:
     return value / 1000.0
 
 
-def params(items: tuple[str, ...]) -> dict[str, Any]:
-    """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings)."""
+def params(items: tuple[str, ...], option: str = "--param") -> dict[str, Any]:
+    """Parse repeated `--param key=value` (values as JSON numbers/booleans, else strings); errors name
+    `option`."""
     import json
     out: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.isidentifier():
-            raise ConfigError(f"--param {item!r}: expected key=value with key a parameter name")
+            raise ConfigError(f"{option} {item!r}: expected key=value with key a parameter name")
         try:
             out[key] = json.loads(raw)
         except json.JSONDecodeError:

@@ -227,7 +227,8 @@ def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinato
     else:
         names = parse_team(team, robot)
     spec = TeamSpec(robots=names, coordinator=coordinator, members=members,
-                    coordinator_params=params(coordinator_param), comm_range=mm(comm_range, "--comm-range"),
+                    coordinator_params=params(coordinator_param, "--coordinator-param"),
+                    comm_range=mm(comm_range, "--comm-range"),
                     poses=tuple(p.strip() for p in poses.split(";") if p.strip()) if poses else ())
     spec.validate()
     if members and not spec.poses and source("world") == click.core.ParameterSource.DEFAULT:

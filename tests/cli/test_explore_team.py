@@ -37,6 +37,12 @@ def test_a_team_explores_from_the_command_line(tmp_path: Path) -> None:
     (["--team", "2", "--odometry-error", "p3dx"], ["exact odometry"]),
     (["--team", "200"], ["1..64 robots"]),
     (["--team", "2", "--team-poses", "1;1"], ["overlap"]),
+    (["--team", "2", "--coordinator", "burgard", "--coordinator-param", "beta=-1"],
+     ["coordinator 'burgard': parameter 'beta' must be >= 0, got -1"]),
+    (["--team", "2", "--coordinator", "burgard", "--coordinator-param", "gamma=1"],
+     ["coordinator 'burgard': unknown parameter(s) gamma", "beta, cost_scale"]),
+    (["--team", "2", "--coordinator", "burgard", "--coordinator-param", "beta"],
+     ["--coordinator-param 'beta': expected key=value"]),
 ])
 def test_bad_team_input_is_one_line_and_exit_2(tmp_path: Path, args: list[str], words: list[str],
                                                one_line_error) -> None:
