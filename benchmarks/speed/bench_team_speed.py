@@ -51,7 +51,6 @@ from robotexp.run.team import (  # noqa: E402
     GIVE_WAY_ANGLE,
     GIVE_WAY_GAP,
     GIVE_WAY_SPEED,
-    TEAMMATE_CLEARANCE,
     TEAMMATE_MARGIN,
     TeamRun,
     TeamSpec,
@@ -128,15 +127,7 @@ def _changed_boxes_before(self: OccupancyGrid, since: int, grow: int = 0) -> lis
     return [] if box is None else [box]
 
 
-def _give_way_before(self: TeamRun, robot: int, m: Any) -> None:
-    d = m.decision
-    s = m.state
-    if not isinstance(d, Twist) or s is None:
-        return
-    self._keep_clear(robot, m, d, s)
-    if d.v <= 0.0:
-        return
-    p = s.true_pose or s.pose
+def _lower_ahead_before(self: TeamRun, robot: int, m: Any, p: Any) -> bool:
     for j in range(robot):
         other = self.members[j]
         t = other.state
@@ -146,14 +137,11 @@ def _give_way_before(self: TeamRun, robot: int, m: Any) -> None:
         dx, dy = q.x - p.x, q.y - p.y
         gap = math.hypot(dx, dy) - m.robot.footprint.swing - other.robot.footprint.swing
         if gap < GIVE_WAY_GAP and abs(wrap_angle(math.atan2(dy, dx) - p.theta)) < GIVE_WAY_ANGLE:
-            m.robot.command(Twist(0.0, d.w))
-            self.gave_way[robot] += 1
-            return
+            return True
+    return False
 
 
 def _keep_clear_before(self: TeamRun, robot: int, m: Any, d: Twist, s: Any) -> None:
-    from robotexp.planning.follower import footprint_blocked
-
     p = s.true_pose or s.pose
     rings = []
     closing = 0.0
@@ -168,20 +156,8 @@ def _keep_clear_before(self: TeamRun, robot: int, m: Any, d: Twist, s: Any) -> N
         v = abs(t.velocity.v)
         closing = max(closing, v * v / (2.0 * max(other.robot.limits.a_max, 1e-6)) + v * 0.2)
         rings.append(np.column_stack([q.x + r * np.cos(_RING), q.y + r * np.sin(_RING)]))
-    if not rings:
-        return
-    world = np.concatenate(rings)
-    c, sn = math.cos(p.theta), math.sin(p.theta)
-    dx, dy = world[:, 0] - p.x, world[:, 1] - p.y
-    pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])
-    foot, lim = m.robot.footprint, m.robot.limits
-    for cmd in (d, Twist(0.0, d.w), Twist.ZERO):
-        if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE + closing, max(cmd.v, 0.0),
-                                                      cmd.w, lim.a_max, lim.alpha_max):
-            break
-    if cmd != d:
-        m.robot.command(cmd)
-        self.gave_way[robot] += 1
+    if rings:
+        self._cut_command(robot, m, d, p, np.concatenate(rings), closing)
 
 
 def _before() -> list[tuple[Any, str, Any]]:
@@ -192,7 +168,7 @@ def _before() -> list[tuple[Any, str, Any]]:
     return [(TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
             (FrontierExplorer, "_plan_costs", _plan_costs_before), (team_module, "held_targets", _held_targets_before),
             (SeenCells, "note", _note_before), (OccupancyGrid, "changed_boxes", _changed_boxes_before),
-            (TeamRun, "_give_way", _give_way_before), (TeamRun, "_keep_clear", _keep_clear_before)]
+            (TeamRun, "_lower_ahead", _lower_ahead_before), (TeamRun, "_keep_clear", _keep_clear_before)]
 
 
 def _team(spec: RunSpec, team: TeamSpec, patches: list[tuple[Any, str, Any]]) -> tuple[Any, float, float]:

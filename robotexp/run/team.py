@@ -23,7 +23,7 @@ import numpy.typing as npt
 from robotexp.coordinator import Candidates, Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
-from robotexp.robot import LaserScan, RobotState, Twist, wrap_angle
+from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver, StepEvent
@@ -259,15 +259,19 @@ class TeamRun(ExplorationRun):
         self._keep_clear(robot, m, d, s)
         if d.v <= 0.0:
             return
-        p = s.true_pose or s.pose
+        if self._lower_ahead(robot, m, s.true_pose or s.pose):
+            m.robot.command(Twist(0.0, d.w))
+            self.gave_way[robot] += 1
+
+    def _lower_ahead(self, robot: int, m: ExplorationRun, p: Pose) -> bool:
+        """A teammate of a smaller number than `robot` (at pose `p`) still exploring, moving and close ahead."""
         dx, dy = self._xy[:robot, 0] - p.x, self._xy[:robot, 1] - p.y
         gap = np.hypot(dx, dy) - self._swing[robot] - self._swing[:robot]
         for j in np.flatnonzero((gap < GIVE_WAY_GAP) & (self._speed[:robot] >= GIVE_WAY_SPEED)).tolist():
             if (self.members[j].end is EndReason.UNKNOWN
                     and abs(wrap_angle(math.atan2(dy[j], dx[j]) - p.theta)) < GIVE_WAY_ANGLE):
-                m.robot.command(Twist(0.0, d.w))
-                self.gave_way[robot] += 1
-                return
+                return True
+        return False
 
     def _keep_clear(self, robot: int, m: ExplorationRun, d: Twist, s: RobotState) -> None:
         """The robots tell each other where they stand: a command whose sweep (`footprint_blocked`, the
@@ -275,8 +279,6 @@ class TeamRun(ExplorationRun):
         plus the stopping distance of the fastest teammate near, of a teammate's disc is cut to its turn
         alone, or to a stop; a teammate the laser cannot see (lower than the laser, or behind it) is not
         driven into."""
-        from robotexp.planning.follower import footprint_blocked
-
         p = s.true_pose or s.pose
         near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
         near[robot] = False
@@ -288,6 +290,14 @@ class TeamRun(ExplorationRun):
         xy, r = self._xy[near], self._swing[near, None]
         world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
                                  (xy[:, 1, None] + r * np.sin(_RING)).ravel()])
+        self._cut_command(robot, m, d, p, world, closing)
+
+    def _cut_command(self, robot: int, m: ExplorationRun, d: Twist, p: Pose, world: npt.NDArray[np.float64],
+                     closing: float) -> None:
+        """Command `d` of member `robot` at pose `p`, or its turn alone, or a stop: the first whose sweep keeps
+        the body TEAMMATE_CLEARANCE + `closing` [m] from the points `world` (n, 2) [m] on the teammates' discs."""
+        from robotexp.planning.follower import footprint_blocked
+
         c, sn = math.cos(p.theta), math.sin(p.theta)
         dx, dy = world[:, 0] - p.x, world[:, 1] - p.y
         pts = np.column_stack([c * dx + sn * dy, -sn * dx + c * dy])

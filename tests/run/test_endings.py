@@ -17,8 +17,10 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ground_truth
 from robotexp.robot import Pose, RobotState, Twist
-from robotexp.sim import LaserConfig, SimRobot
+from robotexp.sim import LaserConfig, SimRobot, SimTeam
 from robotexp.run.endings import RunWatch, StallWatch
+from robotexp.run.record import EndReason
+from robotexp.run.team import TeamRun
 from robotexp.world.model import World, segment_box
 
 T = 0.1
@@ -110,6 +112,27 @@ def test_a_worn_face_of_a_thick_wall_is_no_frontier_left():
     r = run(WearTheFaceThenQuit(), RunWatch(StallWatch()), Pose(1.5, 1.5, 0.0), world=room, geo=geo)
     assert r.completed and r.reason == "explored", r.reason
     left = unexplored_left(r.grid, Pose(1.5, 1.5, 0.0), 0.25, np.asarray(r.metrics.path))
+    assert left is not None and left[1] >= 2.0
+
+
+def test_a_worn_face_of_a_thick_wall_is_no_frontier_left_to_a_team():
+    """As for one robot (above): two robots in a closed room whose east wall is 1 m thick
+    see its face, grazing beams then wear it down to free. The team remembers the walls its map showed
+    (`WallMemory`): the explorers' "explored" stands. Asked of the worn map alone, the wall's inside is 2 m2
+    and more of unknown space behind frontier robot 1 can reach."""
+    from robotexp.run.endings import unexplored_left
+
+    room = World("thick", np.array([segment_box(0, 0, 4, 0, T), segment_box(4, 0, 4, 3, 1.0),
+                                    segment_box(4, 3, 0, 3, T), segment_box(0, 3, 0, 0, T)]))
+    grid = OccupancyGrid(GridGeometry.covering(*room.bounds, cell=0.1, margin=0.5))
+    robots = [SimRobot(room, pose=Pose(1.2, 1.0, 0.0), laser=LASER, sonar=False),
+              SimRobot(room, pose=Pose(1.2, 2.0, 0.0), laser=LASER, sonar=False)]
+    with SimTeam(robots) as team:
+        run = TeamRun(robots, [WearTheFaceThenQuit(), WearTheFaceThenQuit()], [grid, grid], team.make_clock(0.1),
+                      max_time=30.0)
+        run.run()
+    assert run.record.end is EndReason.EXPLORED and run.completed, run.record.reason
+    left = unexplored_left(grid, Pose(1.2, 1.0, 0.0), robots[0].radius, np.asarray(run.members[0].metrics.path))
     assert left is not None and left[1] >= 2.0
 
 

@@ -18,7 +18,7 @@ from robotexp.robot import Pose
 from robotexp.run.record import EndReason
 from robotexp.run.spec import RunSpec
 from robotexp.run.team import TeamRun, TeamSpec, parse_team
-from robotexp.sim import LaserConfig, SimRobot, SimTeam
+from robotexp.sim import SimRobot, SimTeam
 from robotexp.testing.explorer_contract import make_room
 from robotexp.world.model import World, segment_box
 
@@ -355,40 +355,3 @@ def test_a_coordinator_that_reassigns_is_asked_for_every_robot_at_every_round():
     assert [k for k, _ in c.asked] == [[None, None]] * 5
     assert given == [[(10, "B"), (40, "A")], [(10, "A")]]
 
-
-class _WearTheFaceThenQuit(Explorer):
-    """Turns on the spot for 2 s (the scans hit the thick east wall's face again and again), then wears the
-    face down to free, as beams grazing it would, and says it has explored everything."""
-
-    def step(self, state, grid):
-        if state.time < 2.0:
-            return Twist(0.0, 0.2)
-        face = np.zeros(grid.shape, bool)
-        rows, cols = grid.geo.cells_of(np.array([[3.55, 0.6], [3.55, 2.4]])).T
-        face[rows[0]:rows[1] + 1, cols[0]] = True
-        grid.mark_free(face & grid.occupied())
-        return Done("explored")
-
-
-def test_a_worn_face_of_a_thick_wall_is_no_frontier_left_to_a_team():
-    """As for one robot (tests/run/test_endings.py): two robots in a closed room whose east wall is 1 m thick
-    see its face, grazing beams then wear it down to free. The team remembers the walls its map showed
-    (`WallMemory`): the explorers' "explored" stands. Asked of the worn map alone, the wall's inside is 2 m2
-    and more of unknown space behind frontier robot 1 can reach."""
-    from robotexp.run.endings import unexplored_left
-
-    t = 0.1
-    room = World("thick", np.array([segment_box(0, 0, 4, 0, t), segment_box(4, 0, 4, 3, 1.0),
-                                    segment_box(4, 3, 0, 3, t), segment_box(0, 3, 0, 0, t)]))
-    geo = GridGeometry.covering(*room.bounds, cell=0.1, margin=0.5)
-    grid = OccupancyGrid(geo)
-    laser = LaserConfig(beams=360, fov=2 * math.pi, range_max=3.0)
-    robots = [SimRobot(room, pose=Pose(1.2, 1.0, 0.0), laser=laser, sonar=False),
-              SimRobot(room, pose=Pose(1.2, 2.0, 0.0), laser=laser, sonar=False)]
-    with SimTeam(robots) as team:
-        run = TeamRun(robots, [_WearTheFaceThenQuit(), _WearTheFaceThenQuit()], [grid, grid], team.make_clock(0.1),
-                      max_time=30.0)
-        run.run()
-    assert run.record.end is EndReason.EXPLORED and run.completed, run.record.reason
-    left = unexplored_left(grid, Pose(1.2, 1.0, 0.0), robots[0].radius, np.asarray(run.members[0].metrics.path))
-    assert left is not None and left[1] >= 2.0
