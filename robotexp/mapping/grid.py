@@ -360,6 +360,37 @@ class OccupancyGrid:
         self._touch(m)
         self.cells_updated += int(np.count_nonzero(m))
 
+    def mark_free_disc(self, x: float, y: float, radius: float) -> int:
+        """Set the unknown cells whose centres lie within `radius` [m] of (`x`, `y`) [m] to certainly free (as
+        `mark_free`): where a robot stands is free space, though no beam may have crossed it (the robot's
+        body hides it from its teammates' lasers). Counted as a mark only when some cell was unknown;
+        returns how many cells it set."""
+        if not (math.isfinite(x) and math.isfinite(y) and radius > 0):
+            return 0
+        g = self.geo
+        r0, c0 = g.cell_of(x - radius, y - radius)
+        r1, c1 = g.cell_of(x + radius, y + radius)
+        r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1 + 1, g.rows), min(c1 + 1, g.cols)
+        if r1 <= r0 or c1 <= c0:
+            return 0
+        sub = self.values[r0:r1, c0:c1]
+        unknown = sub == 0 if self.model == "logodds" else self.stamp[r0:r1, c0:c1] == 0
+        if not unknown.any():
+            return 0
+        cy = g.origin_y + (np.arange(r0, r1) + 0.5) * g.cell
+        cx = g.origin_x + (np.arange(c0, c1) + 0.5) * g.cell
+        cells = unknown & (np.hypot(cx[None, :] - x, cy[:, None] - y) <= radius)
+        n = int(np.count_nonzero(cells))
+        if n == 0:
+            return 0
+        sub[cells] = -self.l_clamp if self.model == "logodds" else 0
+        self.scans += 1
+        self.stamp[r0:r1, c0:c1][cells] = self.scans
+        rows, cols = np.flatnonzero(cells.any(axis=1)), np.flatnonzero(cells.any(axis=0))
+        self._note(r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1)
+        self.cells_updated += n
+        return n
+
     def mark_occupied(self, mask: npt.NDArray[np.bool_]) -> None:
         """Set the cells of `mask` (rows, cols) bool to certainly occupied (+l_clamp; HIMM 15).
 

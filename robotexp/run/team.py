@@ -171,6 +171,7 @@ class TeamRun(ExplorationRun):
             states.append(state)
         for i in range(n):
             self._stand(i)
+        self._mark_bodies()
         self.state = states[0]
         self.start_pose = self.members[0].start_pose
         self._t0 = states[0].time
@@ -205,6 +206,7 @@ class TeamRun(ExplorationRun):
                         self._end_from(m)
                         return
                     m._safe_stop()
+            self._mark_bodies()
             self._share()
             self._count_idle(active)
             self._team_sample()
@@ -333,6 +335,21 @@ class TeamRun(ExplorationRun):
         if not on.any():
             return scan
         return replace(scan, ranges=np.where(on, np.nan, scan.ranges))
+
+    def _mark_bodies(self) -> None:
+        """Where each robot stands is free space: the unknown cells within its turning disc plus TEAMMATE_MARGIN
+        (the zone whose beams the scan filter leaves out) are marked free on its map (passed on to the robots
+        it talks to as its scans are) and on the team's. A teammate's body hides the floor under it from the
+        others' lasers; left unknown, that floor is frontier at the teammate's feet, and a robot sent there
+        waits behind the teammate until it gives the goal up."""
+        for i, m in enumerate(self.members):
+            if m.state is None:
+                continue
+            p, reach = m.state.pose, m.robot.footprint.swing + TEAMMATE_MARGIN
+            if m.grid.mark_free_disc(p.x, p.y, reach) and self.exchange is not None:
+                self.exchange.log_stand(i, p, reach)
+            if m.grid is not self.grid:
+                self.grid.mark_free_disc(p.x, p.y, reach)
 
     def _share(self) -> None:
         if self.exchange is not None:

@@ -83,11 +83,12 @@ def groups_within(positions: npt.NDArray[np.float64], reach: float | None) -> li
 class ScanExchange:
     """Maps of robots that share what they scanned when they can talk (`robotexp explore --comm-range`).
 
-    Every robot maps its own scans into its own grid and logs them here (`log`). Robots in one group
+    Every robot maps its own scans into its own grid and logs them here (`log`), as well as the floor it
+    marked free where it stood (`log_stand`, `OccupancyGrid.mark_free_disc`). Robots in one group
     (`groups_within`) bring each other's grids up to the scans any of them knows (`share`): robot i's grid
-    gets robot k's logged scans from the first it lacks to the last one someone in the group has. The
-    maps of robots that talked are then the maps of the union of their scans, and what robot k scanned
-    passes on through the robots that met it. Start poses are known to all (one frame).
+    gets robot k's logged scans and marks from the first it lacks to the last one someone in the group
+    has. The maps of robots that talked are then the maps of the union of their scans, and what robot k
+    scanned passes on through the robots that met it. Start poses are known to all (one frame).
 
     Args:
         grids: each robot's own grid.
@@ -96,8 +97,9 @@ class ScanExchange:
     def __init__(self, grids: Sequence[OccupancyGrid]) -> None:
         self.grids = list(grids)
         n = len(grids)
-        self.scans: list[list[tuple[Pose, LaserScan]]] = [[] for _ in range(n)]
-        self.known = np.zeros((n, n), np.int64)     # known[i, k]: robot k's scans in robot i's grid
+        # each robot's scans (pose, scan) and marks of where it stood (pose, radius [m]), in its grid's order
+        self.scans: list[list[tuple[Pose, LaserScan | float]]] = [[] for _ in range(n)]
+        self.known = np.zeros((n, n), np.int64)     # known[i, k]: robot k's entries in robot i's grid
         self.received = np.zeros(n, np.int64)       # scans each robot integrated from others
 
     def log(self, robot: int, pose: Pose, scan: LaserScan) -> None:
@@ -105,8 +107,13 @@ class ScanExchange:
         self.scans[robot].append((pose, scan))
         self.known[robot, robot] = len(self.scans[robot])
 
+    def log_stand(self, robot: int, pose: Pose, radius: float) -> None:
+        """Robot `robot` marked the floor within `radius` [m] of `pose` free in its own grid (where it stands)."""
+        self.scans[robot].append((pose, radius))
+        self.known[robot, robot] = len(self.scans[robot])
+
     def share(self, groups: Sequence[Sequence[int]]) -> int:
-        """Bring every robot's grid up to the scans its group knows; gives the scans integrated."""
+        """Bring every robot's grid up to the scans and marks its group knows; gives the scans integrated."""
         total = 0
         for group in groups:
             if len(group) < 2:
@@ -115,9 +122,13 @@ class ScanExchange:
             best = self.known[members].max(axis=0)
             for i in members:
                 for k in np.flatnonzero(self.known[i] < best):
-                    for pose, scan in self.scans[k][self.known[i, k]:best[k]]:
-                        self.grids[i].update(pose, scan)
-                    got = int(best[k] - self.known[i, k])
+                    got = 0
+                    for pose, entry in self.scans[k][self.known[i, k]:best[k]]:
+                        if isinstance(entry, float):
+                            self.grids[i].mark_free_disc(pose.x, pose.y, entry)
+                        else:
+                            self.grids[i].update(pose, entry)
+                            got += 1
                     self.received[i] += got
                     total += got
                     self.known[i, k] = best[k]

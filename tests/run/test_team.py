@@ -18,7 +18,7 @@ from robotexp.robot import Pose
 from robotexp.run.record import EndReason
 from robotexp.run.spec import RunSpec
 from robotexp.run.team import TeamRun, TeamSpec, parse_team
-from robotexp.sim import SimRobot, SimTeam
+from robotexp.sim import LaserConfig, SimRobot, SimTeam
 from robotexp.testing.explorer_contract import make_room
 from robotexp.world.model import World, segment_box
 
@@ -301,12 +301,15 @@ def _patch(geo, x, y):
 def run_held(coordinator, phases0, phases1):
     world = hall()
     geo = GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5)
-    grid = OccupancyGrid(geo, range_max=3.0)
+    grid = OccupancyGrid(geo, range_max=4.0)
     patches = {"A": _patch(geo, 3.5, 1.0), "B": _patch(geo, 6.5, 1.0)}
     explorers = [Hold(patches, phases0), Hold(patches, phases1)]
-    # both face east: robot 0 maps the hall from 2 m to 5 m (A), robot 1 from 4.5 m to 7.5 m (B)
-    robots = [SimRobot(world, pose=Pose(2.0, 1.0, 0.0), sonar=False),
-              SimRobot(world, pose=Pose(4.5, 1.0, 0.0), sonar=False)]
+    # robot 0 faces east and maps the hall from 2 m to 6 m (A), robot 1 faces west and maps it from 8.6 m to
+    # 4.6 m (B); at the start neither stands within reach of a target (the floor under a robot is known free
+    # from the start: A's cells are reached from 2.6 to 5.1 m, B's from 5.6 to 8.1 m)
+    laser = LaserConfig(range_max=4.0)
+    robots = [SimRobot(world, pose=Pose(2.0, 1.0, 0.0), laser=laser, sonar=False),
+              SimRobot(world, pose=Pose(8.6, 1.0, math.pi), laser=laser, sonar=False)]
     with SimTeam(robots) as team:
         TeamRun(robots, explorers, [grid, grid], team.make_clock(0.1), coordinator=coordinator, max_time=4.55).run()
     return [e.given for e in explorers]
@@ -355,3 +358,29 @@ def test_a_coordinator_that_reassigns_is_asked_for_every_robot_at_every_round():
     assert [k for k, _ in c.asked] == [[None, None]] * 5
     assert given == [[(10, "B"), (40, "A")], [(10, "A")]]
 
+
+
+def test_robots_side_by_side_do_not_wait_for_each_other_at_the_start():
+    """Four P3-DX in a row in dense's corridor (start 1), each robot's explorer alone: the floor under each
+    robot is free on the team's map from the start, so no robot takes a teammate's feet for frontier and
+    waits behind it (they had stood still for about 40 s, coverage 0.093 at 30 s)."""
+    spec = RunSpec(world="dense", method="frontier", pose="1", max_time=30.0)
+    r = run_team(spec, TeamSpec(robots=("p3dx",) * 4, coordinator="none"), None, image=False).record
+    assert r.coverage > 0.25, r.coverage
+    assert r.collisions == 0 and max(x["idle_time_s"] for x in r.robots) < 15.0
+
+
+def test_where_a_robot_stands_is_marked_free_once():
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 30, 40))
+    wall = np.zeros(grid.shape, bool)
+    wall[10, 5:15] = True
+    grid.mark_occupied(wall)
+    scans = grid.scans
+    # a disc of 0.36 m about (1.0, 1.0): the cells whose centres lie within it, 44 of them; the wall row
+    # (centres y 1.05 m, x 0.65..1.35 m within the disc: 8 cells) is occupied, not unknown, and stays so
+    assert grid.mark_free_disc(1.0, 1.0, 0.36) == 44 - 8
+    assert grid.scans == scans + 1 and grid.changed_box(grid.scans - 1) == (6, 14, 6, 14)
+    assert grid.occupied()[10, 6:14].all()
+    assert np.count_nonzero(grid.free()) == 36
+    assert grid.mark_free_disc(1.0, 1.0, 0.36) == 0 and grid.scans == scans + 1      # nothing unknown left: no mark
+    assert grid.mark_free_disc(math.nan, 1.0, 0.36) == 0 and grid.mark_free_disc(-5.0, -5.0, 0.36) == 0
