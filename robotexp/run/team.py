@@ -44,6 +44,8 @@ COORDINATION_PERIOD = 1.0       # [s] robot time between the coordinator's round
 GIVE_WAY_GAP = 0.6              # [m] a robot gives way to a teammate ahead closer than this (footprints' gap)
 GIVE_WAY_ANGLE = math.radians(75)   # [rad] "ahead": within this of the heading
 GIVE_WAY_SPEED = 0.02           # [m/s] a teammate slower than this stands still
+STAND_V = 1e-3                  # [m/s] a command below this and STAND_W [rad/s] stands still (idle time):
+STAND_W = 1e-3                  # a controller holding a robot may command rounding noise (1e-9 rad/s)
 TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
 TEAMMATE_CLEARANCE = 0.03       # [m] a robot's body swept along its command keeps this from a teammate's disc
 _RING = np.linspace(-math.pi, math.pi, 24, endpoint=False)     # points on a teammate's disc for that check
@@ -358,7 +360,7 @@ class TeamRun(ExplorationRun):
     def _count_idle(self, active: Sequence[int]) -> None:
         for i, m in enumerate(self.members):
             d = m.decision
-            if i not in active or not isinstance(d, Twist) or (d.v == 0.0 and d.w == 0.0):
+            if i not in active or not isinstance(d, Twist) or (abs(d.v) < STAND_V and abs(d.w) < STAND_W):
                 self.idle[i] += 1
 
     def _positions(self, robots: Iterable[int]) -> npt.NDArray[np.float64]:

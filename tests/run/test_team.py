@@ -384,3 +384,22 @@ def test_where_a_robot_stands_is_marked_free_once():
     assert np.count_nonzero(grid.free()) == 36
     assert grid.mark_free_disc(1.0, 1.0, 0.36) == 0 and grid.scans == scans + 1      # nothing unknown left: no mark
     assert grid.mark_free_disc(math.nan, 1.0, 0.36) == 0 and grid.mark_free_disc(-5.0, -5.0, 0.36) == 0
+
+
+class _Hold(Explorer):
+    """Holds the robot where it stands with a command of rounding noise, as a controller waiting may."""
+
+    def step(self, state, grid):
+        return Twist(0.0, 1e-9)
+
+
+def test_a_robot_held_with_rounding_noise_counts_idle():
+    world = hall()
+    grid = OccupancyGrid(GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5), range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(1.0, 1.0, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(4.0, 1.0, 0.0), sonar=False)]
+    with SimTeam(robots) as team:
+        run = TeamRun(robots, [_Hold(), Drive(9.0)], [grid, grid], team.make_clock(0.1), max_time=6.0)
+        run.run()
+    idle = [x["idle_time_s"] for x in run.record.robots]
+    assert idle[0] == pytest.approx(6.0, abs=0.15) and idle[1] < 0.5, idle
