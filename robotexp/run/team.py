@@ -23,12 +23,12 @@ import numpy.typing as npt
 from robotexp.coordinator import Candidates, Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
+from robotexp.planning.targets import WallMemory
 from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.run.record import EndReason, RunRecord
-from robotexp.planning.targets import WallMemory
 from robotexp.run.teamshare import ScanExchange, SeenCells, groups_within
 
 if TYPE_CHECKING:
@@ -233,17 +233,19 @@ class TeamRun(ExplorationRun):
         self._speed[i] = abs(s.velocity.v)
 
     def _after_tick(self, i: int, m: ExplorationRun) -> None:
-        """What the team takes from member `i`'s step: where it stands, the cells its scan touched, its scan
-        for the others, the walls its scan (or its explorer) showed on the team's grid."""
+        """What the team takes from member `i`'s step: where it stands, its scan (`_take_scan`), and the walls
+        its scan, or its explorer, showed on the team's grid."""
         self._stand(i)
         if m.mapped_now:
-            self.seen.note(i, m.grid)
-            if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
-                self.exchange.log(i, m.state.pose, m.mapped_scan)
-                self.grid.update(m.state.pose, m.mapped_scan)
+            self._take_scan(i, m)
         self.walls.note(self.grid)          # after every scan, and every change an explorer made
-        if not m.mapped_now:
-            return
+
+    def _take_scan(self, i: int, m: ExplorationRun) -> None:
+        """Member `i` mapped a scan: the cells it touched, the scan for the others, the area's bounds."""
+        self.seen.note(i, m.grid)
+        if self.exchange is not None and m.state is not None and m.mapped_scan is not None:
+            self.exchange.log(i, m.state.pose, m.mapped_scan)
+            self.grid.update(m.state.pose, m.mapped_scan)
         p = m.state.true_pose or m.state.pose if m.state is not None else None
         if self.area is not None and p is not None:
             from robotexp.world.bounds import inside
