@@ -8,7 +8,7 @@ from __future__ import annotations
 
 __all__ = [
     "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError",
-    "WorldError", "ScriptError", "PluginError", "ConfigError",
+    "WorldError", "ScriptError", "PluginError", "ConfigError", "Terminated",
 ]
 
 
@@ -42,6 +42,11 @@ class PluginError(RobotexpError):
 
 class ConfigError(RobotexpError, ValueError):
     """A parameter out of range."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a `kill`, a process manager, `timeout`) taken as a Ctrl-C: the run in progress ends with its
+    robot stopped and its partial result written (`robotexp.cli` installs the handler that raises it)."""
 
 
 def interrupt_behind(exc: BaseException) -> bool:

@@ -56,7 +56,7 @@ class RunOutput:
 
     @property
     def interrupted(self) -> bool:
-        """The run was interrupted by Ctrl-C (the caller should exit 130)."""
+        """The run was interrupted by Ctrl-C or SIGTERM (the caller should exit 130, or 143 for SIGTERM)."""
         return self.record.end is EndReason.INTERRUPTED
 
 

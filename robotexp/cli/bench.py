@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import click
 
-from robotexp.cli.common import fail
+from robotexp.cli.common import fail, interrupted
 from robotexp.errors import ConfigError, PluginError, WorldError
 
 __all__ = ["bench"]
@@ -59,7 +58,6 @@ def bench(maps: tuple[str, ...], methods: str | None, robots: str | None, done_w
                             run=not report, robots=[r.strip() for r in robots.split(",") if r.strip()])
     except (ConfigError, WorldError, PluginError) as exc:
         fail(str(exc), 2)
-    except KeyboardInterrupt:
-        click.echo("robotexp: interrupted", err=True)
-        sys.exit(130)
+    except KeyboardInterrupt as exc:
+        interrupted(exc)
     click.echo(text, nl=False)

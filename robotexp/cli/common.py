@@ -10,9 +10,9 @@ from typing import Any, TypeVar
 
 import click
 
-from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, WorldError
+from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, Terminated, WorldError
 
-__all__ = ["fail", "handle_errors", "mm", "params", "image_formats", "compile_watch"]
+__all__ = ["fail", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch", "watch_sigterm"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -20,6 +20,31 @@ F = TypeVar("F", bound=Callable[..., Any])
 def fail(message: str, code: int) -> None:
     click.echo(f"robotexp: error: {message}", err=True)
     sys.exit(code)
+
+
+def interrupted(exc: KeyboardInterrupt) -> None:
+    """End the command after a Ctrl-C (exit status 130) or a SIGTERM (`Terminated`, 143), saying which."""
+    if isinstance(exc, Terminated):
+        click.echo("robotexp: terminated (SIGTERM)", err=True)
+        sys.exit(143)
+    click.echo("robotexp: interrupted", err=True)
+    sys.exit(130)
+
+
+def watch_sigterm() -> None:
+    """Take SIGTERM as a Ctrl-C (raise `Terminated` in the main thread): a run then stops its robot and
+    writes what it has, as it does on Ctrl-C. Without it Python ends at once: no `finally`, a robot over
+    a driver left with its last command, the run in progress lost."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def terminate(signum: int, frame: Any) -> None:
+        raise Terminated
+
+    signal.signal(signal.SIGTERM, terminate)
 
 
 def _quiet_stdout() -> None:
@@ -49,9 +74,8 @@ def handle_errors(func: F) -> F:
             if debug:
                 raise
             fail(str(exc), 1)
-        except KeyboardInterrupt:
-            click.echo("robotexp: interrupted", err=True)
-            sys.exit(130)
+        except KeyboardInterrupt as exc:
+            interrupted(exc)
         except BrokenPipeError:
             _quiet_stdout()
             sys.exit(0)

@@ -193,7 +193,9 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     click.echo(f"results: {out / 'results.jsonl'}" + (f", map: {result.image}" if result.image else ""))
     end_view(live, result.interrupted)
     if result.interrupted:
-        sys.exit(130)
+        from robotexp.run.loop import TERMINATED_REASON
+
+        sys.exit(143 if r.reason == TERMINATED_REASON else 130)
     if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
         fail(f"{r.run}: {r.reason}", 1)
 

@@ -1,8 +1,9 @@
 """The `robotexp` command group: every command module registered on it.
 
 Exit codes: 0 ok; 1 a run failed (robot or script error); 2 bad input (world, method, parameter);
-130 interrupted by Ctrl-C (the partial result is written first). Each command module imports the library
-inside its command, so `robotexp --help` stays cheap (no pybullet, numba, lupa or pymavlink).
+130 interrupted by Ctrl-C, 143 by SIGTERM (the partial result is written first, the robot stopped). Each
+command module imports the library inside its command, so `robotexp --help` stays cheap (no pybullet, numba,
+lupa or pymavlink).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import click
 from robotexp.cli.bag import figure, replay, video
 from robotexp.cli.bench import bench
 from robotexp.cli.campaign import campaign
-from robotexp.cli.common import handle_errors
+from robotexp.cli.common import handle_errors, watch_sigterm
 from robotexp.cli.explore import explore
 from robotexp.cli.lua import run_lua
 from robotexp.cli.map import map_command
@@ -28,6 +29,7 @@ __all__ = ["main"]
 @click.version_option(package_name="robotexp")
 def main(debug: bool) -> None:
     """Mobile-robot exploration experiments, on the embedded simulator or a real robot."""
+    watch_sigterm()
 
 
 for _command in (explore, worlds, plugins, campaign, run_lua, emulate, connect, bench):

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.errors import ConfigError, RobotError, interrupt_behind
+from robotexp.errors import ConfigError, RobotError, Terminated, interrupt_behind
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.run.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.run.record import COVERAGE_MILESTONES, EndReason, RunRecord
@@ -29,6 +29,8 @@ from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.run.record import milestone_keys
 
 __all__ = ["RunMetrics", "RunInfo", "ExplorationRun", "make_record"]
+
+TERMINATED_REASON = "interrupted (SIGTERM)"     # a run that SIGTERM ended (`robotexp.errors.Terminated`)
 
 log = logging.getLogger(__name__)
 
@@ -218,8 +220,9 @@ class ExplorationRun:
         previous = self._watch_sigint()
         try:
             self._loop()
-        except KeyboardInterrupt:
-            self.reason, self.end = "interrupted (Ctrl-C)", EndReason.INTERRUPTED
+        except KeyboardInterrupt as exc:
+            self.reason = TERMINATED_REASON if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
+            self.end = EndReason.INTERRUPTED
         except RobotError as exc:
             self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR
         finally:

@@ -338,3 +338,36 @@ def test_laser_mounted_where_aria_params_put_it() -> None:
             assert emu.sim.laser_config.offset_x == pytest.approx(x)
     with P3DXEmulator("ufmg-static", port=0, laser=LASER) as emu:     # a given laser is kept
         assert emu.sim.laser_config.offset_x == 0.0
+
+
+def test_sigterm_stops_the_robot_and_writes_the_run(tmp_path: Path) -> None:
+    """`kill` (SIGTERM) of `robotexp explore` driving a P3-DX: the driver sends the stop, the partial run is
+    written, exit status 143 (Python's default would end the process at once, the robot left with its last
+    command and the run lost)."""
+    import signal
+    import subprocess
+    import sys
+
+    with P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=5.0, laser=LASER) as emu:
+        out = tmp_path / "out"
+        proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "explore", "--robot", "p3dx", "--address",
+                                 emu.address, "--world", "ufmg-static", "--pose", "path1", "--localize", "none",
+                                 "--max-time", "600", "--out", str(out)],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            # driving: a forward command heard by the robot
+            assert _wait(lambda: emu.commanded[0] > 0, timeout=60.0), proc.poll()
+            time.sleep(1.0)                 # 5 s of robot time at 5x
+            proc.send_signal(signal.SIGTERM)
+            stdout, stderr = proc.communicate(timeout=30.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        assert proc.returncode == 143, (stdout, stderr)
+        assert "Traceback" not in stderr and "terminated" not in stdout
+        assert _wait(lambda: emu.last_command is not None and emu.last_command.cmd == 2)   # the driver's stop
+        assert emu.commanded == (0, 0)
+    record = json.loads((out / "results.jsonl").read_text().splitlines()[-1])
+    assert record["end"] == "interrupted" and record["reason"] == "interrupted (SIGTERM)", record["reason"]
+    assert record["completed"] is False and record["path_length_m"] > 0.0
