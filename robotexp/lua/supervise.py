@@ -12,7 +12,7 @@ in-process) and watches it:
   own deadline; a child that never says so is killed `STARTUP_GRACE` s later than the timeout;
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
-  are; a timeout exits 1, Ctrl-C 130;
+  are; a timeout exits 1, Ctrl-C 130, SIGTERM 143;
 - a numba compilation (the first run of a method after an install) is one step the child cannot
   stop in; the child says when one starts and ends (COMPILING, COMPILED on the same pipe), and the
   kill at --timeout waits for it to end (`COMPILE_HOLD` s at most) and `TIMEOUT_GRACE` s more, so the
@@ -37,6 +37,7 @@ from typing import IO, BinaryIO
 
 import click
 
+from robotexp.errors import Terminated
 from robotexp.lifeline import die_with_parent
 
 __all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE", "COMPILE_HOLD", "READY", "COMPILING", "COMPILED"]
@@ -137,7 +138,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     compiling: float | None = None  # since when the child compiles (it said COMPILING, not yet COMPILED)
     held = False                    # the kill at the timeout waited for a compilation (said once)
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
-    interrupted = False
+    interrupted = terminated = False
     try:
         while True:
             try:
@@ -168,8 +169,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
                         break
                     time.sleep(_POLL)
                 break
-            except KeyboardInterrupt:
+            except KeyboardInterrupt as stop:
                 interrupted = True
+                terminated = terminated or isinstance(stop, Terminated)
                 if proc.poll() is None:
                     proc.send_signal(signal.SIGINT)   # the child ignores a second one
                 limit = time.monotonic() + interrupt_grace
@@ -199,7 +201,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             click.echo("robotexp: interrupted", err=True)
         # a child that ended by itself tells: 130 when Ctrl-C stopped its script, 0 when the script was
         # over (`run --view` keeps its page up until Ctrl-C)
-        return proc.returncode if why is None and proc.returncode >= 0 else 130
+        code = proc.returncode if why is None and proc.returncode >= 0 else 130
+        return 143 if terminated and code == 130 else code        # SIGTERM: as the other commands
     code = proc.returncode
     if failures and code == 0:
         return 1

@@ -92,8 +92,10 @@ def test_timeout_during_a_run_keeps_its_record(lua):
     assert lua.lines == []
 
 
-def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str) -> tuple[subprocess.CompletedProcess, Path]:
-    """Run `code`, wait for its "ready" line and then for the file `wait_for` in the output folder; Ctrl-C."""
+def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str,
+                       sig: int = signal.SIGINT) -> tuple[subprocess.CompletedProcess, Path]:
+    """Run `code`, wait for its "ready" line and then for the file `wait_for` in the output folder; Ctrl-C (or
+    `sig` sent to the command's process)."""
     script = tmp_path / "s.lua"
     script.write_text(code)
     out = tmp_path / "out"
@@ -107,7 +109,7 @@ def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str) -> tuple[subpr
         deadline = time.monotonic() + 60
         while not (out / wait_for).exists() and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
@@ -132,6 +134,18 @@ def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
     assert "not reached" not in done.stdout and "Traceback" not in done.stderr
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert rec["completed"] is False and "interrupted" in rec["reason"]
+
+
+def test_sigterm_during_a_run_writes_it_and_exits_143(tmp_path):
+    """`kill` of `robotexp run`: as Ctrl-C, the script's run written as interrupted, exit status 143."""
+    done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
+                                              'exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
+                                              'exploration.start(); exploration.wait(); print("not reached")',
+                                    "f/frame_000003.png", signal.SIGTERM)
+    assert done.returncode == 143, done.stderr
+    assert "not reached" not in done.stdout and "Traceback" not in done.stderr
+    (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert rec["completed"] is False and rec["end"] == "interrupted"
 
 
 if os.name != "posix":   # pragma: no cover
