@@ -1,4 +1,5 @@
-"""Writing to a pyserial port whose write timeout is judged by the kernel, not by the wall clock.
+"""The drivers' byte streams: the pyserial URL of an address (`stream_url`), and writing to a port whose write
+timeout is judged by the kernel, not by the wall clock (`write_all`).
 
 pyserial's `write` (POSIX serial ports and ``socket://``) starts its timeout, writes, then raises
 `SerialTimeoutException` when the timeout has passed, even after a write that sent every byte. A thread kept
@@ -12,13 +13,48 @@ the port stayed unwritable for the whole timeout, as `select()` measures it; por
 from __future__ import annotations
 
 import os
+import re
 import select
 
 import serial
 
-__all__ = ["WRITE_TIMEOUT", "write_all"]
+from robotexp import ConfigError
+
+__all__ = ["WRITE_TIMEOUT", "stream_url", "write_all"]
+
+_HOST = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.-]*$")
+_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
+_WINDOWS_PORT = re.compile(r"^COM\d+$", re.IGNORECASE)
 
 WRITE_TIMEOUT = 1.0     # [s] a port that accepts no byte for this long counts as gone
+
+
+def stream_url(who: str, address: str, forms: str, default_port: int | None = None) -> str:
+    """The `serial.serial_for_url` URL of a device's `address`: "host:port" and "tcp://host:port" become
+    ``socket://host:port``, a bare host ``socket://host:default_port`` when the device has a default port; a
+    device path (/dev/ttyUSB0, COM3) or another URL (socket://, loop://, rfc2217://) passes as is.
+
+    Raises:
+        ConfigError: an empty address or a port outside 1..65535 ("`who`: ...", `forms` the accepted forms).
+    """
+    address = address.strip()
+    if address.lower().startswith("tcp://"):
+        address = address[len("tcp://"):].rstrip("/")
+        if not _HOST_PORT.match(address):
+            raise ConfigError(f"{who}: address 'tcp://{address}': give host:port; {forms}")
+    if not address:
+        raise ConfigError(f"{who}: empty address; {forms}")
+    if "://" in address or address.startswith("/") or _WINDOWS_PORT.match(address):
+        return address
+    m = _HOST_PORT.match(address)
+    if m:
+        port = int(m.group(2))
+        if not 1 <= port <= 65535:
+            raise ConfigError(f"{who}: address {address!r}: TCP port must be 1..65535, got {port}")
+        return f"socket://{m.group(1)}:{port}"
+    if default_port is not None and _HOST.match(address):
+        return f"socket://{address}:{default_port}"
+    return address
 
 
 def _fd(port: serial.SerialBase) -> int | None:

@@ -2,7 +2,8 @@
 
 Any address `serial.serial_for_url` accepts works: a device path (``/dev/kobuki``,
 ``/dev/ttyUSB0``, a pseudo-terminal of the emulator), ``socket://127.0.0.1:PORT`` (the emulator on
-TCP), ``rfc2217://host:port`` or ``loop://``. Every pyserial or OS failure, and an end of file,
+TCP; ``host:port`` and ``tcp://host:port`` mean the same, `stream_url`), ``rfc2217://host:port`` or
+``loop://``. Every pyserial or OS failure, and an end of file,
 becomes a `ConnectionLost` naming the address (chained to the original error).
 """
 
@@ -15,7 +16,7 @@ import serial
 
 from robotexp import ConnectionLost
 from robotexp_drivers.kobuki import constants as K
-from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
+from robotexp_drivers.portio import WRITE_TIMEOUT, stream_url, write_all
 
 __all__ = ["KobukiLink", "READ_CHUNK", "POLL_TIMEOUT"]
 
@@ -35,13 +36,15 @@ class KobukiLink:
 
     Raises:
         ConnectionLost: the port cannot be opened (no such device, refused connection, busy port).
+        ConfigError: an empty address or a TCP port outside 1..65535.
     """
 
     def __init__(self, address: str, *, baudrate: int = K.BAUD_RATE, poll: float = POLL_TIMEOUT) -> None:
         self.address = address
+        url = stream_url("kobuki", address, "give a device (/dev/kobuki, /dev/ttyUSB0) or host:port")
         self._write_lock = threading.Lock()
         try:
-            self._port = serial.serial_for_url(address, baudrate=baudrate, bytesize=serial.EIGHTBITS,
+            self._port = serial.serial_for_url(url, baudrate=baudrate, bytesize=serial.EIGHTBITS,
                                                parity=serial.PARITY_NONE, stopbits=serial.STOPBITS_ONE,
                                                timeout=poll, write_timeout=WRITE_TIMEOUT)
         except (serial.SerialException, OSError, ValueError) as exc:

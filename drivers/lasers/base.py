@@ -20,7 +20,6 @@ emulator base.
 from __future__ import annotations
 
 import logging
-import re
 import threading
 import time
 from abc import abstractmethod
@@ -31,28 +30,17 @@ import serial
 from robotexp import ConfigError, ConnectionLost, Laser, LaserScan, RobotError, ScanSource, StampedScan
 from robotexp_drivers.backend import StreamReader, read_waiting
 from robotexp_drivers.emulation import StreamEmulator
-from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
+from robotexp_drivers.portio import WRITE_TIMEOUT, stream_url, write_all
 
 __all__ = ["LaserLink", "StreamLaser", "LaserEmulatorBase", "ScanStamps", "laser_url"]
 
 log = logging.getLogger(__name__)
 
-_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
-
-
 def laser_url(who: str, address: str) -> str:
-    """The `serial_for_url` URL of a laser address: "host:port" becomes `socket://host:port`;
-    a device path or a URL passes as is. Raises ConfigError on an empty address or a bad port."""
-    address = address.strip()
-    if not address:
-        raise ConfigError(f"{who}: empty laser address; give a device (/dev/ttyUSB0) or host:port")
-    m = _HOST_PORT.match(address)
-    if m and "://" not in address:
-        port = int(m.group(2))
-        if not 1 <= port <= 65535:
-            raise ConfigError(f"{who}: address {address!r}: TCP port must be 1..65535, got {port}")
-        return f"socket://{m.group(1)}:{port}"
-    return address
+    """The `serial_for_url` URL of a laser address (`stream_url`): "host:port" or "tcp://host:port" becomes
+    `socket://host:port`; a device path or a URL passes as is. Raises ConfigError on an empty address or a
+    bad port."""
+    return stream_url(who, address, "give a device (/dev/ttyUSB0) or host:port")
 
 
 class LaserLink:

@@ -7,31 +7,26 @@ Every failure of the other side (EOF, `OSError`, `SerialException`) becomes `Con
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 
 import serial
 
-from robotexp import ConfigError, ConnectionLost
+from robotexp import ConnectionLost
 from robotexp_drivers.backend import read_waiting
-from robotexp_drivers.portio import WRITE_TIMEOUT, write_all
+from robotexp_drivers.portio import WRITE_TIMEOUT, stream_url, write_all
 
 from . import constants as c
 
 __all__ = ["SerialLink", "address_to_url"]
-
-_HOST = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.-]*$")
-_HOST_PORT = re.compile(r"^([A-Za-z0-9][A-Za-z0-9.-]*|\[[0-9A-Fa-f:]+\]):(\d{1,5})$")
-_WINDOWS_PORT = re.compile(r"^COM\d+$", re.IGNORECASE)
 
 
 def address_to_url(address: str) -> str:
     """The `serial_for_url` URL of a robot address.
 
     Args:
-        address: "host" or "host:port" (MobileSim over TCP, port 8101 by default), or anything
-            `serial_for_url` accepts as is (a device path, `socket://`, `rfc2217://`, `loop://`).
+        address: "host", "host:port" or "tcp://host:port" (MobileSim over TCP, port 8101 by default), or
+            anything `serial_for_url` accepts as is (a device path, `socket://`, `rfc2217://`, `loop://`).
 
     Returns:
         The URL.
@@ -39,21 +34,8 @@ def address_to_url(address: str) -> str:
     Raises:
         ConfigError: an empty address or a port outside 1..65535.
     """
-    address = address.strip()
-    if not address:
-        raise ConfigError("p3dx: empty robot address; give a serial device (/dev/ttyUSB0), host, "
-                          "host:port (MobileSim, port 8101) or a pyserial URL (socket://host:8101)")
-    if "://" in address or address.startswith("/") or _WINDOWS_PORT.match(address):
-        return address
-    m = _HOST_PORT.match(address)
-    if m:
-        port = int(m.group(2))
-        if not 1 <= port <= 65535:
-            raise ConfigError(f"p3dx: address {address!r}: TCP port must be 1..65535, got {port}")
-        return f"socket://{m.group(1)}:{port}"
-    if _HOST.match(address):
-        return f"socket://{address}:{c.SIM_TCP_PORT}"
-    return address
+    return stream_url("p3dx", address, "give a serial device (/dev/ttyUSB0), host, host:port (MobileSim, port "
+                      "8101) or a pyserial URL (socket://host:8101)", c.SIM_TCP_PORT)
 
 
 class SerialLink:

@@ -88,6 +88,22 @@ def test_address_forms() -> None:
         address_to_url("host:70000")
     with pytest.raises(ConfigError):
         address_to_url("  ")
+    # tcp://host:port, the form other tools write, is host:port; without a port it is refused
+    assert address_to_url("tcp://127.0.0.1:8131") == address_to_url("TCP://127.0.0.1:8131/") == "socket://127.0.0.1:8131"
+    with pytest.raises(ConfigError, match="p3dx: address 'tcp://robot': give host:port"):
+        address_to_url("tcp://robot")
+
+
+def test_every_driver_takes_host_port_and_tcp_urls() -> None:
+    from robotexp_drivers.kobuki.link import KobukiLink
+    from robotexp_drivers.lasers.base import laser_url
+
+    assert laser_url("urg", "tcp://10.0.0.9:10940") == laser_url("urg", "10.0.0.9:10940") == "socket://10.0.0.9:10940"
+    assert laser_url("urg", "/dev/ttyACM0") == "/dev/ttyACM0" and laser_url("urg", "host") == "host"
+    with pytest.raises(ConfigError, match="kobuki: address 'host:0': TCP port must be 1..65535"):
+        KobukiLink("host:0")
+    with pytest.raises(ConfigError, match="kobuki: empty address"):
+        KobukiLink(" ")
 
 
 def test_link_loop_and_unreachable() -> None:
