@@ -355,10 +355,7 @@ class OccupancyGrid:
         Raises:
             ConfigError: `mask` is not a bool array of the grid's shape.
         """
-        m = self._mask(mask, "mark_free")
-        self.values[m] = -self.l_clamp if self.model == "logodds" else 0
-        self._touch(m)
-        self.cells_updated += int(np.count_nonzero(m))
+        self._mark(0, 0, self._mask(mask, "mark_free"), -self.l_clamp if self.model == "logodds" else 0)
 
     def mark_free_disc(self, x: float, y: float, radius: float) -> int:
         """Set the unknown cells whose centres lie within `radius` [m] of (`x`, `y`) [m] to certainly free (as
@@ -373,23 +370,15 @@ class OccupancyGrid:
         r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1 + 1, g.rows), min(c1 + 1, g.cols)
         if r1 <= r0 or c1 <= c0:
             return 0
-        sub = self.values[r0:r1, c0:c1]
-        unknown = sub == 0 if self.model == "logodds" else self.stamp[r0:r1, c0:c1] == 0
+        unknown = self.values[r0:r1, c0:c1] == 0 if self.model == "logodds" else self.stamp[r0:r1, c0:c1] == 0
         if not unknown.any():
             return 0
         cy = g.origin_y + (np.arange(r0, r1) + 0.5) * g.cell
         cx = g.origin_x + (np.arange(c0, c1) + 0.5) * g.cell
         cells = unknown & (np.hypot(cx[None, :] - x, cy[:, None] - y) <= radius)
-        n = int(np.count_nonzero(cells))
-        if n == 0:
+        if not cells.any():
             return 0
-        sub[cells] = -self.l_clamp if self.model == "logodds" else 0
-        self.scans += 1
-        self.stamp[r0:r1, c0:c1][cells] = self.scans
-        rows, cols = np.flatnonzero(cells.any(axis=1)), np.flatnonzero(cells.any(axis=0))
-        self._note(r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1)
-        self.cells_updated += n
-        return n
+        return self._mark(r0, c0, cells, -self.l_clamp if self.model == "logodds" else 0)
 
     def mark_occupied(self, mask: npt.NDArray[np.bool_]) -> None:
         """Set the cells of `mask` (rows, cols) bool to certainly occupied (+l_clamp; HIMM 15).
@@ -397,10 +386,7 @@ class OccupancyGrid:
         Raises:
             ConfigError: `mask` is not a bool array of the grid's shape.
         """
-        m = self._mask(mask, "mark_occupied")
-        self.values[m] = self.l_clamp if self.model == "logodds" else HIMM_MAX
-        self._touch(m)
-        self.cells_updated += int(np.count_nonzero(m))
+        self._mark(0, 0, self._mask(mask, "mark_occupied"), self.l_clamp if self.model == "logodds" else HIMM_MAX)
 
     def copy(self) -> Self:
         """An independent copy (arrays copied)."""
@@ -412,13 +398,21 @@ class OccupancyGrid:
         other._changes = self._changes.copy()
         return other
 
-    def _touch(self, mask: npt.NDArray[np.bool_]) -> None:
-        """Count a mark as one scan that touched the cells of `mask`."""
+    def _mark(self, r0: int, c0: int, cells: npt.NDArray[np.bool_], value: float) -> int:
+        """Set `cells` (a bool mask of the box whose cell (0, 0) is the grid's (`r0`, `c0`)) to `value`,
+        counted as one scan that touched them (a mark: `scans`, their stamps, its changed box); gives how
+        many cells it set."""
+        rows, cols = cells.shape
+        self.values[r0:r0 + rows, c0:c0 + cols][cells] = value
         self.scans += 1
-        self.stamp[mask] = self.scans
-        rows = np.flatnonzero(mask.any(axis=1))
-        if rows.size:
-            cols = np.flatnonzero(mask.any(axis=0))
-            self._note(int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+        self.stamp[r0:r0 + rows, c0:c0 + cols][cells] = self.scans
+        hit_rows = np.flatnonzero(cells.any(axis=1))
+        if hit_rows.size:
+            hit_cols = np.flatnonzero(cells.any(axis=0))
+            self._note(r0 + int(hit_rows[0]), r0 + int(hit_rows[-1]) + 1, c0 + int(hit_cols[0]),
+                       c0 + int(hit_cols[-1]) + 1)
         else:
             self._note(0, 0, 0, 0)
+        n = int(np.count_nonzero(cells))
+        self.cells_updated += n
+        return n
