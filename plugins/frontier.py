@@ -14,8 +14,8 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import Cell, Path, astar, nearest_goal
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import (PlanCosts, WallMemory, frontier_targets, known_window, passable_cell,
-                                      wall_face_cells)
+from robotexp.planning.targets import (PlanCosts, WallMemory, discs_blocked, frontier_targets, known_window,
+                                      passable_cell, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -114,6 +114,7 @@ class FrontierExplorer(Explorer):
         self.walls_seen: WallMemory | None = None     # cells ever firmly occupied (with face_reach > 0)
         self.costs: PlanCosts | None = None           # plan_costs, updated where the scans changed the map
         self.assigned: npt.NDArray[np.int64] | None = None    # a team coordinator's target cells
+        self.around: npt.NDArray[np.float64] | None = None     # teammates' discs to plan around (plan_around)
 
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew (the
@@ -128,6 +129,17 @@ class FrontierExplorer(Explorer):
         a new target drops the goal at once."""
         self.assigned = None if cells is None else np.asarray(cells, np.int64).reshape(-1, 2)
         if self.goal is not None and not self.homing:
+            self.follower.clear()
+            self.goal = self.face = None
+        self.next_plan = -math.inf
+
+    def plan_around(self, discs: npt.NDArray[np.float64] | None) -> None:
+        """Plan with the discs (k, 3) (x, y, radius) [m] impassable (None: as usual); discs drop the goal."""
+        if discs is None:
+            self.around = None
+            return
+        self.around = np.asarray(discs, np.float64).reshape(-1, 3)
+        if not self.homing:
             self.follower.clear()
             self.goal = self.face = None
         self.next_plan = -math.inf
@@ -167,7 +179,11 @@ class FrontierExplorer(Explorer):
             # keep the goal while its frontier is still there (switching goals at every plan makes
             # a robot oscillate between two frontiers); only the path to it is refreshed
             if not (self._goal_open(grid) and self._replan_path(pose, grid)) and not self._plan(pose, grid):
-                return self._finish(pose, grid)
+                if self.around is None:
+                    return self._finish(pose, grid)
+                self.around = None          # no goal around the teammates: plan as usual
+                if not self._plan(pose, grid):
+                    return self._finish(pose, grid)
             self.next_plan = now + self.replan_period
         return self.follower.twist(pose, state.laser, state.velocity)
 
@@ -346,9 +362,11 @@ class FrontierExplorer(Explorer):
         return frontier_targets(view, self._min_cells(grid), skip | face) & opening
 
     def _costs(self, grid: OccupancyGrid, view: OccupancyGrid, off: Offset) -> npt.NDArray[np.float32]:
-        """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written)."""
+        """`plan_costs` of the window `view` of `grid` (a view of the cache's costs: not to be written), with the
+        teammates' discs it plans around impassable (then a copy)."""
         rows, cols = view.shape
-        return self._plan_costs(grid).update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        cost = self._plan_costs(grid).update(grid)[off[0]:off[0] + rows, off[1]:off[1] + cols]
+        return cost if self.around is None else discs_blocked(cost, grid.geo, off, self.around)
 
     def _plan_costs(self, grid: OccupancyGrid) -> PlanCosts:
         """The `PlanCosts` of `grid` for this robot's radius and clearance, one for every explorer that plans on

@@ -51,8 +51,8 @@ from robotexp.planning.metaheuristics import (
 )
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import (PlanCosts, WallMemory, away_from, beside_large_unknown, known_window,
-                                      passable_cell, usable_frontier, wall_face_cells)
+from robotexp.planning.targets import (PlanCosts, WallMemory, away_from, beside_large_unknown, discs_blocked,
+                                      known_window, passable_cell, usable_frontier, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -165,6 +165,7 @@ class MetaheuristicExplorer(Explorer):
         self._looking = False               # the target is a last look's
         self.frontier_left = 0
         self.assigned: npt.NDArray[np.int64] | None = None     # a team coordinator's target cells
+        self.around: npt.NDArray[np.float64] | None = None      # teammates' discs to plan around (plan_around)
 
     @property
     def backtracking(self) -> bool:
@@ -181,6 +182,17 @@ class MetaheuristicExplorer(Explorer):
         """A team coordinator's target: the search runs on the frontier among these cells (None: all of
         it); a new target drops the current one at once."""
         self.assigned = None if cells is None else np.asarray(cells, np.int64).reshape(-1, 2)
+        self.target = self.face = None
+        self.follower.clear()
+        self.next_plan = -math.inf
+
+    def plan_around(self, discs: npt.NDArray[np.float64] | None) -> None:
+        """Search and plan with the discs (k, 3) (x, y, radius) [m] impassable (None: as usual); discs drop the
+        target."""
+        if discs is None:
+            self.around = None
+            return
+        self.around = np.asarray(discs, np.float64).reshape(-1, 3)
         self.target = self.face = None
         self.follower.clear()
         self.next_plan = -math.inf
@@ -217,12 +229,17 @@ class MetaheuristicExplorer(Explorer):
                 self.follower.clear()
                 self.target = self.face = None
         if now >= self.next_plan or self.follower.done:
-            if not self._plan(pose, grid, now):
+            if not self._plan(pose, grid, now) and (self.around is None or not self._plan_as_usual(pose, grid, now)):
                 self.follower.clear()
                 opening = ", no opening as wide as the robot" if self.min_opening != 0 else ""
                 return Done(f"fewer than {self.min_frontier} usable frontier cells left{opening}")
             self.next_plan = now + self.replan_period
         return self.follower.twist(pose, state.laser, state.velocity)
+
+    def _plan_as_usual(self, pose: Pose, grid: OccupancyGrid, now: float) -> bool:
+        """No target around the teammates' discs: forget them and plan again."""
+        self.around = None
+        return self._plan(pose, grid, now)
 
     def _mark_visited(self, pose: Pose, grid: OccupancyGrid) -> None:
         geo = grid.geo
@@ -321,6 +338,8 @@ class MetaheuristicExplorer(Explorer):
         view, off = known_window(grid, WINDOW_MARGIN)
         wr, wc = view.shape
         cost = self.costs.update(grid)[off[0]:off[0] + wr, off[1]:off[1] + wc]
+        if self.around is not None:
+            cost = discs_blocked(cost, geo, off, self.around)
         passable = np.isfinite(cost)
         start = passable_cell(geo, passable, pose.x, pose.y, offset=off)
         if start is None:

@@ -97,6 +97,14 @@ class Explorer(ABC):
         is among the explorer's own candidates any more, it chooses alone. Default: ignored."""
         return None
 
+    def plan_around(self, discs: npt.NDArray[np.float64] | None) -> None:
+        """A team tells this robot that teammates stand still in its way: plan around the discs (k, 3)
+        (x, y, radius) [m] its centre must keep out of (drop the goal and plan anew without them), until told
+        None. Called between steps, when the robot and teammates near it have been held for a while (robots
+        whose laser guards wait for each other). A robot that finds no goal around them plans as usual again.
+        Default: ignored (the robot's own rules are all it has)."""
+        return None
+
     def target_frontier(self, grid: OccupancyGrid) -> tuple[npt.NDArray[np.bool_], tuple[int, int]] | None:
         """The frontier cells this explorer would choose a goal among on `grid` now, for a team's coordinator
         to share out: a bool mask of a window of the grid and the (row, col) of the window's cell (0, 0).

@@ -82,7 +82,8 @@ RESULT_KEYS = {
                         "(a contact both drove into counts twice; counted in `collisions` too)",
     "coordinator_rounds": "team runs only: the coordinator's rounds that assigned targets (null: coordinator `none`)",
     "robots": "team runs only: one object per robot: `robot`, `start_pose`, `end_pose`, `path_length_m`, "
-              "`collisions`, `robot_collisions`, `idle_time_s`, `give_way_s`, `end`, `reason`, `cells_seen`, "
+              "`collisions`, `robot_collisions`, `idle_time_s`, `give_way_s`, `planned_around` (times it planned "
+              "around teammates held beside it), `end`, `reason`, `cells_seen`, "
               "`scans_received` (with a communication range), `address` (a robot over its driver) and the "
               "explorer's own keys",
 }

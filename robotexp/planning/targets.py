@@ -35,7 +35,8 @@ from robotexp.planning.reach import probe_cells
 
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
-           "surface_distance", "passable_radius", "cell_points", "beside_large_unknown", "away_from"]
+           "surface_distance", "passable_radius", "cell_points", "beside_large_unknown", "away_from",
+           "discs_blocked"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -317,6 +318,26 @@ class PlanCosts:
                                                 danger_radius_cells=dr, danger_cost=DANGER_COST,
                                                 blocked=~grid.window(r0, r1, c0, c1).free())
         return self.cost
+
+
+def discs_blocked(cost: npt.NDArray[np.float32], geo: GridGeometry, off: tuple[int, int],
+                  discs: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+    """A copy of the cost window `cost` (its cell (0, 0) is the grid's cell `off`) with every cell whose centre
+    lies within one of `discs` (k, 3) (x, y, radius) [m] made impassable (inf): robots standing in the way,
+    each disc the reach of the planning robot's centre (the two robots' turning radii and a margin)."""
+    out = cost.copy()
+    rows, cols = out.shape
+    for x, y, r in np.asarray(discs, np.float64).reshape(-1, 3):
+        r0, c0 = geo.cell_of(x - r, y - r)
+        r1, c1 = geo.cell_of(x + r, y + r)
+        r0, r1 = max(r0 - off[0], 0), min(r1 - off[0] + 1, rows)
+        c0, c1 = max(c0 - off[1], 0), min(c1 - off[1] + 1, cols)
+        if r1 <= r0 or c1 <= c0:
+            continue
+        cy = geo.origin_y + (np.arange(r0, r1) + off[0] + 0.5) * geo.cell
+        cx = geo.origin_x + (np.arange(c0, c1) + off[1] + 0.5) * geo.cell
+        out[r0:r1, c0:c1][np.hypot(cx[None, :] - x, cy[:, None] - y) <= r] = np.inf
+    return out
 
 
 def nearest_passable(passable: npt.NDArray[np.bool_], row: int, col: int, reach: int) -> tuple[int, int] | None:

@@ -49,6 +49,16 @@ STAND_W = 1e-3                  # a controller holding a robot may command round
 TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's footprint are not mapped
 TEAMMATE_CLEARANCE = 0.03       # [m] a robot's body swept along its command keeps this from a teammate's disc
 _RING = np.linspace(-math.pi, math.pi, 24, endpoint=False)     # points on a teammate's disc for that check
+# robots whose laser guards wait for each other (three by a door, each holding for the others) stand forever:
+# a robot held JAM_HELD [s] (commanding and driving less than STAND_V and JAM_SPEED) with teammates within
+# JAM_NEAR [m] held JAM_TEAMMATE_HELD [s] too, or done, plans around their discs (the two turning radii and
+# JAM_MARGIN) until it has driven JAM_CLEAR [m] (Explorer.plan_around)
+JAM_HELD = 20.0
+JAM_TEAMMATE_HELD = 10.0
+JAM_NEAR = 3.0
+JAM_SPEED = 0.01
+JAM_MARGIN = 0.05
+JAM_CLEAR = 1.0
 LEAVE_TOL = 0.3                 # [m] how far a robot's centre may stray past the exploration area
 _END_ORDER = (EndReason.PLUGIN_ERROR, EndReason.ROBOT_ERROR, EndReason.INTERRUPTED, EndReason.STOPPED,
               EndReason.STALLED, EndReason.TIME_LIMIT, EndReason.EXPLORED)
@@ -141,6 +151,9 @@ class TeamRun(ExplorationRun):
         self.seen = SeenCells(grid.shape, n)
         self.walls = WallMemory(1.5)        # the team grid's cells ever firmly occupied, for the end's check
         self.gave_way = [0] * n             # periods each robot gave way to a teammate
+        self.held = np.zeros(n)             # [s] each robot held without a break, as `_unjam` counts it
+        self.around = [0] * n               # times each robot was told to plan around held teammates
+        self._around_from: list[tuple[float, float] | None] = [None] * n    # where it was told so
         self.idle = [0] * n                 # ticks each robot stood idle (done, or commanded to stand still)
         self.targets: list[npt.NDArray[np.int64] | None] = [None] * n     # each robot's coordinator target
         self.rounds = 0                     # coordinator rounds that assigned targets
@@ -202,6 +215,7 @@ class TeamRun(ExplorationRun):
                                           StepEvent(m.robot_time, states[i], m.mapped_now, m.decision))
                 if go_on:
                     self._give_way(i, m)
+                    self._unjam(i, m)
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
@@ -268,6 +282,34 @@ class TeamRun(ExplorationRun):
         if self._lower_ahead(robot, m, s.true_pose or s.pose):
             m.robot.command(Twist(0.0, d.w))
             self.gave_way[robot] += 1
+
+    def _unjam(self, robot: int, m: ExplorationRun) -> None:
+        """Robots that hold for each other: member `robot`, held JAM_HELD s with teammates within JAM_NEAR held
+        JAM_TEAMMATE_HELD s (or done), plans around their discs (`Explorer.plan_around`) until it has driven
+        JAM_CLEAR. A robot held is one whose explorer commands no translation while it stands (its laser guard,
+        or its follower, waits); the traffic rules never hold a robot that long by themselves."""
+        d, s = m.decision, m.state
+        if not isinstance(d, Twist) or s is None:
+            return
+        p = s.true_pose or s.pose
+        since = self._around_from[robot]
+        if since is not None and math.hypot(p.x - since[0], p.y - since[1]) > JAM_CLEAR:
+            m.explorer.plan_around(None)
+            self._around_from[robot] = None
+        held = abs(d.v) < STAND_V and abs(s.velocity.v) < JAM_SPEED
+        self.held[robot] = self.held[robot] + self.period if held else 0.0
+        if self.held[robot] < JAM_HELD:
+            return
+        done = np.array([t.end is not EndReason.UNKNOWN for t in self.members])
+        near = (np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) < JAM_NEAR) & (
+            (self.held >= JAM_TEAMMATE_HELD) | done)
+        near[robot] = False
+        if not near.any():
+            return
+        m.explorer.plan_around(np.column_stack([self._xy[near], self._swing[near] + self._swing[robot] + JAM_MARGIN]))
+        self._around_from[robot] = (p.x, p.y)
+        self.held[robot] = 0.0
+        self.around[robot] += 1
 
     def _lower_ahead(self, robot: int, m: ExplorationRun, p: Pose) -> bool:
         """A teammate of a smaller number than `robot` (at pose `p`) still exploring, moving and close ahead."""
@@ -507,6 +549,7 @@ class TeamRun(ExplorationRun):
                 "robot_collisions": None if robot_collisions is None else int(robot_collisions),
                 "idle_time_s": round(self.idle[i] * self.period, 3),
                 "give_way_s": round(self.gave_way[i] * self.period, 3),
+                "planned_around": self.around[i],
                 "end": m.end.value if m.end is not EndReason.UNKNOWN else self.end.value,
                 "reason": m.reason if m.end is not EndReason.UNKNOWN else self.reason,
                 "cells_seen": int(np.count_nonzero(self.seen.seen_by(i))),

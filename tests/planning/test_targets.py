@@ -169,3 +169,21 @@ def test_away_from_by_hand() -> None:
     assert np.array_equal(away_from(cells, been, 2.0), cells)        # nowhere been: all kept
     been[2, 0] = True
     assert np.array_equal(np.flatnonzero(away_from(cells, been, 2.0)[2]), np.arange(3, 9))   # 3 cells on
+
+
+def test_discs_blocked_makes_the_cells_whose_centres_lie_in_a_disc_impassable_on_a_copy() -> None:
+    from robotexp.planning.targets import discs_blocked
+
+    cost = np.ones((6, 5), np.float32)          # the window of GEO's cells rows 2..7, cols 1..5
+    off = (2, 1)
+    # a disc about the centre of grid cell (5, 3) reaching 0.105 m: that cell and its four side neighbours
+    # (centres 0.1 m away; the diagonal ones are 0.141 m away); one about the grid's corner cell (0, 0),
+    # outside the window; one far outside the grid
+    x, y = GEO.center_of(5, 3)
+    out = discs_blocked(cost, GEO, off, np.array([[x, y, 0.105], [-0.95, 2.05, 0.15], [50.0, 50.0, 1.0]]))
+    want = np.zeros((6, 5), bool)
+    for r, c in [(5, 3), (4, 3), (6, 3), (5, 2), (5, 4)]:
+        want[r - off[0], c - off[1]] = True
+    assert (np.isinf(out) == want).all() and (out[~want] == 1.0).all()
+    assert (cost == 1.0).all()                  # the window itself is left as it was
+    assert (discs_blocked(cost, GEO, off, np.zeros((0, 3))) == cost).all()

@@ -454,3 +454,49 @@ def test_a_coordinators_target_it_cannot_reach_leaves_the_robot_exploring() -> N
     decision = explorer.step(_state(), grid)
     assert isinstance(decision, Twist) and not isinstance(decision, Done)
     assert explorer.goal is not None and max(explorer.goal) < 3.0      # in its room
+
+
+
+def test_plan_around_keeps_the_path_out_of_teammates_discs_and_falls_back_when_boxed_in() -> None:
+    """A team's `plan_around` (robots held for each other): the goal is dropped and the next path keeps the
+    robot's centre out of the discs; discs that leave no goal reachable are forgotten and the robot plans as
+    usual, rather than ending its exploration."""
+    from robotexp.explorer import ExplorerContext
+    from robotexp.robot import Limits, RobotState, Twist
+
+    # a corridor 2 m wide (y 1..3 m) closed to the west at x 0.4 m, open to the east onto unknown space at 5.5 m
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 40, 60))
+    free = np.zeros(grid.shape, bool)
+    free[10:30, 5:55] = True
+    wall = np.zeros(grid.shape, bool)
+    wall[9, 4:55] = wall[30, 4:55] = wall[9:31, 4] = True
+    grid.mark_free(free)
+    grid.mark_occupied(wall)
+    explorer = FrontierExplorer()
+    explorer.reset(ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1,
+                                   start=Pose(1.0, 2.0, 0.0), laser_range=3.0, rng=np.random.default_rng(0)))
+
+    def step(t: float) -> object:
+        return explorer.step(RobotState(time=t, pose=Pose(1.0, 2.0, 0.0), velocity=Twist.ZERO), grid)
+
+    def along(path: np.ndarray) -> np.ndarray:      # the path's segments, every centimetre
+        return np.concatenate([a + (b - a) * np.linspace(0, 1, 1 + int(np.hypot(*(b - a)) / 0.01))[:, None]
+                               for a, b in zip(path[:-1], path[1:], strict=True)])
+
+    assert isinstance(step(0.0), Twist)
+    assert explorer.goal is not None and explorer.goal[0] > 4.5       # the frontier at the corridor's end
+    straight = along(np.asarray(explorer.follower.path))
+    assert np.abs(straight[:, 1] - 2.0).max() < 0.1
+    explorer.plan_around(np.array([[3.0, 2.0, 0.45]]))      # a teammate held in the middle of the corridor
+    assert explorer.goal is None
+    assert isinstance(step(0.1), Twist)
+    assert explorer.goal is not None and explorer.goal[0] > 4.5 and explorer.around is not None
+    around = along(np.asarray(explorer.follower.path))
+    # the cells whose centres lie in the disc are out; a path passes a cell at one of its points (`cell_points`),
+    # up to half a cell's diagonal from the centre
+    assert np.hypot(around[:, 0] - 3.0, around[:, 1] - 2.0).min() > 0.45 - 0.071
+    explorer.plan_around(np.array([[1.0, 2.0, 20.0]]))      # the whole map: no goal around it
+    assert isinstance(step(0.2), Twist)
+    assert explorer.around is None and explorer.goal is not None and explorer.goal[0] > 4.5
+    explorer.plan_around(None)
+    assert explorer.around is None

@@ -403,3 +403,16 @@ def test_a_robot_held_with_rounding_noise_counts_idle():
         run.run()
     idle = [x["idle_time_s"] for x in run.record.robots]
     assert idle[0] == pytest.approx(6.0, abs=0.15) and idle[1] < 0.5, idle
+
+
+def test_robots_held_for_each_other_plan_around_their_teammates():
+    """Four P3-DX on dense from start 7, burgard with beta 0.5: by 60 s three robots stand by the door of the
+    south-west room, each one's laser guard holding it for the others. Held 20 s beside teammates held too,
+    a robot plans around them (`Explorer.plan_around`) and the team explores on; without that rule the three
+    stood there to the end (8-9 m driven each in 536 s), the fourth explored alone and reached 95 % at 480 s."""
+    spec = RunSpec(world="dense", method="frontier", pose="7", max_time=300.0)
+    r = run_team(spec, TeamSpec(robots=("p3dx",) * 4, coordinator="burgard", coordinator_params={"beta": 0.5}),
+                 None, image=False).record
+    assert r.time_to_coverage_95_s is not None and r.time_to_coverage_95_s < 300.0
+    assert min(x["path_length_m"] for x in r.robots) > 30.0, [x["path_length_m"] for x in r.robots]
+    assert sum(x["planned_around"] for x in r.robots) >= 1 and r.collisions == 0
