@@ -6,7 +6,7 @@ import functools
 import math
 import sys
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import click
 
@@ -22,9 +22,14 @@ def fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
-def interrupted(exc: KeyboardInterrupt) -> None:
+def interrupted(exc: KeyboardInterrupt) -> NoReturn:
     """End the command after a Ctrl-C (exit status 130) or a SIGTERM (`Terminated`, 143), saying which."""
-    if isinstance(exc, Terminated):
+    end_interrupted(isinstance(exc, Terminated))
+
+
+def end_interrupted(terminated: bool) -> NoReturn:
+    """End a command that a SIGTERM (`terminated`: exit status 143) or a Ctrl-C (130) interrupted, saying which."""
+    if terminated:
         click.echo("robotexp: terminated (SIGTERM)", err=True)
         sys.exit(143)
     click.echo("robotexp: interrupted", err=True)

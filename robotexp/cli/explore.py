@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
 
-from robotexp.cli.common import compile_watch, fail, handle_errors, image_formats, mm, params
+from robotexp.cli.common import compile_watch, end_interrupted, fail, handle_errors, image_formats, mm, params
 from robotexp.cli.progress import Progress
 from robotexp.errors import ConfigError, WorldError
 from robotexp.registry import make_explorer
@@ -195,7 +194,7 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     if result.interrupted:
         from robotexp.run.loop import TERMINATED_REASON
 
-        sys.exit(143 if r.reason == TERMINATED_REASON else 130)
+        end_interrupted(r.reason == TERMINATED_REASON)
     if r.end in (EndReason.ROBOT_ERROR, EndReason.PLUGIN_ERROR):     # written, but the run failed
         fail(f"{r.run}: {r.reason}", 1)
 

@@ -366,6 +366,7 @@ def test_sigterm_stops_the_robot_and_writes_the_run(tmp_path: Path) -> None:
                 proc.wait()
         assert proc.returncode == 143, (stdout, stderr)
         assert "Traceback" not in stderr and "terminated" not in stdout
+        assert stderr.strip().splitlines()[-1] == "robotexp: terminated (SIGTERM)", stderr
         assert _wait(lambda: emu.last_command is not None and emu.last_command.cmd == 2)   # the driver's stop
         assert emu.commanded == (0, 0)
     record = json.loads((out / "results.jsonl").read_text().splitlines()[-1])
