@@ -364,36 +364,3 @@ def test_firefly_targets_the_near_opening_not_a_weak_frontier_across_the_map() -
     assert (ours.population, ours.iterations) == (40, 25)
     assert hits(search_domain(objective.surface, reachable, fr, 3 * 1.5 + 1), ours) >= 45
     assert hits(objective.surface, FireflyConfig(population=20, iterations=100)) <= 10
-
-
-def test_plan_around_keeps_the_target_path_out_of_the_discs_and_falls_back_when_boxed_in() -> None:
-    """A team's `plan_around`: the target is dropped, the next path keeps the robot's centre out of the discs;
-    discs that leave no target are forgotten and the robot searches as usual, rather than ending."""
-    # a corridor 2 m wide (y 1..3 m) closed to the west at x 0.4 m, open to the east onto unknown space at 5.5 m
-    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 40, 60))
-    free = np.zeros(grid.shape, bool)
-    free[10:30, 5:55] = True
-    wall = np.zeros(grid.shape, bool)
-    wall[9, 4:55] = wall[30, 4:55] = wall[9:31, 4] = True
-    grid.mark_free(free)
-    grid.mark_occupied(wall)
-    explorer = ExhaustiveExplorer()
-    explorer.reset(ExplorerContext(radius=0.25, limits=Limits(v_max=0.3, w_max=1.0), period=0.1,
-                                   start=Pose(1.0, 2.0, 0.0), laser_range=2.0, rng=np.random.default_rng(0)))
-
-    def step(t: float) -> object:
-        return explorer.step(RobotState(time=t, pose=Pose(1.0, 2.0, 0.0), velocity=Twist.ZERO), grid)
-
-    assert isinstance(step(0.0), Twist)
-    assert explorer.target is not None and explorer.target[0] > 4.0
-    explorer.plan_around(np.array([[3.0, 2.0, 0.45]]))      # a teammate held in the middle of the corridor
-    assert explorer.target is None
-    assert isinstance(step(0.1), Twist) and explorer.target is not None and explorer.around is not None
-    path = np.asarray(explorer.follower.path)
-    dense = np.concatenate([a + (b - a) * np.linspace(0, 1, 1 + int(np.hypot(*(b - a)) / 0.01))[:, None]
-                            for a, b in zip(path[:-1], path[1:], strict=True)])
-    # the cells whose centres lie in the disc are out; a path passes a cell at one of its points (`cell_points`),
-    # up to half a cell's diagonal from the centre
-    assert np.hypot(dense[:, 0] - 3.0, dense[:, 1] - 2.0).min() > 0.45 - 0.071
-    explorer.plan_around(np.array([[1.0, 2.0, 20.0]]))      # the whole map: no target around it
-    assert isinstance(step(0.2), Twist) and explorer.around is None and explorer.target is not None
