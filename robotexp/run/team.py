@@ -287,7 +287,7 @@ class TeamRun(ExplorationRun):
         """Robots that hold for each other: member `robot`, held JAM_HELD s with teammates within JAM_NEAR held
         JAM_TEAMMATE_HELD s (or done), plans around their discs (`Explorer.plan_around`) until it has driven
         JAM_CLEAR. A robot held is one whose explorer commands no translation while it stands (its laser guard,
-        or its follower, waits); the traffic rules never hold a robot that long by themselves."""
+        or its follower, waits); a robot the traffic rules stop is not, its explorer still commanding one."""
         d, s = m.decision, m.state
         if not isinstance(d, Twist) or s is None:
             return
