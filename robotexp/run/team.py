@@ -214,8 +214,7 @@ class TeamRun(ExplorationRun):
                     self.observers.notify("on_robot_step", self, i,
                                           StepEvent(m.robot_time, states[i], m.mapped_now, m.decision))
                 if go_on:
-                    self._give_way(i, m)
-                    self._unjam(i, m)
+                    self._unjam(i, m, self._give_way(i, m))
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
@@ -266,28 +265,31 @@ class TeamRun(ExplorationRun):
             if not inside(self.area, p.x, p.y, LEAVE_TOL):
                 self.request_stop(f"robot {i + 1} left the exploration area at ({p.x:.2f}, {p.y:.2f}) m")
 
-    def _give_way(self, robot: int, m: ExplorationRun) -> None:
+    def _give_way(self, robot: int, m: ExplorationRun) -> bool:
         """The traffic rule of the team: a robot about to drive towards a teammate of a smaller number that is
         moving and close ahead (gap under GIVE_WAY_GAP, within GIVE_WAY_ANGLE of its heading) stops its
         translation for this period (it may turn); a teammate standing still is left to the robot's own laser
         check. Two robots closing on each other would otherwise both brake for a still obstacle at twice the
-        closing speed."""
+        closing speed. True when a rule stopped the robot's translation this period."""
         d = m.decision
         s = m.state
         if not isinstance(d, Twist) or s is None:
-            return
-        self._keep_clear(robot, m, d, s)
+            return False
+        if self._keep_clear(robot, m, d, s):
+            return True
         if d.v <= 0.0:
-            return
+            return False
         if self._lower_ahead(robot, m, s.true_pose or s.pose):
             m.robot.command(Twist(0.0, d.w))
             self.gave_way[robot] += 1
+            return True
+        return False
 
-    def _unjam(self, robot: int, m: ExplorationRun) -> None:
+    def _unjam(self, robot: int, m: ExplorationRun, stopped: bool) -> None:
         """Robots that hold for each other: member `robot`, held JAM_HELD s with teammates within JAM_NEAR held
         JAM_TEAMMATE_HELD s (or done), plans around their discs (`Explorer.plan_around`) until it has driven
-        JAM_CLEAR. A robot held is one whose explorer commands no translation while it stands (its laser guard,
-        or its follower, waits); a robot the traffic rules stop is not, its explorer still commanding one."""
+        JAM_CLEAR. A robot held is one that stands while its explorer commands no translation (its laser guard,
+        or its follower, waits) or the team's rules stopped it (`stopped`: a teammate too close ahead)."""
         d, s = m.decision, m.state
         if not isinstance(d, Twist) or s is None:
             return
@@ -296,7 +298,7 @@ class TeamRun(ExplorationRun):
         if since is not None and math.hypot(p.x - since[0], p.y - since[1]) > JAM_CLEAR:
             m.explorer.plan_around(None)
             self._around_from[robot] = None
-        held = abs(d.v) < STAND_V and abs(s.velocity.v) < JAM_SPEED
+        held = abs(s.velocity.v) < JAM_SPEED and (stopped or abs(d.v) < STAND_V)
         self.held[robot] = self.held[robot] + self.period if held else 0.0
         if self.held[robot] < JAM_HELD:
             return
@@ -321,29 +323,30 @@ class TeamRun(ExplorationRun):
                 return True
         return False
 
-    def _keep_clear(self, robot: int, m: ExplorationRun, d: Twist, s: RobotState) -> None:
+    def _keep_clear(self, robot: int, m: ExplorationRun, d: Twist, s: RobotState) -> bool:
         """The robots tell each other where they stand: a command whose sweep (`footprint_blocked`, the
         robot's own outline along the command's arc or turn) would bring the body within TEAMMATE_CLEARANCE,
         plus the stopping distance of the fastest teammate near, of a teammate's disc is cut to its turn
         alone, or to a stop; a teammate the laser cannot see (lower than the laser, or behind it) is not
-        driven into."""
+        driven into. True when the command was cut."""
         p = s.true_pose or s.pose
         near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
         near[robot] = False
         if not near.any():
-            return
+            return False
         v = self._speed[near]
         closing = max(float(np.max(v * v / self._brake[near] + v * 0.2)), 0.0)   # [m] the farthest a moving
         #                                                               teammate near may still come before it stops
         xy, r = self._xy[near], self._swing[near, None]
         world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
                                  (xy[:, 1, None] + r * np.sin(_RING)).ravel()])
-        self._cut_command(robot, m, d, p, world, closing)
+        return self._cut_command(robot, m, d, p, world, closing)
 
     def _cut_command(self, robot: int, m: ExplorationRun, d: Twist, p: Pose, world: npt.NDArray[np.float64],
-                     closing: float) -> None:
+                     closing: float) -> bool:
         """Command `d` of member `robot` at pose `p`, or its turn alone, or a stop: the first whose sweep keeps
-        the body TEAMMATE_CLEARANCE + `closing` [m] from the points `world` (n, 2) [m] on the teammates' discs."""
+        the body TEAMMATE_CLEARANCE + `closing` [m] from the points `world` (n, 2) [m] on the teammates' discs; True
+        when it is not `d`."""
         from robotexp.planning.follower import footprint_blocked
 
         c, sn = math.cos(p.theta), math.sin(p.theta)
@@ -354,9 +357,11 @@ class TeamRun(ExplorationRun):
             if cmd == Twist.ZERO or not footprint_blocked(pts, foot, TEAMMATE_CLEARANCE + closing, max(cmd.v, 0.0),
                                                           cmd.w, lim.a_max, lim.alpha_max):
                 break
-        if cmd != d:
-            m.robot.command(cmd)
-            self.gave_way[robot] += 1
+        if cmd == d:
+            return False
+        m.robot.command(cmd)
+        self.gave_way[robot] += 1
+        return True
 
     def _without_teammates(self, robot: int, state: RobotState) -> LaserScan:
         """Robot `robot`'s scan for the maps: the beams that end on a teammate (within its radius plus

@@ -416,3 +416,16 @@ def test_robots_held_for_each_other_plan_around_their_teammates():
     assert r.time_to_coverage_95_s is not None and r.time_to_coverage_95_s < 300.0
     assert min(x["path_length_m"] for x in r.robots) > 30.0, [x["path_length_m"] for x in r.robots]
     assert sum(x["planned_around"] for x in r.robots) >= 1 and r.collisions == 0
+
+
+def test_a_robot_the_team_rules_stop_counts_as_held():
+    """Eight P3-DX from dense's start 4 (a room in the north-west), each robot's explorer alone: by 60 s six
+    of them queue towards the door, the first one's command cut by the team's keep-clear rule (a teammate
+    beside it), the others' laser guards waiting behind. The one the rule stops counts as held and plans
+    around its teammates, and the queue moves; when only the explorers' own holds counted, the six drove
+    3-8 m each to the end and the team reached 95 % at 255 s."""
+    spec = RunSpec(world="dense", method="frontier", pose="4", max_time=240.0)
+    r = run_team(spec, TeamSpec(robots=("p3dx",) * 8, coordinator="none"), None, image=False).record
+    paths = [x["path_length_m"] for x in r.robots]
+    assert r.time_to_coverage_95_s is not None and min(paths) > 20.0, (r.time_to_coverage_95_s, paths)
+    assert r.collisions == 0
