@@ -50,9 +50,10 @@ TEAMMATE_MARGIN = 0.1           # [m] beams ending this close to a teammate's fo
 TEAMMATE_CLEARANCE = 0.03       # [m] a robot's body swept along its command keeps this from a teammate's disc
 _RING = np.linspace(-math.pi, math.pi, 24, endpoint=False)     # points on a teammate's disc for that check
 # robots whose laser guards wait for each other (three by a door, each holding for the others) stand forever:
-# a robot held JAM_HELD [s] (commanding and driving less than STAND_V and JAM_SPEED) with teammates within
-# JAM_NEAR [m] held JAM_TEAMMATE_HELD [s] too, or done, plans around their discs (the two turning radii and
-# JAM_MARGIN) until it has driven JAM_CLEAR [m] (Explorer.plan_around)
+# a robot held JAM_HELD [s] (standing, under JAM_SPEED, while its explorer commands no translation or the
+# team's rules stop it) with teammates within JAM_NEAR [m] held JAM_TEAMMATE_HELD [s] too, or done, plans
+# around their discs (the two turning radii and JAM_MARGIN) until it has driven JAM_CLEAR [m]
+# (Explorer.plan_around; TeamRun._unjam)
 JAM_HELD = 20.0
 JAM_TEAMMATE_HELD = 10.0
 JAM_NEAR = 3.0
@@ -221,6 +222,7 @@ class TeamRun(ExplorationRun):
                         self._end_from(m)
                         return
                     m._safe_stop()
+                    self._speed[i] = 0.0        # it stands from now on (its last state may have it driving)
             self._mark_bodies()
             self._share()
             self._count_idle(active)
@@ -288,8 +290,10 @@ class TeamRun(ExplorationRun):
     def _unjam(self, robot: int, m: ExplorationRun, stopped: bool) -> None:
         """Robots that hold for each other: member `robot`, held JAM_HELD s with teammates within JAM_NEAR held
         JAM_TEAMMATE_HELD s (or done), plans around their discs (`Explorer.plan_around`) until it has driven
-        JAM_CLEAR. A robot held is one that stands while its explorer commands no translation (its laser guard,
-        or its follower, waits) or the team's rules stopped it (`stopped`: a teammate too close ahead)."""
+        JAM_CLEAR, and is not told again before. The lowest-numbered robot of a held group is not told (unless
+        a teammate near it is done): it keeps its goal, and its explorer's own timeouts run. A robot held is one
+        that stands while its explorer commands no translation (its laser guard, or its follower, waits) or the
+        team's rules stopped it (`stopped`: a teammate too close ahead)."""
         d, s = m.decision, m.state
         if not isinstance(d, Twist) or s is None:
             return
@@ -300,13 +304,13 @@ class TeamRun(ExplorationRun):
             self._around_from[robot] = None
         held = abs(s.velocity.v) < JAM_SPEED and (stopped or abs(d.v) < STAND_V)
         self.held[robot] = self.held[robot] + self.period if held else 0.0
-        if self.held[robot] < JAM_HELD:
-            return
+        if self.held[robot] < JAM_HELD or self._around_from[robot] is not None:
+            return          # told once and not on its way yet: its own rules (giving a goal up) take it on
         done = np.array([t.end is not EndReason.UNKNOWN for t in self.members])
         near = (np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) < JAM_NEAR) & (
             (self.held >= JAM_TEAMMATE_HELD) | done)
         near[robot] = False
-        if not near.any():
+        if not (near[:robot].any() or (near & done).any()):     # the lowest-numbered of a held group keeps its way
             return
         m.explorer.plan_around(np.column_stack([self._xy[near], self._swing[near] + self._swing[robot] + JAM_MARGIN]))
         self._around_from[robot] = (p.x, p.y)

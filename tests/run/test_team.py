@@ -429,3 +429,20 @@ def test_a_robot_the_team_rules_stop_counts_as_held():
     paths = [x["path_length_m"] for x in r.robots]
     assert r.time_to_coverage_95_s is not None and min(paths) > 20.0, (r.time_to_coverage_95_s, paths)
     assert r.collisions == 0
+
+
+def test_a_robot_that_is_done_stands_for_its_teammates():
+    """Robot 1 stops at x 3 m (done) while driving at 0.5 m/s; robot 2 passes it 0.8 m to the side (0.3 m
+    between the bodies). A teammate that drives keeps its stopping distance (0.35 m at 0.5 m/s) around it for
+    the others; one that is done stands, and robot 2 drives past. With the last speed kept, robot 2 was cut to
+    a stop beside it to the end."""
+    world = hall()
+    grid = OccupancyGrid(GridGeometry.covering(*world.bounds, cell=0.1, margin=0.5), range_max=3.0)
+    robots = [SimRobot(world, pose=Pose(1.0, 0.6, 0.0), sonar=False),
+              SimRobot(world, pose=Pose(8.0, 1.4, math.pi), sonar=False)]
+    with SimTeam(robots) as team:
+        run = TeamRun(robots, [Drive(3.0), Drive(1.0)], [grid, grid], team.make_clock(0.1), max_time=40.0)
+        run.run()
+    r = run.record
+    assert [x["end"] for x in r.robots] == ["explored", "explored"], [x["reason"] for x in r.robots]
+    assert r.robots[1]["path_length_m"] > 6.9 and r.collisions == 0
