@@ -160,7 +160,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
         OSError: the results could not be written (an error of a `critical` observer).
     """
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.run.localize import localized, release
+    from robotexp.run.localize import MAP_P_FREE, localized, release
 
     spec.validate()
     if not map_size > 0:
@@ -187,8 +187,9 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
                                     cell=cell)
     warm_kernels(spec, robot)
     robot.set_max_speed(spec.speed)
-    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range)
     robot, tracker = localized(spec, robot, geo)    # robotexp.run.localize: the explorer's pose
+    grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range,
+                         **({"p_free": MAP_P_FREE} if tracker.localize != "none" else {}))
 
     extra: dict[str, Any] = {}
     if robot.address is not None:

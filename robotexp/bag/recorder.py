@@ -219,7 +219,8 @@ class BagRecorder(RunObserver):
                 "max_time_s": run.max_time, "seed": run.seed,
                 "start": None if start is None else start.as_list(),
                 "grid": {"origin_x": g.origin_x, "origin_y": g.origin_y, "cell": g.cell, "rows": g.rows,
-                         "cols": g.cols, "model": run.grid.model, "range_max": run.grid.range_max},
+                         "cols": g.cols, "model": run.grid.model, "range_max": run.grid.range_max,
+                         "p_free": run.grid.p_free},
                 "epoch_s": EPOCH}
         members = getattr(run, "members", None)        # a team run (robotexp.run.team.TeamRun)
         if members is not None:

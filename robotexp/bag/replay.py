@@ -213,6 +213,9 @@ def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
         if rm is not None and (isinstance(rm, bool) or not isinstance(rm, (int, float)) or not math.isfinite(rm)
                                or not rm > 0):
             raise ValueError(f"robotexp.run metadata: grid range_max is {rm!r}, expected a number > 0")
+        pf = g.get("p_free", 0.1)
+        if isinstance(pf, bool) or not isinstance(pf, (int, float)) or not 0.0 < pf < 0.5:
+            raise ValueError(f"robotexp.run metadata: grid p_free is {pf!r}, expected a number in (0, 0.5)")
     if meta.get("team") is not None:
         _check_team(meta["team"])
     return meta
@@ -516,13 +519,15 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
             recorded.origin_x, recorded.origin_y, recorded.origin_x + recorded.width,
             recorded.origin_y + recorded.height, cell=cell)
         model, range_max = g["model"], g["range_max"]
+        free = {"p_free": float(g["p_free"])} if "p_free" in g else {}     # older recordings: the default
     else:
         xs = [t.pose.x for t in bag.ticks]
         ys = [t.pose.y for t in bag.ticks]
         r = laser_range + FOREIGN_MARGIN
         geo = GridGeometry.covering(min(xs) - r, min(ys) - r, max(xs) + r, max(ys) + r, cell=cell or 0.1)
         model, range_max = "logodds", None
-    grid = OccupancyGrid(geo, model=model, range_max=range_max)
+        free = {}
+    grid = OccupancyGrid(geo, model=model, range_max=range_max, **free)
     truth = _truth_at(bag, geo)
     end = EndReason.classify(bool(rec.get("completed")), str(rec.get("reason", ""))) if rec else EndReason.STOPPED
     reason = str(rec.get("reason", "stopped: end of the recording")) if rec else "stopped: end of the recording"

@@ -104,6 +104,7 @@ class OccupancyGrid:
                                 int(geo.rows), int(geo.cols))
         self.model = model
         self.range_max = range_max
+        self.p_free = float(p_free)      # as given (a recording keeps it, to map its scans again alike)
         # Rounded to float32, the grid's type, so that with p_free = 1 - p_occ a hit and a pass
         # cancel exactly and the cell is unknown again.
         self.l_occ = float(np.float32(_logit(p_occ)))

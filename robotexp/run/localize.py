@@ -40,6 +40,11 @@ LOCALIZE_MODES = ("auto", "none", "scan-match", "slam")
 # 0.5 m square and 45 deg sector of the poses they were taken at
 SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA = 4, 0.5, math.radians(45.0)
 MATCH_CELL = 0.05     # [m] cells of the localizer's matching map (the explorer's may be coarser)
+# the run's log-odds map when it is built at the estimated pose: a beam that crossed a cell counts logit(0.3),
+# 0.39 of a hit's logit(0.9) (at the exact pose logit(0.1), as much), as OctoMap's defaults weigh a miss about
+# half a hit. With misses as strong as hits, the one-cell walls of a map seen from poses a few centimetres off
+# kept gaps (docs/how-to/localization.md: the five real maps)
+MAP_P_FREE = 0.3
 
 
 def check_localize(mode: str) -> None:

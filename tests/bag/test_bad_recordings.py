@@ -45,6 +45,7 @@ CASES: dict[str, tuple[Callable[[Path], Path], str]] = {
     "grid cell 0": (lambda p: crafted.write(p, run_meta=_meta(grid_cell=0)), "grid cell"),
     "grid 200000 x 200000": (lambda p: crafted.write(p, run_meta=_meta(grid_rows=200000, grid_cols=200000)),
                              "limit"),
+    "grid p_free 0.7": (lambda p: crafted.write(p, run_meta=_meta(grid_p_free=0.7)), "p_free"),
     "sample period 1e-300 s": (lambda p: crafted.write(p, run_meta=_meta(sample_period_s=1e-300)),
                                "sample_period_s"),
     "radius as text": (lambda p: crafted.write(p, run_meta=_meta(radius_m="big")), "radius_m"),

@@ -46,3 +46,24 @@ def test_explore_rejects_a_bad_odometry_error_before_the_run(tmp_path: Path) -> 
     res = CliRunner().invoke(main, ["explore", "--odometry-error", "pioneer", "--out", str(tmp_path)])
     assert res.exit_code == 2 and "unknown preset 'pioneer'" in res.output
     assert not (tmp_path / "results.jsonl").exists()
+
+
+def test_a_map_built_at_an_estimated_pose_weighs_a_miss_less_than_a_hit() -> None:
+    """Runs that localize build their map with `MAP_P_FREE` (a beam that crossed a cell: logit(0.3), 0.39 of a
+    hit's logit(0.9)); at the exact pose a miss weighs as much as a hit (logit(0.1))."""
+    import math
+
+    from robotexp.experiment import run_experiment
+    from robotexp.run.localize import MAP_P_FREE
+    from robotexp.run.spec import RunSpec
+
+    def logit(p: float) -> float:
+        return math.log(p / (1 - p))
+
+    assert MAP_P_FREE == 0.3
+    for localize, odometry, p_free in (("scan-match", "p3dx", 0.3), ("slam", "p3dx", 0.3), ("none", "p3dx", 0.1),
+                                       ("none", "none", 0.1)):
+        spec = RunSpec(world="dense", method="frontier", max_time=3.0, odometry=odometry, localize=localize)
+        grid = run_experiment(spec, None, image=False).run.grid
+        assert grid.p_free == p_free and math.isclose(grid.l_free, logit(p_free), rel_tol=1e-6), localize
+        assert math.isclose(grid.l_occ, logit(0.9), rel_tol=1e-6)
