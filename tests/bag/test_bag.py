@@ -279,3 +279,22 @@ def test_exact_scan_round_trip() -> None:
         back = _exact_scan(msg)
         assert np.array_equal(back.angles, angles) and np.array_equal(back.ranges, ranges)
         assert (back.range_max, back.offset_x) == (3.0, 0.12)
+
+
+def test_a_localized_run_replays_to_its_record(tmp_path: Path) -> None:
+    """A run that localized mapped with its own p_free (a miss weighs less than a hit: `MAP_P_FREE`); the
+    recording keeps it and the replay maps the recorded scans with it, to the same coverage and map IoU."""
+    from robotexp.run.localize import MAP_P_FREE
+
+    bag = tmp_path / "run.mcap"
+    res = CliRunner().invoke(main, ["explore", "-w", "dense", "-m", "frontier", "--max-time", "30",
+                                    "--odometry-error", "p3dx", "--localize", "scan-match", "--record", str(bag),
+                                    "--out", str(tmp_path / "run")])
+    assert res.exit_code == 0, res.output
+    assert read_bag(bag).meta["grid"]["p_free"] == MAP_P_FREE
+    res = CliRunner().invoke(main, ["replay", str(bag), "--out", str(tmp_path / "replay")])
+    assert res.exit_code == 0, res.output
+    ran = read_jsonl(tmp_path / "run" / "results.jsonl")[-1]
+    replayed = read_jsonl(tmp_path / "replay" / "results.jsonl")[-1]
+    for key in ("coverage", "map_iou", "visited_cells"):
+        assert replayed[key] == ran[key], key
