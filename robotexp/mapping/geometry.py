@@ -111,6 +111,25 @@ class GridGeometry(NamedTuple):
         return np.column_stack([self.origin_x + (rc[:, 1] + 0.5) * self.cell,
                                 self.origin_y + (rc[:, 0] + 0.5) * self.cell])
 
+    def disc_box(self, x: float, y: float, radius: float,
+                 within: tuple[int, int, int, int] | None = None) -> tuple[int, int, int, int] | None:
+        """(r0, r1, c0, c1): the rows r0..r1-1 and columns c0..c1-1 of the cells holding the square around the
+        disc of `radius` [m] about (`x`, `y`) [m], cut to `within` (r0, r1, c0, c1; default the whole grid);
+        None when nothing is left."""
+        b0, b1, d0, d1 = within if within is not None else (0, self.rows, 0, self.cols)
+        r0, c0 = self.cell_of(x - radius, y - radius)
+        r1, c1 = self.cell_of(x + radius, y + radius)
+        r0, c0, r1, c1 = max(r0, b0), max(c0, d0), min(r1 + 1, b1), min(c1 + 1, d1)
+        return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+
+    def disc_mask(self, box: tuple[int, int, int, int], x: float, y: float, radius: float) -> npt.NDArray[np.bool_]:
+        """Bool (r1 - r0, c1 - c0): the cells of `box` (r0, r1, c0, c1, e.g. `disc_box`'s) whose centres lie
+        within `radius` [m] of (`x`, `y`) [m]."""
+        r0, r1, c0, c1 = box
+        cy = self.origin_y + (np.arange(r0, r1) + 0.5) * self.cell
+        cx = self.origin_x + (np.arange(c0, c1) + 0.5) * self.cell
+        return np.asarray(np.hypot(cx[None, :] - x, cy[:, None] - y) <= radius)
+
     def contains(self, row: int, col: int) -> bool:
         """True when (row, col) is inside the grid."""
         return 0 <= row < self.rows and 0 <= col < self.cols

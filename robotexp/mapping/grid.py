@@ -365,18 +365,14 @@ class OccupancyGrid:
         returns how many cells it set."""
         if not (math.isfinite(x) and math.isfinite(y) and radius > 0):
             return 0
-        g = self.geo
-        r0, c0 = g.cell_of(x - radius, y - radius)
-        r1, c1 = g.cell_of(x + radius, y + radius)
-        r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1 + 1, g.rows), min(c1 + 1, g.cols)
-        if r1 <= r0 or c1 <= c0:
+        box = self.geo.disc_box(x, y, radius)
+        if box is None:
             return 0
+        r0, r1, c0, c1 = box
         unknown = self.values[r0:r1, c0:c1] == 0 if self.model == "logodds" else self.stamp[r0:r1, c0:c1] == 0
         if not unknown.any():
             return 0
-        cy = g.origin_y + (np.arange(r0, r1) + 0.5) * g.cell
-        cx = g.origin_x + (np.arange(c0, c1) + 0.5) * g.cell
-        cells = unknown & (np.hypot(cx[None, :] - x, cy[:, None] - y) <= radius)
+        cells = unknown & self.geo.disc_mask(box, x, y, radius)
         if not cells.any():
             return 0
         return self._mark(r0, c0, cells, -self.l_clamp if self.model == "logodds" else 0)

@@ -326,17 +326,12 @@ def discs_blocked(cost: npt.NDArray[np.float32], geo: GridGeometry, off: tuple[i
     lies within one of `discs` (k, 3) (x, y, radius) [m] made impassable (inf): robots standing in the way,
     each disc the reach of the planning robot's centre (the two robots' turning radii and a margin)."""
     out = cost.copy()
-    rows, cols = out.shape
+    window = (off[0], off[0] + out.shape[0], off[1], off[1] + out.shape[1])
     for x, y, r in np.asarray(discs, np.float64).reshape(-1, 3):
-        r0, c0 = geo.cell_of(x - r, y - r)
-        r1, c1 = geo.cell_of(x + r, y + r)
-        r0, r1 = max(r0 - off[0], 0), min(r1 - off[0] + 1, rows)
-        c0, c1 = max(c0 - off[1], 0), min(c1 - off[1] + 1, cols)
-        if r1 <= r0 or c1 <= c0:
-            continue
-        cy = geo.origin_y + (np.arange(r0, r1) + off[0] + 0.5) * geo.cell
-        cx = geo.origin_x + (np.arange(c0, c1) + off[1] + 0.5) * geo.cell
-        out[r0:r1, c0:c1][np.hypot(cx[None, :] - x, cy[:, None] - y) <= r] = np.inf
+        box = geo.disc_box(x, y, r, window)
+        if box is not None:
+            r0, r1, c0, c1 = box
+            out[r0 - off[0]:r1 - off[0], c0 - off[1]:c1 - off[1]][geo.disc_mask(box, x, y, r)] = np.inf
     return out
 
 
