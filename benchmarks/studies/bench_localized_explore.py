@@ -53,6 +53,7 @@ from robotexp.run.spec import RunSpec
 from robotexp.experiment import run_experiment
 from robotexp.localization.robot import LocalizedRobot
 from robotexp.world.groundtruth import map_iou_tolerant
+from robotexp.world.loader import is_map_file
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # benchmarks/: perflog
 from perflog import Figure, record  # noqa: E402
@@ -66,7 +67,7 @@ def laser_reach(world: str, choice: str) -> float:
     """[m] the laser range of runs on `world` for `--laser-range` `choice` ("auto" or metres)."""
     if choice != "auto":
         return float(choice)
-    if world.endswith((".yaml", ".map")):
+    if is_map_file(world):
         return REAL_LASER
     return LASER_RANGE.get(world, 3.0)
 
@@ -95,7 +96,7 @@ def run_one(job: tuple[str, str, float, str, int, argparse.Namespace]) -> dict[s
 
 
 def _label(world: str) -> str:
-    return Path(world).stem if world.endswith((".yaml", ".map")) else world
+    return Path(world).stem if is_map_file(world) else world
 
 
 def _seeds(text: str) -> list[int]:

@@ -48,14 +48,14 @@ def main() -> int:
     ap.add_argument("--figures", type=Path, default=None, help="folder of the figures (default: OUT)")
     args = ap.parse_args()
     from robotexp.errors import RobotexpError
-    from robotexp.world.loader import load_world
+    from robotexp.world.loader import is_map_file, load_world
 
     try:
         load_world(args.world)          # a map that is not there: one line, before any run
     except RobotexpError as exc:
         print(f"team_study: {exc}", file=sys.stderr)
         return 2
-    stem = Path(args.world).stem if args.world.endswith((".yaml", ".map")) else args.world   # in file names
+    stem = Path(args.world).stem if is_map_file(args.world) else args.world   # in file names
     seeds = [int(s) for s in args.seeds.split(",")]
     cases = [(pose, seed) for pose in args.poses.split(",") for seed in seeds]
     coordinators = args.coordinators.split(",")

@@ -22,6 +22,7 @@ from typing import Any
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.run.spec import RunSpec
+from robotexp.world.loader import MAP_SUFFIXES, is_map_file
 
 __all__ = ["DONE_WHEN_METHODS", "DONE_WHEN_ROBOTS", "OUTSIDE", "SUCCESS_COVERAGE", "bench_markdown", "bench_table",
            "done_when_maps",           "expand_maps", "failure_causes", "success"]
@@ -29,7 +30,6 @@ __all__ = ["DONE_WHEN_METHODS", "DONE_WHEN_ROBOTS", "OUTSIDE", "SUCCESS_COVERAGE
 SUCCESS_COVERAGE = 0.95
 DONE_WHEN_METHODS = ("frontier", "bvp", "srt-laser", "meta-ga", "meta-firefly")    # the Done-when benchmark
 DONE_WHEN_ROBOTS = ("p3dx", "kobuki")
-_MAP_SUFFIXES = (".map", ".yaml", ".yml")
 OUTSIDE = "path_points_outside"     # added to a record by `run_bench` from its path file (None: not checked)
 COLUMNS = ("map", "method", "robot", "coverage", "path_m", "robot_time_s", "collisions", "completed", "reason",
            "success")
@@ -50,14 +50,14 @@ def expand_maps(items: Iterable[str]) -> list[str]:
         if item.startswith("generated:"):
             out += expand_generated(item)
         elif path.is_dir():
-            found = sorted(str(p) for p in path.iterdir() if p.suffix.lower() in _MAP_SUFFIXES and p.is_file())
+            found = sorted(str(p) for p in path.iterdir() if p.suffix.lower() in MAP_SUFFIXES and p.is_file())
             if not found:
                 raise WorldError(f"{item}: no .map or .yaml map in this folder, expected map files")
             out += found
-        elif path.suffix.lower() in _MAP_SUFFIXES and not path.is_file():
+        elif path.suffix.lower() in MAP_SUFFIXES and not path.is_file():
             raise WorldError(f"{item}: no such map file")
         else:
-            out.append(str(path.resolve()) if path.suffix.lower() in _MAP_SUFFIXES else item)
+            out.append(str(path.resolve()) if path.suffix.lower() in MAP_SUFFIXES else item)
     return out
 
 
@@ -141,7 +141,7 @@ def _map_group(record: dict[str, Any]) -> str:
     if spec.startswith("generated:"):
         parts = spec.split(":")
         return ":".join(parts[:2] + parts[3:])
-    return "map files" if Path(spec).suffix.lower() in _MAP_SUFFIXES else spec
+    return "map files" if is_map_file(spec) else spec
 
 
 def _robot(record: Mapping[str, Any]) -> str:

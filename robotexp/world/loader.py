@@ -9,7 +9,15 @@ from robotexp.errors import WorldError
 from robotexp.world.builtin import BUILTIN, builtin_world
 from robotexp.world.model import World
 
-__all__ = ["load_world"]
+__all__ = ["load_world", "is_map_file", "MAP_SUFFIXES"]
+
+MAP_SUFFIXES = (".map", ".yaml", ".yml")      # a world named by a path with one of these is a map file
+
+
+def is_map_file(spec: str) -> bool:
+    """Whether the world `spec` names a map file (a MobileSim .map or a ROS map_server .yaml), not a built-in
+    or generated world."""
+    return not spec.startswith("generated:") and Path(spec).suffix.lower() in MAP_SUFFIXES
 
 
 def load_world(spec: str) -> World:
@@ -28,10 +36,10 @@ def load_world(spec: str) -> World:
             raise WorldError(f"world {spec!r}: a range of seeds names many worlds, expected one seed here "
                              "(campaigns expand ranges)")
         return generated_world(kind, seeds[0], size, scanned=scanned)
+    if not is_map_file(spec):
+        return builtin_world(spec)          # raises the "unknown world" error
     path = Path(spec)
     suffix = path.suffix.lower()
-    if suffix not in (".map", ".yaml", ".yml"):
-        return builtin_world(spec)          # raises the "unknown world" error
     if not path.is_file():
         raise WorldError(f"{spec}: no such map file (give a built-in world: {', '.join(BUILTIN)}, "
                          "or the path of a .map or ROS .yaml file)")
