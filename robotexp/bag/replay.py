@@ -213,8 +213,8 @@ def _check_meta(meta: Any) -> dict[str, Any]:  # noqa: C901
         if rm is not None and (isinstance(rm, bool) or not isinstance(rm, (int, float)) or not math.isfinite(rm)
                                or not rm > 0):
             raise ValueError(f"robotexp.run metadata: grid range_max is {rm!r}, expected a number > 0")
-        pf = g.get("p_free", 0.1)
-        if isinstance(pf, bool) or not isinstance(pf, (int, float)) or not 0.0 < pf < 0.5:
+        pf = g.get("p_free")        # older recordings: none (the grid's default)
+        if "p_free" in g and (isinstance(pf, bool) or not isinstance(pf, (int, float)) or not 0.0 < pf < 0.5):
             raise ValueError(f"robotexp.run metadata: grid p_free is {pf!r}, expected a number in (0, 0.5)")
     if meta.get("team") is not None:
         _check_team(meta["team"])
