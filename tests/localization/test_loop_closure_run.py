@@ -4,15 +4,16 @@ when loop closure corrects the keyframes, rebuilds the run's map from all of the
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 from ring_corridor import RingRobot, drifted, ring_path
 
 from robotexp.localization.correction import FrameCorrection
-from robotexp.localization.matcher import compose
+from robotexp.localization.matcher import ScanMatcher, compose
 from robotexp.localization.online import ScanBins
-from robotexp.localization.robot import LocalizedRobot
+from robotexp.localization.robot import RUN_MATCHER, LocalizedRobot
 from robotexp.run.localize import SCANS_PER_BIN, LoopClosureTracker
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
@@ -37,10 +38,12 @@ def test_the_runs_map_is_rebuilt_from_every_scan_at_the_corrected_keyframes() ->
     grid = OccupancyGrid(geo, range_max=4.0)
     told = Told()
     with RingRobot(truth, odom) as inner:
-        # without skip_unseen the matches drift round the ring (the ends of the walls mapped so far pull the scans
-        # back along them), and loop closure has a correction to make when the ring closes
-        robot = LocalizedRobot(inner, GridGeometry.covering(-1, -1, 11, 11, 0.05), range_max=4.0, loop_closure=True,
-                               skip_unseen=False)
+        # without skip_unseen, and with every match's correction taken along the corridors (fuse_ratio as low as
+        # the degenerate ratio), the matches drift round the ring (the ends of the walls mapped so far pull the
+        # scans back along them), and loop closure has a correction to make when the ring closes
+        drifting = ScanMatcher(replace(RUN_MATCHER, fuse_ratio=RUN_MATCHER.degenerate_ratio))
+        robot = LocalizedRobot(inner, GridGeometry.covering(-1, -1, 11, 11, 0.05), matcher=drifting, range_max=4.0,
+                               loop_closure=True, skip_unseen=False)
         tracker = LoopClosureTracker("slam", "test", robot)
         run = SimpleNamespace(grid=grid, explorer=told, info=SimpleNamespace(extra={}), state=None)
         for k in range(len(truth)):
