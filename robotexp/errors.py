@@ -49,18 +49,24 @@ class Terminated(KeyboardInterrupt):
     robot stopped and its partial result written (`robotexp.cli` installs the handler that raises it)."""
 
 
-def interrupt_behind(exc: BaseException) -> bool:
-    """True when a Ctrl-C is behind `exc`: a KeyboardInterrupt in its chain of causes and contexts.
+def interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or `Terminated`) behind `exc`: the first KeyboardInterrupt in its chain of causes and
+    contexts, None when there is none.
 
-    A SIGINT that lands while a numba kernel's dispatcher is returning comes out as
-    ``SystemError: CPUDispatcher(...) returned a result with an exception set`` whose cause is the
-    KeyboardInterrupt; such an error is the user's Ctrl-C, not the plugin's fault.
+    A SIGINT that lands while a numba kernel's dispatcher is returning (or loading a compiled kernel from
+    the cache) comes out as ``SystemError: CPUDispatcher(...) returned a result with an exception set``
+    whose cause is the KeyboardInterrupt; such an error is the user's Ctrl-C, not the code's fault.
     """
     seen: set[int] = set()
     current: BaseException | None = exc
     while current is not None and id(current) not in seen:
         if isinstance(current, KeyboardInterrupt):
-            return True
+            return current
         seen.add(id(current))
         current = current.__cause__ or current.__context__
-    return False
+    return None
+
+
+def interrupt_behind(exc: BaseException) -> bool:
+    """True when a Ctrl-C is behind `exc` (`interrupt_in`)."""
+    return interrupt_in(exc) is not None

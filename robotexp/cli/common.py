@@ -10,7 +10,8 @@ from typing import Any, NoReturn, TypeVar
 
 import click
 
-from robotexp.errors import ConfigError, PluginError, RobotError, RobotexpError, ScriptError, Terminated, WorldError
+from robotexp.errors import (ConfigError, PluginError, RobotError, RobotexpError, ScriptError, Terminated, WorldError,
+                             interrupt_in)
 
 __all__ = ["fail", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch", "watch_sigterm"]
 
@@ -81,6 +82,12 @@ def handle_errors(func: F) -> F:
             fail(str(exc), 1)
         except KeyboardInterrupt as exc:
             interrupted(exc)
+        except SystemError as exc:
+            # a Ctrl-C that landed in a numba kernel outside a run's loop (loading a compiled kernel)
+            interrupt = interrupt_in(exc)
+            if interrupt is None:
+                raise
+            interrupted(interrupt)
         except BrokenPipeError:
             _quiet_stdout()
             sys.exit(0)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.errors import ConfigError, RobotError, Terminated, interrupt_behind
+from robotexp.errors import ConfigError, RobotError, Terminated, interrupt_behind, interrupt_in
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.run.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.run.record import COVERAGE_MILESTONES, EndReason, RunRecord
@@ -222,6 +222,13 @@ class ExplorationRun:
             self._loop()
         except KeyboardInterrupt as exc:
             self.reason = TERMINATED_REASON if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
+            self.end = EndReason.INTERRUPTED
+        except SystemError as exc:
+            # a Ctrl-C that landed in a numba kernel while the robot was read (a localizer's scan matcher)
+            interrupt = interrupt_in(exc)
+            if interrupt is None:
+                raise
+            self.reason = TERMINATED_REASON if isinstance(interrupt, Terminated) else "interrupted (Ctrl-C)"
             self.end = EndReason.INTERRUPTED
         except RobotError as exc:
             self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR

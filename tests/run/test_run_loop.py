@@ -14,10 +14,10 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from robotexp.errors import ConfigError, ConnectionLost, RobotError
+from robotexp.errors import ConfigError, ConnectionLost, RobotError, Terminated
 from robotexp.explorer import Done, Explorer, ExplorerContext
-from robotexp.run.record import COVERAGE_MILESTONES
-from robotexp.run.loop import ExplorationRun
+from robotexp.run.record import COVERAGE_MILESTONES, EndReason
+from robotexp.run.loop import TERMINATED_REASON, ExplorationRun
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import GroundTruth, ground_truth
@@ -152,6 +152,50 @@ def test_ctrl_c_ends_the_run_and_stops(robot: RecordingSim, truth: GroundTruth) 
     run = ExplorationRun(robot, Straight(fail_at=10, fail=KeyboardInterrupt()), new_grid(), truth=truth).run()
     assert not run.completed and run.reason == "interrupted (Ctrl-C)"
     assert robot.commands[-1] == Twist.ZERO
+
+
+class InterruptedInKernel(RecordingSim):
+    """At read 10 a SIGINT lands while a numba kernel of the read runs (a localizer's scan matcher): CPython
+    raises SystemError "returned a result with an exception set", the KeyboardInterrupt (or `terminated`,
+    SIGTERM's) as its cause."""
+
+    def __init__(self, interrupt: KeyboardInterrupt) -> None:
+        super().__init__()
+        self.interrupt = interrupt
+
+    def _read(self) -> RobotState:
+        if self.reads == 9:
+            self.reads += 1
+            try:
+                raise self.interrupt
+            except KeyboardInterrupt as exc:
+                raise SystemError("CPUDispatcher(<function hit_points>) returned a result with an exception "
+                                  "set") from exc
+        return super()._read()
+
+
+@pytest.mark.parametrize("interrupt, reason", [(KeyboardInterrupt(), "interrupted (Ctrl-C)"),
+                                               (Terminated(), TERMINATED_REASON)])
+def test_ctrl_c_inside_a_kernel_of_the_robots_read_ends_the_run_and_stops(
+        truth: GroundTruth, interrupt: KeyboardInterrupt, reason: str) -> None:
+    with InterruptedInKernel(interrupt) as robot:
+        run = ExplorationRun(robot, Straight(), new_grid(), truth=truth).run()
+    assert run.end is EndReason.INTERRUPTED and run.reason == reason and not run.completed
+    stops = robot.commands[9:]                                # nine good reads drove; then it was stopped
+    assert robot.commands[:9] == [Twist(SPEED, 0.0)] * 9 and stops and set(stops) == {Twist.ZERO}
+    assert run.record is not None and run.record.end is EndReason.INTERRUPTED
+
+
+def test_a_systemerror_without_a_ctrl_c_behind_it_is_not_taken_for_one(truth: GroundTruth) -> None:
+    class Broken(RecordingSim):
+        def _read(self) -> RobotState:
+            if self.reads == 5:
+                raise SystemError("a kernel failed")
+            return super()._read()
+
+    with Broken() as robot, pytest.raises(SystemError, match="a kernel failed"):
+        ExplorationRun(robot, Straight(), new_grid(), truth=truth).run()
+    assert robot.commands[-1] == Twist.ZERO                   # stopped all the same
 
 
 class SwallowsCtrlC(Straight):
