@@ -9,7 +9,10 @@ matrix with the heading scaled by the points' RMS range, whose eigenvalue reache
 largest); `fuse` is a Kalman update in those directions with the scan's information there as the
 measurement's. The pose keeps the match's correction in them and takes the update's in the others: a
 lone pillar seen sideways of where it should be, after driving with a heading error, turns the heading
-by what the covariance built while driving ties to that sideways error, and moves k.
+by what the covariance built while driving ties to that sideways error, and moves k. Then a direction of
+the position that the translation block of the normal matrix hardly fixes (its eigenvalue below `along` of
+the block's largest: along a corridor whose door frames and wall bumps give a sliver of information) takes
+the update's step as well, not the match's correction.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ def propagate_ref(cov: npt.NDArray[np.float64], dx: float, dy: float, dist: floa
 
 
 @kernel
-def fuse(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever: float, ratio: float,
+def fuse(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever: float, ratio: float, along: float,
          dx: float, dy: float, dth: float) -> tuple[float, float, float, float]:
     """Update the covariance `cov` of (x, y, theta, k) in place by a match that moved the prediction by
     (dx, dy, dth) [m, m, rad] and whose scan's normal matrix is `info` (x, y, theta), its points' RMS
@@ -100,11 +103,21 @@ def fuse(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever: flo
         for j in range(4):
             cov[i, j] = ps[i, j] / (scale4[i] * scale4[j])
     step = s4[:3] @ innovation + w3 @ (w3.T @ delta[:3])
+    t = np.empty((2, 2))
+    t[0, 0], t[0, 1], t[1, 0], t[1, 1] = info[0, 0], info[0, 1], info[1, 0], info[1, 1]
+    v2, e2 = np.linalg.eigh(t)
+    if v2[1] > 0.0:
+        for i in range(2):
+            if v2[i] < along * v2[1]:
+                u0, u1 = e2[0, i], e2[1, i]
+                shift = u0 * (delta[0] - step[0]) + u1 * (delta[1] - step[1])
+                step[0] += u0 * shift
+                step[1] += u1 * shift
     return step[0], step[1], step[2] / scale[2], delta[3]
 
 
 def fuse_ref(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever: float, ratio: float,
-             dx: float, dy: float, dth: float) -> tuple[float, float, float, float]:
+             along: float, dx: float, dy: float, dth: float) -> tuple[float, float, float, float]:
     """`fuse` in numpy."""
     scale = np.array([1.0, 1.0, max(lever, 1e-3)])
     vals, vecs = np.linalg.eigh(info / np.outer(scale, scale))
@@ -119,7 +132,13 @@ def fuse_ref(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever:
     gain = ps @ s4 @ np.linalg.inv(s4.T @ ps @ s4 + np.diag(1.0 / vals[strong]))
     delta = gain @ innovation
     cov[:, :] = (ps - gain @ s4.T @ ps) / np.outer(scale4, scale4)
-    step = (s3 @ innovation + w3 @ (w3.T @ delta[:3])) / scale
+    step = s3 @ innovation + w3 @ (w3.T @ delta[:3])
+    v2, e2 = np.linalg.eigh(info[:2, :2])
+    if v2[-1] > 0:
+        for i in np.flatnonzero(v2 < along * v2[-1]):
+            u = np.append(e2[:, i], 0.0)
+            step = step + u * (u @ (delta[:3] - step))
+    step = step / scale
     return float(step[0]), float(step[1]), float(step[2]), float(delta[3])
 
 
@@ -134,5 +153,5 @@ def warm() -> None:
         return
     cov = np.eye(4) * 1e-4
     propagate(cov, 0.01, 0.0, 0.01, 1e-4, 1e-5, 1e-7)
-    fuse(cov, np.eye(3), 1.0, 0.03, 0.0, 0.0, 0.0)
+    fuse(cov, np.eye(3), 1.0, 0.03, 0.2, 0.0, 0.0, 0.0)
     _warmed = True

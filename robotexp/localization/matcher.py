@@ -54,14 +54,14 @@ class MatcherConfig:
             prediction ("poor").
         degenerate_ratio: smallest / largest eigenvalue of the translation block of the normal matrix
             below this: a corridor; the correction along the weak direction is dropped ("degenerate").
-        fuse_ratio: with a pose covariance (`Localizer(covariance=...)`), the directions of the normal
-            matrix (x, y and heading times the points' RMS range) whose eigenvalue is below this share of
-            the largest take the Kalman update's step instead of the match's correction (Zhang, Kaess and
-            Singh 2016, "On degeneracy of optimization-based state estimation problems": the solution is
-            left to the prior where the measurement hardly constrains it). With 0.03, the degenerate
-            ratio, a corridor's few features (a door frame, a bump in a wall) counted as fixing the position
-            along it, and each match moved the pose along it by a centimetre or two: with error-free
-            odometry, the ring corridor eb_loop (frontier, 3 m laser) came out 2.9 m short over 153 m.
+        fuse_ratio: with a pose covariance (`Localizer(covariance=...)`), a direction of the position whose
+            eigenvalue in the translation block of the normal matrix is below this share of the block's
+            largest takes the Kalman update's step instead of the match's correction (`covariance.fuse`;
+            Zhang, Kaess and Singh 2016, "On degeneracy of optimization-based state estimation problems",
+            leave such a direction to the prior). Without it (0) a corridor's few features (a door frame, a
+            bump in a wall) counted as fixing the position along it, and each match moved the pose along it
+            by a centimetre or two: with error-free odometry, the ring corridor eb_loop (frontier, 3 m laser)
+            came out 2.9 m short over 153 m.
         prior: weight of the prediction in the correlative search: a pose at the edge of the x, y
             or heading window loses this much of the mean field value (0: no prior).
         motion_sigma_xy: [m] the motion prior of the Gauss-Newton step: a pose this far from the
@@ -105,7 +105,7 @@ class MatcherConfig:
     min_points: int = 20
     min_score: float = 0.2
     degenerate_ratio: float = 0.03
-    fuse_ratio: float = 0.1
+    fuse_ratio: float = 0.2
     prior: float = 0.1
     motion_sigma_xy: float = 0.1
     motion_sigma_theta: float = math.radians(3.0)
@@ -521,7 +521,8 @@ class Localizer:
         calibration's fit, made frontier's ATE 10.6-13.0 m there (3.3-5.5 m without it)."""
         if m.info is None:
             return m.pose
-        sx, sy, sth, _ = C.fuse(self.cov, m.info, m.lever, self.matcher.config.fuse_ratio,
+        cfg = self.matcher.config
+        sx, sy, sth, _ = C.fuse(self.cov, m.info, m.lever, cfg.degenerate_ratio, cfg.fuse_ratio,
                                 m.pose.x - prediction.x, m.pose.y - prediction.y,
                                 wrap_angle(m.pose.theta - prediction.theta))
         return Pose(prediction.x + sx, prediction.y + sy, wrap_angle(prediction.theta + sth))

@@ -55,7 +55,7 @@ def test_a_match_that_fixes_only_the_position_corrects_the_heading_through_the_c
     assert pose.theta == pytest.approx(0.002 / (0.01 + 1 / h) * 0.1)
     assert cal.k == 0.0                                  # k's estimate stays the calibration's
     # ... the kernel's update of k, by the same gain
-    assert C.fuse(cov.copy(), info, 2.0, 0.03, 0.0, 0.1, 0.0)[3] == pytest.approx(0.0005 / (0.01 + 1 / h) * 0.1)
+    assert C.fuse(cov.copy(), info, 2.0, 0.03, 0.2, 0.0, 0.1, 0.0)[3] == pytest.approx(0.0005 / (0.01 + 1 / h) * 0.1)
     # the covariance shrinks: y to about the scan's own, the heading by what y told of it
     assert loc.cov[1, 1] == pytest.approx(0.01 - 0.01 ** 2 / (0.01 + 1 / h))
     assert loc.cov[2, 2] == pytest.approx(0.001 - 0.002 ** 2 / (0.01 + 1 / h))
@@ -78,8 +78,8 @@ def test_kernels_match_numpy(rank: int) -> None:
     j = rng.normal(size=(rank, 3)) * [30.0, 30.0, 60.0]
     info = j.T @ j
     got, ref = cov.copy(), cov.copy()
-    out = C.fuse(got, info, 2.1, 0.03, 0.04, -0.03, 0.01)
-    expected = C.fuse_ref(ref, info, 2.1, 0.03, 0.04, -0.03, 0.01)
+    out = C.fuse(got, info, 2.1, 0.03, 0.2, 0.04, -0.03, 0.01)
+    expected = C.fuse_ref(ref, info, 2.1, 0.03, 0.2, 0.04, -0.03, 0.01)
     assert out == pytest.approx(expected, rel=1e-9, abs=1e-12)
     assert np.allclose(got, ref, rtol=1e-9, atol=1e-15)
     if rank == 0:
