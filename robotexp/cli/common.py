@@ -80,10 +80,9 @@ def handle_errors(func: F) -> F:
             if debug:
                 raise
             fail(str(exc), 1)
-        except KeyboardInterrupt as exc:
-            interrupted(exc)
-        except SystemError as exc:
-            # a Ctrl-C that landed in a numba kernel outside a run's loop (loading a compiled kernel)
+        except (KeyboardInterrupt, SystemError) as exc:
+            # a SystemError: a Ctrl-C that landed in a numba kernel outside a run's loop (loading a compiled
+            # kernel), the KeyboardInterrupt behind it
             interrupt = interrupt_in(exc)
             if interrupt is None:
                 raise

@@ -103,9 +103,7 @@ def fuse(cov: npt.NDArray[np.float64], info: npt.NDArray[np.float64], lever: flo
         for j in range(4):
             cov[i, j] = ps[i, j] / (scale4[i] * scale4[j])
     step = s4[:3] @ innovation + w3 @ (w3.T @ delta[:3])
-    t = np.empty((2, 2))
-    t[0, 0], t[0, 1], t[1, 0], t[1, 1] = info[0, 0], info[0, 1], info[1, 0], info[1, 1]
-    v2, e2 = np.linalg.eigh(t)
+    v2, e2 = np.linalg.eigh(np.ascontiguousarray(info[:2, :2]))
     if v2[1] > 0.0:
         for i in range(2):
             if v2[i] < along * v2[1]:

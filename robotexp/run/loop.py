@@ -220,11 +220,9 @@ class ExplorationRun:
         previous = self._watch_sigint()
         try:
             self._loop()
-        except KeyboardInterrupt as exc:
-            self.reason = TERMINATED_REASON if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
-            self.end = EndReason.INTERRUPTED
-        except SystemError as exc:
-            # a Ctrl-C that landed in a numba kernel while the robot was read (a localizer's scan matcher)
+        except (KeyboardInterrupt, SystemError) as exc:
+            # a SystemError: a Ctrl-C that landed in a numba kernel while the robot was read (a localizer's
+            # scan matcher), the KeyboardInterrupt behind it
             interrupt = interrupt_in(exc)
             if interrupt is None:
                 raise
