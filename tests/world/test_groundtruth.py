@@ -9,7 +9,8 @@ import pytest
 
 from robotexp.errors import ConfigError, WorldError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.world.groundtruth import GroundTruth, coverage, ground_truth, map_iou, map_iou_tolerant, ray_tree
+from robotexp.world.groundtruth import (GroundTruth, coverage, coverage_inside, ground_truth, map_iou, map_iou_tolerant,
+                                        ray_tree)
 from robotexp.mapping.kernels import view_free
 from robotexp.mapping.reference import beam_cells
 from robotexp.robot import Pose
@@ -152,6 +153,27 @@ def test_coverage_and_iou():
         coverage(np.zeros((3, 3), bool), gt)
     with pytest.raises(ConfigError):
         map_iou(np.zeros((3, 3), np.int8), gt)
+
+
+def test_coverage_inside_leaves_out_the_cells_along_faces_and_nothing_farther():
+    gt = _gt(_room(2.3))
+    # the left room: rows 1..22, cols 1..10 explorable (220 cells); those not 8-adjacent to a wall
+    # cell are rows 2..21, cols 2..9 (160)
+    assert gt.explorable.sum() == 220
+    free = gt.explorable.copy()
+    free[1:23, 10] = False                     # the inner wall's hits a cell short: col 10 not free
+    free[1, 1:11] = False                      # and the south wall's
+    assert coverage(free, gt) == pytest.approx((220 - 22 - 9) / 220)
+    assert coverage_inside(free, gt) == 1.0
+    free[5, 5] = False                         # a cell in the middle of the floor stays missed
+    assert coverage_inside(free, gt) == pytest.approx(159 / 160)
+    free[2, 2] = False                         # two cells from the walls: inside with 1, not with 2
+    assert coverage_inside(free, gt) == pytest.approx(158 / 160)
+    # with 2 cells: rows 3..20, cols 3..8 (108 cells), [5, 5] the one missed
+    assert coverage_inside(free, gt, 2) == pytest.approx(107 / 108)
+    assert coverage_inside(np.zeros((24, 24), bool), gt) == 0.0
+    with pytest.raises(ConfigError, match="same GridGeometry"):
+        coverage_inside(np.zeros((3, 3), bool), gt)
 
 
 def test_tolerant_iou_forgives_a_face_one_cell_off_and_nothing_farther():
