@@ -66,7 +66,3 @@ def interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:
         current = current.__cause__ or current.__context__
     return None
 
-
-def interrupt_behind(exc: BaseException) -> bool:
-    """True when a Ctrl-C is behind `exc` (`interrupt_in`)."""
-    return interrupt_in(exc) is not None

@@ -13,11 +13,11 @@ from typing import Any
 import pytest
 from test_run_loop import GEO, RANGE, START, WORLD, RecordingSim, Straight
 
-from robotexp.errors import PluginError
+from robotexp.errors import PluginError, Terminated
 from robotexp.run.spec import RunSpec, plan_run
 from robotexp.experiment import run_on_robot
 from robotexp.explorer import Done, Explorer
-from robotexp.run.loop import ExplorationRun, RunInfo
+from robotexp.run.loop import TERMINATED_REASON, ExplorationRun, RunInfo
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.world.groundtruth import ground_truth
 from robotexp.run.observers import RunObserver, StepEvent
@@ -162,12 +162,12 @@ def test_an_explorer_that_raises_ends_the_run_as_a_plugin_error() -> None:
     assert run.record is not None and run.record.end is EndReason.PLUGIN_ERROR
 
 
-def _ctrl_c_in_a_kernel() -> SystemError:
-    """What CPython makes of a SIGINT that lands while a numba dispatcher returns: a SystemError
-    caused by the KeyboardInterrupt."""
+def _ctrl_c_in_a_kernel(interrupt: KeyboardInterrupt | None = None) -> SystemError:
+    """What CPython makes of a SIGINT (or SIGTERM's `Terminated`) that lands while a numba dispatcher
+    returns: a SystemError caused by the KeyboardInterrupt."""
     try:
         try:
-            raise KeyboardInterrupt
+            raise interrupt or KeyboardInterrupt()
         except KeyboardInterrupt as interrupt:
             raise SystemError("CPUDispatcher(<function label8>) returned a result with an exception set") \
                 from interrupt
@@ -175,27 +175,32 @@ def _ctrl_c_in_a_kernel() -> SystemError:
         return error
 
 
-def test_ctrl_c_inside_an_explorers_kernel_is_an_interruption_not_a_plugin_error() -> None:
+@pytest.mark.parametrize("interrupt, reason", [(KeyboardInterrupt(), "interrupted (Ctrl-C)"),
+                                               (Terminated(), TERMINATED_REASON)])
+def test_ctrl_c_inside_an_explorers_kernel_is_an_interruption_not_a_plugin_error(
+        interrupt: KeyboardInterrupt, reason: str) -> None:
     with RecordingSim() as robot:
-        run = _run(robot, Straight(fail_at=4, fail=_ctrl_c_in_a_kernel()))
+        run = _run(robot, Straight(fail_at=4, fail=_ctrl_c_in_a_kernel(interrupt)))
         assert robot.commands[-1] == Twist.ZERO
-    assert run.end is EndReason.INTERRUPTED and run.error is None
+    assert run.end is EndReason.INTERRUPTED and run.error is None and run.reason == reason
     assert run.record is not None and run.record.end is EndReason.INTERRUPTED and not run.record.completed
 
 
-def test_ctrl_c_inside_an_observers_kernel_interrupts_the_run() -> None:
+@pytest.mark.parametrize("interrupt, reason", [(KeyboardInterrupt(), "interrupted (Ctrl-C)"),
+                                               (Terminated(), TERMINATED_REASON)])
+def test_ctrl_c_inside_an_observers_kernel_interrupts_the_run(interrupt: KeyboardInterrupt, reason: str) -> None:
     class KernelInterrupted(RunObserver):
         pressed = False
 
         def on_sample(self, run: ExplorationRun, time: float, coverage: float | None) -> None:
             if time >= 2.0 and not self.pressed:        # one Ctrl-C
                 self.pressed = True
-                raise _ctrl_c_in_a_kernel()
+                raise _ctrl_c_in_a_kernel(interrupt)
 
     with RecordingSim() as robot:
         run = _run(robot, Straight(x_end=3.0), KernelInterrupted())
         assert robot.commands[-1] == Twist.ZERO
-    assert run.end is EndReason.INTERRUPTED and run.observer_errors == []
+    assert run.end is EndReason.INTERRUPTED and run.observer_errors == [] and run.reason == reason
 
 
 def test_request_stop_ends_the_run_with_the_reason_given() -> None:
