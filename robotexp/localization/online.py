@@ -30,7 +30,8 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.localization.matcher import HitMap, Localizer, MatcherConfig, ScanMatcher, compose, relative, scan_points
+from robotexp.localization.matcher import (HitMap, Localizer, Match, MatcherConfig, ScanMatcher, compose, relative,
+                                          scan_points)
 from robotexp.localization.posegraph import Edge, _submap, optimize
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
@@ -54,6 +55,8 @@ class OnlineLoopConfig:
 
     Attributes:
         radius: [m] a loop is tried with the nearest keyframe whose estimated position lies within this ...
+            (5 m: a laser that reaches 3-8 m sees an old part of the map from farther than 2.5 m, the radius
+            before the loop match was scored on the seen part alone, see `min_score`)
         min_path: [m] ... and at least this far back along the path.
         every: try a loop at every `every`-th keyframe.
         submap: keyframes on each side of the old keyframe that make its submap.
@@ -67,8 +70,15 @@ class OnlineLoopConfig:
         min_score: ... this mean field value (0.95. With 0.8, dense bvp (P3-DX preset, seed 0) took 659 loop
             edges, 45 of them 5-116 cm off the true relative pose (their matches scored 0.92 median, the right
             ones' 0.99), and loop closure made its ATE 0.068 m against 0.026 m without it; with 0.95: 0.028 m.
-            With 0.6 and loop edges of 5 cm and 0.5 deg, dense frontier's ATE was 0.065 m) ...
+            With 0.6 and loop edges of 5 cm and 0.5 deg, dense frontier's ATE was 0.065 m), the points that fall
+            on cells the submap never saw left out (`MatcherConfig.drop_unseen`: a scan that reaches past what
+            the old keyframes saw scored low at the right pose, and 206 of the 265 loop matches of a dense
+            frontier run were refused as poor) ...
         min_conditioning: ... and this conditioning (not along a corridor, where it can slide).
+        corridor_slide: [m] a loop match under `min_conditioning` (a corridor) that moved the pose more than this
+            along the corridor is refused: along it the scan fixes nothing, and a long slide is its few features
+            (a door frame, a bump) fitted to others (dense frontier, P3-DX preset, seed 1: a match with
+            conditioning 0.04 slid 0.73 m, and the loop edge took the ATE from 0.05 to 0.16 m).
         seq_xy: (a [m], b [m/m]) standard deviation of a sequential edge's position after d metres
             of motion: a + b d (a matched scan; `weak` times as much for an unmatched or degenerate one).
         seq_theta: (a [rad], b [rad/m], c [rad/rad]) heading: a + b d + c |turn|. (Twice these, 1 cm + 2 % and
@@ -98,7 +108,7 @@ class OnlineLoopConfig:
         isam_batch: new keyframes go to iSAM2 this many at a time (at once when a loop edge comes: `_Isam2`).
     """
 
-    radius: float = 2.5
+    radius: float = 5.0
     min_path: float = 6.0
     every: int = 2
     submap: int = 8
@@ -109,6 +119,7 @@ class OnlineLoopConfig:
     min_points: int = 60
     min_score: float = 0.95
     min_conditioning: float = 0.2
+    corridor_slide: float = 0.15
     seq_xy: tuple[float, float] = (0.005, 0.01)
     seq_theta: tuple[float, float, float] = (math.radians(0.1), math.radians(0.25), 0.01)
     weak: float = 4.0
@@ -138,6 +149,13 @@ class OnlineLoopConfig:
         if not (self.radius > 0 and self.min_path > 0 and self.loop_xy > 0 and self.loop_theta > 0
                 and self.cauchy > 0 and self.seq_xy[0] > 0 and self.seq_theta[0] > 0 and self.weak > 0):
             raise ConfigError(f"loop closure: radius, min_path, sigmas and cauchy must be > 0, got {self}")
+
+
+def _along(h: npt.NDArray[np.float64], dx: float, dy: float) -> float:
+    """[m] the component of the move (dx, dy) along the weak direction of the translation block of the normal
+    matrix `h` (the direction a corridor's scan does not fix)."""
+    _, vecs = np.linalg.eigh(np.asarray(h, np.float64)[:2, :2])
+    return float(vecs[0, 0] * dx + vecs[1, 0] * dy)
 
 
 class ScanBins:
@@ -431,9 +449,16 @@ class OnlineGraph:
         window = [k for k in range(lo, hi) if self.keyframes[k].scan is not None]
         grid, hits = self._submap_of(window, j, mc.range_max + wxy)
         sm = ScanMatcher(replace(mc, window_xy=wxy, window_theta=wth, min_score=c.min_score, prior=0.0,
-                                 motion_sigma_xy=wxy, motion_sigma_theta=wth, accept_score=2.0))
+                                 motion_sigma_xy=wxy, motion_sigma_theta=wth, accept_score=2.0, drop_unseen=True))
         px, py = scan_points(cur.scan, mc.range_max)
-        m = sm.match(grid.values, grid.geo, px, py, cur.pose, hits)
+        m = sm.match(grid.values, grid.geo, px, py, cur.pose, hits, grid.stamp)
+        return self._loop_edge(j, n, m)
+
+    def _loop_edge(self, j: int, n: int, m: Match) -> Edge | None:
+        """The loop edge from keyframe `j` to keyframe `n` that match `m` of n's scan against j's submap gives, or
+        None (the reason counted in `refused`): see `OnlineLoopConfig` (min_points, min_score, min_conditioning,
+        corridor_edges, corridor_slide)."""
+        c = self.config
         if m.status not in ("matched", "degenerate"):
             self._refuse(m.status)
             return None
@@ -444,6 +469,10 @@ class OnlineGraph:
         if m.status == "degenerate" or m.conditioning < c.min_conditioning:
             if not c.corridor_edges or m.info is None:
                 self._refuse("degenerate")
+                return None
+            cur = self.keyframes[n].pose
+            if abs(_along(m.info, m.pose.x - cur.x, m.pose.y - cur.y)) > c.corridor_slide:
+                self._refuse("slide")
                 return None
             info = self._corridor_info(m.info, m.pose.theta)
             self.corridor_loops += 1
