@@ -77,8 +77,8 @@ class OnlineLoopConfig:
         min_conditioning: ... and this conditioning (not along a corridor, where it can slide).
         corridor_slide: [m] a loop match under `min_conditioning` (a corridor) that moved the pose more than this
             along the corridor is refused: along it the scan fixes nothing, and a long slide is its few features
-            (a door frame, a bump) fitted to others (dense frontier, P3-DX preset, seed 1: a match with
-            conditioning 0.04 slid 0.73 m, and the loop edge took the ATE from 0.05 to 0.16 m).
+            (a door frame, a bump) fitted to others (dense frontier, P3-DX preset, seed 1, loops tried from
+            2.5 m: a match with conditioning 0.04 slid 0.73 m, and its loop edge took the ATE from 0.05 to 0.16 m).
         seq_xy: (a [m], b [m/m]) standard deviation of a sequential edge's position after d metres
             of motion: a + b d (a matched scan; `weak` times as much for an unmatched or degenerate one).
         seq_theta: (a [rad], b [rad/m], c [rad/rad]) heading: a + b d + c |turn|. (Twice these, 1 cm + 2 % and
