@@ -395,6 +395,25 @@ class OccupancyGrid:
         other._changes = self._changes.copy()
         return other
 
+    def replace_box(self, r0: int, c0: int, other: OccupancyGrid) -> None:
+        """Set the cells of the box whose cell (0, 0) is the grid's (`r0`, `c0`) to those of `other` (a grid
+        of the box alone, of the same model), counted as one mark that touched the box (`scans`, the stamps
+        of the cells `other` has seen, the changed box); the box must lie inside the grid.
+
+        Raises:
+            ConfigError: the box does not fit, or the models differ.
+        """
+        rows, cols = other.shape
+        if other.model != self.model or r0 < 0 or c0 < 0 or r0 + rows > self.shape[0] or c0 + cols > self.shape[1]:
+            raise ConfigError(f"occupancy grid: a {other.model} box of {rows} x {cols} cells at ({r0}, {c0}) does "
+                              f"not fit the {self.model} grid of {self.shape[0]} x {self.shape[1]}")
+        self.values[r0:r0 + rows, c0:c0 + cols] = other.values
+        self.hit_box[r0:r0 + rows, c0:c0 + cols] = other.hit_box
+        self.scans += 1
+        self.stamp[r0:r0 + rows, c0:c0 + cols] = np.where(other.stamp > 0, self.scans, 0)
+        self._note(r0, r0 + rows, c0, c0 + cols)
+        self.cells_updated += rows * cols
+
     def _mark(self, r0: int, c0: int, cells: npt.NDArray[np.bool_], value: float) -> int:
         """Set `cells` (a bool mask of the box whose cell (0, 0) is the grid's (`r0`, `c0`)) to `value`,
         counted as one scan that touched them (a mark: `scans`, their stamps, its changed box); gives how

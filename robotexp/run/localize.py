@@ -25,6 +25,7 @@ from robotexp.localization.matcher import compose, relative
 from robotexp.localization.online import ScanBins
 from robotexp.localization.robot import MAX_TURN_RATE, LocalizedRobot
 from robotexp.mapping.geometry import GridGeometry
+from robotexp.mapping.grid import OccupancyGrid
 from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, Robot, wrap_angle
 
@@ -39,6 +40,7 @@ LOCALIZE_MODES = ("auto", "none", "scan-match", "slam")
 # the memory bound of the scans the run's map is rebuilt from (`LoopClosureTracker`): the newest 4 of each
 # 0.5 m square and 45 deg sector of the poses they were taken at
 SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA = 4, 0.5, math.radians(45.0)
+REBUILD_TOL = 0.25   # [cells] a keyframe this far from where the map has it is mapped again at a rebuild
 MATCH_CELL = 0.05     # [m] cells of the localizer's matching map (the explorer's may be coarser)
 # the run's log-odds map when it is built at the estimated pose: a beam that crossed a cell counts logit(0.3),
 # 0.39 of a hit's logit(0.9) (at the exact pose logit(0.1), as much), as OctoMap's defaults weigh a miss about
@@ -107,8 +109,10 @@ class LoopClosureTracker(TrajectoryTracker):
     the back end, its median update time [ms], the rebuilds' total time [s]).
 
     The map is rebuilt only once some keyframe has moved by half a cell of it (or turned by as much at the
-    laser's range) since the last rebuild: a rebuild maps every scan of the run again (0.15 ms a scan), and loop
-    closure corrects the localizer by every centimetre.
+    laser's range) from where the map has it, and only in the box the moved keyframes' scans reach (`_rebuild`):
+    outside it the map keeps what the scans the memory bound has dropped put there. Rebuilt whole from the
+    kept scans, walls only dropped scans had seen were lost: on eb_loop (srt-laser, P3-DX preset, seed 3) the
+    tolerant map IoU was 0.953 with 2 rebuilds against 0.977 with none, at the same ATE (0.027 m).
 
     A scan is kept as float32 ranges (a 181-beam scan: 724 bytes; its beam angles shared with the scan before
     when equal), and only while it is among the newest SCANS_PER_BIN of its pose's bin (SCAN_BIN_XY square,
@@ -176,30 +180,80 @@ class LoopClosureTracker(TrajectoryTracker):
                 "update_ms": round(1e3 * median, 3) if median is not None else None,
                 "rebuild_s": round(self.rebuild_time, 3)}
 
+    def _map_poses(self, n: int) -> npt.NDArray[np.float64]:
+        """(n, 3) where the run's map has each keyframe's scans: its pose at the last rebuild that moved it, else
+        where the localizer had it when its scans were mapped (its `local` pose)."""
+        graph = self.slam.graph
+        assert graph is not None
+        out = np.empty((n, 3))
+        m = min(len(self._built), n)
+        out[:m] = self._built[:m]
+        for k in range(m, n):
+            loc = graph.keyframes[k].local
+            out[k] = (loc.x, loc.y, loc.theta)
+        return out
+
+    @staticmethod
+    def _apart(poses: npt.NDArray[np.float64], old: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
+        """[m] how far each keyframe lies from where the map has it (a turn counts at `reach`)."""
+        d = np.hypot(poses[:, 0] - old[:, 0], poses[:, 1] - old[:, 1])
+        turn = np.abs((poses[:, 2] - old[:, 2] + np.pi) % (2 * np.pi) - np.pi) * reach
+        return np.maximum(d, turn)
+
     def _moved(self, tol: float, poses: npt.NDArray[np.float64], reach: float) -> bool:
-        """True when a keyframe lies `tol` [m] or more from where the map last had it (a turn counts at `reach`)."""
-        old = self._built
-        n = min(len(old), len(poses))
-        if n == 0:
-            return True
-        d = np.hypot(poses[:n, 0] - old[:n, 0], poses[:n, 1] - old[:n, 1])
-        turn = np.abs((poses[:n, 2] - old[:n, 2] + np.pi) % (2 * np.pi) - np.pi) * reach
-        return bool(max(float(d.max()), float(turn.max())) >= tol)
+        """True when a keyframe lies `tol` [m] or more from where the map has it (a turn counts at `reach`)."""
+        if len(poses) == 0:
+            return False
+        return bool(self._apart(poses, self._map_poses(len(poses)), reach).max() >= tol)
 
     def _rebuild(self, run: ExplorationRun) -> None:
+        """Map the kept scans again at their keyframes' corrected poses where keyframes moved (`REBUILD_TOL` of
+        a cell or more): the box their scans reach at both poses is mapped again, in order, into a grid of the
+        box alone, which replaces the box's cells; outside it the map keeps what it had, the scans the memory
+        bound has since dropped included. A box of more than half the map: the whole map is rebuilt from the
+        kept scans."""
         import time
 
         graph = self.slam.graph
         assert graph is not None
         t0 = time.perf_counter()
         grid = run.grid
-        grid.values[...] = 0
-        grid.stamp[...] = 0
-        for k, rel, ranges, angles, range_max, offset in self.scans.values():
-            grid.update(compose(graph.keyframes[k].pose, rel),
-                        LaserScan(angles, ranges.astype(np.float64), range_max, offset))
+        geo = grid.geo
+        poses = graph.poses()
+        old = self._map_poses(len(poses))
+        reach = max((v[4] + abs(v[5]) for v in self.scans.values()), default=0.0) + geo.cell
+        moved = np.flatnonzero(self._apart(poses, old, reach) >= REBUILD_TOL * geo.cell)
+        scans = [(compose(graph.keyframes[k].pose, rel), LaserScan(angles, ranges.astype(np.float64), rmax, off))
+                 for k, rel, ranges, angles, rmax, off in self.scans.values()]
+        ends = np.vstack([poses[moved, :2], old[moved, :2]])
+        box = None
+        if len(moved):
+            c0 = max(math.floor((ends[:, 0].min() - reach - geo.origin_x) / geo.cell) - 1, 0)
+            c1 = min(math.ceil((ends[:, 0].max() + reach - geo.origin_x) / geo.cell) + 1, geo.cols)
+            r0 = max(math.floor((ends[:, 1].min() - reach - geo.origin_y) / geo.cell) - 1, 0)
+            r1 = min(math.ceil((ends[:, 1].max() + reach - geo.origin_y) / geo.cell) + 1, geo.rows)
+            if r1 > r0 and c1 > c0 and (r1 - r0) * (c1 - c0) <= geo.rows * geo.cols / 2:
+                box = (r0, r1, c0, c1)
+        if box is None:                       # the whole map, from the kept scans
+            grid.values[...] = 0
+            grid.stamp[...] = 0
+            for pose, scan in scans:
+                grid.update(pose, scan)
+            old = poses
+        else:
+            r0, r1, c0, c1 = box
+            part = GridGeometry(geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell, geo.cell, r1 - r0, c1 - c0)
+            sub = OccupancyGrid(part, model=grid.model, range_max=grid.range_max)
+            sub.l_occ, sub.l_free, sub.l_clamp = grid.l_occ, grid.l_free, grid.l_clamp     # the same sensor model
+            x0, x1 = part.origin_x - reach, part.origin_x + part.width + reach
+            y0, y1 = part.origin_y - reach, part.origin_y + part.height + reach
+            for pose, scan in scans:
+                if x0 <= pose.x <= x1 and y0 <= pose.y <= y1:
+                    sub.update(pose, scan)
+            grid.replace_box(r0, c0, sub)
+            old[moved] = poses[moved]
         self.rebuild_time += time.perf_counter() - t0
-        self._built = graph.poses()
+        self._built = old
         self.map_rebuilds += 1
         run.explorer.map_rebuilt(grid, self._correction())
 

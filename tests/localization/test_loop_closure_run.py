@@ -34,7 +34,9 @@ class Told:
 def test_the_runs_map_is_rebuilt_from_every_scan_at_the_corrected_keyframes() -> None:
     truth = ring_path(1.3)
     odom = drifted(truth, 1.03, math.radians(1.0))
-    geo = GridGeometry.covering(-1, -1, 11, 11, 0.1)
+    # 2 cm cells: the map is rebuilt once a keyframe has moved by half a cell, and loop closure moves them by
+    # about 2 cm here
+    geo = GridGeometry.covering(-1, -1, 11, 11, 0.02)
     grid = OccupancyGrid(geo, range_max=4.0)
     told = Told()
     with RingRobot(truth, odom) as inner:
@@ -92,3 +94,60 @@ def test_the_scan_bound_keeps_the_newest_few_of_each_bin_however_long_the_run() 
     # 5 scans a bin on each lap, the newest 4 of them
     last, before = range(180, 200), range(160, 180)
     assert kept == {k for k in last if (k - 180) % 5 != 0} | {k for k in before if (k - 160) % 5 != 0}
+
+
+def test_a_correction_at_one_end_rebuilds_the_map_there_and_keeps_the_rest() -> None:
+    """A 30 m corridor mapped from keyframes every 0.5 m (3 m laser); the graph moves the last ten keyframes by
+    5 cm and 0.5 deg. The rebuild maps the kept scans again in the box their keyframes' scans reach, at both
+    poses: inside it the map is every kept scan at its corrected pose, outside it nothing changed, and the
+    walls a scan the memory bound dropped put there stay."""
+    from robotexp.localization.matcher import Localizer
+    from robotexp.localization.online import OnlineGraph, OnlineLoopConfig
+    from robotexp.world.raycast import RayIndex
+
+    walls = [(15.0, -0.05, 15.1, 0.05, 0.0), (15.0, 2.05, 15.1, 0.05, 0.0), (-0.05, 1.0, 0.05, 1.1, 0.0),
+             (30.05, 1.0, 0.05, 1.1, 0.0), (6.0, 0.15, 0.3, 0.1, 0.0), (24.0, 1.85, 0.3, 0.1, 0.0)]
+    index = RayIndex(walls, np.zeros((0, 3)), 1.0)
+    beams = np.radians(np.arange(-180.0, 180.0, 1.0))
+
+    def scan_at(p: Pose) -> LaserScan:
+        frac = index.cast(np.tile([p.x, p.y], (len(beams), 1)), p.theta + beams, 3.0, 0.5)
+        return LaserScan(beams.copy(), np.where(frac < 1.0, frac * 3.0, np.inf), 3.0)
+
+    geo = GridGeometry.covering(-1, -1, 31, 3, 0.1)
+    g = OnlineGraph(Localizer(GridGeometry.covering(-1, -1, 31, 3, 0.05)), RUN_MATCHER,
+                    OnlineLoopConfig(backend="sparse"))
+    grid = OccupancyGrid(geo, range_max=3.0)
+    poses = [Pose(0.5 + 0.5 * k, 1.0, 0.0) for k in range(59)]
+    tracker = LoopClosureTracker("slam", "test", SimpleNamespace(graph=g, keyframe=-1))  # type: ignore[arg-type]
+    for k, p in enumerate(poses):
+        s = scan_at(p)
+        g.step(p, p)
+        g.add_keyframe(p, s, p)
+        grid.update(p, s)                                   # the run's map takes every scan
+        if k > 5:                                           # the memory bound dropped the first six, the only
+            #                                                 ones that saw the west end wall
+            tracker.scans[k] = (k, Pose(0.0, 0.0, 0.0), s.ranges.astype(np.float32), s.angles, 3.0, 0.0)
+    assert g.loops == 0
+    before = grid.values.copy()
+    shift = np.array([0.05, 0.03, math.radians(0.5)])
+    g._poses.a[-10:] += shift                               # what a loop edge's optimisation would do
+    told = Told()
+    run = SimpleNamespace(grid=grid, explorer=told, info=SimpleNamespace(extra={}))
+    marks = grid.scans
+    assert tracker._moved(geo.cell / 2, g.poses(), 3.0)
+    tracker._rebuild(run)                                   # type: ignore[arg-type]
+    box = grid.changed_box(marks)
+    assert box is not None
+    r0, r1, c0, c1 = box
+    # the box: the moved keyframes (x 25.0-29.55 m) and 3.1 m of reach, and a cell more, each side
+    assert c0 == math.floor((25.0 - 3.1 - geo.origin_x) / geo.cell) - 1 and c1 == geo.cols and (r0, r1) == (0, geo.rows)
+    again = OccupancyGrid(geo, range_max=3.0)
+    for k, _, ranges, angles, rmax, off in tracker.scans.values():
+        again.update(g.keyframes[k].pose, LaserScan(angles, ranges.astype(np.float64), rmax, off))
+    np.testing.assert_array_equal(grid.values[:, c0:c1], again.values[:, c0:c1])
+    np.testing.assert_array_equal(grid.values[:, :c0], before[:, :c0])
+    west = slice(0, 11)                                     # x -1.0 to 0.1 m: the west end wall (x -0.1 to 0)
+    assert (before[:, west] > 1.0).sum() >= 20 and not (again.values[:, west] > 0).any()   # kept here
+    assert len(told.calls) == 1 and tracker.map_rebuilds == 1
+    assert not tracker._moved(geo.cell / 4, g.poses(), 3.0)             # the map has every keyframe where it is

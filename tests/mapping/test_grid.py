@@ -194,3 +194,24 @@ def test_geometry_array_helpers_agree_with_the_scalar_ones() -> None:
     assert geo.contains_cells(cells).tolist() == [True, False, True, False, True, False]
     assert geo.centers_of(cells[:3]).tolist() == [list(geo.center_of(int(r), int(c))) for r, c in cells[:3]]
     assert geo.cells_of(np.zeros((0, 2))).shape == (0, 2) and geo.centers_of(np.zeros((0, 2))).shape == (0, 2)
+
+
+def test_replace_box_sets_the_box_and_counts_one_mark():
+    grid = OccupancyGrid(GEO)
+    grid.update(Pose(0.5, 0.5), _scan([0.0, math.pi / 2], [4.2, 4.2]))     # scan 1: row 0 and col 0
+    before = grid.values.copy()
+    sub = OccupancyGrid(GridGeometry(2.0, 1.0, 1.0, 2, 3))                   # rows 1..2, cols 2..4
+    sub.update(Pose(2.5, 1.5), _scan([0.0], [1.2]))                          # its row 0: cols 0, 1 free, none hit
+    grid.replace_box(1, 2, sub)
+    assert grid.scans == 2
+    np.testing.assert_array_equal(grid.values[1:3, 2:5], sub.values)
+    outside = np.ones((5, 5), bool)
+    outside[1:3, 2:5] = False
+    np.testing.assert_array_equal(grid.values[outside], before[outside])
+    assert grid.stamp[1, 2:5].tolist() == [2, 2, 0] and grid.stamp[2, 2:5].tolist() == [0, 0, 0]
+    assert grid.stamp[0].tolist() == [1] * 5                                   # outside: as it was
+    assert grid.changed_box(1) == (1, 3, 2, 5)
+    with pytest.raises(ConfigError, match="does not fit"):
+        grid.replace_box(4, 4, sub)
+    with pytest.raises(ConfigError, match="does not fit"):
+        grid.replace_box(0, 0, OccupancyGrid(GridGeometry(0.0, 0.0, 1.0, 2, 2), model="himm"))
