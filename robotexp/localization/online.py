@@ -160,14 +160,21 @@ def _along(h: npt.NDArray[np.float64], dx: float, dy: float) -> float:
 
 class ScanBins:
     """The scan memory bound: each scan is filed under its pose's bin (an `xy` [m] square, a `theta` [rad]
-    sector), and a bin keeps the newest `per_bin`; `add` names the scan a new one pushes out. The scans kept
+    sector), and a bin keeps `per_bin` of them; `add` names the scan a new one pushes out. The scans kept
     are then at most `per_bin` times the bins the robot's poses fell in: bounded by the explored area (its
-    square metres / xy^2 times 2 pi / theta sectors), not by the run's length."""
+    square metres / xy^2 times 2 pi / theta sectors), not by the run's length.
 
-    def __init__(self, per_bin: int, xy: float, theta: float) -> None:
+    Which ones a bin keeps: the newest (`spread` False), or (`spread` True) those whose positions lie farthest
+    apart: a new scan pushes out the older of the two closest, so the bin keeps views from across its square,
+    not from the last few centimetres of the path through it (a robot at 0.3 m/s and 10 Hz takes ~17 scans
+    in a 0.5 m bin; the newest 4 lie within 12 cm)."""
+
+    def __init__(self, per_bin: int, xy: float, theta: float, *, spread: bool = False) -> None:
         self.per_bin, self.xy, self.theta = per_bin, xy, theta
+        self.spread = spread
         self.bins: dict[tuple[int, int, int], deque[int]] = {}
         self.dropped = 0
+        self._where: dict[int, tuple[float, float]] = {}     # the kept scans' positions (with `spread`)
 
     def add(self, key: int, pose: Pose) -> int | None:
         """File scan `key` taken at `pose`; the key of the scan it pushes out of its bin, or None."""
@@ -177,10 +184,24 @@ class ScanBins:
              math.floor(wrap_angle(pose.theta) / self.theta))
         q = self.bins.setdefault(b, deque())
         q.append(key)
-        if len(q) > self.per_bin:
-            self.dropped += 1
+        if self.spread:
+            self._where[key] = (pose.x, pose.y)
+        if len(q) <= self.per_bin:
+            return None
+        self.dropped += 1
+        if not self.spread:
             return q.popleft()
-        return None
+        keys = list(q)                        # oldest first
+        best, drop = math.inf, keys[0]
+        for i, a in enumerate(keys):
+            ax, ay = self._where[a]
+            for c in keys[i + 1:]:
+                d = math.hypot(self._where[c][0] - ax, self._where[c][1] - ay)
+                if d < best:
+                    best, drop = d, a
+        q.remove(drop)
+        del self._where[drop]
+        return drop
 
 
 class Keyframe:

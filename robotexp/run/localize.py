@@ -116,15 +116,18 @@ class LoopClosureTracker(TrajectoryTracker):
     laser a box there is more than half the map, which is then rebuilt whole still.
 
     A scan is kept as float32 ranges (a 181-beam scan: 724 bytes; its beam angles shared with the scan before
-    when equal), and only while it is among the newest SCANS_PER_BIN of its pose's bin (SCAN_BIN_XY square,
-    SCAN_BIN_THETA sector; `ScanBins`): the scans kept are bounded by the area explored, at most 128 a square
-    metre (93 kB of 181-beam scans), not by the run's length (at 10 Hz, 26 MB an hour without the bound)."""
+    when equal), and only while it is among the SCANS_PER_BIN of its pose's bin (SCAN_BIN_XY square,
+    SCAN_BIN_THETA sector) whose positions lie farthest apart (`ScanBins` with `spread`): the scans kept are
+    bounded by the area explored, at most 128 a square metre (93 kB of 181-beam scans), not by the run's length
+    (at 10 Hz, 26 MB an hour without the bound). Keeping the newest 4 of a bin instead (the last 12 cm of the
+    path through it), the map rebuilt on eb_loop (srt-laser, P3-DX preset, seed 3) lost the wall faces only
+    the dropped scans had seen at grazing range: tolerant map IoU 0.953 against 1.000 with the spread bins."""
 
     def __init__(self, localize: str, odometry: str, robot: LocalizedRobot) -> None:
         super().__init__(localize, odometry, robot)
         self.slam = robot
         self.scans: dict[int, tuple[int, Pose, npt.NDArray[np.float32], npt.NDArray[np.float64], float, float]] = {}
-        self.bins = ScanBins(SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA)
+        self.bins = ScanBins(SCANS_PER_BIN, SCAN_BIN_XY, SCAN_BIN_THETA, spread=True)
         self._count = 0                           # scans seen
         self.rebuilds = 0                         # the graph's corrections seen
         self.map_rebuilds = 0                     # the run's map rebuilt

@@ -151,3 +151,17 @@ def test_a_correction_at_one_end_rebuilds_the_map_there_and_keeps_the_rest() -> 
     assert (before[:, west] > 1.0).sum() >= 20 and not (again.values[:, west] > 0).any()   # kept here
     assert len(told.calls) == 1 and tracker.map_rebuilds == 1
     assert not tracker._moved(geo.cell / 4, g.poses(), 3.0)             # the map has every keyframe where it is
+
+
+def test_a_spread_bin_keeps_the_views_farthest_apart() -> None:
+    """A robot drives through a bin (x 0 to 0.5 m) and lingers at its far end: the spread bound keeps its
+    first view and the last, the newest-first bound the last two."""
+    xs = [0.05, 0.45, 0.42, 0.40]
+    bins = ScanBins(2, 0.5, math.radians(45.0), spread=True)
+    drops = [bins.add(k, Pose(x, 0.2, 0.0)) for k, x in enumerate(xs)]
+    assert drops == [None, None, 1, 2]          # the older of the two closest: 1 (3 cm from 2), then 2
+    assert list(bins.bins[(0, 0, 0)]) == [0, 3] and bins.dropped == 2
+    assert bins.add(9, Pose(0.05, 0.2, math.pi)) is None and len(bins.bins) == 2   # another sector: another bin
+    newest = ScanBins(2, 0.5, math.radians(45.0))
+    assert [newest.add(k, Pose(x, 0.2, 0.0)) for k, x in enumerate(xs)] == [None, None, 0, 1]
+    assert list(newest.bins[(0, 0, 0)]) == [2, 3]
