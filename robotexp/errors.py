@@ -66,3 +66,10 @@ def interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:
         current = current.__cause__ or current.__context__
     return None
 
+
+def raise_interrupt_in(exc: BaseException) -> None:
+    """Raise again, of its own kind (Ctrl-C or `Terminated`), the interruption behind `exc` (`interrupt_in`),
+    chained to `exc`; return when there is none."""
+    interrupt = interrupt_in(exc)
+    if interrupt is not None:
+        raise type(interrupt)(*interrupt.args) from exc

@@ -151,11 +151,11 @@ class OnlineLoopConfig:
             raise ConfigError(f"loop closure: radius, min_path, sigmas and cauchy must be > 0, got {self}")
 
 
-def _along(h: npt.NDArray[np.float64], dx: float, dy: float) -> float:
-    """[m] the component of the move (dx, dy) along the weak direction of the translation block of the normal
-    matrix `h` (the direction a corridor's scan does not fix)."""
+def _weak(h: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """The unit vector (world frame) of the weak direction of the translation block of the normal matrix `h`:
+    the direction a corridor's scan does not fix."""
     _, vecs = np.linalg.eigh(np.asarray(h, np.float64)[:2, :2])
-    return float(vecs[0, 0] * dx + vecs[1, 0] * dy)
+    return vecs[:, 0]
 
 
 class ScanBins:
@@ -492,7 +492,8 @@ class OnlineGraph:
                 self._refuse("degenerate")
                 return None
             cur = self.keyframes[n].pose
-            if abs(_along(m.info, m.pose.x - cur.x, m.pose.y - cur.y)) > c.corridor_slide:
+            w = _weak(m.info)
+            if abs(w[0] * (m.pose.x - cur.x) + w[1] * (m.pose.y - cur.y)) > c.corridor_slide:
                 self._refuse("slide")
                 return None
             info = self._corridor_info(m.info, m.pose.theta)
@@ -518,8 +519,7 @@ class OnlineGraph:
         `loop_xy` across it, `cap_xy` along it (the weak eigenvector of the match's translation information
         `h`, in the world frame, turned into the frame of the edge's error, the later keyframe's)."""
         c = self.config
-        _, vecs = np.linalg.eigh(np.asarray(h, np.float64)[:2, :2])
-        w = vecs[:, 0]
+        w = _weak(h)
         ct, st = math.cos(theta), math.sin(theta)
         wj = np.array([ct * w[0] + st * w[1], -st * w[0] + ct * w[1]])
         along = np.outer(wj, wj)

@@ -227,8 +227,8 @@ class LoopClosureTracker(TrajectoryTracker):
         old = self._map_poses(len(poses))
         reach = max((v[4] + abs(v[5]) for v in self.scans.values()), default=0.0) + geo.cell
         moved = np.flatnonzero(self._apart(poses, old, reach) >= REBUILD_TOL * geo.cell)
-        scans = [(compose(graph.keyframes[k].pose, rel), LaserScan(angles, ranges.astype(np.float64), rmax, off))
-                 for k, rel, ranges, angles, rmax, off in self.scans.values()]
+        kept = [(compose(graph.keyframes[k].pose, rel), ranges, angles, rmax, off)
+                for k, rel, ranges, angles, rmax, off in self.scans.values()]
         ends = np.vstack([poses[moved, :2], old[moved, :2]])
         box = None
         if len(moved):
@@ -241,8 +241,8 @@ class LoopClosureTracker(TrajectoryTracker):
         if box is None:                       # the whole map, from the kept scans
             grid.values[...] = 0
             grid.stamp[...] = 0
-            for pose, scan in scans:
-                grid.update(pose, scan)
+            for pose, ranges, angles, rmax, off in kept:
+                grid.update(pose, LaserScan(angles, ranges.astype(np.float64), rmax, off))
             old = poses
         else:
             r0, r1, c0, c1 = box
@@ -251,9 +251,9 @@ class LoopClosureTracker(TrajectoryTracker):
             sub.l_occ, sub.l_free, sub.l_clamp = grid.l_occ, grid.l_free, grid.l_clamp     # the same sensor model
             x0, x1 = part.origin_x - reach, part.origin_x + part.width + reach
             y0, y1 = part.origin_y - reach, part.origin_y + part.height + reach
-            for pose, scan in scans:
+            for pose, ranges, angles, rmax, off in kept:
                 if x0 <= pose.x <= x1 and y0 <= pose.y <= y1:
-                    sub.update(pose, scan)
+                    sub.update(pose, LaserScan(angles, ranges.astype(np.float64), rmax, off))
             grid.replace_box(r0, c0, sub)
             old[moved] = poses[moved]
         self.rebuild_time += time.perf_counter() - t0

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.errors import ConfigError, RobotError, Terminated, interrupt_in
+from robotexp.errors import ConfigError, RobotError, Terminated, interrupt_in, raise_interrupt_in
 from robotexp.robot import LaserScan, Pose, Robot, RobotState, Twist, new_scan
 from robotexp.run.observers import Observers, RunObserver, SampleCallback, StepEvent
 from robotexp.run.record import COVERAGE_MILESTONES, EndReason, RunRecord
@@ -350,9 +350,7 @@ class ExplorationRun:
         except RobotError:          # the robot's fault, met by the explorer (an emergency stop seen in a state)
             raise
         except Exception as exc:
-            interrupt = interrupt_in(exc)
-            if interrupt is not None:   # Ctrl-C inside a numba kernel's call: an interruption, not a plugin error
-                raise type(interrupt)(*interrupt.args) from exc      # Ctrl-C or SIGTERM, as it was
+            raise_interrupt_in(exc)     # Ctrl-C inside a numba kernel's call: an interruption, not a plugin error
             self.error = exc
             self.reason = f"plugin error: {where}: {method.__name__} raised {type(exc).__name__}: {exc}"
             self.end = EndReason.PLUGIN_ERROR

@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from robotexp.errors import RobotexpError, interrupt_in
+from robotexp.errors import RobotexpError, raise_interrupt_in
 from robotexp.robot import RobotState, Twist
 
 if TYPE_CHECKING:
@@ -118,9 +118,7 @@ class Observers:
             try:
                 getattr(observer, hook)(*args)
             except Exception as exc:
-                interrupt = interrupt_in(exc)
-                if interrupt is not None:   # Ctrl-C inside a numba kernel's call: the run is interrupted
-                    raise type(interrupt)(*interrupt.args) from exc      # Ctrl-C or SIGTERM, as it was
+                raise_interrupt_in(exc)     # Ctrl-C inside a numba kernel's call: the run is interrupted
                 # a critical observer's error is raised by the run's caller as one line (a full disk): at
                 # debug level only; any other is logged as one line, its traceback with --debug, or always when
                 # it is not one of robotexp's own errors (a bug)
