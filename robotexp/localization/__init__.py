@@ -8,10 +8,11 @@ from robotexp.localization.matcher import (
     MatcherConfig,
     ScanMatcher,
     compose,
+    fill_walls,
     relative,
     scan_points,
 )
 from robotexp.localization.metrics import ate, rigid_alignment
 
 __all__ = ["FrameCorrection", "HitMap", "Localizer", "Match", "MatcherConfig", "ScanMatcher", "compose", "relative",
-           "scan_points", "ate", "rigid_alignment"]
+           "scan_points", "fill_walls", "ate", "rigid_alignment"]

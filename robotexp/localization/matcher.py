@@ -25,12 +25,17 @@ from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import HIT_DEPTH, OccupancyGrid
 from robotexp.robot import LaserScan, Pose, compose_pose, relative_pose, wrap_angle
 
-__all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points"]
+__all__ = ["MatcherConfig", "Match", "HitMap", "ScanMatcher", "Localizer", "compose", "relative", "scan_points",
+           "fill_walls"]
 
 WINDOW_CAP = (1.5, math.radians(12.0))   # [m], [rad]: the widest search after a stretch without matches
 CALIBRATION_POINTS = 60   # matches with fewer points do not calibrate odometry (in an open hall they turned it wrong)
 CACHE_MARGIN = 1.0   # [m] a cached likelihood field reaches this much beyond the box a match needs
 FLAT = 0.01   # a corridor's correction along it is dropped only if the mean field loses less than this
+# `fill_walls`: the chord between two neighbouring beams' hits is a surface when it is at most FILL_ARC times the
+# arc between the beams at the nearer range (a surface seen up to ~70 deg off square-on) and at most FILL_CAP [m]
+FILL_ARC = 3.0
+FILL_CAP = 0.5
 
 Status = Literal["matched", "degenerate", "few-points", "no-map", "unseen", "poor"]
 # a likelihood field over a box: (field, origin_x [m], origin_y [m], hit points or None; see `ScanMatcher.field`)
@@ -155,6 +160,44 @@ def scan_points(scan: LaserScan, range_max: float = math.inf
     ok = np.isfinite(r) & (r > 0.0) & (r < min(scan.range_max, range_max))
     r, a = r[ok], a[ok]
     return (np.ascontiguousarray(scan.offset_x + r * np.cos(a)), np.ascontiguousarray(r * np.sin(a)))
+
+
+def fill_walls(scan: LaserScan, cell: float, arc: float = FILL_ARC, cap: float = FILL_CAP) -> LaserScan:
+    """`scan` with points added every `cell` [m] along the chord between neighbouring beams' hits where the
+    chord is short enough to be one surface (at most `arc` times the arc between the two beams at the nearer
+    range, and `cap` metres): the beams of an added point are the straight lines from the sensor to it.
+
+    What a matching map is made of: a laser 1 deg a beam hits a wall 8 m away every 14 cm, every third
+    5 cm cell, and a map made of such scans holds the wall as a row of dots, not a line. A scan turned by a
+    fraction of a beam against it is drawn to the dots (its points towards the old beams' points): matched
+    against a map of one scan of the 30 x 20 m hall, taken at the same spot and turned by 4.6, 9.2, 13.8 ...
+    deg, the heading came out 0.2-0.4 deg off; with the walls filled in, under 0.01 deg in most and 0.08
+    deg at most. Beams with no hit, and a depth jump between neighbours (a door post against the room
+    behind it), add nothing."""
+    r = np.asarray(scan.ranges, np.float64)
+    a = np.asarray(scan.angles, np.float64)
+    if len(r) < 2 or not cell > 0:
+        return scan
+    ok = np.isfinite(r) & (r > 0.0) & (r < scan.range_max)
+    rr = np.where(ok, r, 0.0)
+    x = scan.offset_x + rr * np.cos(a)
+    y = rr * np.sin(a)
+    chord = np.hypot(np.diff(x), np.diff(y))
+    near = np.minimum(rr[:-1], rr[1:])
+    surface = ok[:-1] & ok[1:] & (chord <= np.minimum(cap, np.maximum(arc * near * np.abs(np.diff(a)), 2 * cell)))
+    n = np.where(surface, np.ceil(chord / cell) - 1.0, 0.0).astype(np.int64)
+    total = int(n.sum())
+    if total == 0:
+        return scan
+    i = np.repeat(np.arange(len(n)), n)                       # the beam each added point follows
+    first = np.repeat(np.cumsum(n) - n, n)                    # where its chord's points start
+    f = (np.arange(total) - first + 1) / np.repeat(n + 1, n)  # 1/(n+1) ... n/(n+1) along the chord
+    px = x[i] + f * (x[i + 1] - x[i]) - scan.offset_x
+    py = y[i] + f * (y[i + 1] - y[i])
+    angles = np.concatenate([a, np.arctan2(py, px)])
+    ranges = np.concatenate([r, np.hypot(px, py)])
+    order = np.argsort(angles, kind="stable")
+    return LaserScan(angles[order], ranges[order], scan.range_max, scan.offset_x, scan.stamp)
 
 
 class HitMap:
@@ -448,6 +491,14 @@ class Localizer:
             (`_fuse`): the match's correction stands where its scan fixes the pose, and where it does
             not (a lone pillar fixes the position, not the turn about itself) the correction follows
             from the covariance. None: no covariance (matches as they are).
+        fill: put scans into the matching map with their walls filled in between neighbouring beams
+            (`fill_walls`): walls seen at range are lines there, not rows of dots one beam apart, which the
+            exact field's wall segments (`MatcherConfig.exact_field`) need. None: on with the exact field.
+            In `sparse` (8 m laser, P3-DX preset, loop closure) the loop-closure study's 15 runs there met
+            the targets in 12 against 6 without. With the bilinear field (the CARMEN logs) it stays off:
+            there it gave 33 against 30 of 44 log runs within 0.3 m, but turned a simulated corridor log by
+            0.036 deg a match on average and took its ATE from 0.09-0.17 m to 0.20-0.38 m
+            (docs/how-to/localization.md).
 
     Attributes:
         grid: the matching map.
@@ -463,7 +514,7 @@ class Localizer:
                  motion_noise: tuple[float, float, float, float, float] | None = None, gate: float = 0.0,
                  calibration: OdometryCalibration | None = None, max_turn_rate: float = math.inf,
                  map_uncertain: float = math.inf, map_travel: float = 0.0, map_turn: float = 0.0,
-                 covariance: tuple[float, float, float, float] | None = None) -> None:
+                 covariance: tuple[float, float, float, float] | None = None, fill: bool | None = None) -> None:
         if min_travel < 0 or min_turn < 0:
             raise ConfigError(f"localizer: min_travel and min_turn must be >= 0, got {min_travel} and {min_turn}")
         self.grid = OccupancyGrid(geo, p_occ=p_occ, p_free=p_free, range_max=range_max)
@@ -490,6 +541,7 @@ class Localizer:
         self.prediction: Pose | None = None     # the last `locate`'s prediction
         self.covariance = covariance
         self.cov = self._cov0()
+        self.fill = self.matcher.config.exact_field if fill is None else fill
 
     def reset(self, odom: Pose, pose: Pose) -> None:
         """Restart from `pose` (the corrected pose) with odometry reading `odom` there."""
@@ -527,8 +579,13 @@ class Localizer:
                                 wrap_angle(m.pose.theta - prediction.theta))
         return Pose(prediction.x + sx, prediction.y + sy, wrap_angle(prediction.theta + sth))
 
+    def mapped(self, scan: LaserScan) -> LaserScan:
+        """The scan as the matching map takes it (its walls filled in with `fill`)."""
+        return fill_walls(scan, self.grid.geo.cell) if self.fill else scan
+
     def integrate(self, pose: Pose, scan: LaserScan) -> None:
         """Put `scan`, taken at `pose`, into the matching map (`locate` does this itself)."""
+        scan = self.mapped(scan)
         self.grid.update(pose, scan)
         rmax = self.grid.range_max if self.grid.range_max is not None else math.inf
         self.hits.add(pose, scan, rmax)

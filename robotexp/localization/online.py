@@ -510,7 +510,8 @@ class OnlineGraph:
         if self._last_submap is not None and self._last_submap[0] == key:
             return self._last_submap[1], self._last_submap[2]
         scans = [self.keyframes[k].scan for k in window]
-        grid, hits = _submap(P, scans, window.index(j), len(window), cell, reach)  # type: ignore[arg-type]
+        grid, hits = _submap(P, scans, window.index(j), len(window), cell, reach,  # type: ignore[arg-type]
+                             fill=self.localizer.fill)
         self._last_submap = (key, grid, hits)
         return grid, hits
 
@@ -629,6 +630,7 @@ class OnlineGraph:
             if scan is None:
                 continue
             pose = Pose(float(P[k, 0]), float(P[k, 1]), float(P[k, 2]))
+            scan = loc.mapped(scan)
             grid.update(pose, scan)
             hits.add(pose, scan, rmax)
         if box.rows == geo.rows and box.cols == geo.cols:

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.localization.matcher import HitMap, MatcherConfig, ScanMatcher, relative, scan_points
+from robotexp.localization.matcher import HitMap, MatcherConfig, ScanMatcher, fill_walls, relative, scan_points
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import LaserScan, Pose
@@ -180,7 +180,9 @@ def optimize(poses: npt.ArrayLike, edges: Sequence[Edge], *, iterations: int = 1
 
 
 def _submap(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], centre: int, k: int, cell: float,
-            reach: float) -> tuple[OccupancyGrid, HitMap]:
+            reach: float, *, fill: bool) -> tuple[OccupancyGrid, HitMap]:
+    """The matching map of scans centre-k .. centre+k at their poses (walls filled in with `fill`, as the
+    `Localizer` fills its map: `fill_walls`), and where their hits fell."""
     lo, hi = max(centre - k, 0), min(centre + k + 1, len(scans))
     xy = poses[lo:hi, :2]
     # the grid covers what the scans can touch: their own reach when shorter than `reach` (a 3 m laser's
@@ -191,8 +193,9 @@ def _submap(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], centre: 
     grid = OccupancyGrid(geo, p_occ=0.9, p_free=0.4, range_max=reach)
     hits = HitMap(geo)
     for m in range(lo, hi):
-        grid.update(Pose(*poses[m]), scans[m])
-        hits.add(Pose(*poses[m]), scans[m], reach)
+        scan = fill_walls(scans[m], cell) if fill else scans[m]
+        grid.update(Pose(*poses[m]), scan)
+        hits.add(Pose(*poses[m]), scan, reach)
     return grid, hits
 
 
@@ -211,7 +214,8 @@ def find_loops(poses: npt.NDArray[np.float64], scans: Sequence[LaserScan], cell:
         j = int(np.argmin(d))
         if d[j] > cfg.radius:
             continue
-        grid, hits = _submap(poses, scans, j, cfg.submap, cell, matcher.range_max + cfg.window_xy)
+        grid, hits = _submap(poses, scans, j, cfg.submap, cell, matcher.range_max + cfg.window_xy,
+                             fill=matcher.exact_field)
         px, py = scan_points(scans[i], matcher.range_max)
         m = sm.match(grid.values, grid.geo, px, py, Pose(*poses[i]), hits)
         if m.status != "matched" or m.conditioning < cfg.min_conditioning:
