@@ -59,8 +59,10 @@ _worker_running = False         # in a worker: a run is being made (Ctrl-C inter
 
 
 def worker_init() -> None:
-    """Worker start: die with the campaign process (kill -9 included), and remember a Ctrl-C so that
-    the runs already queued to this worker are skipped instead of run in full."""
+    """Worker start: die with the campaign process (kill -9 included), and remember a Ctrl-C or a SIGTERM so
+    that the runs already queued to this worker are skipped instead of run in full; the run in progress ends
+    as that signal ends a run (`Terminated` for a SIGTERM: its record says so)."""
+    from robotexp.errors import Terminated
     from robotexp.lifeline import die_with_parent, exit_without_teardown
 
     die_with_parent()
@@ -71,9 +73,10 @@ def worker_init() -> None:
         first = not _worker_interrupted
         _worker_interrupted = True
         if first and _worker_running:    # idle (waiting for work): only remember it
-            raise KeyboardInterrupt
+            raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
     signal.signal(signal.SIGINT, interrupted)
+    signal.signal(signal.SIGTERM, interrupted)
 
 
 def record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from pathlib import Path
 from robotexp.campaign.jobs import RunTiming, record_extra, run_one, worker_init
 from robotexp.campaign.robots import Place, run_on_robots
 from robotexp.campaign.spec import Campaign, RunKey, record_key
-from robotexp.errors import ConfigError
+from robotexp.errors import ConfigError, Terminated
 from robotexp.run.record import EndReason, RunRecord
 from robotexp.run.spec import RunSpec
 
@@ -135,12 +135,13 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,  # no
                 records.append(record)
                 if progress:
                     progress(len(records), total, record)
-    except KeyboardInterrupt:
-        # queued runs are dropped now; the running ones write their partial run and end (the SIGINT is
-        # passed on for a Ctrl-C sent to this process alone; a worker ignores a second one)
+    except KeyboardInterrupt as stop:
+        # queued runs are dropped now; the running ones write their partial run and end (the signal is
+        # passed on, as it came, for one sent to this process alone; a worker ignores a second one)
+        sig = signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT
         for proc in list(getattr(pool, "_processes", {}).values()):
             with contextlib.suppress(OSError):
-                os.kill(proc.pid, signal.SIGINT)
+                os.kill(proc.pid, sig)
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True)

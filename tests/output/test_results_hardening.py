@@ -21,6 +21,7 @@ from robotexp.cli import main
 from robotexp.campaign.compare import load_results
 from robotexp.errors import ConfigError
 from robotexp.output.safefile import append_line, folder_lock, read_records
+from robotexp.run.loop import TERMINATED_REASON
 
 REC = {"run": "a", "method": "frontier", "world": "dense", "path_length_m": 1.0}
 
@@ -163,7 +164,10 @@ def test_kill_9_of_the_campaign_kills_its_workers_and_resume_does_not_duplicate(
     assert sorted(runs) == ["1", "2", "3", "4"]
 
 
-def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait):
+@pytest.mark.parametrize(("sig", "status", "reason"), [(signal.SIGINT, 130, "interrupted (Ctrl-C)"),
+                                                        (signal.SIGTERM, 143, TERMINATED_REASON)])
+def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait, sig, status, reason):
+    # a SIGTERM is passed on as a SIGTERM: the run in progress is recorded as terminated, not as a Ctrl-C
     camp, out = tmp_path / "c.toml", tmp_path / "out"
     camp.write_text(MINI.replace("max_time_s = 6", "max_time_s = 14400").replace("[300]", "[40]"))   # ~10 s of CPU each
     proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "campaign", str(camp), "--out", str(out),
@@ -174,16 +178,16 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait):
         while time.monotonic() < deadline and not any(_cpu_seconds(k) > 5.0 for k in _children(proc.pid)):
             time.sleep(0.1)                 # the worker is inside its first (long) run: past its imports
         t0, mark = time.monotonic(), cpu_wait.total()
-        proc.send_signal(signal.SIGINT)     # to the campaign alone: it passes it on
+        proc.send_signal(sig)               # to the campaign alone: it passes it on
         _, stderr = proc.communicate(timeout=60)
         took, waited = time.monotonic() - t0, cpu_wait.since(mark)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 130, stderr
+    assert proc.returncode == status, stderr
     records = read_records(out / "results.jsonl")
-    assert len(records) == 1 and records[0]["reason"].startswith("interrupted")
+    assert len(records) == 1 and records[0]["reason"] == reason
     assert took < 15 + waited           # (a loaded machine: plus what the processes waited for a CPU)
 
 
