@@ -33,7 +33,6 @@ from robotexp.errors import ConfigError
 from robotexp.localization.matcher import (HitMap, Localizer, Match, MatcherConfig, ScanMatcher, compose, relative,
                                           scan_points)
 from robotexp.localization.posegraph import Edge, _submap, optimize
-from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
 from robotexp.robot import LaserScan, Pose, wrap_angle
 
@@ -149,6 +148,14 @@ class OnlineLoopConfig:
         if not (self.radius > 0 and self.min_path > 0 and self.loop_xy > 0 and self.loop_theta > 0
                 and self.cauchy > 0 and self.seq_xy[0] > 0 and self.seq_theta[0] > 0 and self.weak > 0):
             raise ConfigError(f"loop closure: radius, min_path, sigmas and cauchy must be > 0, got {self}")
+
+
+def shifts(poses: npt.NDArray[np.float64], old: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
+    """[m] how far each of the (n, 3) `poses` lies from its row of `old`: the larger of the position's move and the
+    turn at `reach` [m] (how far a scan point that far away moved)."""
+    d = np.hypot(poses[:, 0] - old[:, 0], poses[:, 1] - old[:, 1])
+    turn = np.abs((poses[:, 2] - old[:, 2] + np.pi) % (2 * np.pi) - np.pi) * reach
+    return np.maximum(d, turn)
 
 
 def _weak(h: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -604,22 +611,16 @@ class OnlineGraph:
         if not math.isfinite(reach):
             reach = max(max((float(np.nanmax(np.where(np.isfinite(k.scan.ranges), k.scan.ranges, 0.0)))
                              for k in self.keyframes if k.scan is not None), default=0.0), 1.0) + old.geo.cell
-        turn = np.abs((P[:, 2] - M[:, 2] + np.pi) % (2 * np.pi) - np.pi) * reach
-        moved = np.flatnonzero((np.hypot(P[:, 0] - M[:, 0], P[:, 1] - M[:, 1]) > self.config.rebuild_xy)
-                               | (turn > self.config.rebuild_xy))
+        moved = np.flatnonzero(shifts(P, M, reach) > self.config.rebuild_xy)
         if len(moved) == 0:
             return None
         geo = old.geo
-        ends = np.vstack([P[moved, :2], M[moved, :2]])
-        c0 = max(math.floor((ends[:, 0].min() - reach - geo.origin_x) / geo.cell) - 1, 0)
-        c1 = min(math.ceil((ends[:, 0].max() + reach - geo.origin_x) / geo.cell) + 1, geo.cols)
-        r0 = max(math.floor((ends[:, 1].min() - reach - geo.origin_y) / geo.cell) - 1, 0)
-        r1 = min(math.ceil((ends[:, 1].max() + reach - geo.origin_y) / geo.cell) + 1, geo.rows)
-        if (r1 - r0) * (c1 - c0) > geo.rows * geo.cols / 2:
-            r0, r1, c0, c1 = 0, geo.rows, 0, geo.cols
-        box = GridGeometry(geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell, geo.cell, r1 - r0, c1 - c0)
-        grid = OccupancyGrid(box, model=old.model, range_max=old.range_max)
-        grid.l_occ, grid.l_free, grid.l_clamp = old.l_occ, old.l_free, old.l_clamp     # the same sensor model
+        cells = geo.reach_box(np.vstack([P[moved, :2], M[moved, :2]]), reach)
+        if cells is None or (cells[1] - cells[0]) * (cells[3] - cells[2]) > geo.rows * geo.cols / 2:
+            cells = (0, geo.rows, 0, geo.cols)
+        r0, r1, c0, c1 = cells
+        box = geo.part(cells)
+        grid = old.blank(box)
         hits = HitMap(box)
         x0, x1 = box.origin_x - reach, box.origin_x + box.width + reach
         y0, y1 = box.origin_y - reach, box.origin_y + box.height + reach

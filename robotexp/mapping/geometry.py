@@ -122,6 +122,22 @@ class GridGeometry(NamedTuple):
         r0, c0, r1, c1 = max(r0, b0), max(c0, d0), min(r1 + 1, b1), min(c1 + 1, d1)
         return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
 
+    def reach_box(self, xy: npt.ArrayLike, reach: float) -> tuple[int, int, int, int] | None:
+        """(r0, r1, c0, c1): the rows r0..r1-1 and columns c0..c1-1 of the cells within `reach` [m] of the (k, 2)
+        world points `xy` [m] (their bounding box grown by `reach` and a cell of slack), cut to the grid; None
+        when nothing is left."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        c0 = max(math.floor((p[:, 0].min() - reach - self.origin_x) / self.cell) - 1, 0)
+        c1 = min(math.ceil((p[:, 0].max() + reach - self.origin_x) / self.cell) + 1, self.cols)
+        r0 = max(math.floor((p[:, 1].min() - reach - self.origin_y) / self.cell) - 1, 0)
+        r1 = min(math.ceil((p[:, 1].max() + reach - self.origin_y) / self.cell) + 1, self.rows)
+        return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+
+    def part(self, box: tuple[int, int, int, int]) -> GridGeometry:
+        """The geometry of the cells of `box` (r0, r1, c0, c1) alone: their cell (0, 0) is this grid's (r0, c0)."""
+        r0, r1, c0, c1 = box
+        return GridGeometry(self.origin_x + c0 * self.cell, self.origin_y + r0 * self.cell, self.cell, r1 - r0, c1 - c0)
+
     def disc_mask(self, box: tuple[int, int, int, int], x: float, y: float, radius: float) -> npt.NDArray[np.bool_]:
         """Bool (r1 - r0, c1 - c0): the cells of `box` (r0, r1, c0, c1, e.g. `disc_box`'s) whose centres lie
         within `radius` [m] of (`x`, `y`) [m]."""

@@ -395,6 +395,13 @@ class OccupancyGrid:
         other._changes = self._changes.copy()
         return other
 
+    def blank(self, geo: GridGeometry) -> OccupancyGrid:
+        """An empty grid over `geo` that maps scans as this one does (its model, range and sensor model): a box to
+        map again and `replace_box` with."""
+        out = OccupancyGrid(geo, model=self.model, range_max=self.range_max)
+        out.l_occ, out.l_free, out.l_clamp = self.l_occ, self.l_free, self.l_clamp
+        return out
+
     def replace_box(self, r0: int, c0: int, other: OccupancyGrid) -> None:
         """Set the cells of the box whose cell (0, 0) is the grid's (`r0`, `c0`) to those of `other` (a grid
         of the box alone, of the same model), counted as one mark that touched the box (`scans`, the stamps

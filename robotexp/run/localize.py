@@ -22,10 +22,9 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.localization.correction import FrameCorrection
 from robotexp.localization.matcher import compose, relative
-from robotexp.localization.online import ScanBins
+from robotexp.localization.online import ScanBins, shifts
 from robotexp.localization.robot import MAX_TURN_RATE, LocalizedRobot
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.mapping.grid import OccupancyGrid
 from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.robot import LaserScan, Pose, Robot, wrap_angle
 
@@ -197,18 +196,11 @@ class LoopClosureTracker(TrajectoryTracker):
             out[k] = (loc.x, loc.y, loc.theta)
         return out
 
-    @staticmethod
-    def _apart(poses: npt.NDArray[np.float64], old: npt.NDArray[np.float64], reach: float) -> npt.NDArray[np.float64]:
-        """[m] how far each keyframe lies from where the map has it (a turn counts at `reach`)."""
-        d = np.hypot(poses[:, 0] - old[:, 0], poses[:, 1] - old[:, 1])
-        turn = np.abs((poses[:, 2] - old[:, 2] + np.pi) % (2 * np.pi) - np.pi) * reach
-        return np.maximum(d, turn)
-
     def _moved(self, tol: float, poses: npt.NDArray[np.float64], reach: float) -> bool:
         """True when a keyframe lies `tol` [m] or more from where the map has it (a turn counts at `reach`)."""
         if len(poses) == 0:
             return False
-        return bool(self._apart(poses, self._map_poses(len(poses)), reach).max() >= tol)
+        return bool(shifts(poses, self._map_poses(len(poses)), reach).max() >= tol)
 
     def _rebuild(self, run: ExplorationRun) -> None:
         """Map the kept scans again at their keyframes' corrected poses where keyframes moved (`REBUILD_TOL` of
@@ -226,18 +218,12 @@ class LoopClosureTracker(TrajectoryTracker):
         poses = graph.poses()
         old = self._map_poses(len(poses))
         reach = max((v[4] + abs(v[5]) for v in self.scans.values()), default=0.0) + geo.cell
-        moved = np.flatnonzero(self._apart(poses, old, reach) >= REBUILD_TOL * geo.cell)
+        moved = np.flatnonzero(shifts(poses, old, reach) >= REBUILD_TOL * geo.cell)
         kept = [(compose(graph.keyframes[k].pose, rel), ranges, angles, rmax, off)
                 for k, rel, ranges, angles, rmax, off in self.scans.values()]
-        ends = np.vstack([poses[moved, :2], old[moved, :2]])
-        box = None
-        if len(moved):
-            c0 = max(math.floor((ends[:, 0].min() - reach - geo.origin_x) / geo.cell) - 1, 0)
-            c1 = min(math.ceil((ends[:, 0].max() + reach - geo.origin_x) / geo.cell) + 1, geo.cols)
-            r0 = max(math.floor((ends[:, 1].min() - reach - geo.origin_y) / geo.cell) - 1, 0)
-            r1 = min(math.ceil((ends[:, 1].max() + reach - geo.origin_y) / geo.cell) + 1, geo.rows)
-            if r1 > r0 and c1 > c0 and (r1 - r0) * (c1 - c0) <= geo.rows * geo.cols / 2:
-                box = (r0, r1, c0, c1)
+        box = geo.reach_box(np.vstack([poses[moved, :2], old[moved, :2]]), reach) if len(moved) else None
+        if box is not None and (box[1] - box[0]) * (box[3] - box[2]) > geo.rows * geo.cols / 2:
+            box = None
         if box is None:                       # the whole map, from the kept scans
             grid.values[...] = 0
             grid.stamp[...] = 0
@@ -245,16 +231,14 @@ class LoopClosureTracker(TrajectoryTracker):
                 grid.update(pose, LaserScan(angles, ranges.astype(np.float64), rmax, off))
             old = poses
         else:
-            r0, r1, c0, c1 = box
-            part = GridGeometry(geo.origin_x + c0 * geo.cell, geo.origin_y + r0 * geo.cell, geo.cell, r1 - r0, c1 - c0)
-            sub = OccupancyGrid(part, model=grid.model, range_max=grid.range_max)
-            sub.l_occ, sub.l_free, sub.l_clamp = grid.l_occ, grid.l_free, grid.l_clamp     # the same sensor model
+            part = geo.part(box)
+            sub = grid.blank(part)
             x0, x1 = part.origin_x - reach, part.origin_x + part.width + reach
             y0, y1 = part.origin_y - reach, part.origin_y + part.height + reach
             for pose, ranges, angles, rmax, off in kept:
                 if x0 <= pose.x <= x1 and y0 <= pose.y <= y1:
                     sub.update(pose, LaserScan(angles, ranges.astype(np.float64), rmax, off))
-            grid.replace_box(r0, c0, sub)
+            grid.replace_box(box[0], box[2], sub)
             old[moved] = poses[moved]
         self.rebuild_time += time.perf_counter() - t0
         self._built = old

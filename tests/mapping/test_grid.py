@@ -215,3 +215,18 @@ def test_replace_box_sets_the_box_and_counts_one_mark():
         grid.replace_box(4, 4, sub)
     with pytest.raises(ConfigError, match="does not fit"):
         grid.replace_box(0, 0, OccupancyGrid(GridGeometry(0.0, 0.0, 1.0, 2, 2), model="himm"))
+
+
+def test_reach_box_part_and_blank_by_hand():
+    geo = GridGeometry(0.0, 0.0, 1.0, 10, 10)
+    # points (2.5, 3.5) and (4.2, 3.9), reach 1 m: x 1.5..5.2 -> cols floor(1.5) - 1 = 0 .. ceil(5.2) + 1 = 7;
+    # y 2.5..4.9 -> rows 1 .. 6
+    assert geo.reach_box([[2.5, 3.5], [4.2, 3.9]], 1.0) == (1, 6, 0, 7)
+    assert geo.reach_box([[9.5, 9.5]], 3.0) == (5, 10, 5, 10)            # cut to the grid
+    assert geo.reach_box([[30.0, 30.0]], 1.0) is None                     # nothing of the grid left
+    assert geo.part((1, 6, 0, 7)) == GridGeometry(0.0, 1.0, 1.0, 5, 7)
+    grid = OccupancyGrid(geo, model="logodds", p_free=0.3, range_max=4.0)
+    sub = grid.blank(geo.part((1, 6, 0, 7)))
+    assert (sub.model, sub.range_max, sub.l_occ, sub.l_free, sub.l_clamp) == \
+        (grid.model, grid.range_max, grid.l_occ, grid.l_free, grid.l_clamp)
+    assert sub.shape == (5, 7) and not sub.values.any() and sub.scans == 0
