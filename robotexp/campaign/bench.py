@@ -149,6 +149,18 @@ def _robot(record: Mapping[str, Any]) -> str:
     return str(record.get("robot") or "p3dx")
 
 
+def _key(record: Mapping[str, Any]) -> tuple[Any, Any, str]:
+    """The record's map, method and robot: the run of the bench it is a record of."""
+    return record.get("world_spec"), record.get("method"), _robot(record)
+
+
+def _interrupted(record: Mapping[str, Any]) -> bool:
+    """True for the record of a run that a Ctrl-C or SIGTERM cut off (`--resume` makes it again)."""
+    from robotexp.run.record import EndReason
+
+    return EndReason.classify(bool(record.get("completed")), str(record.get("reason", ""))) is EndReason.INTERRUPTED
+
+
 def _label(record: Mapping[str, Any]) -> str:
     """The record's method and robot, as the summaries group runs: `frontier p3dx`."""
     return f"{record.get('method')} {_robot(record)}"
@@ -298,11 +310,13 @@ def run_bench(maps: list[str], methods: list[str], out: Path, *, jobs: int, resu
         run_campaign(Campaign("bench", out, specs), out, jobs=jobs, resume=resume, progress=progress)
     wanted = {(s.world, s.method, s.robot) for s in specs}
     path = out / "results.jsonl"
-    records = [r for r in read_jsonl(path) if (r.get("world_spec"), r.get("method"), _robot(r)) in wanted] \
-        if path.is_file() else []
+    records = [r for r in read_jsonl(path) if _key(r) in wanted] if path.is_file() else []
+    # a run interrupted and made again by --resume: its interrupted record is left out
+    made = {_key(r) for r in records if not _interrupted(r)}
+    records = [r for r in records if not (_interrupted(r) and _key(r) in made)]
     _mark_outside(records, out)
     text, table = bench_table(records)
-    missing = len(wanted) - len({(r.get("world_spec"), r.get("method"), _robot(r)) for r in records})
+    missing = len(wanted) - len({_key(r) for r in records})
     if missing:
         text += f"not run: {missing} of {len(wanted)} map x method x robot runs (no record in {path})\n"
     (out / "bench.txt").write_text(text, encoding="utf-8")

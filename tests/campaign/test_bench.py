@@ -166,3 +166,20 @@ def test_report_counts_the_path_points_outside_the_exploration_area(tmp_path):
     assert "frontier p3dx        success 1/1 = 100%" in result.output
     assert "bvp p3dx             success 0/1 = 0%" in result.output
     assert "generated:cave:0 bvp p3dx: 2 path points outside the exploration area" in result.output
+
+
+def test_a_run_interrupted_and_made_again_by_resume_counts_once(tmp_path):
+    # a bench stopped mid-run and resumed: the interrupted record stays in results.jsonl beside the run made again;
+    # the table counts the run once, as made; a run still only interrupted stays (--resume has not made it yet)
+    out = tmp_path / "bench"
+    out.mkdir()
+    base = {**record("frontier", 0.99, True, reason="done"), "world_spec": "generated:cave:0", "end": "explored"}
+    cut = {**base, "coverage": 0.4, "completed": False, "reason": "interrupted (SIGTERM)", "end": "interrupted"}
+    other = {**cut, "world_spec": "generated:cave:1"}
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in (cut, base, other)))
+    result = CliRunner().invoke(main, ["bench", "generated:cave:0-1", "-m", "frontier", "-o", str(out), "--report"])
+    assert result.exit_code == 0, result.output
+    assert "frontier p3dx        success 1/2 = 50%" in result.output
+    rows = list(csv.DictReader(io.StringIO((out / "bench.csv").read_text())))
+    assert len(rows) == 2
+    assert "not run" not in result.output
