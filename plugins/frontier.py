@@ -14,8 +14,8 @@ from robotexp.mapping.grid import OccupancyGrid
 from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import Cell, Path, astar, nearest_goal
 from robotexp.planning.reach import near_cells
-from robotexp.planning.targets import (PlanCosts, WallMemory, discs_blocked, frontier_targets, known_window,
-                                      passable_cell, wall_face_cells)
+from robotexp.planning.targets import (PlanCosts, WallMemory, discs_blocked, forget_firm_cells, frontier_targets,
+                                      known_window, passable_cell, shared_firm_cells, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -120,6 +120,7 @@ class FrontierExplorer(Explorer):
         """Loop closure rebuilt the map: forget the walls seen, the costs and the targets, and plan anew (the
         goal is kept only while its frontier cells are still frontier in the rebuilt map)."""
         self.walls_seen = None
+        forget_firm_cells(grid)
         self._targets = None
         _SHARED_COSTS.pop((id(grid), self.ctx.radius, self.clearance), None)
         self.next_plan = -math.inf
@@ -381,7 +382,7 @@ class FrontierExplorer(Explorer):
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
         """The cells ever firmly occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""
         if self.walls_seen is None:
-            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
+            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5), shared_firm_cells(grid))
         return self.walls_seen
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],

@@ -52,7 +52,8 @@ from robotexp.planning.metaheuristics import (
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, away_from, beside_large_unknown, discs_blocked,
-                                      known_window, passable_cell, usable_frontier, wall_face_cells)
+                                      forget_firm_cells, known_window, passable_cell, shared_firm_cells,
+                                      usable_frontier, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -177,6 +178,7 @@ class MetaheuristicExplorer(Explorer):
     def map_rebuilt(self, grid: OccupancyGrid, moved: FrameCorrection) -> None:
         """Loop closure rebuilt the map: the memory of the walls seen is started anew from it."""
         self.walls_seen = None
+        forget_firm_cells(grid)
 
     def assign_targets(self, cells: npt.NDArray[np.int64] | None) -> None:
         """A team coordinator's target: the search runs on the frontier among these cells (None: all of
@@ -307,7 +309,7 @@ class MetaheuristicExplorer(Explorer):
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
         """The cells ever firmly occupied, with distances exact to `face_reach` and the 8-neighbours."""
         if self.walls_seen is None:
-            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5))
+            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5), shared_firm_cells(grid))
         return self.walls_seen
 
     def give_up(self, grid: OccupancyGrid) -> bool:

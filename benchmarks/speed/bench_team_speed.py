@@ -8,7 +8,8 @@ the robots' array for each robot, the coordinator's round matched each robot's t
 cell by cell in Python, the cells each robot saw were marked through a boolean index, the distances kept
 near what the scans changed (plan costs, each explorer's wall memory) were recomputed on one box holding
 every scan since the last update (robots far apart: most of the map), and the team's traffic rules
-looked at each teammate in turn in Python. The "after" run is
+looked at each teammate in turn in Python, and every explorer's memory of the walls (and the team's) noted
+every robot's scans of the map they share, each for itself. The "after" run is
 the code as it is. Both runs must give the same record (path, coverage, collisions: the rework changes no
 result), which the script checks.
 
@@ -160,12 +161,23 @@ def _keep_clear_before(self: TeamRun, robot: int, m: Any, d: Twist, s: Any) -> N
         self._cut_command(robot, m, d, p, np.concatenate(rings), closing)
 
 
+def _own_firm_cells_before(grid: Any) -> Any:
+    from robotexp.planning.targets import FirmCells
+
+    return FirmCells()          # every memory of walls notes every scan of the map itself
+
+
 def _before() -> list[tuple[Any, str, Any]]:
     """What the "before" run patches: (owner, attribute, value)."""
+    import robotexp.planning.targets as targets_module
     import robotexp.run.team as team_module
+    import robotexp_plugins.frontier as frontier_module
+    import robotexp_plugins.metaheuristic as meta_module
     from robotexp_plugins.frontier import FrontierExplorer
 
-    return [(TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
+    return [*[(module, "shared_firm_cells", _own_firm_cells_before)
+              for module in (targets_module, team_module, frontier_module, meta_module)],
+            (TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
             (FrontierExplorer, "_plan_costs", _plan_costs_before), (team_module, "held_targets", _held_targets_before),
             (SeenCells, "note", _note_before), (OccupancyGrid, "changed_boxes", _changed_boxes_before),
             (TeamRun, "_lower_ahead", _lower_ahead_before), (TeamRun, "_keep_clear", _keep_clear_before)]

@@ -20,6 +20,7 @@ whole cell more (a 0.6 m gap closed to a 0.5 m robot on 10 cm cells).
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -36,7 +37,7 @@ from robotexp.planning.reach import probe_cells
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
            "surface_distance", "passable_radius", "cell_points", "beside_large_unknown", "away_from",
-           "discs_blocked"]
+           "discs_blocked", "FirmCells", "shared_firm_cells", "forget_firm_cells"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -212,27 +213,15 @@ class WallDistance:
         return r0, r1, c0, c1
 
 
-class WallMemory:
-    """The cells a growing log-odds map has ever shown firmly occupied, and the distance to them.
+class FirmCells:
+    """The cells of a growing log-odds map ever shown firmly occupied (`OccupancyGrid.firmly_occupied`: hit at
+    least twice more than crossed), noted once for every memory of walls that shares it (`shared_firm_cells`:
+    the explorers of a team planning on one map, and the run's check of "explored" on that map). Call `note`
+    after every scan the map integrates: it reads only the box the scans since the last call changed, so no
+    occupied state is missed."""
 
-    A wall stays a wall: beams that graze it (a full-circle scan, a robot driving along it) pass
-    through its cells and wear their log-odds down to unknown or free, and the unknown inside of a
-    shelf or a thick wall then borders free cells - frontier that no trip resolves (every look wears
-    the face again). Explorers that ask what an opening is ask this memory instead of the map's
-    current walls. Only cells hit at least twice more than crossed count (`firmly_occupied`): a scan
-    taken from a slightly wrong pose (real odometry, a pose a packet old) puts single hits beside the
-    walls, which the next beams undo, and a memory of those would hide openings for good. Call `note`
-    after every scan the map integrates (it reads only the box the scans since the last call changed,
-    so no occupied state is missed); `distance` brings the distance to the remembered cells up to
-    date, recomputing only near what changed (`WallDistance`).
-
-    Args:
-        reach: [cells] how far the distance must be exact (beyond: some larger value, or inf).
-    """
-
-    def __init__(self, reach: float) -> None:
+    def __init__(self) -> None:
         self.ever = np.zeros((0, 0), np.bool_)
-        self.walls = WallDistance(reach, lambda r0, r1, c0, c1: self.ever[r0:r1, c0:c1])
         self._grid: OccupancyGrid | None = None
         self._synced = 0
 
@@ -248,6 +237,57 @@ class WallMemory:
         self._synced = grid.scans
         for r0, r1, c0, c1 in boxes:
             self.ever[r0:r1, c0:c1] |= grid.firmly_occupied((r0, r1, c0, c1))
+
+
+_SHARED_FIRM: weakref.WeakKeyDictionary[OccupancyGrid, FirmCells] = weakref.WeakKeyDictionary()
+
+
+def shared_firm_cells(grid: OccupancyGrid) -> FirmCells:
+    """The `FirmCells` of `grid` that every caller on that grid shares (made at the first call): eight explorers
+    on a team's map note each scan once between them, not each the scans of all eight."""
+    cells = _SHARED_FIRM.get(grid)
+    if cells is None:
+        cells = _SHARED_FIRM[grid] = FirmCells()
+    return cells
+
+
+def forget_firm_cells(grid: OccupancyGrid) -> None:
+    """Start the shared `FirmCells` of `grid` afresh at the next `shared_firm_cells` (a map rebuilt after a loop
+    closure: walls where the old poses put them are no walls); memories that hold the old one keep it."""
+    _SHARED_FIRM.pop(grid, None)
+
+
+class WallMemory:
+    """The cells a growing log-odds map has ever shown firmly occupied, and the distance to them.
+
+    A wall stays a wall: beams that graze it (a full-circle scan, a robot driving along it) pass
+    through its cells and wear their log-odds down to unknown or free, and the unknown inside of a
+    shelf or a thick wall then borders free cells - frontier that no trip resolves (every look wears
+    the face again). Explorers that ask what an opening is ask this memory instead of the map's
+    current walls. Only cells hit at least twice more than crossed count (`firmly_occupied`): a scan
+    taken from a slightly wrong pose (real odometry, a pose a packet old) puts single hits beside the
+    walls, which the next beams undo, and a memory of those would hide openings for good. Call `note`
+    after every scan the map integrates (`FirmCells`); `distance` brings the distance to the remembered
+    cells up to date, recomputing only near what changed (`WallDistance`).
+
+    Args:
+        reach: [cells] how far the distance must be exact (beyond: some larger value, or inf).
+        cells: the remembered cells, shared with other memories of the same map (`shared_firm_cells`);
+            None: this memory's own.
+    """
+
+    def __init__(self, reach: float, cells: FirmCells | None = None) -> None:
+        self.cells = FirmCells() if cells is None else cells
+        self.walls = WallDistance(reach, lambda r0, r1, c0, c1: self.cells.ever[r0:r1, c0:c1])
+
+    @property
+    def ever(self) -> npt.NDArray[np.bool_]:
+        """(rows, cols) bool: the cells ever firmly occupied (the array noting updates: do not write to it)."""
+        return self.cells.ever
+
+    def note(self, grid: OccupancyGrid) -> None:
+        """Remember the cells of `grid` firmly occupied now among those the scans since the last note changed."""
+        self.cells.note(grid)
 
     def distance(self, grid: OccupancyGrid) -> npt.NDArray[np.float32]:
         """(rows, cols) float32 distance [cells] of every cell of `grid` to the nearest cell ever firmly occupied

@@ -23,7 +23,7 @@ import numpy.typing as npt
 from robotexp.coordinator import Candidates, Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
-from robotexp.planning.targets import WallMemory
+from robotexp.planning.targets import WallMemory, shared_firm_cells
 from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
@@ -150,7 +150,8 @@ class TeamRun(ExplorationRun):
         self.comm_range = comm_range
         self.exchange = None if comm_range is None else ScanExchange(grids)
         self.seen = SeenCells(grid.shape, n)
-        self.walls = WallMemory(1.5)        # the team grid's cells ever firmly occupied, for the end's check
+        # the team grid's cells ever firmly occupied, for the end's check (noted once with the explorers on that grid)
+        self.walls = WallMemory(1.5, shared_firm_cells(grid))
         self.gave_way = [0] * n             # periods each robot gave way to a teammate
         self.held = np.zeros(n)             # [s] each robot held without a break, as `_unjam` counts it
         self.around = [0] * n               # times each robot was told to plan around held teammates
@@ -333,14 +334,25 @@ class TeamRun(ExplorationRun):
         plus the stopping distance of the fastest teammate near, of a teammate's disc is cut to its turn
         alone, or to a stop; a teammate the laser cannot see (lower than the laser, or behind it) is not
         driven into. True when the command was cut."""
+        from robotexp.planning.follower import _sweep_length
+
         p = s.true_pose or s.pose
-        near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
+        apart = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y)
+        near = apart <= 2.0 + self._swing
         near[robot] = False
         if not near.any():
             return False
         v = self._speed[near]
         closing = max(float(np.max(v * v / self._brake[near] + v * 0.2)), 0.0)   # [m] the farthest a moving
         #                                                               teammate near may still come before it stops
+        # the sweep of `d` reaches no point nearer than its length plus the outline's swing and the clearance
+        # (`footprint_blocked`), and a point on a teammate's disc lies no nearer than its centre less its radius:
+        # when every disc lies beyond that, `d` keeps clear as it is (the common case: no ring to build)
+        clear = TEAMMATE_CLEARANCE + closing
+        lim = m.robot.limits
+        sweep = (_sweep_length(d.v, lim.a_max, clear) if d.v > 0 else 0.0) + m.robot.footprint.swing + clear
+        if bool(np.all(apart[near] - self._swing[near] > sweep + 1e-6)):
+            return False
         xy, r = self._xy[near], self._swing[near, None]
         world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
                                  (xy[:, 1, None] + r * np.sin(_RING)).ravel()])

@@ -454,3 +454,40 @@ def test_a_coordinators_target_it_cannot_reach_leaves_the_robot_exploring() -> N
     decision = explorer.step(_state(), grid)
     assert isinstance(decision, Twist) and not isinstance(decision, Done)
     assert explorer.goal is not None and max(explorer.goal) < 3.0      # in its room
+
+
+def test_explorers_on_one_map_share_one_memory_of_walls() -> None:
+    """The explorers of a team plan on one map: their memories of the walls share the cells ever firmly
+    occupied (`shared_firm_cells`), noted once for all. A wall that is firm only between two of one explorer's
+    notes (hit twice, then worn by grazing beams) is in its memory when a teammate noted it then; a map rebuilt
+    after a loop closure starts the explorer's memory afresh, and a memory that holds the old cells (the run's
+    check) keeps them."""
+    from robotexp.localization import FrameCorrection
+    from robotexp.planning.targets import WallMemory, shared_firm_cells
+    from robotexp.robot import LaserScan
+
+    grid = OccupancyGrid(GridGeometry(0.0, 0.0, 0.1, 40, 40))
+    a, b = FrontierExplorer(), FrontierExplorer()
+    _frontier_of(a, grid)
+    _frontier_of(b, grid)
+    mem_a, mem_b = a._memory(grid), b._memory(grid)
+    assert mem_a is not mem_b and mem_a.cells is mem_b.cells is shared_firm_cells(grid)
+    beam = LaserScan(np.array([0.0]), np.array([2.0]), 5.0)      # from (0.55, 2.05) east: hits (20, 25)
+    pose = Pose(0.55, 2.05, 0.0)
+    wall = (20, 25)
+    grid.update(pose, beam)
+    grid.update(pose, beam)
+    mem_a.note(grid)                    # robot A's step: the wall is firm now
+    grid.mark_free(np.pad(np.ones((1, 1), bool), ((20, 19), (25, 14))))    # grazing beams wear it
+    assert not grid.occupied()[wall]
+    own = WallMemory(3.0)               # a memory of its own notes only what the map shows at its note
+    own.note(grid)
+    assert not own.ever[wall]
+    mem_b.note(grid)                    # robot B's step, after the wear: B remembers the wall A saw firm
+    assert mem_b.ever[wall] and mem_b.ever.sum() == 1
+    kept = WallMemory(1.5, shared_firm_cells(grid))     # the run's check holds the same cells
+    a.map_rebuilt(grid, FrameCorrection([0.0], [(0.0, 0.0, 0.0)]))
+    fresh = a._memory(grid)
+    fresh.note(grid)
+    assert fresh.cells is not kept.cells and not fresh.ever[wall]
+    assert kept.ever[wall] and mem_b.ever[wall]
