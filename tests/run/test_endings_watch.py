@@ -149,6 +149,38 @@ def test_scans_are_clipped_where_they_leave_the_area():
     assert clip_scan(short, Pose(4.0, 2.0, 0.0), area) is short
 
 
+def test_clip_scan_far_from_the_edges_agrees_with_every_beam_clipped() -> None:
+    """Readings all short of the area's nearest edge come back unchanged without clipping each beam; near an
+    edge, with a reading or no echo past it, each beam is clipped: random poses, readings at the edge's
+    distance itself, NaN and inf, against the beam-by-beam rule (the distance to the edge along the beam)."""
+    area = (0.0, 0.0, 10.0, 6.0)
+    rng = np.random.default_rng(3)
+    angles = np.linspace(-math.pi, math.pi, 181)
+    kept = 0
+    for _ in range(300):
+        pose = Pose(float(rng.uniform(0.5, 9.5)), float(rng.uniform(0.5, 5.5)), float(rng.uniform(-3, 3)))
+        rmax = float(rng.choice([1.0, 3.0, 8.0]))
+        ranges = rng.uniform(0.1, rmax, 181)
+        ranges[rng.random(181) < 0.1] = np.nan
+        ranges[rng.random(181) < 0.02] = np.inf
+        scan = LaserScan(angles, ranges, range_max=rmax, offset_x=0.1)
+        sx, sy = pose.x + 0.1 * math.cos(pose.theta), pose.y + 0.1 * math.sin(pose.theta)
+        edge = min(sx, 10.0 - sx, sy, 6.0 - sy)
+        if rng.random() < 0.5:
+            ranges[rng.integers(181)] = edge    # a reading at the nearest edge's distance exactly
+        a = pose.theta + angles
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tx = np.where(np.cos(a) > 0, (10.0 - sx) / np.cos(a), np.where(np.cos(a) < 0, -sx / np.cos(a), np.inf))
+            ty = np.where(np.sin(a) > 0, (6.0 - sy) / np.sin(a), np.where(np.sin(a) < 0, -sy / np.sin(a), np.inf))
+        leave = np.maximum(np.minimum(tx, ty), 0.0)
+        reading = np.where(np.isfinite(ranges), ranges, rmax)
+        want = np.where(leave < reading, leave, ranges)
+        got = clip_scan(scan, pose, area)
+        np.testing.assert_array_equal(got.ranges, want)
+        assert (got is scan) == (not (leave < reading).any())
+        kept += got is scan
+    assert 30 < kept < 270          # both ways taken
+
 def test_bounds_parse_default_to_the_declared_area_and_become_walls():
     assert parse_bounds("-1000,-500,20000,15000") == (-1.0, -0.5, 20.0, 15.0)
     for bad in ("1,2,3", "0,0,-1,5", "0,0,nan,5", "a,b,c,d"):
