@@ -29,7 +29,7 @@ from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
 from robotexp.run.observers import RunObserver, StepEvent
 from robotexp.run.record import EndReason, RunRecord
-from robotexp.run.teamshare import ScanExchange, SeenCells, groups_within
+from robotexp.run.teamshare import ScanExchange, SeenCells, beams_on_teammates, groups_within, teammates_near
 
 if TYPE_CHECKING:
     from robotexp.clock import Clock
@@ -337,22 +337,21 @@ class TeamRun(ExplorationRun):
         from robotexp.planning.follower import _sweep_length
 
         p = s.true_pose or s.pose
-        apart = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y)
-        near = apart <= 2.0 + self._swing
-        near[robot] = False
-        if not near.any():
+        # the teammates within 2 m of their discs, the farthest a moving one of them may still come before it
+        # stops [m], and the least gap between the robot's centre and their discs [m]
+        found, closing, gap = teammates_near(p.x, p.y, self._xy, self._swing, self._speed, self._brake, robot, 2.0)
+        if not found:
             return False
-        v = self._speed[near]
-        closing = max(float(np.max(v * v / self._brake[near] + v * 0.2)), 0.0)   # [m] the farthest a moving
-        #                                                               teammate near may still come before it stops
         # the sweep of `d` reaches no point nearer than its length plus the outline's swing and the clearance
         # (`footprint_blocked`), and a point on a teammate's disc lies no nearer than its centre less its radius:
         # when every disc lies beyond that, `d` keeps clear as it is (the common case: no ring to build)
         clear = TEAMMATE_CLEARANCE + closing
         lim = m.robot.limits
         sweep = (_sweep_length(d.v, lim.a_max, clear) if d.v > 0 else 0.0) + m.robot.footprint.swing + clear
-        if bool(np.all(apart[near] - self._swing[near] > sweep + 1e-6)):
+        if gap > sweep + 1e-6:
             return False
+        near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
+        near[robot] = False
         xy, r = self._xy[near], self._swing[near, None]
         world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
                                  (xy[:, 1, None] + r * np.sin(_RING)).ravel()])
@@ -394,11 +393,8 @@ class TeamRun(ExplorationRun):
         near[robot] = False                                                                # disc it turns in
         if not near.any():
             return scan
-        hit = np.isfinite(scan.ranges)
-        ex = sx + np.where(hit, scan.ranges, 0.0) * np.cos(p.theta + scan.angles)
-        ey = sy + np.where(hit, scan.ranges, 0.0) * np.sin(p.theta + scan.angles)
-        at, r = self._xy[near], self._swing[near]
-        on = hit & (np.hypot(ex[:, None] - at[:, 0], ey[:, None] - at[:, 1]) <= r + TEAMMATE_MARGIN).any(axis=1)
+        on = beams_on_teammates((sx, sy, p.theta), scan.angles, scan.ranges, self._xy[near],
+                                self._swing[near] + TEAMMATE_MARGIN)
         if not on.any():
             return scan
         return replace(scan, ranges=np.where(on, np.nan, scan.ranges))

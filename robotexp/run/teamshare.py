@@ -4,15 +4,84 @@ of a record), and the scans the robots pass on when they are within communicatio
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
 
 from robotexp.mapping.grid import OccupancyGrid
+from robotexp.mapping.kernels import kernel
 from robotexp.robot import LaserScan, Pose
 
-__all__ = ["SeenCells", "ScanExchange", "groups_within"]
+__all__ = ["SeenCells", "ScanExchange", "groups_within", "beams_on_teammates", "beams_on_teammates_reference",
+           "teammates_near"]
+
+
+def beams_on_teammates(sensor: tuple[float, float, float], angles: npt.NDArray[np.float64],  # noqa: PLR0913
+                       ranges: npt.NDArray[np.float64], xy: npt.NDArray[np.float64],
+                       reach: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """(beams,) bool: the beams of a scan taken from `sensor` (x, y [m], heading [rad]; beam `angles` relative
+    to it) whose end (at `ranges`; a beam with no echo has none) lies within `reach[j]` [m] of teammate j's
+    centre `xy[j]` (k, 2): one pass over the beams and teammates (`beams_on_teammates_reference` is the same
+    in numpy)."""
+    out = np.zeros(len(ranges), np.bool_)
+    _beams_on(float(sensor[0]), float(sensor[1]), float(sensor[2]), np.ascontiguousarray(angles, np.float64),
+              np.ascontiguousarray(ranges, np.float64), np.ascontiguousarray(xy, np.float64).reshape(-1, 2),
+              np.ascontiguousarray(reach, np.float64), out)
+    return out
+
+
+def beams_on_teammates_reference(sensor: tuple[float, float, float], angles: npt.NDArray[np.float64],
+                                 ranges: npt.NDArray[np.float64], xy: npt.NDArray[np.float64],
+                                 reach: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """`beams_on_teammates` in numpy (every beam against every teammate at once)."""
+    sx, sy, theta = sensor
+    hit = np.isfinite(ranges)
+    ex = sx + np.where(hit, ranges, 0.0) * np.cos(theta + angles)
+    ey = sy + np.where(hit, ranges, 0.0) * np.sin(theta + angles)
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    return hit & (np.hypot(ex[:, None] - xy[:, 0], ey[:, None] - xy[:, 1]) <= reach).any(axis=1)
+
+
+@kernel
+def teammates_near(x: float, y: float, xy: npt.NDArray[np.float64], swing: npt.NDArray[np.float64],  # noqa: PLR0913
+                   speed: npt.NDArray[np.float64], brake: npt.NDArray[np.float64], robot: int,
+                   reach: float) -> tuple[bool, float, float]:
+    """Of the teammates (all rows of `xy` (n, 2) [m] but `robot`'s; rows of NaN: none) whose centres lie within
+    `reach` [m] plus their `swing` [m] of (x, y): whether there is one, the farthest one of them may still
+    come before it stops (speed^2 / `brake` + 0.2 s of speed [m], at least 0), and the least distance from
+    (x, y) to their discs (centre distance less swing) [m] (inf when none)."""
+    found = False
+    closing = 0.0
+    gap = math.inf
+    for j in range(xy.shape[0]):
+        if j == robot:
+            continue
+        d = math.hypot(xy[j, 0] - x, xy[j, 1] - y)
+        if not d <= reach + swing[j]:
+            continue
+        found = True
+        v = speed[j]
+        closing = max(closing, v * v / brake[j] + v * 0.2)
+        gap = min(gap, d - swing[j])
+    return found, closing, gap
+
+
+@kernel
+def _beams_on(sx: float, sy: float, theta: float, angles: npt.NDArray[np.float64],  # noqa: PLR0913
+              ranges: npt.NDArray[np.float64], xy: npt.NDArray[np.float64], reach: npt.NDArray[np.float64],
+              out: npt.NDArray[np.bool_]) -> None:
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        if not math.isfinite(r):
+            continue
+        ex = sx + r * math.cos(theta + angles[i])
+        ey = sy + r * math.sin(theta + angles[i])
+        for j in range(xy.shape[0]):
+            if math.hypot(ex - xy[j, 0], ey - xy[j, 1]) <= reach[j]:
+                out[i] = True
+                break
 
 
 class SeenCells:

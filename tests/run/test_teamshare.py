@@ -66,3 +66,50 @@ def test_scans_pass_on_through_the_robots_that_met():
         both.update(pose, fan())
     np.testing.assert_allclose(grids[2].values, both.values, atol=1e-6)
     assert ex.share([[0, 1, 2]]) == 1 and ex.share([[0, 1, 2]]) == 0     # only what is new travels
+
+
+def test_beams_ending_on_a_teammate_by_hand_and_against_the_numpy_reference() -> None:
+    """A sensor at (1, 2) facing +x: the beam straight ahead ends 2 m away at (3, 2), 0.05 m from a teammate's
+    centre at (3.05, 2) (reach 0.3 m); the beam to the left ends at (1, 3.5), 0.4 m from a teammate at
+    (1, 3.9) (out of reach 0.3); a beam with no echo through that teammate ends nowhere. Then random scans and
+    teammates against `beams_on_teammates_reference`."""
+    from robotexp.run.teamshare import beams_on_teammates, beams_on_teammates_reference
+
+    angles = np.array([0.0, np.pi / 2, np.pi / 2 + 1e-3, -np.pi / 2])
+    ranges = np.array([2.0, 1.5, np.nan, 0.5])
+    xy = np.array([[3.05, 2.0], [1.0, 3.9]])
+    reach = np.array([0.3, 0.3])
+    got = beams_on_teammates((1.0, 2.0, 0.0), angles, ranges, xy, reach)
+    assert got.tolist() == [True, False, False, False]
+    assert beams_on_teammates((1.0, 2.0, 0.0), angles, ranges, xy, np.array([0.3, 0.45])).tolist() == \
+        [True, True, False, False]
+    rng = np.random.default_rng(5)
+    on = 0
+    for _ in range(200):
+        angles = np.linspace(-np.pi, np.pi, 181, endpoint=False)
+        ranges = rng.uniform(0.05, 4.0, 181)
+        ranges[rng.random(181) < 0.1] = np.nan
+        sensor = (float(rng.uniform(-2, 2)), float(rng.uniform(-2, 2)), float(rng.uniform(-np.pi, np.pi)))
+        xy = rng.uniform(-4, 4, (int(rng.integers(0, 8)), 2))
+        reach = rng.uniform(0.2, 0.6, len(xy))
+        got = beams_on_teammates(sensor, angles, ranges, xy, reach)
+        np.testing.assert_array_equal(got, beams_on_teammates_reference(sensor, angles, ranges, xy, reach))
+        on += int(got.sum())
+    assert on > 100         # the random teammates were hit
+
+
+def test_teammates_near_by_hand() -> None:
+    """Robot 0 at (0, 0); robot 1 at (1, 0) (swing 0.3, 0.4 m/s, brake 2 m/s2) within 2 m of its disc; robot 2
+    at (2.5, 0) (swing 0.3: its disc 2.2 m away, out of reach); robot 3 not placed yet (NaN)."""
+    from robotexp.run.teamshare import teammates_near
+
+    xy = np.array([[0.0, 0.0], [1.0, 0.0], [2.5, 0.0], [np.nan, np.nan]])
+    swing = np.full(4, 0.3)
+    speed = np.array([0.0, 0.4, 0.3, 0.0])
+    brake = np.full(4, 2.0)
+    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.0)
+    assert found and closing == pytest.approx(0.4 * 0.4 / 2.0 + 0.4 * 0.2) and gap == pytest.approx(0.7)
+    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.3)    # robot 2 within reach now
+    assert found and closing == pytest.approx(0.16) and gap == pytest.approx(0.7)
+    found, closing, gap = teammates_near(-5.0, 0.0, xy, swing, speed, brake, 0, 2.0)   # nobody near
+    assert not found and closing == 0.0 and gap == math.inf

@@ -154,7 +154,8 @@ def test_observer_pauses_steps_and_stops_a_simulated_run(tmp_path: Path) -> None
         time.sleep(0.2)
         assert hub.time == pytest.approx(0.1)        # one control tick
         observer.command({"cmd": "resume"})
-        _wait(lambda: hub.time > 3.0)
+        # the robot turns a full circle where it starts (about 4.5 s) before it drives: wait for its path too
+        _wait(lambda: hub.time > 3.0 and len(hub.path) > 2)
         observer.command({"cmd": "pause"})
         held = _settled(lambda: hub.time)            # the loop reached its hold (it may be mid-tick)
         time.sleep(0.3)
