@@ -339,7 +339,9 @@ class TeamRun(ExplorationRun):
         p = s.true_pose or s.pose
         # the teammates within 2 m of their discs, the farthest a moving one of them may still come before it
         # stops [m], and the least gap between the robot's centre and their discs [m]
-        found, closing, gap = teammates_near(p.x, p.y, self._xy, self._swing, self._speed, self._brake, robot, 2.0)
+        near = np.zeros(len(self._xy), np.bool_)
+        found, closing, gap = teammates_near(p.x, p.y, self._xy, self._swing, self._speed, self._brake, robot, 2.0,
+                                             near)
         if not found:
             return False
         # the sweep of `d` reaches no point nearer than its length plus the outline's swing and the clearance
@@ -350,8 +352,6 @@ class TeamRun(ExplorationRun):
         sweep = (_sweep_length(d.v, lim.a_max, clear) if d.v > 0 else 0.0) + m.robot.footprint.swing + clear
         if gap > sweep + 1e-6:
             return False
-        near = np.hypot(self._xy[:, 0] - p.x, self._xy[:, 1] - p.y) <= 2.0 + self._swing
-        near[robot] = False
         xy, r = self._xy[near], self._swing[near, None]
         world = np.column_stack([(xy[:, 0, None] + r * np.cos(_RING)).ravel(),
                                  (xy[:, 1, None] + r * np.sin(_RING)).ravel()])

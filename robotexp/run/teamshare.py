@@ -47,20 +47,22 @@ def beams_on_teammates_reference(sensor: tuple[float, float, float], angles: npt
 @kernel
 def teammates_near(x: float, y: float, xy: npt.NDArray[np.float64], swing: npt.NDArray[np.float64],  # noqa: PLR0913
                    speed: npt.NDArray[np.float64], brake: npt.NDArray[np.float64], robot: int,
-                   reach: float) -> tuple[bool, float, float]:
+                   reach: float, near: npt.NDArray[np.bool_]) -> tuple[bool, float, float]:
     """Of the teammates (all rows of `xy` (n, 2) [m] but `robot`'s; rows of NaN: none) whose centres lie within
-    `reach` [m] plus their `swing` [m] of (x, y): whether there is one, the farthest one of them may still
-    come before it stops (speed^2 / `brake` + 0.2 s of speed [m], at least 0), and the least distance from
-    (x, y) to their discs (centre distance less swing) [m] (inf when none)."""
+    `reach` [m] plus their `swing` [m] of (x, y), marked True in `near` (n,): whether there is one, the
+    farthest one of them may still come before it stops (speed^2 / `brake` + 0.2 s of speed [m], at least
+    0), and the least distance from (x, y) to their discs (centre distance less swing) [m] (inf when none)."""
     found = False
     closing = 0.0
     gap = math.inf
     for j in range(xy.shape[0]):
+        near[j] = False
         if j == robot:
             continue
         d = math.hypot(xy[j, 0] - x, xy[j, 1] - y)
         if not d <= reach + swing[j]:
             continue
+        near[j] = True
         found = True
         v = speed[j]
         closing = max(closing, v * v / brake[j] + v * 0.2)

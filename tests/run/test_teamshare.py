@@ -107,9 +107,12 @@ def test_teammates_near_by_hand() -> None:
     swing = np.full(4, 0.3)
     speed = np.array([0.0, 0.4, 0.3, 0.0])
     brake = np.full(4, 2.0)
-    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.0)
+    near = np.ones(4, bool)
+    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.0, near)
     assert found and closing == pytest.approx(0.4 * 0.4 / 2.0 + 0.4 * 0.2) and gap == pytest.approx(0.7)
-    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.3)    # robot 2 within reach now
+    assert near.tolist() == [False, True, False, False]
+    found, closing, gap = teammates_near(0.0, 0.0, xy, swing, speed, brake, 0, 2.3, near)  # robot 2 within reach
     assert found and closing == pytest.approx(0.16) and gap == pytest.approx(0.7)
-    found, closing, gap = teammates_near(-5.0, 0.0, xy, swing, speed, brake, 0, 2.0)   # nobody near
-    assert not found and closing == 0.0 and gap == math.inf
+    assert near.tolist() == [False, True, True, False]
+    found, closing, gap = teammates_near(-5.0, 0.0, xy, swing, speed, brake, 0, 2.0, near)  # nobody near
+    assert not found and closing == 0.0 and gap == math.inf and not near.any()
