@@ -3,14 +3,17 @@
 On `--world` (default dense) with the frontier explorer, for each start pose and seed: one P3-DX alone, then
 a team of `--team` P3-DX robots (spread from the same start) with each coordinator of `--coordinators`. The
 simulator and the frontier explorer are deterministic without noise, so start poses, not seeds, give the
-runs their variety. Prints a row per run and the medians per setting (time to 95 % also as a share of the
-single robot's from the same start), writes every record to OUT/results.jsonl, the table as
-OUT/team_study.md, and the figures (the coverage curves of the first start, the map of its team run for each
-coordinator) to `--figures`.
+runs their variety; with laser noise (`--noise-sigma`) each seed is another draw of it, and a run's course
+with it. Prints a row per run and the medians per setting (time to 95 % also as a share of the single
+robot's from the same start), then each coordinator against `none` run by run (same team size, start and
+seed): in how many runs its overlap and time to 95 % are lower, the median difference and the two-sided
+Wilcoxon signed-rank p-value. Writes every record to OUT/results.jsonl, the tables as OUT/team_study.md,
+and the figures (the coverage curves of the first start, the map of its team run for each coordinator) to
+`--figures`.
 
     python benchmarks/studies/team_study.py [--world dense] [--team 4 | 2,4,8]
         [--coordinators none,greedy,burgard,minpos,burgard:beta=4] [--poses 1] [--seeds 0] [--max-time 1800]
-        [--out out/team_study] [--figures docs/figures]
+        [--noise-sigma 0] [--params replan_period=2.1] [--jobs 1] [--out out/team_study] [--figures docs/figures]
 
 docs/how-to/teams.md: ``python benchmarks/studies/team_study.py --poses 1,2,3,4,5,6,7,8,9 --figures docs/figures``.
 """
@@ -21,7 +24,9 @@ import argparse
 import statistics
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 
 def _slug(name: str) -> str:
@@ -29,11 +34,39 @@ def _slug(name: str) -> str:
     return name.replace(":", "_").replace("=", "")
 
 
-def main() -> int:
+def _case(world: str, pose: str, seed: int, sizes: list[int], coordinators: list[str], max_time: float,  # noqa: PLR0913
+          sigma: float, params: dict[str, float], out: Path, keep: bool) -> list[tuple[str, str, dict[str, Any], Any]]:
+    """One start and seed: the robot alone, then every team. (label, slug, row, output when `keep`) each."""
     from robotexp.experiment import run_experiment, run_team
-    from robotexp.output.figures import curve_figure, run_map_figure, save_figure
     from robotexp.run.spec import RunSpec
     from robotexp.run.team import TeamSpec
+
+    spec = RunSpec(world=world, method="frontier", pose=None if pose == "default" else pose, seed=seed,
+                   max_time=max_time, laser_sigma=sigma, params=params)
+    settings = [("1 robot", "", run_experiment(spec, out, image=False))]
+    for size in sizes:
+        for name in coordinators:
+            coordinator, *params = name.split(":")
+            team = TeamSpec(robots=("p3dx",) * size, coordinator=coordinator,
+                            coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in params)})
+            where = out / _slug(name) if params else out    # one results file per parameter set
+            settings.append((f"{size} {name}", _slug(name), run_team(spec, team, where, image=False)))
+    base = settings[0][2].record.time_to_coverage_95_s
+    rows = []
+    for label, slug, output in settings:
+        r = output.record
+        t95 = r.time_to_coverage_95_s
+        rows.append((label, slug, {
+            "pose": pose, "seed": seed, "coverage": r.coverage, "t95": t95,
+            "share": None if t95 is None or not base else t95 / base, "path": r.path_length_m,
+            "max_path": r.max_path_m, "overlap": r.overlap_ratio, "idle": r.idle_time_s,
+            "collisions": r.collisions, "robot_collisions": r.robot_collisions, "wall": r.wall_time_s,
+            "end": r.end.value}, output if keep else None))
+    return rows
+
+
+def main() -> int:
+    from robotexp.output.figures import curve_figure, run_map_figure, save_figure
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="dense")
@@ -44,6 +77,10 @@ def main() -> int:
     ap.add_argument("--poses", default="1", help="start poses of the world, comma-separated ('default': the "
                                                   "default start, for a map that names none)")
     ap.add_argument("--max-time", type=float, default=1800.0, help="[s] robot time of each run")
+    ap.add_argument("--noise-sigma", type=float, default=0.0, help="[mm] gaussian laser noise (each seed a draw)")
+    ap.add_argument("--params", default="", help="the frontier explorer's parameters, name=value,... "
+                                                  "(replan_period=2.1)")
+    ap.add_argument("--jobs", type=int, default=1, help="starts and seeds run in this many processes")
     ap.add_argument("--out", type=Path, default=Path("out/team_study"))
     ap.add_argument("--figures", type=Path, default=None, help="folder of the figures (default: OUT)")
     args = ap.parse_args()
@@ -55,6 +92,20 @@ def main() -> int:
     except RobotexpError as exc:
         print(f"team_study: {exc}", file=sys.stderr)
         return 2
+    if not (0 <= args.noise_sigma <= 1000) or args.jobs < 1:
+        print("team_study: --noise-sigma must be 0..1000 mm and --jobs at least 1", file=sys.stderr)
+        return 2
+    try:
+        params = {k.strip(): float(v) for k, v in (p.split("=", 1) for p in args.params.split(",") if p.strip())}
+        from robotexp.registry import make_explorer
+
+        make_explorer("frontier", params)     # an unknown or out-of-range parameter: one line, before any run
+    except RobotexpError as exc:
+        print(f"team_study: --params: {exc}", file=sys.stderr)
+        return 2
+    except ValueError:
+        print(f"team_study: --params {args.params!r}: give name=number pairs, comma-separated", file=sys.stderr)
+        return 2
     stem = Path(args.world).stem if is_map_file(args.world) else args.world   # in file names
     seeds = [int(s) for s in args.seeds.split(",")]
     cases = [(pose, seed) for pose in args.poses.split(",") for seed in seeds]
@@ -62,42 +113,30 @@ def main() -> int:
     sizes = [int(n) for n in args.team.split(",")]
     figures = args.figures or args.out
     figures.mkdir(parents=True, exist_ok=True)
-    rows: dict[str, list[dict[str, float | None]]] = {}
-    curves = []
     header = f"{'setting':<16} {'pose':>4} {'seed':>4} {'coverage':>8} {'t95 s':>7} {'t95/1':>6} {'path m':>7} " \
              f"{'max m':>6} {'overlap':>7} {'idle s':>7} {'coll':>4} {'r-r':>3} {'wall s':>6}  end"
     print(header)
     t0 = time.perf_counter()
-    for pose, seed in cases:
-        spec = RunSpec(world=args.world, method="frontier", pose=None if pose == "default" else pose, seed=seed,
-                       max_time=args.max_time)
-        single = run_experiment(spec, args.out, image=False)
-        settings = [("1 robot", "", single)]
-        for size in sizes:
-            for name in coordinators:
-                coordinator, *params = name.split(":")
-                team = TeamSpec(robots=("p3dx",) * size, coordinator=coordinator,
-                                coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in params)})
-                where = args.out / _slug(name) if params else args.out    # one results file per parameter set
-                settings.append((f"{size} {name}", _slug(name), run_team(spec, team, where, image=False)))
-        base = single.record.time_to_coverage_95_s
-        for label, slug, output in settings:
-            r = output.record
-            t95 = r.time_to_coverage_95_s
-            share = None if t95 is None or not base else t95 / base
-            row = {"coverage": r.coverage, "t95": t95, "share": share, "path": r.path_length_m,
-                   "overlap": r.overlap_ratio, "collisions": r.collisions}
+    common = (sizes, coordinators, args.max_time, args.noise_sigma / 1000.0, params, args.out)
+    with ProcessPoolExecutor(args.jobs) if args.jobs > 1 and len(cases) > 1 else _Serial() as pool:
+        later = [pool.submit(_case, args.world, pose, seed, *common, False) for pose, seed in cases[1:]]
+        first = _case(args.world, *cases[0], *common, True)      # in this process: its runs draw the figures
+        results = [first] + [f.result() for f in later]
+    rows: dict[str, list[dict[str, Any]]] = {}
+    curves = []
+    for case in results:
+        for label, slug, row, output in case:
             rows.setdefault(label, []).append(row)
-            print(f"{label:<16} {pose:>4} {seed:>4} {_f(r.coverage, 4):>8} {_f(t95, 0):>7} {_f(share, 2):>6} "
-                  f"{r.path_length_m:>7.1f} {_f(r.max_path_m, 1):>6} {_f(r.overlap_ratio, 3):>7} "
-                  f"{_f(r.idle_time_s, 0):>7} {r.collisions:>4} {_f(r.robot_collisions, 0):>3} "
-                  f"{r.wall_time_s:>6.1f}  {r.end.value}")
-            if (pose, seed) == cases[0]:
+            print(f"{label:<16} {row['pose']:>4} {row['seed']:>4} {_f(row['coverage'], 4):>8} {_f(row['t95'], 0):>7} "
+                  f"{_f(row['share'], 2):>6} {row['path']:>7.1f} {_f(row['max_path'], 1):>6} "
+                  f"{_f(row['overlap'], 3):>7} {_f(row['idle'], 0):>7} {row['collisions']:>4} "
+                  f"{_f(row['robot_collisions'], 0):>3} {row['wall']:>6.1f}  {row['end']}")
+            if output is not None:
                 curve = output.run.metrics.curve
                 curves.append((label, [c[0] for c in curve], [100 * c[2] for c in curve]))
-                if r.team_size is not None:
+                if output.record.team_size is not None:
                     fig = run_map_figure(output.run)
-                    size = "" if sizes == [4] else f"{r.team_size}_"
+                    size = "" if sizes == [4] else f"{output.record.team_size}_"
                     save_figure(fig, figures / f"teams_{stem}_{size}{slug}", ("png",))
     table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
              "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -105,8 +144,11 @@ def main() -> int:
         table.append(f"| {label} | {len(rs)} | {_med(rs, 'coverage', 4)} | {_med(rs, 't95', 0)} | "
                      f"{_med(rs, 'share', 2)} | {_med(rs, 'path', 1)} | {_med(rs, 'overlap', 3)} | "
                      f"{_med(rs, 'collisions', 0)} |")
+    paired = _against_none(rows, sizes, coordinators)
     print("\nmedians\n" + "\n".join(table))
-    (args.out / "team_study.md").write_text("\n".join(table) + "\n", encoding="utf-8")
+    if paired:
+        print("\nagainst none, run by run\n" + "\n".join(paired))
+    (args.out / "team_study.md").write_text("\n".join(table + [""] + paired) + "\n", encoding="utf-8")
     fig = curve_figure(curves, xlabel="robot time [s]", ylabel="coverage [%]",
                        title=f"{stem}: one robot and teams of {args.team} (frontier, start {cases[0][0]})",
                        hlines=[95.0])
@@ -114,6 +156,49 @@ def main() -> int:
     print(f"\n{len(cases) * (1 + len(sizes) * len(coordinators))} runs in {time.perf_counter() - t0:.0f} s; records in "
           f"{args.out / 'results.jsonl'}, figures in {figures}")
     return 0
+
+
+class _Serial:
+    """ProcessPoolExecutor's `submit` run at once in this process (--jobs 1)."""
+
+    def __enter__(self) -> _Serial:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def submit(self, fn: Any, *args: Any) -> Any:
+        from concurrent.futures import Future
+
+        done: Future[Any] = Future()
+        done.set_result(fn(*args))
+        return done
+
+
+def _against_none(rows: dict[str, list[dict[str, Any]]], sizes: list[int], coordinators: list[str]) -> list[str]:
+    """Each coordinator's overlap and time to 95 % against `none`'s of the same size, start and seed: runs
+    lower, median difference, Wilcoxon signed-rank p (two-sided; "-" for fewer than 6 pairs)."""
+    from scipy.stats import wilcoxon
+
+    out = ["| setting | pairs | overlap lower | median overlap - none's | p | t95 lower | median t95 - none's [s] "
+           "| p |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for size in sizes:
+        base = {(r["pose"], r["seed"]): r for r in rows.get(f"{size} none", [])}
+        for name in coordinators:
+            if name == "none" or not base:
+                continue
+            cells = [f"{size} {name}"]
+            pairs = [(r, base[(r["pose"], r["seed"])]) for r in rows[f"{size} {name}"]
+                     if (r["pose"], r["seed"]) in base]
+            cells.append(str(len(pairs)))
+            for key, digits in (("overlap", 3), ("t95", 0)):
+                diffs = [a[key] - b[key] for a, b in pairs if a[key] is not None and b[key] is not None]
+                lower = sum(d < 0 for d in diffs)
+                p = "-" if len(diffs) < 6 or not any(diffs) else f"{wilcoxon(diffs).pvalue:.2f}"
+                cells += [f"{lower} of {len(diffs)}", _f(statistics.median(diffs) if diffs else None, digits), p]
+            out.append("| " + " | ".join(cells) + " |")
+    return out if len(out) > 2 else []
 
 
 def _f(value: float | None, digits: int) -> str:
