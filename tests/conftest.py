@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import json
 import re
@@ -14,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import os
+import tempfile
 
 import pytest
 from hypothesis import settings
@@ -41,6 +44,55 @@ def _tracking_init(self: Robot, *args: Any, **kwargs: Any) -> None:
 
 
 Robot.__init__ = _tracking_init  # type: ignore[method-assign]
+
+
+# Test files whose tests keep time with the wall clock: emulated devices that stream in real time, servers, a
+# browser, subprocesses stopped by signals and timeouts. On two processes (pytest-xdist) such a file runs
+# alone: its process holds the tests' lock exclusively while the other process's tests each hold it shared.
+_REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py",
+              "campaign/test_cluster.py", "campaign/test_cluster_faults.py", "cli/test_interrupt.py",
+              "cli/test_first_contact.py", "lua/test_lua_errors.py", "lua/test_lua_hardening.py",
+              "lua/test_lua_integrity.py", "lua/test_lua_p3dx.py", "output/test_results_hardening.py",
+              "output/test_disk_full.py", "run/test_teamrobots.py", "run/test_warm_kernels.py")
+_TESTS = Path(__file__).resolve().parent
+
+
+def _real_time(path: Path) -> bool:
+    try:
+        rel = path.resolve().relative_to(_TESTS).as_posix()
+    except ValueError:
+        return False
+    return rel.startswith(_REAL_TIME) and not rel.endswith("_codec.py")     # a codec's tests are bytes only
+
+
+@contextlib.contextmanager
+def _tests_lock(mode: int) -> Iterator[None]:
+    """The lock the processes of one xdist run share (nothing without xdist)."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if not run:
+        yield
+        return
+    fd = os.open(Path(tempfile.gettempdir()) / f"robotexp-tests-{run}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, mode)
+        yield
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _real_time_file_alone(request: pytest.FixtureRequest) -> Iterator[None]:
+    """A real-time test file runs while no other test does (its module fixtures included)."""
+    with _tests_lock(fcntl.LOCK_EX) if _real_time(request.path) else contextlib.nullcontext():
+        yield
+
+
+@pytest.fixture(autouse=True)
+def _beside_other_tests(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Any other test runs beside any other but a real-time file's."""
+    with contextlib.nullcontext() if _real_time(request.path) else _tests_lock(fcntl.LOCK_SH):
+        yield
 
 
 @pytest.fixture(autouse=True)
