@@ -34,8 +34,8 @@ from robotexp_drivers.p3dx.robot import P3DXRobot
 
 @pytest.fixture
 def emulated() -> Iterator[dict[str, Any]]:
-    """`robotexp emulate p3dx,p3dx,kobuki+rplidar:pty --world ufmg-static --port 0 --speedup 10`."""
-    devices = emulate_team(parse_emulated("p3dx,p3dx,kobuki+rplidar:pty"), "ufmg-static", port=0, speedup=10.0)
+    """`robotexp emulate p3dx,p3dx,kobuki+rplidar:pty --world ufmg-static --port 0 --speedup 5`."""
+    devices = emulate_team(parse_emulated("p3dx,p3dx,kobuki+rplidar:pty"), "ufmg-static", port=0, speedup=5.0)
     try:
         yield dict(devices)
     finally:
@@ -65,7 +65,7 @@ def test_an_emulated_team_explores_one_world_through_the_drivers(tmp_path: Path,
     assert [r["robot"] for r in robots] == ["p3dx", "p3dx", "kobuki"]
     assert [r["address"] for r in robots] == [p1.address, p2.address, kobuki.address]
     # one frame: each robot was told it stands where the emulator put it (spread from path1, to the 1 mm of the
-    # protocol). Where each ends is not compared: the emulators run on at 10x while the client thinks (0.1 s of
+    # protocol). Where each ends is not compared: the emulators run on at 5x while the client thinks (0.2 s of
     # wall time is a second of robot time) and until the stop reaches them, so a loaded machine parts the last
     # pose read from the simulator's by tens of centimetres
     for r, start in zip(robots, starts, strict=True):
