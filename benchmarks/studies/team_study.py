@@ -195,10 +195,15 @@ def _against_none(rows: dict[str, list[dict[str, Any]]], sizes: list[int], coord
             for key, digits in (("overlap", 3), ("t95", 0)):
                 diffs = [a[key] - b[key] for a, b in pairs if a[key] is not None and b[key] is not None]
                 lower = sum(d < 0 for d in diffs)
-                p = "-" if len(diffs) < 6 or not any(diffs) else f"{wilcoxon(diffs).pvalue:.2f}"
+                p = "-" if len(diffs) < 6 or not any(diffs) else _p(float(wilcoxon(diffs).pvalue))
                 cells += [f"{lower} of {len(diffs)}", _f(statistics.median(diffs) if diffs else None, digits), p]
             out.append("| " + " | ".join(cells) + " |")
     return out if len(out) > 2 else []
+
+
+def _p(value: float) -> str:
+    """A p-value: two decimals, one significant digit below 0.01."""
+    return f"{value:.2f}" if value >= 0.01 else f"{value:.1g}"
 
 
 def _f(value: float | None, digits: int) -> str:
