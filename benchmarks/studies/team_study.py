@@ -46,10 +46,10 @@ def _case(world: str, pose: str, seed: int, sizes: list[int], coordinators: list
     settings = [("1 robot", "", run_experiment(spec, out, image=False))]
     for size in sizes:
         for name in coordinators:
-            coordinator, *params = name.split(":")
+            coordinator, *given = name.split(":")
             team = TeamSpec(robots=("p3dx",) * size, coordinator=coordinator,
-                            coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in params)})
-            where = out / _slug(name) if params else out    # one results file per parameter set
+                            coordinator_params={k: float(v) for k, v in (p.split("=", 1) for p in given)})
+            where = out / _slug(name) if given else out    # one results file per parameter set
             settings.append((f"{size} {name}", _slug(name), run_team(spec, team, where, image=False)))
     base = settings[0][2].record.time_to_coverage_95_s
     rows = []
@@ -118,10 +118,13 @@ def main() -> int:
     print(header)
     t0 = time.perf_counter()
     common = (sizes, coordinators, args.max_time, args.noise_sigma / 1000.0, params, args.out)
-    with ProcessPoolExecutor(args.jobs) if args.jobs > 1 and len(cases) > 1 else _Serial() as pool:
-        later = [pool.submit(_case, args.world, pose, seed, *common, False) for pose, seed in cases[1:]]
-        first = _case(args.world, *cases[0], *common, True)      # in this process: its runs draw the figures
-        results = [first] + [f.result() for f in later]
+    if args.jobs > 1 and len(cases) > 1:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            later = [pool.submit(_case, args.world, pose, seed, *common, False) for pose, seed in cases[1:]]
+            first = _case(args.world, *cases[0], *common, True)      # in this process: its runs draw the figures
+            results = [first] + [f.result() for f in later]
+    else:
+        results = [_case(args.world, pose, seed, *common, i == 0) for i, (pose, seed) in enumerate(cases)]
     rows: dict[str, list[dict[str, Any]]] = {}
     curves = []
     for case in results:
@@ -156,23 +159,6 @@ def main() -> int:
     print(f"\n{len(cases) * (1 + len(sizes) * len(coordinators))} runs in {time.perf_counter() - t0:.0f} s; records in "
           f"{args.out / 'results.jsonl'}, figures in {figures}")
     return 0
-
-
-class _Serial:
-    """ProcessPoolExecutor's `submit` run at once in this process (--jobs 1)."""
-
-    def __enter__(self) -> _Serial:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def submit(self, fn: Any, *args: Any) -> Any:
-        from concurrent.futures import Future
-
-        done: Future[Any] = Future()
-        done.set_result(fn(*args))
-        return done
 
 
 def _against_none(rows: dict[str, list[dict[str, Any]]], sizes: list[int], coordinators: list[str]) -> list[str]:
