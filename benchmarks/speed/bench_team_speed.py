@@ -15,7 +15,9 @@ result), which the script checks.
 
 Figures: team time (the one clock all robots share) / wall time of the loop, and robot-seconds (team time
 x robots) / wall time; the single robot's ratio on the same map and time, measured alongside, bounds what a
-team of n can reach on team time: each of its robots costs at least one single robot's steps.
+team of n can reach on team time: each of its robots costs at least one single robot's steps. So does, lower
+down, the sensing alone: the single robot's laser cast again from each pose it scanned at and each scan
+integrated into a fresh map, timed with nothing else (no explorer, no physics, no loop).
 
 Run (maps are not in the repository; any ROS .yaml or MobileSim .map):
 
@@ -45,7 +47,8 @@ from perflog import Figure, record  # noqa: E402
 from robotexp.experiment import run_experiment, run_team  # noqa: E402
 from robotexp.run.spec import RunSpec  # noqa: E402
 from robotexp.mapping.grid import OccupancyGrid  # noqa: E402
-from robotexp.robot import Twist, wrap_angle  # noqa: E402
+from robotexp.robot import LaserScan, Twist, wrap_angle  # noqa: E402
+from robotexp.run.observers import RunObserver  # noqa: E402
 from robotexp.run.record import EndReason  # noqa: E402
 from robotexp.run.team import (  # noqa: E402
     _RING,
@@ -183,6 +186,38 @@ def _before() -> list[tuple[Any, str, Any]]:
             (TeamRun, "_lower_ahead", _lower_ahead_before), (TeamRun, "_keep_clear", _keep_clear_before)]
 
 
+class SensingFloor(RunObserver):
+    """The sensing every robot's tick needs, alone: at the end of a single robot's run, its laser cast again from
+    each pose the run mapped a scan at, and each scan integrated into a fresh map of the run's geometry, timed
+    on CPU time (no explorer, no plan, no physics step). Its robot-seconds per CPU second bound any team of
+    simulated robots that scan and map at the run's period: a team of n reaches at most that / n on team
+    time."""
+
+    def __init__(self) -> None:
+        self.poses: list[Any] = []
+        self.cpu = math.nan          # [s] CPU of the casts and map updates
+        self.robot_time = 0.0        # [s] robot time the scans stand for
+        self.period = math.nan       # [s] the run's control period
+
+    def on_step(self, run: Any, step: Any) -> None:
+        if step.map_updated:
+            self.poses.append(step.state.true_pose or step.state.pose)
+
+    def on_end(self, run: Any, record: Any) -> None:
+        robot, grid = run.robot, run.grid
+        cfg = robot.laser_config
+        fresh = OccupancyGrid(grid.geo, model=grid.model, range_max=grid.range_max)
+        t0 = time.process_time()
+        for p in self.poses:
+            sx = p.x + cfg.offset_x * math.cos(p.theta)
+            sy = p.y + cfg.offset_x * math.sin(p.theta)
+            ranges = robot._cast_fan(sx, sy, cfg.height, p.theta + robot._angles, cfg.range_max)
+            fresh.update(p, LaserScan(robot._angles, ranges, cfg.range_max, cfg.offset_x))
+        self.cpu = time.process_time() - t0
+        self.robot_time = len(self.poses) * run.period
+        self.period = run.period
+
+
 def _team(spec: RunSpec, team: TeamSpec, patches: list[tuple[Any, str, Any]]) -> tuple[Any, float, float]:
     """The record of a team run with `patches` in place, its wall time with set-up [s] and the CPU time of
     its loop [s]."""
@@ -219,11 +254,12 @@ def main() -> int:
     spec = RunSpec(world=world, method="frontier", max_time=args.max_time)
     team = TeamSpec(robots=("p3dx",) * args.robots, coordinator=args.coordinator)
     print(f"load average before: {os.getloadavg()[0]:.1f} (1 min)")
-    one_cpu = 0.0
+    one_cpu = sensing = 0.0
     for _ in range(args.repeat):        # one robot's loop takes well under a second: the best of the repeats
-        clock = CpuClock()
-        single = run_experiment(spec, None, image=False, observers=[clock]).record
+        clock, floor = CpuClock(), SensingFloor()
+        single = run_experiment(spec, None, image=False, observers=[clock, floor]).record
         one_cpu = max(one_cpu, single.robot_time_s / clock.figures()[0])
+        sensing = max(sensing, floor.robot_time / floor.cpu)
     rows = []
     for _ in range(args.repeat):        # before and after in turn: a load that comes and goes hits both
         rows.append(("before", *_team(spec, team, _before())))
@@ -237,6 +273,9 @@ def main() -> int:
     print(f"{Path(world).stem}, {n} P3-DX, frontier, coordinator {args.coordinator}, {args.max_time:g} s of robot time")
     print(f"  one robot alone: {one:.0f}x on wall time, {one_cpu:.0f}x on CPU time (loop): a team of {n} costs at "
           f"least {n} robots' steps, ~{one_cpu / n:.0f}x on team time")
+    print(f"  its laser cast and map update alone (no explorer, no physics): {sensing:.0f}x on CPU time: {n} robots "
+          f"scanning and mapping every {floor.period:g} s stay below "
+          f"~{sensing / n:.0f}x on team time")
     for label, r, total, cpu in rows:
         print(f"  {label:>6}: coverage {r.coverage:.4f}, path {r.path_length_m:.1f} m, loop {r.wall_time_s:.2f} s wall "
               f"(with set-up {total:.2f} s), {cpu:.2f} s CPU: team time / wall {r.robot_time_s / r.wall_time_s:.1f}x, "
@@ -263,6 +302,9 @@ def main() -> int:
             Figure(f"{label}: team time / wall time of the loop, after", round(t / wall["after"], 1), "x"),
             Figure(f"{Path(world).stem}: one robot alone, robot time / CPU time of the loop", round(one_cpu), "x",
                    "a team of n on team time stays below this / n"),
+            Figure(f"{Path(world).stem}: one robot's laser cast and map update alone, robot time / CPU time",
+                   round(sensing), "x", "no explorer, no physics: a team of n scanning at the run's period stays "
+                                        "below this / n"),
         ], title="A team of eight robots on a large map", parameters={"map": Path(world).name, "robots": n,
                                                                       "coordinator": args.coordinator,
                                                                       "max_time_s": args.max_time,
