@@ -43,6 +43,7 @@ RESULT_KEYS = {
     "robot_time_s": "robot time the run took [s] (simulated time on the simulator)",
     "wall_time_s": "wall-clock time the run took [s]",
     "coverage": "0..1: share of the explorable free space the map marks free (null without ground truth)",
+    "coverage_inside": "0..1: coverage of the floor more than a cell from every obstacle (absent without ground truth)",
     "collisions": "contacts with obstacles (each bumper press on a real robot)",
     "nodes": "tree size of a tree-building explorer (SRT); null for the others",
     "visited_cells": "map cells the robot's centre passed",

@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 def make_record(run: ExplorationRun) -> RunRecord:
     """The record of a run that ended (SI units; docs/reference/results.md has every key), named by
     `run.info`."""
-    from robotexp.world.groundtruth import map_iou, map_iou_tolerant
+    from robotexp.world.groundtruth import coverage_inside, map_iou, map_iou_tolerant
 
     m = run.metrics
     info = run.info
@@ -53,10 +53,12 @@ def make_record(run: ExplorationRun) -> RunRecord:
     nodes = method_fields.pop("nodes", None)
     iou: float | None = None
     iou_tolerant: float | None = None       # within one cell: a face a few millimetres off is not missed
+    inside: float | None = None             # the floor over a cell from the walls (noisy hits land along them)
     if run.truth is not None:
         states = run.grid.states()
         iou = round(map_iou(states, run.truth), 5)
         iou_tolerant = round(map_iou_tolerant(states, run.truth, 1)[0], 5)
+        inside = round(coverage_inside(run.grid.free(), run.truth), 5)
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
         start_pose=run.start_pose.as_list() if run.start_pose else None,
@@ -65,6 +67,7 @@ def make_record(run: ExplorationRun) -> RunRecord:
         robot_time_s=round(run.robot_time, 3),
         wall_time_s=round(run.wall_time, 3),
         coverage=None if cov is None else round(cov, 5),
+        coverage_inside=inside,
         collisions=m.collisions,
         nodes=nodes,
         visited_cells=len(m.visited),

@@ -132,6 +132,7 @@ class RunRecord(Mapping[str, Any]):
     robot_collisions: int | None = None
     coordinator_rounds: int | None = None
     robots: list[dict[str, Any]] | None = None
+    coverage_inside: float | None = None
 
     def __post_init__(self) -> None:
         if self.end is EndReason.UNKNOWN:
@@ -150,11 +151,15 @@ class RunRecord(Mapping[str, Any]):
         """The JSON object of docs/reference/results.md, keys in the order they have always been written:
         the fields, the explorer's `method_fields`, `pose`, `laser_range_m`, `robot`, then `extra`. A
         record of a schema version also writes `schema_version` (first), `end` (after `reason`) and
-        `map_iou_tolerant` (after `map_iou`); one read from an earlier line has none of them."""
+        `map_iou_tolerant` (after `map_iou`); one read from an earlier line has none of them.
+        `coverage_inside` follows `coverage` when it is set (a run with ground truth); a line read without
+        it is written back without it."""
         versioned = self.schema_version is not None
         out: dict[str, Any] = {"schema_version": self.schema_version} if versioned else {}
         for key in _HEAD:
             out[key] = getattr(self, key)
+            if key == "coverage" and self.coverage_inside is not None:
+                out["coverage_inside"] = self.coverage_inside
             if versioned and key == "reason":
                 out["end"] = self.end.value
             elif versioned and key == "map_iou":

@@ -129,3 +129,20 @@ def test_report_and_compare_show_both_map_scores() -> None:
     rows = {r[0]: r for r in report.rows}
     assert rows["mean map IoU"][1::2] == ["0.650", "0.450"]
     assert rows["mean map IoU (1 cell)"][1::2] == ["0.920", "0.800"]
+
+
+def test_a_noisy_laser_leaves_a_fringe_along_the_walls_that_coverage_inside_leaves_out(tmp_path: Path) -> None:
+    # gaussian noise of 1 cm: about half the hits on a wall land in the free cell in front of it, and that
+    # cell's log-odds keeps climbing however long the robot looks; the floor away from the walls is covered
+    from robotexp.world.groundtruth import coverage_inside
+
+    out = run_experiment(RunSpec(world="ufmg-static", method="frontier", laser_sigma=0.01), tmp_path, image=False)
+    r = out.record
+    assert r.end is EndReason.EXPLORED and r.coverage is not None and r.coverage_inside is not None
+    assert r.coverage < 0.99 <= r.coverage_inside
+    data = json.loads((tmp_path / "results.jsonl").read_text())
+    assert list(data).index("coverage_inside") == list(data).index("coverage") + 1
+    assert data["coverage_inside"] == r.coverage_inside
+    # the key is the ground truth's `coverage_inside` of the run's map
+    assert out.run.truth is not None
+    assert r.coverage_inside == round(coverage_inside(out.run.grid.free(), out.run.truth), 5)
