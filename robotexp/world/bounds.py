@@ -94,9 +94,10 @@ def clip_scan(scan: LaserScan, pose: Pose, area: Area) -> LaserScan:
     sx = pose.x + scan.offset_x * math.cos(pose.theta)
     sy = pose.y + scan.offset_x * math.sin(pose.theta)
     # a beam leaves the area no nearer than its nearest edge: readings all short of it change nothing (a
-    # robot inside the area, away from its edges: most control periods, at the cost of one comparison)
+    # robot inside the area, away from its edges: most control periods, at the cost of one comparison); a
+    # beam without an echo (inf) reads range_max below, short of the edge as well
     edge = min(sx - x0, x1 - sx, sy - y0, y1 - sy) - 1e-9
-    if scan.range_max < edge and not bool(np.any(scan.ranges >= edge)):
+    if scan.range_max < edge and not bool(np.any((scan.ranges >= edge) & (scan.ranges != math.inf))):
         return scan
     a = pose.theta + scan.angles
     dx, dy = np.cos(a), np.sin(a)
