@@ -135,7 +135,7 @@ class TeamRun(ExplorationRun):
                 raise ConfigError("team: robots with maps of their own need the team's grid for coverage")
             grid = grids[0]
         self.members = [ExplorationRun(r, e, g, truth=None, period=period, max_time=max_time, seed=seed,
-                                       info=RunInfo(method=(info.method if info else "")))
+                                       info=RunInfo(method=(info.method if info else "")), area=area)
                         for r, e, g in zip(robots, explorers, grids, strict=True)]
         for i, m in enumerate(self.members):
             m.sampling = False

@@ -446,3 +446,18 @@ def test_a_robot_that_is_done_stands_for_its_teammates():
     r = run.record
     assert [x["end"] for x in r.robots] == ["explored", "explored"], [x["reason"] for x in r.robots]
     assert r.robots[1]["path_length_m"] > 6.9 and r.collisions == 0
+
+
+def test_a_team_steering_by_its_scans_stays_in_the_exploration_area(tmp_path) -> None:
+    # SRT steers by its scans: each robot's explorer sees the area's edge as a wall (as one robot's does),
+    # or it drives out of the area (dense's west half here) and the team's guard stops the run
+    area = (-10.0, 0.0, 0.0, 10.0)
+    spec = RunSpec(world="dense", method="srt-laser", pose="-5000,7500,0", map_bounds=area, max_time=150.0)
+    out = run_team(spec, TeamSpec(robots=("p3dx", "p3dx")), tmp_path, image=False)
+    r = out.record
+    assert "left the exploration area" not in r.reason and r.collisions == 0
+    assert r.total_path_m > 20.0
+    for path in out.run.paths:
+        xy = np.asarray(path)
+        assert xy[:, 0].min() >= area[0] - 0.3 and xy[:, 0].max() <= area[2] + 0.3
+        assert xy[:, 1].min() >= area[1] - 0.3 and xy[:, 1].max() <= area[3] + 0.3
