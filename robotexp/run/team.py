@@ -671,7 +671,7 @@ class TeamSpec:
 def parse_team(text: str, robot: str = "p3dx") -> tuple[str, ...]:
     """`--team`: a number of robots of preset `robot` ("4") or a list of presets ("p3dx,p3dx,kobuki")."""
     text = text.strip()
-    if text.isdigit():
+    if text.lstrip("+-").isdigit():
         n = int(text)
         if n < 1:
             raise ConfigError(f"--team: a team has at least 1 robot, got {text}")

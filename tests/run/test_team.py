@@ -84,8 +84,9 @@ def test_reactive_explorers_need_coordinator_none_and_bad_teams_are_refused():
         TeamSpec(robots=("p3dx", "p3dx"), poses=("start",)).validate()
     assert parse_team("3", "kobuki") == ("kobuki",) * 3
     assert parse_team("p3dx, kobuki") == ("p3dx", "kobuki")
-    with pytest.raises(ConfigError, match="at least 1"):
-        parse_team("0")
+    for bad in ("0", "-1", " -3 "):
+        with pytest.raises(ConfigError, match="at least 1"):
+            parse_team(bad)
 
 
 class Drive(Explorer):
