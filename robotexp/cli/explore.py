@@ -179,8 +179,8 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             recorder.close()            # a run that never started leaves no file
     r = result.record
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
-    if r.coverage is not None and r.coverage_inside is not None and \
-            f"{r.coverage_inside * 100:.1f}" != f"{r.coverage * 100:.1f}":
+    if r.completed and r.coverage is not None and r.coverage_inside is not None and \
+            round(r.coverage_inside * 1000) > round(r.coverage * 1000):    # explored, short by a fringe along the walls
         cov += f" (floor away from the walls {r.coverage_inside * 100:.1f}%)"
     ate = r.extra.get("ate_m")          # with an odometry error: how far the pose the explorer got was off
     if r.extra.get("odometry_error") in (None, "none") and r.extra.get("localize") in (None, "none"):

@@ -146,3 +146,23 @@ def test_a_noisy_laser_leaves_a_fringe_along_the_walls_that_coverage_inside_leav
     # the key is the ground truth's `coverage_inside` of the run's map
     assert out.run.truth is not None
     assert r.coverage_inside == round(coverage_inside(out.run.grid.free(), out.run.truth), 5)
+
+
+def test_the_run_line_gives_the_floor_away_from_the_walls_only_when_a_fringe_hides_it(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from robotexp.cli import main
+
+    noisy = CliRunner().invoke(main, ["explore", "-w", "ufmg-static", "--noise-sigma", "10", "-o", str(tmp_path / "a")])
+    assert noisy.exit_code == 0, noisy.output
+    r = RunRecord.from_dict(json.loads((tmp_path / "a" / "results.jsonl").read_text()))
+    assert r.coverage is not None and r.coverage_inside is not None
+    line = f"coverage {r.coverage * 100:.1f}% (floor away from the walls {r.coverage_inside * 100:.1f}%)"
+    assert r.completed and line in noisy.output
+    # cut short, the floor away from the walls may be the more explored (the walls' cells are seen last), but
+    # a run that did not end explored has no fringe to explain: the line says nothing more
+    short = CliRunner().invoke(main, ["explore", "-w", "dense", "--max-time", "30", "-o", str(tmp_path / "b")])
+    assert short.exit_code == 0, short.output
+    r = RunRecord.from_dict(json.loads((tmp_path / "b" / "results.jsonl").read_text()))
+    assert r.coverage is not None and r.coverage_inside is not None and not r.completed
+    assert f"coverage {r.coverage * 100:.1f}%," in short.output and "floor away" not in short.output
