@@ -356,6 +356,7 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  
     bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
     swept = _sweeps(s, methods, params, p, where)
     teams = _teams(s, robot, p, where)
+    _check_targets(methods, teams, p, where)
     count = sum(len(swept[m]) for m in methods) * len(pose_names) * len(speeds) * len(seeds) * len(teams)
     if count > MAX_RUNS:
         raise _fail(p, where, f"{count:.3g} runs (methods and swept values x {len(pose_names)} poses x "
@@ -407,6 +408,24 @@ def _teams(s: dict[str, Any], robot: str, p: Path, where: str) -> list[tuple[tup
         else:
             out.extend(((robot,) * n, c, None if comm is None else comm / 1000) for c in dict.fromkeys(names))
     return out
+
+
+def _check_targets(methods: list[str], teams: list[tuple[tuple[str, ...], str, float | None]], p: Path,
+                   where: str) -> None:
+    """Refuse, before any run, a set whose teams have a coordinator that assigns frontier targets beside a
+    method whose explorer takes none (a reactive one: bvp, SRT)."""
+    from robotexp.coordinator import Coordinator
+    from robotexp.explorer import Explorer
+    from robotexp.registry import COORDINATORS, load
+
+    for team, coordinator, _ in teams:
+        if not team or not load(COORDINATORS, coordinator, Coordinator).assigns_targets:
+            continue
+        for m in methods:
+            if not load(EXPLORERS, m, Explorer).takes_targets:
+                raise _fail(p, f"{where}.coordinators", f"coordinator {coordinator!r} assigns frontier targets and "
+                            f"method {m!r} takes none; run the reactive explorers in a set of their own with "
+                            "coordinators = [\"none\"]")
 
 
 def pose_label(spec: RunSpec) -> str:

@@ -49,6 +49,9 @@ def test_teams_and_coordinators_expand_and_key_apart(tmp_path: Path) -> None:
     (("teams = [1, 2]", "teams = 2"), ConfigError, ["teams", "expected a list"]),
     (('coordinators = ["none", "greedy"]', 'coordinators = ["boss"]'), PluginError, ["unknown coordinator 'boss'"]),
     (("teams = [1, 2]", "teams = [2]\ncomm_range_mm = -1"), ConfigError, ["comm_range_mm", "> 0 mm"]),
+    # a reactive explorer beside a coordinator that assigns targets: refused at loading, not at its first run
+    (('methods = ["frontier"]', 'methods = ["frontier", "bvp"]'), ConfigError,
+     ["[[set]] #1.coordinators", "coordinator 'greedy'", "method 'bvp'"]),
 ])
 def test_bad_team_axes_name_the_file_and_key(tmp_path: Path, change, error, words) -> None:
     with pytest.raises(error) as info:
