@@ -327,8 +327,11 @@ class ExplorationRun:
         elif self.robot_time >= self.max_time - slack:
             self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
         else:
-            view = state if self.area is None or state.laser is None else \
-                replace(state, laser=clip_scan(state.laser, state.pose, self.area))
+            view = state
+            if self.area is not None and state.laser is not None:
+                clipped = clip_scan(state.laser, state.pose, self.area)
+                if clipped is not state.laser:      # most periods nothing is clipped: no new state
+                    view = replace(state, laser=clipped)
             result = self._explorer_call(self.explorer.step, view, self.grid)
             if result is not _FAILED:
                 decision = result
