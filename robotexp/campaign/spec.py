@@ -32,7 +32,7 @@ import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from robotexp.campaign.robots import DEVICE_KEYS, RobotDevices, check_starts, robot_devices
 from robotexp.errors import ConfigError, PluginError, WorldError
@@ -419,10 +419,10 @@ def _check_targets(methods: list[str], teams: list[tuple[tuple[str, ...], str, f
     from robotexp.registry import COORDINATORS, load
 
     for team, coordinator, _ in teams:
-        if not team or not load(COORDINATORS, coordinator, Coordinator).assigns_targets:
+        if not team or not cast("type[Coordinator]", load(COORDINATORS, coordinator, Coordinator)).assigns_targets:
             continue
         for m in methods:
-            if not load(EXPLORERS, m, Explorer).takes_targets:
+            if not cast("type[Explorer]", load(EXPLORERS, m, Explorer)).takes_targets:
                 raise _fail(p, f"{where}.coordinators", f"coordinator {coordinator!r} assigns frontier targets and "
                             f"method {m!r} takes none; run the reactive explorers in a set of their own with "
                             "coordinators = [\"none\"]")

@@ -53,6 +53,9 @@ MIN_BOX = 5             # fewer runs than this in a group: points only, no box
 EST_APART = 0.01        # [m] an estimated path this far from the true one somewhere is drawn beside it
 LASER = "#17becf"            # the last scan's hits (the estimated path has the raster's laser orange)
 POTENTIAL_PATH = "#e7298a"   # the path over a potential field (magenta: apart from every viridis colour)
+# the paths of a team's robots 2, 3, ... (robot 1's is the path colour): apart from the map's, the start's green,
+# the end's red and the laser's colours
+TEAM_PATHS = ("#9467bd", "#8c564b", "#bcbd22", "#e377c2", "#f2b701", "#7f3c8d", "#008695")
 LEGEND_COLUMNS = 4      # entries per legend row under a map
 LEGEND_ROW = 0.2        # [in] height of a legend row at FONT_SIZE
 ARROWS_ACROSS = 40      # vector-field arrows along the wider side of the view
@@ -135,7 +138,8 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
                start: Pose | None = None, end: Pose | None = None, potential: npt.ArrayLike | None = None,
                vectors: npt.ArrayLike | None = None, laser: npt.ArrayLike | None = None, grid: bool = False,
                title: str | None = None, note: str | None = None, content: npt.ArrayLike | None = None,
-               labels: tuple[str, str] = ("true path", "estimated path"), width: float = PAGE_WIDTH) -> Figure:
+               labels: tuple[str, str] = ("true path", "estimated path"), width: float = PAGE_WIDTH,
+               others: Sequence[npt.ArrayLike] = ()) -> Figure:
     """An occupancy map as a thesis figure (see the module's docstring).
 
     Args:
@@ -159,6 +163,8 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
         labels: the legend's names of `path` and `est_path` when both are drawn (a CARMEN log's reference poses
             are "logged path").
         width: [in] the figure's width.
+        others: (k, 2) [m] paths of a team's other robots: each in a colour of its own, a disc where it
+            ends, and in the legend as "robot 2", "robot 3", ... (`path` is then "robot 1").
 
     Raises:
         ConfigError: arrays of the wrong shape.
@@ -166,7 +172,7 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
     with _style():
         return _map_figure(states, geo, truth=truth, path=path, est_path=est_path, start=start, end=end,
                            potential=potential, vectors=vectors, laser=laser, grid=grid, title=title, note=note,
-                           content=content, labels=labels, width=width)
+                           content=content, labels=labels, width=width, others=others)
 
 
 def _potential_layer(fig: Figure, ax: Axes, cbar: Axes | None, potential: npt.ArrayLike, geo: GridGeometry,
@@ -264,7 +270,7 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
                 path: npt.ArrayLike | None, est_path: npt.ArrayLike | None, start: Pose | None, end: Pose | None,
                 potential: npt.ArrayLike | None, vectors: npt.ArrayLike | None, laser: npt.ArrayLike | None,
                 grid: bool, title: str | None, note: str | None, content: npt.ArrayLike | None,
-                labels: tuple[str, str], width: float) -> Figure:
+                labels: tuple[str, str], width: float, others: Sequence[npt.ArrayLike] = ()) -> Figure:
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -282,13 +288,14 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
         missed = (_field("truth", truth, geo) != 0) & (cells < 50)
         rgb[missed] = COLORS["truth"]
     pts, est, hits = _points("path", path), _points("est_path", est_path), _points("laser", laser)
+    team = [_points("others", o) for o in others]
     poses = np.array([(p.x, p.y) for p in (start, end) if p is not None]).reshape(-1, 2)
     view = content_window(_field("content", content, geo) != 0 if content is not None else cells >= 0, geo,
-                          np.vstack([pts, est, poses]))
+                          np.vstack([pts, est, poses, *team]))
     x0, y0 = view.origin_x, view.origin_y
     x1, y1 = x0 + view.cols * view.cell, y0 + view.rows * view.cell
     n_legend = 3 + (missed is not None and bool(missed.any())) + (len(pts) >= 2) + (len(est) >= 2 and len(pts) >= 2) \
-        + bool(len(hits)) + (start is not None) + (end is not None)
+        + bool(len(hits)) + (start is not None) + (end is not None) + sum(len(t) >= 2 for t in team)
     fig, ax, cbar = _map_axes(Figure, width, (y1 - y0) / (x1 - x0), legend_rows=math.ceil(n_legend / LEGEND_COLUMNS),
                               colour_bar=potential is not None)
     extent = (geo.origin_x, geo.origin_x + geo.cols * geo.cell, geo.origin_y, geo.origin_y + geo.rows * geo.cell)
@@ -308,7 +315,14 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
     line = POTENTIAL_PATH if potential is not None else _rgb("path")    # blue is lost on viridis
     if len(pts) >= 2:
         ax.plot(pts[:, 0], pts[:, 1], color=line, linewidth=1.2, zorder=4)
-        handles.append(Line2D([], [], color=line, linewidth=1.2, label=labels[0] if two else "path"))
+        handles.append(Line2D([], [], color=line, linewidth=1.2,
+                              label="robot 1" if team else labels[0] if two else "path"))
+    for i, other in enumerate(team):        # a team's other robots
+        if len(other) >= 2:
+            colour = TEAM_PATHS[i % len(TEAM_PATHS)]
+            ax.plot(other[:, 0], other[:, 1], color=colour, linewidth=1.0, zorder=4)
+            ax.plot(other[-1:, 0], other[-1:, 1], "o", color=colour, markersize=5, markeredgecolor="white", zorder=5)
+            handles.append(Line2D([], [], color=colour, linewidth=1.0, label=f"robot {i + 2}"))
     if two:
         ax.plot(est[:, 0], est[:, 1], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)), zorder=4)
         handles.append(Line2D([], [], color=_rgb("laser"), linewidth=1.0, linestyle=(0, (4, 2)),
@@ -372,10 +386,7 @@ def run_map_figure(run: ExplorationRun, *, show: Sequence[str] = (), potential: 
                      vectors=overlays.get("vectors") if "vectors" in wanted else None,
                      laser=laser, grid="grid" in wanted,
                      content=(states >= 0) if run.truth is None else (states >= 0) | run.truth.explorable,
-                     title=run_title(run), note=", ".join(parts), width=width)
-    for i, other in enumerate(paths[1:], start=1):     # a team's other robots
-        if len(other) >= 2:
-            fig.axes[0].plot(other[:, 0], other[:, 1], color=f"C{i}", linewidth=1.0, zorder=4)
+                     title=run_title(run), note=", ".join(parts), width=width, others=paths[1:])
     return fig
 
 

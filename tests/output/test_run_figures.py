@@ -185,3 +185,23 @@ def test_a_log_map_shows_the_logged_and_the_estimated_path(tmp_path: Path) -> No
         return int((np.abs(px - np.array(rgb)).max(axis=2) <= 30).sum())
 
     assert count(COLORS["path"]) > 200 and count(COLORS["laser"]) > 100   # the logged and the estimated path
+
+
+def test_a_team_figure_names_each_robot_and_keeps_every_path_in_view() -> None:
+    geo = GridGeometry(0.0, 0.0, 0.05, 400, 400)
+    states = np.full((400, 400), -1, np.int8)
+    states[100:140, 100:140] = 0
+    one = np.array([[5.5, 5.5], [6.5, 6.5]])
+    two = np.array([[5.6, 5.5], [12.0, 15.0]])                      # far out of the room: the view follows it
+    three = np.array([[5.7, 5.5], [6.0, 5.0], [np.nan, np.nan]])     # a NaN row is left out
+    fig = map_figure(states, geo, path=one, others=[two, three], start=Pose(5.5, 5.5, 0.0), end=Pose(6.5, 6.5, 0.0))
+    labels = _legend(fig)
+    assert [t for t in labels if t.startswith("robot")] == ["robot 1", "robot 2", "robot 3"] and "path" not in labels
+    assert fig.axes[0].get_xlim()[1] >= 12.0 and fig.axes[0].get_ylim()[1] >= 15.0
+    handles = {h.get_label(): h.get_color() for leg in fig.legends for h in leg.legend_handles
+               if h.get_label().startswith("robot")}
+    assert len(set(handles.values())) == 3                          # a colour of its own for each robot
+    drawn = {line.get_color() for line in fig.axes[0].lines}
+    assert set(handles.values()) <= drawn
+    alone = _legend(map_figure(states, geo, path=one))              # one robot alone keeps its legend
+    assert "path" in alone and "robot 1" not in alone
