@@ -57,7 +57,7 @@ def _case(world: str, pose: str, seed: int, sizes: list[int], coordinators: list
         r = output.record
         t95 = r.time_to_coverage_95_s
         rows.append((label, slug, {
-            "pose": pose, "seed": seed, "coverage": r.coverage, "t95": t95,
+            "pose": pose, "seed": seed, "coverage": r.coverage, "floor": r.coverage_inside, "t95": t95,
             "share": None if t95 is None or not base else t95 / base, "path": r.path_length_m,
             "max_path": r.max_path_m, "overlap": r.overlap_ratio, "idle": r.idle_time_s,
             "collisions": r.collisions, "robot_collisions": r.robot_collisions, "wall": r.wall_time_s,
@@ -113,7 +113,8 @@ def main() -> int:
     sizes = [int(n) for n in args.team.split(",")]
     figures = args.figures or args.out
     figures.mkdir(parents=True, exist_ok=True)
-    header = f"{'setting':<16} {'pose':>4} {'seed':>4} {'coverage':>8} {'t95 s':>7} {'t95/1':>6} {'path m':>7} " \
+    header = f"{'setting':<16} {'pose':>4} {'seed':>4} {'coverage':>8} {'floor':>6} {'t95 s':>7} {'t95/1':>6} " \
+             f"{'path m':>7} " \
              f"{'max m':>6} {'overlap':>7} {'idle s':>7} {'coll':>4} {'r-r':>3} {'wall s':>6}  end"
     print(header)
     t0 = time.perf_counter()
@@ -130,7 +131,8 @@ def main() -> int:
     for case in results:
         for label, slug, row, output in case:
             rows.setdefault(label, []).append(row)
-            print(f"{label:<16} {row['pose']:>4} {row['seed']:>4} {_f(row['coverage'], 4):>8} {_f(row['t95'], 0):>7} "
+            print(f"{label:<16} {row['pose']:>4} {row['seed']:>4} {_f(row['coverage'], 4):>8} "
+                  f"{_f(row['floor'], 4):>6} {_f(row['t95'], 0):>7} "
                   f"{_f(row['share'], 2):>6} {row['path']:>7.1f} {_f(row['max_path'], 1):>6} "
                   f"{_f(row['overlap'], 3):>7} {_f(row['idle'], 0):>7} {row['collisions']:>4} "
                   f"{_f(row['robot_collisions'], 0):>3} {row['wall']:>6.1f}  {row['end']}")
@@ -141,10 +143,11 @@ def main() -> int:
                     fig = run_map_figure(output.run)
                     size = "" if sizes == [4] else f"{output.record.team_size}_"
                     save_figure(fig, figures / f"teams_{stem}_{size}{slug}", ("png",))
-    table = ["| setting | runs | coverage | time to 95 % [s] | t95 / one robot | total path [m] | overlap | "
-             "collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    table = ["| setting | runs | coverage | floor away from the walls | time to 95 % [s] | t95 / one robot | "
+             "total path [m] | overlap | collisions |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for label, rs in rows.items():
-        table.append(f"| {label} | {len(rs)} | {_med(rs, 'coverage', 4)} | {_med(rs, 't95', 0)} | "
+        table.append(f"| {label} | {len(rs)} | {_med(rs, 'coverage', 4)} | {_med(rs, 'floor', 4)} | "
+                     f"{_med(rs, 't95', 0)} | "
                      f"{_med(rs, 'share', 2)} | {_med(rs, 'path', 1)} | {_med(rs, 'overlap', 3)} | "
                      f"{_med(rs, 'collisions', 0)} |")
     paired = _against_none(rows, sizes, coordinators)
