@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.output.render import COLORS, content_window, laser_hits
+from robotexp.output.render import COLORS, TEAM_COLORS, content_window, laser_hits
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -53,9 +53,6 @@ MIN_BOX = 5             # fewer runs than this in a group: points only, no box
 EST_APART = 0.01        # [m] an estimated path this far from the true one somewhere is drawn beside it
 LASER = "#17becf"            # the last scan's hits (the estimated path has the raster's laser orange)
 POTENTIAL_PATH = "#e7298a"   # the path over a potential field (magenta: apart from every viridis colour)
-# the paths of a team's robots 2, 3, ... (robot 1's is the path colour): apart from the map's, the start's green,
-# the end's red and the laser's colours
-TEAM_PATHS = ("#9467bd", "#8c564b", "#bcbd22", "#e377c2", "#f2b701", "#7f3c8d", "#008695")
 LEGEND_COLUMNS = 4      # entries per legend row under a map
 LEGEND_ROW = 0.2        # [in] height of a legend row at FONT_SIZE
 ARROWS_ACROSS = 40      # vector-field arrows along the wider side of the view
@@ -163,7 +160,7 @@ def map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLike
         labels: the legend's names of `path` and `est_path` when both are drawn (a CARMEN log's reference poses
             are "logged path").
         width: [in] the figure's width.
-        others: (k, 2) [m] paths of a team's other robots: each in a colour of its own, a disc where it
+        others: (k, 2) [m] paths of a team's other robots: each in its colour (`TEAM_COLORS`), a disc where it
             ends, and in the legend as "robot 2", "robot 3", ... (`path` is then "robot 1").
 
     Raises:
@@ -319,7 +316,7 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
                               label="robot 1" if team else labels[0] if two else "path"))
     for i, other in enumerate(team):        # a team's other robots
         if len(other) >= 2:
-            colour = TEAM_PATHS[i % len(TEAM_PATHS)]
+            colour = tuple(c / 255 for c in TEAM_COLORS[i % len(TEAM_COLORS)])     # as the view and video draw it
             ax.plot(other[:, 0], other[:, 1], color=colour, linewidth=1.0, zorder=4)
             ax.plot(other[-1:, 0], other[-1:, 1], "o", color=colour, markersize=5, markeredgecolor="white", zorder=5)
             handles.append(Line2D([], [], color=colour, linewidth=1.0, label=f"robot {i + 2}"))
