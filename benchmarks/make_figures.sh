@@ -41,4 +41,8 @@ done
 robotexp campaign plot "$OUT/santos-ga/results.jsonl" --out "$OUT/santos-ga/plots"
 cp "$OUT"/santos-ga/plots/paths_dense_meta-ga.png docs/santos/paths_dense_meta-ga.png
 cp "$OUT"/santos-ga/plots/coverage_dense.png docs/santos/coverage_dense_meta-ga.png
+# 6. A team's map: four P3-DX with the burgard coordinator from dense's start 1, as the team study's first start
+#    draws it (docs/how-to/teams.md; the study's coverage curves: benchmarks/studies/team_study.py --figures).
+robotexp explore --world dense --team 4 --coordinator burgard --pose 1 --max-time 1800 --out "$OUT/team"
+cp "$OUT"/team/dense_frontier-team4-burgard_1_300mms_s0.png docs/figures/teams_dense_burgard.png
 echo "figures written: docs/figures/*.png docs/santos/*.png"
