@@ -159,8 +159,8 @@ def test_the_figure_of_a_team_recording_draws_every_path(team_bag, tmp_path):
     (png,) = tmp_path.glob("*.map.png")
     px = np.asarray(Image.open(png).convert("RGB")).astype(int)
     blue = np.all(np.abs(px - (31, 119, 180)) <= 40, axis=2) | np.all(np.abs(px - COLORS["path"]) <= 30, axis=2)
-    orange = np.all(np.abs(px - (255, 127, 14)) <= 30, axis=2)        # robot 2: matplotlib's C1
-    assert np.count_nonzero(blue) > 30 and np.count_nonzero(orange) > 30
+    second = np.all(np.abs(px - TEAM_COLORS[0]) <= 30, axis=2)      # robot 2: in its colour of the video and view
+    assert np.count_nonzero(blue) > 30 and np.count_nonzero(second) > 30
 
 
 def test_the_player_shows_every_robot_and_seeks_to_the_replays_map(team_bag):
