@@ -316,7 +316,8 @@ def _map_figure(states: npt.ArrayLike, geo: GridGeometry, *, truth: npt.ArrayLik
                               label="robot 1" if team else labels[0] if two else "path"))
     for i, other in enumerate(team):        # a team's other robots
         if len(other) >= 2:
-            colour = tuple(c / 255 for c in TEAM_COLORS[i % len(TEAM_COLORS)])     # as the view and video draw it
+            r, g, b = TEAM_COLORS[i % len(TEAM_COLORS)]         # as the view and the video draw this robot
+            colour = (r / 255, g / 255, b / 255)
             ax.plot(other[:, 0], other[:, 1], color=colour, linewidth=1.0, zorder=4)
             ax.plot(other[-1:, 0], other[-1:, 1], "o", color=colour, markersize=5, markeredgecolor="white", zorder=5)
             handles.append(Line2D([], [], color=colour, linewidth=1.0, label=f"robot {i + 2}"))
