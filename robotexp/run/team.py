@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -671,7 +672,7 @@ class TeamSpec:
 def parse_team(text: str, robot: str = "p3dx") -> tuple[str, ...]:
     """`--team`: a number of robots of preset `robot` ("4") or a list of presets ("p3dx,p3dx,kobuki")."""
     text = text.strip()
-    if text.lstrip("+-").isdigit():
+    if re.fullmatch(r"[+-]?\d+", text):
         n = int(text)
         if n < 1:
             raise ConfigError(f"--team: a team has at least 1 robot, got {text}")

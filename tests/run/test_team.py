@@ -87,6 +87,8 @@ def test_reactive_explorers_need_coordinator_none_and_bad_teams_are_refused():
     for bad in ("0", "-1", " -3 "):
         with pytest.raises(ConfigError, match="at least 1"):
             parse_team(bad)
+    for bad in ("+-3", "--3"):      # not a number: read as preset names, refused as such by the run
+        assert parse_team(bad) == (bad,)
 
 
 class Drive(Explorer):
