@@ -58,7 +58,7 @@ def make_record(run: ExplorationRun) -> RunRecord:
         states = run.grid.states()
         iou = round(map_iou(states, run.truth), 5)
         iou_tolerant = round(map_iou_tolerant(states, run.truth, 1)[0], 5)
-        inside = round(coverage_inside(run.grid.free(), run.truth), 5)
+        inside = round(coverage_inside(states == 0, run.truth), 5)     # states' 0: the grid's free cells
     return RunRecord(
         run=info.name, method=info.method, world=info.world,
         start_pose=run.start_pose.as_list() if run.start_pose else None,
