@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Pose", "Twist", "Limits", "Footprint", "LaserScan", "SonarScan", "RobotState", "Robot", "Capability",
     "RobotEmulator",
-    "wrap_angle", "new_scan",
+    "wrap_angle", "new_scan", "sensor_origin",
 ]
 
 
@@ -50,6 +50,11 @@ class Pose:
     def as_list(self) -> list[float]:
         """[x_m, y_m, theta_rad] as plain floats (for JSON)."""
         return [float(self.x), float(self.y), float(self.theta)]
+
+
+def sensor_origin(pose: Pose, offset_x: float) -> tuple[float, float]:
+    """(x, y) [m] of a sensor `offset_x` [m] ahead of the robot centre along the heading, the robot at `pose`."""
+    return pose.x + offset_x * math.cos(pose.theta), pose.y + offset_x * math.sin(pose.theta)
 
 
 def compose_pose(a: Pose, b: Pose) -> Pose:
@@ -158,6 +163,10 @@ class LaserScan:
     range_max: float        # [m]
     offset_x: float = 0.0   # [m] sensor position ahead of the robot centre
     stamp: float | None = None  # which measurement (equal stamps: the same one); None: a new one
+
+    def origin(self, pose: Pose) -> tuple[float, float]:
+        """(x, y) [m] of the sensor when the robot stands at `pose` (`offset_x` ahead of its centre)."""
+        return sensor_origin(pose, self.offset_x)
 
     def nearest(self) -> float:
         """The smallest finite range [m], or `inf` when no beam hit."""

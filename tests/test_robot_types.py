@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from robotexp.clock import SimClock, WallClock
 from robotexp.errors import ConfigError, RobotError
 from robotexp.mapping.geometry import GridGeometry
-from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist, wrap_angle
+from robotexp.robot import LaserScan, Limits, Pose, Robot, RobotState, Twist, sensor_origin, wrap_angle
 
 # -- Limits.clamp --------------------------------------------------------------------------
 
@@ -97,6 +97,15 @@ def test_laser_scan_nearest() -> None:
     angles = np.array([-0.1, 0.0, 0.1])
     assert LaserScan(angles, np.array([2.0, math.inf, 0.7]), 3.0).nearest() == 0.7
     assert LaserScan(angles, np.full(3, math.inf), 3.0).nearest() == math.inf
+
+
+def test_the_laser_stands_its_offset_ahead_along_the_heading() -> None:
+    # a robot at (1, 2) facing +y (90 deg) with its laser 0.2 m ahead: the laser is at (1, 2.2)
+    x, y = LaserScan(np.zeros(1), np.ones(1), 3.0, offset_x=0.2).origin(Pose(1.0, 2.0, math.pi / 2))
+    assert x == pytest.approx(1.0, abs=1e-12) and y == pytest.approx(2.2, abs=1e-12)
+    # facing 180 deg, 0.3 m ahead: 0.3 m towards -x
+    assert sensor_origin(Pose(0.5, -1.0, math.pi), 0.3) == pytest.approx((0.2, -1.0), abs=1e-12)
+    assert sensor_origin(Pose(0.5, -1.0, 0.7), 0.0) == (0.5, -1.0)
 
 
 # -- GridGeometry --------------------------------------------------------------------------

@@ -47,7 +47,7 @@ from perflog import Figure, record  # noqa: E402
 from robotexp.experiment import run_experiment, run_team  # noqa: E402
 from robotexp.run.spec import RunSpec  # noqa: E402
 from robotexp.mapping.grid import OccupancyGrid  # noqa: E402
-from robotexp.robot import LaserScan, Twist, wrap_angle  # noqa: E402
+from robotexp.robot import LaserScan, Twist, sensor_origin, wrap_angle  # noqa: E402
 from robotexp.run.observers import RunObserver  # noqa: E402
 from robotexp.run.record import EndReason  # noqa: E402
 from robotexp.run.team import (  # noqa: E402
@@ -209,8 +209,7 @@ class SensingFloor(RunObserver):
         fresh = OccupancyGrid(grid.geo, model=grid.model, range_max=grid.range_max)
         t0 = time.process_time()
         for p in self.poses:
-            sx = p.x + cfg.offset_x * math.cos(p.theta)
-            sy = p.y + cfg.offset_x * math.sin(p.theta)
+            sx, sy = sensor_origin(p, cfg.offset_x)
             ranges = robot._cast_fan(sx, sy, cfg.height, p.theta + robot._angles, cfg.range_max)
             fresh.update(p, LaserScan(robot._angles, ranges, cfg.range_max, cfg.offset_x))
         self.cpu = time.process_time() - t0

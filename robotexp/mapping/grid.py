@@ -156,8 +156,7 @@ class OccupancyGrid:
         # HIT_DEPTH [m] into the obstacle puts them in the obstacle's cell.
         measured = ranges
         ranges = nudged_ranges(ranges, rmax, HIT_DEPTH)
-        sensor = np.array([pose.x + scan.offset_x * math.cos(pose.theta),
-                           pose.y + scan.offset_x * math.sin(pose.theta), pose.theta], np.float64)
+        sensor = np.array([*scan.origin(pose), pose.theta], np.float64)
         self.scans += 1
         if not (math.isfinite(sensor[0]) and math.isfinite(sensor[1]) and math.isfinite(sensor[2])):
             self._note(0, 0, 0, 0)          # a pose not known: the scan changes nothing

@@ -43,7 +43,7 @@ def laser_hits(run: ExplorationRun) -> np.ndarray[Any, np.dtype[np.float64]] | N
     p, sc = state.pose, state.laser
     ok = np.isfinite(sc.ranges)
     a = p.theta + sc.angles[ok]
-    sx, sy = p.x + sc.offset_x * math.cos(p.theta), p.y + sc.offset_x * math.sin(p.theta)
+    sx, sy = sc.origin(p)
     return np.column_stack([sx + sc.ranges[ok] * np.cos(a), sy + sc.ranges[ok] * np.sin(a)])
 
 RGB = tuple[int, int, int]

@@ -386,8 +386,7 @@ class TeamRun(ExplorationRun):
         scan = state.laser
         assert scan is not None
         p = state.pose
-        sx = p.x + scan.offset_x * math.cos(p.theta)
-        sy = p.y + scan.offset_x * math.sin(p.theta)
+        sx, sy = scan.origin(p)
         # only teammates a beam can end on (a hair of slack: the beams' own test below decides)
         reach = TEAMMATE_MARGIN + scan.range_max + 1e-6
         near = np.hypot(self._xy[:, 0] - sx, self._xy[:, 1] - sy) <= self._swing + reach   # a teammate is the

@@ -12,7 +12,8 @@ import numpy.typing as npt
 from robotexp.clock import Clock, SimClock
 from robotexp.errors import WorldError
 from robotexp.laser import ScanSource
-from robotexp.robot import Capability, Footprint, LaserScan, Pose, Robot, RobotState, SonarScan, Twist, wrap_angle
+from robotexp.robot import (Capability, Footprint, LaserScan, Pose, Robot, RobotState, SonarScan, Twist, sensor_origin,
+                            wrap_angle)
 from robotexp.sim.engine import Engine
 from robotexp.sim.presets import LaserConfig, OdometryError, RobotPreset, preset
 from robotexp.world.model import World
@@ -311,8 +312,7 @@ class SimRobot(Robot):
             return self._scan_cache[2]
         cfg = self.laser_config
         p = self._true
-        sx = p.x + cfg.offset_x * math.cos(p.theta)
-        sy = p.y + cfg.offset_x * math.sin(p.theta)
+        sx, sy = sensor_origin(p, cfg.offset_x)
         ranges = self._cast_fan(sx, sy, cfg.height, p.theta + self._angles, cfg.range_max)
         hit = np.isfinite(ranges)
         if cfg.sigma:

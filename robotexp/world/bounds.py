@@ -91,8 +91,7 @@ def clip_scan(scan: LaserScan, pose: Pose, area: Area) -> LaserScan:
     direction that leaves it.
     """
     x0, y0, x1, y1 = area
-    sx = pose.x + scan.offset_x * math.cos(pose.theta)
-    sy = pose.y + scan.offset_x * math.sin(pose.theta)
+    sx, sy = scan.origin(pose)
     # a beam leaves the area no nearer than its nearest edge: readings all short of it change nothing (a
     # robot inside the area, away from its edges: most control periods, at the cost of one comparison); a
     # beam without an echo (inf) reads range_max below, short of the edge as well
