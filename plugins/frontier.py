@@ -15,7 +15,8 @@ from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import Cell, Path, astar, nearest_goal
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, discs_blocked, forget_firm_cells, frontier_targets,
-                                      known_window, passable_cell, shared_firm_cells, wall_face_cells)
+                                      known_window, passable_cell, shared_wall_memory,
+                                      wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
@@ -382,7 +383,7 @@ class FrontierExplorer(Explorer):
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
         """The cells ever firmly occupied (`WallMemory`), with distances exact to `face_reach` and the 8-neighbours."""
         if self.walls_seen is None:
-            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5), shared_firm_cells(grid))
+            self.walls_seen = shared_wall_memory(grid, max(self.face_reach / grid.geo.cell, 1.5))
         return self.walls_seen
 
     def _start_cell(self, pose: Pose, grid: OccupancyGrid, passable: npt.NDArray[np.bool_],

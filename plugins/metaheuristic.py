@@ -52,7 +52,7 @@ from robotexp.planning.metaheuristics import (
 from robotexp.planning.objective import FORMS, INFEASIBLE, SANTOS_CELL, Objective, params_for
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, away_from, beside_large_unknown, discs_blocked,
-                                      forget_firm_cells, known_window, passable_cell, shared_firm_cells,
+                                      forget_firm_cells, known_window, passable_cell, shared_wall_memory,
                                       usable_frontier, wall_face_cells)
 
 if TYPE_CHECKING:
@@ -309,7 +309,7 @@ class MetaheuristicExplorer(Explorer):
     def _memory(self, grid: OccupancyGrid) -> WallMemory:
         """The cells ever firmly occupied, with distances exact to `face_reach` and the 8-neighbours."""
         if self.walls_seen is None:
-            self.walls_seen = WallMemory(max(self.face_reach / grid.geo.cell, 1.5), shared_firm_cells(grid))
+            self.walls_seen = shared_wall_memory(grid, max(self.face_reach / grid.geo.cell, 1.5))
         return self.walls_seen
 
     def give_up(self, grid: OccupancyGrid) -> bool:

@@ -9,7 +9,7 @@ cell by cell in Python, the cells each robot saw were marked through a boolean i
 near what the scans changed (plan costs, each explorer's wall memory) were recomputed on one box holding
 every scan since the last update (robots far apart: most of the map), and the team's traffic rules
 looked at each teammate in turn in Python, and every explorer's memory of the walls (and the team's) noted
-every robot's scans of the map they share, each for itself. The "after" run is
+every robot's scans of the map they share and kept its own distance to them, each for itself. The "after" run is
 the code as it is. Both runs must give the same record (path, coverage, collisions: the rework changes no
 result), which the script checks.
 
@@ -164,10 +164,10 @@ def _keep_clear_before(self: TeamRun, robot: int, m: Any, d: Twist, s: Any) -> N
         self._cut_command(robot, m, d, p, np.concatenate(rings), closing)
 
 
-def _own_firm_cells_before(grid: Any) -> Any:
-    from robotexp.planning.targets import FirmCells
+def _own_wall_memory_before(grid: Any, reach: float) -> Any:
+    from robotexp.planning.targets import FirmCells, WallMemory
 
-    return FirmCells()          # every memory of walls notes every scan of the map itself
+    return WallMemory(reach, FirmCells())   # every memory of walls notes every scan itself, keeps its own distances
 
 
 def _before() -> list[tuple[Any, str, Any]]:
@@ -178,7 +178,7 @@ def _before() -> list[tuple[Any, str, Any]]:
     import robotexp_plugins.metaheuristic as meta_module
     from robotexp_plugins.frontier import FrontierExplorer
 
-    return [*[(module, "shared_firm_cells", _own_firm_cells_before)
+    return [*[(module, "shared_wall_memory", _own_wall_memory_before)
               for module in (targets_module, team_module, frontier_module, meta_module)],
             (TeamRun, "_without_teammates", _without_teammates_before), (SimTeam, "advance", _advance_before),
             (FrontierExplorer, "_plan_costs", _plan_costs_before), (team_module, "held_targets", _held_targets_before),

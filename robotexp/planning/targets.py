@@ -37,7 +37,7 @@ from robotexp.planning.reach import probe_cells
 __all__ = ["MARGIN", "START_REACH", "plan_costs", "nearest_passable", "passable_cell", "frontier_targets",
            "usable_frontier", "known_window", "PlanCosts", "WallDistance", "WallMemory", "wall_distance",
            "surface_distance", "passable_radius", "cell_points", "beside_large_unknown", "away_from",
-           "discs_blocked", "FirmCells", "shared_firm_cells", "forget_firm_cells"]
+           "discs_blocked", "FirmCells", "shared_firm_cells", "forget_firm_cells", "shared_wall_memory"]
 
 MARGIN = 0.02       # [m] kept between the robot's disc and the walls' surface by every plan (a hard limit)
 DANGER_COST = 4.0   # extra cost at the inner edge of the danger zone
@@ -295,6 +295,22 @@ class WallMemory:
         self.note(grid)
         self.walls.update(grid)
         return self.walls.dist
+
+
+_SHARED_MEMORY: weakref.WeakKeyDictionary[OccupancyGrid, dict[float, WallMemory]] = weakref.WeakKeyDictionary()
+
+
+def shared_wall_memory(grid: OccupancyGrid, reach: float) -> WallMemory:
+    """The `WallMemory` of `grid` with `reach` [cells] that every caller on that grid shares, over its shared
+    cells (`shared_firm_cells`): eight explorers of a team asking the distance to the walls of the map they
+    share bring one distance up to date between them, not each their own. Its distances within `reach` are the
+    same whoever asked before; a memory made before `forget_firm_cells` is not handed out after it."""
+    cells = shared_firm_cells(grid)
+    memories = _SHARED_MEMORY.setdefault(grid, {})
+    memory = memories.get(reach)
+    if memory is None or memory.cells is not cells:
+        memory = memories[reach] = WallMemory(reach, cells)
+    return memory
 
 
 def wall_face_cells(memory: WallMemory, grid: OccupancyGrid, view: OccupancyGrid, off: tuple[int, int],

@@ -237,11 +237,11 @@ class RunWatch(RunObserver):
 
     def on_start(self, run: Any) -> None:
         """Size the stall window for the run's grid and robot; start the memory of walls."""
-        from robotexp.planning.targets import WallMemory, shared_firm_cells
+        from robotexp.planning.targets import shared_wall_memory
 
         if self.stall is not None:
             self.stall.start(run.grid, run.robot.limits.v_max)
-        self.walls = WallMemory(1.5, shared_firm_cells(run.grid)) if self.check_done else None
+        self.walls = shared_wall_memory(run.grid, 1.5) if self.check_done else None
 
     def on_step(self, run: Any, step: Any) -> None:
         """Bounds and Done checks."""

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from robotexp.coordinator import Candidates, Coordinator, TeamContext
 from robotexp.errors import ConfigError
 from robotexp.explorer import Explorer
-from robotexp.planning.targets import WallMemory, shared_firm_cells
+from robotexp.planning.targets import shared_wall_memory
 from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
 from robotexp.run.endings import StallWatch, unexplored_left
 from robotexp.run.loop import ExplorationRun, RunInfo, make_record
@@ -152,7 +152,7 @@ class TeamRun(ExplorationRun):
         self.exchange = None if comm_range is None else ScanExchange(grids)
         self.seen = SeenCells(grid.shape, n)
         # the team grid's cells ever firmly occupied, for the end's check (noted once with the explorers on that grid)
-        self.walls = WallMemory(1.5, shared_firm_cells(grid))
+        self.walls = shared_wall_memory(grid, 1.5)
         self.gave_way = [0] * n             # periods each robot gave way to a teammate
         self.held = np.zeros(n)             # [s] each robot held without a break, as `_unjam` counts it
         self.around = [0] * n               # times each robot was told to plan around held teammates

@@ -457,8 +457,8 @@ def test_a_coordinators_target_it_cannot_reach_leaves_the_robot_exploring() -> N
 
 
 def test_explorers_on_one_map_share_one_memory_of_walls() -> None:
-    """The explorers of a team plan on one map: their memories of the walls share the cells ever firmly
-    occupied (`shared_firm_cells`), noted once for all. A wall that is firm only between two of one explorer's
+    """The explorers of a team plan on one map: they share one memory of the walls (`shared_wall_memory`), the
+    cells ever firmly occupied noted once for all and one distance to them. A wall that is firm only between two of one explorer's
     notes (hit twice, then worn by grazing beams) is in its memory when a teammate noted it then; a map rebuilt
     after a loop closure starts the explorer's memory afresh, and a memory that holds the old cells (the run's
     check) keeps them."""
@@ -471,7 +471,7 @@ def test_explorers_on_one_map_share_one_memory_of_walls() -> None:
     _frontier_of(a, grid)
     _frontier_of(b, grid)
     mem_a, mem_b = a._memory(grid), b._memory(grid)
-    assert mem_a is not mem_b and mem_a.cells is mem_b.cells is shared_firm_cells(grid)
+    assert mem_a is mem_b and mem_a.cells is shared_firm_cells(grid)
     beam = LaserScan(np.array([0.0]), np.array([2.0]), 5.0)      # from (0.55, 2.05) east: hits (20, 25)
     pose = Pose(0.55, 2.05, 0.0)
     wall = (20, 25)
@@ -485,6 +485,9 @@ def test_explorers_on_one_map_share_one_memory_of_walls() -> None:
     assert not own.ever[wall]
     mem_b.note(grid)                    # robot B's step, after the wear: B remembers the wall A saw firm
     assert mem_b.ever[wall] and mem_b.ever.sum() == 1
+    # one distance for both, brought up to date by whoever asks first: 2 cells east of the wall, 2 cells away
+    assert a._memory(grid).distance(grid) is b._memory(grid).distance(grid)
+    assert b._memory(grid).distance(grid)[20, 27] == pytest.approx(2.0)
     kept = WallMemory(1.5, shared_firm_cells(grid))     # the run's check holds the same cells
     a.map_rebuilt(grid, FrameCorrection([0.0], [(0.0, 0.0, 0.0)]))
     fresh = a._memory(grid)
