@@ -29,6 +29,13 @@ settings.register_profile("ci", derandomize=True, database=None)
 if os.environ.get("CI") or os.environ.get("HYPOTHESIS_PROFILE") == "ci":
     settings.load_profile("ci")
 
+# Ctrl-C as a terminal sends it: a suite started in the background by a non-interactive shell (`pytest &`,
+# nohup) inherits SIGINT ignored, and so would every process a test starts and then stops with SIGINT (the
+# live view, emulators, scripts). Python handles it again here; the processes the tests start then get it
+# at its default, as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 pytest_plugins = ["pytester"]
 
 # Robots opened during the current test. Strong references on purpose: a robot dropped without

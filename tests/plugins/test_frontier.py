@@ -458,10 +458,10 @@ def test_a_coordinators_target_it_cannot_reach_leaves_the_robot_exploring() -> N
 
 def test_explorers_on_one_map_share_one_memory_of_walls() -> None:
     """The explorers of a team plan on one map: they share one memory of the walls (`shared_wall_memory`), the
-    cells ever firmly occupied noted once for all and one distance to them. A wall that is firm only between two of one explorer's
-    notes (hit twice, then worn by grazing beams) is in its memory when a teammate noted it then; a map rebuilt
-    after a loop closure starts the explorer's memory afresh, and a memory that holds the old cells (the run's
-    check) keeps them."""
+    cells ever firmly occupied noted once for all and one distance to them. A wall that is firm only between two
+    of one explorer's notes (hit twice, then worn by grazing beams) is in its memory when a teammate noted it
+    then; a map rebuilt after a loop closure starts the explorer's memory afresh, and a memory that holds the old
+    cells (the run's check) keeps them."""
     from robotexp.localization import FrameCorrection
     from robotexp.planning.targets import WallMemory, shared_firm_cells
     from robotexp.robot import LaserScan

@@ -164,7 +164,12 @@ def test_emulate_serves_a_team_and_prints_the_team_explore_drives() -> None:
         lines = [proc.stdout.readline() for _ in range(3)]
     finally:
         proc.send_signal(signal.SIGINT)         # Ctrl-C stops every emulator
-        _, err = proc.communicate(timeout=30)
+        try:
+            _, err = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()                         # not left running for the tests after this one
+            proc.communicate()
+            raise
     assert proc.returncode == 0 and "emulator stopped" in err, err
     assert lines[0].startswith("robot 1: 127.0.0.1:") and lines[1].startswith("robot 2: /dev/"), lines
     assert lines[2].startswith("explore with: --world ufmg-static --team "), lines
