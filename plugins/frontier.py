@@ -15,8 +15,7 @@ from robotexp.planning.follower import PathFollower
 from robotexp.planning.grid_planner import Cell, Path, astar, nearest_goal
 from robotexp.planning.reach import near_cells
 from robotexp.planning.targets import (PlanCosts, WallMemory, discs_blocked, forget_firm_cells, frontier_targets,
-                                      known_window, passable_cell, shared_wall_memory,
-                                      wall_face_cells)
+                                      known_window, passable_cell, shared_wall_memory, wall_face_cells)
 
 if TYPE_CHECKING:
     from robotexp.localization import FrameCorrection
