@@ -32,6 +32,8 @@ from robotexp.world.model import World
 from robotexp.world.poses import pose_name
 
 if TYPE_CHECKING:
+    from robotexp.coordinator import Coordinator
+    from robotexp.explorer import Explorer
     from robotexp.run.team import TeamSpec
     from robotexp.sim import SimRobot
 
@@ -246,6 +248,23 @@ def _check_team(spec: RunSpec, team: TeamSpec, odometry: str) -> None:
                           "--odometry-error and --localize")
 
 
+def _team_coordinator(spec: RunSpec, team: TeamSpec, explorer: Explorer) -> Coordinator:
+    """The team's coordinator, made; refused when it assigns frontier targets and `explorer` (the run's
+    method) takes none.
+
+    Raises:
+        ConfigError: the pair does not fit.
+        PluginError: the coordinator cannot be made.
+    """
+    from robotexp.registry import make_coordinator
+
+    coordinator = make_coordinator(team.coordinator, team.coordinator_params)
+    if coordinator.assigns_targets and not explorer.takes_targets:
+        raise ConfigError(f"--coordinator {team.coordinator} assigns frontier targets, and method {spec.method!r} "
+                          "does not take targets (reactive explorers run with --coordinator none)")
+    return coordinator
+
+
 def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iterable[RunObserver] = (),
              show: tuple[str, ...] = (), image: bool | tuple[str, ...] = True,
              record_extra: dict[str, Any] | None = None, world: World | None = None) -> RunOutput:
@@ -261,18 +280,14 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
         OSError: the results could not be written.
     """
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.registry import make_coordinator
     from robotexp.run.team import TeamRun
     from robotexp.sim import SimTeam, preset
 
     _check_team(spec, team, "exact odometry")
     radii = [preset(name).radius for name in team.robots]
     plan = plan_run(spec, spec.world if world is None else world, max(radii))
-    coordinator = make_coordinator(team.coordinator, team.coordinator_params)
+    coordinator = _team_coordinator(spec, team, plan.explorer)
     explorers = [plan.explorer] + [make_explorer(spec.method, spec.params) for _ in team.robots[1:]]
-    if coordinator.assigns_targets and not plan.explorer.takes_targets:
-        raise ConfigError(f"--coordinator {team.coordinator} assigns frontier targets, and method {spec.method!r} "
-                          "does not take targets (reactive explorers run with --coordinator none)")
     robots = _team_robots(spec, team, plan)
     try:
         with SimTeam(robots) as sim:
@@ -360,7 +375,6 @@ def run_team_on_robots(spec: RunSpec, team: TeamSpec, robots: list[Robot], out: 
     """
     from robotexp.clock import TeamClock
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.registry import make_coordinator
     from robotexp.run.team import TeamRun
     from robotexp.run.teamrobots import team_starts
     from robotexp.world.poses import parse_pose
@@ -386,10 +400,7 @@ def run_team_on_robots(spec: RunSpec, team: TeamSpec, robots: list[Robot], out: 
         geo = GridGeometry.covering(*(spec.map_bounds or (min(xs) - half, min(ys) - half, max(xs) + half,
                                                           max(ys) + half)), cell=cell)
         world_name, pose_label = "robots", "robots"
-    coordinator = make_coordinator(team.coordinator, team.coordinator_params)
-    if coordinator.assigns_targets and not explorer0.takes_targets:
-        raise ConfigError(f"--coordinator {team.coordinator} assigns frontier targets, and method {spec.method!r} "
-                          "does not take targets (reactive explorers run with --coordinator none)")
+    coordinator = _team_coordinator(spec, team, explorer0)
     explorers = [explorer0] + [make_explorer(spec.method, spec.params) for _ in robots[1:]]
     warm_kernels(spec, robots[0])
     for robot, start in zip(robots, starts, strict=True):
