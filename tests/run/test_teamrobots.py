@@ -127,6 +127,23 @@ def test_a_robot_lost_mid_run_ends_the_team_run_and_every_robot_stops(emulated: 
             robot.close()
 
 
+def test_a_coordinator_assigning_targets_beside_a_reactive_method_is_refused_before_the_robots_move(
+        emulated: dict[str, Any]) -> None:
+    p1, p2 = emulated["robot 1"], emulated["robot 2"]
+    members = parse_members(f"p3dx:{p1.address},p3dx:{p2.address}")
+    before = [d.sim.true_pose for d in (p1, p2)]
+    robots = connect_team(members)
+    try:
+        spec = RunSpec(world="ufmg-static", method="bvp", max_time=30.0, localize="none")
+        team = TeamSpec(robots=("p3dx", "p3dx"), coordinator="greedy", members=tuple(m.text for m in members))
+        with pytest.raises(ConfigError, match="greedy assigns frontier targets, and method 'bvp' does not take"):
+            run_team_on_robots(spec, team, robots, None, "ufmg-static", image=False)
+        assert [d.sim.true_pose for d in (p1, p2)] == before        # not placed, not driven
+    finally:
+        for robot in robots:
+            robot.close()
+
+
 def test_both_sides_place_the_team_alike() -> None:
     world = builtin_world("dense")
     starts = team_starts(world, "2", [0.25, 0.25, 0.175])
