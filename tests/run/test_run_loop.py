@@ -211,18 +211,6 @@ class SwallowsCtrlC(Straight):
         return super().step(state, grid)
 
 
-@pytest.fixture
-def python_handles_sigint() -> Iterator[None]:
-    """SIGINT handled by Python (KeyboardInterrupt) for the test: a process started in the background by a
-    non-interactive shell (`pytest &`) inherits SIGINT ignored, and a run then has no Ctrl-C to note."""
-    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, inherited)
-
-
-@pytest.mark.usefixtures("python_handles_sigint")
 def test_a_ctrl_c_swallowed_inside_a_step_still_ends_the_run(robot: RecordingSim, truth: GroundTruth) -> None:
     before = signal.getsignal(signal.SIGINT)
     explorer = SwallowsCtrlC()
