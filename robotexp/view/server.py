@@ -50,6 +50,42 @@ _BUSY = (b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nConte
          b"Retry-After: 1\r\nConnection: close\r\n\r\nthe live view has too many connections now\n")
 
 
+_ACCEPT_BATCH = 16           # most connections accepted in one turn of the server's loop
+_ACCEPT_PAUSE = 0.5          # [s] accepting waits this long after the process ran out of file descriptors
+
+
+def _listen(host: str, port: int, backlog: int = 100) -> list[socket.socket]:
+    """Listening sockets on every address `host` names ("" or None: every interface), all on one port (port 0:
+    the one the system chooses for the first); non-blocking, IPv6 ones for IPv6 only.
+
+    Raises:
+        OSError: `host` is unknown, or an address cannot be listened on (the port is in use ...).
+    """
+    infos = socket.getaddrinfo(host or None, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    addresses = list(dict.fromkeys((family, address) for family, _, _, _, address in infos))
+    for attempt in range(5):                        # port 0: another family may have the chosen port taken
+        socks: list[socket.socket] = []
+        try:
+            chosen = port
+            for family, address in addresses:
+                sock = socket.socket(family, socket.SOCK_STREAM)
+                socks.append(sock)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                if family == socket.AF_INET6:
+                    sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_V6ONLY, 1)
+                sock.bind((address[0], chosen, *address[2:]))
+                chosen = sock.getsockname()[1]
+                sock.listen(backlog)
+                sock.setblocking(False)
+            return socks
+        except OSError as exc:
+            for sock in socks:
+                sock.close()
+            if port != 0 or exc.errno != errno.EADDRINUSE or attempt == 4 or len(socks) < 2:
+                raise
+    raise AssertionError("unreachable")
+
+
 def _ip(name: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
     try:
         return ipaddress.ip_address(name)
@@ -128,15 +164,6 @@ _http_log = logging.getLogger("robotexp.view.http")
 _http_log.addFilter(_OneLine())
 
 
-class _Refuse(asyncio.Protocol):
-    """A connection over the limit: 503, closed."""
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        assert isinstance(transport, asyncio.WriteTransport)
-        transport.write(_BUSY)
-        transport.close()
-
-
 class _Conn(asyncio.Protocol):
     """One connection, counted by its server: aiohttp's protocol behind it, and when a byte came last."""
 
@@ -206,9 +233,10 @@ class ViewServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
-        self._listener: asyncio.AbstractServer | None = None
+        self._listening: list[socket.socket] = []
         self._sweeper: asyncio.Task[None] | None = None
         self._sockets: set[web.WebSocketResponse] = set()
+        self._connecting: set[asyncio.Task[None]] = set()
         self._conns: set[_Conn] = set()         # counted from their protocol's making (before connection_made)
         self._by_transport: dict[asyncio.BaseTransport, _Conn] = {}
         self._reported: set[str] = set()
@@ -260,6 +288,9 @@ class ViewServer:
         ready.wait()
         if failure:
             exc = failure[0]
+            if isinstance(exc, socket.gaierror):
+                raise ConfigError(f"live view: cannot listen on {self.host}: {exc.strerror or exc}; give --view-host "
+                                  "an address or a name of this machine (127.0.0.1: this machine only)") from None
             if isinstance(exc, OSError):
                 why = "the port is in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
                 raise ConfigError(f"live view: cannot listen on {self.host}:{self.port}: {why}; "
@@ -290,18 +321,46 @@ class ViewServer:
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False, logger=_http_log)
         await self._runner.setup()
         loop = asyncio.get_running_loop()
-        # the listening socket is this server's own (not a TCPSite's): each connection is counted (`_accept`)
-        self._listener = await loop.create_server(self._accept, self.host or None, self.port, reuse_address=True)
-        sockets = self._listener.sockets or ()
-        if sockets:                  # the port the system chose for port 0
-            self.port = sockets[0].getsockname()[1]
+        # the listening sockets are this server's own, and it accepts from them itself (`_accept_ready`): a
+        # connection over the limit is answered and closed before the next is accepted, so a burst of them
+        # never holds more than one of the process's file descriptors (asyncio's server accepts up to its
+        # backlog at once and closes the refused ones later: a burst could use the run's last descriptors)
+        self._listening = _listen(self.host, self.port)
+        self.port = self._listening[0].getsockname()[1]
         self.guard.port = self.port
+        for sock in self._listening:
+            loop.add_reader(sock.fileno(), self._accept_ready, sock)
         self._sweeper = loop.create_task(self._close_idle())
 
-    def _accept(self) -> asyncio.Protocol:
-        """A new connection's protocol: aiohttp's behind a counter, or a 503 when `max_clients` are open and
-        none of them is idle (the one that sent nothing longest, for 0.1 s or more, is closed to make room)."""
+    def _accept_ready(self, listening: socket.socket) -> None:
+        """Connections wait on `listening`: accept them one at a time (`_ACCEPT_BATCH` at most per turn of
+        the loop). Out of file descriptors (or kernel memory), accepting pauses for `_ACCEPT_PAUSE` s: the
+        connections wait in the kernel's queue meanwhile, and the failure is said once."""
+        loop = asyncio.get_running_loop()
+        for _ in range(_ACCEPT_BATCH):
+            try:
+                sock, _addr = listening.accept()
+            except (BlockingIOError, InterruptedError, ConnectionAbortedError):
+                return
+            except OSError as exc:
+                if exc.errno not in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
+                    raise
+                self._loop_error(loop, {"message": "cannot accept a connection now", "exception": exc})
+                loop.remove_reader(listening.fileno())
+                loop.call_later(_ACCEPT_PAUSE, self._resume_accepting, listening)
+                return
+            self._take(sock)
+
+    def _resume_accepting(self, listening: socket.socket) -> None:
+        if listening in self._listening:
+            asyncio.get_running_loop().add_reader(listening.fileno(), self._accept_ready, listening)
+
+    def _take(self, sock: socket.socket) -> None:
+        """An accepted connection: served behind a counter, or when `max_clients` are open and none of them is
+        idle (the one that sent nothing longest, for 0.1 s or more, is closed to make room) told 503 and
+        closed at once."""
         assert self._runner is not None and self._runner.server is not None
+        sock.setblocking(False)
         now = self._now()
         if len(self._conns) >= self.max_clients:
             idle = [c for c in self._conns if not c.websocket and c.transport is not None and now - c.last >= 0.1]
@@ -309,10 +368,24 @@ class ViewServer:
                 min(idle, key=lambda c: c.last).close()
         if len(self._conns) >= self.max_clients:
             self.refused += 1
-            return _Refuse()
+            try:
+                sock.send(_BUSY)          # a fresh socket's send buffer takes these 200 bytes whole
+            except OSError:
+                pass
+            sock.close()
+            return
         conn = _Conn(self, self._runner.server(), now)
         self._conns.add(conn)
-        return conn
+        task = asyncio.get_running_loop().create_task(self._connect(conn, sock))
+        self._connecting.add(task)
+        task.add_done_callback(self._connecting.discard)
+
+    async def _connect(self, conn: _Conn, sock: socket.socket) -> None:
+        try:
+            await asyncio.get_running_loop().connect_accepted_socket(lambda: conn, sock)
+        except OSError:                 # the peer went away meanwhile
+            self._conns.discard(conn)
+            sock.close()
 
     async def _close_idle(self) -> None:
         """Close the connections that sent nothing for `idle_timeout` s (websockets aside)."""
@@ -326,8 +399,11 @@ class ViewServer:
     async def _shutdown(self) -> None:
         if self._sweeper is not None:
             self._sweeper.cancel()
-        if self._listener is not None:
-            self._listener.close()
+        loop = asyncio.get_running_loop()
+        for sock in self._listening:
+            loop.remove_reader(sock.fileno())
+            sock.close()
+        self._listening = []
         for ws in list(self._sockets):
             await ws.close()
         if self._runner is not None:

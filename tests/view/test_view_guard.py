@@ -8,8 +8,12 @@ from __future__ import annotations
 import asyncio
 import http.client
 import json
+import logging
+import os
 import re
+import resource
 import socket
+import threading
 import time
 from typing import Any
 
@@ -211,3 +215,41 @@ def test_connections_are_capped_and_idle_ones_closed() -> None:
         finally:
             for s in idle:
                 s.close()
+
+
+def _limit_new_descriptors(room: int) -> int:
+    """Lower this process's soft RLIMIT_NOFILE so that exactly `room` more files can be opened; returns the
+    soft limit to restore. (The limit bounds descriptor numbers: free numbers below it are the room.)"""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    taken = {int(name) for name in os.listdir("/proc/self/fd")}
+    limit, free = 0, 0
+    while free < room:
+        if limit not in taken:
+            free += 1
+        limit += 1
+    resource.setrlimit(resource.RLIMIT_NOFILE, (limit, hard))
+    return soft
+
+
+def test_a_burst_of_connections_costs_few_descriptors(caplog: pytest.LogCaptureFixture) -> None:
+    """90 connections wait in the kernel's queue while the server's loop is busy; when it comes back it takes
+    them with a few of the process's file descriptors at a time (max_clients held, each refused one answered
+    and closed before the next is accepted): with room for only 28 more files in the process, no accept
+    fails and every connection over the limit gets its 503."""
+    with _server([], max_clients=8, idle_timeout=30.0) as server:
+        assert server._loop is not None
+        gate, held = threading.Event(), threading.Event()
+        server._loop.call_soon_threadsafe(lambda: (held.set(), gate.wait(10)))
+        assert held.wait(5)
+        clients = [socket.create_connection(("127.0.0.1", server.port)) for _ in range(90)]
+        soft = _limit_new_descriptors(28)
+        try:
+            with caplog.at_level(logging.WARNING, logger="robotexp.view"):
+                gate.set()
+                answers = [_until_closed(s) for s in clients[8:]]
+        finally:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (soft, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+            for s in clients:
+                s.close()
+        assert not [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+        assert answers.count(BUSY) >= 82 - 2 and server.refused >= 80, answers

@@ -53,6 +53,19 @@ def test_port_in_use_is_one_clear_error() -> None:
         port = taken.getsockname()[1]
         with pytest.raises(ConfigError, match=f"cannot listen on 127.0.0.1:{port}: the port is in use"):
             ViewServer(ViewHub(), port=port).start()
+    with pytest.raises(ConfigError, match="cannot listen on no-such-host.invalid: .*give --view-host an address"):
+        ViewServer(ViewHub(), host="no-such-host.invalid").start()
+
+
+def test_every_address_of_a_name_listens_on_one_port() -> None:
+    """"" listens on every interface (IPv4 and, where the system has it, IPv6), on one port."""
+    with ViewServer(ViewHub(), host="") as server:
+        ports = {sock.getsockname()[1] for sock in server._listening}
+        assert ports == {server.port} and server.port > 0
+        families = {sock.family for sock in server._listening}
+        assert socket.AF_INET in families
+        with urllib.request.urlopen(f"http://127.0.0.1:{server.port}/", timeout=5) as page:
+            assert page.status == 200
 
 
 async def _frames(url: str, n: int, commands: list[dict[str, Any]] = ()) -> list[dict[str, Any]]:  # type: ignore[assignment]
