@@ -18,7 +18,8 @@ __all__ = ["run_lua"]
 
 def _tell_supervisor(fd: int | None, what: bytes) -> None:
     """One byte to the supervisor (`robotexp.lua.supervise`): READY once the script starts (its --timeout
-    runs from then), COMPILING / COMPILED around a numba compilation (one step its kill waits for)."""
+    runs from then), COMPILING / COMPILED around a numba compilation and RUN_STARTS / RUN_ENDS around each
+    run of the script (steps its kill waits for)."""
     if fd is None:
         return
     import os
@@ -109,7 +110,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
     live = start_view(view, view_host, view_port, view_speed)
     progress = Progress(None, enabled=True if tty_progress else None)      # each run of the script
     try:
-        from robotexp.lua.supervise import COMPILED, COMPILING, READY
+        from robotexp.lua.supervise import COMPILED, COMPILING, READY, RUN_ENDS, RUN_STARTS
 
         with compile_watch(True if tty_progress else None,
                            busy=lambda on: _tell_supervisor(ready_fd, COMPILING if on else COMPILED)):
@@ -119,7 +120,8 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                                 allow_addresses=allow_address, retire=True,
                                 observers=(progress,) if live is None else (progress, live.observer),
                                 record=record, max_write=None if written is None else int(written * 2**20),
-                                on_start=lambda: _tell_supervisor(ready_fd, READY))
+                                on_start=lambda: _tell_supervisor(ready_fd, READY),
+                                on_run=lambda on: _tell_supervisor(ready_fd, RUN_STARTS if on else RUN_ENDS))
     except BaseException:
         end_view(live, interrupted=True)
         raise

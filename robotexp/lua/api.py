@@ -33,7 +33,8 @@ import logging
 import math
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -73,20 +74,36 @@ class Control:
     Args:
         timeout: [s] wall-time limit of the script, or None.
         clock: monotonic clock [s] (time.monotonic).
+        on_run: told True when a run of the script starts, False when it is over (`running`).
     """
 
-    def __init__(self, timeout: float | None, clock: Callable[[], float]) -> None:
+    def __init__(self, timeout: float | None, clock: Callable[[], float],
+                 on_run: Callable[[bool], None] | None = None) -> None:
         self.timeout = timeout
         self.clock = clock
         self.deadline = None if timeout is None else clock() + timeout
         self.reason: str | None = None      # "interrupted", "timeout", "exit"
         self.exit_code = 0
+        self.on_run = on_run
 
     def check(self) -> bool:
         """True when the script must stop (the deadline passing sets reason "timeout")."""
         if self.reason is None and self.deadline is not None and self.clock() >= self.deadline:
             self.reason = "timeout"
         return self.reason is not None
+
+    @contextmanager
+    def running(self) -> Iterator[None]:
+        """Around one run of the script: says so (`on_run` True, then False once the run is over, written or
+        failed). No Lua code runs during a run, so a script in one cannot be stuck where the hook cannot stop it:
+        the supervisor's kill at the timeout waits for the run to be written, `robotexp.lua.supervise`."""
+        if self.on_run is not None:
+            self.on_run(True)
+        try:
+            yield
+        finally:
+            if self.on_run is not None:
+                self.on_run(False)
 
 
 def parse_address(address: str) -> tuple[str, str]:
@@ -268,19 +285,20 @@ class Session:
 
         self._next_frame = 0.0
         observers = self._observers(spec)
-        if self.on_robot:
-            robot = self._robot()
-            if self.laser is None and hasattr(robot, "laser_range"):       # beams beyond it read as no hit (P3DXRobot)
-                robot.laser_range = spec.laser_range
-            if self.truth_world and self.pose is not None and not self._moved:
-                # run_on_robot moves the robot to the start: start where it stands now, not where
-                # the last run's final state was (it went on turning and slowing after it)
-                spec.pose = _pose_text(robot.read().pose)
-            output = run_on_robot(spec, robot, self.out, self.world() if self.truth_world else None,
-                                  image=False, record_extra={"script": self.script}, observers=observers)
-        else:
-            output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
-                                    observers=observers)
+        with self.control.running():
+            if self.on_robot:
+                robot = self._robot()
+                if self.laser is None and hasattr(robot, "laser_range"):   # beams beyond it read as no hit (P3DXRobot)
+                    robot.laser_range = spec.laser_range
+                if self.truth_world and self.pose is not None and not self._moved:
+                    # run_on_robot moves the robot to the start: start where it stands now, not where
+                    # the last run's final state was (it went on turning and slowing after it)
+                    spec.pose = _pose_text(robot.read().pose)
+                output = run_on_robot(spec, robot, self.out, self.world() if self.truth_world else None,
+                                      image=False, record_extra={"script": self.script}, observers=observers)
+            else:
+                output = run_experiment(spec, self.out, image=False, record_extra={"script": self.script},
+                                        observers=observers)
         self.last, self._moved = output, False
         self.records.append(output.record)
         state = output.run.state

@@ -124,7 +124,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
                max_memory: int | None = None, allow_addresses: tuple[str, ...] = (),
                retire: bool = False, observers: Sequence[RunObserver] = (),
                record: Path | None = None, max_write: int | None = None,
-               on_start: Callable[[], None] | None = None) -> ScriptResult:
+               on_start: Callable[[], None] | None = None,
+               on_run: Callable[[bool], None] | None = None) -> ScriptResult:
     """Run the Lua script at `path` (or the text `code`, named after `path`).
 
     Relative paths in the script are relative to `out`. An exploration still armed when the script
@@ -152,6 +153,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         max_write: [bytes] what the script may write to files in all (`robotexp.lua.sandbox.WriteQuota`;
             None: no limit; --sandbox gives `SANDBOX_MAX_WRITE_MB` by default at the command line).
         on_start: called once the timeout's clock starts (the supervisor's kill counts from then).
+        on_run: called with True when a run of the script starts, with False when it is over (written or
+            failed): the supervisor's kill waits for a run in progress to be written.
 
     Returns:
         The exit status and the records of the script's runs.
@@ -175,7 +178,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     if max_memory is not None and max_memory < 2**20:
         raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
     addresses = AddressPolicy(sandbox, allow_addresses)
-    control = Control(timeout, time.monotonic)
+    control = Control(timeout, time.monotonic, on_run)
     if on_start is not None:
         on_start()
     if max_write is not None and max_write < 0:

@@ -17,6 +17,11 @@ in-process) and watches it:
   stop in; the child says when one starts and ends (COMPILING, COMPILED on the same pipe), and the
   kill at --timeout waits for it to end (`COMPILE_HOLD` s at most) and `TIMEOUT_GRACE` s more, so the
   child stops at its next step and writes the run in progress;
+- no Lua code runs during a run of the script (the explorer, the robot, the record), so a child in a run
+  is never stuck where the hook cannot stop it, only slow: the run sees the deadline or Ctrl-C at its
+  next step and is written (its record, its map), which on a loaded machine can take longer than the
+  grace. The child says when each run starts and ends (RUN_STARTS, RUN_ENDS); a kill that falls in a run
+  waits `WRITE_HOLD` s more once (a second Ctrl-C ends the wait), and the grace again from its end;
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
 - the child's output is relayed to the parent's stdout and stderr as it comes, not by lines (a
   redrawn progress line too), in chunks of at most `CHUNK` bytes (a script writing gigabytes without a
@@ -40,7 +45,8 @@ import click
 from robotexp.errors import Terminated
 from robotexp.lifeline import die_with_parent
 
-__all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE", "COMPILE_HOLD", "READY", "COMPILING", "COMPILED"]
+__all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE", "COMPILE_HOLD", "WRITE_HOLD", "READY", "COMPILING",
+           "COMPILED", "RUN_STARTS", "RUN_ENDS"]
 
 TIMEOUT_GRACE = 1.0     # [s] after --timeout before the child is killed (it writes the run it stopped)
 INTERRUPT_GRACE = 3.0   # [s] after Ctrl-C before the child is killed (robot stopped, run written)
@@ -50,7 +56,11 @@ STARTUP_GRACE = 60.0    # [s] for the child to start its script, on top of the t
 # [s] the longest numba compilation the kill at --timeout waits for: every kernel group of a real robot
 # with scan matching compiles in about 120 s on a loaded 2-core machine (robotexp.compilewatch.GROUPS)
 COMPILE_HOLD = 300.0
-READY, COMPILING, COMPILED = b"r", b"c", b"d"   # what the child says on its pipe, a byte each
+# [s] how much longer a kill that falls in a run waits for the run to stop and be written (a step of an explorer,
+# the record and the map of a large floor take seconds on a loaded 2-core machine)
+WRITE_HOLD = 60.0
+# what the child says on its pipe, a byte each
+READY, COMPILING, COMPILED, RUN_STARTS, RUN_ENDS = b"r", b"c", b"d", b"s", b"e"
 
 
 def _records(path: Path) -> int:
@@ -100,7 +110,8 @@ def _tell(text: str) -> None:
 
 def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,  # noqa: C901, PLR0912, PLR0915
               timeout_grace: float = TIMEOUT_GRACE, interrupt_grace: float = INTERRUPT_GRACE,
-              compile_hold: float = COMPILE_HOLD, child: list[str] | None = None) -> int:
+              compile_hold: float = COMPILE_HOLD, write_hold: float = WRITE_HOLD,
+              child: list[str] | None = None) -> int:
     """Run `robotexp run ARGS` in a child process; return its exit status (see the module docstring).
 
     Args:
@@ -111,6 +122,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         timeout_grace: [s] after `timeout` before the child is killed.
         interrupt_grace: [s] after Ctrl-C before the child is killed.
         compile_hold: [s] the longest compilation the kill at the timeout waits for.
+        write_hold: [s] how much longer a kill that falls in a run waits for the run to be written.
         child: the child's command before its arguments (default: this Python, `-m robotexp.cli.lua_child`).
 
     Returns:
@@ -137,8 +149,11 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     started = False                 # the child said its script started: its timeout runs from then
     compiling: float | None = None  # since when the child compiles (it said COMPILING, not yet COMPILED)
     held = False                    # the kill at the timeout waited for a compilation (said once)
+    in_run = False                  # the child said a run of its script is in progress
+    waited = False                  # the kill fell in a run and waits for it (once)
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
     interrupted = terminated = False
+    interrupts = 0
     try:
         while True:
             try:
@@ -156,12 +171,21 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
                             compiling = None
                             if held and kill_at is not None and not interrupted:
                                 kill_at = max(kill_at, now + timeout_grace)   # the child's next step stops it
+                        elif said == RUN_STARTS[0]:
+                            in_run = True
+                        elif said == RUN_ENDS[0]:
+                            in_run = False
+                            if waited and kill_at is not None:      # the run is written: it stops by itself
+                                kill_at = min(kill_at, now + (interrupt_grace if interrupted else timeout_grace))
                     if kill_at is not None and now >= kill_at and not interrupted and compiling is not None \
                             and started and now - compiling < compile_hold:
                         if not held:
                             _tell(f"robotexp: {script}: --timeout: numba is compiling kernels (a step that cannot "
                                   f"be interrupted); the run stops when it ends (at most {compile_hold:g} s)")
                         held = True
+                    elif kill_at is not None and now >= kill_at and in_run and not waited and interrupts < 2:
+                        waited = True               # a run is in progress: it stops at its next step, is written
+                        kill_at = now + write_hold
                     elif kill_at is not None and now >= kill_at:
                         why = "interrupted" if interrupted else "timeout"
                         proc.kill()
@@ -171,11 +195,13 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
                 break
             except KeyboardInterrupt as stop:
                 interrupted = True
+                interrupts += 1             # a second Ctrl-C cuts the wait for a run being written
                 terminated = terminated or isinstance(stop, Terminated)
                 if proc.poll() is None:
                     proc.send_signal(signal.SIGINT)   # the child ignores a second one
                 limit = time.monotonic() + interrupt_grace
-                kill_at = limit if kill_at is None else min(kill_at, limit)
+                if not waited or interrupts >= 2:
+                    kill_at = limit if kill_at is None else min(kill_at, limit)
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -114,8 +114,9 @@ class TeamCalls:
                         coordinator=self.coordinator, comm_range=self.comm_range)
         team.validate()
         session._next_frame = 0.0
-        output = run_team(spec, team, session.out, observers=session._observers(spec), image=False,
-                          record_extra={"script": session.script})
+        with session.control.running():
+            output = run_team(spec, team, session.out, observers=session._observers(spec), image=False,
+                              record_extra={"script": session.script})
         assert isinstance(output.run, TeamRun)
         session.last, self.last, session._moved = output, output.run, False
         session.records.append(output.record)

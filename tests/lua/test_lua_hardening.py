@@ -31,6 +31,30 @@ def _cli(*args: str) -> tuple[int, str, float]:
     return result.exit_code, result.output, time.monotonic() - t0
 
 
+def _cli_since(mark: str, *args: str) -> tuple[int, str, float]:
+    """`robotexp ARGS` in a process of its own: its exit status, its output (stdout and stderr) and the
+    seconds from the first line holding `mark` (which the script prints and flushes when it starts: the
+    timeout counts from the script's start, not from the process's, slow to import on a loaded machine)
+    to its end."""
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout is not None
+    lines, since = [], None
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            if since is None and mark in line:
+                since = time.monotonic()
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.stdout.close()
+        proc.wait()
+    assert since is not None, "".join(lines)
+    return proc.returncode, "".join(lines), time.monotonic() - since
+
+
 def test_every_pyserial_url_is_refused_in_the_sandbox(lua, tmp_path):
     assert {"spy", "socket", "rfc2217", "loop", "alt", "hwgrep"} <= set(SCHEMES)
     victim, fresh = tmp_path / "victim.txt", tmp_path / "fresh.txt"
@@ -112,8 +136,8 @@ UNSTOPPABLE = {
 @pytest.mark.parametrize("name", sorted(UNSTOPPABLE))
 def test_constructs_the_hook_cannot_see_are_stopped_at_the_timeout(tmp_path, name):
     script, out = tmp_path / "s.lua", tmp_path / "out"
-    script.write_text(f'print("start")\n{UNSTOPPABLE[name]}\nprint("not reached")')
-    code, output, took = _cli("run", str(script), "--out", str(out), "--timeout", "1.5", "--sandbox")
+    script.write_text(f'print("start"); io.stdout:flush()\n{UNSTOPPABLE[name]}\nprint("not reached")')
+    code, output, took = _cli_since("start", "run", str(script), "--out", str(out), "--timeout", "1.5", "--sandbox")
     assert code == 1, output
     assert took < 1.5 + 2.0, took
     assert "start" in output and "not reached" not in output and "Traceback" not in output
@@ -122,9 +146,10 @@ def test_constructs_the_hook_cannot_see_are_stopped_at_the_timeout(tmp_path, nam
 
 def test_runs_written_before_a_stuck_construct_are_kept(tmp_path):
     script, out = tmp_path / "s.lua", tmp_path / "out"
-    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); '
+    script.write_text('print("start"); io.stdout:flush()\n'
+                      'exploration.setWorld("dense"); exploration.setMaxTime(2000); exploration.start(); '
                       f'exploration.wait(); print("run done")\n{UNSTOPPABLE["finalizer"]}\nprint("not reached")')
-    code, output, took = _cli("run", str(script), "--out", str(out), "--timeout", "6", "--sandbox")
+    code, output, took = _cli_since("start", "run", str(script), "--out", str(out), "--timeout", "6", "--sandbox")
     assert code == 1 and took < 6 + 2.0, (took, output)
     assert "run done" in output and "not reached" not in output and "Traceback" not in output
     assert "stopped by --timeout after 6 s" in output and "the 1 run(s) finished so far" in output

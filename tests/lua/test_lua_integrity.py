@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -74,6 +75,34 @@ def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
     assert "stopped by --timeout after 2 s; the 1 run(s) finished so far" in proc.stderr
     (record,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert record["completed"] is False and "--timeout of 2 s" in record["reason"]
+
+
+def test_a_run_slow_to_write_at_the_timeout_is_waited_for(tmp_path):
+    # the child's results writer takes 3 s for each run (a loaded machine, a large map), more than the 1 s grace
+    # after --timeout: the child says it is writing the run the timeout stopped, and the kill waits for it
+    warm = subprocess.run([sys.executable, "-m", "robotexp.cli", "explore", "--world", "dense", "--max-time", "5",
+                           "-o", str(tmp_path / "warm")], capture_output=True, text=True, timeout=300)
+    assert warm.returncode == 0, warm.stderr
+    slow = tmp_path / "slow"
+    slow.mkdir()
+    (slow / "sitecustomize.py").write_text(
+        "import time\nfrom robotexp.output.results import ResultsWriter\n_end = ResultsWriter.on_end\n"
+        "def on_end(self, run, record):\n    time.sleep(3.0)\n    _end(self, run, record)\n"
+        "ResultsWriter.on_end = on_end\n")
+    script, out = tmp_path / "s.lua", tmp_path / "out"
+    script.write_text('exploration.setWorld("dense"); exploration.setMaxTime(3600000); exploration.start(); '
+                      'exploration.wait(); print("not reached")')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(slow), os.environ.get("PYTHONPATH", "")])}
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
+                           "--timeout", "2"], capture_output=True, text=True, env=env, timeout=120)
+    took = time.monotonic() - t0
+    assert proc.returncode == 1 and "not reached" not in proc.stdout and "killed" not in proc.stderr, proc.stderr
+    assert "stopped by --timeout after 2 s; the 1 run(s) finished so far" in proc.stderr
+    (record,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert record["completed"] is False and "--timeout of 2 s" in record["reason"]
+    assert (out / f"{record['run']}.map.yaml").is_file()
+    assert took >= 2 + 3.0
 
 
 def test_print_of_bytes_that_are_not_utf8(lua):
@@ -188,35 +217,81 @@ def test_a_results_file_made_a_folder_during_the_run_keeps_the_record(lua):
 
 
 # A stand-in for the script's process: it says on the supervisor's pipe that its script starts and that a
-# compilation starts, stays in it for HOLD s (one step it cannot stop in), says it ended (unless told not to),
-# then stops as a timed-out child does: it writes its run and exits 1.
+# step starts (a compilation, "c" ... "d", or a run, "s" ... "e"), stays in it for HOLD s (a step it cannot stop
+# in, or a slow one), says it ended (unless told not to), then stops as a timed-out child does: it writes its run
+# and exits 1.
 STAND_IN = """
-import os, sys, time
+import os, signal, sys, time
+signal.signal(signal.SIGINT, signal.SIG_IGN)
 fd = int([a for a in sys.argv if a.startswith("--ready-fd=")][0].split("=")[1])
-out, hold, ends = sys.argv[1], float(sys.argv[2]), sys.argv[3] == "ends"
+out, hold, ends, step = sys.argv[1], float(sys.argv[2]), sys.argv[3] == "ends", sys.argv[4]
+begin, end = {"compile": (b"c", b"d"), "run": (b"s", b"e")}[step]
 os.write(fd, b"r")
-os.write(fd, b"c")
+os.write(fd, begin)
 time.sleep(hold)
 if ends:
-    os.write(fd, b"d")
     with open(os.path.join(out, "results.jsonl"), "a") as f:
         f.write('{"run": "stopped at the timeout"}\\n')
+    os.write(fd, end)
     sys.exit(1)
 time.sleep(60)
 """
 
 
-def _stand_in(tmp_path, hold: float, ends: bool, compile_hold: float) -> tuple[int, float, str]:
+def _stand_in(tmp_path, hold: float, ends: bool, compile_hold: float = 300.0, step: str = "compile",
+              write_hold: float = 60.0) -> tuple[int, float, str]:
     """Supervise the stand-in with a 0.5 s timeout (1 s grace): its exit status, the seconds it took, stderr."""
     script = tmp_path / "stand_in.py"
     script.write_text(STAND_IN)
     code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
-            f"sys.exit(supervise([{str(tmp_path)!r}, {str(hold)!r}, {'ends' if ends else 'hangs'!r}], script='s.lua', "
-            f"out=Path({str(tmp_path)!r}), timeout=0.5, compile_hold={compile_hold!r}, "
-            f"child=[sys.executable, {str(script)!r}]))")
+            f"sys.exit(supervise([{str(tmp_path)!r}, {str(hold)!r}, {'ends' if ends else 'hangs'!r}, {step!r}], "
+            f"script='s.lua', out=Path({str(tmp_path)!r}), timeout=0.5, compile_hold={compile_hold!r}, "
+            f"write_hold={write_hold!r}, child=[sys.executable, {str(script)!r}]))")
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     return proc.returncode, time.monotonic() - t0, proc.stderr
+
+
+def test_the_kill_at_the_timeout_waits_for_a_run_to_be_written(tmp_path):
+    # in a run at the timeout for 3 s (a long step, a slow write), more than the 1 s grace: not killed, the run
+    # is written
+    code, took, err = _stand_in(tmp_path, hold=3.0, ends=True, step="run", write_hold=30.0)
+    assert code == 1 and took >= 3.0, err
+    assert "killed" not in err, err
+    assert (tmp_path / "results.jsonl").read_text() == '{"run": "stopped at the timeout"}\n'
+
+
+def test_a_second_ctrl_c_ends_the_wait_for_a_run(tmp_path):
+    script = tmp_path / "stand_in.py"
+    script.write_text(STAND_IN)
+    code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
+            f"sys.exit(supervise([{str(tmp_path)!r}, '60', 'hangs', 'run'], script='s.lua', "
+            f"out=Path({str(tmp_path)!r}), timeout=None, interrupt_grace=1.0, write_hold=30.0, "
+            f"child=[sys.executable, {str(script)!r}]))")
+    t0 = time.monotonic()
+    proc = subprocess.Popen([sys.executable, "-c", code], stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)     # the kill 1 s later falls in the run: it waits 30 s more
+        time.sleep(2.5)
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGINT)     # ... until a second Ctrl-C: 1 s more
+        _, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    took = time.monotonic() - t0
+    assert proc.returncode == 130 and 3.5 + 1.0 <= took < 3.5 + 1.0 + 3.0, (took, err)
+    assert "did not stop within 1 s of Ctrl-C: killed" in err
+
+
+def test_a_run_that_never_ends_is_killed_after_the_hold(tmp_path):
+    # the kill falls in the run at 0.5 + 1 s and waits 2 s more, once
+    code, took, err = _stand_in(tmp_path, hold=60.0, ends=False, step="run", write_hold=2.0)
+    assert code == 1 and 0.5 + 1.0 + 2.0 <= took < 0.5 + 1.0 + 2.0 + 3.0, (took, err)
+    assert "stopped by --timeout after 0.5 s (it did not stop by itself within 1 s: killed)" in err
+    assert not (tmp_path / "results.jsonl").exists()
 
 
 def test_the_kill_at_the_timeout_waits_for_a_compilation_to_end(tmp_path):
