@@ -13,13 +13,38 @@ import click
 from robotexp.errors import (ConfigError, PluginError, RobotError, RobotexpError, ScriptError, Terminated, WorldError,
                              interrupt_in)
 
-__all__ = ["fail", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch", "watch_sigterm"]
+__all__ = ["fail", "one_line", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch",
+           "watch_sigterm"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+MAX_ERROR_CHARS = 2000      # the longest error line said; its middle is left out beyond
+
+
+def one_line(message: str, limit: int = MAX_ERROR_CHARS) -> str:
+    """`message` as one line of about `limit` characters at most: line breaks and other control characters
+    written as escapes (\\n, \\x1b), the middle of a longer one left out (its start says what and where, its
+    end what to do), saying how much was."""
+    if len(message) <= limit:
+        return _escaped(message)
+    head, tail = limit * 2 // 3, limit // 3
+    return (f"{_escaped(message[:head])} [... {len(message) - head - tail} characters left out ...] "
+            f"{_escaped(message[-tail:])}")
+
+
+_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def _escaped(text: str) -> str:
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else _ESCAPES.get(c) or (f"\\x{ord(c):02x}" if ord(c) < 256 else
+                                                                 f"\\u{ord(c):04x}") for c in text)
+
+
 def fail(message: str, code: int) -> None:
-    click.echo(f"robotexp: error: {message}", err=True)
+    click.echo(f"robotexp: error: {one_line(message)}", err=True)
     sys.exit(code)
 
 

@@ -127,7 +127,10 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
         raise
     finally:
         progress.close()
-    click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
+    if result.records:
+        click.echo(f"{script.name}: {len(result.records)} exploration(s); results: {out / 'results.jsonl'}", err=True)
+    else:
+        click.echo(f"{script.name}: no exploration ran", err=True)
     end_view(live, interrupted=False)
     if result.exit_code:
         sys.exit(result.exit_code)

@@ -25,7 +25,8 @@ from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, Path
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import RunRecord
 
-__all__ = ["ScriptResult", "run_script", "substitute_method", "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
+__all__ = ["ScriptResult", "run_script", "read_script", "MAX_SCRIPT_BYTES", "substitute_method",
+           "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +119,38 @@ def _sigint_sets(control: Control) -> Iterator[None]:
         sys.unraisablehook = previous_hook
 
 
+MAX_SCRIPT_BYTES = 16 * 2**20   # the largest script file read (a script is text written by hand or a program)
+
+
+def read_script(path: Path) -> str:
+    """The text of the script at `path`, as Lua's own loader takes a file: a UTF-8 byte order mark and a first
+    line starting with "#" (`#!/usr/bin/env lua`) are left out (the line's end is kept: line numbers stay).
+    A file that is not UTF-8 (a script saved as Latin-1, as editors of Portuguese text often do) is read as
+    Latin-1: it runs, and its text prints as the characters it meant (in Lua's strings each non-ASCII
+    character is then two bytes, its UTF-8).
+
+    Raises:
+        ConfigError: the file cannot be read, or is larger than MAX_SCRIPT_BYTES (checked before reading it
+            whole: /dev/zero, a 3 GB file).
+    """
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_SCRIPT_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the script ({exc.strerror or exc})") from None
+    if len(data) > MAX_SCRIPT_BYTES:
+        raise ConfigError(f"{path}: the script is larger than {MAX_SCRIPT_BYTES // 2**20} MB; is it the right "
+                          "file? (a Lua script is text)")
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    if data.startswith(b"#"):
+        end = data.find(b"\n")
+        data = b"" if end < 0 else data[end:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
 def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = "p3dx", sandbox: bool = False,  # noqa: C901, PLR0913
                timeout: float | None = None, code: str | None = None,
                emit: Callable[[str], None] = log.info, notice: Callable[[str], None] = log.warning,
@@ -171,10 +204,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         raise ScriptError(f"--timeout must be > 0 s, got {timeout:g}")
     name = path.name
     if code is None:
-        try:
-            code = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ScriptError(f"{path}: cannot read the script ({exc.strerror or exc})") from exc
+        code = read_script(path)
     if max_memory is not None and max_memory < 2**20:
         raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
     addresses = AddressPolicy(sandbox, allow_addresses)

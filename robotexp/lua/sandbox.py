@@ -28,6 +28,8 @@ process and kills it at the deadline (`robotexp.lua.supervise`).
 
 from __future__ import annotations
 
+import math
+
 import os
 import re
 import unicodedata
@@ -237,6 +239,8 @@ def lua_kind(value: object) -> str:
         return "nil"
     if isinstance(value, bool):
         return "a boolean"
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")     # 0/0, 1/0, -1/0
     if isinstance(value, (int, float)):
         return "a number"
     if isinstance(value, str):
