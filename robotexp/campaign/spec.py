@@ -190,7 +190,13 @@ def load_campaign(path: str | Path) -> Campaign:  # noqa: C901
         _check_keys(raw, _SET_KEYS, p, where)
         merged = {**{k: v for k, v in head.items() if k in _SET_KEYS}, **raw}
         robot = robot_devices(merged, lambda key, msg, kind=ConfigError, w=where: _fail(p, f"{w}.{key}", msg, kind))
-        for world in _worlds(merged, p, where):
+        worlds = _worlds(merged, p, where)
+        least = len(worlds) * _least_runs_per_world(merged)
+        if len(runs) + least > MAX_RUNS:      # before any world is loaded (100000 generated ones take minutes)
+            raise _fail(p, where, f"{len(worlds)} worlds x at least {_least_runs_per_world(merged)} runs each: the "
+                        f"campaign reaches {len(runs) + least:.3g} runs or more here; a campaign has at most "
+                        f"{MAX_RUNS} runs")
+        for world in worlds:
             expanded = _expand({**merged, "world": world}, p, where, methods_installed, world_of)
             if len(runs) + len(expanded) > MAX_RUNS:
                 raise _fail(p, where, f"the campaign reaches {len(runs) + len(expanded)} runs here; a campaign "
@@ -242,6 +248,17 @@ def _worlds(merged: dict[str, Any], p: Path, where: str) -> list[str | None]:
     return out
 
 
+def _least_runs_per_world(merged: dict[str, Any]) -> int:
+    """The fewest runs a set makes in each of its worlds, from its axes as given (before they are checked: an
+    axis that is not a list counts once)."""
+    count = 1
+    for key in ("methods", "poses", "speeds_mm_s", "seeds", "teams"):
+        values = merged.get(key)
+        if isinstance(values, list) and values:
+            count *= len(values)
+    return count
+
+
 def _check_keys(table: dict[str, Any], allowed: set[str], path: Path, where: str) -> None:
     bad = sorted(set(table) - allowed)
     if bad:
@@ -259,7 +276,7 @@ def _sweep_values(value: Any, p: Path, where: str) -> list[Any]:
             raise _fail(p, where, f"a range needs step > 0 and stop >= start, got {value!r}")
         count = int(math.floor((stop - start) / step + 1e-9)) + 1
         if count > 10_000:
-            raise _fail(p, where, f"the range {value!r} gives {count} values; at most 10000")
+            raise _fail(p, where, f"the range {value!r} gives {count:.3g} values; at most 10000")
         as_int = all(isinstance(v, int) for v in value.values())
         return [start + k * step if as_int else round(start + k * step, 12) for k in range(count)]
     raise _fail(p, where, f"expected a non-empty list of values or {{start, stop, step}}, got {value!r}")
@@ -303,8 +320,8 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  
         world_spec = str((p.parent / world_name).resolve())
     try:
         world = load_world(world_spec)
-    except WorldError as exc:
-        raise _fail(p, f"{where}.world", str(exc), WorldError) from None
+    except (WorldError, ConfigError) as exc:
+        raise _fail(p, f"{where}.world", str(exc), type(exc)) from None
     poses = s.get("poses", "all")
     if poses == "all":
         pose_names: list[str] = list(world.poses) or ["default"]
@@ -398,15 +415,19 @@ def _teams(s: dict[str, Any], robot: str, p: Path, where: str) -> list[tuple[tup
         if c not in known:
             raise _fail(p, f"{where}.coordinators", f"unknown coordinator {c!r}; available: {', '.join(known)}",
                         PluginError)
+    for key, values in (("teams", sizes), ("coordinators", names)):
+        twice = [v for i, v in enumerate(values) if v in values[:i]]
+        if twice:
+            raise _fail(p, f"{where}.{key}", f"{twice[0]!r} is given twice; give each once")
     comm = _get(s, "comm_range_mm", None, (int, float), p, where)
     if comm is not None and not (comm > 0 and math.isfinite(comm)):
         raise _fail(p, f"{where}.comm_range_mm", f"must be > 0 mm, got {comm!r}")
     out: list[tuple[tuple[str, ...], str, float | None]] = []
-    for n in dict.fromkeys(sizes):
+    for n in sizes:
         if n == 1:
             out.append(((), "none", None))
         else:
-            out.extend(((robot,) * n, c, None if comm is None else comm / 1000) for c in dict.fromkeys(names))
+            out.extend(((robot,) * n, c, None if comm is None else comm / 1000) for c in names)
     return out
 
 

@@ -54,6 +54,8 @@ def campaign_run(file: Path, jobs: int | None, out: Path | None, resume: bool, c
     if cluster is not None:
         from robotexp.campaign.cluster import check_cluster_address
         check_cluster_address(cluster)
+    if jobs is not None and jobs < 1:
+        raise ConfigError(f"--jobs must be >= 1, got {jobs}")
     camp = load_campaign(file)
     out = out or Path("out") / camp.name
     writable_folder(out)

@@ -233,12 +233,23 @@ def _team_spec(team: str | None, poses: str | None, coordinator: str, coordinato
     spec = TeamSpec(robots=names, coordinator=coordinator, members=members,
                     coordinator_params=params(coordinator_param, "--coordinator-param"),
                     comm_range=mm(comm_range, "--comm-range"),
-                    poses=tuple(p.strip() for p in poses.split(";") if p.strip()) if poses else ())
+                    poses=_team_poses(poses))
     spec.validate()
     if members and not spec.poses and source("world") == click.core.ParameterSource.DEFAULT:
         raise ConfigError("--team: robots over their drivers need --world (ground truth and where they start, as "
                           "`robotexp emulate` placed them) or --team-poses (where each one stands)")
     return spec
+
+
+def _team_poses(text: str | None) -> tuple[str, ...]:
+    """`--team-poses "x,y,theta;x,y,theta;..."` (one pose each, mm and degrees); () without it."""
+    if text is None:
+        return ()
+    poses = tuple(p.strip() for p in text.split(";") if p.strip())
+    if not poses:
+        raise ConfigError(f"--team-poses: no pose in {text!r}; give one pose per robot, "
+                          "\"x,y,theta;x,y,theta\" (mm, mm, degrees)")
+    return poses
 
 
 def _robot_team(team: str) -> bool:

@@ -10,7 +10,7 @@ import click
 
 from robotexp.cli.common import compile_watch, handle_errors
 from robotexp.cli.progress import Progress
-from robotexp.errors import ConfigError
+from robotexp.errors import ConfigError, WorldError
 from robotexp.output.safefile import writable_folder
 from robotexp.view.live import end_view, parse_speed, start_view, view_options
 
@@ -28,6 +28,23 @@ def _tell_supervisor(fd: int | None, what: bytes) -> None:
         os.write(fd, what)
     except OSError:
         pass
+
+
+def _check_robot_and_world(robot: str, world: str | None) -> None:
+    """--robot and --world name things the script cannot change: checked before it starts (it may write files
+    before its first run)."""
+    from robotexp.sim.presets import preset
+    from robotexp.world.loader import load_world
+
+    try:
+        preset(robot)
+    except ConfigError as exc:
+        raise ConfigError(f"--robot: {exc}") from None
+    if world is not None:
+        try:
+            load_world(world)
+        except (WorldError, ConfigError) as exc:
+            raise type(exc)(f"--world: {exc}") from None
 
 
 @click.command("run")
@@ -89,6 +106,8 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
         record = record.resolve()
     if not child:
         from robotexp.lua.supervise import supervise
+
+        _check_robot_and_world(robot, world)
 
         args = [str(script), "--robot", robot, "--out", str(out)] + (["--world", world] if world else [])
         args += (["--sandbox"] if sandbox else []) + [f"--allow-address={a}" for a in allow_address]

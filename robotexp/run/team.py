@@ -670,11 +670,14 @@ class TeamSpec:
 
 def parse_team(text: str, robot: str = "p3dx") -> tuple[str, ...]:
     """`--team`: a number of robots of preset `robot` ("4") or a list of presets ("p3dx,p3dx,kobuki")."""
+    from robotexp.sim.team import MAX_TEAM
+
     text = text.strip()
     if re.fullmatch(r"[+-]?\d+", text):
-        n = int(text)
-        if n < 1:
-            raise ConfigError(f"--team: a team has at least 1 robot, got {text}")
+        n = int(text) if len(text) < 12 else int(text[:1] + "9" * 11)      # a huge count: refused below
+        if not 1 <= n <= MAX_TEAM:
+            shown = text if len(text) < 12 else f"{len(text.lstrip('+-'))} digits"
+            raise ConfigError(f"--team: a team has 1..{MAX_TEAM} robots, got {shown}")
         return (robot,) * n
     names = tuple(t.strip() for t in text.split(",") if t.strip())
     if not names:

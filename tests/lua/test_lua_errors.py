@@ -225,3 +225,19 @@ def test_script_files_as_lua_reads_them(tmp_path):
     res = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", "/dev/zero", "--out", str(tmp_path / "o")],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 2 and res.stderr.count("\n") == 1 and "larger than 16 MB" in res.stderr
+
+
+def test_run_options_are_checked_before_the_script_starts(tmp_path):
+    """--world and --robot name things the script cannot change: a bad one is one line, exit 2, before the
+    script writes anything."""
+    script = tmp_path / "s.lua"
+    script.write_text('local f = io.open("notes.txt", "w"); f:write("x"); f:close()\n'
+                      'exploration.setMaxTime(5); exploration.start(); exploration.wait()')
+    out = tmp_path / "out"
+    for option, value, words in (("--world", "nope", "--world: unknown world 'nope'"),
+                                 ("--world", "generated:office:0:100000x100000", "--world: generated world: size"),
+                                 ("--robot", "r2d2", "--robot: unknown robot preset 'r2d2'")):
+        res = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out), option,
+                              value], capture_output=True, text=True, timeout=120)
+        assert res.returncode == 2 and res.stderr.count("\n") == 1 and words in res.stderr, res.stderr
+        assert not (out / "notes.txt").exists()
