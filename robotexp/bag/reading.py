@@ -13,6 +13,7 @@ import contextlib
 import io
 import math
 import struct
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import IO, Any
@@ -160,14 +161,17 @@ class _Reader:
         self.decoders: dict[int, Callable[[bytes], Any]] = {}
         self.factory = DecoderFactory()
         self.total = 0
+        self.cut_at: int | None = None      # where the file ends inside a record or without its footer
 
     def records(self, f: IO[bytes]) -> Iterator[Record]:
         if _read_exact(f, 8) != _MAGIC:
             raise ValueError("no MCAP magic at its start")
         while True:
+            at = f.tell()
             head = f.read(9)
             if len(head) < 9:
-                return      # a file cut short (a run that was killed) ends after its last whole record
+                self.cut_at = at    # a file cut short (a run that was killed) ends after its last whole record
+                return
             op, length = head[0], int.from_bytes(head[1:], "little")
             if op == _OP_FOOTER:
                 return
@@ -178,15 +182,20 @@ class _Reader:
                 raise ValueError(f"a record of {length} bytes (limit {MAX_RECORD_BYTES} bytes)")
             data = f.read(length)
             if len(data) < length:
+                self.cut_at = at
                 return
             body = _Bytes(data)
             if op == _OP_CHUNK:
                 body.take(16)                       # message start and end times
                 size = body.u64()
-                body.u32()                          # crc
+                crc = body.u32()                    # of the records once decompressed; 0: not computed
                 compression = body.string()
                 n = body.u64()
-                inner = _Bytes(_decompress(compression, body.take(n), size))
+                records = _decompress(compression, body.take(n), size)
+                if crc and zlib.crc32(records) != crc:
+                    raise ValueError(f"the chunk at byte {at} fails its checksum (CRC-32 {zlib.crc32(records):#010x}, "
+                                     f"stored {crc:#010x}): the file is damaged")
+                inner = _Bytes(records)
                 while inner.left():
                     if inner.left() < 9:
                         raise ValueError("a chunk ends inside a record")
@@ -263,17 +272,22 @@ class _Reader:
         return decoder
 
 
-def read_records(f: IO[bytes], wanted: dict[str, str] | None = None) -> Iterator[Record]:
+def read_records(f: IO[bytes], wanted: dict[str, str] | None = None,
+                 cut: list[int] | None = None) -> Iterator[Record]:
     """The metadata records and the decoded messages of the topics in `wanted` (topic -> type, default
-    TOPIC_TYPES and a team's TEAM_TOPIC_TYPES) of an open MCAP file, in file order.
+    TOPIC_TYPES and a team's TEAM_TOPIC_TYPES) of an open MCAP file, in file order. A file cut short (no
+    footer, or its end inside a record) ends after its last whole record; `cut`, when given, then gets the byte
+    where its whole records end.
 
     Raises:
-        ValueError: a record, chunk or message over its limit, a message of the wrong type or one that
-            does not decode, a malformed record (the message says which).
+        ValueError: a record, chunk or message over its limit, a chunk failing its checksum, a message of the
+            wrong type or one that does not decode, a malformed record (the message says which).
     """
     reader = _Reader(TOPIC_TYPES | TEAM_TOPIC_TYPES if wanted is None else wanted)
     for rec in reader.records(f):
         yield rec
+    if cut is not None and reader.cut_at is not None:
+        cut.append(reader.cut_at)
 
 
 def decode_errors() -> tuple[type[BaseException], ...]:

@@ -72,6 +72,7 @@ class Bag:
     topics: dict[str, str] = field(default_factory=dict)   # topic -> schema name
     markers: list[tuple[float, Markers]] = field(default_factory=list)   # (time [s], the explorer's markers)
     team: list[list[Tick]] = field(default_factory=list)    # a team's recording: each robot's ticks (robot 1's first)
+    cut_at: int | None = None       # the byte where a file cut short ends (its whole records), None: complete
 
 
 def _pose(msg: Any) -> Pose:
@@ -306,9 +307,10 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
     marker_msgs: list[tuple[int, Markers]] = []
     meta = record = None
     topics: dict[str, str] = {}
+    cut: list[int] = []
     try:
         with open(path, "rb") as f:
-            for r in read_records(f):
+            for r in read_records(f, cut=cut):
                 if r.topic is None:
                     text = (r.metadata or {}).get("json")
                     if r.name == "robotexp.run":
@@ -330,17 +332,24 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
             stream.scans.sort(key=lambda s: s[0])
         marker_msgs.sort(key=lambda m: m[0])
         team = [] if meta is None else [m["namespace"] for m in meta.get("team") or []]
+        cut_at = cut[0] if cut else None
         if meta is not None and team:
-            return _team_bag(path, meta, record, topics, streams, team, truth_grid, marker_msgs)
+            return _checked_clock(_team_bag(path, meta, record, topics, streams, team, truth_grid, marker_msgs,
+                                            cut_at))
         own = streams[""]
         odom, scans = own.odom, own.scans
         if odom and scans:
             offset_x, yaw = _mount(own.statics, scans[0][1].frame)
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    except ConfigError:
+        raise
     except decode_errors() as exc:
         raise refuse(path, exc) from None
     if not odom or not scans:
+        if cut_at is not None:
+            raise ConfigError(f"{path}: the file ends at byte {cut_at}, before its first /scan and /odom (cut "
+                              "short); nothing to replay")
         raise ConfigError(f"{path}: a replay needs /scan (sensor_msgs/LaserScan) and /odom (nav_msgs/Odometry); "
                           f"this recording has {', '.join(sorted(topics)) or 'neither'}")
     truth = _truth_of(truth_grid)
@@ -362,7 +371,41 @@ def read_bag(path: Path) -> Bag:  # noqa: C901
             raise ConfigError(f"{path}: no /scan comes after the first /odom; nothing to replay")
     markers = [((t - odom[0][0]) / 1e9, m) for t, m in marker_msgs] if meta is not None else []
     streams.clear()
-    return Bag(path, ticks, meta, record, truth, topics, markers)
+    return _checked_clock(Bag(path, ticks, meta, record, truth, topics, markers, cut_at=cut_at))
+
+
+MAX_GAP = 3600.0        # [s] the longest time between two ticks of a recording (a robot's bag paused for an hour)
+
+
+def _checked_clock(bag: Bag) -> Bag:
+    bag = _checked_times(bag)
+    if bag.cut_at is not None:
+        log.warning("%s: the file ends at byte %d without its end (cut short, or its run was killed): replayed up "
+                    "to there", bag.path, bag.cut_at)
+    return bag
+
+
+def _checked_times(bag: Bag) -> Bag:
+    """`bag`, when its clock holds together: consecutive ticks at most MAX_GAP apart, and for robotexp's own
+    recordings no later than the run's time limit (one stamp set to 0 or to the year 2500 would otherwise make
+    a replay step through billions of seconds).
+
+    Raises:
+        ConfigError: a jump in the stamps, saying where.
+    """
+    limit = (bag.meta or {}).get("max_time_s")
+    for robot, ticks in enumerate(bag.team or [bag.ticks], start=1):
+        who = f"robot {robot}'s " if bag.team else ""
+        times = [t.time for t in ticks]
+        for i in range(1, len(times)):
+            if times[i] - times[i - 1] > MAX_GAP:
+                raise ConfigError(f"{bag.path}: {who}stamps jump by {times[i] - times[i - 1]:.3g} s after robot time "
+                                  f"{times[i - 1]:.1f} s (tick {i} of {len(times)}); a recording's clock does not "
+                                  "jump: the file is damaged")
+        if isinstance(limit, (int, float)) and times and times[-1] > limit + 60.0:
+            raise ConfigError(f"{bag.path}: {who}stamps run to robot time {times[-1]:.3g} s, past the run's limit of "
+                              f"{limit:g} s: the file is damaged")
+    return bag
 
 
 def _truth_of(truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None) -> GroundTruth | None:
@@ -377,7 +420,7 @@ def _truth_of(truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None) -> G
 def _team_bag(path: Path, meta: dict[str, Any], record: dict[str, Any] | None, topics: dict[str, str],  # noqa: PLR0913
               streams: dict[str, _Stream], team: list[str],
               truth_grid: tuple[GridGeometry, np.ndarray[Any, Any]] | None,
-              marker_msgs: list[tuple[int, Markers]]) -> Bag:
+              marker_msgs: list[tuple[int, Markers]], cut_at: int | None) -> Bag:
     """A team's recording: each robot's ticks from its namespace's topics, on one time line (the first
     robot's first tick is time 0); `ticks` are robot 1's.
 
@@ -391,7 +434,7 @@ def _team_bag(path: Path, meta: dict[str, Any], record: dict[str, Any] | None, t
     t0 = min(streams[ns].odom[0][0] for ns in team)
     robots = [streams[ns].own_ticks(t0) for ns in team]
     markers = [((t - t0) / 1e9, m) for t, m in marker_msgs]
-    return Bag(path, robots[0], meta, record, _truth_of(truth_grid), topics, markers, robots)
+    return Bag(path, robots[0], meta, record, _truth_of(truth_grid), topics, markers, robots, cut_at)
 
 
 class ReplayRobot(Robot):
@@ -469,9 +512,11 @@ class ReplayExplorer(Explorer):
         return state.velocity
 
 
-def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
+def _truth_at(bag: Bag, geo: GridGeometry, world_file: Path | None = None) -> GroundTruth | None:
     """Ground truth on `geo`: the recorded one when it has that geometry, else recomputed from the
-    recorded world (None, with a warning, when that cannot be done)."""
+    recorded world (None, with a warning, when that cannot be done). A recording names its world; a built-in
+    or generated one is made again, but a map file it names is never opened (a recording is data, and may
+    come from anyone): `world_file`, given by the user, stands for it."""
     t = bag.truth
     if t is not None and (t.geo.rows, t.geo.cols) == (geo.rows, geo.cols) and \
             max(abs(t.geo.origin_x - geo.origin_x), abs(t.geo.origin_y - geo.origin_y)) < 1e-6 * geo.cell + 1e-9 \
@@ -480,10 +525,15 @@ def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
     meta = bag.meta
     if meta is None or bag.truth is None or not meta.get("world_source") or meta.get("start") is None:
         return None
-    from robotexp.world.loader import load_world
+    from robotexp.world.loader import is_map_file, load_world
 
+    source = str(meta["world_source"])
+    if world_file is None and is_map_file(source):
+        log.warning("%s: its world is the map file %s, which a replay does not open by itself: coverage n/a at "
+                    "a cell of %g m (give --world with that map to have it)", bag.path, source, geo.cell)
+        return None
     try:
-        world = load_world(meta["world_source"])
+        world = load_world(str(world_file) if world_file is not None else source)
         return ground_truth(world, geo, robot_radius=meta["radius_m"], laser_range=meta["laser_range_m"],
                             start=Pose(*meta["start"]))
     except (WorldError, ConfigError, OSError) as exc:
@@ -491,13 +541,14 @@ def _truth_at(bag: Bag, geo: GridGeometry) -> GroundTruth | None:
         return None
 
 
-def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: bool = True,
-               observers: Iterable[RunObserver] = ()) -> ExplorationRun:
+def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: bool = True,  # noqa: PLR0913
+               observers: Iterable[RunObserver] = (), world_file: Path | None = None) -> ExplorationRun:
     """Rebuild the map and metrics of `bag` through the run loop and, with `out`, write the results
     there as `robotexp explore` does (results.jsonl, CSVs, map files and images).
 
     Args:
         cell: [m] map cell (None: the recorded one; a foreign bag: 0.1).
+        world_file: the map file of the recorded world, for ground truth at another cell (`_truth_at`).
 
     Raises:
         ConfigError: a cell size out of range.
@@ -528,9 +579,11 @@ def replay_bag(bag: Bag, out: Path | None, *, cell: float | None = None, image: 
         model, range_max = "logodds", None
         free = {}
     grid = OccupancyGrid(geo, model=model, range_max=range_max, **free)
-    truth = _truth_at(bag, geo)
+    truth = _truth_at(bag, geo, world_file)
     end = EndReason.classify(bool(rec.get("completed")), str(rec.get("reason", ""))) if rec else EndReason.STOPPED
     reason = str(rec.get("reason", "stopped: end of the recording")) if rec else "stopped: end of the recording"
+    if bag.cut_at is not None:      # what the recorded record says of its end, the replay did not reach
+        end, reason = EndReason.STOPPED, f"stopped: the recording ends at byte {bag.cut_at} (cut short)"
     run_box: list[ExplorationRun] = []
 
     def on_last() -> None:
@@ -605,7 +658,7 @@ def replay_team(bag: Bag, grid: OccupancyGrid, truth: GroundTruth | None, info: 
         robot = ReplayRobot(ticks, radius=robots_meta[i]["radius_m"], model=robots_meta[i].get("robot") or "replay",
                             final_extra=extra, on_last=on_last if i == longest else None)
         done = r.get("reason") if r.get("end") == EndReason.EXPLORED.value and isinstance(r.get("reason"), str) \
-            else None
+            and bag.cut_at is None else None
         robots.append(robot)
         explorers.append(ReplayExplorer(robot, done, bag.markers if i == 0 else ()))
     period = meta.get("period_s", 0.1)

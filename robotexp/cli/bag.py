@@ -21,9 +21,12 @@ __all__ = ["replay", "video", "figure"]
               show_default=True, help="Output folder (results.jsonl, map, CSVs, as explore writes).")
 @click.option("--cell", type=float, default=None,
               help="Map cell size [mm] (default: the recorded one; a ROS 2 robot's bag: 100).")
+@click.option("--world", "world_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="The map file (.yaml, .map) the recording was made in: ground truth at another --cell "
+                   "(a replay never opens a file the recording names).")
 @view_options
-def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int, view_host: str,
-           view_speed: str | None) -> None:
+def replay(bag: Path, out: Path, cell: float | None, world_file: Path | None, view: bool, view_port: int,
+           view_host: str, view_speed: str | None) -> None:
     """Rebuild the map and metrics of a recording (robotexp explore --record, or a ROS 2 robot's bag with
     /scan and /odom) and write them as explore does (--view: then play the recording in the browser at
     --view-speed times its robot time, with pause, step, stop and seeking to any time)."""
@@ -34,6 +37,12 @@ def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int,
     if cell is not None and not cell > 0:
         raise ConfigError(f"--cell must be > 0 mm, got {cell:g}")
     writable_folder(out)
+    if world_file is not None:
+        from robotexp.world.loader import is_map_file
+
+        if not (world_file.is_file() and is_map_file(str(world_file))):
+            raise ConfigError(f"--world {world_file}: no such map file; give the .yaml or .map the recording was "
+                              "made in")
     data = read_bag(bag)
     live = start_view(view, view_host, view_port, view_speed)
     checkpoints = None
@@ -42,20 +51,24 @@ def replay(bag: Path, out: Path, cell: float | None, view: bool, view_port: int,
             live.hub.set_status(state="waiting", reason="replaying the recording")
             checkpoints = Checkpoints(duration=data.ticks[-1].time)
         run = replay_bag(data, out, cell=None if cell is None else cell / 1000,
-                         observers=() if checkpoints is None else (checkpoints,))
+                         observers=() if checkpoints is None else (checkpoints,), world_file=world_file)
     except BaseException:
         end_view(live, interrupted=True)
         raise
     r = run.record
     assert r is not None
+    if r.end is EndReason.INTERRUPTED:     # the loop ended the replay at Ctrl-C and wrote what it had
+        end_view(live, interrupted=True)
+        click.echo(f"{r.run}: replay interrupted at robot time {r.robot_time_s:.0f} s; its record is in "
+                   f"{out / 'results.jsonl'}", err=True)
+        raise KeyboardInterrupt
     cov = "n/a" if r.coverage is None else f"{r.coverage * 100:.1f}%"
     click.echo(f"{r.run}: replayed {len(data.ticks)} ticks of {bag.name} ({r.reason}); path "
                f"{r.path_length_m:.1f} m, robot time {r.robot_time_s:.0f} s, coverage {cov}")
     click.echo(f"results: {out / 'results.jsonl'}")
     if r.coverage is None:
         click.echo("coverage n/a: no ground truth for this recording at this cell size", err=True)
-    if live is None or r.end is EndReason.INTERRUPTED:
-        end_view(live, interrupted=True)
+    if live is None:
         return
     click.echo("view: playing the recording (pause, step, speed, seek on the page); Ctrl-C ends")
     player = ReplayPlayer(live.hub, data, run, checkpoints, speed=live.observer.pacer.speed)
@@ -89,7 +102,12 @@ def video(bag: Path, output: Path, every: float, fps: float, cell: float | None)
     data = read_bag(bag)
     with VideoWriter(output, fps) as writer:
         frames = FrameObserver(writer, every)
-        replay_bag(data, None, cell=None if cell is None else cell / 1000, observers=(frames,))
+        run = replay_bag(data, None, cell=None if cell is None else cell / 1000, observers=(frames,))
+        if run.end is EndReason.INTERRUPTED:        # the loop ended the replay at Ctrl-C: no video of half of it
+            writer.discard()
+            click.echo(f"video: interrupted; {output} was not written" + (" (the one there is kept)"
+                                                                          if output.exists() else ""), err=True)
+            raise KeyboardInterrupt
     click.echo(f"video: {output} ({writer.count} frames, {writer.count / fps:.1f} s at {fps:g} fps)")
 
 

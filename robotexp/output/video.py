@@ -12,6 +12,7 @@ one scale), as a video needs.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -69,6 +70,8 @@ class FrameObserver(RunObserver):
     Raises:
         ConfigError: `every` is not > 0.
     """
+
+    critical = True         # a frame that cannot be written fails the command after the run (its record kept)
 
     def __init__(self, sink: Callable[[Image.Image], None], every: float = 1.0, show: tuple[str, ...] = ()) -> None:
         if not (every > 0 and math.isfinite(every)):
@@ -129,8 +132,14 @@ def check_video_path(path: Path) -> None:
 
     if path.suffix.lower() not in VIDEO_SUFFIXES:
         raise ConfigError(f"-o {path}: a video is an .mp4 or a .gif file; name it run.mp4 or run.gif")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise ConfigError(f"-o {path}: {path.parent} is a file, not a folder")
     if not path.parent.is_dir():
         raise ConfigError(f"-o {path}: folder {path.parent} does not exist; create it first")
+    if path.is_dir():
+        raise ConfigError(f"-o {path}: a folder of that name is there; name the video another way")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"-o {path}: folder {path.parent} is not writable; choose another")
     require("imageio", f"a video ({path.name})")
     if path.suffix.lower() == ".mp4":
         require("imageio_ffmpeg", f"an MP4 video ({path.name})")
@@ -184,13 +193,15 @@ class _GifStream:
 
 class VideoWriter:
     """A frame sink encoding an MP4 (H.264 through imageio-ffmpeg's own ffmpeg) or a GIF (Pillow's GIF
-    encoder, frame by frame), at `fps` frames per second; each frame is written as it comes. Use it as
-    a context manager."""
+    encoder, frame by frame), at `fps` frames per second; each frame is written as it comes, to a hidden file
+    beside `path` that replaces `path` once the video is finished (an error or Ctrl-C on the way leaves a
+    video already at `path` as it was, and no partial one). Use it as a context manager."""
 
     def __init__(self, path: Path, fps: float = 10.0) -> None:
         check_video_path(path)
         check_fps(fps)
         self.path, self.fps = path, fps
+        self.partial = path.with_name(f".{path.stem}.partial{path.suffix}")     # the suffix picks the format
         self.count = 0
         self.gif = path.suffix.lower() == ".gif"
         self._writer: Any = None
@@ -206,11 +217,11 @@ class VideoWriter:
         self.count += 1
         if self._writer is None:
             if self.gif:
-                self._writer = _GifStream(self.path, 1000.0 / self.fps)
+                self._writer = _GifStream(self.partial, 1000.0 / self.fps)
             else:
                 import imageio.v2 as iio
 
-                self._writer = iio.get_writer(self.path, format="FFMPEG", fps=self.fps, codec="libx264",
+                self._writer = iio.get_writer(self.partial, format="FFMPEG", fps=self.fps, codec="libx264",
                                               quality=7, macro_block_size=BLOCK, ffmpeg_log_level="error")
         if self.gif:
             self._writer.append(px)
@@ -218,12 +229,26 @@ class VideoWriter:
             self._writer.append_data(px)
 
     def close(self) -> None:
-        """Finish the file. Raises ConfigError when no frame came."""
+        """Finish the file and put it at `path`. Raises ConfigError when no frame came."""
         if self._writer is not None:
             writer, self._writer = self._writer, None
-            writer.close()
+            try:
+                writer.close()
+            except BaseException:
+                self.partial.unlink(missing_ok=True)
+                raise
+            os.replace(self.partial, self.path)
         if self.count == 0:
             raise ConfigError(f"video {self.path}: no frame was rendered")
+
+    def discard(self) -> None:
+        """Drop the video being written (`path` stays as it was)."""
+        if self._writer is not None:
+            writer, self._writer = self._writer, None
+            try:
+                writer.close()
+            finally:
+                self.partial.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
         return self
@@ -231,5 +256,5 @@ class VideoWriter:
     def __exit__(self, *exc: object) -> None:
         if exc[0] is None:
             self.close()
-        elif self._writer is not None:
-            self._writer.close()
+        else:
+            self.discard()

@@ -319,6 +319,9 @@ class ExplorationRun:
         # the tick meant for 1 s, and the sample (or the time limit) belongs to that tick
         if self.sampling and self.robot_time >= self._next_sample - slack:
             self._sample()
+            behind = self.robot_time + slack - self._next_sample
+            if behind > 1000 * self.sample_period:      # the robot's clock jumped: skip to now at once
+                self._next_sample += math.floor(behind / self.sample_period) * self.sample_period
             while self._next_sample <= self.robot_time + slack:   # a late robot: no burst of samples
                 self._next_sample += self.sample_period
         decision: Twist | Done | None = None

@@ -72,7 +72,8 @@ def write(path: Path, *, ticks: int = 5, run_meta: Any = "default", run_record: 
           pose: Callable[[int], tuple[float, float, float]] = lambda i: (0.0, 0.0, 0.1 * i),
           odom_schema: tuple[str, str] = ODOMETRY, odom_data: Callable[[bytes], bytes] = lambda b: b,
           truth: Callable[[np.ndarray], tuple[int, int, bytes]] | None = None,
-          compression: CompressionType = CompressionType.NONE, raw_meta: str | None = None) -> Path:
+          compression: CompressionType = CompressionType.NONE, raw_meta: str | None = None,
+          stamp: Callable[[int], float] = lambda i: 0.1 * i) -> Path:
     """A crafted recording at `path` (see Crafter); the keywords break one part of it."""
     c = Crafter(path, compression=compression)
     m = meta() if run_meta == "default" else run_meta
@@ -85,7 +86,7 @@ def write(path: Path, *, ticks: int = 5, run_meta: Any = "default", run_record: 
               cdr.occupancy_grid(stamp_ns(0.0), "map", -2.0, -2.0, CELL, rows, cols,
                                  np.frombuffer(data, np.int8)), stamp_ns(0.0))
     for i in range(ticks):
-        ns = stamp_ns(0.1 * i)
+        ns = stamp_ns(stamp(i))
         x, y, th = pose(i)
         c.message("/odom", odom_schema, odom_data(cdr.odometry(ns, "odom", "base_link", x, y, th, 0.0, 1.0)), ns)
         c.message("/ground_truth", ODOMETRY, cdr.odometry(ns, "map", "base_link_true", x, y, th, 0.0, 0.0), ns)

@@ -54,6 +54,12 @@ CASES: dict[str, tuple[Callable[[Path], Path], str]] = {
     "collisions as text": (lambda p: crafted.write(p, run_record={**crafted.record(), "collisions": "many"}),
                            "collisions"),
     "pose at 1e300": (lambda p: crafted.write(p, pose=lambda i: (1e300, 0.0, 0.0)), "position"),
+    "a stamp 1e8 s late": (lambda p: crafted.write(p, stamp=lambda i: 1e8 if i == 4 else 0.1 * i),
+                           "stamps jump by 1e+08 s after robot time 0.3 s"),
+    "the first stamp 1e8 s early": (lambda p: crafted.write(p, stamp=lambda i: 0.1 * i + (0 if i == 0 else 1e8)),
+                                    "stamps jump by 1e+08 s after robot time 0.0 s"),
+    "stamps past the time limit": (lambda p: crafted.write(p, stamp=lambda i: 1000.0 * i),
+                                   "past the run's limit of 10 s"),
 }
 
 
