@@ -7,8 +7,10 @@ subclasses that record what the run does with them (a real backend, not a method
 
 from __future__ import annotations
 
+import itertools
 import math
 import signal
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -387,3 +389,26 @@ def test_an_explorer_whose_reset_fails_keeps_its_own_error() -> None:
     assert run.reason.endswith("reset raised RuntimeError: no map of the building")
     assert run.record is not None and run.record.end is EndReason.PLUGIN_ERROR
     assert "legs" not in run.record.method_fields
+
+
+class JumpingClockSim(RecordingSim):
+    """A SimRobot whose clock jumps 1e9 s ahead at its 20th state (a real robot's clock set anew)."""
+
+    def _read(self) -> RobotState:
+        from dataclasses import replace
+
+        state = super()._read()
+        return replace(state, time=state.time + (1e9 if self.reads >= 20 else 0.0))
+
+
+def test_a_jump_of_the_robots_clock_costs_no_sample_by_sample_catch_up(truth: GroundTruth) -> None:
+    """The run's clock is the robot's: after a jump of 1e9 s the next sample is the next second after the
+    jump, found at once (not 1e9 samples later), and the run ends at its time limit there."""
+    t0 = time.process_time()
+    with JumpingClockSim() as robot:
+        run = ExplorationRun(robot, Straight(x_end=9.0), new_grid(), truth=truth, max_time=1e9 + 5.0).run()
+    assert time.process_time() - t0 < 30.0
+    assert run.end is EndReason.TIME_LIMIT and 1e9 + 4.9 <= run.robot_time <= 1e9 + 5.1
+    times = [t for t, _, _ in run.metrics.curve]
+    assert times[0] == 0.0 and times[1] == pytest.approx(1.0) and times[2] >= 1e9
+    assert all(b - a <= 1.0 + 1e-6 for a, b in itertools.pairwise(times[2:-1]))
