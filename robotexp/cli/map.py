@@ -1,12 +1,19 @@
 """`robotexp map LOG --out DIR`: build a map from a CARMEN laser log, optionally from perturbed odometry
 recovered by scan matching, and measure the absolute trajectory error against the logged poses.
 
-`robotexp.cli.main` registers the command and wraps it in its error handling (bad input: one line, exit 2)."""
+`robotexp.cli.main` registers the command and wraps it in its error handling (bad input: one line, exit 2).
+
+The map is named after the log (`intel-corrected.log.gz`: `intel-corrected`), or `NAME_2`, `NAME_3`, ...
+when OUT already has a map or a run of that name (`robotexp.output.results.take_name`, as runs are named):
+a map never replaces an earlier one, and each record of results.jsonl names its own files. The folder and
+the name are checked and taken before the log is read; a command that fails leaves no file of its map."""
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
@@ -14,6 +21,9 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import GridGeometry
+
+if TYPE_CHECKING:
+    from robotexp.localization.logmap import OdometryNoise
 
 __all__ = ["map_command", "_crop_seen"]
 
@@ -41,6 +51,37 @@ def _stem(path: Path) -> str:
     return name or "map"
 
 
+MAP_SUFFIXES = (".png", ".pgm", ".yaml")      # the files of a map NAME (figure, ROS map image and YAML)
+
+
+def _claim(path: Path) -> Path:
+    """`path`, the file by which `take_name` holds a name (see `robotexp.output.results.run_id`)."""
+    return path.with_name(f"{path.name}.coverage.csv")
+
+
+def _take_map_name(out: Path, base: str) -> str:
+    """`base`, or `base_2`, `base_3`, ... the first name whose map files (`MAP_SUFFIXES`) are not in `out`
+    and that no run has, taken as runs take theirs (`take_name`: its claim file is made exclusively, so a
+    map made at the same time in another process gets another name); the caller removes the claim file
+    (`_claim(out / name)`) when done.
+
+    Raises:
+        OSError: `out` cannot be written.
+    """
+    from robotexp.output.results import take_name
+
+    passed: list[str] = []          # names with a map file of an earlier map (its PNG gone): held while looking
+    try:
+        while True:
+            name = take_name(out, base)
+            if not any(os.path.lexists(out / f"{name}{suffix}") for suffix in MAP_SUFFIXES):
+                return name
+            passed.append(name)
+    finally:
+        for other in passed:
+            _claim(out / other).unlink(missing_ok=True)
+
+
 @click.command("map")
 @click.argument("log", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--out", "-o", required=True, type=click.Path(file_okay=False, path_type=Path),
@@ -62,17 +103,50 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
     ODOM; .gz accepted);
     append a record with ate_m, the RMSE [m] of the estimated path against the logged poses (no
     alignment: both start at the first logged pose), to OUT/results.jsonl and print ATE."""
-    from robotexp.localization.carmen import read_carmen
-    from robotexp.localization.logmap import map_log, parse_noise
-    from robotexp.localization.posegraph import LoopConfig
-    from robotexp.output.figures import apart, figure_title, map_figure, save_figure
-    from robotexp.output.results import append_jsonl
-    from robotexp.world.rosmap import save_ros_map
+    from robotexp.localization.logmap import parse_noise
+    from robotexp.output.safefile import safe_name, writable_folder
 
     noise = parse_noise(odometry_noise)
     if not (cell > 0 and range_max > 0):
         raise ConfigError(f"--cell and --range-max must be > 0 m, got {cell} and {range_max}")
     t0 = time.monotonic()
+    writable_folder(out)                # before any work: a folder that cannot take the map is refused now
+    made = [d for d in (out, *out.parents) if not d.exists()]
+    out.mkdir(parents=True, exist_ok=True)
+    name = _take_map_name(out, safe_name(_stem(log)))
+    done = False
+    try:
+        said = _make_map(log, out, name, cell=cell, noise=noise, localize=localize, loop_closure=loop_closure,
+                         range_max=range_max, seed=seed, t0=t0)
+        done = True                                      # its record is written: its files stay, whatever comes
+    finally:
+        _claim(out / name).unlink(missing_ok=True)       # the map's PNG holds the name from now on
+        if not done:                                     # nothing of a map that failed is left
+            for suffix in MAP_SUFFIXES:
+                (out / f"{name}{suffix}").unlink(missing_ok=True)
+            for d in made:
+                try:
+                    d.rmdir()
+                except OSError:
+                    break
+    click.echo(said)
+
+
+def _make_map(log: Path, out: Path, name: str, *, cell: float, noise: OdometryNoise, localize: str,
+              loop_closure: bool, range_max: float, seed: int, t0: float) -> str:
+    """Read `log`, build its map and write it as `out`/`name`.png, .yaml + .pgm, and its record; returns what
+    to tell the user.
+
+    Raises:
+        ConfigError: the log is not one that can be mapped (see `read_carmen`, `map_log`).
+    """
+    from robotexp.localization.carmen import read_carmen
+    from robotexp.localization.logmap import map_log
+    from robotexp.localization.posegraph import LoopConfig
+    from robotexp.output.figures import apart, figure_title, map_figure, save_figure
+    from robotexp.output.results import append_jsonl
+    from robotexp.world.rosmap import save_ros_map
+
     parsed = read_carmen(log)
     for line in parsed.problems[:MAX_PROBLEMS_SHOWN]:
         click.echo(f"robotexp: {line}", err=True)
@@ -85,8 +159,6 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
         raise ConfigError(f"{log}: no FLASER, ROBOTLASER1 or RAWLASER1 line: nothing to map (is it a CARMEN log?)")
     result = map_log(parsed, cell=cell, noise=noise, localize=localize, seed=seed,  # type: ignore[arg-type]
                      range_max=range_max, loops=LoopConfig() if loop_closure else None)
-    name = _stem(log)
-    out.mkdir(parents=True, exist_ok=True)
     states, geo = _crop_seen(result.grid.states(), result.grid.geo)
     est = result.estimate[:, :2] if apart(result.estimate, result.truth) else None
     fig = map_figure(states, geo, path=result.truth[:, :2], est_path=est, labels=("logged path", "estimated path"),
@@ -113,6 +185,5 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
         "wall_time_s": round(time.monotonic() - t0, 3),
     }
     append_jsonl(out / "results.jsonl", record)
-    click.echo(f"map: {out / (name + '.png')}, {out / (name + '.yaml')}  ({len(parsed.scans)} scans, "
-               f"odometry alone: ATE {result.odometry_ate_m:.3f} m)")
-    click.echo(f"ATE {result.ate_m:.3f} m")
+    return (f"map: {out / (name + '.png')}, {out / (name + '.yaml')}  ({len(parsed.scans)} scans, "
+            f"odometry alone: ATE {result.odometry_ate_m:.3f} m)\nATE {result.ate_m:.3f} m")

@@ -20,13 +20,23 @@ Line formats (CARMEN logger; lengths in m, angles in rad):
 
 Other lines (PARAM, NEFF, RAWLASER2-4 (rear and other lasers: their mounting is not in the line),
 comments) are ignored. A malformed line of a known kind is reported as `file:line: what` in
-`CarmenLog.problems` and skipped.
+`CarmenLog.problems` and skipped: a number that is not one, a laser line whose field count does not match
+its beam (and remission) count (a corrupt line, e.g. two lines run together: its values would be read in
+the wrong places), a `robot_front_laser_max` PARAM that is not a positive range or a
+`robot_frontlaser_offset` that is not finite (the PARAM is then ignored).
+
+What a log may hold is bounded, so that a small compressed file cannot take all memory (a gzip stream of
+1 MB can hold 1 GB of text): a line is at most `MAX_LINE` bytes (read in pieces of that size: a longer one
+is never held whole), and a log at most `MAX_SCANS` laser readings, `MAX_BEAMS` beams in all, `MAX_ODOM`
+ODOM lines, `MAX_PARAMS` PARAM names and `MAX_PROBLEMS` malformed lines; `read_carmen` refuses a log
+beyond one of them (`ConfigError`, naming the file, the line and the bound).
 """
 
 from __future__ import annotations
 
 import bisect
 import gzip
+import io
 import math
 import os
 from dataclasses import dataclass, field
@@ -38,7 +48,21 @@ import numpy.typing as npt
 from robotexp.errors import ConfigError
 from robotexp.robot import LaserScan, Pose
 
-__all__ = ["LogScan", "CarmenLog", "read_carmen", "flaser_angles", "format_flaser", "odometry_at"]
+__all__ = ["LogScan", "CarmenLog", "read_carmen", "flaser_angles", "format_flaser", "odometry_at", "MAX_LINE",
+           "MAX_SCANS", "MAX_BEAMS", "MAX_ODOM", "MAX_PARAMS", "MAX_PROBLEMS"]
+
+MAX_LINE = 2**20            # [bytes] longest line: a CARMEN line has some kB (1081 beams with remissions: ~15 kB)
+# A real log of hours holds about a million laser readings (4 h at 75 Hz: 1.08 million). Read, a reading of
+# 180 beams takes about 2.1 kB (ranges as float64, poses, the record; the beam angles are shared): a log of
+# 1,000,001 such readings is refused at its last line after 58 s at 2.2 GB (peak resident), so the bounds
+# below keep a log read at about 2 GB; `robotexp map --localize none` peaked at 1.5 times what reading took
+# (200,000 readings: 0.51 GB read, 0.79 GB mapped), more with loop closure (which keeps every scan).
+MAX_SCANS = 1_000_000       # laser readings (FLASER, ROBOTLASER1, RAWLASER1 lines) in one log
+MAX_BEAMS = 250_000_000     # beams of all its laser readings (2 GB of ranges)
+MAX_ODOM = 5_000_000        # ODOM lines (14 h at 100 Hz)
+MAX_PARAMS = 10_000         # PARAM names (a CARMEN log has some hundred)
+MAX_PARAM_TEXT = 4096       # [characters] longest PARAM name or value kept (longer: reported, skipped)
+MAX_PROBLEMS = 100_000      # malformed lines: beyond them the file is not a CARMEN log, or a damaged one
 
 
 @dataclass(frozen=True)
@@ -90,14 +114,23 @@ class CarmenLog:
         value = self.params.get("robot_front_laser_max")
         if value is not None:
             try:
-                return float(value)
+                given = float(value)
             except ValueError:
-                pass
-        if not self.scans:
-            return math.inf
-        ranges = np.concatenate([s.ranges for s in self.scans])
-        top = float(ranges.max())
-        return top if np.count_nonzero(ranges == top) >= 0.005 * len(ranges) else math.inf
+                given = math.nan
+            if math.isfinite(given) and given > 0.0:        # else no range: ignored (read_carmen reports it)
+                return given
+        # the largest range and how often it is read, scan by scan (no copy of all the ranges)
+        top, count, total = -math.inf, 0, 0
+        for s in self.scans:
+            if not len(s.ranges):
+                continue
+            m = float(s.ranges.max())
+            if m > top:
+                top, count = m, 0
+            if m == top:
+                count += int(np.count_nonzero(s.ranges == top))
+            total += len(s.ranges)
+        return top if total and count >= 0.005 * total else math.inf
 
 
 _BEAM_STEPS = {180: 1.0, 181: 1.0, 360: 0.5, 361: 0.5, 720: 0.25, 721: 0.25}
@@ -109,26 +142,56 @@ def flaser_angles(n: int) -> npt.NDArray[np.float64]:
     return np.radians(-90.0 + step * np.arange(n))
 
 
-def _open(path: Path):  # type: ignore[no-untyped-def]
+_ANGLES: dict[tuple[str, float, float, int], npt.NDArray[np.float64]] = {}
+
+
+def _shared_angles(key: tuple[str, float, float, int]) -> npt.NDArray[np.float64]:
+    """The beam angles of `key` ("flaser", 0, 0, n) or ("laser", start, resolution, n), one read-only array
+    for all the readings that share them (a log's readings mostly do: not one copy per reading)."""
+    angles = _ANGLES.get(key)
+    if angles is None:
+        kind, start, res, n = key
+        angles = flaser_angles(n) if kind == "flaser" else np.asarray(start + res * np.arange(n), dtype=np.float64)
+        angles.flags.writeable = False
+        if n <= 4096:                   # kept: at most 256 arrays of 4096 beams (8 MiB) once the logs are gone
+            if len(_ANGLES) >= 256:
+                _ANGLES.clear()
+            _ANGLES[key] = angles
+    return angles
+
+
+def _open(path: Path) -> io.BufferedIOBase:
     with open(path, "rb") as f:
         magic = f.read(2)
     if magic == b"\x1f\x8b":
-        return gzip.open(path, "rt", encoding="utf-8", errors="replace")
-    return open(path, encoding="utf-8", errors="replace")
+        return gzip.GzipFile(path, "rb")
+    return open(path, "rb")
 
 
 def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
     """Read a CARMEN log (gzip detected by content, not name).
 
     Raises:
-        ConfigError: the file cannot be read, or is not gzip-valid.
+        ConfigError: the file cannot be read, or is not gzip-valid; a line is longer than `MAX_LINE`
+            bytes, or the log holds more than one of the bounds (`MAX_SCANS`, ...) allows.
     """
     p = Path(path)
     log = CarmenLog(str(p))
     try:
         with _open(p) as f:
-            for number, text in enumerate(f, 1):
-                _line(log, number, text)
+            number, beams = 0, 0
+            while True:
+                raw = f.readline(MAX_LINE + 1)      # never more: a longer line is not read whole
+                if not raw:
+                    break
+                number += 1
+                if len(raw) > MAX_LINE and not raw.endswith(b"\n"):     # MAX_LINE bytes and its newline: kept
+                    raise ConfigError(f"{p}:{number}: a line longer than {MAX_LINE // 2**20} MiB (a CARMEN line is "
+                                      "at most some kB): not a CARMEN log, or a damaged one; give a CARMEN log")
+                beams += _line(log, number, raw.decode("utf-8", errors="replace"))
+                if (len(log.scans) + len(log.raw) > MAX_SCANS or beams > MAX_BEAMS or len(log.odometry) > MAX_ODOM
+                        or len(log.params) > MAX_PARAMS or len(log.problems) > MAX_PROBLEMS):
+                    raise ConfigError(_too_much(log, number, beams))
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     except EOFError:
@@ -136,6 +199,23 @@ def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
     if not log.scans and log.raw:
         _place_raw(log)
     return log
+
+
+def _too_much(log: CarmenLog, number: int, beams: int) -> str:
+    """The message refusing `log` at its line `number`, where it went beyond one of the bounds."""
+    where = f"{log.path}:{number}:"
+    if len(log.problems) > MAX_PROBLEMS:
+        return (f"{where} more than {MAX_PROBLEMS:,} malformed lines (the first: {log.problems[0]}): not a CARMEN "
+                "log, or a badly damaged one")
+    if len(log.params) > MAX_PARAMS:
+        return f"{where} more than {MAX_PARAMS:,} PARAM names (a CARMEN log has some hundred): not a CARMEN log"
+    if len(log.odometry) > MAX_ODOM:
+        what = f"more than {MAX_ODOM:,} ODOM lines (14 hours at 100 Hz)"
+    elif beams > MAX_BEAMS:
+        what = f"more than {MAX_BEAMS:,} laser beams in all (2 GB of ranges)"
+    else:
+        what = f"more than {MAX_SCANS:,} laser readings (about 4 hours at 75 Hz)"
+    return f"{where} {what}, the most a log may hold here: split the log and map its parts"
 
 
 def odometry_at(odometry: list[tuple[float, Pose]], stamp: float) -> Pose | None:
@@ -205,36 +285,74 @@ def _laser_head(fields: list[str]) -> tuple[npt.NDArray[np.float64], npt.NDArray
     n = _count(fields, 8, "beam count")
     ranges = np.array(_floats(fields, 9, n))
     m = _count(fields, 9 + n, "remission count")
-    return np.asarray(start + res * np.arange(n), dtype=np.float64), ranges, rmax, 10 + n + m
+    return _shared_angles(("laser", start, res, n)), ranges, rmax, 10 + n + m
 
 
-def _line(log: CarmenLog, number: int, text: str) -> None:
+def _fields_match(fields: list[str], expected: int, kind: str, counts: str) -> None:
+    """Refuse a laser line whose field count is not the one its beam (and remission) counts make.
+
+    Raises:
+        ValueError: it is not (the line is corrupt: its values would be read in the wrong places).
+    """
+    if len(fields) != expected:
+        raise ValueError(f"it has {len(fields)} fields where a {kind} line of {counts} has {expected}: the counts "
+                         "do not match the values (a corrupt line)")
+
+
+def _param(log: CarmenLog, number: int, name: str, value: str) -> None:
+    """Keep a PARAM value; a laser max range that is not a positive number, or a laser offset that is not a
+    finite one, is reported and ignored (read as given, it would discard or misplace every beam)."""
+    if len(name) > MAX_PARAM_TEXT or len(value) > MAX_PARAM_TEXT:
+        raise ValueError(f"a name or value longer than {MAX_PARAM_TEXT} characters")
+    if name in ("robot_front_laser_max", "robot_frontlaser_offset"):
+        try:
+            number_value = float(value)
+        except ValueError:
+            number_value = math.nan
+        positive = name == "robot_front_laser_max"
+        if not math.isfinite(number_value) or (positive and number_value <= 0.0):
+            what = "a positive range [m]" if positive else "a finite offset [m]"
+            log.problems.append(f"{log.path}:{number}: PARAM {name} {value} is not {what}: ignored")
+            return
+    log.params[name] = value
+
+
+def _line(log: CarmenLog, number: int, text: str) -> int:
+    """Read one line into `log`; the number of beams of the laser reading it adds (0: none)."""
     fields = text.split()
     if not fields or fields[0].startswith("#"):
-        return
+        return 0
     kind = fields[0]
     try:
         if kind == "FLASER":
             n = _count(fields, 1, "beam count")
+            _fields_match(fields, n + 11, kind, f"{n} beams")
             ranges = np.array(_floats(fields, 2, n))
             x, y, th, ox, oy, oth, stamp = _floats(fields, 2 + n, 7)
-            log.scans.append(LogScan(stamp, flaser_angles(n), ranges, Pose(x, y, th), Pose(ox, oy, oth), None, number))
-        elif kind == "ROBOTLASER1":
+            log.scans.append(LogScan(stamp, _shared_angles(("flaser", 0.0, 0.0, n)), ranges, Pose(x, y, th),
+                                     Pose(ox, oy, oth), None, number))
+            return n
+        if kind == "ROBOTLASER1":
             angles, ranges, rmax, k = _laser_head(fields)
+            _fields_match(fields, k + 14, kind, f"{len(ranges)} beams and {k - 10 - len(ranges)} remissions")
             lx, ly, lth, rx, ry, rth = _floats(fields, k, 6)
             (stamp,) = _floats(fields, k + 11, 1)
             log.scans.append(LogScan(stamp, angles, ranges, Pose(lx, ly, lth), Pose(rx, ry, rth), rmax, number))
-        elif kind == "RAWLASER1":
+            return len(ranges)
+        if kind == "RAWLASER1":
             angles, ranges, rmax, k = _laser_head(fields)
+            _fields_match(fields, k + 3, kind, f"{len(ranges)} beams and {k - 10 - len(ranges)} remissions")
             (stamp,) = _floats(fields, k, 1)
             log.raw.append(LogScan(stamp, angles, ranges, Pose(0.0, 0.0, 0.0), Pose(0.0, 0.0, 0.0), rmax, number))
-        elif kind == "ODOM":
+            return len(ranges)
+        if kind == "ODOM":
             x, y, th, _tv, _rv, _acc, stamp = _floats(fields, 1, 7)
             log.odometry.append((stamp, Pose(x, y, th)))
         elif kind == "PARAM" and len(fields) >= 3:
-            log.params[fields[1]] = fields[2]
+            _param(log, number, fields[1], fields[2])
     except ValueError as exc:
         log.problems.append(f"{log.path}:{number}: malformed {kind} line skipped: {exc}")
+    return 0
 
 
 def format_flaser(ranges: npt.ArrayLike, pose: Pose, odom: Pose, stamp: float) -> str:

@@ -17,7 +17,7 @@ from robotexp.localization.metrics import ate
 from robotexp.localization.posegraph import LoopConfig, close_loops
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.mapping.grid import OccupancyGrid
-from robotexp.robot import Pose
+from robotexp.robot import LaserScan, Pose
 
 __all__ = ["OdometryNoise", "parse_noise", "perturb_path", "LogMap", "map_log"]
 
@@ -134,10 +134,13 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
             settings, then build the map on the corrected path; None: no loop closure.
 
     Raises:
-        ConfigError: no laser reading, or a parameter out of range.
+        ConfigError: no laser reading, no beam in any of them, or a parameter out of range.
     """
     if not log.scans:
         raise ConfigError(f"{log.path}: no FLASER, ROBOTLASER1 or RAWLASER1 line: nothing to map")
+    if not any(len(s.ranges) for s in log.scans):
+        raise ConfigError(f"{log.path}: no laser beams to map: its {len(log.scans)} laser readings have 0 beams "
+                          "each; give a log whose laser lines carry ranges")
     if not (cell > 0 and range_max > 0):
         raise ConfigError(f"map_log: cell and range_max must be > 0 m, got {cell} and {range_max}")
     if localize not in ("none", "scan-match"):
@@ -163,9 +166,13 @@ def map_log(log: CarmenLog, *, cell: float = 0.05, noise: OdometryNoise | None =
     grid = OccupancyGrid(geo, range_max=range_max)
     loc = Localizer(geo, ScanMatcher(matcher), range_max=range_max) if localize == "scan-match" else None
     no_echo = log.no_echo()
-    scans = [reading.scan(range_max, no_echo) for reading in log.scans]
+    keep = loc is not None and loops is not None     # loop closure maps the scans again: kept; else made one by one
+    scans: list[LaserScan] = []
     estimate: list[Pose] = []
-    for i, scan in enumerate(scans):
+    for i, reading in enumerate(log.scans):
+        scan = reading.scan(range_max, no_echo)
+        if keep:
+            scans.append(scan)
         if i == 0:
             pose = truth[0]
             if loc is not None:

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from robotexp.cli import main
 from robotexp.errors import ConfigError
 from robotexp.localization import ate
-from robotexp.localization.carmen import flaser_angles, format_flaser, odometry_at, read_carmen
+from robotexp.localization.carmen import CarmenLog, flaser_angles, format_flaser, odometry_at, read_carmen
 from robotexp.localization.logmap import OdometryNoise, perturb_path
 from robotexp.robot import Pose
 from robotexp.world.raycast import RayIndex
@@ -195,14 +195,17 @@ def test_map_command_recovers_the_path_and_writes_a_loadable_map(tmp_path: Path)
     assert second["matches"]["matched"] + second["matches"].get("degenerate", 0) == len(truth) - 1
     assert fixed.output.strip().endswith(f"ATE {second['ate_m']:.3f} m")
     assert second["scans"] == len(truth) and second["ate_alignment"] == "none"
+    # the second map of the log in `out` has its own name: the first is kept
+    assert (first["run"], second["run"]) == ("dense-sim", "dense-sim_2")
+    assert (out / "dense-sim.yaml").is_file() and (out / "dense-sim.png").is_file()
     # the map is a ROS map and a world: the corridor's walls are where the world has them
-    values, geo = load_ros_grid(out / "dense-sim.yaml")
+    values, geo = load_ros_grid(out / "dense-sim_2.yaml")
     r, c = geo.cell_of(0.0, 8.5)                                     # the north wall's face at x = 0
     assert (values[r - 3:r + 4, c - 3:c + 4] == 100).any()
     r, c = geo.cell_of(0.0, 7.5)                                     # the middle of the corridor
     assert values[r, c] == 0
-    world = load_ros_world(out / "dense-sim.yaml")
-    assert len(world.boxes) > 0 and (out / "dense-sim.png").stat().st_size > 1000
+    world = load_ros_world(out / "dense-sim_2.yaml")
+    assert len(world.boxes) > 0 and (out / "dense-sim_2.png").stat().st_size > 1000
 
 
 def test_map_command_rejects_bad_input(tmp_path: Path) -> None:
@@ -222,3 +225,194 @@ def test_map_command_rejects_bad_input(tmp_path: Path) -> None:
     res = runner.invoke(main, ["map", str(far), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2 and "campus.log" in res.output and "use a larger --cell (0.1 m fits)" in res.output
     assert not (tmp_path / "o" / "results.jsonl").exists()
+
+
+def corridor_lines(n: int = 30) -> list[str]:
+    """FLASER lines (181 beams, no echo: 81.91 m) along the corridor of `dense`, 0.15 m apart."""
+    world = builtin_world("dense")
+    index = RayIndex(world.boxes, world.discs, 2.0)
+    angles = flaser_angles(181)
+    lines = []
+    for k in range(n):
+        p = Pose(-8.0 + 0.15 * k, 7.5, 0.0)
+        frac = index.cast(np.tile([p.x, p.y], (181, 1)), p.theta + angles, REACH, 0.3)
+        lines.append(format_flaser(np.where(frac >= 1.0, 81.91, frac * REACH), p, p, float(k)))
+    return lines
+
+
+def test_a_log_whose_scans_have_no_beam_is_refused_in_one_line(tmp_path: Path) -> None:
+    log = tmp_path / "z.log"
+    log.write_text("FLASER 0 0 0 0 0 0 0 1 h 1\n" * 3)
+    parsed = read_carmen(log)
+    assert len(parsed.scans) == 3 and parsed.problems == [] and parsed.no_echo() == math.inf
+    out = tmp_path / "o"
+    res = CliRunner().invoke(main, ["map", str(log), "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    assert res.output == (f"robotexp: error: {log}: no laser beams to map: its 3 laser readings have 0 beams each; "
+                          "give a log whose laser lines carry ranges\n")
+    assert not out.exists()                                       # nothing left of the map that failed
+
+
+def test_a_second_map_in_a_folder_gets_its_own_name(tmp_path: Path) -> None:
+    log = tmp_path / "base.log"
+    log.write_text("\n".join(corridor_lines()) + "\n")
+    out = tmp_path / "mm"
+    runner = CliRunner()
+    first = runner.invoke(main, ["map", str(log), "-o", str(out), "--localize", "none"])
+    assert first.exit_code == 0, first.output
+    kept = {f: (out / f).read_bytes() for f in ("base.png", "base.pgm", "base.yaml")}
+    second = runner.invoke(main, ["map", str(log), "-o", str(out), "--localize", "none", "--cell", "0.2"])
+    assert second.exit_code == 0, second.output
+    assert f"map: {out / 'base_2.png'}, {out / 'base_2.yaml'}" in second.output
+    assert all((out / f).read_bytes() == data for f, data in kept.items())       # the first map is untouched
+    records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert [(r["run"], r["cell_m"]) for r in records] == [("base", 0.05), ("base_2", 0.2)]
+    values, geo = load_ros_grid(out / "base_2.yaml")
+    assert geo.cell == 0.2 and "image: base_2.pgm" in (out / "base_2.yaml").read_text()
+    # nothing but the maps and the records: the name's claim file is gone
+    assert sorted(f.name for f in out.iterdir()) == ["base.pgm", "base.png", "base.yaml", "base_2.pgm",
+                                                     "base_2.png", "base_2.yaml", "results.jsonl"]
+
+
+def test_the_output_folder_and_names_are_checked_before_the_log_is_read(tmp_path: Path) -> None:
+    runner = CliRunner()
+    bad = tmp_path / "bad.log"                          # refused when read: an error about it means it was read
+    bad.write_text("FLASER 0 0 0 0 0 0 0 1 h 1\n")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    res = runner.invoke(main, ["map", str(bad), "-o", str(blocker / "o")])
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and f"--out {blocker / 'o'}: cannot write" in res.output
+    out = tmp_path / "o"
+    (out / "results.jsonl").mkdir(parents=True)
+    res = runner.invoke(main, ["map", str(bad), "-o", str(out)])
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and "results.jsonl: is a folder" in res.output
+    assert sorted(f.name for f in out.iterdir()) == ["results.jsonl"]
+    # a name whose files are in the way (folders, an earlier map's YAML without its PNG) is passed over
+    log = tmp_path / "base.log"
+    log.write_text("\n".join(corridor_lines(10)) + "\n")
+    out = tmp_path / "o2"
+    (out / "base.yaml").mkdir(parents=True)
+    (out / "base_2.png").mkdir()
+    res = runner.invoke(main, ["map", str(log), "-o", str(out), "--localize", "none"])
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "results.jsonl").read_text())["run"] == "base_3"
+    assert sorted(f.name for f in out.iterdir()) == ["base.yaml", "base_2.png", "base_3.pgm", "base_3.png",
+                                                     "base_3.yaml", "results.jsonl"]
+    # a map that fails leaves nothing in a folder that was there
+    res = runner.invoke(main, ["map", str(bad), "-o", str(out)])
+    assert res.exit_code == 2 and "no laser beams to map" in res.output
+    assert sorted(f.name for f in out.iterdir()) == ["base.yaml", "base_2.png", "base_3.pgm", "base_3.png",
+                                                     "base_3.yaml", "results.jsonl"]
+
+
+def test_a_line_too_long_is_refused_without_being_read_whole(tmp_path: Path) -> None:
+    import tracemalloc
+
+    log = tmp_path / "b.log.gz"
+    log.write_bytes(gzip.compress(b"# " + b"x" * (64 * 2**20) + b"\n", 9))
+    tracemalloc.start()
+    try:
+        with pytest.raises(ConfigError, match=r"b\.log\.gz:1: a line longer than 1 MiB"):
+            read_carmen(log)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 * 2**20                                        # [bytes] a few MiB, not the 64 MiB line
+    res = CliRunner().invoke(main, ["map", str(log), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and "give a CARMEN log" in res.output
+    # the line number is the one of the long line; a long comment line is as long a line
+    plain = tmp_path / "p.log"
+    plain.write_text("\n".join(corridor_lines(2)) + "\n#" + "x" * 2**20 + "\n")
+    with pytest.raises(ConfigError, match=r"p\.log:3: a line longer than 1 MiB"):
+        read_carmen(plain)
+    plain.write_text("\n".join(corridor_lines(2)) + "\n#" + "x" * (2**20 - 1) + "\n")     # 1 MiB: kept
+    assert len(read_carmen(plain).scans) == 2
+
+
+def test_the_readings_a_log_may_hold_are_bounded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from robotexp.localization import carmen
+
+    assert carmen.MAX_SCANS == 1_000_000 and carmen.MAX_BEAMS == 250_000_000
+    log = tmp_path / "many.log.gz"
+    line = corridor_lines(1)[0]
+    log.write_bytes(gzip.compress(((line + "\n") * 6 + "ODOM 0 0 0 0 0 0 1 h 1\n" * 4).encode()))
+    assert len(read_carmen(log).scans) == 6
+    monkeypatch.setattr(carmen, "MAX_SCANS", 5)
+    with pytest.raises(ConfigError, match=r"many\.log\.gz:6: more than 5 laser readings \(about 4 hours at 75 Hz\)"):
+        read_carmen(log)
+    res = CliRunner().invoke(main, ["map", str(log), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.count("\n") == 1 and "split the log" in res.output
+    monkeypatch.setattr(carmen, "MAX_SCANS", 1_000_000)
+    monkeypatch.setattr(carmen, "MAX_BEAMS", 181 * 3)
+    with pytest.raises(ConfigError, match=r"many\.log\.gz:4: more than 543 laser beams in all"):
+        read_carmen(log)
+    monkeypatch.setattr(carmen, "MAX_BEAMS", 250_000_000)
+    monkeypatch.setattr(carmen, "MAX_ODOM", 3)
+    with pytest.raises(ConfigError, match=r"many\.log\.gz:10: more than 3 ODOM lines"):
+        read_carmen(log)
+    monkeypatch.setattr(carmen, "MAX_ODOM", 5_000_000)
+    monkeypatch.setattr(carmen, "MAX_PROBLEMS", 2)
+    junk = tmp_path / "junk.log"
+    junk.write_text("ODOM 1 2\n" * 5)
+    with pytest.raises(ConfigError, match=r"junk\.log:3: more than 2 malformed lines"):
+        read_carmen(junk)
+
+
+def test_a_laser_line_whose_counts_do_not_match_its_values_is_skipped(tmp_path: Path) -> None:
+    lines = corridor_lines()
+    good = tmp_path / "good.log"
+    good.write_text("\n".join(lines) + "\n")
+    # 180 ranges where the line says 170: read by its count, ten ranges would be taken as the pose
+    fields = lines[5].split()
+    fields[1] = "170"
+    corrupt = lines[:5] + [" ".join(fields)] + lines[5:]
+    robot = ("ROBOTLASER1 0 -1.5708 3.1416 0.7854 30.0 0.01 0 4 1 2 3 4 5 0 1.0 2.0 0.1 0.9 2.0 0.1 "
+             "0 0 0 0 0 13.0 host 13.1")                    # 5 ranges where it says 4: the 5th read as a count
+    raw = "RAWLASER1 0 -1.57 3.14 0.5 30 0.01 0 3 1 2 3 1 4 5 15.0 host 15.1"   # 2 remissions where it says 1
+    bad = tmp_path / "bad.log"
+    bad.write_text("\n".join(corrupt + [robot, raw]) + "\n")
+    parsed = read_carmen(bad)
+    assert len(parsed.scans) == len(lines) and parsed.raw == []
+    assert parsed.problems == [
+        f"{bad}:6: malformed FLASER line skipped: it has 192 fields where a FLASER line of 170 beams has 181: "
+        "the counts do not match the values (a corrupt line)",
+        f"{bad}:{len(lines) + 2}: malformed ROBOTLASER1 line skipped: it has 29 fields where a ROBOTLASER1 line "
+        "of 4 beams and 5 remissions has 33: the counts do not match the values (a corrupt line)",
+        f"{bad}:{len(lines) + 3}: malformed RAWLASER1 line skipped: it has 18 fields where a RAWLASER1 line "
+        "of 3 beams and 1 remissions has 17: the counts do not match the values (a corrupt line)"]
+    runner = CliRunner()
+    ok = runner.invoke(main, ["map", str(good), "-o", str(tmp_path / "o"), "--localize", "none"])
+    res = runner.invoke(main, ["map", str(bad), "-o", str(tmp_path / "o"), "--localize", "none"])
+    assert ok.exit_code == 0 and res.exit_code == 0, res.output
+    assert f"robotexp: {bad}:6: malformed FLASER line skipped" in res.stderr
+    first, second = (json.loads(x) for x in (tmp_path / "o" / "results.jsonl").read_text().splitlines())
+    assert second["malformed_lines"] == 3 and second["scans"] == first["scans"]
+    assert second["ate_m"] == first["ate_m"] == 0.0
+
+
+def test_a_laser_max_param_that_is_no_range_is_reported_and_ignored(tmp_path: Path) -> None:
+    lines = corridor_lines()
+    log = tmp_path / "neg.log"
+    log.write_text("\n".join(["PARAM robot_front_laser_max -1 nohost 0", "PARAM robot_frontlaser_offset nan nohost 0"]
+                             + lines) + "\n")
+    parsed = read_carmen(log)
+    assert parsed.problems == [f"{log}:1: PARAM robot_front_laser_max -1 is not a positive range [m]: ignored",
+                               f"{log}:2: PARAM robot_frontlaser_offset nan is not a finite offset [m]: ignored"]
+    assert parsed.params == {} and parsed.no_echo() == pytest.approx(81.91)      # the saturated reading
+    for value in ("0", "inf", "nan", "x"):
+        assert read_with_laser_max(tmp_path, value).no_echo() == pytest.approx(81.91)
+    out = tmp_path / "o"
+    res = CliRunner().invoke(main, ["map", str(log), "-o", str(out), "--localize", "none"])
+    assert res.exit_code == 0, res.output
+    assert f"robotexp: {log}:1: PARAM robot_front_laser_max -1 is not a positive range [m]: ignored" in res.stderr
+    values, geo = load_ros_grid(out / "neg.yaml")
+    assert (values == 100).sum() > 100 and (values == 0).sum() > 1000         # walls and free space, not unknown
+
+
+def read_with_laser_max(tmp_path: Path, value: str) -> CarmenLog:
+    """A log of the corridor whose `robot_front_laser_max` PARAM is `value`, read."""
+    log = tmp_path / f"max-{value}.log"
+    log.write_text("\n".join([f"PARAM robot_front_laser_max {value} nohost 0"] + corridor_lines(3)) + "\n")
+    parsed = read_carmen(log)
+    assert len(parsed.problems) == 1 and parsed.problems[0].startswith(f"{log}:1: PARAM robot_front_laser_max")
+    return parsed
