@@ -29,7 +29,7 @@ from robotexp.campaign.report import Table
 from robotexp.campaign.spec import method_label, record_key
 from robotexp.output.safefile import warn
 from robotexp.errors import ConfigError, WorldError
-from robotexp.run.record import EndReason, RunRecord
+from robotexp.run.record import EndReason, RunRecord, record_problem
 from robotexp.campaign.statistics import NoVariance, bootstrap_mean_difference, mann_whitney_u, welch_t_test
 
 __all__ = ["REQUIRED_KEYS", "campaign_plots", "comparison_tables", "excluded_table", "load_results", "path_file"]
@@ -48,7 +48,8 @@ def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> li
 
     Raises:
         ConfigError: no such file, not UTF-8 text, a line that is not a JSON object, a record
-            without the keys `REQUIRED_KEYS`, or no record at all.
+            without the keys `REQUIRED_KEYS`, or no record at all (a record with a field of the wrong
+            type, `record_problem`, is reported and skipped).
     """
     if not path.is_file():
         raise ConfigError(f"{path}: no such results file (give the results.jsonl a run or campaign wrote)")
@@ -59,6 +60,7 @@ def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> li
     numbered = [(i, line.strip()) for i, line in enumerate(lines, start=1) if line.strip()]
     records: list[RunRecord] = []
     torn: list[str] = []
+    mistyped: list[int] = []
     for i, line in numbered:
         try:
             rec = json.loads(line)
@@ -71,8 +73,17 @@ def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> li
         missing = [key for key in REQUIRED_KEYS if key not in rec]
         if missing:
             raise ConfigError(f"{path}:{i}: record lacks {', '.join(missing)}; is this a robotexp results.jsonl?")
+        problem = record_problem(rec)
+        if problem is not None:     # as `results.read_jsonl` does: said and skipped
+            warn(f"{path}:{i}: record skipped: {problem}; correct or delete the line")
+            mistyped.append(i)
+            continue
         records.append(RunRecord.from_dict(rec))
     if not records:
+        if mistyped:
+            raise ConfigError(f"{path}: no usable record ({len(mistyped)} with a field of the wrong type, said "
+                              f"above{f', {len(torn)} torn' if torn else ''}); give a results.jsonl a run or "
+                              "campaign wrote")
         if torn:
             raise ConfigError(f"{path}:{torn[0].split()[0]}: not a JSON record; give a results.jsonl "
                               "(one JSON object per line)")

@@ -635,7 +635,7 @@ def campaign_figures(records: Sequence[Any], out: Path, formats: Sequence[str] =
 
     every = [r if isinstance(r, RunRecord) else RunRecord.from_dict(r) for r in records]
     if not every:
-        raise ConfigError("no run to draw: the results file has no record")
+        raise ConfigError("no run to draw: the results file has no usable record")
     finished = [r for r in every if r.end is not EndReason.INTERRUPTED]
     recs = [r for r in finished if include_incomplete or r.completed]
     if not recs:

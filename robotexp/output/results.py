@@ -18,7 +18,7 @@ import numpy as np
 
 from robotexp.errors import ConfigError, RobotexpError
 from robotexp.run.observers import RunObserver
-from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord
+from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord, record_problem
 
 if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
@@ -168,13 +168,15 @@ def append_jsonl(path: Path, record: RunRecord | dict[str, Any]) -> None:
 
 
 def read_jsonl(path: Path) -> list[dict[str, Any]]:
-    """Every record of a results file; a torn or damaged line is reported and skipped."""
+    """Every record of a results file; a torn or damaged line, and a record whose known fields have the
+    wrong type (`record_problem`: `"coverage": "x"`), is reported (`file:line`) and skipped."""
     from robotexp.output.safefile import read_records
-    return read_records(path)
+    return read_records(path, check=record_problem)
 
 
 def read_records(path: Path) -> list[RunRecord]:
-    """Every record of a results file as a `RunRecord` (a torn or damaged line is reported and skipped)."""
+    """Every record of a results file as a `RunRecord` (a torn or damaged line, or a field of the wrong type,
+    is reported and skipped: `read_jsonl`)."""
     return [RunRecord.from_dict(r) for r in read_jsonl(path) if isinstance(r, dict)]
 
 

@@ -206,8 +206,10 @@ def _skip_line(f: Any) -> int:
             return n
 
 
-def read_records(path: Path, note: Callable[[str], None] = warn) -> list[dict[str, Any]]:
-    """Every JSON object (one per line) of `path`; each other non-empty line is reported and skipped.
+def read_records(path: Path, note: Callable[[str], None] = warn,
+                 check: Callable[[dict[str, Any]], str | None] | None = None) -> list[dict[str, Any]]:
+    """Every JSON object (one per line) of `path`; each other non-empty line is reported and skipped, and
+    so is an object for which `check` gives a problem (the words after "record skipped: ").
 
     Raises:
         OSError: the file cannot be read.
@@ -234,6 +236,10 @@ def read_records(path: Path, note: Callable[[str], None] = warn) -> list[dict[st
             if not isinstance(value, dict):
                 what = "torn last line" if not raw.endswith(b"\n") else "line that is not a JSON record"
                 note(f"{path}:{number}: {what} skipped ({len(raw)} bytes)")
+                continue
+            problem = check(value) if check is not None else None
+            if problem is not None:
+                note(f"{path}:{number}: record skipped: {problem}; correct or delete the line")
                 continue
             records.append(value)
     return records

@@ -11,13 +11,13 @@ also a read-only mapping of its JSON keys (`record["coverage"]`), so code writte
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, fields
 from types import MappingProxyType
 from typing import Any
 
 __all__ = ["EndReason", "RunRecord", "RESULT_KEYS", "COVERAGE_MILESTONES", "SCHEMA_VERSION", "milestone_keys",
-           "results_schema"]
+           "record_problem", "results_schema"]
 
 SCHEMA_VERSION = 1      # the format of the records written now (robotexp/schema/results.schema.json)
 
@@ -226,3 +226,38 @@ class RunRecord(Mapping[str, Any]):
 
 def _unpickle(state: dict[str, Any]) -> RunRecord:
     return RunRecord(**state)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_integer(value: Any) -> bool:
+    return _is_number(value) and (isinstance(value, int) or value.is_integer())
+
+
+# the JSON type of each typed field, by its annotation (null is always allowed: it reads as the default)
+_JSON_TYPES: dict[str, tuple[str, Callable[[Any], bool]]] = {
+    "float": ("a number", _is_number),
+    "int": ("an integer", _is_integer),
+    "str": ("a string", lambda v: isinstance(v, str)),
+    "bool": ("a boolean", lambda v: isinstance(v, bool)),
+    "list[float]": ("a list of numbers", lambda v: isinstance(v, list) and all(map(_is_number, v))),
+    "list[dict[str, Any]]": ("a list of objects", lambda v: isinstance(v, list) and all(isinstance(x, dict)
+                                                                                     for x in v)),
+}
+_FIELD_TYPES = {f.name: _JSON_TYPES[str(f.type).removesuffix(" | None")] for f in fields(RunRecord)
+                if str(f.type).removesuffix(" | None") in _JSON_TYPES}
+
+
+def record_problem(data: Mapping[str, Any]) -> str | None:
+    """What makes the JSON object `data` no run record: the first field of `RunRecord` whose value has
+    the wrong JSON type (`"coverage": "x"`, `"world": ["x"]`), said in a few words; None when every field
+    present has its type (null and missing keys read as the field's default; other keys are free)."""
+    for key, (expected, ok) in _FIELD_TYPES.items():
+        value = data.get(key)
+        if value is not None and not ok(value):
+            shown = repr(value)
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            return f"{key} is {shown}, expected {expected} or null"
+    return None

@@ -30,17 +30,34 @@ from robotexp.mapping.kernels import edt_sq, kernel
 from robotexp.world.raycast import RayIndex, bucket_window, shape_distance
 from robotexp.world.model import World
 
-__all__ = ["FINE_STEP", "MAX_SAMPLES", "TOL", "Regions", "clearance", "clearance_points", "reach_regions",
+__all__ = ["BUCKET", "FINE_STEP", "MAX_SAMPLES", "TOL", "Regions", "clearance", "clearance_points", "reach_regions",
            "world_index"]
 
 FINE_STEP = 0.01        # [m] the finest spacing at which the border of the free space is sampled
 MAX_SAMPLES = 16_000_000  # the border band holds at most this many fine samples (k is lowered to fit)
 TOL = 1e-9              # [m] a clearance within this of the radius counts as touching: the robot does not fit
+BUCKET = 0.5            # [m] largest bucket of the clearance's index (`world_index`)
+CHUNK = 1 << 16         # points searched per kernel call: signals are handled between calls
 
 
 def world_index(world: World) -> RayIndex:
-    """The bucket index of `world`'s static obstacles (the ray caster's)."""
-    return RayIndex(world.boxes, world.discs, 1.0)
+    """The bucket index of `world`'s static obstacles for clearance queries: the ray caster's, with
+    buckets of at most BUCKET (a query looks at the few buckets within its cap of the point, whatever
+    the obstacles' size)."""
+    return RayIndex(world.boxes, world.discs, 1.0, max_bucket=BUCKET)
+
+
+@kernel
+def _nearer(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], items: npt.NDArray[np.int64],  # noqa: PLR0913
+            cell: int, x: float, y: float, best: float) -> float:
+    """The least of `best` and the distance [m] from (x, y) to the shapes of bucket `cell`."""
+    for j in range(starts[cell], starts[cell + 1]):
+        k = items[j]
+        d = shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4], shapes[k, 5],
+                           shapes[k, 6], x, y)
+        if d < best:
+            best = d
+    return best
 
 
 @kernel
@@ -48,45 +65,67 @@ def clearance_points(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int
                      gx: float, gy: float, bucket: float, rows: int, cols: int, xs: npt.NDArray[np.float64],
                      ys: npt.NDArray[np.float64], cap: float, out: npt.NDArray[np.float64]) -> None:
     """Write into `out` the exact distance [m] from each point (xs[i], ys[i]) to the nearest shape of the
-    bucket grid (see `robotexp.world.raycast.cast_rays`), or `cap` when none lies nearer than `cap`."""
+    bucket grid (see `robotexp.world.raycast.cast_rays`), or `cap` when none lies nearer than `cap`.
+
+    The point's own bucket is searched first; a bucket of the window wholly as far as the nearest shape
+    found so far is skipped (a shape is listed in every bucket it overlaps, so a nearer point of it lies in
+    a nearer bucket)."""
     for i in range(xs.shape[0]):
         x, y = xs[i], ys[i]
         best = cap
         r0, r1, c0, c1 = bucket_window(gx, gy, bucket, rows, cols, x, y, cap)
+        ro = int(math.floor((y - gy) / bucket))
+        co = int(math.floor((x - gx) / bucket))
+        if r0 <= ro <= r1 and c0 <= co <= c1:
+            best = _nearer(shapes, starts, items, ro * cols + co, x, y, best)
         for r in range(r0, r1 + 1):
+            dy = max(gy + r * bucket - y, y - (gy + (r + 1) * bucket), 0.0)
+            if dy >= best:
+                continue
             for c in range(c0, c1 + 1):
-                cell = r * cols + c
-                for j in range(starts[cell], starts[cell + 1]):
-                    k = items[j]
-                    d = shape_distance(shapes[k, 0], shapes[k, 1], shapes[k, 2], shapes[k, 3], shapes[k, 4],
-                                        shapes[k, 5], shapes[k, 6], x, y)
-                    if d < best:
-                        best = d
+                if r == ro and c == co:
+                    continue
+                dx = max(gx + c * bucket - x, x - (gx + (c + 1) * bucket), 0.0)
+                if dx * dx + dy * dy < best * best:
+                    best = _nearer(shapes, starts, items, r * cols + c, x, y, best)
         out[i] = best
 
 
-def clearance(world: World, geo: GridGeometry, cap: float, *, index: RayIndex | None = None,
-              occupied: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.float64]:
+def clearance(world: World, geo: GridGeometry, cap: float, *, index: RayIndex | None = None,  # noqa: PLR0913
+              occupied: npt.NDArray[np.bool_] | None = None, floor: float | None = None) -> npt.NDArray[np.float64]:
     """Float64 (rows, cols): the exact clearance [m] of each cell centre of `geo`, at most `cap` [m].
 
     `occupied` (the cells overlapping an obstacle, `groundtruth.occupancy`) lets cells whose nearest
-    occupied cell lies beyond `cap` skip the exact search; `index` is `world_index(world)`.
+    occupied cell lies beyond `cap` skip the exact search; `index` is `world_index(world)`. With `floor`
+    [m] (and `occupied`), a cell that an occupied cell proves to lie within `floor` of an obstacle (the
+    farthest point of that cell's square is that near) gets that bound (<= `floor`, >= its clearance)
+    instead of its exact clearance: for callers that only tell clearances above `floor` apart. The
+    search runs in parts, so Ctrl-C and signals are handled between them.
     """
     if index is None:
         index = world_index(world)
     out = np.full((geo.rows, geo.cols), float(cap))
     if occupied is not None and occupied.any():
-        # every obstacle point lies in an occupied cell's square: at least (centre distance - h/sqrt 2) away
-        near = np.sqrt(edt_sq(occupied)) * geo.cell - geo.cell * math.sqrt(0.5) < cap
+        # every obstacle point lies in an occupied cell's square: at least (centre distance - h/sqrt 2) away,
+        # and the nearest occupied cell holds one at most (centre distance + h/sqrt 2) away
+        centre = np.sqrt(edt_sq(occupied)) * geo.cell
+        half_diag = geo.cell * math.sqrt(0.5)
+        near = centre - half_diag < cap
+        if floor is not None:
+            proven = centre + half_diag < floor - TOL
+            out[proven] = np.minimum(centre[proven] + half_diag, cap)
+            near &= ~proven
     else:
         near = np.ones((geo.rows, geo.cols), np.bool_) if occupied is None else np.zeros((geo.rows, geo.cols),
                                                                                           np.bool_)
     rr, cc = np.nonzero(near)
-    xs = geo.origin_x + (cc + 0.5) * geo.cell
-    ys = geo.origin_y + (rr + 0.5) * geo.cell
+    xs = (geo.origin_x + (cc + 0.5) * geo.cell).astype(np.float64)
+    ys = (geo.origin_y + (rr + 0.5) * geo.cell).astype(np.float64)
     vals = np.empty(len(rr))
-    clearance_points(index.shapes, index.starts, index.items, index.origin[0], index.origin[1], index.bucket,
-                     index.rows, index.cols, xs.astype(np.float64), ys.astype(np.float64), float(cap), vals)
+    for a in range(0, len(rr), CHUNK):
+        b = a + CHUNK
+        clearance_points(index.shapes, index.starts, index.items, index.origin[0], index.origin[1], index.bucket,
+                         index.rows, index.cols, xs[a:b], ys[a:b], float(cap), vals[a:b])
     out[rr, cc] = vals
     return out
 
@@ -99,6 +138,7 @@ def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], i
     """out[m, i, j]: True when the point (i, j) of the k x k lattice in cell (mr[m], mc[m]) lies farther than
     `radius` (+ TOL) from every shape (the shapes near the cell are gathered once per cell)."""
     cand = np.empty(shapes.shape[0], np.int64)
+    seen = np.full(shapes.shape[0], -1, np.int64)     # the last cell that took each shape as a candidate
     s = h / k
     reach = radius + h
     for m in range(mr.shape[0]):
@@ -117,15 +157,10 @@ def _fine_free(shapes: npt.NDArray[np.float64], starts: npt.NDArray[np.int64], i
                     q = items[j]
                     d = shape_distance(shapes[q, 0], shapes[q, 1], shapes[q, 2], shapes[q, 3], shapes[q, 4],
                                         shapes[q, 5], shapes[q, 6], xc, yc)
-                    if d <= radius + h:     # within reach of some point of the cell (h > h / sqrt 2)
-                        dup = False
-                        for t in range(n):
-                            if cand[t] == q:
-                                dup = True
-                                break
-                        if not dup:
-                            cand[n] = q
-                            n += 1
+                    if d <= radius + h and seen[q] != m:   # within reach of some point of the cell (h > h / sqrt 2)
+                        seen[q] = m
+                        cand[n] = q
+                        n += 1
         for i in range(k):
             y = y0 + (i + 0.5) * s
             for j in range(k):
@@ -231,7 +266,8 @@ class Regions:
         geo: the grid.
         radius: [m] the robot's radius.
         k: fine samples per cell side in the border band.
-        clear: float64 (rows, cols) exact clearance [m] of the cell centres, capped at radius + cell.
+        clear: float64 (rows, cols) exact clearance [m] of the cell centres, capped at radius + cell (a cell
+            the occupied cells prove blocked holds a bound <= radius - cell / sqrt 2 instead: `clearance`).
         coarse: int32 (rows, cols) region of each sure cell (0: not sure).
         mid: int64 (rows, cols) index of each border-band cell in `fine` (-1: not in the band).
         fine: int32 (m, k, k) region of each fine sample of the band's cells (0: the robot does not fit).
@@ -305,7 +341,8 @@ def reach_regions(world: World, geo: GridGeometry, radius: float, *, occupied: n
         index = world_index(world)
     h = float(geo.cell)
     half_diag = h * math.sqrt(0.5)
-    clear = clearance(world, geo, radius + h, index=index, occupied=occupied)
+    # a cell proven within radius - h/sqrt 2 of an obstacle is blocked whatever its exact clearance
+    clear = clearance(world, geo, radius + h, index=index, occupied=occupied, floor=radius - half_diag)
     sure = clear > radius + half_diag + TOL
     band = ~sure & (clear + half_diag > radius + TOL)
     mr, mc = np.nonzero(band)
@@ -314,10 +351,12 @@ def reach_regions(world: World, geo: GridGeometry, radius: float, *, occupied: n
     mid = np.full((geo.rows, geo.cols), -1, np.int64)
     mid[mr, mc] = np.arange(len(mr), dtype=np.int64)
     fine = np.zeros((len(mr), k, k), np.bool_)
-    if len(mr):
+    step = max(1, CHUNK // (k * k))
+    for a in range(0, len(mr), step):       # in parts: Ctrl-C and signals are handled between them
+        b = a + step
         _fine_free(index.shapes, index.starts, index.items, index.origin[0], index.origin[1], index.bucket,
                    index.rows, index.cols, float(geo.origin_x), float(geo.origin_y), h, k, float(radius),
-                   mr, mc, fine)
+                   mr[a:b], mc[a:b], fine[a:b])
     lab_c, lab_f, count = _label(sure, mid, mr, mc, fine, k)
     area = np.bincount(lab_c.ravel(), minlength=count + 1).astype(np.float64) * h * h
     area += np.bincount(lab_f.ravel(), minlength=count + 1).astype(np.float64) * (h / k) ** 2

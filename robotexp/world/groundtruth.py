@@ -33,6 +33,8 @@ __all__ = ["GroundTruth", "coverage", "coverage_inside", "map_iou_tolerant",
            "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
            "ray_tree"]
 
+RASTER_PART = 1 << 24     # bounding-box cells rasterised per kernel call (`occupancy`)
+
 
 @dataclass(frozen=True)
 class GroundTruth:
@@ -70,8 +72,20 @@ def _geo64(geo: GridGeometry) -> GridGeometry:
 def occupancy(world: World, geo: GridGeometry) -> npt.NDArray[np.bool_]:
     """Bool (rows, cols): cells whose square overlaps a static obstacle of `world` with positive area."""
     occ = np.zeros((geo.rows, geo.cols), np.bool_)
-    rasterize(occ, _geo64(geo), np.ascontiguousarray(world.boxes, np.float64),
-              np.ascontiguousarray(world.discs, np.float64))
+    boxes = np.ascontiguousarray(world.boxes, np.float64).reshape(-1, 5)
+    discs = np.ascontiguousarray(world.discs, np.float64).reshape(-1, 3)
+    # in parts of about RASTER_PART bounding-box cells (long diagonal walls have large boxes): Ctrl-C and
+    # signals are handled between them
+    ex = np.abs(boxes[:, 2] * np.cos(boxes[:, 4])) + np.abs(boxes[:, 3] * np.sin(boxes[:, 4]))
+    ey = np.abs(boxes[:, 2] * np.sin(boxes[:, 4])) + np.abs(boxes[:, 3] * np.cos(boxes[:, 4]))
+    cells = np.minimum(2 * ex / geo.cell + 2, geo.cols) * np.minimum(2 * ey / geo.cell + 2, geo.rows)
+    ends = np.cumsum(np.nan_to_num(cells, nan=1.0, posinf=RASTER_PART))
+    first = 0
+    while first < len(boxes):
+        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0.0) + RASTER_PART, "right")), first + 1)
+        rasterize(occ, _geo64(geo), boxes[first:last], discs[:0])
+        first = last
+    rasterize(occ, _geo64(geo), boxes[:0], discs)
     return occ
 
 

@@ -40,10 +40,14 @@ class RayIndex:
         height: [m] height of every static obstacle (rays at 0 <= z < height meet them).
         bucket: [m] side of a bucket (default: about three times the median obstacle size,
             at least 0.25 m, and never more than MAX_BUCKETS buckets).
+        max_bucket: [m] the default bucket is at most this (queries near a point: the clearance's).
+
+    A rectangle is listed in the buckets it overlaps, row by row of buckets (not in every bucket of its
+    bounding box: a long diagonal wall crosses about its length in buckets, not its length squared).
     """
 
     def __init__(self, boxes: npt.ArrayLike, discs: npt.ArrayLike, height: float,
-                 bucket: float | None = None) -> None:
+                 bucket: float | None = None, *, max_bucket: float | None = None) -> None:
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 5)
         d = np.asarray(discs, dtype=np.float64).reshape(-1, 3)
         self.height = float(height)
@@ -68,27 +72,23 @@ class RayIndex:
         if bucket is None:
             sizes = np.maximum(hi - lo, 0.0).max(axis=1) if len(shapes) else np.ones(1)
             bucket = max(0.25, 3.0 * float(np.median(sizes)))
+            if max_bucket is not None:
+                bucket = min(bucket, max_bucket)
         bucket = max(float(bucket), math.sqrt((x1 - x0) * (y1 - y0) / MAX_BUCKETS))
         cols = max(int(math.ceil((x1 - x0) / bucket)), 1)
         rows = max(int(math.ceil((y1 - y0) / bucket)), 1)
         self.origin = (float(x0), float(y0))
         self.bucket, self.rows, self.cols = bucket, rows, cols
-        # CSR lists of the shapes overlapping each bucket (by their bounds).
-        c0 = np.clip(((lo[:, 0] - x0) // bucket).astype(np.int64), 0, cols - 1)
-        c1 = np.clip(((hi[:, 0] - x0) // bucket).astype(np.int64), 0, cols - 1)
-        r0 = np.clip(((lo[:, 1] - y0) // bucket).astype(np.int64), 0, rows - 1)
-        r1 = np.clip(((hi[:, 1] - y0) // bucket).astype(np.int64), 0, rows - 1)
-        # one (bucket, shape) pair per bucket a shape's bounds overlap, shape by shape (vectorised:
-        # maps of 10^5 boxes)
+        # CSR lists of the shapes overlapping each bucket: a run of buckets per shape and bucket row
+        # (vectorised: maps of 10^5 boxes)
         n = len(shapes)          # lo and hi have one dummy row when there is no shape
-        r0, r1, c0, c1 = r0[:n], r1[:n], c0[:n], c1[:n]
-        n_r, n_c = r1 - r0 + 1, c1 - c0 + 1
-        count = n_r * n_c
-        owner = np.repeat(np.arange(len(shapes), dtype=np.int64), count)
+        grid = (float(x0), float(y0), float(bucket), rows, cols)
+        owner, row, c0, c1 = _bucket_runs(b, lo[:n], hi[:n], grid)
+        count = c1 - c0 + 1
+        owner = np.repeat(owner, count)
         local = np.arange(int(count.sum()), dtype=np.int64) - np.repeat(np.cumsum(count) - count, count)
-        cell = (np.repeat(r0, count) + local // np.repeat(n_c, count)) * cols \
-            + np.repeat(c0, count) + local % np.repeat(n_c, count)
-        order = np.argsort(cell, kind="stable")
+        cell = np.repeat(row * cols + c0, count) + local
+        order = np.lexsort((owner, cell))       # each bucket's shapes in the order of the shapes
         self.items = owner[order]
         self.starts = np.searchsorted(cell[order], np.arange(rows * cols + 1)).astype(np.int64)
 
@@ -119,6 +119,71 @@ class RayIndex:
                   np.ascontiguousarray(movers[(movers[:, 3] > z) & (z >= 0.0)] if len(movers) else movers,
                                        dtype=np.float64), out)
         return out
+
+
+_RUN_ROWS = 1 << 18         # shape-rows handled at once while listing a map's shapes in buckets
+_EDGE = 1e-6                # [m] a rectangle is listed in a bucket it comes this near (rounding)
+
+
+def _bucket_runs(boxes: npt.NDArray[np.float64], lo: npt.NDArray[np.float64], hi: npt.NDArray[np.float64],
+                 grid: tuple[float, float, float, int, int]) -> tuple[npt.NDArray[np.int64], ...]:
+    """The buckets each shape overlaps, as runs (owner, row, c0, c1) of a bucket row from column c0 to c1
+    (inclusive): a turned rectangle (of the first len(boxes) shapes) crossing several rows and columns by the
+    columns of its part within each row, any other shape (discs, rectangles along the axes, those within
+    one row or column) by its bounds `lo`..`hi` (n, 2) [m]. `grid` is (x0, y0, bucket, rows, cols)."""
+    x0, y0, bucket, rows, cols = grid
+    r0 = np.clip(((lo[:, 1] - _EDGE - y0) // bucket).astype(np.int64), 0, rows - 1)
+    r1 = np.clip(((hi[:, 1] + _EDGE - y0) // bucket).astype(np.int64), 0, rows - 1)
+    b0 = np.clip(((lo[:, 0] - _EDGE - x0) // bucket).astype(np.int64), 0, cols - 1)
+    b1 = np.clip(((hi[:, 0] + _EDGE - x0) // bucket).astype(np.int64), 0, cols - 1)
+    n_rows = r1 - r0 + 1
+    turned = np.zeros(len(lo), np.bool_)
+    turned[:len(boxes)] = (np.sin(2.0 * boxes[:, 4]) != 0.0) & (n_rows[:len(boxes)] > 1) & (b1 > b0)[:len(boxes)]
+    parts: list[tuple[npt.NDArray[np.int64], ...]] = []
+    plain = np.flatnonzero(~turned)
+    owner = np.repeat(plain, n_rows[plain])
+    row = r0[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(n_rows[plain]) - n_rows[plain], n_rows[plain])
+    parts.append((owner, row, b0[owner], b1[owner]))
+    k_all = np.flatnonzero(turned)
+    ends = np.cumsum(n_rows[k_all])
+    first = 0
+    while first < len(k_all):
+        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0) + _RUN_ROWS, "right")), first + 1)
+        k = k_all[first:last]
+        # corners in order around each rectangle: centre +- the half axes
+        c, s = np.cos(boxes[k, 4]), np.sin(boxes[k, 4])
+        ux, uy, vx, vy = c * boxes[k, 2], s * boxes[k, 2], -s * boxes[k, 3], c * boxes[k, 3]
+        px = np.repeat(boxes[k, 0:1] + np.column_stack([ux + vx, -ux + vx, -ux - vx, ux - vx]), n_rows[k], axis=0)
+        py = np.repeat(boxes[k, 1:2] + np.column_stack([uy + vy, -uy + vy, -uy - vy, uy - vy]), n_rows[k], axis=0)
+        owner = np.repeat(k, n_rows[k])
+        row = r0[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(n_rows[k]) - n_rows[k], n_rows[k])
+        x_lo, x_hi = _strip_span(px, py, y0 + row * bucket - _EDGE, y0 + (row + 1) * bucket + _EDGE)
+        c0 = np.maximum(np.floor((x_lo - _EDGE - x0) / bucket), b0[owner]).astype(np.int64)
+        c1 = np.minimum(np.floor((x_hi + _EDGE - x0) / bucket), b1[owner]).astype(np.int64)
+        keep = c0 <= c1
+        parts.append((owner[keep], row[keep], c0[keep], c1[keep]))
+        first = last
+    return tuple(np.concatenate([p[i] for p in parts]).astype(np.int64) for i in range(4))
+
+
+def _strip_span(px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], y_lo: npt.NDArray[np.float64],
+                y_hi: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(x_lo, x_hi) (n,): the x range of the part of each convex polygon (corners px, py (n, 4) in order)
+    between y_lo and y_hi (n,) (x_lo > x_hi when none): the extremes lie on its edges cut to the strip."""
+    ax, ay = px, py
+    bx, by = np.roll(px, -1, axis=1), np.roll(py, -1, axis=1)
+    dy = by - ay
+    flat = dy == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = np.where(flat, 0.0, (y_lo[:, None] - ay) / dy)
+        t2 = np.where(flat, 1.0, (y_hi[:, None] - ay) / dy)
+    t_in = np.maximum(np.minimum(t1, t2), 0.0)
+    t_out = np.minimum(np.maximum(t1, t2), 1.0)
+    cut = np.where(flat, (ay >= y_lo[:, None]) & (ay <= y_hi[:, None]), t_in <= t_out)
+    xa, xb = ax + t_in * (bx - ax), ax + t_out * (bx - ax)
+    x_lo = np.where(cut, np.minimum(xa, xb), np.inf).min(axis=1)
+    x_hi = np.where(cut, np.maximum(xa, xb), -np.inf).max(axis=1)
+    return x_lo, x_hi
 
 
 @kernel

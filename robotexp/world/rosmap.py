@@ -40,6 +40,7 @@ _FREE, _UNKNOWN, _OCCUPIED = 254, 205, 0     # ROS 1 map_saver pixel values
 MIN_RESOLUTION = 1e-4       # [m/pixel] 0.1 mm: finer is a corrupted file
 MAX_COORD = 1e6             # [m] 1000 km: a map reaching farther is a corrupted file
 MAX_YAML_BYTES = 1 << 20    # a map YAML is a few lines; a larger file is not one
+MAX_BOXES = 1_000_000       # obstacle rectangles of a grid map (real buildings: tens of thousands at most)
 
 
 @dataclass(frozen=True)
@@ -149,9 +150,21 @@ def world_from_grid(values: npt.NDArray[np.int8], geo: GridGeometry, *, name: st
     cells merged into boxes, bounds and declared area the grid's extent, collision "index".
 
     Raises:
-        WorldError: the grid has no occupied or unknown cell at all.
+        WorldError: the grid has no occupied or unknown cell at all, or its blocked cells make more than
+            MAX_BOXES rectangles (noise, a dithered image), told before they are merged.
     """
     blocked = (values < 0) | (values >= 50)
+    # at least one rectangle per run of blocked cells along a row that does not start where a run of the
+    # row before starts (merged rectangles stack equal runs): a cheap lower bound of their number
+    starts = blocked.copy()
+    starts[:, 1:] &= ~blocked[:, :-1]
+    fresh = starts.copy()
+    fresh[1:] &= ~starts[:-1]
+    least = int(np.count_nonzero(fresh))
+    if least > MAX_BOXES:
+        raise WorldError(f"{source}: the map's occupied and unknown cells make at least {least} separate "
+                         f"rectangles, more than the {MAX_BOXES} a map may have (a building has tens of thousands): "
+                         "is the image noise or dithered? Threshold it into walls and free space")
     rects = merge_cells(blocked)
     if len(rects) == 0:
         raise WorldError(f"{source}: the map has no occupied or unknown cell, expected walls "

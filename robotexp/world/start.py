@@ -93,7 +93,7 @@ def default_start(world: World, radius: float, *, cell: float = 0.05) -> StartCh
     edge = not inner.any()
     best = int(np.argmax(sizes if edge else inner))
     region = labels == best
-    clear = clearance(world, geo, WELL_INSIDE + geo.cell, index=index, occupied=occ)
+    clear = clearance(world, geo, WELL_INSIDE + geo.cell, index=index, occupied=occ, floor=radius)  # region: > radius
     clear[~region] = -1.0
     enough = min(WELL_INSIDE, float(clear.max()))
     rows, cols = np.nonzero(clear >= enough)

@@ -20,8 +20,10 @@ from robotexp.campaign.spec import load_campaign
 from robotexp.cli import main
 from robotexp.campaign.compare import load_results
 from robotexp.errors import ConfigError
+from robotexp.output.results import read_jsonl, read_records as read_run_records
 from robotexp.output.safefile import append_line, folder_lock, read_records
 from robotexp.run.loop import TERMINATED_REASON
+from robotexp.run.record import record_problem
 
 REC = {"run": "a", "method": "frontier", "world": "dense", "path_length_m": 1.0}
 
@@ -75,6 +77,39 @@ def test_readers_skip_and_report_torn_lines(tmp_path):
     assert result.exit_code == 0, result.output
     assert "skipped 2 line(s)" in result.output and "Traceback" not in result.output
     assert len(load_results(path)) == 2
+
+
+@pytest.mark.parametrize("field,value,words", [("coverage", "x", "coverage is 'x', expected a number"),
+                                               ("path_length_m", {"a": 1}, "path_length_m is {'a': 1}, expected a"),
+                                               ("world", ["x"], "world is ['x'], expected a string"),
+                                               ("completed", "yes", "completed is 'yes', expected a boolean")])
+def test_a_record_with_a_field_of_the_wrong_type_is_skipped_and_said_by_every_reader(tmp_path, field, value, words):
+    path = tmp_path / "results.jsonl"
+    rec = {"run": "r1", "method": "frontier", "world": "dense", "start_pose": [0, 0, 0], "max_speed_m_s": 0.3,
+           "path_length_m": 1.0, "robot_time_s": 1.0, "wall_time_s": 1.0, "coverage": 0.5, "collisions": 0,
+           "nodes": None, "visited_cells": 1, "seed": 0, "completed": True, "reason": "explored", "map_iou": None}
+    lines = [dict(rec, run=f"r{i}", coverage=0.1 * i) for i in range(1, 7)]
+    lines[2][field] = value
+    path.write_text("".join(json.dumps(r) + "\n" for r in lines))
+    notes: list[str] = []
+    assert [r["run"] for r in read_records(path, note=notes.append, check=record_problem)] == \
+        ["r1", "r2", "r4", "r5", "r6"]
+    assert len(notes) == 1 and notes[0].startswith(f"{path}:3: record skipped: {words}")
+    assert [r.run for r in read_run_records(path)] == ["r1", "r2", "r4", "r5", "r6"]
+    assert len(read_jsonl(path)) == 5
+    assert [r.run for r in load_results(path)] == ["r1", "r2", "r4", "r5", "r6"]
+    commands = (["figure", str(path), "--format", "png", "-o", str(tmp_path / "fig")],
+                ["campaign", "report", str(path)])
+    for args in commands:
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 0, result.output
+        assert "Traceback" not in result.output and result.output.count(f"{path}:3: record skipped: {words}") == 1
+    # nothing usable left: one line per record skipped, then exit 2
+    path.write_text("".join(json.dumps(dict(r, **{field: value})) + "\n" for r in lines))
+    for args in commands:
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 2 and "no usable record" in result.output, result.output
+        assert result.output.count("record skipped") == 6 and "Traceback" not in result.output
 
 
 MINI = """

@@ -12,7 +12,7 @@ import pytest
 from robotexp.campaign.report import report_tables
 from robotexp.campaign.compare import comparison_tables, load_results
 from robotexp.errors import ConfigError
-from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord
+from robotexp.run.record import RESULT_KEYS, EndReason, RunRecord, record_problem
 from robotexp.registry import EMULATORS, available, connect_robot, load, make_emulator
 from robotexp.robot import Capability, Robot, RobotState, Twist
 from robotexp.sim import SimRobot
@@ -60,6 +60,24 @@ def test_a_minimal_record_reads_with_defaults() -> None:
     r = RunRecord.from_dict({"run": "a", "world": "w", "method": "m", "visited_cells": 3, "reason": "interrupted"})
     assert r.end is EndReason.INTERRUPTED and r.completed is False and r.coverage is None and r.nodes is None
     assert r.extra == {} and r["visited_cells"] == 3 and "pose" not in r
+
+
+def test_record_problem_names_a_field_of_the_wrong_type() -> None:
+    for name in ("thesis", "santos", "srt_star"):           # every record robotexp wrote has none
+        for line in (DOCS / name / "results.jsonl").read_text().splitlines():
+            assert record_problem(json.loads(line)) is None
+    ok = {"run": "a", "world": "w", "coverage": None, "collisions": 2.0, "start_pose": [1, 2.5, 0], "free": [[]]}
+    assert record_problem(ok) is None                       # null, an integral float, keys of no field
+    cases = {"coverage": ("x", "coverage is 'x', expected a number or null"),
+             "path_length_m": ({"a": 1}, "path_length_m is {'a': 1}, expected a number or null"),
+             "world": (["x"], "world is ['x'], expected a string or null"),
+             "collisions": (1.5, "collisions is 1.5, expected an integer or null"),
+             "max_speed_m_s": (True, "max_speed_m_s is True, expected a number or null"),
+             "start_pose": ([0, "y", 0], "start_pose is [0, 'y', 0], expected a list of numbers or null"),
+             "robots": ([1], "robots is [1], expected a list of objects or null"),
+             "reason": (["x"] * 100, "reason is ['x', 'x', 'x', 'x', 'x', 'x', 'x', '..., expected a string")}
+    for key, (value, words) in cases.items():
+        assert (record_problem(dict(ok, **{key: value})) or "").startswith(words), key
 
 
 def test_capabilities_are_typed() -> None:

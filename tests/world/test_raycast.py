@@ -125,6 +125,33 @@ def test_many_small_obstacles_use_buckets() -> None:
     assert _cast(index, 100.0, 0.0, 90.0) == pytest.approx((2.0 - 0.01) / 10)
 
 
+def test_a_long_diagonal_wall_is_listed_in_the_buckets_it_crosses_only() -> None:
+    # walls 40-70 m long at every angle (a hostile map file's lines): each in about its length in buckets,
+    # not in every bucket of its bounding box, and in every bucket one of its points lies in
+    rng = np.random.default_rng(5)
+    n = 40
+    boxes = np.column_stack([rng.uniform(20, 30, n), rng.uniform(20, 30, n), rng.uniform(20, 35, n),
+                             np.full(n, 0.01), rng.uniform(-math.pi, math.pi, n)])
+    boxes[:4, 4] = [0.0, math.pi / 2, math.pi / 4, -math.pi / 4]
+    index = RayIndex(boxes, np.zeros((0, 3)), WALL_HEIGHT, 0.5)
+    listed = [set() for _ in range(n)]
+    for cell in range(index.rows * index.cols):
+        for k in index.items[index.starts[cell]:index.starts[cell + 1]]:
+            listed[k].add(cell)
+    for k, (cx, cy, hx, hy, yaw) in enumerate(boxes):
+        assert len(listed[k]) <= 2 * (2 * hx / 0.5 + 3) * math.sqrt(2), k
+        u, v = rng.uniform(-1, 1, (2, 3000))
+        u[:4], v[:4] = [1, 1, -1, -1], [1, -1, 1, -1]          # the corners too
+        x = cx + math.cos(yaw) * u * hx - math.sin(yaw) * v * hy
+        y = cy + math.sin(yaw) * u * hx + math.cos(yaw) * v * hy
+        col = np.floor((x - index.origin[0]) / index.bucket).astype(int)
+        row = np.floor((y - index.origin[1]) / index.bucket).astype(int)
+        assert set((row * index.cols + col).tolist()) <= listed[k], k
+    origins, headings = _random_rays(World("walls", boxes), 3000, rng)
+    full = RayIndex(boxes, np.zeros((0, 3)), WALL_HEIGHT, 100.0)       # one bucket: every wall tested
+    np.testing.assert_array_equal(index.cast(origins, headings, 30.0, 0.3), full.cast(origins, headings, 30.0, 0.3))
+
+
 def test_unknown_ray_backend_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="rays"):
         Engine(builtin_world("dense"), 0.25, 0.5, rays="optix")

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from robotexp.world.clearance import clearance, reach_regions, world_index
+from robotexp.world.clearance import BUCKET, TOL, clearance, reach_regions, world_index
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.world.groundtruth import ground_truth, occupancy
 from robotexp.robot import Pose
@@ -87,6 +87,49 @@ def test_clearance_is_the_exact_distance_to_the_shapes():
     for r, c in rng.integers(0, 70, (300, 2)):
         x, y = geo.center_of(int(r), int(c))
         assert got[r, c] == pytest.approx(min(_distance_reference(world, x, y), cap), abs=1e-12)
+
+
+def _crossing_walls(n: int, size: float, seed: int) -> World:
+    """`n` walls between random points of a `size` m square: long lines crossing one another everywhere
+    (a map file of random lines)."""
+    rng = np.random.default_rng(seed)
+    ends = rng.uniform(0, size, (n, 4))
+    return World("crossing", np.array([segment_box(*e, 0.02) for e in ends]))
+
+
+def test_clearance_among_long_crossing_walls_is_exact_and_searches_few_shapes():
+    world = _crossing_walls(150, 20.0, 4)
+    index = world_index(world)
+    # buckets of at most BUCKET, each wall listed in the buckets it crosses: few walls per bucket
+    assert index.bucket <= BUCKET and np.diff(index.starts).max() < 30
+    geo = GridGeometry(-0.5, -0.5, 0.1, 210, 210)
+    occ = occupancy(world, geo)
+    got = clearance(world, geo, 0.8, occupied=occ, index=index)
+    rng = np.random.default_rng(5)
+    for r, c in rng.integers(0, 210, (300, 2)):
+        x, y = geo.center_of(int(r), int(c))
+        assert got[r, c] == pytest.approx(min(_distance_reference(world, x, y), 0.8), abs=1e-12)
+
+
+def test_a_floor_skips_the_cells_the_raster_proves_near_and_changes_no_region():
+    world = _crossing_walls(60, 12.0, 6)
+    geo = GridGeometry(-0.3, -0.3, 0.05, 250, 250)
+    occ = occupancy(world, geo)
+    exact = clearance(world, geo, 0.5, occupied=occ)
+    floor = 0.2
+    got = clearance(world, geo, 0.5, occupied=occ, floor=floor)
+    above = exact > floor
+    np.testing.assert_array_equal(got[above], exact[above])          # exact where it may exceed the floor
+    assert (got[~above] <= floor).all() and (got >= exact).all()      # a bound elsewhere, never below
+    assert (got != exact).sum() > 0.2 * geo.rows * geo.cols            # most cells near the walls skipped
+    for radius in (0.18, 0.25):
+        regions = reach_regions(world, geo, radius, occupied=occ)
+        h = geo.cell
+        sure = exact > radius + h * math.sqrt(0.5) + TOL
+        band = ~sure & (exact + h * math.sqrt(0.5) > radius + TOL)
+        np.testing.assert_array_equal(regions.coarse > 0, sure)
+        np.testing.assert_array_equal(regions.mid >= 0, band)
+        np.testing.assert_array_equal(regions.clear[band | sure], exact[band | sure].clip(max=radius + h))
 
 
 def test_regions_area_counts_the_free_space_once():

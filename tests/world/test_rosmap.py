@@ -291,6 +291,29 @@ def test_load_ros_world_without_obstacles_is_refused(tmp_path):
         load_ros_world(tmp_path / "e.yaml")
 
 
+def test_a_map_of_noise_is_refused_before_its_cells_are_merged(tmp_path, monkeypatch):
+    # a checkerboard: every blocked cell its own rectangle (4000 x 4000 pixels: 8 million boxes, which took
+    # tens of seconds and gigabytes before the default start found no room); refused from a cheap count
+    import robotexp.world.rosmap as rosmap
+
+    side = 60
+    board = (np.indices((side, side)).sum(axis=0) % 2 * 254).astype(np.uint8)
+    Image.fromarray(board).save(tmp_path / "board.png")
+    (tmp_path / "board.yaml").write_text("image: board.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+                                         "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    monkeypatch.setattr(rosmap, "MAX_BOXES", side * side // 2 - 1)
+
+    def never(mask: np.ndarray) -> np.ndarray:
+        raise AssertionError("merged")
+    monkeypatch.setattr(rosmap, "merge_cells", never)
+    with pytest.raises(WorldError, match=r"board\.yaml: the map's occupied and unknown cells make at least 1800 "
+                                         r"separate rectangles, more than the 1799 .*Threshold it"):
+        load_ros_world(tmp_path / "board.yaml")
+    monkeypatch.setattr(rosmap, "MAX_BOXES", side * side // 2)            # at the limit: loaded
+    monkeypatch.setattr(rosmap, "merge_cells", merge_cells)
+    assert len(load_ros_world(tmp_path / "board.yaml").boxes) == side * side // 2
+
+
 def paint(rects: np.ndarray, shape) -> np.ndarray:
     count = np.zeros(shape, dtype=np.int64)
     for r0, r1, c0, c1 in rects:
