@@ -238,15 +238,20 @@ time.sleep(60)
 """
 
 
+def _supervising(tmp_path, hold: float, ends: bool, step: str, **options: object) -> str:
+    """Python code that supervises the stand-in (`supervise` with `options`) and exits with its status."""
+    script = tmp_path / "stand_in.py"
+    script.write_text(STAND_IN)
+    given = "".join(f", {k}={v!r}" for k, v in options.items())
+    return ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
+            f"sys.exit(supervise([{str(tmp_path)!r}, {str(hold)!r}, {'ends' if ends else 'hangs'!r}, {step!r}], "
+            f"script='s.lua', out=Path({str(tmp_path)!r}){given}, child=[sys.executable, {str(script)!r}]))")
+
+
 def _stand_in(tmp_path, hold: float, ends: bool, compile_hold: float = 300.0, step: str = "compile",
               write_hold: float = 60.0) -> tuple[int, float, str]:
     """Supervise the stand-in with a 0.5 s timeout (1 s grace): its exit status, the seconds it took, stderr."""
-    script = tmp_path / "stand_in.py"
-    script.write_text(STAND_IN)
-    code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
-            f"sys.exit(supervise([{str(tmp_path)!r}, {str(hold)!r}, {'ends' if ends else 'hangs'!r}, {step!r}], "
-            f"script='s.lua', out=Path({str(tmp_path)!r}), timeout=0.5, compile_hold={compile_hold!r}, "
-            f"write_hold={write_hold!r}, child=[sys.executable, {str(script)!r}]))")
+    code = _supervising(tmp_path, hold, ends, step, timeout=0.5, compile_hold=compile_hold, write_hold=write_hold)
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     return proc.returncode, time.monotonic() - t0, proc.stderr
@@ -262,12 +267,7 @@ def test_the_kill_at_the_timeout_waits_for_a_run_to_be_written(tmp_path):
 
 
 def test_a_second_ctrl_c_ends_the_wait_for_a_run(tmp_path):
-    script = tmp_path / "stand_in.py"
-    script.write_text(STAND_IN)
-    code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
-            f"sys.exit(supervise([{str(tmp_path)!r}, '60', 'hangs', 'run'], script='s.lua', "
-            f"out=Path({str(tmp_path)!r}), timeout=None, interrupt_grace=1.0, write_hold=30.0, "
-            f"child=[sys.executable, {str(script)!r}]))")
+    code = _supervising(tmp_path, 60.0, False, "run", timeout=None, interrupt_grace=1.0, write_hold=30.0)
     t0 = time.monotonic()
     proc = subprocess.Popen([sys.executable, "-c", code], stderr=subprocess.PIPE, text=True)
     try:
