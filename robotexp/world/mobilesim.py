@@ -202,8 +202,8 @@ def _parse_ints(section: _Section, pattern: re.Pattern[str], width: int, src: st
         hint = ""
         if ":" in texts[i]:
             hint = " (metadata such as Cairn: must come before the first DATA/LINES section)"
-        log.warning("%s:%d: skipped malformed data line %r%s, expected %d integers '%s' [mm]",
-                    src, section.numbers[i], texts[i][:60], hint, width, what)
+        log.warning("%s:%d: skipped malformed data line %r%s, expected %d integers '%s' [mm] of at most 9 "
+                    "digits (1000 km)", src, section.numbers[i], texts[i][:60], hint, width, what)
     if len(bad) > _MAX_WARNINGS:
         log.warning("%s: %d more malformed data lines skipped", src, len(bad) - _MAX_WARNINGS)
     if bad:

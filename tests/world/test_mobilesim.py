@@ -144,6 +144,7 @@ def test_malformed_data_lines_are_skipped_with_a_warning_naming_file_and_line(tm
     for line, bad in ((4, "'0 0 1000'"), (8, "'3.5 4'"), (9, "'99999999999 0'")):
         assert f"{path}:{line}: skipped malformed data line {bad}" in caplog.text
     assert "3 malformed data lines skipped" in world.description
+    assert "expected 2 integers 'x y' [mm] of at most 9 digits (1000 km)" in caplog.text
     caplog.clear()
     many = "2D-Map\nDATA\n0 0\n" + "x y\n" * 25
     world = load_mobilesim(write(tmp_path, many))
