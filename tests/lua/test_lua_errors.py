@@ -133,6 +133,7 @@ def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
                                     "f/frame_000003.png")
     assert done.returncode == 130, done.stderr
     assert "not reached" not in done.stdout and "Traceback" not in done.stderr
+    assert (out / "results.jsonl").is_file(), done.stderr      # the command's account of what it did
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert rec["completed"] is False and "interrupted" in rec["reason"]
 
@@ -145,6 +146,7 @@ def test_sigterm_during_a_run_writes_it_and_exits_143(tmp_path):
                                     "f/frame_000003.png", signal.SIGTERM)
     assert done.returncode == 143, done.stderr
     assert "not reached" not in done.stdout and "Traceback" not in done.stderr
+    assert (out / "results.jsonl").is_file(), done.stderr      # the command's account of what it did
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert rec["completed"] is False and rec["end"] == "interrupted"
 
