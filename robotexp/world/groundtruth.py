@@ -24,10 +24,10 @@ from robotexp.mapping.kernels import rasterize, traverse, view_free
 from robotexp.robot import Pose
 from robotexp.world.clearance import TOL, Regions, clearance_points, reach_regions, world_index
 from robotexp.world.model import World
+from robotexp.world.raycast import RayIndex, box_extents, parts
 
 if TYPE_CHECKING:
     from robotexp.mapping.grid import OccupancyGrid
-    from robotexp.world.raycast import RayIndex
 
 __all__ = ["GroundTruth", "coverage", "coverage_inside", "map_iou_tolerant",
            "grid_coverage", "ground_truth", "map_iou", "map_iou_parts", "occupancy",
@@ -76,16 +76,12 @@ def occupancy(world: World, geo: GridGeometry) -> npt.NDArray[np.bool_]:
     discs = np.ascontiguousarray(world.discs, np.float64).reshape(-1, 3)
     # in parts of about RASTER_PART bounding-box cells (long diagonal walls have large boxes): Ctrl-C and
     # signals are handled between them
-    ex = np.abs(boxes[:, 2] * np.cos(boxes[:, 4])) + np.abs(boxes[:, 3] * np.sin(boxes[:, 4]))
-    ey = np.abs(boxes[:, 2] * np.sin(boxes[:, 4])) + np.abs(boxes[:, 3] * np.cos(boxes[:, 4]))
+    ex, ey = box_extents(boxes)
     cells = np.minimum(2 * ex / geo.cell + 2, geo.cols) * np.minimum(2 * ey / geo.cell + 2, geo.rows)
-    ends = np.cumsum(np.nan_to_num(cells, nan=1.0, posinf=RASTER_PART))
-    first = 0
-    while first < len(boxes):
-        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0.0) + RASTER_PART, "right")), first + 1)
-        rasterize(occ, _geo64(geo), boxes[first:last], discs[:0])
-        first = last
-    rasterize(occ, _geo64(geo), boxes[:0], discs)
+    g64 = _geo64(geo)
+    for first, last in parts(np.nan_to_num(cells, nan=1.0, posinf=RASTER_PART), RASTER_PART):
+        rasterize(occ, g64, boxes[first:last], discs[:0])
+    rasterize(occ, g64, boxes[:0], discs)
     return occ
 
 

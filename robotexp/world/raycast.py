@@ -20,13 +20,15 @@ the same geometry in a few tens of nanoseconds. `Engine(..., rays="pybullet")` k
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import numpy.typing as npt
 
 from robotexp.mapping.kernels import kernel
 
-__all__ = ["RayIndex", "box_distance", "bucket_window", "cast_rays", "shapes_near", "shapes_near_box"]
+__all__ = ["RayIndex", "box_distance", "box_extents", "bucket_window", "cast_rays", "parts", "shapes_near",
+           "shapes_near_box"]
 
 MAX_BUCKETS = 1 << 20       # a bucket grid never exceeds this many cells
 
@@ -61,8 +63,7 @@ class RayIndex:
         shapes[len(b):, 1:4] = d
         self.shapes = shapes
         # Axis-aligned bounds of every shape.
-        ex = np.abs(b[:, 2] * np.cos(b[:, 4])) + np.abs(b[:, 3] * np.sin(b[:, 4]))
-        ey = np.abs(b[:, 2] * np.sin(b[:, 4])) + np.abs(b[:, 3] * np.cos(b[:, 4]))
+        ex, ey = box_extents(b)
         lo = np.vstack([np.column_stack([b[:, 0] - ex, b[:, 1] - ey]), d[:, :2] - d[:, 2:3]])
         hi = np.vstack([np.column_stack([b[:, 0] + ex, b[:, 1] + ey]), d[:, :2] + d[:, 2:3]])
         if len(shapes) == 0:
@@ -125,6 +126,24 @@ _RUN_ROWS = 1 << 18         # shape-rows handled at once while listing a map's s
 _EDGE = 1e-6                # [m] a rectangle is listed in a bucket it comes this near (rounding)
 
 
+def box_extents(boxes: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(ex, ey) [m]: the half sizes along x and y of the bounding boxes of the (n, 5) rectangles [cx, cy, hx, hy,
+    yaw]."""
+    c, s = np.cos(boxes[:, 4]), np.sin(boxes[:, 4])
+    return np.abs(boxes[:, 2] * c) + np.abs(boxes[:, 3] * s), np.abs(boxes[:, 2] * s) + np.abs(boxes[:, 3] * c)
+
+
+def parts(sizes: npt.ArrayLike, part: float) -> Iterator[tuple[int, int]]:
+    """Consecutive ranges [first, last) of the items whose `sizes` are given, each holding about `part` in all
+    (at least one item): work cut into pieces of bounded size (between which signals are handled)."""
+    ends = np.cumsum(sizes)
+    first = 0
+    while first < len(ends):
+        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0) + part, "right")), first + 1)
+        yield first, last
+        first = last
+
+
 def _bucket_runs(boxes: npt.NDArray[np.float64], lo: npt.NDArray[np.float64], hi: npt.NDArray[np.float64],
                  grid: tuple[float, float, float, int, int]) -> tuple[npt.NDArray[np.int64], ...]:
     """The buckets each shape overlaps, as runs (owner, row, c0, c1) of a bucket row from column c0 to c1
@@ -139,16 +158,13 @@ def _bucket_runs(boxes: npt.NDArray[np.float64], lo: npt.NDArray[np.float64], hi
     n_rows = r1 - r0 + 1
     turned = np.zeros(len(lo), np.bool_)
     turned[:len(boxes)] = (np.sin(2.0 * boxes[:, 4]) != 0.0) & (n_rows[:len(boxes)] > 1) & (b1 > b0)[:len(boxes)]
-    parts: list[tuple[npt.NDArray[np.int64], ...]] = []
+    runs: list[tuple[npt.NDArray[np.int64], ...]] = []
     plain = np.flatnonzero(~turned)
     owner = np.repeat(plain, n_rows[plain])
     row = r0[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(n_rows[plain]) - n_rows[plain], n_rows[plain])
-    parts.append((owner, row, b0[owner], b1[owner]))
+    runs.append((owner, row, b0[owner], b1[owner]))
     k_all = np.flatnonzero(turned)
-    ends = np.cumsum(n_rows[k_all])
-    first = 0
-    while first < len(k_all):
-        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0) + _RUN_ROWS, "right")), first + 1)
+    for first, last in parts(n_rows[k_all], _RUN_ROWS):
         k = k_all[first:last]
         # corners in order around each rectangle: centre +- the half axes
         c, s = np.cos(boxes[k, 4]), np.sin(boxes[k, 4])
@@ -161,9 +177,8 @@ def _bucket_runs(boxes: npt.NDArray[np.float64], lo: npt.NDArray[np.float64], hi
         c0 = np.maximum(np.floor((x_lo - _EDGE - x0) / bucket), b0[owner]).astype(np.int64)
         c1 = np.minimum(np.floor((x_hi + _EDGE - x0) / bucket), b1[owner]).astype(np.int64)
         keep = c0 <= c1
-        parts.append((owner[keep], row[keep], c0[keep], c1[keep]))
-        first = last
-    return tuple(np.concatenate([p[i] for p in parts]).astype(np.int64) for i in range(4))
+        runs.append((owner[keep], row[keep], c0[keep], c1[keep]))
+    return tuple(np.concatenate([p[i] for p in runs]).astype(np.int64) for i in range(4))
 
 
 def _strip_span(px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], y_lo: npt.NDArray[np.float64],
