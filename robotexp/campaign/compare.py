@@ -27,7 +27,7 @@ from typing import Any
 
 from robotexp.campaign.report import Table
 from robotexp.campaign.spec import method_label, record_key
-from robotexp.output.safefile import warn
+from robotexp.output.safefile import record_skipped, warn
 from robotexp.errors import ConfigError, WorldError
 from robotexp.run.record import EndReason, RunRecord, record_problem
 from robotexp.campaign.statistics import NoVariance, bootstrap_mean_difference, mann_whitney_u, welch_t_test
@@ -75,7 +75,7 @@ def load_results(path: Path, *, duplicates: list[RunRecord] | None = None) -> li
             raise ConfigError(f"{path}:{i}: record lacks {', '.join(missing)}; is this a robotexp results.jsonl?")
         problem = record_problem(rec)
         if problem is not None:     # as `results.read_jsonl` does: said and skipped
-            warn(f"{path}:{i}: record skipped: {problem}; correct or delete the line")
+            warn(record_skipped(path, i, problem))
             mistyped.append(i)
             continue
         records.append(RunRecord.from_dict(rec))

@@ -28,7 +28,7 @@ from typing import Any
 
 from robotexp.errors import ConfigError
 
-__all__ = ["append_line", "read_records", "folder_lock", "check_results_file", "LOCK_NAME",
+__all__ = ["append_line", "read_records", "record_skipped", "folder_lock", "check_results_file", "LOCK_NAME",
            "MAX_NAME", "safe_name", "writable_folder"]
 
 log = logging.getLogger(__name__)
@@ -206,6 +206,11 @@ def _skip_line(f: Any) -> int:
             return n
 
 
+def record_skipped(path: Path, number: int, problem: str) -> str:
+    """What a reader of results files says of line `number` of `path`, a record it skips for `problem`."""
+    return f"{path}:{number}: record skipped: {problem}; correct or delete the line"
+
+
 def read_records(path: Path, note: Callable[[str], None] = warn,
                  check: Callable[[dict[str, Any]], str | None] | None = None) -> list[dict[str, Any]]:
     """Every JSON object (one per line) of `path`; each other non-empty line is reported and skipped, and
@@ -239,7 +244,7 @@ def read_records(path: Path, note: Callable[[str], None] = warn,
                 continue
             problem = check(value) if check is not None else None
             if problem is not None:
-                note(f"{path}:{number}: record skipped: {problem}; correct or delete the line")
+                note(record_skipped(path, number, problem))
                 continue
             records.append(value)
     return records
