@@ -51,7 +51,7 @@ def _stem(path: Path) -> str:
     return name or "map"
 
 
-MAP_SUFFIXES = (".png", ".pgm", ".yaml")      # the files of a map NAME (figure, ROS map image and YAML)
+MAP_FILES = (".png", ".pgm", ".yaml")      # the files of a map NAME (figure, ROS map image and YAML)
 
 
 def _claim(path: Path) -> Path:
@@ -60,7 +60,7 @@ def _claim(path: Path) -> Path:
 
 
 def _take_map_name(out: Path, base: str) -> str:
-    """`base`, or `base_2`, `base_3`, ... the first name whose map files (`MAP_SUFFIXES`) are not in `out`
+    """`base`, or `base_2`, `base_3`, ... the first name whose map files (`MAP_FILES`) are not in `out`
     and that no run has, taken as runs take theirs (`take_name`: its claim file is made exclusively, so a
     map made at the same time in another process gets another name); the caller removes the claim file
     (`_claim(out / name)`) when done.
@@ -74,7 +74,7 @@ def _take_map_name(out: Path, base: str) -> str:
     try:
         while True:
             name = take_name(out, base)
-            if not any(os.path.lexists(out / f"{name}{suffix}") for suffix in MAP_SUFFIXES):
+            if not any(os.path.lexists(out / f"{name}{suffix}") for suffix in MAP_FILES):
                 return name
             passed.append(name)
     finally:
@@ -122,7 +122,7 @@ def map_command(log: Path, out: Path, cell: float, odometry_noise: str, localize
     finally:
         _claim(out / name).unlink(missing_ok=True)       # the map's PNG holds the name from now on
         if not done:                                     # nothing of a map that failed is left
-            for suffix in MAP_SUFFIXES:
+            for suffix in MAP_FILES:
                 (out / f"{name}{suffix}").unlink(missing_ok=True)
             for d in made:
                 try:
