@@ -1,0 +1,34 @@
+"""The `robotexp` program: its entry point loads the command line (`robotexp.cli`) and runs it.
+
+Loading the command line imports NumPy and click (a few tenths of a second): a Ctrl-C or a SIGTERM in that
+time ends the program as one during a command does, one line and exit status 130 (143), not a traceback.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from typing import Any
+
+__all__ = ["main"]
+
+
+def _terminate(signum: int, frame: Any) -> None:
+    from robotexp.errors import Terminated
+
+    raise Terminated
+
+
+def main() -> None:
+    """Run the `robotexp` command with the process's arguments."""
+    try:
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _terminate)    # the command installs its own handler once loaded
+        from robotexp.cli import main as command
+    except KeyboardInterrupt as exc:
+        from robotexp.errors import Terminated
+
+        terminated = isinstance(exc, Terminated)
+        sys.stderr.write("robotexp: terminated (SIGTERM)\n" if terminated else "robotexp: interrupted\n")
+        sys.exit(143 if terminated else 130)
+    command()
