@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import os
 import struct
 import zlib
 from collections.abc import Callable, Iterator
@@ -50,6 +51,7 @@ TEAM_TOPIC_TYPES = {f"/robot_{i}{topic}": TOPIC_TYPES[topic]
 _MAPS = {"/ground_truth/map"}
 
 _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_METADATA, _OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0C, 0x02
+_OP_DATA_END = 0x0F     # the data section ends: what follows (the summary, its indexes) one pass does not need
 _MAGIC = b"\x89MCAP0\r\n"
 
 
@@ -121,6 +123,17 @@ def _read_exact(f: IO[bytes], n: int) -> bytes:
     return data
 
 
+def _size(f: IO[bytes]) -> int:
+    """The size of the open file `f` [bytes]."""
+    try:
+        return os.fstat(f.fileno()).st_size
+    except (OSError, io.UnsupportedOperation, AttributeError):    # not a file on disk (a stream in memory)
+        at = f.tell()
+        end = f.seek(0, io.SEEK_END)
+        f.seek(at)
+        return end
+
+
 def _decompress(compression: str, data: memoryview, size: int) -> bytes:
     """A chunk's records, decompressed to exactly `size` bytes (never more than MAX_CHUNK_BYTES read)."""
     if size > MAX_CHUNK_BYTES:
@@ -159,6 +172,7 @@ class _Reader:
         self.schemas: dict[int, tuple[str, str, bytes]] = {}
         self.channels: dict[int, tuple[str, str, int]] = {}
         self.decoders: dict[int, Callable[[bytes], Any]] = {}
+        self.counts: dict[int, int] = {}     # messages decoded, per channel
         self.factory = DecoderFactory()
         self.total = 0
         self.cut_at: int | None = None      # where the file ends inside a record or without its footer
@@ -173,9 +187,12 @@ class _Reader:
                 self.cut_at = at    # a file cut short (a run that was killed) ends after its last whole record
                 return
             op, length = head[0], int.from_bytes(head[1:], "little")
-            if op == _OP_FOOTER:
+            if op in (_OP_FOOTER, _OP_DATA_END):
                 return
             if op not in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_METADATA):
+                if length > _size(f) - f.tell():     # a record said to run past the end (or a length damaged)
+                    self.cut_at = at
+                    return
                 f.seek(length, io.SEEK_CUR)
                 continue
             if length > MAX_RECORD_BYTES:
@@ -240,7 +257,16 @@ class _Reader:
             self.total += size
             if self.total > MAX_READ_BYTES:
                 raise ValueError(f"its messages hold more than {MAX_READ_BYTES} bytes (the limit of a replay)")
-            return Record(topic, t, self._decoder(cid, channel)(bytes(body.take(size))))
+            decode = self._decoder(cid, channel)
+            try:
+                msg = decode(bytes(body.take(size)))
+            except decode_errors():         # the schema parsed, but a message does not fit it (or it names types
+                # it never defines): the parser's own words say little here
+                name = self.schemas[channel[2]][0]
+                raise ValueError(f"{topic}: its message {self.counts.get(cid, 0) + 1} does not decode as its {name} "
+                                 "schema says: the message or the schema is damaged") from None
+            self.counts[cid] = self.counts.get(cid, 0) + 1
+            return Record(topic, t, msg)
         return None
 
     def _decoder(self, cid: int, channel: tuple[str, str, int]) -> Callable[[bytes], Any]:

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-from robotexp.bag.schemas import LASER_SCAN
+from robotexp.bag.schemas import LASER_SCAN, ODOMETRY
 from robotexp.cli import main
 
 import crafted_bags as crafted
@@ -35,6 +35,14 @@ CASES: dict[str, tuple[Callable[[Path], Path], str]] = {
     "wrong schema": (lambda p: crafted.write(p, odom_schema=LASER_SCAN), "/odom is a sensor_msgs/msg/LaserScan"),
     "bad schema text": (lambda p: crafted.write(p, odom_schema=("nav_msgs/msg/Odometry", "%% not a message\n")),
                         "readable"),
+    "a schema naming a type it never defines": (
+        lambda p: crafted.write(p, odom_schema=(ODOMETRY[0], ODOMETRY[1].replace("MSG: std_msgs/Header",
+                                                                              "MSG: std_msgs/Heade"))),
+        "/odom: its message 1 does not decode as its nav_msgs/msg/Odometry schema says"),
+    "a fixed array of 1e20 values": (
+        lambda p: crafted.write(p, odom_schema=(ODOMETRY[0], ODOMETRY[1].replace("float64[36] covariance",
+                                                                              "float64[99999999999999999999] c"))),
+        "/odom: its message 1 does not decode"),
     "truth size mismatch": (lambda p: crafted.write(p, truth=lambda s: (crafted.ROWS, crafted.COLS,
                                                                         s.tobytes()[:-7])), "holds 1593 values"),
     "truth grid 200000 x 200000": (lambda p: crafted.write(p, truth=lambda s: (200000, 200000, s.tobytes())),

@@ -21,7 +21,7 @@ from robotexp.output.results import read_jsonl
 
 import crafted_bags as crafted
 
-_CHUNK, _METADATA = 0x06, 0x0C
+_CHUNK, _METADATA, _DATA_END = 0x06, 0x0C, 0x0F
 
 
 def _top_records(data: bytes) -> list[tuple[int, int, int]]:
@@ -76,6 +76,34 @@ def test_a_chunk_failing_its_checksum_is_one_line(tmp_path: Path) -> None:
     # the same change with the CRC made again reads (the check is the CRC's, not the byte's)
     res = CliRunner().invoke(main, ["replay", str(good), "-o", str(tmp_path / "ok")])
     assert res.exit_code == 0, res.output
+
+
+def test_a_length_damaged_past_the_data_is_not_read_and_one_before_it_is_a_cut(tmp_path: Path,
+                                                                              caplog: pytest.LogCaptureFixture) -> None:
+    """A record's length set to 2^56: in the summary (after the data end record, which one pass does not need)
+    the recording replays whole; before the messages, the file ends there as one cut short."""
+    good = crafted.write(tmp_path / "good.mcap", ticks=20)
+    data = good.read_bytes()
+    records = _top_records(data)
+    (end,) = [i for i, (_, op, _) in enumerate(records) if op == _DATA_END]
+    huge = (2**56).to_bytes(8, "little")
+    summary = tmp_path / "summary.mcap"
+    at = records[end + 1][0]
+    summary.write_bytes(data[:at + 1] + huge + data[at + 9:])
+    res = CliRunner().invoke(main, ["replay", str(summary), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert "cut short" not in caplog.text
+    (rec,) = read_jsonl(tmp_path / "out" / "results.jsonl")
+    assert rec["reason"] != "stopped" and rec["robot_time_s"] >= 1.9
+    # an unknown record (op 0x80, MCAP's private range) claiming 2^56 bytes before the messages: the file
+    # ends there, before any scan
+    (first,) = [at for at, op, _ in records if op == _CHUNK]
+    inside = tmp_path / "inside.mcap"
+    inside.write_bytes(data[:first] + bytes([0x80]) + huge + data[first:])
+    res = CliRunner().invoke(main, ["replay", str(inside), "-o", str(tmp_path / "out2")])
+    assert res.exit_code == 2, res.output
+    (line,) = res.stderr.splitlines()
+    assert str(inside) in line and "before its first /scan and /odom (cut short)" in line, line
 
 
 def test_a_recording_cut_short_replays_to_its_cut_and_says_so(recorded: tuple[Path, dict], tmp_path: Path,
