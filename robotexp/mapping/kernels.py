@@ -365,6 +365,27 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
 
 
 @kernel
+def _strip_extent(corners: npt.NDArray[np.float64], ya: float, yb: float) -> tuple[float, float]:
+    """The x extent (lo, hi) of the convex polygon `corners` (n, 2), in order around it, within the strip
+    ya <= y <= yb: the extremes of its edges clipped to the strip (lo > hi: the strip misses it)."""
+    lo, hi = math.inf, -math.inf
+    n = corners.shape[0]
+    for j in range(n):
+        px, py = corners[j, 0], corners[j, 1]
+        qx, qy = corners[(j + 1) % n, 0], corners[(j + 1) % n, 1]
+        if (py < ya and qy < ya) or (py > yb and qy > yb):
+            continue
+        if py == qy:
+            lo, hi = min(lo, px, qx), max(hi, px, qx)
+            continue
+        for y in (min(max(py, ya), yb), min(max(qy, ya), yb)):     # the edge's ends within the strip
+            t = min(max((y - py) / (qy - py), 0.0), 1.0)
+            x = px + t * (qx - px)
+            lo, hi = min(lo, x), max(hi, x)
+    return lo, hi
+
+
+@kernel
 def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[np.float64],
               discs: npt.NDArray[np.float64]) -> None:
     """Set `occ` (rows, cols) where a cell's square overlaps an obstacle with positive area.
@@ -374,6 +395,7 @@ def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[
     Contacts within 1e-9 m (a face lying on a cell border) do not count.
     """
     h = 0.5 * geo.cell
+    corners = np.empty((4, 2))
     for k in range(boxes.shape[0]):
         cx, cy, hx, hy, yaw = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3], boxes[k, 4]
         ca = math.cos(yaw)
@@ -385,11 +407,23 @@ def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[
         c1 = min(math.floor((cx + ex - geo.origin_x) / geo.cell), geo.cols - 1)
         r0 = max(math.floor((cy - ey - geo.origin_y) / geo.cell), 0)
         r1 = min(math.floor((cy + ey - geo.origin_y) / geo.cell), geo.rows - 1)
+        for j in range(4):      # the corners, relative to the centre, in order around the box
+            sx = 1.0 if j == 0 or j == 3 else -1.0
+            sy = 1.0 if j < 2 else -1.0
+            corners[j, 0] = sx * hx * ca - sy * hy * sa
+            corners[j, 1] = sx * hx * sa + sy * hy * ca
         for r in range(r0, r1 + 1):
             qy = geo.origin_y + (r + 0.5) * geo.cell - cy
             if ey + h - abs(qy) <= _TOL:
                 continue
-            for c in range(c0, c1 + 1):
+            # the row's columns that can overlap the box: those meeting the x extent of the box within the
+            # row's strip (its edges clipped to the strip), a cell of slack each side; the tests below decide
+            lo, hi = _strip_extent(corners, qy - h, qy + h)
+            if lo > hi:
+                continue
+            ca0 = max(c0, math.floor((cx + lo - geo.origin_x) / geo.cell) - 1)
+            ca1 = min(c1, math.floor((cx + hi - geo.origin_x) / geo.cell) + 1)
+            for c in range(ca0, ca1 + 1):
                 qx = geo.origin_x + (c + 0.5) * geo.cell - cx
                 if ex + h - abs(qx) <= _TOL:
                     continue

@@ -360,7 +360,13 @@ def test_rasterize_boxes_match_exact_clipped_area():
     geo = GridGeometry(-1.0, -0.5, 0.25, 16, 20)
     boxes = np.column_stack([rng.uniform(-1.5, 4.5, 12), rng.uniform(-1, 4, 12), rng.uniform(0.05, 0.8, 12),
                              rng.uniform(0.02, 0.5, 12), rng.uniform(-math.pi, math.pi, 12)])
-    for box in boxes:
+    # long thin walls across the grid (a row meets few of their bounding box's cells), some along the axes,
+    # some on cell borders
+    walls = np.column_stack([rng.uniform(0.0, 3.5, 16), rng.uniform(0.5, 3.0, 16), rng.uniform(1.0, 4.0, 16),
+                             rng.uniform(0.001, 0.06, 16), rng.uniform(-math.pi, math.pi, 16)])
+    walls[:4, 4] = (0.0, math.pi / 2, math.pi, -math.pi / 2)
+    walls[4:6, :2] = (0.5, 1.0)
+    for box in np.vstack([boxes, walls]):
         occ = np.zeros((geo.rows, geo.cols), np.bool_)
         rasterize(occ, geo, box[None, :].copy(), np.zeros((0, 3)))
         cx, cy, hx, hy, yaw = box
