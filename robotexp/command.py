@@ -21,10 +21,13 @@ def _terminate(signum: int, frame: Any) -> None:
 
 def main() -> None:
     """Run the `robotexp` command with the process's arguments."""
+    guard = signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
     try:
-        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, _terminate)    # the command installs its own handler once loaded
+        if guard:
+            signal.signal(signal.SIGTERM, _terminate)
         from robotexp.cli import main as command
+        if guard:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)     # each command installs its own handler
     except KeyboardInterrupt as exc:
         from robotexp.errors import Terminated
 
