@@ -54,52 +54,82 @@ Robot.__init__ = _tracking_init  # type: ignore[method-assign]
 
 
 # Test files whose tests keep time with the wall clock: emulated devices that stream in real time, servers, a
-# browser, subprocesses stopped by signals and timeouts. On two processes (pytest-xdist) such a file runs
-# alone: its process holds the tests' lock exclusively while the other process's tests each hold it shared.
+# browser, subprocesses stopped by signals and timeouts. On two processes (pytest-xdist) each such test runs alone:
+# its process holds the tests' lock exclusively while the other process's tests each hold it shared. A test of
+# these files that keeps no time (bytes, wrong input, a reader) is marked `untimed` and runs beside the others; one
+# whose timed part follows an untimed preparation (a compilation, a reference run) may hold the lock exclusively
+# for that part only (the `alone` fixture).
 _REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py",
               "campaign/test_cluster.py", "campaign/test_cluster_faults.py", "cli/test_interrupt.py",
-              "cli/test_first_contact.py", "lua/test_lua_errors.py", "lua/test_lua_hardening.py",
-              "lua/test_lua_integrity.py", "lua/test_lua_p3dx.py", "output/test_results_hardening.py",
-              "output/test_disk_full.py", "run/test_teamrobots.py", "run/test_warm_kernels.py")
+              "lua/test_lua_errors.py", "lua/test_lua_hardening.py", "lua/test_lua_integrity.py",
+              "lua/test_lua_p3dx.py", "output/test_results_hardening.py", "output/test_disk_full.py",
+              "run/test_teamrobots.py", "run/test_warm_kernels.py")
 _TESTS = Path(__file__).resolve().parent
 
 
-def _real_time(path: Path) -> bool:
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "untimed: a test of a real-time file (tests/conftest.py, _REAL_TIME) that "
+                                       "keeps no time with the wall clock: it runs beside other tests")
+
+
+def _real_time(item: pytest.Item) -> bool:
+    """Whether `item` keeps time with the wall clock: a test of a real-time file not marked `untimed`."""
     try:
-        rel = path.resolve().relative_to(_TESTS).as_posix()
+        rel = item.path.resolve().relative_to(_TESTS).as_posix()
     except ValueError:
         return False
-    return rel.startswith(_REAL_TIME) and not rel.endswith("_codec.py")     # a codec's tests are bytes only
+    if not rel.startswith(_REAL_TIME) or rel.endswith("_codec.py"):     # a codec's tests are bytes only
+        return False
+    return item.get_closest_marker("untimed") is None
 
 
-@contextlib.contextmanager
-def _tests_lock(mode: int) -> Iterator[None]:
-    """The lock the processes of one xdist run share (nothing without xdist)."""
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    if not run:
-        yield
-        return
-    fd = os.open(Path(tempfile.gettempdir()) / f"robotexp-tests-{run}.lock", os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        fcntl.flock(fd, mode)
-        yield
-    finally:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
+class _TestsLock:
+    """The lock the processes of one xdist run share, held by one test (nothing without xdist): exclusively
+    (`fcntl.LOCK_EX`) while it keeps time, else shared (`fcntl.LOCK_SH`)."""
 
+    def __init__(self) -> None:
+        run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+        path = Path(tempfile.gettempdir()) / f"robotexp-tests-{run}.lock"
+        self._fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600) if run else None
+        self.mode = fcntl.LOCK_UN
 
-@pytest.fixture(scope="module", autouse=True)
-def _real_time_file_alone(request: pytest.FixtureRequest) -> Iterator[None]:
-    """A real-time test file runs while no other test does (its module fixtures included)."""
-    with _tests_lock(fcntl.LOCK_EX) if _real_time(request.path) else contextlib.nullcontext():
-        yield
+    def hold(self, mode: int) -> None:
+        """Hold the lock in `mode` (waits for it; a change of mode lets go of the lock first, as flock does)."""
+        if self._fd is not None and mode != self.mode:
+            fcntl.flock(self._fd, mode)
+        self.mode = mode
+
+    def close(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
 
 
 @pytest.fixture(autouse=True)
-def _beside_other_tests(request: pytest.FixtureRequest) -> Iterator[None]:
-    """Any other test runs beside any other but a real-time file's."""
-    with contextlib.nullcontext() if _real_time(request.path) else _tests_lock(fcntl.LOCK_SH):
-        yield
+def _tests_lock(request: pytest.FixtureRequest) -> Iterator[_TestsLock]:
+    """A real-time test runs while no other test does (its fixtures included); any other test beside any other
+    but a real-time one."""
+    lock = _TestsLock()
+    try:
+        lock.hold(fcntl.LOCK_EX if _real_time(request.node) else fcntl.LOCK_SH)
+        yield lock
+    finally:
+        lock.close()
+
+
+@pytest.fixture
+def alone(_tests_lock: _TestsLock) -> Callable[[], contextlib.AbstractContextManager[None]]:
+    """`with alone(): ...`: the timed part of an `untimed` test runs while no other test does."""
+    @contextlib.contextmanager
+    def span() -> Iterator[None]:
+        before = _tests_lock.mode
+        _tests_lock.hold(fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            _tests_lock.hold(before)
+    return span
 
 
 @pytest.fixture(autouse=True)
