@@ -76,6 +76,7 @@ def test_ground_truth_can_be_declined() -> None:
             assert robot.read().true_pose is None
 
 
+@pytest.mark.untimed
 def test_each_emulator_takes_an_odometry_error() -> None:
     world = builtin_world("ufmg-static")
     pose = world.poses["path1"]

@@ -59,6 +59,7 @@ def v2_frame(msgid: int, payload: bytes, extra: int, seq: int = 0) -> bytes:
     return header + payload + struct.pack("<H", x25(header[1:] + payload + bytes([extra])))
 
 
+@pytest.mark.untimed
 def test_crc_extras_from_the_definitions_match_the_dialect() -> None:
     for (name, fields), msgid in ((PARAM_REQUEST_LIST, C.MAVLINK_MSG_ID_PARAM_REQUEST_LIST),
                                   (PARAM_VALUE, C.MAVLINK_MSG_ID_PARAM_VALUE),

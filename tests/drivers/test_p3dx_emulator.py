@@ -331,6 +331,7 @@ def test_odometry_restarts_with_each_client_as_mobilesim() -> None:
     assert (sip.xpos, sip.ypos, sip.thpos) == (0, 0, 0)
 
 
+@pytest.mark.untimed
 def test_laser_mounted_where_aria_params_put_it() -> None:
     # ARIA (p3dx.p LaserX 18, p3dx-sh.p 21) and P3DXRobot place readings ahead of the centre
     for subtype, x in (("p3dx", 0.018), ("p3dx-sh", 0.021)):

@@ -164,6 +164,7 @@ def test_world_option_keeps_the_simulator(lua, emu):
     assert rec["world"] == "ufmg-static" and rec["coverage"] is not None and "address" not in rec
 
 
+@pytest.mark.untimed
 def test_nothing_listening_is_one_error_line(tmp_path):
     port = free_port()
     script = tmp_path / "robot.lua"

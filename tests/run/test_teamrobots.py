@@ -144,6 +144,7 @@ def test_a_coordinator_assigning_targets_beside_a_reactive_method_is_refused_bef
             robot.close()
 
 
+@pytest.mark.untimed
 def test_both_sides_place_the_team_alike() -> None:
     world = builtin_world("dense")
     starts = team_starts(world, "2", [0.25, 0.25, 0.175])
@@ -167,6 +168,7 @@ def test_both_sides_place_the_team_alike() -> None:
     ("p3dx:127.0.0.1:1", ["--world", "dense"], ["robot 1 (p3dx:127.0.0.1:1) cannot be reached"]),
     ("p3dx:127.0.0.1:1", ["--world", "dense", "--localize", "slam"], ["no localizer"]),
 ])
+@pytest.mark.untimed
 def test_bad_team_addresses_are_one_line_and_exit_2(tmp_path: Path, team: str, extra: list[str],
                                                     words: list[str], one_line_error) -> None:
     result = CliRunner().invoke(main, ["explore", "--team", team, "--out", str(tmp_path / "out"), *extra])

@@ -29,6 +29,7 @@ from robotexp.view.live import parse_speed
 from robotexp.view.observer import STOP_REASON, Pacer, ViewObserver
 
 
+@pytest.mark.untimed
 def test_view_speed_out_of_range_is_one_line_exit_2(tmp_path: Path) -> None:
     for text in ("1e-6", "1e-300", "0.009", "1001", "1e308", "0", "-1", "nan", "inf", "fast", ""):
         with pytest.raises(ConfigError, match=r"0\.01.*1000.*max"):

@@ -112,6 +112,7 @@ def test_ctrl_c_ends_a_campaign_on_a_robot_with_the_robot_stopped(devices, tmp_p
     assert kobuki.last_base_control == BaseControl(0, 0)
 
 
+@pytest.mark.untimed
 def test_laser_pose_is_read_as_the_command_line_reads_it(tmp_path: Path) -> None:
     simulated_set = '\n[[set]]\nworld = "ufmg-static"\nposes = ["path1"]\nmethods = ["frontier"]\nseeds = [5]\n'
     camp = load_campaign(_campaign(tmp_path, "/dev/ttyUSB0", "/dev/ttyUSB1", seeds="[0]", extra=simulated_set))
@@ -146,6 +147,7 @@ def test_bad_robot_keys_are_one_line_before_any_run(tmp_path: Path, keys: str, w
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.untimed
 def test_a_campaign_on_a_robot_refuses_a_cluster(tmp_path: Path) -> None:
     path = _campaign(tmp_path, "/dev/ttyUSB0", "/dev/ttyUSB1")
     result = CliRunner().invoke(main, ["campaign", "run", str(path), "--cluster", "local:2",
@@ -153,6 +155,7 @@ def test_a_campaign_on_a_robot_refuses_a_cluster(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "run without --cluster" in result.output and str(path) in result.output
 
 
+@pytest.mark.untimed
 def test_a_robot_that_cannot_be_reached_ends_the_campaign_with_one_line(tmp_path: Path) -> None:
     path = _campaign(tmp_path, str(tmp_path / "no-kobuki"), str(tmp_path / "no-rplidar"))
     result = CliRunner().invoke(main, ["campaign", "run", str(path), "--out", str(tmp_path / "out")])

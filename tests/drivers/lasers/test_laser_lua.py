@@ -63,6 +63,7 @@ def _script(tmp_path: Path, code: str, **kwargs: object) -> None:
     ('robot.setLaser("rplidar:/dev/ttyUSB0", 0, "a", 0)', "argument 3 must be a number"),
     ('robot.setLaser("rplidar:/dev/ttyUSB0", 0, 0, 0/0)', "argument 4 must be a number (finite)"),
 ])
+@pytest.mark.untimed
 def test_a_malformed_laser_is_one_script_error_with_its_line(tmp_path: Path, call: str, message: str) -> None:
     with pytest.raises(ScriptError) as err:
         _script(tmp_path, f'robot.setAddress("/dev/ttyUSB9")\n{call}\n')
@@ -91,6 +92,7 @@ def test_sandbox_refuses_a_laser_address_not_allowed(devices, tmp_path: Path) ->
     assert record["robot"] == "kobuki" and record["path_length_m"] > 0.05
 
 
+@pytest.mark.untimed
 def test_on_the_embedded_simulator_the_laser_is_not_used_and_said_once(tmp_path: Path) -> None:
     path = tmp_path / "sim.lua"
     path.write_text('robot.setLaser("rplidar:/dev/ttyUSB0", 100, 0, 0)\nexploration.setMaxTime(1000)\n'

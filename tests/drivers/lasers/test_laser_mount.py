@@ -31,6 +31,7 @@ from robotexp_drivers.lasers.rplidar.emulator import RPLidarEmulator
 from scan_sources import BoxSource
 
 
+@pytest.mark.untimed
 def test_pose_history_interpolates_across_the_heading_wrap() -> None:
     h = PoseHistory()
     assert h.at(1.0) is None
