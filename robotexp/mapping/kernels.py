@@ -424,6 +424,8 @@ def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[
             ca0 = max(c0, math.floor((cx + lo - geo.origin_x) / geo.cell) - 1)
             ca1 = min(c1, math.floor((cx + hi - geo.origin_x) / geo.cell) + 1)
             for c in range(ca0, ca1 + 1):
+                if occ[r, c]:           # set already (by another box, or before this call)
+                    continue
                 qx = geo.origin_x + (c + 0.5) * geo.cell - cx
                 if ex + h - abs(qx) <= _TOL:
                     continue
