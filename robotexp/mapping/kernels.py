@@ -40,6 +40,7 @@ __all__ = [
     "kernel",
     "label8",
     "rasterize",
+    "strip_extent",
     "traverse",
     "view_free",
 ]
@@ -365,7 +366,7 @@ def integrate_scan_himm(cert: npt.NDArray[np.uint8], stamp: npt.NDArray[np.int32
 
 
 @kernel
-def _strip_extent(corners: npt.NDArray[np.float64], ya: float, yb: float) -> tuple[float, float]:
+def strip_extent(corners: npt.NDArray[np.float64], ya: float, yb: float) -> tuple[float, float]:
     """The x extent (lo, hi) of the convex polygon `corners` (n, 2), in order around it, within the strip
     ya <= y <= yb: the extremes of its edges clipped to the strip (lo > hi: the strip misses it)."""
     lo, hi = math.inf, -math.inf
@@ -418,7 +419,7 @@ def rasterize(occ: npt.NDArray[np.bool_], geo: GridGeometry, boxes: npt.NDArray[
                 continue
             # the row's columns that can overlap the box: those meeting the x extent of the box within the
             # row's strip (its edges clipped to the strip), a cell of slack each side; the tests below decide
-            lo, hi = _strip_extent(corners, qy - h, qy + h)
+            lo, hi = strip_extent(corners, qy - h, qy + h)
             if lo > hi:
                 continue
             ca0 = max(c0, math.floor((cx + lo - geo.origin_x) / geo.cell) - 1)

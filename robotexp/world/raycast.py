@@ -25,7 +25,7 @@ from collections.abc import Iterator
 import numpy as np
 import numpy.typing as npt
 
-from robotexp.mapping.kernels import kernel
+from robotexp.mapping.kernels import kernel, strip_extent
 
 __all__ = ["RayIndex", "box_distance", "box_extents", "bucket_window", "cast_rays", "parts", "shapes_near",
            "shapes_near_box"]
@@ -181,23 +181,18 @@ def _bucket_runs(boxes: npt.NDArray[np.float64], lo: npt.NDArray[np.float64], hi
     return tuple(np.concatenate([p[i] for p in runs]).astype(np.int64) for i in range(4))
 
 
+@kernel
 def _strip_span(px: npt.NDArray[np.float64], py: npt.NDArray[np.float64], y_lo: npt.NDArray[np.float64],
                 y_hi: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """(x_lo, x_hi) (n,): the x range of the part of each convex polygon (corners px, py (n, 4) in order)
-    between y_lo and y_hi (n,) (x_lo > x_hi when none): the extremes lie on its edges cut to the strip."""
-    ax, ay = px, py
-    bx, by = np.roll(px, -1, axis=1), np.roll(py, -1, axis=1)
-    dy = by - ay
-    flat = dy == 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = np.where(flat, 0.0, (y_lo[:, None] - ay) / dy)
-        t2 = np.where(flat, 1.0, (y_hi[:, None] - ay) / dy)
-    t_in = np.maximum(np.minimum(t1, t2), 0.0)
-    t_out = np.minimum(np.maximum(t1, t2), 1.0)
-    cut = np.where(flat, (ay >= y_lo[:, None]) & (ay <= y_hi[:, None]), t_in <= t_out)
-    xa, xb = ax + t_in * (bx - ax), ax + t_out * (bx - ax)
-    x_lo = np.where(cut, np.minimum(xa, xb), np.inf).min(axis=1)
-    x_hi = np.where(cut, np.maximum(xa, xb), -np.inf).max(axis=1)
+    between y_lo and y_hi (n,) (x_lo > x_hi when none; `strip_extent`)."""
+    n = px.shape[0]
+    x_lo, x_hi = np.empty(n), np.empty(n)
+    corners = np.empty((px.shape[1], 2))
+    for i in range(n):
+        corners[:, 0] = px[i]
+        corners[:, 1] = py[i]
+        x_lo[i], x_hi[i] = strip_extent(corners, y_lo[i], y_hi[i])
     return x_lo, x_hi
 
 
