@@ -228,6 +228,7 @@ class TeamRun(ExplorationRun):
             self._mark_bodies()
             self._share()
             self._count_idle(active)
+            self._sum_metrics()
             self._team_sample()
             if not active:
                 self._all_done()
@@ -595,10 +596,15 @@ class TeamRun(ExplorationRun):
     def _make_record(self) -> RunRecord:
         return self.team_record()
 
-    def _sample(self) -> None:
-        """A coverage sample of the team's grid, the path being the team's total."""
+    def _sum_metrics(self) -> None:
+        """The team's path (the robots' total) and collisions as they stand after this tick (what the view, a
+        video frame and the coverage samples read)."""
         self.metrics.path_length = sum(m.metrics.path_length for m in self.members)
         self.metrics.collisions = sum(m.metrics.collisions for m in self.members)
+
+    def _sample(self) -> None:
+        """A coverage sample of the team's grid, the path being the team's total."""
+        self._sum_metrics()
         super()._sample()
 
 

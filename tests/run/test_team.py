@@ -249,6 +249,31 @@ def test_observers_see_every_robots_tick_in_the_robots_order():
     assert all(m for _, _, m in ticks.seen[:2])                     # the first scans go into the map
 
 
+def test_the_teams_path_is_current_at_every_tick_not_only_at_its_samples():
+    """The view and video frames read the run's path: a team's is the robots' total after every tick (it
+    was brought up to date at coverage samples only, a second apart)."""
+    from robotexp.run.observers import RunObserver
+
+    class Paths(RunObserver):
+        def __init__(self):
+            self.gaps = []
+
+        def on_robot_step(self, run, robot, step):
+            if robot == len(run.members) - 1:         # every robot has moved for this tick
+                self.gaps.append(abs(run.metrics.path_length - sum(m.metrics.path_length for m in run.members)))
+
+        def on_end(self, run, record):
+            self.last = (run.metrics.path_length, record.path_length_m)
+
+    paths = Paths()
+    spec = RunSpec(world="conformance-room", method="frontier", max_time=7.5, laser_range=3.0)
+    run_team(spec, TeamSpec(robots=("p3dx", "p3dx"), coordinator="none"), None, image=False, world=make_room(),
+             observers=[paths])
+    # the observer of the last robot runs before the team's step ends: its own tick's motion is all that lags
+    assert max(paths.gaps) <= 2 * 0.1 * 0.5
+    assert paths.last[0] == pytest.approx(paths.last[1], abs=1e-3) and paths.last[1] > 1.0
+
+
 def test_held_targets_are_label_cells_of_every_target():
     from robotexp.coordinator import Candidates
     from robotexp.planning.team import label_cells
