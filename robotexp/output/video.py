@@ -51,7 +51,9 @@ def _frame_image(run: ExplorationRun, scale: int | None = None, title: str | Non
     path = np.array(run.metrics.path) if run.metrics.path else None
     if title is None:
         cov = run.coverage()
-        title = run_title(run, f"{run.robot_time:.0f} s, {run.metrics.path_length:.1f} m"
+        team = len(getattr(run, "paths", ()))
+        title = run_title(run, f"{run.robot_time:.0f} s, " + (f"{team} robots, " if team > 1 else "")
+                          + f"{run.metrics.path_length:.1f} m"
                           + ("" if cov is None else f", coverage {cov * 100:.1f} %"))
     overlays = run.explorer.overlays() if ("potential" in show or "vectors" in show) else {}
     return render_map(run.grid.states(), run.grid.geo, truth=None if run.truth is None else run.truth.occupied,
@@ -99,7 +101,11 @@ class FrameObserver(RunObserver):
                 self._next += self.every
 
     def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
-        """A team run: a frame when one is due (at the first robot that steps at that time)."""
+        """A team run: a frame when one is due, once every robot has stepped at that time (at the step of the
+        last robot still exploring: the frame shows the whole team's tick, and its title the team's totals)."""
+        active = getattr(run, "active", None)
+        if active and robot != active[-1]:
+            return
         self.on_step(run, step)
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:

@@ -158,6 +158,7 @@ class TeamRun(ExplorationRun):
         self.around = [0] * n               # times each robot was told to plan around held teammates
         self._around_from: list[tuple[float, float] | None] = [None] * n    # where it was told so
         self.idle = [0] * n                 # ticks each robot stood idle (done, or commanded to stand still)
+        self.active: list[int] = []         # the robots still exploring, in the order they step at each tick
         self.targets: list[npt.NDArray[np.int64] | None] = [None] * n     # each robot's coordinator target
         self.rounds = 0                     # coordinator rounds that assigned targets
         self.stall = StallWatch()
@@ -200,7 +201,7 @@ class TeamRun(ExplorationRun):
                                                rng=np.random.default_rng((self.seed, n))))
         self.stall.start(self.grid, min(m.robot.limits.v_max for m in self.members))
         self.observers.notify("on_start", self)
-        active = list(range(n))
+        active = self.active = list(range(n))
         while True:
             if self._sigint:
                 raise KeyboardInterrupt
@@ -211,13 +212,7 @@ class TeamRun(ExplorationRun):
                 m = self.members[i]
                 if self._stop is not None:
                     m._stop = self._stop
-                go_on = m._tick(states[i])
-                self._after_tick(i, m)
-                if self.observers.listening("on_robot_step"):     # recorders and views see every robot
-                    self.observers.notify("on_robot_step", self, i,
-                                          StepEvent(m.robot_time, states[i], m.mapped_now, m.decision))
-                if go_on:
-                    self._unjam(i, m, self._give_way(i, m))
+                go_on = self._member_step(i, m, states[i])
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
@@ -228,7 +223,6 @@ class TeamRun(ExplorationRun):
             self._mark_bodies()
             self._share()
             self._count_idle(active)
-            self._sum_metrics()
             self._team_sample()
             if not active:
                 self._all_done()
@@ -238,6 +232,19 @@ class TeamRun(ExplorationRun):
                 return
             self.clock.tick()
             states = [m.robot.read() for m in self.members]
+
+    def _member_step(self, i: int, m: ExplorationRun, state: RobotState) -> bool:
+        """Member `i`'s tick from `state`, what the team takes from it, the observers of each robot's step, and
+        the team's traffic rules on its command; whether it explores on."""
+        go_on = m._tick(state)
+        self._after_tick(i, m)
+        if i == self.active[-1]:
+            self._sum_metrics()         # every robot has stepped: the team's totals for this tick
+        if self.observers.listening("on_robot_step"):     # recorders and views see every robot
+            self.observers.notify("on_robot_step", self, i, StepEvent(m.robot_time, state, m.mapped_now, m.decision))
+        if go_on:
+            self._unjam(i, m, self._give_way(i, m))
+        return go_on
 
     def _stand(self, i: int) -> None:
         """Member `i` tells the others where it stands and how fast it drives (its state now)."""

@@ -152,6 +152,24 @@ def test_frames_and_video_of_a_team_draw_every_robot(team_bag, tmp_path):
         assert np.abs(_fill_at(final, lay, end).astype(int) - color).max() <= 24   # the GIF's palette
 
 
+def test_a_team_videos_last_title_says_the_team_and_its_recorded_path(team_bag, tmp_path, monkeypatch):
+    import robotexp.output.render as render
+
+    bag, record, _ = team_bag
+    titles = []
+    draw = render.render_map
+
+    def noting(*args, **kwargs):
+        titles.append(kwargs["title"])
+        return draw(*args, **kwargs)
+
+    monkeypatch.setattr(render, "render_map", noting)
+    res = CliRunner().invoke(main, ["video", str(bag), "-o", str(tmp_path / "v.gif"), "--every", "4"])
+    assert res.exit_code == 0, res.output
+    assert titles[-1].endswith(f"(8 s, 2 robots, {record['path_length_m']:.1f} m, coverage "
+                               f"{record['coverage'] * 100:.1f} %)"), titles[-1]
+
+
 def test_the_figure_of_a_team_recording_draws_every_path(team_bag, tmp_path):
     bag, _, _ = team_bag
     res = CliRunner().invoke(main, ["figure", str(bag), "-o", str(tmp_path), "--format", "png"])
