@@ -62,8 +62,8 @@ Robot.__init__ = _tracking_init  # type: ignore[method-assign]
 _REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py",
               "campaign/test_cluster.py", "campaign/test_cluster_faults.py", "cli/test_interrupt.py",
               "lua/test_lua_errors.py", "lua/test_lua_hardening.py", "lua/test_lua_integrity.py",
-              "lua/test_lua_p3dx.py", "output/test_results_hardening.py", "output/test_disk_full.py",
-              "run/test_teamrobots.py", "run/test_warm_kernels.py")
+              "lua/test_lua_p3dx.py", "output/test_results_hardening.py", "run/test_teamrobots.py",
+              "run/test_warm_kernels.py")
 _TESTS = Path(__file__).resolve().parent
 
 
@@ -84,38 +84,45 @@ def _real_time(item: pytest.Item) -> bool:
 
 
 class _TestsLock:
-    """The lock the processes of one xdist run share, held by one test (nothing without xdist): exclusively
-    (`fcntl.LOCK_EX`) while it keeps time, else shared (`fcntl.LOCK_SH`)."""
+    """The lock the processes of one xdist run share (nothing without xdist): a real-time test holds it
+    exclusively (`fcntl.LOCK_EX`), any other test shared (`fcntl.LOCK_SH`)."""
 
     def __init__(self) -> None:
-        run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-        path = Path(tempfile.gettempdir()) / f"robotexp-tests-{run}.lock"
-        self._fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600) if run else None
+        self._fd: int | None = None
         self.mode = fcntl.LOCK_UN
 
     def hold(self, mode: int) -> None:
         """Hold the lock in `mode` (waits for it; a change of mode lets go of the lock first, as flock does)."""
+        run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+        if run and self._fd is None:
+            self._fd = os.open(Path(tempfile.gettempdir()) / f"robotexp-tests-{run}.lock", os.O_RDWR | os.O_CREAT,
+                               0o600)
         if self._fd is not None and mode != self.mode:
             fcntl.flock(self._fd, mode)
         self.mode = mode
 
-    def close(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
+    def release(self) -> None:
+        self.hold(fcntl.LOCK_UN)
+
+
+_LOCK = _TestsLock()
 
 
 @pytest.fixture(autouse=True)
-def _tests_lock(request: pytest.FixtureRequest) -> Iterator[_TestsLock]:
+def _tests_lock(request: pytest.FixtureRequest) -> _TestsLock:
     """A real-time test runs while no other test does (its fixtures included); any other test beside any other
     but a real-time one."""
-    lock = _TestsLock()
-    try:
-        lock.hold(fcntl.LOCK_EX if _real_time(request.node) else fcntl.LOCK_SH)
-        yield lock
-    finally:
-        lock.close()
+    _LOCK.hold(fcntl.LOCK_EX if _real_time(request.node) else fcntl.LOCK_SH)
+    return _LOCK
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """Let go of the lock after each test, but between two real-time tests of this process: the other process's
+    tests would run between them while this one waits, one processor idle."""
+    yield
+    if not (_LOCK.mode == fcntl.LOCK_EX and nextitem is not None and _real_time(nextitem)):
+        _LOCK.release()
 
 
 @pytest.fixture
