@@ -35,12 +35,14 @@ def _map_at(data: Bag, grid: OccupancyGrid, t: float) -> np.ndarray:
     return fresh.states()
 
 
+@pytest.mark.untimed
 def test_checkpoint_spacing() -> None:
     assert checkpoint_every(25.0, 40_000) == 10.0                   # every 10 s
     assert checkpoint_every(3600.0, 40_000) == 60.0                 # a 60th of an hour
     assert checkpoint_every(3600.0, 10_000_000, budget=80e6 * 10) == pytest.approx(360.0)   # 10 fit
 
 
+@pytest.mark.untimed
 def test_seek_rebuilds_the_map_of_that_tick(recorded: tuple[Path, dict[str, object]]) -> None:
     bag, record = recorded
     data = read_bag(bag)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import replace
 
 import pytest
@@ -16,12 +17,14 @@ from robotexp_drivers.kobuki.robot import KobukiRobot
 
 WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
 SpecFor = Callable[[str, float], RunSpec]     # the `run_spec` fixture (conftest.py)
+Alone = Callable[[], AbstractContextManager[None]]   # the `alone` fixture (tests/conftest.py)
 
 STOP = BaseControl(0, 0)
 
 
+@pytest.mark.untimed       # but its run through the emulator (alone)
 def test_frontier_exploration_matches_the_embedded_simulator(world: World, emulator: KobukiEmulator, wait_for: WaitFor,
-                                                             run_spec: SpecFor) -> None:
+                                                             run_spec: SpecFor, alone: Alone) -> None:
     # Both runs explore ufmg-static from path1 at 0.3 m/s until no frontier is left (~150 s of robot
     # time). Mid-run coverage depends on the order in which frontiers are visited, which is chaotic:
     # through the protocol, speeds are whole mm/s, radii whole mm (int16), encoders count 0.085 mm
@@ -32,13 +35,14 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, emula
     # none on the robot (its default on a real robot is scan matching, which on the emulator's exact
     # odometry can only add error: 0.98 coverage instead of 1.0; tests/localization covers that default).
     embedded = run_experiment(run_spec("kobuki", 300.0), None).record
-    with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
-        out = run_on_robot(replace(run_spec("kobuki", 300.0), localize="none"), robot, None, world)
+    with alone():
+        with KobukiRobot(emulator.address, laser=EmulatorLaser(emulator)) as robot:
+            out = run_on_robot(replace(run_spec("kobuki", 300.0), localize="none"), robot, None, world)
+        assert wait_for(lambda: emulator.last_base_control == STOP)
     record = out.record
     assert embedded["completed"] and record["completed"], (embedded["reason"], record["reason"])
     assert embedded["coverage"] > 0.97
     assert record["coverage"] == pytest.approx(embedded["coverage"], abs=0.02)
     assert record["path_length_m"] == pytest.approx(embedded["path_length_m"], rel=0.35)
     assert record["collisions"] == 0 and emulator.sim.collisions == 0
-    assert wait_for(lambda: emulator.last_base_control == STOP)
     assert emulator.sounds == [SoundSequence(0)]

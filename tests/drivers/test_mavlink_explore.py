@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 
 import pytest
 
@@ -17,10 +18,12 @@ from robotexp_drivers.mavlink.robot import MavlinkRobot
 
 WaitFor = Callable[..., bool]                # the `wait_for` fixture (conftest.py)
 SpecFor = Callable[[str, float], RunSpec]     # the `run_spec` fixture (conftest.py)
+Alone = Callable[[], AbstractContextManager[None]]   # the `alone` fixture (tests/conftest.py)
 
 
-def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_for: WaitFor,
-                                                             run_spec: SpecFor) -> None:
+@pytest.mark.untimed       # but its emulated run (alone)
+def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_for: WaitFor, run_spec: SpecFor,
+                                                             alone: Alone) -> None:
     # Same world, pose and speed. Through MAVLink the scan is OBSTACLE_DISTANCE: 72 beams of 5 deg in
     # whole cm over a full circle, instead of the embedded 181 beams of 1 deg over the front half;
     # poses are float32 NED, and the loop is paced by 20 Hz LOCAL_POSITION_NED (commands land a
@@ -38,7 +41,7 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, wait_
     out = run_experiment(run_spec("p3dx", 300.0), None)
     embedded = out.record
     start = resolve_pose(world, "path1", 0.25)[0]
-    with MavlinkEmulator(world, pose=start, speedup=30.0, obstacle_distance=True) as emu:
+    with alone(), MavlinkEmulator(world, pose=start, speedup=30.0, obstacle_distance=True) as emu:
         with MavlinkRobot(emu.address) as robot:
             mav = run_on_robot(run_spec("p3dx", 300.0), robot, None, world)
         assert wait_for(lambda: emu.last_twist == Twist.ZERO)

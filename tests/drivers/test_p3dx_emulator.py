@@ -10,6 +10,8 @@ import math
 import os
 import socket
 import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -24,6 +26,8 @@ from robotexp.sim import LaserConfig
 from robotexp_drivers.p3dx import codec as k
 from robotexp_drivers.p3dx.emulator import P3DXEmulator
 from robotexp_drivers.p3dx.robot import P3DXRobot
+
+Alone = Callable[[], AbstractContextManager[None]]   # the `alone` fixture (tests/conftest.py)
 
 SYNC2_REPLY = bytes.fromhex("FAFB1A024D6F62696C6553696D0050696F6E65657200703364780093" "45")
 SET_POSE = bytes.fromhex("FAFB10E000E803000030F8FFFF5A00000052FA")      # SIM_SET_POSE (1000, -2000, 90)
@@ -121,12 +125,13 @@ def test_pty_connect_drive_and_move(tmp_path: Path) -> None:
         assert emu.commanded == (0, 0)
 
 
-def test_exploration_through_emulator_matches_embedded_sim() -> None:
+@pytest.mark.untimed       # but its run through the emulator (alone)
+def test_exploration_through_emulator_matches_embedded_sim(alone: Alone) -> None:
     spec = RunSpec(world="ufmg-static", method="frontier", pose="path1", speed=0.3, laser_range=3.0, max_time=300.0)
     ref = run_experiment(spec, None, image=False)
     # lockstep: a busy test machine must not make the client miss cycles (the robot would run on)
     # and waits up to 1 s for each command (speedup 0.1), so a slow planning step does not count
-    with P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=0.1, laser=LASER, lockstep=True) as emu:
+    with alone(), P3DXEmulator("ufmg-static", pose="path1", port=0, speedup=0.1, laser=LASER, lockstep=True) as emu:
         with P3DXRobot(emu.address, laser_range=3.0, laser_offset=0.0, watchdog=2.0, silence=3.0) as robot:
             # the protocol path on the odometry pose, as the embedded run: --localize none (a real robot's
             # default is scan matching, which on the emulator's exact odometry moved the pose by up to

@@ -53,7 +53,8 @@ def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
     assert "killed" not in output
 
 
-def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
+@pytest.mark.untimed       # but the timed command (alone)
+def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path, alone):
     # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
     # kill still counts from the script's start, so the child stops its run at --timeout and writes it.
     # The run is meta-firefly's on dense (about 6 s of CPU, where frontier's takes 1.3 s and ended within the 2 s).
@@ -70,8 +71,9 @@ def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path):
     script.write_text('exploration.setWorld("dense"); exploration.setMethod("meta-firefly")\n'
                       'exploration.setMaxTime(3600000); exploration.start(); exploration.wait(); print("not reached")')
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(slow), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
-                           "--timeout", "2"], capture_output=True, text=True, env=env, timeout=60)
+    with alone():
+        proc = subprocess.run([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out),
+                               "--timeout", "2"], capture_output=True, text=True, env=env, timeout=60)
     assert proc.returncode == 1 and "not reached" not in proc.stdout and "killed" not in proc.stderr, proc.stderr
     assert "stopped by --timeout after 2 s; the 1 run(s) finished so far" in proc.stderr
     (record,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
