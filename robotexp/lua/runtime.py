@@ -233,8 +233,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         elif isinstance(code_value, int) and 0 <= code_value <= 255:
             control.exit_code = code_value
         else:
-            shown = code_value if isinstance(code_value, (int, float)) else lua_kind(code_value)
-            raise ScriptError(f"os.exit([code]): expected an integer 0..255 or a boolean, got {shown} "
+            raise ScriptError(f"os.exit([code]): expected an integer 0..255 or a boolean, got {lua_kind(code_value)} "
                               "(an exit status is one byte: 256 would read as 0, success)")
         control.reason = control.reason or "exit"
 

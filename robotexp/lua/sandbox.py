@@ -234,7 +234,7 @@ class WriteQuota:
 
 
 def lua_kind(value: object) -> str:
-    """What a value from Lua is, for error messages: "nil", "a number", "a table", ..."""
+    """What a value from Lua is, for error messages: "nil", the number itself ("1.5", "nan"), "a table", ..."""
     if value is None:
         return "nil"
     if isinstance(value, bool):
@@ -242,7 +242,8 @@ def lua_kind(value: object) -> str:
     if isinstance(value, float) and not math.isfinite(value):
         return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")     # 0/0, 1/0, -1/0
     if isinstance(value, (int, float)):
-        return "a number"
+        text = repr(value)
+        return text if len(text) <= 24 else f"{value:.6g}"     # the number itself: "got 1.5", not "a number"
     if isinstance(value, str):
         return "a string"
     from lupa import lua_type  # type: ignore[import-untyped]

@@ -59,7 +59,7 @@ class TeamCalls:
             return
         if not isinstance(value, str):
             raise ScriptError(f"team.setRobots({usage}): expected an integer 1..{MAX_TEAM} or a string of presets "
-                              f"like \"p3dx,kobuki\", got {lua_kind(value) if not isinstance(value, float) else value}")
+                              f"like \"p3dx,kobuki\", got {lua_kind(value)}")
         names = tuple(t.strip() for t in value.split(",") if t.strip())
         unknown = [n for n in names if n not in PRESETS]
         if not names or unknown:
@@ -90,8 +90,7 @@ class TeamCalls:
             return
         if len(args) != 1 or isinstance(args[0], bool) or not isinstance(args[0], (int, float)) \
                 or not math.isfinite(args[0]) or not args[0] > 0:
-            got = "nothing" if not args else ", ".join(str(a) if isinstance(a, (int, float)) and not isinstance(a, bool)
-                                                       else lua_kind(a) for a in args)
+            got = "nothing" if not args else ", ".join(lua_kind(a) for a in args)
             raise ScriptError(f"team.setCommRange({usage}): expected a range > 0 mm or nil, got {got}")
         self.comm_range = args[0] / 1000.0
 
