@@ -72,15 +72,25 @@ def pytest_configure(config: pytest.Config) -> None:
                                        "keeps no time with the wall clock: it runs beside other tests")
 
 
-def _real_time(item: pytest.Item) -> bool:
-    """Whether `item` keeps time with the wall clock: a test of a real-time file not marked `untimed`."""
+def _in_real_time_file(item: pytest.Item) -> bool:
+    """Whether `item` is a test of a real-time file."""
     try:
         rel = item.path.resolve().relative_to(_TESTS).as_posix()
     except ValueError:
         return False
-    if not rel.startswith(_REAL_TIME) or rel.endswith("_codec.py"):     # a codec's tests are bytes only
-        return False
-    return item.get_closest_marker("untimed") is None
+    return rel.startswith(_REAL_TIME) and not rel.endswith("_codec.py")     # a codec's tests are bytes only
+
+
+def _real_time(item: pytest.Item) -> bool:
+    """Whether `item` keeps time with the wall clock: a test of a real-time file not marked `untimed`."""
+    return _in_real_time_file(item) and item.get_closest_marker("untimed") is None
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The real-time files last (each file's tests together, in their order): on two processes the other files
+    run beside each other first, then the real-time tests one after another, instead of each real-time test
+    waiting for the other process to finish whatever long test it is in."""
+    items.sort(key=_in_real_time_file)
 
 
 class _TestsLock:
