@@ -180,6 +180,7 @@ class _Reader:
     def records(self, f: IO[bytes]) -> Iterator[Record]:
         if _read_exact(f, 8) != _MAGIC:
             raise ValueError("no MCAP magic at its start")
+        file_size = _size(f)
         while True:
             at = f.tell()
             head = f.read(9)
@@ -190,7 +191,7 @@ class _Reader:
             if op in (_OP_FOOTER, _OP_DATA_END):
                 return
             if op not in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_METADATA):
-                if length > _size(f) - f.tell():     # a record said to run past the end (or a length damaged)
+                if length > file_size - f.tell():   # a record said to run past the end (or a length damaged)
                     self.cut_at = at
                     return
                 f.seek(length, io.SEEK_CUR)
