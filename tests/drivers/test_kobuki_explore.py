@@ -35,7 +35,8 @@ def test_frontier_exploration_matches_the_embedded_simulator(world: World, start
     # The emulator runs at 12x real time: a planning step of the client costs 12x its wall time in robot
     # time, and the lag lengthens the route (turns overshot, then corrected). Paths measured against the
     # stepped simulator's 34.7 m: 33.4-38.7 m at 5x (4 runs), 35.7-42.8 m at 12x (15 runs, 3 more beside a
-    # busy processor: 34.6-37.2 m), 36.8-47.8 m at 30x (4 runs), so 30x could leave the 35 % band.
+    # busy processor: 34.6-37.2 m), 36.8-47.8 m at 30x (4 runs), so 30x could leave the 35 % band
+    # (benchmarks/studies/emulator_lag.py).
     # The protocol path against the stepped simulator, both on the exact odometry pose: --localize
     # none on the robot (its default on a real robot is scan matching, which on the emulator's exact
     # odometry can only add error: 0.98 coverage instead of 1.0; tests/localization covers that default).
