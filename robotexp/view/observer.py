@@ -275,7 +275,6 @@ class ViewObserver(RunObserver):
         self._speed = SpeedMeter()
         self._pending_curve: list[float] = []
         self._coverage: float | None = None
-        self._team_time = -math.inf                 # a team's last robot time sent and paced
         self._team_sent: list[tuple[int, tuple[float, float] | None]] = []    # robots 2, 3, ...: path kept
 
     # -- commands from the page (server thread) --
@@ -325,13 +324,15 @@ class ViewObserver(RunObserver):
         pacer.wait(step.time if self.simulated else None, halt, lambda holding: self._hold(run, step.time, holding))
 
     def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
-        """A team's robot's tick: the first robot to step at a robot time sends and paces as `on_step` does
-        (robot 1 unless it is done), every robot's scan marks the map changed."""
+        """A team's robot's tick: every robot's scan marks the map changed; the last robot still exploring
+        sends and paces as `on_step` does, once every robot has stepped (a frame shows the team's whole tick,
+        with its totals)."""
         if step.map_updated:
             self._map_dirty = True
-        if step.time > self._team_time:
-            self._team_time = step.time
-            self.on_step(run, step)
+        active = getattr(run, "active", None)
+        if active and robot != active[-1]:
+            return
+        self.on_step(run, step)
 
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:

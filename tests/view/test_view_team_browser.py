@@ -7,9 +7,16 @@ import time
 from pathlib import Path
 from typing import Any
 
+import pytest
+
+from robotexp.experiment import run_team
 from robotexp.output.render import TEAM_COLORS
 from robotexp.output.results import read_records
+from robotexp.run.spec import RunSpec
+from robotexp.run.team import TeamSpec
+from robotexp.testing.explorer_contract import make_room
 from robotexp.view.feed import Frame, ViewClient, ViewHub
+from robotexp.view.observer import ViewObserver
 
 from test_view_browser import _need_browser, _page
 
@@ -36,6 +43,37 @@ def test_the_hub_sends_each_teammate_its_pose_and_new_path_points() -> None:
     assert late is not None and late["team"][0]["path"] == [1.0, 2.0, 1.1, 2.0]
     hub.restart(0.0)                            # a seek: the paths are sent again from the start
     assert hub.message_for(client)["team"] == [{"pose": (1.0, 2.0, 0.5), "path_from": 0, "path": []}]
+
+
+@pytest.mark.untimed
+def test_a_team_frame_shows_every_robot_at_the_same_tick_and_the_teams_path() -> None:
+    # a frame at every tick (speed max, 1 MHz frame rate): each is sent once every robot has stepped, so the
+    # teammate's pose and the team's path are the tick's, not the previous one's (a frame sent at robot 1's
+    # step showed robot 2 where it stood a tick before)
+    hub = ViewHub()
+    observer = ViewObserver(hub, speed=None, frame_rate=1e6)
+    frames: list[tuple[float, list[float], float, float, tuple[float, float, float] | None, Any]] = []
+    publish = hub.publish
+
+    def noting(frame: Frame) -> None:
+        run: Any = observer.run
+        if frame.team is not None:
+            mate = run.members[1].state.pose
+            times = [run.members[i].state.time - run._t0 for i in run.active]
+            frames.append((frame.time, times, run.metrics.path_length, sum(m.metrics.path_length for m in run.members),
+                           frame.team[0][0], (mate.x, mate.y, mate.theta)))
+        publish(frame)
+
+    hub.publish = noting        # type: ignore[method-assign]
+    spec = RunSpec(world="conformance-room", method="frontier", max_time=8.0, laser_range=3.0)
+    out = run_team(spec, TeamSpec(robots=("p3dx", "kobuki"), coordinator="greedy"), None, image=False,
+                   world=make_room(), observers=[observer])
+    assert len(frames) >= 80                                       # a frame a tick
+    assert sum(len(times) == 2 for _, times, *_ in frames) >= 10   # both robots exploring in many of them
+    for t, times, path, total, mate, truth in frames[1:-1]:    # the first: the start; the last: the end's
+        assert times == [pytest.approx(t, abs=1e-9)] * len(times), (t, times)   # the robots still exploring
+        assert path == pytest.approx(total, abs=1e-9) and mate == truth
+    assert frames[-1][2] == pytest.approx(out.record["path_length_m"], abs=1e-3) and frames[-1][2] > 1.0
 
 
 def test_explore_team_view_in_chromium_draws_both_robots(tmp_path: Path, view_cli: Any, team_room: str) -> None:
