@@ -58,18 +58,38 @@ Robot.__init__ = _tracking_init  # type: ignore[method-assign]
 # its process holds the tests' lock exclusively while the other process's tests each hold it shared. A test of
 # these files that keeps no time (bytes, wrong input, a reader) is marked `untimed` and runs beside the others; one
 # whose timed part follows an untimed preparation (a compilation, a reference run) may hold the lock exclusively
-# for that part only (the `alone` fixture).
-_REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py",
-              "campaign/test_cluster.py", "campaign/test_cluster_faults.py", "cli/test_interrupt.py",
+# for that part only (the `alone` fixture). A file whose wall-time bounds add what its processes waited for a CPU
+# (`cpu_wait`), and that otherwise waits for events, not for time, runs beside the others: the campaigns on a Dask
+# cluster (campaign/test_cluster*.py) and the campaigns' signal and kill tests (output/test_results_hardening.py).
+_REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py", "cli/test_interrupt.py",
               "lua/test_lua_errors.py", "lua/test_lua_hardening.py", "lua/test_lua_integrity.py",
-              "lua/test_lua_p3dx.py", "output/test_results_hardening.py", "run/test_teamrobots.py",
-              "run/test_warm_kernels.py")
+              "lua/test_lua_p3dx.py", "run/test_teamrobots.py", "run/test_warm_kernels.py")
 _TESTS = Path(__file__).resolve().parent
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "untimed: a test of a real-time file (tests/conftest.py, _REAL_TIME) that "
                                        "keeps no time with the wall clock: it runs beside other tests")
+    worker = getattr(config, "workerinput", None)
+    if worker is not None and worker["workercount"] >= 2:
+        _fill_kernel_cache(int(worker["workerid"].removeprefix("gw")))
+
+
+def _fill_kernel_cache(part: int) -> None:
+    """Before a test process of an xdist run collects: its part of numba's kernels compiled into numba's cache
+    (tests/kernel_warmup.py; the parts of two processes at once take about 40 s on a fresh clone, 4 s when the
+    cache is full). A warm-up that fails only leaves the compiling to the tests, where any failure shows."""
+    from kernel_warmup import PARTS
+
+    if part >= PARTS:
+        return
+    proc = subprocess.Popen([sys.executable, str(_TESTS / "kernel_warmup.py"), str(part)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        proc.wait(timeout=600)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def _in_real_time_file(item: pytest.Item) -> bool:
