@@ -71,7 +71,8 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "untimed: a test of a real-time file (tests/conftest.py, _REAL_TIME) that "
                                        "keeps no time with the wall clock: it runs beside other tests")
     worker = getattr(config, "workerinput", None)
-    if worker is not None and worker["workercount"] >= 2:
+    jit = os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")     # the kernels as plain Python: nothing to compile
+    if worker is not None and worker["workercount"] >= 2 and jit:
         _fill_kernel_cache(int(worker["workerid"].removeprefix("gw")))
 
 
