@@ -39,7 +39,6 @@ def _append_in_child(path: Path, record: dict, fsize: int) -> subprocess.Complet
                           capture_output=True, text=True, timeout=60)
 
 
-@pytest.mark.untimed
 def test_a_write_cut_by_a_full_disk_leaves_no_half_line(tmp_path):
     path = tmp_path / "results.jsonl"
     append_line(path, REC)
@@ -52,7 +51,6 @@ def test_a_write_cut_by_a_full_disk_leaves_no_half_line(tmp_path):
     assert [r["run"] for r in read_records(path)] == ["a", "c"]
 
 
-@pytest.mark.untimed
 def test_a_torn_line_is_repaired_before_the_next_append_and_said(tmp_path):
     path = tmp_path / "results.jsonl"
     append_line(path, REC)
@@ -65,7 +63,6 @@ def test_a_torn_line_is_repaired_before_the_next_append_and_said(tmp_path):
     assert (tmp_path / "results.jsonl.torn").read_bytes() == b'{"run": "torn", "meth\n'
 
 
-@pytest.mark.untimed
 def test_readers_skip_and_report_torn_lines(tmp_path):
     path = tmp_path / "results.jsonl"
     rec = {"run": "r1", "method": "frontier", "world": "dense", "start_pose": [0, 0, 0], "max_speed_m_s": 0.3,
@@ -86,7 +83,6 @@ def test_readers_skip_and_report_torn_lines(tmp_path):
                                                ("path_length_m", {"a": 1}, "path_length_m is {'a': 1}, expected a"),
                                                ("world", ["x"], "world is ['x'], expected a string"),
                                                ("completed", "yes", "completed is 'yes', expected a boolean")])
-@pytest.mark.untimed
 def test_a_record_with_a_field_of_the_wrong_type_is_skipped_and_said_by_every_reader(tmp_path, field, value, words):
     path = tmp_path / "results.jsonl"
     rec = {"run": "r1", "method": "frontier", "world": "dense", "start_pose": [0, 0, 0], "max_speed_m_s": 0.3,
@@ -129,7 +125,6 @@ seeds = [0]
 """
 
 
-@pytest.mark.untimed
 def test_two_campaigns_cannot_share_an_output_folder(tmp_path):
     camp = tmp_path / "c.toml"
     camp.write_text(MINI)
@@ -147,7 +142,6 @@ def test_two_campaigns_cannot_share_an_output_folder(tmp_path):
     ("speeds_mm_s = [300]", ["speeds_mm_s = [300, 300.4]", "speeds 300 and 300.4"]),
     ('name = "mini"', ['name = "../../escape"', "not a folder name"]),
 ])
-@pytest.mark.untimed
 def test_campaign_keys_and_names_are_checked(tmp_path, change, words):
     path = tmp_path / "c.toml"
     path.write_text(MINI.replace(change, words[0]))
@@ -232,7 +226,6 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait, sig, sta
     assert took < 15 + waited           # (a loaded machine: plus what the processes waited for a CPU)
 
 
-@pytest.mark.untimed
 def test_report_counts_a_run_recorded_twice_once_and_says_so(tmp_path):
     path = tmp_path / "results.jsonl"
     rec = {"run": "r1", "method": "frontier", "world": "dense", "world_spec": "dense", "pose_spec": "1",
