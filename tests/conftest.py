@@ -54,19 +54,16 @@ Robot.__init__ = _tracking_init  # type: ignore[method-assign]
 
 
 # Test files whose tests keep time with the wall clock: emulated devices that stream in real time, servers, a
-# browser. On two processes (pytest-xdist) each such test runs alone: its process holds the tests' lock
-# exclusively while the other process's tests each hold it shared. A test of these files that keeps no time
-# (bytes, wrong input, a reader) is marked `untimed` and runs beside the others; one whose timed part follows an
-# untimed preparation (a compilation, a reference run) may hold the lock exclusively for that part only (the
-# `alone` fixture). A file whose wall-time bounds add what its processes waited for a CPU (`cpu_wait`), and that
-# otherwise waits for events, not for time, runs beside the others: the campaigns on a Dask cluster
-# (campaign/test_cluster*.py) and the campaigns' signal and kill tests (output/test_results_hardening.py).
-_REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py",
+# browser, subprocesses stopped by signals and timeouts. On two processes (pytest-xdist) each such test runs alone:
+# its process holds the tests' lock exclusively while the other process's tests each hold it shared. A test of
+# these files that keeps no time (bytes, wrong input, a reader) is marked `untimed` and runs beside the others; one
+# whose timed part follows an untimed preparation (a compilation, a reference run) may hold the lock exclusively
+# for that part only (the `alone` fixture). A file whose wall-time bounds add what its processes waited for a CPU
+# (`cpu_wait`), and that otherwise waits for events, not for time, runs beside the others: the campaigns on a Dask
+# cluster (campaign/test_cluster*.py) and the campaigns' signal and kill tests (output/test_results_hardening.py).
+_REAL_TIME = ("drivers/", "view/", "bag/test_connect_record.py", "bag/test_replay_seek.py", "cli/test_interrupt.py",
+              "lua/test_lua_errors.py", "lua/test_lua_hardening.py", "lua/test_lua_integrity.py",
               "lua/test_lua_p3dx.py", "run/test_teamrobots.py", "run/test_warm_kernels.py")
-# Scripts and commands stopped by signals and timeouts, one subprocess at a time and waiting most of their time,
-# with bounds of a second or more: they run beside each other, last of all, so that two of them share the two
-# processors rather than one of them sharing a processor with a test that starts processes of its own.
-_LAST = ("cli/test_interrupt.py", "lua/test_lua_errors.py", "lua/test_lua_hardening.py", "lua/test_lua_integrity.py")
 _TESTS = Path(__file__).resolve().parent
 
 
@@ -96,17 +93,12 @@ def _fill_kernel_cache(part: int) -> None:
         proc.wait()
 
 
-def _relative(item: pytest.Item) -> str:
-    """`item`'s file, relative to tests/ ("" outside it)."""
-    try:
-        return item.path.resolve().relative_to(_TESTS).as_posix()
-    except ValueError:
-        return ""
-
-
 def _in_real_time_file(item: pytest.Item) -> bool:
     """Whether `item` is a test of a real-time file."""
-    rel = _relative(item)
+    try:
+        rel = item.path.resolve().relative_to(_TESTS).as_posix()
+    except ValueError:
+        return False
     return rel.startswith(_REAL_TIME) and not rel.endswith("_codec.py")     # a codec's tests are bytes only
 
 
@@ -116,11 +108,10 @@ def _real_time(item: pytest.Item) -> bool:
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The real-time files after the others, then the `_LAST` files (each file's tests together, in their order):
-    on two processes the other files run beside each other first, then the real-time tests one after another,
-    instead of each real-time test waiting for the other process to finish whatever long test it is in, then
-    the signal and timeout files beside each other."""
-    items.sort(key=lambda item: 2 if _relative(item).startswith(_LAST) else int(_in_real_time_file(item)))
+    """The real-time files last (each file's tests together, in their order): on two processes the other files
+    run beside each other first, then the real-time tests one after another, instead of each real-time test
+    waiting for the other process to finish whatever long test it is in."""
+    items.sort(key=_in_real_time_file)
 
 
 class _TestsLock:

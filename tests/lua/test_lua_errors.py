@@ -39,22 +39,26 @@ from robotexp.errors import ConfigError, ScriptError
     ("exploration.setMapLimits(0, 0, -1, 5)", r"expected xmin < xmax and ymin < ymax"),
     ("exploration.setCellSize(1)", r"expected 5..2000 mm"),
 ])
+@pytest.mark.untimed
 def test_errors_name_script_line_and_function(lua, code, message):
     with pytest.raises(ScriptError, match=message):
         lua(code, name="s.lua")
 
 
+@pytest.mark.untimed
 def test_syntax_error_is_bad_input_and_nothing_runs(lua):
     with pytest.raises(ConfigError, match=r"^s.lua:2: unexpected symbol near '=' \(the script does not compile"):
         lua('print("ran")\nlocal y = = 2', name="s.lua")
     assert lua.lines == []
 
 
+@pytest.mark.untimed
 def test_error_in_pcall_is_a_plain_string(lua):
     lua('local ok, e = pcall(robot.setMaxSpeed, "x"); print(ok, type(e))')
     assert lua.lines == ["false\tstring"]
 
 
+@pytest.mark.untimed
 def test_cli_prints_one_line_and_exits_1(tmp_path):
     script = tmp_path / "bad.lua"
     script.write_text("print('before')\nlocal x = {} .. 1\n")
@@ -64,6 +68,7 @@ def test_cli_prints_one_line_and_exits_1(tmp_path):
     assert "before" in result.output and "Traceback" not in result.output
 
 
+@pytest.mark.untimed
 def test_cli_os_exit_status(tmp_path):
     script = tmp_path / "exit.lua"
     script.write_text("os.exit(4)")
@@ -155,6 +160,7 @@ if os.name != "posix":   # pragma: no cover
     pytestmark = pytest.mark.skip("SIGINT tests need POSIX")
 
 
+@pytest.mark.untimed
 def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_interrupted(monkeypatch):
     """Ctrl-C raised inside a callback Python cannot raise from (llvmlite's object cache while numba
     compiles: met in CI on a fresh install) goes to sys.unraisablehook, which prints "Exception ignored

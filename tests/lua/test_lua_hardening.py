@@ -1,4 +1,5 @@
-"""Every script stops: constructs the interrupt hook cannot see, Ctrl-C; the memory limit and exit codes."""
+"""Every script stops (timed: these run alone): constructs the interrupt hook cannot see, Ctrl-C; the memory
+limit and exit codes (untimed)."""
 
 from __future__ import annotations
 
@@ -103,6 +104,7 @@ def test_ctrl_c_kills_a_script_stuck_in_a_pattern(tmp_path):
     assert took < 3.0 + 1.5
 
 
+@pytest.mark.untimed
 def test_memory_limit(lua, tmp_path):
     grow = 'local t = {} for i = 1, 1e9 do t[i] = ("x"):rep(64) .. i end'
     with pytest.raises(ScriptError, match=r"^s.lua: out of memory: the script's Lua data reached its memory limit "
@@ -118,6 +120,7 @@ def test_memory_limit(lua, tmp_path):
     assert _cli("run", str(script), "--out", str(tmp_path / "o"), "--max-memory", "0.5")[0] == 2
 
 
+@pytest.mark.untimed
 def test_exit_status_is_one_byte(tmp_path):
     script = tmp_path / "s.lua"
     script.write_text("os.exit(256)")

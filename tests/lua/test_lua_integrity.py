@@ -35,6 +35,7 @@ def _cli(*args: str) -> tuple[int, str]:
     return result.exit_code, result.output
 
 
+@pytest.mark.untimed
 def test_coroutine_wrap_closure_is_closed_to_debug(lua):
     lua(WRAP_ATTACK + 'print(pcall(debug.setupvalue, coroutine.wrap(print), 6, print))')
     assert lua.lines[0].startswith("refused: ") and "robotexp's own functions are closed" in lua.lines[0]
@@ -52,6 +53,7 @@ def test_the_stop_hook_survives_the_wrap_attack(tmp_path):
     assert "killed" not in output
 
 
+@pytest.mark.untimed       # but the timed command (alone)
 def test_a_run_in_progress_at_the_timeout_is_written_before_the_kill(tmp_path, alone):
     # every Python process of the command starts 1.5 s late (more than the 1 s grace): the supervisor's
     # kill still counts from the script's start, so the child stops its run at --timeout and writes it.
@@ -103,11 +105,13 @@ def test_a_run_slow_to_write_at_the_timeout_is_waited_for(tmp_path):
     assert took >= 2 + 2.5
 
 
+@pytest.mark.untimed
 def test_print_of_bytes_that_are_not_utf8(lua):
     lua('print(pcall(print, "a\\255b\\237\\160\\128c\\226\\130", 1))')
     assert lua.lines == ["a\ufffdb\ufffd\ufffd\ufffdc\ufffd\ufffd\t1", "true"]
 
 
+@pytest.mark.untimed
 def test_shared_metatables_are_locked(lua):
     code = ('print(getmetatable(io.stdout), debug.getmetatable(io.stdout))\n'
             'print(pcall(debug.setmetatable, io.stdout, {}))\n'
@@ -130,6 +134,7 @@ RECORD_WRITES = [
 
 
 @pytest.mark.parametrize("sandbox", [True, False])
+@pytest.mark.untimed
 def test_scripts_cannot_touch_the_records(lua, sandbox):
     out = lua.out
     (out / "shared").mkdir(parents=True)
@@ -148,6 +153,7 @@ def test_scripts_cannot_touch_the_records(lua, sandbox):
     assert sorted(p.name for p in out.iterdir()) == ["link", "mine.txt", "results.jsonl", "shared"]
 
 
+@pytest.mark.untimed
 def test_a_results_file_that_is_a_folder_is_refused_before_the_run(tmp_path):
     script, out = tmp_path / "s.lua", tmp_path / "out"
     script.write_text('print("ran")')
@@ -158,6 +164,7 @@ def test_a_results_file_that_is_a_folder_is_refused_before_the_run(tmp_path):
                      "or give another --out (the runs' records go there)\n"
 
 
+@pytest.mark.untimed
 def test_the_write_limit_stops_a_write_loop(lua):
     code = """
     local f = io.open("big.bin", "wb")
@@ -182,6 +189,7 @@ def test_the_write_limit_stops_a_write_loop(lua):
     assert not (lua.out / "other.txt").exists()
 
 
+@pytest.mark.untimed
 def test_the_write_limit_counts_files_created(lua):
     code = ('local n = 0\nlocal ok, e = pcall(function() while true do io.open("f" .. n, "w"):close(); '
             'n = n + 1 end end)\nprint(n, e)')
@@ -190,6 +198,7 @@ def test_the_write_limit_counts_files_created(lua):
     assert int(n) == 256 and "io.open: refused" in error and "--max-write" in error     # 1 MB / 4 KiB
 
 
+@pytest.mark.untimed
 def test_max_write_on_the_command_line(tmp_path):
     script, out = tmp_path / "s.lua", tmp_path / "out"
     script.write_text('local f = io.open("a.bin", "wb"); f:write(("x"):rep(3 * 2^20)); print("not reached")')
@@ -202,6 +211,7 @@ def test_max_write_on_the_command_line(tmp_path):
     assert code == 2 and output == "robotexp: error: --max-write must be 0..1073741824 MB, got -1\n"
 
 
+@pytest.mark.untimed
 def test_a_results_file_made_a_folder_during_the_run_keeps_the_record(lua):
     # without --sandbox a script can still start programs: the record goes beside the folder
     code = ('os.execute("mkdir -p \'" .. exploration.outputFolder() .. "/results.jsonl\'")\n'
