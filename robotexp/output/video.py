@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.errors import ConfigError
-from robotexp.run.observers import RunObserver, StepEvent
+from robotexp.run.observers import RunObserver, StepEvent, ends_team_tick
 
 if TYPE_CHECKING:
     from PIL import Image
@@ -103,10 +103,8 @@ class FrameObserver(RunObserver):
     def on_robot_step(self, run: ExplorationRun, robot: int, step: StepEvent) -> None:
         """A team run: a frame when one is due, once every robot has stepped at that time (at the step of the
         last robot still exploring: the frame shows the whole team's tick, and its title the team's totals)."""
-        active = getattr(run, "active", None)
-        if active and robot != active[-1]:
-            return
-        self.on_step(run, step)
+        if ends_team_tick(run, robot):
+            self.on_step(run, step)
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """The final frame, unless the last one shows that instant already."""

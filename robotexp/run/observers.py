@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from robotexp.run.loop import ExplorationRun
     from robotexp.run.record import RunRecord
 
-__all__ = ["RunObserver", "StepEvent", "SampleCallback", "Observers"]
+__all__ = ["RunObserver", "StepEvent", "SampleCallback", "Observers", "ends_team_tick"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +74,13 @@ class RunObserver:
 
     def on_end(self, run: ExplorationRun, record: RunRecord) -> None:
         """The run ended and the robot was stopped; `record` is its result (`run.record` too)."""
+
+
+def ends_team_tick(run: ExplorationRun, robot: int) -> bool:
+    """Whether robot `robot`'s step ends its team's tick (`on_robot_step`): the last robot still exploring steps
+    last, so every robot has stepped at that time and the team's totals are the tick's. True outside a team."""
+    active = getattr(run, "active", None)
+    return not active or robot == active[-1]
 
 
 class SampleCallback(RunObserver):

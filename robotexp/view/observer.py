@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.markers import markers_problem
-from robotexp.run.observers import RunObserver, StepEvent
+from robotexp.run.observers import RunObserver, StepEvent, ends_team_tick
 from robotexp.run.record import EndReason
 from robotexp.view.feed import Frame, MapLayer, ViewHub, classes_of_states, encode_classes, vector_arrows
 from robotexp.view.feed import DEFAULT_SPEED, speed_value
@@ -329,10 +329,8 @@ class ViewObserver(RunObserver):
         with its totals)."""
         if step.map_updated:
             self._map_dirty = True
-        active = getattr(run, "active", None)
-        if active and robot != active[-1]:
-            return
-        self.on_step(run, step)
+        if ends_team_tick(run, robot):
+            self.on_step(run, step)
 
     def _hold(self, run: ExplorationRun, t: float, holding: bool) -> None:
         if holding:
