@@ -12,7 +12,8 @@ in-process) and watches it:
   own deadline; a child that never says so is killed `STARTUP_GRACE` s later than the timeout;
 - at --timeout + `TIMEOUT_GRACE` s, or `INTERRUPT_GRACE` s after Ctrl-C, the parent kills it
   (SIGKILL): every run already in results.jsonl stays there, and the parent says how many there
-  are; a timeout exits 1, Ctrl-C 130, SIGTERM 143;
+  are; a timeout exits 1, Ctrl-C 130, SIGTERM 143; a child that dies of a signal (a crash, the out-of-memory
+  killer), after Ctrl-C or not, is named on stderr with the runs already written;
 - a numba compilation (the first run of a method after an install) is one step the child cannot
   stop in; the child says when one starts and ends (COMPILING, COMPILED on the same pipe), and the
   kill at --timeout waits for it to end (`COMPILE_HOLD` s at most) and `TIMEOUT_GRACE` s more, so the
@@ -98,6 +99,14 @@ def _heard(fd: int) -> bytes:
         return os.read(fd, 4096)
     except BlockingIOError:
         return b""
+
+
+def _signal_name(number: int) -> str:
+    """SIGKILL for 9; the number for a signal Python does not name."""
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
 
 
 def _tell(text: str) -> None:
@@ -225,6 +234,10 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of Ctrl-C: killed; the "
                        f"{made} run(s) finished so far are in {results}", err=True)
             click.echo("robotexp: interrupted", err=True)
+        elif proc.returncode < 0:       # it died of a signal before it stopped by itself (not the parent's kill)
+            click.echo(f"robotexp: error: {script}: the script's process was killed by "
+                       f"{_signal_name(-proc.returncode)} after Ctrl-C, before it stopped by itself; the {made} "
+                       f"run(s) finished so far are in {results}", err=True)
         # a child that ended by itself tells: 130 when Ctrl-C stopped its script, 0 when the script was
         # over (`run --view` keeps its page up until Ctrl-C)
         code = proc.returncode if why is None and proc.returncode >= 0 else 130
@@ -233,8 +246,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     if failures and code == 0:
         return 1
     if code < 0:
-        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
-        click.echo(f"robotexp: error: {script}: the script's process was killed by {name} (out of memory? "
-                   f"see --max-memory); the {made} run(s) finished so far are in {results}", err=True)
+        click.echo(f"robotexp: error: {script}: the script's process was killed by {_signal_name(-code)} (out of "
+                   f"memory? see --max-memory); the {made} run(s) finished so far are in {results}", err=True)
         return 1
     return code

@@ -315,3 +315,40 @@ def test_a_compilation_that_never_ends_is_killed_after_the_hold(tmp_path):
     assert code == 1 and 2.0 <= took < 2.0 + 0.5 + 1.0 + 3.0, (took, err)
     assert "stopped by --timeout after 0.5 s (it did not stop by itself within 1 s: killed)" in err
     assert not (tmp_path / "results.jsonl").exists()
+
+
+# A stand-in that writes one run, says its script runs, and dies of SIGSEGV at Ctrl-C (a crash while it stops).
+CRASHES_AT_CTRL_C = """
+import os, signal, sys, time
+fd = int([a for a in sys.argv if a.startswith("--ready-fd=")][0].split("=")[1])
+with open(os.path.join(sys.argv[1], "results.jsonl"), "a") as f:
+    f.write('{"run": "finished before Ctrl-C"}\\n')
+signal.signal(signal.SIGINT, lambda *_: os.kill(os.getpid(), signal.SIGSEGV))
+os.write(fd, b"r")
+time.sleep(60)
+"""
+
+
+def test_a_script_process_that_dies_of_a_signal_after_ctrl_c_is_named(tmp_path):
+    """Ctrl-C, and the script's process dies of a signal instead of stopping by itself: one line says so and
+    how many runs are in results.jsonl (not a silent exit 130)."""
+    script = tmp_path / "crashes.py"
+    script.write_text(CRASHES_AT_CTRL_C)
+    code = ("import sys; from pathlib import Path; from robotexp.lua.supervise import supervise; "
+            f"sys.exit(supervise([{str(tmp_path)!r}], script='s.lua', out=Path({str(tmp_path)!r}), timeout=None, "
+            f"child=[sys.executable, {str(script)!r}]))")
+    proc = subprocess.Popen([sys.executable, "-c", code], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not (tmp_path / "results.jsonl").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert (f"robotexp: error: s.lua: the script's process was killed by SIGSEGV after Ctrl-C, before it stopped "
+            f"by itself; the 1 run(s) finished so far are in {tmp_path / 'results.jsonl'}") in err, err
