@@ -692,7 +692,10 @@ def parse_team(text: str, robot: str = "p3dx") -> tuple[str, ...]:
             shown = text if len(text) < 12 else f"{len(text.lstrip('+-'))} digits"
             raise ConfigError(f"--team: a team has 1..{MAX_TEAM} robots, got {shown}")
         return (robot,) * n
-    names = tuple(t.strip() for t in text.split(",") if t.strip())
-    if not names:
+    names = tuple(t.strip() for t in text.split(","))
+    if not any(names):
         raise ConfigError(f"--team: give a number of robots or a list of presets (p3dx,kobuki), got {text!r}")
+    if "" in names:
+        raise ConfigError(f"--team: robot {names.index('') + 1} of {text!r} is empty: give one preset per robot, "
+                          "separated by single commas (p3dx,p3dx,kobuki)")
     return names

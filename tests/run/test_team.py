@@ -87,6 +87,9 @@ def test_reactive_explorers_need_coordinator_none_and_bad_teams_are_refused():
     for bad in ("0", "-1", " -3 ", "65", "1" * 30):
         with pytest.raises(ConfigError, match=r"a team has 1\.\.64 robots, got"):
             parse_team(bad)
+    for bad, n in (("p3dx,,kobuki", 2), ("p3dx,kobuki,", 3), (",p3dx", 1)):      # a typo is not a smaller team
+        with pytest.raises(ConfigError, match=rf"--team: robot {n} of '{bad}' is empty: give one preset per robot"):
+            parse_team(bad)
     for bad in ("+-3", "--3"):      # not a number: read as preset names, refused as such by the run
         assert parse_team(bad) == (bad,)
 
