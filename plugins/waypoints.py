@@ -129,6 +129,7 @@ class WaypointsExplorer(Explorer):
         "goal_timeout": (None, 86400.0), "memory": (None, 3600.0)}
 
     preferred_cell = 0.05       # [m] the UFMG study's choice (0.01 too slow, 0.1 too coarse)
+    needs_range = False         # a route: laser returns, when there are any, only push it clear of obstacles
 
     def __init__(self, *, goals: Sequence[Sequence[float]] | None = None, path: str | None = None,  # noqa: PLR0913
                  k_att: float = 1.0, k_rep: float = 0.02, influence: float = 0.5, tolerance: float = 0.25,

@@ -75,6 +75,10 @@ class Explorer(ABC):
     grid_model: ClassVar[Literal["logodds", "himm"]] = "logodds"
     preferred_cell: ClassVar[float | None] = None   # [m] a cell size the method is defined for
     uses_sonar: ClassVar[bool] = False      # the method reads RobotState.sonar
+    # the method senses through the robot's laser (or its sonar, with `uses_sonar`): the run holds the robot
+    # until the first reading and ends as a robot error when none comes (`robotexp.run.loop.RANGE_WAIT`);
+    # False for a method that drives without them (a route)
+    needs_range: ClassVar[bool] = True
     # the inclusive range of each numeric parameter, {name: (low, high)} (None: open on that side); a
     # class's entries add to its bases'; checked before the explorer is built, shown by `-p help`
     parameter_bounds: ClassVar[dict[str, tuple[float | None, float | None]]] = {}

@@ -487,6 +487,8 @@ class ReplayExplorer(Explorer):
     """Drives nothing: returns the recorded velocity until the last tick, then Done when the recorded
     run ended explored. Its markers are the recorded ones of the tick read last."""
 
+    needs_range = False     # it plays back what was recorded, scans or none
+
     def __init__(self, robot: ReplayRobot, done_reason: str | None,
                  markers: Sequence[tuple[float, Markers]] = ()) -> None:
         self.robot, self.done_reason = robot, done_reason

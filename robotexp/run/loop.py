@@ -28,9 +28,13 @@ if TYPE_CHECKING:
 from robotexp.explorer import Done, Explorer, ExplorerContext
 from robotexp.run.record import milestone_keys
 
-__all__ = ["RunMetrics", "RunInfo", "ExplorationRun", "make_record"]
+__all__ = ["RunMetrics", "RunInfo", "ExplorationRun", "make_record", "RANGE_WAIT"]
 
 TERMINATED_REASON = "interrupted (SIGTERM)"     # a run that SIGTERM ended (`robotexp.errors.Terminated`)
+# [s] of robot time a run waits, the robot standing, for the first laser scan (or sonar ring, for an explorer
+# that uses sonar) before it ends as a robot error: a robot with no laser mounted maps nothing, and an explorer
+# would drive it blind or call an empty map explored
+RANGE_WAIT = 5.0
 
 log = logging.getLogger(__name__)
 
@@ -294,6 +298,8 @@ class ExplorationRun:
         self.observers.notify("on_start", self)
         self._collisions0 = int(state.extra.get("collisions", 0))
         self._mapped = None
+        self._sensed = False
+        self._held = 0              # control periods the robot stood waiting for something to sense with
         return state
 
     def _tick(self, state: RobotState) -> bool:
@@ -329,6 +335,8 @@ class ExplorationRun:
             self.reason, self.end = self._stop
         elif self.robot_time >= self.max_time - slack:
             self.reason, self.end = f"time limit of {self.max_time:.0f} s reached", EndReason.TIME_LIMIT
+        elif not self._sensed and not self._has_range(state):
+            decision = self._wait_for_range(slack)
         else:
             view = state
             if self.area is not None and state.laser is not None:
@@ -347,6 +355,30 @@ class ExplorationRun:
         if self.observers.listening("on_step"):
             self.observers.notify("on_step", self, StepEvent(self.robot_time, state, updated, decision))
         return isinstance(decision, Twist)
+
+    def _has_range(self, state: RobotState) -> bool:
+        """The explorer has what it senses with in `state` (then for the rest of the run): a laser scan, a sonar
+        ring for one that `uses_sonar`, anything for one that does not `needs_range`."""
+        explorer = self.explorer
+        self._sensed = (not explorer.needs_range or state.laser is not None
+                        or (explorer.uses_sonar and state.sonar is not None))
+        return self._sensed
+
+    def _wait_for_range(self, slack: float) -> Twist | None:
+        """Nothing to sense with yet: the robot stands (Twist.ZERO: it would drive blind, and the map stays
+        empty) until RANGE_WAIT s of robot time have passed (or as many control periods, for a robot whose clock
+        stands still); then the run ends as a robot error (None)."""
+        self._held += 1
+        if self.robot_time < RANGE_WAIT - slack and self._held * self.period < RANGE_WAIT - slack:
+            self.robot.command(Twist.ZERO)
+            return Twist.ZERO
+        what = "no laser scan or sonar reading" if self.explorer.uses_sonar else "no laser scan"
+        name = self.info.method or "the explorer"
+        self.reason = (f"robot error: the robot sent {what} in the first {RANGE_WAIT:g} s: {name} has nothing to map "
+                       "with; mount a laser (robotexp explore --laser NAME:ADDRESS, robot.setLaser in Lua, "
+                       "+LASER:ADDRESS in a --team list)")
+        self.end = EndReason.ROBOT_ERROR
+        return None
 
     def _explorer_call(self, method: Callable[..., Any], *args: Any) -> Any:
         """`method(*args)` of the explorer; its exception (a RobotError aside: that ends the run as a

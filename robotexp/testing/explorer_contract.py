@@ -5,7 +5,7 @@ call it for every installed explorer. It checks, in this order, and raises `Plug
 plugin and the first rule broken:
 
 1. the class subclasses `Explorer`, and its class attributes (`grid_model`, `preferred_cell`,
-   `uses_sonar`) have legal values;
+   `uses_sonar`, `needs_range`) have legal values;
 2. every `__init__` parameter (through `**kwargs` forwarded to a base class) is keyword-only, has
    a default, and is annotated with a type the CLI and Lua can pass: bool, int, float, str, a
    `Literal` of those, a sequence of those (a JSON array: ``-p goals=[[1, 2]]``), or one of these or
@@ -138,8 +138,9 @@ def _check_class_attributes(cls: type[Explorer], label: str) -> None:
     cell = cls.preferred_cell
     if cell is not None and not (isinstance(cell, float | int) and not isinstance(cell, bool) and 0 < cell <= 2.0):
         raise PluginError(f"explorer {label}: preferred_cell must be None or a cell size in (0, 2] m, got {cell!r}")
-    if not isinstance(cls.uses_sonar, bool):
-        raise PluginError(f"explorer {label}: uses_sonar must be True or False, got {cls.uses_sonar!r}")
+    for flag in ("uses_sonar", "needs_range"):
+        if not isinstance(getattr(cls, flag), bool):
+            raise PluginError(f"explorer {label}: {flag} must be True or False, got {getattr(cls, flag)!r}")
 
 
 def _check_parameters(cls: type[Explorer], label: str) -> dict[str, object]:

@@ -141,6 +141,10 @@ class BadGridModel(Spin):
     grid_model = "bayes"        # type: ignore[assignment]
 
 
+class BadNeedsRange(Spin):
+    needs_range = "laser"       # type: ignore[assignment]
+
+
 class Drawn(Spin):
     """Draws a node and the target it turns towards (keeps every rule)."""
 
@@ -208,6 +212,7 @@ def test_a_plugin_that_keeps_the_rules_passes() -> None:
     (RaisesInStep, "step() raised KeyError: 'pose'"),
     (NanTwist, "step returned Twist(v=nan, w=0.0) at step 1"),
     (BadGridModel, "grid_model must be 'logodds' or 'himm', got 'bayes'"),
+    (BadNeedsRange, "needs_range must be True or False, got 'laser'"),
     (MarkersNotADict, "markers() must return a dict, got list"),
     (MarkersOddPoints, "markers()['points']['target'] holds 3 numbers, not a multiple of 2"),
     (MarkersUnknownKind, "markers() kind 'arrows' is none of points, circles, lines, polygons"),
