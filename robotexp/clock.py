@@ -6,6 +6,8 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
+from robotexp.errors import RobotError
+
 __all__ = ["Clock", "SimClock", "WallClock", "PacedClock", "TeamClock"]
 
 
@@ -108,5 +110,9 @@ class TeamClock(Clock):
         return self.clocks[0].now()
 
     def tick(self) -> None:
-        for clock in self.clocks:
-            clock.tick()
+        """A period on every robot's clock; a robot whose clock fails (its link lost: RobotError) is named."""
+        for i, clock in enumerate(self.clocks):
+            try:
+                clock.tick()
+            except RobotError as exc:
+                raise RobotError(f"robot {i + 1}: {exc}") from exc

@@ -14,7 +14,8 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -22,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robotexp.coordinator import Candidates, Coordinator, TeamContext
-from robotexp.errors import ConfigError
+from robotexp.errors import ConfigError, RobotError
 from robotexp.explorer import Explorer
 from robotexp.planning.targets import shared_wall_memory
 from robotexp.robot import LaserScan, Pose, RobotState, Twist, wrap_angle
@@ -212,11 +213,12 @@ class TeamRun(ExplorationRun):
                 m = self.members[i]
                 if self._stop is not None:
                     m._stop = self._stop
-                go_on = self._member_step(i, m, states[i])
+                with self._naming(i):
+                    go_on = self._member_step(i, m, states[i])
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
-                        self._end_from(m)
+                        self._end_from(i, m)
                         return
                     m._safe_stop()
                     self._speed[i] = 0.0        # it stands from now on (its last state may have it driving)
@@ -231,7 +233,20 @@ class TeamRun(ExplorationRun):
                 self.reason, self.end = self._stop
                 return
             self.clock.tick()
-            states = [m.robot.read() for m in self.members]
+            states = []
+            for i, m in enumerate(self.members):
+                with self._naming(i):
+                    states.append(m.robot.read())
+
+    @contextmanager
+    def _naming(self, i: int) -> Iterator[None]:
+        """A RobotError of robot `i` (its link lost, an emergency stop) says which robot of the team it was."""
+        try:
+            yield
+        except RobotError as exc:
+            if len(self.members) < 2:
+                raise
+            raise RobotError(f"robot {i + 1}: {exc}") from exc
 
     def _member_step(self, i: int, m: ExplorationRun, state: RobotState) -> bool:
         """Member `i`'s tick from `state`, what the team takes from it, the observers of each robot's step, and
@@ -452,10 +467,13 @@ class TeamRun(ExplorationRun):
         if reason is not None:
             self.request_stop(reason, EndReason.STALLED)
 
-    def _end_from(self, m: ExplorationRun) -> None:
+    def _end_from(self, i: int, m: ExplorationRun) -> None:
+        """Robot `i`'s run ended the team's (an error, Ctrl-C, a stop): the team ends as it did; a robot error
+        says which robot failed."""
         self.reason, self.end, self.error = m.reason, m.end, m.error
-        if self.end is EndReason.PLUGIN_ERROR:
-            self.reason = m.reason
+        prefix = f"{EndReason.ROBOT_ERROR.value}: "
+        if self.end is EndReason.ROBOT_ERROR and len(self.members) > 1 and m.reason.startswith(prefix):
+            self.reason = f"{prefix}robot {i + 1}: {m.reason.removeprefix(prefix)}"
 
     def _all_done(self) -> None:
         """Every robot's explorer said done: the team's end is theirs, checked against the frontier left."""

@@ -121,7 +121,31 @@ def test_a_robot_lost_mid_run_ends_the_team_run_and_every_robot_stops(emulated: 
         team = TeamSpec(robots=("p3dx", "p3dx", "kobuki"), members=tuple(m.text for m in members))
         out = run_team_on_robots(spec, team, robots, None, "ufmg-static", observers=[Vanish()], image=False)
         assert out.record.end is EndReason.ROBOT_ERROR and out.record.robot_time_s < 10.0, out.record.reason
+        assert out.record.reason.startswith("robot error: robot 2: "), out.record.reason
         assert _wait(lambda: p1.commanded == (0, 0) and kobuki.last_base_control == BaseControl(0, 0))
+    finally:
+        for robot in robots:
+            robot.close()
+
+
+def test_a_robot_without_a_laser_ends_the_team_run_before_anyone_explores(emulated: dict[str, Any]) -> None:
+    # the Kobuki connected without its laser: nothing to map with; the team waits 5 s of robot time for its first
+    # scan, then ends as a robot error naming it, and every robot stops
+    p1, p2, kobuki = (emulated[k] for k in ("robot 1", "robot 2", "robot 3"))
+    members = parse_members(f"p3dx:{p1.address},p3dx:{p2.address},kobuki:{kobuki.address}")
+    robots = connect_team(members)
+    try:
+        spec = RunSpec(world="ufmg-static", method="frontier", max_time=30.0, localize="none")
+        team = TeamSpec(robots=("p3dx", "p3dx", "kobuki"), members=tuple(m.text for m in members))
+        out = run_team_on_robots(spec, team, robots, None, "ufmg-static", image=False)
+        record = out.record
+        assert record.end is EndReason.ROBOT_ERROR and record.reason.startswith(
+            "robot error: robot 3: the robot sent no laser scan in the first 5 s: frontier has nothing to map with; "
+            "mount a laser"), record.reason
+        assert 4.8 <= record.robot_time_s < 6.0
+        assert record.robots is not None and record.robots[2]["path_length_m"] == 0.0       # the Kobuki stood
+        assert _wait(lambda: p1.commanded == (0, 0) and p2.commanded == (0, 0)
+                     and kobuki.last_base_control == BaseControl(0, 0))
     finally:
         for robot in robots:
             robot.close()
