@@ -39,10 +39,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robotexp.errors import RobotexpError, ScriptError
+from robotexp.errors import RobotError, RobotexpError, ScriptError
 from robotexp.lua.sandbox import AddressPolicy, lua_kind
 from robotexp.lua.team import TeamCalls
 from robotexp.run.observers import RunObserver
+from robotexp.run.record import EndReason
 from robotexp.robot import Capability, Pose
 
 if TYPE_CHECKING:
@@ -306,6 +307,9 @@ class Session:
             self.pose = state.true_pose or state.pose
         if self.control.check():
             raise ScriptError("exploration stopped")    # the runtime reports the real reason
+        record = output.record
+        if record.end is EndReason.ROBOT_ERROR:         # as a plugin error: the script stops, the record is written
+            raise RobotError(f"run {record.run} ended: {record.reason} (its record is in results.jsonl)")
 
     def _observers(self, spec: RunSpec) -> list[RunObserver]:
         """The observers of a run of the script: its frames and --timeout, the caller's, its recorder."""

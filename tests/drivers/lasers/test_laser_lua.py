@@ -18,9 +18,10 @@ from robotexp_drivers.kobuki.codec import BaseControl
 CLI = [sys.executable, "-m", "robotexp.cli"]
 
 
-def _explore(tmp_path: Path, kobuki: str, laser: str | None, max_time_ms: int) -> dict:
+def _explore(tmp_path: Path, kobuki: str, laser: str | None, max_time_ms: int,
+             status: int = 0) -> tuple[dict, subprocess.CompletedProcess]:
     """Run a frontier exploration script on the Kobuki at `kobuki` (with `laser` mounted 0, 0, 0 when
-    given) through `robotexp run --robot kobuki`; return its record."""
+    given) through `robotexp run --robot kobuki`, which exits with `status`; its record and the process."""
     out = tmp_path / ("with" if laser else "without")
     script = tmp_path / "laser.lua"
     mount = f'robot.setLaser("rplidar:{laser}", 0, 0, 0)\n' if laser else ""
@@ -30,24 +31,28 @@ def _explore(tmp_path: Path, kobuki: str, laser: str | None, max_time_ms: int) -
                       'print(string.format("coverage %.4f", exploration.results().coverage))\n')
     done = subprocess.run(CLI + ["run", str(script), "--robot", "kobuki", "--out", str(out)], capture_output=True,
                           text=True, timeout=120)
-    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.returncode == status, done.stdout + done.stderr
     records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert len(records) == 1
-    assert f"coverage {records[0]['coverage']:.4f}" in done.stdout
-    return records[0]
+    assert status or f"coverage {records[0]['coverage']:.4f}" in done.stdout
+    return records[0], done
 
 
 def test_script_explores_with_a_kobuki_and_an_rplidar_on_ptys(devices, tmp_path: Path) -> None:
     kobuki, lidar = devices
-    record = _explore(tmp_path, kobuki.address, lidar.address, 25000)
+    record, _ = _explore(tmp_path, kobuki.address, lidar.address, 25000)
     assert record["robot"] == "kobuki" and record["address"] == kobuki.address and record["world"] == "ufmg-static"
     # 25 s of robot time at 0.3 m/s from path1 with a 360 deg laser maps a good part of ufmg-static
     assert 0.25 < record["coverage"] <= 1.0 and record["path_length_m"] > 1.0, record
     assert kobuki.last_base_control == BaseControl(0, 0)          # stopped at the end of the script
-    # the Kobuki reports no scan of its own: from the same place the base alone maps nothing and the
-    # run ends at once (no frontier reachable from an empty map)
-    alone = _explore(tmp_path, kobuki.address, None, 5000)
-    assert alone["coverage"] < 0.05 < record["coverage"] - alone["coverage"], alone
+    # the Kobuki reports no scan of its own: from the same place the base alone has nothing to map with. The run
+    # holds it for 5 s of robot time, ends as a robot error, and the script stops there, its record written
+    alone, done = _explore(tmp_path, kobuki.address, None, 30000, status=1)
+    assert alone["end"] == "robot error" and alone["path_length_m"] == 0.0 and alone["robot_time_s"] < 6.0, alone
+    assert (f"laser.lua:6: exploration.wait: run {alone['run']} ended: robot error: the robot sent no laser scan in "
+            "the first 5 s: frontier has nothing to map with; mount a laser") in done.stderr, done.stderr
+    assert "coverage" not in done.stdout
+    assert kobuki.last_base_control == BaseControl(0, 0)
 
 
 def _script(tmp_path: Path, code: str, **kwargs: object) -> None:
