@@ -375,8 +375,8 @@ class ExplorationRun:
         what = "no laser scan or sonar reading" if self.explorer.uses_sonar else "no laser scan"
         name = self.info.method or "the explorer"
         self.reason = (f"robot error: the robot sent {what} in the first {RANGE_WAIT:g} s: {name} has nothing to map "
-                       "with; mount a laser (robotexp explore --laser NAME:ADDRESS, robot.setLaser in Lua, "
-                       "+LASER:ADDRESS in a --team list)")
+                       "with; mount a laser (robotexp explore --laser NAME:ADDRESS, laser in a campaign set, "
+                       "robot.setLaser in Lua, +LASER:ADDRESS in a --team list)")
         self.end = EndReason.ROBOT_ERROR
         return None
 

@@ -88,8 +88,8 @@ def test_a_robot_without_a_laser_stands_and_the_run_ends_as_a_robot_error(explor
     assert r.end is EndReason.ROBOT_ERROR and not r.completed
     name = type(explorer).__name__
     assert r.reason == (f"robot error: the robot sent no laser scan in the first 5 s: {name} has nothing to map "
-                        "with; mount a laser (robotexp explore --laser NAME:ADDRESS, robot.setLaser in Lua, "
-                        "+LASER:ADDRESS in a --team list)")
+                        "with; mount a laser (robotexp explore --laser NAME:ADDRESS, laser in a campaign set, "
+                        "robot.setLaser in Lua, +LASER:ADDRESS in a --team list)")
     assert r.robot_time == pytest.approx(RANGE_WAIT, abs=0.11)
     assert r.metrics.path_length == 0.0 and r.metrics.collisions == 0
     assert r.record is not None and r.record.coverage == 0.0
