@@ -61,10 +61,11 @@ class TeamCalls:
             raise ScriptError(f"team.setRobots({usage}): expected an integer 1..{MAX_TEAM} or a string of presets "
                               f"like \"p3dx,kobuki\", got {lua_kind(value)}")
         names = tuple(t.strip() for t in value.split(","))
-        if any(names) and "" in names:
+        if not any(names):
+            names = ()
+        elif "" in names:
             raise ScriptError(f"team.setRobots({value!r}): robot {names.index('') + 1} is empty: give one preset per "
                               "robot, separated by single commas (\"p3dx,p3dx,kobuki\")")
-        names = tuple(n for n in names if n)
         unknown = [n for n in names if n not in PRESETS]
         if not names or unknown:
             raise ScriptError(f"team.setRobots({value!r}): " + (f"unknown robot preset {unknown[0]!r}" if unknown else

@@ -14,10 +14,9 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 import numpy.typing as npt
@@ -213,8 +212,10 @@ class TeamRun(ExplorationRun):
                 m = self.members[i]
                 if self._stop is not None:
                     m._stop = self._stop
-                with self._naming(i):
+                try:
                     go_on = self._member_step(i, m, states[i])
+                except RobotError as exc:
+                    self._name_robot(i, exc)
                 if not go_on:
                     active.remove(i)
                     if m.end is not EndReason.EXPLORED:
@@ -233,20 +234,24 @@ class TeamRun(ExplorationRun):
                 self.reason, self.end = self._stop
                 return
             self.clock.tick()
-            states = []
-            for i, m in enumerate(self.members):
-                with self._naming(i):
-                    states.append(m.robot.read())
+            states = self._read_all()
 
-    @contextmanager
-    def _naming(self, i: int) -> Iterator[None]:
-        """A RobotError of robot `i` (its link lost, an emergency stop) says which robot of the team it was."""
-        try:
-            yield
-        except RobotError as exc:
-            if len(self.members) < 2:
-                raise
-            raise RobotError(f"robot {i + 1}: {exc}") from exc
+    def _read_all(self) -> list[RobotState]:
+        """Every robot's state, in order (a robot that fails is named)."""
+        states = []
+        for i, m in enumerate(self.members):
+            try:
+                states.append(m.robot.read())
+            except RobotError as exc:
+                self._name_robot(i, exc)
+        return states
+
+    def _name_robot(self, i: int, exc: RobotError) -> NoReturn:
+        """Raise robot `i`'s RobotError (its link lost, an emergency stop) saying which robot of the team it was
+        (a try/except at each call: no cost on the loop's path while no robot fails)."""
+        if len(self.members) < 2:
+            raise exc
+        raise RobotError(f"robot {i + 1}: {exc}") from exc
 
     def _member_step(self, i: int, m: ExplorationRun, state: RobotState) -> bool:
         """Member `i`'s tick from `state`, what the team takes from it, the observers of each robot's step, and
