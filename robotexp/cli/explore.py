@@ -77,7 +77,8 @@ __all__ = ["explore"]
               help="With --team: the coordinator plugin that shares out frontier targets (none, greedy, burgard, "
                    "minpos).")
 @click.option("--coordinator-param", multiple=True, metavar="KEY=VALUE",
-              help="A coordinator parameter (repeatable).")
+              help="A coordinator parameter (repeatable); --coordinator-param help lists the coordinator's "
+                   "parameters.")
 @click.option("--comm-range", type=float, default=None, metavar="MM",
               help="With --team: each robot keeps its own map and merges the scans of robots within this range "
                    "[mm] (default: one shared map).")
@@ -99,6 +100,10 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
     if "help" in param:         # -p help: the method's parameters, nothing run
         from robotexp.cli.paramhelp import parameters_text
         click.echo(parameters_text(method))
+        return
+    if "help" in coordinator_param:     # --coordinator-param help: the coordinator's, nothing run
+        from robotexp.cli.paramhelp import parameters_text
+        click.echo(parameters_text(coordinator, coordinator=True))
         return
     hint = _pose_hint(pose)     # said once the run starts, or with the error of a start that is refused
 

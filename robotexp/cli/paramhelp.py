@@ -1,6 +1,6 @@
-"""`robotexp explore -m METHOD -p help`: an explorer's parameters with their types, defaults and units,
-read from the plugin's signature, its declared ranges (`Explorer.parameter_bounds`) and the "Args:"
-section of its class docstring (units in brackets)."""
+"""`robotexp explore -m METHOD -p help` and `--coordinator NAME --coordinator-param help`: an explorer's or
+a coordinator's parameters with their types, defaults and units, read from the plugin's signature, its
+declared ranges (`parameter_bounds`) and the "Args:" section of its class docstring (units in brackets)."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import sys
 import textwrap
 from dataclasses import dataclass
 
-__all__ = ["Parameter", "explorer_parameters", "parameters_text"]
+__all__ = ["Parameter", "explorer_parameters", "coordinator_parameters", "parameters_text"]
 
 
 @dataclass(frozen=True)
 class Parameter:
-    """One keyword parameter of an explorer."""
+    """One keyword parameter of a plugin."""
 
     name: str
     kind: str           # its annotation as written ("float", "int | None", ...)
@@ -70,9 +70,27 @@ def explorer_parameters(method: str) -> list[Parameter]:
         PluginError: unknown method.
     """
     from robotexp.explorer import Explorer
-    from robotexp.registry import EXPLORERS, bounds_text, load, parameter_bounds
+    from robotexp.registry import EXPLORERS, load
 
-    cls = load(EXPLORERS, method, Explorer)
+    return _parameters(load(EXPLORERS, method, Explorer))
+
+
+def coordinator_parameters(name: str) -> list[Parameter]:
+    """The keyword parameters of coordinator plugin `name`.
+
+    Raises:
+        PluginError: unknown coordinator.
+    """
+    from robotexp.coordinator import Coordinator
+    from robotexp.registry import COORDINATORS, load
+
+    return _parameters(load(COORDINATORS, name, Coordinator))
+
+
+def _parameters(cls: type) -> list[Parameter]:
+    """The keyword parameters of plugin class `cls`."""
+    from robotexp.registry import bounds_text, parameter_bounds
+
     bounds = parameter_bounds(cls)
     docs: dict[str, str] = {}
     refs: dict[str, str] = {}
@@ -129,16 +147,18 @@ def _default(value: object) -> str:
     return f"{value:.6g}" if isinstance(value, float) and len(text) > 10 else text
 
 
-def parameters_text(method: str) -> str:
-    """The table `-p help` prints: one line per parameter, then how to set one."""
-    params = explorer_parameters(method)
+def parameters_text(method: str, coordinator: bool = False) -> str:
+    """The table `-p help` prints for explorer `method` (`--coordinator-param help` for coordinator `method`,
+    with `coordinator`): one line per parameter, then how to set one."""
+    params = coordinator_parameters(method) if coordinator else explorer_parameters(method)
+    what, option = ("coordinator", "--coordinator-param") if coordinator else ("method", "-p")
     if not params:
-        return f"method {method!r} takes no parameters"
+        return f"{what} {method!r} takes no parameters"
     w_name = max(len(p.name) for p in params)
     w_kind = max(len(p.kind) for p in params)
     w_def = max(len(p.default) for p in params)
     w_range = max(len(p.range) for p in params)
-    lines = [f"parameters of {method!r} (set with -p NAME=VALUE; units in brackets; range: the values allowed):"]
+    lines = [f"parameters of {method!r} (set with {option} NAME=VALUE; units in brackets; range: the values allowed):"]
     for p in params:
         shown = f"range {p.range:{w_range}}  " if p.range else " " * (w_range + 8) if w_range else ""
         head = f"  {p.name:{w_name}}  {p.kind:{w_kind}}  default {p.default:{w_def}}  {shown}"

@@ -156,6 +156,13 @@ def test_parameter_help_of_every_explorer_is_clean() -> None:
                 assert debris not in p.doc, f"{method}: {p.name}: {p.doc!r}"
         text = parameters_text(method)
         assert all(len(line) <= WIDTH for line in text.splitlines()), method
+    from robotexp.cli.paramhelp import coordinator_parameters
+    from robotexp.registry import COORDINATORS
+
+    for name in sorted(available(COORDINATORS)):
+        for p in coordinator_parameters(name):
+            assert p.doc and p.range, f"{name}: {p.name} has no description or range"
+        assert all(len(line) <= WIDTH for line in parameters_text(name, coordinator=True).splitlines()), name
     star = {p.name: p for p in explorer_parameters("srt-star")}
     assert star["cone"].default == "0.261799" and star["alpha"].doc.startswith("fraction of RADIUS")
     assert star["margin"].doc == "[m] each cone's radius is its reading less this."

@@ -1,8 +1,11 @@
 """What a newcomer trips on: `explore -p help` lists an explorer's parameters with types,
-defaults and units (from its signature and docstring, nothing run); a --pose in x,y without heading or
+defaults and units (from its signature and docstring, nothing run), `--coordinator-param help` a
+coordinator's; a --pose in x,y without heading or
 with metre-sized numbers is said how it is read; pose names match whatever their case."""
 
 from __future__ import annotations
+
+import os
 
 from click.testing import CliRunner
 
@@ -30,6 +33,24 @@ def test_parameters_passed_on_through_kwargs_are_listed() -> None:
 def test_unknown_method_is_one_line_exit_2() -> None:
     result = CliRunner().invoke(main, ["explore", "-m", "nope", "-p", "help"])
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
+
+
+def test_coordinator_parameters_listed_and_nothing_run(tmp_path: object) -> None:
+    out = f"{tmp_path}/out"
+    result = CliRunner().invoke(main, ["explore", "--coordinator", "burgard", "--coordinator-param", "help",
+                                       "--out", out])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith("parameters of 'burgard' (set with --coordinator-param NAME=VALUE")
+    beta = next(line for line in lines if line.split()[0] == "beta")
+    assert beta.split()[1:6] == ["float", "default", "1.0", "range", "0..100"]
+    scale = next(line for line in lines if line.split()[0] == "cost_scale")
+    assert scale.split()[1:6] == ["float", "default", "0.0", "range", "0..10000"] and "[m]" in scale
+    assert not os.path.exists(out)          # nothing ran
+    none = CliRunner().invoke(main, ["explore", "--coordinator", "minpos", "--coordinator-param", "help"])
+    assert none.exit_code == 0 and none.output.strip() == "coordinator 'minpos' takes no parameters"
+    unknown = CliRunner().invoke(main, ["explore", "--coordinator", "nope", "--coordinator-param", "help"])
+    assert unknown.exit_code == 2 and "unknown coordinator 'nope'" in unknown.output
 
 
 def test_pose_notice_for_metre_sized_or_headless_poses(tmp_path: object) -> None:
