@@ -1,17 +1,21 @@
 """`python -m robotexp.cli.lua_child ARGS`: `robotexp run ARGS` in-process, for `robotexp.lua.supervise`.
 
 The Lua state is never closed (its __gc finalizers could loop) and the process ends with
-`os._exit` once its output is flushed.
+`os._exit` once its output is flushed. A crash of the process (a fault in a compiled library) writes the
+Python stack it happened in to stderr (`faulthandler`) before the process dies of its signal, which
+`robotexp run` then names.
 """
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
 
 
 def main() -> None:
     """Run `robotexp run --child ARGS` and exit with its status without closing the Lua state."""
+    faulthandler.enable()
     from robotexp.cli import main as cli
 
     args = sys.argv[1:]

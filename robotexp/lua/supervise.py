@@ -236,8 +236,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             click.echo("robotexp: interrupted", err=True)
         elif proc.returncode < 0:       # it died of a signal before it stopped by itself (not the parent's kill)
             click.echo(f"robotexp: error: {script}: the script's process was killed by "
-                       f"{_signal_name(-proc.returncode)} after Ctrl-C, before it stopped by itself; the {made} "
-                       f"run(s) finished so far are in {results}", err=True)
+                       f"{_signal_name(-proc.returncode)} after {'SIGTERM' if terminated else 'Ctrl-C'}, before it "
+                       f"stopped by itself; the {made} run(s) finished so far are in {results}", err=True)
         # a child that ended by itself tells: 130 when Ctrl-C stopped its script, 0 when the script was
         # over (`run --view` keeps its page up until Ctrl-C)
         code = proc.returncode if why is None and proc.returncode >= 0 else 130
@@ -246,7 +246,10 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     if failures and code == 0:
         return 1
     if code < 0:
-        click.echo(f"robotexp: error: {script}: the script's process was killed by {_signal_name(-code)} (out of "
-                   f"memory? see --max-memory); the {made} run(s) finished so far are in {results}", err=True)
+        crash = (signal.SIGSEGV, signal.SIGBUS, signal.SIGFPE, signal.SIGILL, signal.SIGABRT)
+        why_dead = (" (out of memory? see --max-memory)" if -code == signal.SIGKILL
+                    else " (a crash: the lines above give the Python stack it happened in)" if -code in crash else "")
+        click.echo(f"robotexp: error: {script}: the script's process was killed by {_signal_name(-code)}{why_dead}; "
+                   f"the {made} run(s) finished so far are in {results}", err=True)
         return 1
     return code

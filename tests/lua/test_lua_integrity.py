@@ -352,3 +352,29 @@ def test_a_script_process_that_dies_of_a_signal_after_ctrl_c_is_named(tmp_path):
     assert proc.returncode == 130, err
     assert (f"robotexp: error: s.lua: the script's process was killed by SIGSEGV after Ctrl-C, before it stopped "
             f"by itself; the 1 run(s) finished so far are in {tmp_path / 'results.jsonl'}") in err, err
+
+
+def test_a_crash_of_the_script_process_shows_its_python_stack_and_is_named(tmp_path):
+    """The script's process dies of a fault (SIGSEGV, as a fault in a compiled library would raise): the Python
+    stack it happened in is on stderr (faulthandler), then one line names the signal; exit 1."""
+    script = tmp_path / "s.lua"
+    script.write_text('print("ready"); io.stdout:flush()\nwhile true do pcall(function() end) end')
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == "ready"
+        with open(f"/proc/{proc.pid}/task/{proc.pid}/children") as f:
+            (child,) = [int(p) for p in f.read().split()]
+        os.kill(child, signal.SIGSEGV)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 1, err
+    assert "Fatal Python error: Segmentation fault" in err and "lua_child.py" in err, err
+    assert err.strip().splitlines()[-1] == (
+        f"robotexp: error: s.lua: the script's process was killed by SIGSEGV (a crash: the lines above give the "
+        f"Python stack it happened in); the 0 run(s) finished so far are in {out / 'results.jsonl'}"), err
