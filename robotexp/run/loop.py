@@ -183,7 +183,8 @@ class ExplorationRun:
         self.record: RunRecord | None = None
         self.error: Exception | None = None
         self._stop: tuple[str, EndReason] | None = None
-        self._sigint = False                # a SIGINT arrived during run() (see _watch_sigint)
+        self._sigint = False                # a second signal acted at once during run() (see _watch_signals)
+        self._pending: tuple[Any, int] | None = None    # a first signal's handler, kept for the next step
         self.area = area
         self.sampling = True                # sample coverage (a team's members leave it to the team)
         self.rng: np.random.Generator | None = None     # the explorer's generator (None: from `seed`)
@@ -224,9 +225,18 @@ class ExplorationRun:
         `completed` False; the robot is stopped in every case, then the observers get `on_end` with
         the record. Returns self (read `record`, `end`, `reason`, `metrics`)."""
         wall0 = time.perf_counter()
-        previous = self._watch_sigint()
+        previous = self._watch_signals()
         try:
-            self._loop()
+            try:
+                self._loop()
+            finally:
+                try:
+                    self._safe_stop()
+                finally:
+                    self.wall_time = time.perf_counter() - wall0
+                    for sig, handler in previous.items():
+                        signal.signal(sig, handler)
+            self._take_signal()         # one that came at the last step: the run is interrupted all the same
         except (KeyboardInterrupt, SystemError) as exc:
             # a SystemError: a Ctrl-C that landed in a numba kernel while the robot was read (a localizer's
             # scan matcher), the KeyboardInterrupt behind it
@@ -234,14 +244,9 @@ class ExplorationRun:
             if interrupt is None:
                 raise
             self.reason = TERMINATED_REASON if isinstance(interrupt, Terminated) else "interrupted (Ctrl-C)"
-            self.end = EndReason.INTERRUPTED
+            self.end, self.completed = EndReason.INTERRUPTED, False
         except RobotError as exc:
             self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR
-        finally:
-            self._safe_stop()
-            self.wall_time = time.perf_counter() - wall0
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
         self._sample()
         self.record = self._make_record()
         self.observers.end(self, self.record)
@@ -251,24 +256,42 @@ class ExplorationRun:
         """The record of the run that ended (`make_record`)."""
         return make_record(self)
 
-    def _watch_sigint(self) -> Any:
-        """Note every SIGINT of the run before the handler in place raises KeyboardInterrupt (or
-        does what it does), so that a Ctrl-C whose exception was swallowed where Python cannot raise
-        (a callback of C code: llvmlite's object cache while numba compiles prints "Exception
-        ignored" and goes on) or by a plugin's `except` still ends the run at the next step. Gives
-        the handler to put back (None: nothing installed, not the main thread or SIGINT not
-        handled by Python)."""
+    def _watch_signals(self) -> dict[int, Any]:
+        """Keep a Ctrl-C (SIGINT) or SIGTERM that comes during the run for the start of the next step, where its
+        handler is called (`_take_signal`): its exception then starts in the loop's own code, never inside an
+        explorer's step or a call into compiled code (numba, pybullet, the Lua runtime), where an exception
+        raised by a signal handler can be swallowed or leave that code's state broken. A second signal before
+        then calls its handler at once (a step that hangs is cut), and is also noted, so that an exception
+        swallowed on its way still ends the run at the next step. Gives the handlers to put back (none when
+        not in the main thread or a signal is not handled by Python)."""
         if threading.current_thread() is not threading.main_thread():
-            return None
-        previous = signal.getsignal(signal.SIGINT)
-        if not callable(previous):
-            return None
+            return {}
+        previous: dict[int, Any] = {}
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(sig)
+            if not callable(handler):
+                continue
 
-        def noted(signum: int, frame: Any) -> None:
-            self._sigint = True
-            previous(signum, frame)
-        signal.signal(signal.SIGINT, noted)
+            def noted(signum: int, frame: Any, handler: Any = handler) -> None:
+                if self._pending is None:
+                    self._pending = (handler, signum)
+                    return
+                self._sigint = True
+                handler(signum, frame)
+            signal.signal(sig, noted)
+            previous[sig] = handler
         return previous
+
+    def _take_signal(self) -> None:
+        """Call the handler of a signal kept by `_watch_signals` (it raises KeyboardInterrupt, or `Terminated`),
+        or raise KeyboardInterrupt for one whose exception was swallowed on its way."""
+        if self._pending is not None:
+            (handler, signum), self._pending = self._pending, None
+            self._sigint = True
+            handler(signum, None)
+            raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt   # a handler that only noted it
+        if self._sigint:
+            raise KeyboardInterrupt
 
     def _loop(self) -> None:
         """The control loop, up to the end of the run (the caller stops the robot)."""
@@ -305,8 +328,8 @@ class ExplorationRun:
     def _tick(self, state: RobotState) -> bool:
         """One control period on `state`: track, map, sample, decide, command; False when the run ends
         at this tick (the caller then stops the robot), True to go on after the clock's tick."""
-        if self._sigint:                # a Ctrl-C whose KeyboardInterrupt was swallowed on its way
-            raise KeyboardInterrupt
+        if self._pending is not None or self._sigint:       # a signal kept for this step
+            self._take_signal()
         robot = self.robot
         slack = self.period / 2
         self.state = state

@@ -203,8 +203,8 @@ class TeamRun(ExplorationRun):
         self.observers.notify("on_start", self)
         active = self.active = list(range(n))
         while True:
-            if self._sigint:
-                raise KeyboardInterrupt
+            if self._pending is not None or self._sigint:   # a signal kept for this tick
+                self._take_signal()
             self.robot_time = states[0].time - self._t0
             self.state = states[0]
             self._coordinate(active)

@@ -223,6 +223,69 @@ def test_a_ctrl_c_swallowed_inside_a_step_still_ends_the_run(robot: RecordingSim
     assert signal.getsignal(signal.SIGINT) is before                # the run's handler is put back
 
 
+class SignalsMidStep(Straight):
+    """At step `at` the process gets `count` signals `sig` in the middle of the step, which then does the rest
+    of its work (`finished` counts the steps that got to their end)."""
+
+    def __init__(self, at: int = 10, count: int = 1, sig: int = signal.SIGINT, done: bool = False) -> None:
+        super().__init__()
+        self.at, self.count, self.sig, self.done = at, count, sig, done
+        self.finished = 0
+
+    def step(self, state: RobotState, grid: OccupancyGrid) -> Twist | Done:
+        out = super().step(state, grid)
+        if self.steps == self.at:
+            for _ in range(self.count):
+                signal.raise_signal(self.sig)
+            if self.done:
+                out = Done("scripted end", explored=False)
+        self.finished += 1
+        return out
+
+
+def test_a_ctrl_c_during_a_step_ends_the_run_at_the_next_step_not_inside_it(
+        robot: RecordingSim, truth: GroundTruth) -> None:
+    # the handler's exception starts in the loop, never inside a plugin's step or a call into compiled code
+    before = signal.getsignal(signal.SIGINT)
+    explorer = SignalsMidStep(at=10)
+    run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+    assert run.end is EndReason.INTERRUPTED and run.reason == "interrupted (Ctrl-C)"
+    assert explorer.steps == 10 and explorer.finished == 10            # step 10 ran to its end
+    assert robot.commands[:10] == [Twist(SPEED, 0.0)] * 10 and robot.commands[10:] == [Twist.ZERO]
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_a_second_ctrl_c_cuts_the_step_at_once(robot: RecordingSim, truth: GroundTruth) -> None:
+    explorer = SignalsMidStep(at=10, count=2)
+    run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+    assert run.end is EndReason.INTERRUPTED and run.reason == "interrupted (Ctrl-C)"
+    assert explorer.steps == 10 and explorer.finished == 9              # the second one raised inside step 10
+    assert robot.commands[-1] == Twist.ZERO and len(robot.commands) == 10
+
+
+def test_a_sigterm_during_a_step_ends_the_run_at_the_next_step(robot: RecordingSim, truth: GroundTruth) -> None:
+    def terminate(signum: int, frame: object) -> None:     # as the commands take SIGTERM (cli.common.watch_sigterm)
+        raise Terminated
+
+    before = signal.signal(signal.SIGTERM, terminate)
+    try:
+        explorer = SignalsMidStep(at=10, sig=signal.SIGTERM)
+        run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+        assert signal.getsignal(signal.SIGTERM) is terminate
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert run.end is EndReason.INTERRUPTED and run.reason == TERMINATED_REASON
+    assert explorer.finished == 10 and robot.commands[-1] == Twist.ZERO and len(robot.commands) == 11
+
+
+def test_a_ctrl_c_at_the_last_step_still_interrupts_the_run(robot: RecordingSim, truth: GroundTruth) -> None:
+    explorer = SignalsMidStep(at=10, done=True)
+    run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+    assert run.end is EndReason.INTERRUPTED and run.reason == "interrupted (Ctrl-C)" and not run.completed
+    assert explorer.finished == 10 and robot.commands[-1] == Twist.ZERO
+    assert run.record is not None and run.record.end is EndReason.INTERRUPTED
+
+
 def test_bad_run_settings(robot: RecordingSim) -> None:
     for bad in ({"period": 0.0}, {"max_time": -1.0}, {"sample_period": 0.0}, {"period": math.nan}):
         with pytest.raises(ConfigError, match="run: period, max_time and sample_period must be > 0 s"):
