@@ -229,6 +229,8 @@ class ExplorationRun:
         try:
             try:
                 self._loop()
+            except RobotError as exc:
+                self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR
             finally:
                 try:
                     self._safe_stop()
@@ -236,7 +238,8 @@ class ExplorationRun:
                     self.wall_time = time.perf_counter() - wall0
                     for sig, handler in previous.items():
                         signal.signal(sig, handler)
-            self._take_signal()         # one that came at the last step: the run is interrupted all the same
+            # a signal kept at the last step, or before a robot error ended the run: interrupted all the same
+            self._take_signal()
         except (KeyboardInterrupt, SystemError) as exc:
             # a SystemError: a Ctrl-C that landed in a numba kernel while the robot was read (a localizer's
             # scan matcher), the KeyboardInterrupt behind it
@@ -245,8 +248,6 @@ class ExplorationRun:
                 raise
             self.reason = TERMINATED_REASON if isinstance(interrupt, Terminated) else "interrupted (Ctrl-C)"
             self.end, self.completed = EndReason.INTERRUPTED, False
-        except RobotError as exc:
-            self.reason, self.end = f"robot error: {exc}", EndReason.ROBOT_ERROR
         self._sample()
         self.record = self._make_record()
         self.observers.end(self, self.record)

@@ -286,6 +286,16 @@ def test_a_ctrl_c_at_the_last_step_still_interrupts_the_run(robot: RecordingSim,
     assert run.record is not None and run.record.end is EndReason.INTERRUPTED
 
 
+def test_a_ctrl_c_kept_when_the_link_is_lost_still_interrupts_the_run(truth: GroundTruth) -> None:
+    # Ctrl-C at step 30, then the next read loses the link: the user's Ctrl-C is not dropped for the robot error
+    with RecordingSim(fail_after=30) as robot:
+        explorer = SignalsMidStep(at=30)
+        run = ExplorationRun(robot, explorer, new_grid(), truth=truth).run()
+        assert robot.reads == 31 and explorer.finished == 30
+        assert run.end is EndReason.INTERRUPTED and run.reason == "interrupted (Ctrl-C)"
+        assert robot.commands[-1] == Twist.ZERO
+
+
 def test_bad_run_settings(robot: RecordingSim) -> None:
     for bad in ({"period": 0.0}, {"max_time": -1.0}, {"sample_period": 0.0}, {"period": math.nan}):
         with pytest.raises(ConfigError, match="run: period, max_time and sample_period must be > 0 s"):
