@@ -193,7 +193,7 @@ def run_on_robot(spec: RunSpec, robot: Robot, out: Path | None, world: World | s
     grid = OccupancyGrid(geo, model=explorer.grid_model, range_max=spec.laser_range,
                          **({"p_free": MAP_P_FREE} if tracker.localize != "none" else {}))
 
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = _settings(spec)
     if robot.address is not None:
         extra["address"] = str(robot.address)
     extra.update(record_extra or {})
@@ -246,6 +246,17 @@ def _check_team(spec: RunSpec, team: TeamSpec, odometry: str) -> None:
     if spec.odometry != "none" or spec.localize not in ("auto", "none"):
         raise ConfigError(f"--team: teams run with {odometry} and no localizer for now; leave out "
                           "--odometry-error and --localize")
+
+
+def _settings(spec: RunSpec, team: TeamSpec | None = None) -> dict[str, Any]:
+    """The record keys that say how a run was set up beyond its name: `params`, the explorer's parameters, and
+    for a team `coordinator_params`, its coordinator's, each only when some were given."""
+    out: dict[str, Any] = {}
+    if spec.params:
+        out["params"] = dict(spec.params)
+    if team is not None and team.coordinator_params:
+        out["coordinator_params"] = dict(team.coordinator_params)
+    return out
 
 
 def _team_coordinator(spec: RunSpec, team: TeamSpec, explorer: Explorer) -> Coordinator:
@@ -306,7 +317,7 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
             models = sorted(set(team.robots))
             info = RunInfo(name=name, method=spec.method, world=plan.world.name, pose=plan.pose_label,
                            robot=",".join(team.robots) if len(models) > 1 else models[0], max_speed=spec.speed,
-                           laser_range=spec.laser_range, extra=dict(record_extra or {}))
+                           laser_range=spec.laser_range, extra={**_settings(spec, team), **(record_extra or {})})
             for robot in robots:
                 robot.set_max_speed(spec.speed)
             writer = None if out is None else ResultsWriter(out, image=image, show=show)
@@ -419,7 +430,7 @@ def run_team_on_robots(spec: RunSpec, team: TeamSpec, robots: list[Robot], out: 
     models = [r.model for r in robots]
     info = RunInfo(name=name, method=spec.method, world=world_name, pose=pose_label,
                    robot=",".join(models) if len(set(models)) > 1 else models[0], max_speed=spec.speed,
-                   laser_range=spec.laser_range, extra=dict(record_extra or {}))
+                   laser_range=spec.laser_range, extra={**_settings(spec, team), **(record_extra or {})})
     writer = None if out is None else ResultsWriter(out, image=image, show=show)
     chain: list[RunObserver] = [] if writer is None else [writer]
     chain.extend(observers)

@@ -166,3 +166,28 @@ def test_the_run_line_gives_the_floor_away_from_the_walls_only_when_a_fringe_hid
     r = RunRecord.from_dict(json.loads((tmp_path / "b" / "results.jsonl").read_text()))
     assert r.coverage is not None and r.coverage_inside is not None and not r.completed
     assert f"coverage {r.coverage * 100:.1f}%," in short.output and "floor away" not in short.output
+
+
+def test_a_record_says_the_parameters_its_run_was_given(tmp_path: Path, validator: Any) -> None:
+    from robotexp.experiment import run_team
+    from robotexp.run.team import TeamSpec
+
+    given = run_experiment(RunSpec(world="ufmg-static", method="frontier", max_time=2.0,
+                                   params={"replan_period": 3.0, "return_home": True}), tmp_path / "a", image=False)
+    plain = run_experiment(RunSpec(world="ufmg-static", method="frontier", max_time=2.0), tmp_path / "b", image=False)
+    team = run_team(RunSpec(world="ufmg-static", method="frontier", max_time=2.0, params={"replan_period": 3.0}),
+                    TeamSpec(robots=("p3dx", "p3dx"), coordinator="burgard", coordinator_params={"beta": 4.0}),
+                    tmp_path / "c", image=False)
+    lines = {k: json.loads((tmp_path / k / "results.jsonl").read_text()) for k in "abc"}
+    assert lines["a"]["params"] == {"replan_period": 3.0, "return_home": True} and given.record["params"]["return_home"]
+    assert "params" not in lines["b"] and "coordinator_params" not in lines["b"] and "params" not in plain.record
+    assert lines["c"]["params"] == {"replan_period": 3.0} and lines["c"]["coordinator_params"] == {"beta": 4.0}
+    assert team.record["coordinator"] == "burgard"
+    keys = list(lines["a"])
+    assert keys.index("params") > keys.index("robot")       # the caller's keys, after robot
+    for line in lines.values():
+        validator.validate(line)
+        assert RunRecord.from_dict(line).as_dict() == line  # read back and written as it was
+    bad = dict(lines["c"], coordinator_params=[4.0])
+    with pytest.raises(jsonschema.ValidationError):
+        validator.validate(bad)
