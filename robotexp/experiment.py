@@ -87,7 +87,8 @@ def run_experiment(spec: RunSpec, out: Path | None, *, observers: Iterable[RunOb
     if spec.team:       # a team (a campaign's `teams`): one record for the team
         from robotexp.run.team import TeamSpec
 
-        team = TeamSpec(robots=spec.team, coordinator=spec.coordinator, comm_range=spec.comm_range)
+        team = TeamSpec(robots=spec.team, coordinator=spec.coordinator, comm_range=spec.comm_range,
+                        coordinator_params=spec.coordinator_params)
         return run_team(spec, team, out, observers=observers, show=show, image=image, record_extra=record_extra)
     spec.validate()
     plan = plan_run(spec, spec.world, preset(spec.robot).radius)

@@ -20,6 +20,15 @@ A campaign file (see `campaigns/thesis.toml`):
     clearance = [0.2, 0.3]                               # a list of values
     replan_period = {start = 1.0, stop = 3.0, step = 1.0}  # a range, stop included
 
+    [[set]]                         # teams: 1 robot alone, then teams of 4 with each coordinator
+    world = "dense"
+    methods = ["frontier"]
+    teams = [1, 4]
+    coordinators = ["none", "burgard"]
+
+    [set.coordinator_params.burgard]    # keyword parameters of one coordinator in this set
+    beta = 4
+
 Everything is checked before the first run starts, so a bad file leaves no results behind."""
 
 from __future__ import annotations
@@ -51,7 +60,7 @@ MAX_RUNS = 100_000      # runs of one campaign (checked before any list of them 
 
 
 _SET_KEYS = ({"world", "worlds", "poses", "methods", "speeds_mm_s", "params", "sweep", "teams", "coordinators",
-              "comm_range_mm"}
+              "coordinator_params", "comm_range_mm"}
              | _CAMPAIGN_KEYS - {"name", "description", "record"})
 
 
@@ -89,11 +98,21 @@ def _sweep_label(sweep: Mapping[str, Any] | None) -> str:
     return ",".join(f"{k}={json.dumps(v)}" for k, v in sorted((sweep or {}).items()))
 
 
-def _team_label(size: int | None, coordinator: str | None, comm_range: float | None) -> str:
-    """A team as keys and reports name it: "team=4,coordinator=burgard[,comm_range_m=3.0]" ("" for one robot)."""
+def _team_label(size: int | None, coordinator: str | None, comm_range: float | None,
+                coordinator_params: Mapping[str, Any] | None = None) -> str:
+    """A team as keys and reports name it: "team=4,coordinator=burgard[,comm_range_m=3.0]", the coordinator's
+    parameters after colons, names sorted ("coordinator=burgard:beta=4"); "" for one robot."""
     if not size:
         return ""
-    return f"team={size},coordinator={coordinator}" + ("" if comm_range is None else f",comm_range_m={comm_range:g}")
+    given = "".join(f":{k}={json.dumps(v)}" for k, v in sorted((coordinator_params or {}).items()))
+    return (f"team={size},coordinator={coordinator}{given}"
+            + ("" if comm_range is None else f",comm_range_m={comm_range:g}"))
+
+
+def _given(record: RunRecord) -> Mapping[str, Any] | None:
+    """A record's coordinator parameters (None when it has none, or something else under that key)."""
+    given = record.get("coordinator_params")
+    return given if isinstance(given, dict) else None
 
 
 def _label(sweep: str, team: str) -> str:
@@ -103,7 +122,7 @@ def _label(sweep: str, team: str) -> str:
 def run_key(spec: RunSpec, pose_label: str, sweep: Mapping[str, Any] | None = None) -> RunKey:
     """The identity of a run within a campaign: (world, method, pose, speed [mm/s], seed, swept values and team,
     robot)."""
-    team = _team_label(len(spec.team), spec.coordinator, spec.comm_range)
+    team = _team_label(len(spec.team), spec.coordinator, spec.comm_range, spec.coordinator_params)
     return (spec.world, spec.method, pose_label, round(spec.speed * 1000), spec.seed, _label(_sweep_label(sweep), team),
             spec.robot)
 
@@ -113,7 +132,7 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     r = RunRecord.from_dict(record)
     # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
     sweep = r.get("sweep")
-    team = _team_label(r.team_size, r.coordinator, r.comm_range_m)
+    team = _team_label(r.team_size, r.coordinator, r.comm_range_m, _given(r))
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
             _label(_sweep_label(sweep if isinstance(sweep, dict) else None), team), str(r.robot or "p3dx"))
@@ -125,7 +144,7 @@ def method_label(record: RunRecord | Mapping[str, Any]) -> str:
     r = RunRecord.from_dict(record)
     sweep = r.get("sweep")
     label = _label(_sweep_label(sweep if isinstance(sweep, dict) else None),
-                   _team_label(r.team_size, r.coordinator, r.comm_range_m))
+                   _team_label(r.team_size, r.coordinator, r.comm_range_m, _given(r)))
     return f"{r.method} [{label}]" if label else r.method
 
 
@@ -373,6 +392,7 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  
     bounds_wall = _get(s, "bounds_wall", False, bool, p, where)
     swept = _sweeps(s, methods, params, p, where)
     teams = _teams(s, robot, p, where)
+    coordinator_params = _coordinator_params(s, teams, p, where)
     _check_targets(methods, teams, p, where)
     count = sum(len(swept[m]) for m in methods) * len(pose_names) * len(speeds) * len(seeds) * len(teams)
     if count > MAX_RUNS:
@@ -387,7 +407,8 @@ def _expand(s: dict[str, Any], p: Path, where: str, installed: dict[str, Any],  
                            cell=None if cell_mm is None else cell_mm / 1000, seed=seed, robot=robot,
                            params={**params.get(method, {}), **sweep}, max_time=max_time,
                            laser_sigma=sigma, laser_uniform=uniform, map_bounds=bounds,
-                           bounds_wall=bounds_wall, team=team, coordinator=coordinator, comm_range=comm)
+                           bounds_wall=bounds_wall, team=team, coordinator=coordinator, comm_range=comm,
+                           coordinator_params=dict(coordinator_params.get(coordinator, {})) if team else {})
             try:
                 spec.validate()
             except ConfigError as exc:
@@ -429,6 +450,27 @@ def _teams(s: dict[str, Any], robot: str, p: Path, where: str) -> list[tuple[tup
         else:
             out.extend(((robot,) * n, c, None if comm is None else comm / 1000) for c in names)
     return out
+
+
+def _coordinator_params(s: dict[str, Any], teams: list[tuple[tuple[str, ...], str, float | None]], p: Path,
+                        where: str) -> dict[str, dict[str, Any]]:
+    """A set's `[set.coordinator_params.<name>]` tables: each names a coordinator of the set's teams, and its
+    parameters are checked (names, types, ranges) by making the coordinator."""
+    from robotexp.registry import make_coordinator
+
+    given = s.get("coordinator_params", {})
+    if not isinstance(given, dict) or not all(isinstance(v, dict) for v in given.values()):
+        raise _fail(p, f"{where}.coordinator_params", "expected tables [set.coordinator_params.<coordinator>]")
+    used = sorted({c for team, c, _ in teams if team})
+    for name, values in given.items():
+        if name not in used:
+            raise _fail(p, f"{where}.coordinator_params.{name}",
+                        f"parameters for a coordinator this set's teams do not have ({used or 'no team'})")
+        try:
+            make_coordinator(name, dict(values))
+        except ConfigError as exc:
+            raise _fail(p, f"{where}.coordinator_params.{name}", str(exc)) from None
+    return given
 
 
 def _check_targets(methods: list[str], teams: list[tuple[tuple[str, ...], str, float | None]], p: Path,

@@ -69,6 +69,7 @@ class RunSpec:
     team: tuple[str, ...] = ()          # a team of simulated robots, one preset each (robotexp.run.team); (): one
     coordinator: str = "none"           # the team's coordinator plugin (robotexp.coordinators)
     comm_range: float | None = None     # [m] the team's communication range (None: one shared map)
+    coordinator_params: dict[str, Any] = field(default_factory=dict)   # the coordinator's keyword parameters
 
     def validate(self) -> None:
         """Raise ConfigError on a value out of range."""
@@ -96,7 +97,8 @@ class RunSpec:
         if self.team:
             from robotexp.run.team import TeamSpec
 
-            TeamSpec(robots=self.team, coordinator=self.coordinator, comm_range=self.comm_range).validate()
+            TeamSpec(robots=self.team, coordinator=self.coordinator, comm_range=self.comm_range,
+                     coordinator_params=self.coordinator_params).validate()
         if self.map_bounds is not None:
             x0, y0, x1, y1 = self.map_bounds
             if not (all(math.isfinite(v) for v in self.map_bounds) and x0 < x1 and y0 < y1):

@@ -74,3 +74,46 @@ def test_a_team_campaign_runs_resumes_and_reports_each_setting(tmp_path: Path) -
     assert sorted(method_label(r) for r in stored) == ["frontier", "frontier [team=2,coordinator=greedy]"]
     (table,) = report_tables(stored)
     assert "frontier [team=2,coordinator=greedy] path (m)" in table.header
+
+
+PARAMS = TEAMS.replace('coordinators = ["none", "greedy"]', 'coordinators = ["none", "burgard"]') + """
+[set.coordinator_params.burgard]
+beta = 4
+"""
+
+
+def test_coordinator_parameters_reach_the_team_its_key_its_record_and_the_report(tmp_path: Path) -> None:
+    camp = load_campaign(_write(tmp_path, PARAMS.replace("max_time_s = 10", "max_time_s = 3")))
+    assert [(len(s.team), s.coordinator, s.coordinator_params) for s in camp.runs] == [
+        (0, "none", {}), (2, "none", {}), (2, "burgard", {"beta": 4})]
+    assert [run_key(s, s.pose or "default")[5] for s in camp.runs] == [
+        "", "team=2,coordinator=none", "team=2,coordinator=burgard:beta=4"]
+    out = tmp_path / "out"
+    out.mkdir()
+    spec = camp.runs[2]
+    run_one(spec, str(out), extra=record_extra(spec))
+    (line,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert line["coordinator"] == "burgard" and line["coordinator_params"] == {"beta": 4}
+    assert record_key(line) == run_key(spec, spec.pose or "default")      # --resume finds it
+    assert method_label(line) == "frontier [team=2,coordinator=burgard:beta=4]"
+    # two sets that differ only in a coordinator parameter are two settings, not one run twice
+    one = 'world = "ufmg-static"\nposes = ["path1"]\nmethods = ["frontier"]\nteams = [2]\ncoordinators = ["burgard"]\n'
+    both = load_campaign(_write(tmp_path, f"[[set]]\n{one}[set.coordinator_params.burgard]\nbeta = 4\n"
+                                          f"[[set]]\n{one}[set.coordinator_params.burgard]\nbeta = 0.5\n"))
+    assert [run_key(s, s.pose or "default")[5] for s in both.runs] == [
+        "team=2,coordinator=burgard:beta=4", "team=2,coordinator=burgard:beta=0.5"]
+
+
+@pytest.mark.parametrize(("params", "words"), [
+    ("[set.coordinator_params.burgard]\nbeta = -1\n", ["[[set]] #1.coordinator_params.burgard", "beta", ">= 0"]),
+    ("[set.coordinator_params.burgard]\ngamma = 1\n", ["coordinator_params.burgard", "unknown parameter(s) gamma"]),
+    ("[set.coordinator_params.minpos]\nbeta = 1\n", ["coordinator_params.minpos", "do not have"]),
+    ("coordinator_params = 3\n", ["coordinator_params", "expected tables"]),
+])
+def test_bad_coordinator_parameters_name_the_file_and_key(tmp_path: Path, params: str, words: list[str]) -> None:
+    text = TEAMS.replace('coordinators = ["none", "greedy"]', 'coordinators = ["none", "burgard"]\n' + (
+        params if not params.startswith("[") else "")) + (params if params.startswith("[") else "")
+    with pytest.raises(ConfigError) as info:
+        load_campaign(_write(tmp_path, text))
+    for w in words:
+        assert w in str(info.value), str(info.value)
