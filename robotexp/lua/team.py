@@ -1,7 +1,8 @@
 """The `team` table of the Lua API (`TeamCalls`, `Session.team`): a script explores with a team of
 simulated robots.
 
-`team.setRobots`, `team.setCoordinator` and `team.setCommRange` set the team; `team.explore()` runs
+`team.setRobots`, `team.setCoordinator` (with `team.setCoordinatorParameter`) and `team.setCommRange` set the
+team; `team.explore()` runs
 one team exploration at once with the exploration settings of the other tables (method and its
 parameters, world, start, seed, time limit, speed, laser range and noise, cell size, map limits, record
 and frame folders) and returns its record as a table (the keys of docs/reference/results.md, with
@@ -40,6 +41,7 @@ class TeamCalls:
         self.session = session
         self.robots: int | tuple[str, ...] = DEFAULT_TEAM   # robots of the robot.setModel preset, or presets
         self.coordinator = "none"
+        self.coordinator_params: dict[str, Any] = {}     # checked at team.explore()
         self.comm_range: float | None = None        # [m] (None: one shared map)
         self.last: TeamRun | None = None            # the last team run
 
@@ -87,6 +89,24 @@ class TeamCalls:
             raise ScriptError(f"team.setCoordinator({args[0]!r}): unknown coordinator; available: {', '.join(names)}")
         self.coordinator = args[0]
 
+    def lua_team__setCoordinatorParameter(self, *args: Any) -> None:
+        """A coordinator keyword parameter (SI units, as `--coordinator-param`); checked at team.explore()."""
+        if len(args) != 2 or not isinstance(args[0], str) or not (
+                isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
+            got = ", ".join(lua_kind(a) for a in args) or "nothing"
+            raise ScriptError("team.setCoordinatorParameter(name, value): expected a parameter name (string) and a "
+                              f"number, boolean or string, got {got}")
+        name, value = args
+        if not name.isidentifier():
+            raise ScriptError(f"team.setCoordinatorParameter({name!r}, ...): expected a parameter name")
+        self.coordinator_params[name] = value
+
+    def lua_team__clearCoordinatorParameters(self, *args: Any) -> None:
+        """Forget every parameter given with setCoordinatorParameter."""
+        if args:
+            raise ScriptError(f"team.clearCoordinatorParameters(): expected 0 arguments, got {len(args)}")
+        self.coordinator_params = {}
+
     def lua_team__setCommRange(self, *args: Any) -> None:
         """Each robot keeps its own map and merges the scans of robots within this range [mm]; nil: one shared map."""
         usage = "range_mm"
@@ -115,8 +135,17 @@ class TeamCalls:
         spec = session._spec()
         robots = self.robots
         team = TeamSpec(robots=(spec.robot,) * robots if isinstance(robots, int) else robots,
-                        coordinator=self.coordinator, comm_range=self.comm_range)
+                        coordinator=self.coordinator, comm_range=self.comm_range,
+                        coordinator_params=dict(self.coordinator_params))
         team.validate()
+        if self.coordinator_params:
+            from robotexp.errors import ConfigError
+            from robotexp.registry import make_coordinator
+
+            try:
+                make_coordinator(team.coordinator, team.coordinator_params)   # names, types, ranges: before the run
+            except ConfigError as exc:
+                raise ScriptError(f"team.explore: {exc} (team.setCoordinatorParameter)") from None
         session._next_frame = 0.0
         with session.control.running():
             output = run_team(spec, team, session.out, observers=session._observers(spec), image=False,

@@ -92,6 +92,14 @@ def test_a_script_drives_a_team_and_reads_its_record_and_paths(lua, room):
     ('team.setRobots("p3dx,,kobuki")', r"team.setRobots\('p3dx,,kobuki'\): robot 2 is empty: give one preset"),
     ('team.setRobots("p3dx,")', r"team.setRobots\('p3dx,'\): robot 2 is empty"),
     ('team.setCoordinator("nobody")', r"team.setCoordinator\('nobody'\): unknown coordinator; available: .*burgard"),
+    ('team.setCoordinatorParameter("beta")', r"team.setCoordinatorParameter\(name, value\): expected a parameter "),
+    ('team.setCoordinatorParameter("beta", 0/0)', r"expected a parameter name \(string\) and a number, boolean or"),
+    ('team.setCoordinatorParameter("be ta", 1)', r"team.setCoordinatorParameter\('be ta', ...\): expected a param"),
+    ('team.setCoordinator("burgard")\nteam.setCoordinatorParameter("gamma", 1)\nteam.explore()',
+     r"^s.lua:3: team.explore: coordinator 'burgard': unknown parameter\(s\) gamma; its parameters: beta, "
+     r"cost_scale \(team.setCoordinatorParameter\)$"),
+    ('team.setCoordinator("burgard")\nteam.setCoordinatorParameter("beta", -1)\nteam.explore()',
+     r"team.explore: coordinator 'burgard': parameter 'beta' must be >= 0, got -1"),
     ("team.setCommRange(-1)", r"team.setCommRange\(range_mm\): expected a range > 0 mm or nil, got -1"),
     ("team.setCommRange(0/0)", r"expected a range > 0 mm or nil"),
     ("team.getPath(1)", r"^s.lua:1: team.getPath: no team exploration has run yet; call team.explore\(\) first$"),
@@ -120,6 +128,17 @@ def test_a_team_obeys_the_sandbox_and_the_robot_number_is_checked(lua, room, tmp
         lua(code, name="s.lua", sandbox=True)
     (record,) = read_jsonl(lua.out / "results.jsonl")       # the team's run before the error is kept
     assert record["team_size"] == 3 and len(record["robots"]) == 3
+
+
+def test_a_script_gives_the_coordinator_its_parameters(lua, room):
+    code = ('exploration.setWorld("room.map")\nexploration.setMaxTime(2000)\nteam.setCoordinator("burgard")\n'
+            'team.setCoordinatorParameter("beta", 4)\nteam.setCoordinatorParameter("cost_scale", 10)\n'
+            'print(team.explore().coordinator_params.beta)\nteam.clearCoordinatorParameters()\n'
+            'print(team.explore().coordinator_params)')
+    assert lua(code, name="s.lua").exit_code == 0
+    assert lua.lines == ["4", "nil"]
+    first, second = read_jsonl(lua.out / "results.jsonl")
+    assert first["coordinator_params"] == {"beta": 4, "cost_scale": 10} and "coordinator_params" not in second
 
 
 def test_the_example_team_script_runs(lua):
