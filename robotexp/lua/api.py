@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import RobotError, RobotexpError, ScriptError
-from robotexp.lua.sandbox import AddressPolicy, lua_kind
+from robotexp.lua.sandbox import AddressPolicy, lua_kind, parameter_args
 from robotexp.lua.team import TeamCalls
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import EndReason
@@ -618,14 +618,7 @@ class Session:
 
     def lua_exploration__setParameter(self, *args: Any) -> None:
         """An explorer keyword parameter (SI units, as `--param`); checked at start()."""
-        if len(args) != 2 or not isinstance(args[0], str) or not (
-                isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
-            got = ", ".join(lua_kind(a) for a in args) or "nothing"
-            raise ScriptError("exploration.setParameter(name, value): expected a parameter name (string) and a "
-                              f"number, boolean or string, got {got}")
-        name, value = args
-        if not name.isidentifier():
-            raise ScriptError(f"exploration.setParameter({name!r}, ...): expected a parameter name")
+        name, value = parameter_args("exploration.setParameter", args)
         self.spec.params[name] = value
 
     def lua_exploration__clearParameters(self, *args: Any) -> None:

@@ -38,7 +38,8 @@ from pathlib import Path
 from robotexp.errors import ConfigError, ScriptError
 from robotexp.output.safefile import LOCK_NAME
 
-__all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind"]
+__all__ = ["AddressPolicy", "PathPolicy", "WriteQuota", "PRELUDE", "HOOK_EVERY", "ABORT", "lua_kind",
+           "parameter_args"]
 
 HOOK_EVERY = 10_000     # Lua instructions between two stop checks (~0.1 ms of Lua; ~1 % overhead)
 ABORT = "\x00robotexp: script stopped"   # the error value of a stop; never shown to the user
@@ -231,6 +232,21 @@ class WriteQuota:
         """
         if self.limit is not None and self.used >= self.limit:
             self.grant(1, where)
+
+
+def parameter_args(fname: str, args: tuple[object, ...]) -> tuple[str, object]:
+    """The (name, value) of a plugin parameter call, `fname(name, value)` (exploration.setParameter,
+    team.setCoordinatorParameter): a parameter name and a number, boolean or string; ScriptError naming
+    `fname` otherwise (the plugin checks names, types and ranges when it is made)."""
+    if len(args) == 2 and isinstance(args[0], str) and (
+            isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
+        name, value = args[0], args[1]
+        if not name.isidentifier():
+            raise ScriptError(f"{fname}({name!r}, ...): expected a parameter name")
+        return name, value
+    got = ", ".join(lua_kind(a) for a in args) or "nothing"
+    raise ScriptError(f"{fname}(name, value): expected a parameter name (string) and a number, boolean or string, "
+                      f"got {got}")
 
 
 def lua_kind(value: object) -> str:

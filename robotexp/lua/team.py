@@ -22,7 +22,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from robotexp.errors import ScriptError
-from robotexp.lua.sandbox import lua_kind
+from robotexp.lua.sandbox import lua_kind, parameter_args
 
 if TYPE_CHECKING:
     from robotexp.lua.api import Session
@@ -91,14 +91,7 @@ class TeamCalls:
 
     def lua_team__setCoordinatorParameter(self, *args: Any) -> None:
         """A coordinator keyword parameter (SI units, as `--coordinator-param`); checked at team.explore()."""
-        if len(args) != 2 or not isinstance(args[0], str) or not (
-                isinstance(args[1], (bool, int, str)) or (isinstance(args[1], float) and math.isfinite(args[1]))):
-            got = ", ".join(lua_kind(a) for a in args) or "nothing"
-            raise ScriptError("team.setCoordinatorParameter(name, value): expected a parameter name (string) and a "
-                              f"number, boolean or string, got {got}")
-        name, value = args
-        if not name.isidentifier():
-            raise ScriptError(f"team.setCoordinatorParameter({name!r}, ...): expected a parameter name")
+        name, value = parameter_args("team.setCoordinatorParameter", args)
         self.coordinator_params[name] = value
 
     def lua_team__clearCoordinatorParameters(self, *args: Any) -> None:
