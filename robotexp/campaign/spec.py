@@ -109,10 +109,11 @@ def _team_label(size: int | None, coordinator: str | None, comm_range: float | N
             + ("" if comm_range is None else f",comm_range_m={comm_range:g}"))
 
 
-def _given(record: RunRecord) -> Mapping[str, Any] | None:
-    """A record's coordinator parameters (None when it has none, or something else under that key)."""
-    given = record.get("coordinator_params")
-    return given if isinstance(given, dict) else None
+def _table(record: RunRecord, key: str) -> Mapping[str, Any] | None:
+    """A record's table under `key` (`sweep`, `coordinator_params`): None when it has none, or something else
+    under that key."""
+    value = record.get(key)
+    return value if isinstance(value, dict) else None
 
 
 def _label(sweep: str, team: str) -> str:
@@ -131,20 +132,18 @@ def record_key(record: RunRecord | Mapping[str, Any]) -> RunKey:
     """`run_key` of a results.jsonl record."""
     r = RunRecord.from_dict(record)
     # through the mapping (not `extra` alone): a hand-made line without pose/robot keys keeps them elsewhere
-    sweep = r.get("sweep")
-    team = _team_label(r.team_size, r.coordinator, r.comm_range_m, _given(r))
+    team = _team_label(r.team_size, r.coordinator, r.comm_range_m, _table(r, "coordinator_params"))
     return (str(r.get("world_spec", r.world)), r.method, str(r.get("pose_spec", r.pose)),
             round(float(r.max_speed_m_s or 0) * 1000), int(r.seed or 0),
-            _label(_sweep_label(sweep if isinstance(sweep, dict) else None), team), str(r.robot or "p3dx"))
+            _label(_sweep_label(_table(r, "sweep")), team), str(r.robot or "p3dx"))
 
 
 def method_label(record: RunRecord | Mapping[str, Any]) -> str:
     """The method of a record as the report names it: with its swept values and team, "frontier [clearance=0.2]",
     "frontier [team=4,coordinator=burgard]"."""
     r = RunRecord.from_dict(record)
-    sweep = r.get("sweep")
-    label = _label(_sweep_label(sweep if isinstance(sweep, dict) else None),
-                   _team_label(r.team_size, r.coordinator, r.comm_range_m, _given(r)))
+    label = _label(_sweep_label(_table(r, "sweep")),
+                   _team_label(r.team_size, r.coordinator, r.comm_range_m, _table(r, "coordinator_params")))
     return f"{r.method} [{label}]" if label else r.method
 
 

@@ -2,10 +2,9 @@
 simulated robots.
 
 `team.setRobots`, `team.setCoordinator` (with `team.setCoordinatorParameter`) and `team.setCommRange` set the
-team; `team.explore()` runs
-one team exploration at once with the exploration settings of the other tables (method and its
-parameters, world, start, seed, time limit, speed, laser range and noise, cell size, map limits, record
-and frame folders) and returns its record as a table (the keys of docs/reference/results.md, with
+team; `team.explore()` runs one team exploration at once with the exploration settings of the other tables
+(method and its parameters, world, start, seed, time limit, speed, laser range and noise, cell size, map
+limits, record and frame folders) and returns its record as a table (the keys of docs/reference/results.md, with
 `team_size` and the list `robots`). `team.getPath(i)` and `team.getPose(i)` give robot i's path and
 last pose of that run. The run is written to OUT/results.jsonl as every other run of the script, and
 `exploration.results()`, `exploration.elapsedTime()`, `robot.pathLength()` and `mapView.saveMapImage`

@@ -288,7 +288,6 @@ class ExplorationRun:
         or raise KeyboardInterrupt for one whose exception was swallowed on its way."""
         if self._pending is not None:
             (handler, signum), self._pending = self._pending, None
-            self._sigint = True
             handler(signum, None)
             raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt   # a handler that only noted it
         if self._sigint:
