@@ -21,6 +21,7 @@ from typing import IO, Any
 
 from robotexp.errors import ConfigError
 from robotexp.mapping.geometry import MAX_CELLS
+from robotexp.signals import held
 
 __all__ = ["MAX_RECORD_BYTES", "MAX_CHUNK_BYTES", "MAX_MESSAGE_BYTES", "MAX_READ_BYTES", "MAX_POSITION", "TOPIC_TYPES",
            "TEAM_TOPIC_TYPES", "MAX_ROBOTS", "Record", "read_records", "finite"]
@@ -288,7 +289,8 @@ class _Reader:
         from mcap.records import Schema
 
         try:
-            with contextlib.redirect_stderr(io.StringIO()):     # the schema parser prints what it refuses
+            # the schema parser prints what it refuses; a Ctrl-C meanwhile acts once sys.stderr is back (held)
+            with held(), contextlib.redirect_stderr(io.StringIO()):
                 made = self.factory.decoder_for(encoding, Schema(id=sid, name=name, encoding=schema_encoding,
                                                                  data=text))
         except Exception as exc:        # the vendored rosidl parser raises several kinds of its own

@@ -13,6 +13,7 @@ from typing import Any
 from robotexp.campaign.spec import pose_label
 from robotexp.run.record import RunRecord
 from robotexp.run.spec import RunSpec
+from robotexp.signals import safe_handler
 
 __all__ = ["RunTiming", "timed_run"]
 
@@ -75,8 +76,8 @@ def worker_init() -> None:
         if first and _worker_running:    # idle (waiting for work): only remember it
             raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
-    signal.signal(signal.SIGINT, interrupted)
-    signal.signal(signal.SIGTERM, interrupted)
+    signal.signal(signal.SIGINT, safe_handler(interrupted))     # held back while numba's code runs
+    signal.signal(signal.SIGTERM, safe_handler(interrupted))
 
 
 def record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict[str, Any]:

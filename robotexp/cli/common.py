@@ -14,7 +14,7 @@ from robotexp.errors import (ConfigError, PluginError, RobotError, RobotexpError
                              interrupt_in)
 
 __all__ = ["fail", "one_line", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch",
-           "watch_sigterm"]
+           "watch_signals"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -62,20 +62,20 @@ def end_interrupted(terminated: bool) -> NoReturn:
     sys.exit(130)
 
 
-def watch_sigterm() -> None:
+def watch_signals() -> None:
     """Take SIGTERM as a Ctrl-C (raise `Terminated` in the main thread): a run then stops its robot and
     writes what it has, as it does on Ctrl-C. Without it Python ends at once: no `finally`, a robot over
-    a driver left with its last command, the run in progress lost."""
+    a driver left with its last command, the run in progress lost. Both handlers are held back while
+    numba's code runs (`robotexp.signals`: an exception raised there crashes the process)."""
     import signal
-    import threading
 
-    if threading.current_thread() is not threading.main_thread():
-        return
+    from robotexp.signals import install_safe
 
     def terminate(signum: int, frame: Any) -> None:
         raise Terminated
 
-    signal.signal(signal.SIGTERM, terminate)
+    install_safe(signal.SIGINT)
+    install_safe(signal.SIGTERM, terminate)
 
 
 def _quiet_stdout() -> None:

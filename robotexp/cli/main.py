@@ -13,7 +13,7 @@ import click
 from robotexp.cli.bag import figure, replay, video
 from robotexp.cli.bench import bench
 from robotexp.cli.campaign import campaign
-from robotexp.cli.common import handle_errors, watch_sigterm
+from robotexp.cli.common import handle_errors, watch_signals
 from robotexp.cli.explore import explore
 from robotexp.cli.lua import run_lua
 from robotexp.cli.map import map_command
@@ -29,7 +29,7 @@ __all__ = ["main"]
 @click.version_option(package_name="robotexp")
 def main(debug: bool) -> None:
     """Mobile-robot exploration experiments, on the embedded simulator or a real robot."""
-    watch_sigterm()
+    watch_signals()
 
 
 for _command in (explore, worlds, plugins, campaign, run_lua, emulate, connect, bench):

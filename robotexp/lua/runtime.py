@@ -24,6 +24,7 @@ from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import RunRecord
+from robotexp.signals import safe_handler
 
 __all__ = ["ScriptResult", "run_script", "read_script", "MAX_SCRIPT_BYTES", "substitute_method",
            "SANDBOX_MAX_MEMORY_MB", "SANDBOX_MAX_WRITE_MB"]
@@ -110,7 +111,7 @@ def _sigint_sets(control: Control) -> Iterator[None]:
             return
         previous_hook(info)
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = signal.signal(signal.SIGINT, safe_handler(handler))     # held back while numba's code runs
     previous_hook, sys.unraisablehook = sys.unraisablehook, unraisable
     try:
         yield

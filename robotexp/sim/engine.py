@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from robotexp.errors import ConfigError
 from robotexp.robot import Footprint
+from robotexp.signals import held
 from robotexp.world.raycast import RayIndex
 from robotexp.world.model import World
 
@@ -36,31 +37,34 @@ WALL_HEIGHT = 1.0       # [m] every static obstacle reaches above the sensors
 @contextlib.contextmanager
 def _quiet_stdout() -> Iterator[None]:
     """Silence the C-level stdout and stderr (pybullet prints its build time to stderr on import,
-    which would break the CLI's one-line error messages)."""
-    saved: list[int] = []
-    try:
-        for fd in (1, 2):
-            saved.append(os.dup(fd))
-    except OSError:
-        for copy in saved:
-            os.close(copy)
-        yield
-        return
-    libc = ctypes.CDLL(None)
-    c_stdout = ctypes.c_void_p.in_dll(libc, "stdout")
-    for stream in (sys.stdout, sys.stderr):
-        if stream is not None:
-            stream.flush()
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            os.dup2(null.fileno(), 2)
+    which would break the CLI's one-line error messages). A Ctrl-C or SIGTERM meanwhile acts once both are
+    back (`robotexp.signals.held`): one that cut the switch short left them on the null device for good, and
+    the command's last line unseen."""
+    with held():
+        saved: list[int] = []
+        try:
+            for fd in (1, 2):
+                saved.append(os.dup(fd))
+        except OSError:
+            for copy in saved:
+                os.close(copy)
             yield
-            libc.fflush(c_stdout)   # a message may sit in C's stdout buffer until flushed
-    finally:
-        for fd, copy in zip((1, 2), saved, strict=True):
-            os.dup2(copy, fd)
-            os.close(copy)
+            return
+        libc = ctypes.CDLL(None)
+        c_stdout = ctypes.c_void_p.in_dll(libc, "stdout")
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
+        try:
+            with open(os.devnull, "w") as null:
+                os.dup2(null.fileno(), 1)
+                os.dup2(null.fileno(), 2)
+                yield
+                libc.fflush(c_stdout)   # a message may sit in C's stdout buffer until flushed
+        finally:
+            for fd, copy in zip((1, 2), saved, strict=True):
+                os.dup2(copy, fd)
+                os.close(copy)
 
 
 with _quiet_stdout():

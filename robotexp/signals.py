@@ -1,0 +1,121 @@
+"""Signal handlers that never raise inside numba's Python code (`safe_handler`).
+
+A Python signal handler runs at the next bytecode of the main thread, wherever that is. A compiled numba
+kernel that returns arrays calls back into numba's Python code while it builds its result
+(`numba.core.serialize._numba_unpickle`); an exception raised there by a handler (Ctrl-C's
+KeyboardInterrupt, robotexp's `Terminated` on SIGTERM) is not checked by the compiled caller, which hands
+back a result with a missing item: ``SystemError: CPUDispatcher(...) returned a result with an exception
+set``, or a segmentation fault when the caller unpacks it. The same holds for llvmlite's callbacks while a
+kernel is compiled or loaded from the cache (the exception is swallowed, and the Ctrl-C lost).
+
+`safe_handler` wraps a handler: when the signal lands while numba's or llvmlite's Python code is on the
+stack, the handler is not called then; the signal is sent again to this process a moment later (1 ms,
+doubling up to 50 ms while numba's code is still running), and the handler acts at the first bytecode
+outside it. Ctrl-C during a kernel's call or compilation thus ends the program as it does anywhere else.
+
+`held` keeps Ctrl-C and SIGTERM for the end of a block that must run whole (the standard streams pointed
+away and back).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from types import FrameType
+from typing import Any
+
+__all__ = ["safe_handler", "install_safe", "in_numba", "held"]
+
+Handler = Callable[[int, FrameType | None], Any]
+
+FIRST_RETRY = 0.001     # [s] the first delay before a signal held back is sent again
+LAST_RETRY = 0.05       # [s] the longest one (the delay doubles while numba's code is still on the stack)
+_PACKAGES = ("numba", "llvmlite")
+
+
+class _Retry:
+    delay = FIRST_RETRY
+
+
+def in_numba(frame: FrameType | None) -> bool:
+    """True when numba's or llvmlite's Python code is on the stack of `frame` (an imported numba only)."""
+    files = (getattr(sys.modules.get(name), "__file__", None) for name in _PACKAGES)
+    roots = tuple(os.path.dirname(f) + os.sep for f in files if isinstance(f, str))
+    if not roots:
+        return False
+    while frame is not None:
+        if frame.f_code.co_filename.startswith(roots):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _send_later(signum: int, delay: float) -> None:
+    timer = threading.Timer(delay, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
+
+
+def safe_handler(handler: Handler) -> Handler:
+    """`handler`, held back while numba's or llvmlite's Python code runs (see the module). A handler already
+    wrapped is returned as it is."""
+    if getattr(handler, "_robotexp_safe", False):
+        return handler
+
+    def safe(signum: int, frame: FrameType | None) -> Any:
+        if in_numba(frame):
+            _send_later(signum, _Retry.delay)
+            _Retry.delay = min(2 * _Retry.delay, LAST_RETRY)
+            return None
+        _Retry.delay = FIRST_RETRY
+        return handler(signum, frame)
+
+    safe._robotexp_safe = True      # type: ignore[attr-defined]
+    safe.__wrapped__ = handler      # type: ignore[attr-defined]
+    return safe
+
+
+def install_safe(signum: int, handler: Handler | None = None) -> None:
+    """Install `handler` (None: the one in place) for `signum` through `safe_handler`; in the main thread
+    only, and only for a Python handler (not the default action, nor an ignored signal)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    current = signal.getsignal(signum) if handler is None else handler
+    if callable(current):
+        signal.signal(signum, safe_handler(current))
+
+
+@contextmanager
+def held() -> Iterator[None]:
+    """Keep a Ctrl-C (SIGINT) or SIGTERM that comes inside the block for its end, where the handler that was in
+    place is called (and raises there). A second signal inside calls that handler at once. Only in the main
+    thread (elsewhere handlers never run inside the block) and only for Python handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[tuple[int, FrameType | None]] = []
+    previous: dict[int, Any] = {}
+
+    def note(signum: int, frame: FrameType | None) -> None:
+        if not pending:
+            pending.append((signum, frame))
+            return
+        handler = previous.get(signum)
+        if callable(handler):
+            handler(signum, frame)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if callable(signal.getsignal(signum)):
+            previous[signum] = signal.signal(signum, note)
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        if pending:
+            first = pending[0][0]
+            previous[first](first, None)
