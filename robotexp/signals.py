@@ -12,6 +12,8 @@ kernel is compiled or loaded from the cache (the exception is swallowed, and the
 stack, the handler is not called then; the signal is sent again to this process a moment later (1 ms,
 doubling up to 50 ms while numba's code is still running), and the handler acts at the first bytecode
 outside it. Ctrl-C during a kernel's call or compilation thus ends the program as it does anywhere else.
+A kernel's first compilation can take tens of seconds: a second signal that comes when the first has been
+held back `CUT_AFTER` seconds or more calls the handler at once, wherever it lands.
 
 `held` keeps Ctrl-C and SIGTERM for the end of a block that must run whole (the standard streams pointed
 away and back).
@@ -23,6 +25,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
@@ -34,11 +37,17 @@ Handler = Callable[[int, FrameType | None], Any]
 
 FIRST_RETRY = 0.001     # [s] the first delay before a signal held back is sent again
 LAST_RETRY = 0.05       # [s] the longest one (the delay doubles while numba's code is still on the stack)
+CUT_AFTER = 1.0         # [s] held back this long, the signal is given at once when another one comes
 _PACKAGES = ("numba", "llvmlite")
 
 
 class _Retry:
+    """The signal held back now (the main thread's: handlers run there)."""
+
     delay = FIRST_RETRY
+    since: float | None = None      # [s] (monotonic) when it was first held back
+    waiting = 0                     # copies sent again that have not arrived yet
+    lock = threading.Lock()
 
 
 def in_numba(frame: FrameType | None) -> bool:
@@ -55,9 +64,21 @@ def in_numba(frame: FrameType | None) -> bool:
 
 
 def _send_later(signum: int, delay: float) -> None:
-    timer = threading.Timer(delay, os.kill, (os.getpid(), signum))
+    def send() -> None:
+        with _Retry.lock:
+            _Retry.waiting -= 1
+        os.kill(os.getpid(), signum)
+
+    with _Retry.lock:
+        _Retry.waiting += 1
+    timer = threading.Timer(delay, send)
     timer.daemon = True
     timer.start()
+
+
+def _given() -> None:
+    """The signal held back was given to its handler: the next one starts afresh."""
+    _Retry.delay, _Retry.since = FIRST_RETRY, None
 
 
 def safe_handler(handler: Handler) -> Handler:
@@ -68,10 +89,18 @@ def safe_handler(handler: Handler) -> Handler:
 
     def safe(signum: int, frame: FrameType | None) -> Any:
         if in_numba(frame):
-            _send_later(signum, _Retry.delay)
-            _Retry.delay = min(2 * _Retry.delay, LAST_RETRY)
-            return None
-        _Retry.delay = FIRST_RETRY
+            now = time.monotonic()
+            if _Retry.since is None:
+                _Retry.since = now
+            with _Retry.lock:
+                another = _Retry.waiting > 0        # not the copy sent again: that one has not gone yet
+            if not another:
+                _send_later(signum, _Retry.delay)
+                _Retry.delay = min(2 * _Retry.delay, LAST_RETRY)
+                return None
+            if now - _Retry.since < CUT_AFTER:
+                return None                         # the first one is still on its way
+        _given()
         return handler(signum, frame)
 
     safe._robotexp_safe = True      # type: ignore[attr-defined]

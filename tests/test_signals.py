@@ -105,11 +105,47 @@ def test_the_retry_delay_doubles_while_numba_runs_and_starts_again_after() -> No
         _call_with_handler_inside_numba(safe)
     finally:
         s._send_later = real
-        s._Retry.delay = FIRST_RETRY
+        s._Retry.delay, s._Retry.since = FIRST_RETRY, None
     delays = [d for _, d in sent]
     assert delays[:7] == pytest.approx([0.001, 0.002, 0.004, 0.008, 0.016, 0.032, 0.05])
     assert delays[7:9] == [LAST_RETRY, LAST_RETRY] and delays[9] == FIRST_RETRY
     assert calls == [signal.SIGINT]
+
+
+def test_a_second_signal_acts_at_once_when_the_first_has_waited_long_enough() -> None:
+    """A first compilation can hold numba's code on the stack for tens of seconds: a second Ctrl-C then cuts it."""
+    import robotexp.signals as s
+
+    frames = []
+
+    def grab(frame, event, arg):  # noqa: ANN001, ANN202, ARG001
+        if event == "call" and frame.f_code.co_name == "_numba_unpickle" and not frames:
+            frames.append(frame)
+
+    sys.setprofile(grab)
+    try:
+        label8(MASK)
+    finally:
+        sys.setprofile(None)
+    inside = frames[0]
+    calls = []
+    real = s._send_later
+
+    def held_copy(signum: int, delay: float) -> None:          # a copy sent again that has not arrived yet
+        s._Retry.waiting += 1
+
+    s._send_later = held_copy
+    try:
+        safe = safe_handler(lambda signum, frame: calls.append(signum))
+        safe(signal.SIGINT, inside)                 # the first: held back, a copy on its way
+        safe(signal.SIGINT, inside)                 # a second one at once: the first is on its way
+        assert calls == [] and s._Retry.waiting == 1
+        s._Retry.since -= s.CUT_AFTER               # the first has waited CUT_AFTER
+        safe(signal.SIGINT, inside)
+        assert calls == [signal.SIGINT] and s._Retry.since is None
+    finally:
+        s._send_later = real
+        s._Retry.waiting, s._Retry.delay, s._Retry.since = 0, FIRST_RETRY, None
 
 
 def test_install_safe_wraps_the_handler_in_place_and_leaves_default_actions() -> None:
