@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import faulthandler
 import os
+import signal
 import sys
 
 
 def main() -> None:
     """Run `robotexp run --child ARGS` and exit with its status without closing the Lua state."""
     faulthandler.enable()
+    # the supervisor stops the script with SIGINT: obeyed even when this process started with it ignored (a
+    # `robotexp run` started in the background by a shell, whose children ignore Ctrl-C)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     from robotexp.cli import main as cli
 
     args = sys.argv[1:]

@@ -23,6 +23,9 @@ in-process) and watches it:
   next step and is written (its record, its map), which on a loaded machine can take longer than the
   grace. The child says when each run starts and ends (RUN_STARTS, RUN_ENDS); a kill that falls in a run
   waits `WRITE_HOLD` s more once (a second Ctrl-C ends the wait), and the grace again from its end;
+- Ctrl-C or SIGTERM before the child said its script started kills it at once (nothing of the script ran,
+  and a Ctrl-C passed on would land in the child's own start-up: a traceback from Python's imports); the
+  child obeys the Ctrl-C passed on to it even when it started with Ctrl-C ignored (a background job);
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
 - the child's output is relayed to the parent's stdout and stderr as it comes, not by lines (a
   redrawn progress line too), in chunks of at most `CHUNK` bytes (a script writing gigabytes without a
@@ -163,12 +166,15 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     why: str | None = None          # "timeout" or "interrupted": the parent killed the child
     interrupted = terminated = False
     interrupts = 0
+    early = False                   # stopped by a signal before its script started: killed at once
+    unread = b""                    # what the child said, read when a signal came
     try:
         while True:
             try:
                 while proc.poll() is None:
                     now = time.monotonic()
-                    for said in _heard(ready):
+                    heard, unread = unread + _heard(ready), b""
+                    for said in heard:
                         if said == READY[0] and not started:
                             started = True
                             if timeout is not None:
@@ -206,6 +212,14 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
                 interrupted = True
                 interrupts += 1             # a second Ctrl-C cuts the wait for a run being written
                 terminated = terminated or isinstance(stop, Terminated)
+                unread += _heard(ready)
+                if not started and READY[0] not in unread and proc.poll() is None:
+                    # its script has not started, so nothing of it can be lost; a signal would land in the
+                    # child's own start-up (Python's imports: a traceback)
+                    early = True
+                    proc.kill()
+                    proc.wait()
+                    break
                 if proc.poll() is None:
                     proc.send_signal(signal.SIGINT)   # the child ignores a second one
                 limit = time.monotonic() + interrupt_grace
@@ -224,6 +238,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         why_not = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         _tell(f"robotexp: error: {script}: the script's output could not be written ({why_not}); the rest of it "
               f"was dropped; the {made} run(s) finished are in {results}")
+    if early:
+        click.echo("robotexp: terminated (SIGTERM)" if terminated else "robotexp: interrupted", err=True)
+        return 143 if terminated else 130
     if why == "timeout":
         click.echo(f"robotexp: error: {script}: stopped by --timeout after {timeout:g} s (it did not stop by "
                    f"itself within {timeout_grace:g} s: killed); the {made} run(s) finished so far are in "

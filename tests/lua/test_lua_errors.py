@@ -98,17 +98,19 @@ def test_timeout_during_a_run_keeps_its_record(lua):
     assert lua.lines == []
 
 
-def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str,
-                       sig: int = signal.SIGINT) -> tuple[subprocess.CompletedProcess, Path]:
+def _sigint_after_ready(tmp_path: Path, code: str, wait_for: str, sig: int = signal.SIGINT,
+                       ignored: bool = False) -> tuple[subprocess.CompletedProcess, Path]:
     """Run `code`, wait for its "ready" line and then for the file `wait_for` in the output folder; Ctrl-C (or
-    `sig` sent to the command's process)."""
+    `sig` sent to the command's process). `ignored`: the command starts with SIGINT ignored, as a shell starts
+    a command in the background."""
     script = tmp_path / "s.lua"
     script.write_text(code)
     out = tmp_path / "out"
     # a terminal's Ctrl-C: SIGINT back to its default in the child even when the tests run in the background
+    start = signal.SIG_IGN if ignored else signal.SIG_DFL
     proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, start))
     try:
         assert proc.stdout is not None
         assert proc.stdout.readline().strip() == "ready"
@@ -154,6 +156,45 @@ def test_sigterm_during_a_run_writes_it_and_exits_143(tmp_path):
     assert (out / "results.jsonl").is_file(), done.stderr      # the command's account of what it did
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
     assert rec["completed"] is False and rec["end"] == "interrupted"
+
+
+def test_sigterm_stops_a_run_of_a_command_started_in_the_background(tmp_path):
+    """A shell starts a background command with Ctrl-C ignored, and its children inherit that: the script's
+    process still obeys the SIGINT its supervisor sends it on `kill`, and the run is written as interrupted."""
+    done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
+                                              'exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
+                                              'exploration.start(); exploration.wait(); print("not reached")',
+                                    "f/frame_000003.png", signal.SIGTERM, ignored=True)
+    assert done.returncode == 143, done.stderr
+    assert "not reached" not in done.stdout and "killed" not in done.stderr, done.stderr
+    (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert rec["completed"] is False and rec["end"] == "interrupted"
+
+
+def test_sigterm_ends_the_view_kept_after_the_script_of_a_command_started_in_the_background(tmp_path):
+    """`robotexp run --view` keeps its page up after the script until Ctrl-C; started in the background (Ctrl-C
+    ignored, and inherited by the script's process), a `kill` still ends it at once, not after the grace (then
+    the script's process is killed)."""
+    script = tmp_path / "s.lua"
+    script.write_text('print("ready"); io.stdout:flush()')
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(tmp_path / "out"),
+                             "--view"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline().strip() for _ in range(2)]     # the page's address, then the script's line
+        assert lines[0].startswith("view: http://") and lines[1] == "ready", lines
+        time.sleep(1.0)                 # the script is over; the page stays up
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err         # the script was over: the page's end is its normal end
+    assert "killed" not in err and took < 2.5, (took, err)
 
 
 if os.name != "posix":   # pragma: no cover

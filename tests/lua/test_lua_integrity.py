@@ -354,6 +354,41 @@ def test_a_script_process_that_dies_of_a_signal_after_ctrl_c_is_named(tmp_path):
             f"by itself; the 1 run(s) finished so far are in {tmp_path / 'results.jsonl'}") in err, err
 
 
+# A stand-in that takes seconds to start its script (Python's imports) and never says it started.
+SLOW_TO_START = """
+import time
+time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize(("sig", "code", "line"), [(signal.SIGINT, 130, "robotexp: interrupted"),
+                                                   (signal.SIGTERM, 143, "robotexp: terminated (SIGTERM)")])
+def test_a_signal_before_the_script_started_stops_its_process_at_once(tmp_path, sig, code, line):
+    """Ctrl-C (or SIGTERM) before the script's process said its script started: nothing of the script can be
+    lost, so the process is stopped at once, not sent a Ctrl-C that lands in its start-up (a traceback from
+    Python's imports) and waited for; one line, exit 130 (143)."""
+    script = tmp_path / "slow.py"
+    script.write_text(SLOW_TO_START)
+    prog = ("import sys; from pathlib import Path; from robotexp.cli.common import watch_signals; "
+            "from robotexp.lua.supervise import supervise; watch_signals(); "
+            f"sys.exit(supervise([{str(tmp_path)!r}], script='s.lua', out=Path({str(tmp_path)!r}), timeout=None, "
+            f"child=[sys.executable, {str(script)!r}]))")
+    proc = subprocess.Popen([sys.executable, "-c", prog], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        time.sleep(1.5)
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=30)
+        took = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == code and err.strip().splitlines() == [line], err
+    assert took < 2.0, took         # not the 3 s grace after Ctrl-C
+
+
 def test_a_crash_of_the_script_process_shows_its_python_stack_and_is_named(tmp_path):
     """The script's process dies of a fault (SIGSEGV, as a fault in a compiled library would raise): the Python
     stack it happened in is on stderr (faulthandler), then one line names the signal; exit 1."""
