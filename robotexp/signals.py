@@ -126,12 +126,12 @@ def held() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    pending: list[tuple[int, FrameType | None]] = []
+    pending: list[int] = []         # the first signal that came inside
     previous: dict[int, Any] = {}
 
     def note(signum: int, frame: FrameType | None) -> None:
         if not pending:
-            pending.append((signum, frame))
+            pending.append(signum)
             return
         handler = previous.get(signum)
         if callable(handler):
@@ -146,5 +146,4 @@ def held() -> Iterator[None]:
         for number, handler in previous.items():
             signal.signal(number, handler)
         if pending:
-            first = pending[0][0]
-            previous[first](first, None)
+            previous[pending[0]](pending[0], None)

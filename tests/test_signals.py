@@ -117,17 +117,8 @@ def test_a_second_signal_acts_at_once_when_the_first_has_waited_long_enough() ->
     import robotexp.signals as s
 
     frames = []
-
-    def grab(frame, event, arg):  # noqa: ANN001, ANN202, ARG001
-        if event == "call" and frame.f_code.co_name == "_numba_unpickle" and not frames:
-            frames.append(frame)
-
-    sys.setprofile(grab)
-    try:
-        label8(MASK)
-    finally:
-        sys.setprofile(None)
-    inside = frames[0]
+    _call_with_handler_inside_numba(lambda signum, frame: frames.append(frame))
+    (inside,) = frames
     calls = []
     real = s._send_later
 
