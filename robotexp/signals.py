@@ -17,6 +17,11 @@ held back `CUT_AFTER` seconds or more calls the handler at once, wherever it lan
 
 `held` keeps Ctrl-C and SIGTERM for the end of a block that must run whole (the standard streams pointed
 away and back).
+
+`children_start_deaf` blocks both while a block starts processes: a process started from it (a worker of a
+pool) begins with them blocked, so a Ctrl-C from the terminal that reaches it during its Python start-up (its
+imports) waits, pending, until the process has put its handlers in place and calls `hear_signals`; a
+signal sent to the starting process in the block acts at the block's end.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from contextlib import contextmanager
 from types import FrameType
 from typing import Any
 
-__all__ = ["safe_handler", "install_safe", "in_numba", "held"]
+__all__ = ["safe_handler", "install_safe", "in_numba", "held", "children_start_deaf", "hear_signals"]
 
 Handler = Callable[[int, FrameType | None], Any]
 
@@ -147,3 +152,30 @@ def held() -> Iterator[None]:
             signal.signal(number, handler)
         if pending:
             previous[pending[0]](pending[0], None)
+
+
+_STOPPING = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def children_start_deaf() -> Iterator[None]:
+    """Block Ctrl-C (SIGINT) and SIGTERM in this thread for the block. The processes started in it inherit the
+    block through their exec (as do threads started in it, for good: a signal then goes to a thread that
+    takes it); each calls `hear_signals` once its handlers are installed and then gets, at once, a signal
+    that came while it started. A signal that came to this process in the block is delivered at its end.
+    Does nothing where signals cannot be blocked (Windows)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPPING)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+def hear_signals() -> None:
+    """Unblock Ctrl-C and SIGTERM in this thread (a process started inside `children_start_deaf`, once its
+    handlers are in place): one that came while they were blocked is handled now."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPPING)

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -20,7 +21,15 @@ import numpy as np
 import pytest
 
 from robotexp.mapping.kernels import label8
-from robotexp.signals import FIRST_RETRY, LAST_RETRY, held, in_numba, install_safe, safe_handler
+from robotexp.signals import (
+    FIRST_RETRY,
+    LAST_RETRY,
+    children_start_deaf,
+    held,
+    in_numba,
+    install_safe,
+    safe_handler,
+)
 
 MASK = np.zeros((20, 20), np.bool_)
 MASK[2:5, 2:5] = True
@@ -230,3 +239,38 @@ def test_a_ctrl_c_as_the_simulators_output_is_silenced_leaves_the_streams_back()
         assert caught == [True]
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_a_process_started_deaf_takes_a_ctrl_c_of_its_start_up_once_it_hears() -> None:
+    # the child is sent Ctrl-C while it is still starting (blocked: pending), installs its handler, unblocks:
+    # the handler runs then, once; the parent's own Ctrl-C in the block waits for the block's end
+    child = textwrap.dedent("""
+        import os, signal, sys, time
+        from robotexp.signals import hear_signals
+        print("blocked" if signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []) else "open", flush=True)
+        sys.stdin.readline()                    # the parent has sent SIGINT by now
+        got = []
+        signal.signal(signal.SIGINT, lambda s, f: got.append(s))
+        print("pending" if signal.SIGINT in signal.sigpending() else "none", flush=True)
+        hear_signals()
+        print("heard", len(got), flush=True)
+    """)
+    got: list[int] = []
+    before = signal.signal(signal.SIGINT, lambda s, f: got.append(s))
+    try:
+        with children_start_deaf():
+            proc = subprocess.Popen([sys.executable, "-c", child], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    text=True)
+            signal.pthread_kill(threading.main_thread().ident or 0, signal.SIGINT)
+            assert got == []                        # held for the block's end
+        assert got == [signal.SIGINT]
+        assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])     # the mask as it was
+        assert proc.stdout is not None and proc.stdin is not None
+        assert proc.stdout.readline().strip() == "blocked"
+        proc.send_signal(signal.SIGINT)
+        proc.stdin.write("go\n")
+        proc.stdin.flush()
+        out, _ = proc.communicate(timeout=30)
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert proc.returncode == 0 and out.split() == ["pending", "heard", "1"]

@@ -13,7 +13,7 @@ from typing import Any
 from robotexp.campaign.spec import pose_label
 from robotexp.run.record import RunRecord
 from robotexp.run.spec import RunSpec
-from robotexp.signals import safe_handler
+from robotexp.signals import hear_signals, safe_handler
 
 __all__ = ["RunTiming", "timed_run"]
 
@@ -62,7 +62,9 @@ _worker_running = False         # in a worker: a run is being made (Ctrl-C inter
 def worker_init() -> None:
     """Worker start: die with the campaign process (kill -9 included), and remember a Ctrl-C or a SIGTERM so
     that the runs already queued to this worker are skipped instead of run in full; the run in progress ends
-    as that signal ends a run (`Terminated` for a SIGTERM: its record says so)."""
+    as that signal ends a run (`Terminated` for a SIGTERM: its record says so). A worker is started with both
+    signals blocked (`children_start_deaf`): a Ctrl-C from the terminal while it still imports is taken here,
+    as one that came while it waited for work (no traceback out of its imports, no queued run made)."""
     from robotexp.errors import Terminated
     from robotexp.lifeline import die_with_parent, exit_without_teardown
 
@@ -78,6 +80,7 @@ def worker_init() -> None:
 
     signal.signal(signal.SIGINT, safe_handler(interrupted))     # held back while numba's code runs
     signal.signal(signal.SIGTERM, safe_handler(interrupted))
+    hear_signals()      # started with both blocked (`children_start_deaf`): one that came in its imports acts now
 
 
 def record_extra(spec: RunSpec, sweep: Mapping[str, Any] | None = None) -> dict[str, Any]:

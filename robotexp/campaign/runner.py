@@ -20,6 +20,7 @@ from robotexp.campaign.spec import Campaign, RunKey, record_key
 from robotexp.errors import ConfigError, Terminated
 from robotexp.run.record import EndReason, RunRecord
 from robotexp.run.spec import RunSpec
+from robotexp.signals import children_start_deaf
 
 __all__ = ["expected_robot_time", "run_campaign", "run_order"]
 
@@ -120,9 +121,12 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,  # no
                                initializer=worker_init)
     try:
         # submitted in order; the pool hands each worker the next one as it comes free
-        pending: set[Future[tuple[RunRecord, RunTiming] | None]] = {
-            pool.submit(run_one, spec, str(out), campaign.record, record_extra(spec, campaign.sweep_of(spec)))
-            for spec in todo}
+        # (the workers start while Ctrl-C and SIGTERM are blocked, and unblock them once their handlers are in:
+        # a Ctrl-C that reaches them while they import waits for those handlers; one to this process acts after)
+        with children_start_deaf():
+            pending: set[Future[tuple[RunRecord, RunTiming] | None]] = {
+                pool.submit(run_one, spec, str(out), campaign.record, record_extra(spec, campaign.sweep_of(spec)))
+                for spec in todo}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:

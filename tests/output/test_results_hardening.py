@@ -156,6 +156,13 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
+def _cmdline(pid: int) -> bytes:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return b""
+
+
 def _cpu_seconds(pid: int) -> float:
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -224,6 +231,47 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait, sig, sta
     records = read_records(out / "results.jsonl")
     assert len(records) == 1 and records[0]["reason"] == reason
     assert took < 15 + waited           # (a loaded machine: plus what the processes waited for a CPU)
+
+
+def _importing(pid: int) -> bool:
+    """The process has numpy's compiled core loaded: it is inside its imports."""
+    try:
+        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+def test_ctrl_c_while_the_workers_still_import_stops_the_campaign_with_one_line(tmp_path):
+    # a terminal's Ctrl-C goes to every process of the group, workers that are still importing included: they
+    # take it once their handlers are in, as a worker waiting for work does (no traceback from their imports,
+    # no run made), and the campaign ends with its one line
+    camp, out = tmp_path / "c.toml", tmp_path / "out"
+    camp.write_text(MINI)
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "campaign", str(camp), "--out", str(out),
+                             "-j", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline, workers = time.monotonic() + 60, []
+        while time.monotonic() < deadline and proc.poll() is None:
+            workers = [k for k in _children(proc.pid) if b"spawn_main" in _cmdline(k)]
+            if len(workers) == 2 and all(_importing(k) for k in workers):
+                break
+            time.sleep(0.002)
+        assert len(workers) == 2 and not (out / "results.jsonl").exists(), "the workers were not caught importing"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, stderr
+    lines = stderr.strip().splitlines()
+    assert "Traceback" not in stderr and lines[-1] == "robotexp: interrupted" and len(lines) == 2, stderr
+    assert not (out / "results.jsonl").exists() or read_records(out / "results.jsonl") == []
+    deadline = time.monotonic() + 30
+    while [w for w in workers if _alive(w)] and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [w for w in workers if _alive(w)], "workers outlived their campaign"
 
 
 def test_report_counts_a_run_recorded_twice_once_and_says_so(tmp_path):
