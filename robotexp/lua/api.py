@@ -84,6 +84,7 @@ class Control:
         self.clock = clock
         self.deadline = None if timeout is None else clock() + timeout
         self.reason: str | None = None      # "interrupted", "timeout", "exit"
+        self.terminated = False             # "interrupted" by a SIGTERM (not a Ctrl-C)
         self.exit_code = 0
         self.on_run = on_run
 

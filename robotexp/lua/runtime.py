@@ -19,7 +19,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, WorldError
+from robotexp.errors import ConfigError, PluginError, RobotError, ScriptError, Terminated, WorldError
 from robotexp.lua.api import Control, Session
 from robotexp.lua.sandbox import ABORT, HOOK_EVERY, PRELUDE, AddressPolicy, PathPolicy, lua_kind
 from robotexp.run.observers import RunObserver
@@ -91,17 +91,19 @@ def _message(exc: BaseException, name: str, max_memory: int | None) -> str:
 
 
 @contextmanager
-def _sigint_sets(control: Control) -> Iterator[None]:
-    """Ctrl-C marks the script as interrupted, then raises KeyboardInterrupt as usual."""
+def _stops_set(control: Control) -> Iterator[None]:
+    """Ctrl-C (SIGINT) or SIGTERM marks the script as interrupted (`control.terminated` for a SIGTERM), then
+    raises KeyboardInterrupt, or `Terminated`, as usual; a second one is ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: FrameType | None) -> None:
         if control.reason == "interrupted":
-            return          # a second Ctrl-C (or the supervisor's copy of the first) must not cut the cleanup
-        control.reason = control.reason or "interrupted"
-        raise KeyboardInterrupt
+            return          # a second signal (or the supervisor's copy of the first) must not cut the cleanup
+        if control.reason is None:
+            control.reason, control.terminated = "interrupted", signum == signal.SIGTERM
+        raise Terminated if control.terminated else KeyboardInterrupt
 
     def unraisable(info: Any) -> None:
         # the KeyboardInterrupt raised in a callback that cannot pass it on (llvmlite's object cache, called
@@ -111,12 +113,14 @@ def _sigint_sets(control: Control) -> Iterator[None]:
             return
         previous_hook(info)
 
-    previous = signal.signal(signal.SIGINT, safe_handler(handler))     # held back while numba's code runs
+    previous = {sig: signal.signal(sig, safe_handler(handler))       # held back while numba's code runs
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     previous_hook, sys.unraisablehook = sys.unraisablehook, unraisable
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, before in previous.items():
+            signal.signal(sig, before)
         sys.unraisablehook = previous_hook
 
 
@@ -262,7 +266,7 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
     except LuaSyntaxError as exc:   # bad input, found before anything runs: exit 2 like the CLI's
         session.close()
         raise ConfigError(f"{_message(exc, name, max_memory)} (the script does not compile; nothing was run)") from None
-    with _sigint_sets(control):
+    with _stops_set(control):
         try:
             chunk()
             try:
@@ -273,8 +277,9 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             if _stopped(control, name, session):
                 return ScriptResult(control.exit_code, session.records)
             raise ScriptError(_message(exc, name, max_memory)) from None
-        except KeyboardInterrupt:
-            control.reason = control.reason or "interrupted"
+        except KeyboardInterrupt as stop:
+            if control.reason is None:
+                control.reason, control.terminated = "interrupted", isinstance(stop, Terminated)
             _stopped(control, name, session)
             raise
         except ScriptError:
@@ -292,10 +297,10 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
 
 
 def _stopped(control: Control, name: str, session: Session) -> bool:
-    """Turn a stop into its outcome: raise KeyboardInterrupt (Ctrl-C) or ScriptError (--timeout);
-    True for os.exit, False for an ordinary error."""
+    """Turn a stop into its outcome: raise KeyboardInterrupt (Ctrl-C), `Terminated` (SIGTERM) or ScriptError
+    (--timeout); True for os.exit, False for an ordinary error."""
     if control.reason == "interrupted":
-        raise KeyboardInterrupt
+        raise Terminated if control.terminated else KeyboardInterrupt
     if control.reason == "timeout":
         raise ScriptError(f"{name}: stopped by --timeout after {control.timeout:g} s; the "
                           f"{len(session.records)} run(s) finished so far are in {session.out / 'results.jsonl'}")

@@ -23,6 +23,8 @@ in-process) and watches it:
   next step and is written (its record, its map), which on a loaded machine can take longer than the
   grace. The child says when each run starts and ends (RUN_STARTS, RUN_ENDS); a kill that falls in a run
   waits `WRITE_HOLD` s more once (a second Ctrl-C ends the wait), and the grace again from its end;
+- Ctrl-C or SIGTERM is passed on to the child as it came: the child ends its script the same way for both,
+  and a SIGTERM's run record, line and exit status say SIGTERM;
 - Ctrl-C or SIGTERM before the child said its script started kills it at once (nothing of the script ran,
   and a Ctrl-C passed on would land in the child's own start-up: a traceback from Python's imports); the
   child obeys the Ctrl-C passed on to it even when it started with Ctrl-C ignored (a background job);
@@ -138,7 +140,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         child: the child's command before its arguments (default: this Python, `-m robotexp.cli.lua_child`).
 
     Returns:
-        The exit status: the child's, 1 after a kill at the timeout, 130 after Ctrl-C.
+        The exit status: the child's, 1 after a kill at the timeout, 130 after Ctrl-C, 143 after SIGTERM.
     """
     results = out / "results.jsonl"
     before = _records(results)
@@ -220,8 +222,8 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
                     proc.kill()
                     proc.wait()
                     break
-                if proc.poll() is None:
-                    proc.send_signal(signal.SIGINT)   # the child ignores a second one
+                if proc.poll() is None:     # passed on as it came (the child ignores a second one)
+                    proc.send_signal(signal.SIGTERM if terminated else signal.SIGINT)
                 limit = time.monotonic() + interrupt_grace
                 if not waited or interrupts >= 2:
                     kill_at = limit if kill_at is None else min(kill_at, limit)
@@ -248,9 +250,10 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         return 1
     if interrupted:
         if why == "interrupted":
-            click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of Ctrl-C: killed; the "
-                       f"{made} run(s) finished so far are in {results}", err=True)
-            click.echo("robotexp: interrupted", err=True)
+            click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of "
+                       f"{'SIGTERM' if terminated else 'Ctrl-C'}: killed; the {made} run(s) finished so far are in "
+                       f"{results}", err=True)
+            click.echo("robotexp: terminated (SIGTERM)" if terminated else "robotexp: interrupted", err=True)
         elif proc.returncode < 0:       # it died of a signal before it stopped by itself (not the parent's kill)
             click.echo(f"robotexp: error: {script}: the script's process was killed by "
                        f"{_signal_name(-proc.returncode)} after {'SIGTERM' if terminated else 'Ctrl-C'}, before it "

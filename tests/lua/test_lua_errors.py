@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from robotexp.cli import main
 from robotexp.errors import ConfigError, ScriptError
+from robotexp.run.loop import TERMINATED_REASON
 
 
 @pytest.mark.parametrize(("code", "message"), [
@@ -133,6 +134,13 @@ def test_ctrl_c_stops_a_pure_lua_loop(tmp_path):
     assert "interrupted" in done.stderr and "Traceback" not in done.stderr
 
 
+def test_sigterm_stops_a_pure_lua_loop_and_says_so(tmp_path):
+    done, _ = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); io.open("go", "w"):close()\n'
+                                            'while true do pcall(function() end) end', "go", signal.SIGTERM)
+    assert done.returncode == 143, done.stderr
+    assert done.stderr.strip().splitlines() == ["robotexp: terminated (SIGTERM)"], done.stderr
+
+
 def test_ctrl_c_during_a_run_writes_it_and_exits_130(tmp_path):
     done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
                                               'exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
@@ -153,14 +161,42 @@ def test_sigterm_during_a_run_writes_it_and_exits_143(tmp_path):
                                     "f/frame_000003.png", signal.SIGTERM)
     assert done.returncode == 143, done.stderr
     assert "not reached" not in done.stdout and "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "robotexp: terminated (SIGTERM)", done.stderr
     assert (out / "results.jsonl").is_file(), done.stderr      # the command's account of what it did
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
-    assert rec["completed"] is False and rec["end"] == "interrupted"
+    assert rec["completed"] is False and rec["end"] == "interrupted" and rec["reason"] == TERMINATED_REASON
+
+
+def test_sigterm_to_the_scripts_own_process_ends_the_script_not_only_its_run(tmp_path):
+    """A process manager that stops a whole group (systemd's control group, `kill 0`) sends SIGTERM to the script's
+    process too: its run is written as terminated and the script ends there, it does not go on to the next line."""
+    script = tmp_path / "s.lua"
+    script.write_text('mapView.setFrameFolder("f"); exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
+                      'exploration.start(); exploration.wait(); print("not reached")')
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out / "f/frame_000003.png").exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        (child,) = [int(k) for task in Path(f"/proc/{proc.pid}/task").iterdir()
+                    for k in (task / "children").read_text().split()]
+        os.kill(child, signal.SIGTERM)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, stderr
+    assert "not reached" not in stdout and stderr.strip().splitlines()[-1] == "robotexp: terminated (SIGTERM)", stderr
+    (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    assert rec["completed"] is False and rec["reason"] == TERMINATED_REASON
 
 
 def test_sigterm_stops_a_run_of_a_command_started_in_the_background(tmp_path):
     """A shell starts a background command with Ctrl-C ignored, and its children inherit that: the script's
-    process still obeys the SIGINT its supervisor sends it on `kill`, and the run is written as interrupted."""
+    process still obeys the SIGTERM its supervisor passes on, and the run is written as terminated."""
     done, out = _sigint_after_ready(tmp_path, 'print("ready"); io.stdout:flush(); mapView.setFrameFolder("f")\n'
                                               'exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
                                               'exploration.start(); exploration.wait(); print("not reached")',
@@ -168,7 +204,7 @@ def test_sigterm_stops_a_run_of_a_command_started_in_the_background(tmp_path):
     assert done.returncode == 143, done.stderr
     assert "not reached" not in done.stdout and "killed" not in done.stderr, done.stderr
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
-    assert rec["completed"] is False and rec["end"] == "interrupted"
+    assert rec["completed"] is False and rec["reason"] == TERMINATED_REASON
 
 
 def test_sigterm_ends_the_view_kept_after_the_script_of_a_command_started_in_the_background(tmp_path):
@@ -209,7 +245,7 @@ def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_in
     reaches the hook that was there before."""
     import gc
 
-    from robotexp.lua.runtime import Control, _sigint_sets
+    from robotexp.lua.runtime import Control, _stops_set
 
     reached: list[type] = []
     monkeypatch.setattr(sys, "unraisablehook", lambda info: reached.append(type(info.exc_value)))
@@ -222,7 +258,7 @@ def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_in
             raise self.exc
 
     control = Control(None, time.monotonic)
-    with _sigint_sets(control):
+    with _stops_set(control):
         RaisesOnDel(KeyboardInterrupt())          # not interrupted yet: passed on
         control.reason = "interrupted"
         RaisesOnDel(KeyboardInterrupt())          # dropped
