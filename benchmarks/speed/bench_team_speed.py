@@ -17,7 +17,9 @@ Figures: team time (the one clock all robots share) / wall time of the loop, and
 x robots) / wall time; the single robot's ratio on the same map and time, measured alongside, bounds what a
 team of n can reach on team time: each of its robots costs at least one single robot's steps. So does, lower
 down, the sensing alone: the single robot's laser cast again from each pose it scanned at and each scan
-integrated into a fresh map, timed with nothing else (no explorer, no physics, no loop).
+integrated into a fresh map, timed with nothing else (no explorer, no physics, no loop); and the frontier
+explorer's own calls in the same lone run, timed alone. Both are printed per robot step beside what a team of n
+at 100x on team time leaves each robot step (the period / (100 n)).
 
 Run (maps are not in the repository; any ROS .yaml or MobileSim .map):
 
@@ -217,6 +219,36 @@ class SensingFloor(RunObserver):
         self.period = run.period
 
 
+class ExplorerSteps:
+    """The CPU time [s] a run's explorer spends in its own calls (`step` and the calls around it), summed over
+    the run: in place while a `with` block runs (`ExplorationRun._explorer_call` timed)."""
+
+    def __init__(self) -> None:
+        self.cpu = 0.0
+        self.calls = 0
+
+    def __enter__(self) -> ExplorerSteps:
+        from robotexp.run.loop import ExplorationRun
+
+        self._saved = ExplorationRun.__dict__["_explorer_call"]
+        saved = self._saved
+
+        def timed(run: Any, method: Any, *args: Any) -> Any:
+            t0 = time.process_time()
+            try:
+                return saved(run, method, *args)
+            finally:
+                self.cpu += time.process_time() - t0
+                self.calls += 1
+        ExplorationRun._explorer_call = timed    # type: ignore[method-assign]
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        from robotexp.run.loop import ExplorationRun
+
+        ExplorationRun._explorer_call = self._saved    # type: ignore[method-assign]
+
+
 def _team(spec: RunSpec, team: TeamSpec, patches: list[tuple[Any, str, Any]]) -> tuple[Any, float, float]:
     """The record of a team run with `patches` in place, its wall time with set-up [s] and the CPU time of
     its loop [s]."""
@@ -253,12 +285,15 @@ def main() -> int:
     spec = RunSpec(world=world, method="frontier", max_time=args.max_time)
     team = TeamSpec(robots=("p3dx",) * args.robots, coordinator=args.coordinator)
     print(f"load average before: {os.getloadavg()[0]:.1f} (1 min)")
-    one_cpu = sensing = 0.0
+    one_cpu = sensing = explorer = 0.0
     for _ in range(args.repeat):        # one robot's loop takes well under a second: the best of the repeats
         clock, floor = CpuClock(), SensingFloor()
         single = run_experiment(spec, None, image=False, observers=[clock, floor]).record
         one_cpu = max(one_cpu, single.robot_time_s / clock.figures()[0])
         sensing = max(sensing, floor.robot_time / floor.cpu)
+        with ExplorerSteps() as steps:      # the same run again, its explorer's own calls timed
+            run_experiment(spec, None, image=False)
+        explorer = max(explorer, single.robot_time_s / steps.cpu)
     rows = []
     for _ in range(args.repeat):        # before and after in turn: a load that comes and goes hits both
         rows.append(("before", *_team(spec, team, _before())))
@@ -275,6 +310,11 @@ def main() -> int:
     print(f"  its laser cast and map update alone (no explorer, no physics): {sensing:.0f}x on CPU time: {n} robots "
           f"scanning and mapping every {floor.period:g} s stay below "
           f"~{sensing / n:.0f}x on team time")
+    budget = floor.period / (100.0 * n)      # [s] CPU per robot step for n robots at 100x on team time
+    print(f"  per robot step of {floor.period:g} s: the laser cast and map update alone "
+          f"{1e6 * floor.period / sensing:.0f} us, the frontier explorer's own calls in that lone run "
+          f"{1e6 * floor.period / explorer:.0f} us, its whole loop {1e6 * floor.period / one_cpu:.0f} us; "
+          f"{n} robots at 100x on team time leave {1e6 * budget:.0f} us per robot step")
     for label, r, total, cpu in rows:
         print(f"  {label:>6}: coverage {r.coverage:.4f}, path {r.path_length_m:.1f} m, loop {r.wall_time_s:.2f} s wall "
               f"(with set-up {total:.2f} s), {cpu:.2f} s CPU: team time / wall {r.robot_time_s / r.wall_time_s:.1f}x, "
@@ -304,6 +344,14 @@ def main() -> int:
             Figure(f"{Path(world).stem}: one robot's laser cast and map update alone, robot time / CPU time",
                    round(sensing), "x", "no explorer, no physics: a team of n scanning at the run's period stays "
                                         "below this / n"),
+            Figure(f"{Path(world).stem}: one robot's frontier explorer, its own calls alone, robot time / CPU time",
+                   round(explorer), "x", "a team of n whose robots each run it stays below this / n"),
+            Figure(f"{Path(world).stem}: CPU per robot step (period {floor.period:g} s): laser cast and map update",
+                   round(1e6 * floor.period / sensing), "us"),
+            Figure(f"{Path(world).stem}: CPU per robot step: the frontier explorer's own calls",
+                   round(1e6 * floor.period / explorer), "us"),
+            Figure(f"{Path(world).stem}: CPU per robot step left to {n} robots at 100x on team time",
+                   round(1e6 * budget), "us", "the period / (100 x robots)"),
         ], title="A team of eight robots on a large map", parameters={"map": Path(world).name, "robots": n,
                                                                       "coordinator": args.coordinator,
                                                                       "max_time_s": args.max_time,
