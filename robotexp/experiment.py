@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robotexp.errors import ConfigError, PluginError
+from robotexp.errors import ConfigError, PluginError, WorldError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.output.results import ResultsWriter, run_id
 from robotexp.registry import make_explorer
@@ -336,6 +337,17 @@ def run_team(spec: RunSpec, team: TeamSpec, out: Path | None, *, observers: Iter
     return _outcome(run, writer)
 
 
+@contextmanager
+def _listed_pose(team: TeamSpec, i: int) -> Iterator[None]:
+    """Robot `i` placed at its start: a start of `--team-poses` that is not free names the robot."""
+    try:
+        yield
+    except WorldError as exc:
+        if not team.poses:
+            raise
+        raise WorldError(f"--team-poses: robot {i + 1}: {exc}") from None
+
+
 def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]:
     """The team's simulated robots at their starts: `team.poses`, else spread from the plan's start."""
     from dataclasses import replace
@@ -352,13 +364,15 @@ def _team_robots(spec: RunSpec, team: TeamSpec, plan: RunPlan) -> list[SimRobot]
             from robotexp.run.teamrobots import listed_starts
 
             starts = listed_starts(plan.world, team.poses, radii)
-            first.move_to(starts[0])
+            with _listed_pose(team, 0):
+                first.move_to(starts[0])
         else:
             starts = spread_starts(plan.truth, plan.start, radii, free=first)
         for i, (name, start) in enumerate(zip(team.robots[1:], starts[1:], strict=True), start=1):
             seed = int(np.random.SeedSequence([spec.seed, i]).generate_state(1)[0])
-            robots.append(sim_robot(replace(spec, robot=name, seed=seed), plan.world, start,
-                                    sonar=plan.explorer.uses_sonar))
+            with _listed_pose(team, i):
+                robots.append(sim_robot(replace(spec, robot=name, seed=seed), plan.world, start,
+                                        sonar=plan.explorer.uses_sonar))
     except BaseException:
         for robot in robots:
             robot.close()

@@ -40,6 +40,10 @@ def test_a_team_explores_from_the_command_line(tmp_path: Path) -> None:
     (["--team", "2", "--odometry-error", "p3dx"], ["exact odometry"]),
     (["--team", "200"], ["1..64 robots"]),
     (["--team", "2", "--team-poses", "1;1"], ["overlap"]),
+    (["--team", "3", "--team-poses", "1000,1000,0;0,0,0;2000,2000,0"],
+     ["--team-poses: robot 2: start pose (0.000, 0.000) m", "touches an obstacle"]),
+    (["--team", "2", "--team-poses", "1000,1000,0;50000,1000,0"], ["--team-poses: robot 2: start pose (50.000, 1.000) m"
+                                                                   " is outside world 'dense'"]),
     (["--team", "2", "--coordinator", "burgard", "--coordinator-param", "beta=-1"],
      ["coordinator 'burgard': parameter 'beta' must be >= 0, got -1"]),
     (["--team", "2", "--coordinator", "burgard", "--coordinator-param", "gamma=1"],
