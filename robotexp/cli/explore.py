@@ -12,6 +12,7 @@ from robotexp.cli.common import compile_watch, end_interrupted, fail, handle_err
 from robotexp.cli.progress import Progress
 from robotexp.errors import ConfigError, WorldError
 from robotexp.registry import make_explorer
+from robotexp.robot import Capability
 from robotexp.output.safefile import writable_folder
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import EndReason
@@ -164,10 +165,10 @@ def explore(world: str, method: str, pose: str | None, speed: float, laser_range
             else:
                 given = click.get_current_context().get_parameter_source("world")
                 truth_world = None if given == click.core.ParameterSource.DEFAULT else world
-                if localize == "auto":
-                    click.echo("robotexp: --localize auto: scan matching corrects the robot's odometry before the "
-                               "map and the explorer see it (--localize none turns it off)", err=True)
                 with connect_with_laser(robot, address, laser, laser_pose) as bot:
+                    if localize == "auto" and (laser is not None or Capability.LASER in bot.capabilities):
+                        click.echo("robotexp: --localize auto: scan matching corrects the robot's odometry before "
+                                   "the map and the explorer see it (--localize none turns it off)", err=True)
                     result = run_on_robot(spec, bot, out, truth_world, observers=watchers, show=overlays,
                                           image=formats)
     except (WorldError, ConfigError) as exc:

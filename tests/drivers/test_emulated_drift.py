@@ -104,6 +104,17 @@ def test_bad_odometry_errors_are_one_line_and_exit_2(args: list[str], words: str
     assert "Traceback" not in result.output and len(result.output.strip().splitlines()) == 1
 
 
+def test_explore_on_a_robot_without_a_laser_says_nothing_of_scan_matching(tmp_path: Path) -> None:
+    # a Kobuki connected without a laser has no scan to match: the run ends as a robot error (nothing to map
+    # with), and no line says that scan matching corrects its odometry
+    world = builtin_world("ufmg-static")
+    with KobukiEmulator(world, pose=world.poses["path1"], speedup=30.0) as emu:
+        result = CliRunner().invoke(main, ["explore", "--robot", "kobuki", "--address", emu.address, "--world",
+                                           "ufmg-static", "--max-time", "10", "--out", str(tmp_path)])
+    assert result.exit_code == 1, result.output
+    assert "nothing to map with" in result.output and "scan matching" not in result.output, result.output
+
+
 def test_explore_on_a_robot_says_auto_localization_is_on(tmp_path: Path) -> None:
     world = builtin_world("ufmg-static")
     with P3DXEmulator(world, pose=world.poses["path1"], port=0, speedup=8.0, odometry="p3dx") as emu:
