@@ -158,16 +158,22 @@ _STOPPING = {signal.SIGINT, signal.SIGTERM}
 
 
 @contextmanager
-def children_start_deaf() -> Iterator[None]:
-    """Block Ctrl-C (SIGINT) and SIGTERM in this thread for the block. The processes started in it inherit the
-    block through their exec (as do threads started in it, for good: a signal then goes to a thread that
-    takes it); each calls `hear_signals` once its handlers are installed and then gets, at once, a signal
-    that came while it started. A signal that came to this process in the block is delivered at its end.
-    Does nothing where signals cannot be blocked (Windows)."""
+def children_start_deaf(signals: frozenset[int] | set[int] = frozenset(_STOPPING)) -> Iterator[None]:
+    """Block `signals` (Ctrl-C (SIGINT) and SIGTERM) in this thread for the block. The processes started in it
+    inherit the block through their exec (as do threads started in it, for good: a signal then goes to a thread
+    that takes it); each calls `hear_signals` once its handlers are installed and then gets, at once, a signal
+    that came while it started (a process that never calls it never hears them: a worker that its parent
+    stops). A signal that came to this process in the block is delivered at its end. Does nothing where
+    signals cannot be blocked (Windows)."""
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPPING)
+    # multiprocessing's resource tracker, started by the first lock or queue a pool makes, unblocks SIGINT and
+    # SIGTERM in the thread that starts it: started now, it is not started again inside the block
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
     try:
         yield
     finally:

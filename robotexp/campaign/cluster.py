@@ -18,6 +18,7 @@ import contextlib
 import ipaddress
 import logging
 import re
+import signal
 import socket
 import tempfile
 import threading
@@ -30,6 +31,7 @@ from robotexp.errors import ConfigError, RobotexpError
 from robotexp.run.spec import RunSpec
 from robotexp.run.observers import RunObserver
 from robotexp.run.record import EndReason, RunRecord
+from robotexp.signals import children_start_deaf
 
 if TYPE_CHECKING:
     from robotexp.campaign.jobs import RunTiming
@@ -127,7 +129,11 @@ class _CancelWatch(RunObserver):
         waiting thread would find none)."""
         from distributed import Event, get_client
 
-        event = Event(self.event_name, client=get_client())
+        try:
+            event = Event(self.event_name, client=get_client())
+        except Exception:       # the worker is closing (its connections shut): nothing will stop it but its end
+            log.debug("the run cannot watch the campaign's stop event", exc_info=True)
+            return
         threading.Thread(target=self._wait, args=(event,), name="robotexp-cancel-watch", daemon=True).start()
 
     def _wait(self, event: Any) -> None:
@@ -260,16 +266,24 @@ def _client(address: str) -> Iterator[Any]:
     where = check_cluster_address(address)
     local = _LOCAL.fullmatch(address)
     if local:
-        with dask.config.set(LOCAL_CONFIG):     # read when the scheduler, nannies and workers are made
-            # no dashboard; the scheduler's HTTP server (health routes) on a free port: 8787 may be taken
-            # by another cluster on a shared machine (a warning, and in the tests an error)
-            cluster = LocalCluster(n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", scheduler_kwargs={"dashboard": False})
+        cluster = None
         try:
+            # the worker processes (and the cluster's threads, which start them) never hear Ctrl-C: a terminal's
+            # reaches every process of its group, and this process stops the runs and closes the cluster
+            # (a worker's own Ctrl-C printed tracebacks out of Dask's event loop)
+            with dask.config.set(LOCAL_CONFIG), children_start_deaf(frozenset({signal.SIGINT})):
+                # no dashboard; the scheduler's HTTP server (health routes) on a free port: 8787 may be taken
+                # by another cluster on a shared machine (a warning, and in the tests an error)
+                # (Dask's own log, silenced: on Ctrl-C the runs it makes are cancelled and the cluster closed under its
+                # workers, which it reports with warnings and tracebacks; a run's failure reaches the campaign itself)
+                cluster = LocalCluster(n_workers=int(local.group(1)), threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", scheduler_kwargs={"dashboard": False},
+                                       silence_logs=logging.CRITICAL)
             with Client(cluster) as client:
                 yield client
         finally:
-            cluster.close()
+            if cluster is not None:
+                cluster.close()
         return
     assert where is not None
     _probe(address, *where)

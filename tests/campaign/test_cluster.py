@@ -226,3 +226,60 @@ def test_local_cluster_workers_run_lean_and_time_their_runs(tmp_path: Path) -> N
     for t in timings:
         assert t.worker.startswith("tcp://127.0.0.1:") and t.loop_s == by_run[t.run].wall_time_s
         assert 0 < t.loop_s < t.wall_s and t.cpu_s > 0
+
+
+def _descendants(pid: int) -> list[int]:
+    out, todo = [], [pid]
+    while todo:
+        for task in Path(f"/proc/{todo.pop()}/task").iterdir():
+            with open(task / "children") as f:
+                kids = [int(k) for k in f.read().split()]
+            out += kids
+            todo += kids
+    return out
+
+
+def _cpu_seconds(pid: int) -> float:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_ctrl_c_from_a_terminal_stops_a_local_cluster_with_one_line(tmp_path: Path, cpu_wait: Any) -> None:
+    # a terminal's Ctrl-C goes to every process of its group, the local cluster's worker processes included:
+    # they do not take it (Dask's event loop printed a traceback each); the campaign cancels the runs, closes
+    # the cluster and says one line
+    long_file = tmp_path / "long.toml"
+    long_file.write_text(LONG, encoding="utf-8")
+    campaign = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "campaign", "run", str(long_file), "--out",
+                                 str(tmp_path / "out"), "--cluster", "local:2"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        end = time.monotonic() + 90
+        while time.monotonic() < end and campaign.poll() is None:
+            busy = [k for k in _descendants(campaign.pid) if _cpu_seconds(k) > 3.0]
+            if len(busy) == 2:                  # both worker processes inside a run
+                break
+            time.sleep(0.1)
+        workers = _descendants(campaign.pid)
+        assert len(busy) == 2, "the workers did not start their runs"
+        os.killpg(campaign.pid, signal.SIGINT)
+        t0, mark = time.monotonic(), cpu_wait.total()
+        _, stderr = campaign.communicate(timeout=60)
+        took, waited = time.monotonic() - t0, cpu_wait.since(mark)
+    finally:
+        if campaign.poll() is None:
+            os.killpg(campaign.pid, signal.SIGKILL)
+            campaign.wait()
+    assert campaign.returncode == 130, stderr
+    lines = stderr.strip().splitlines()
+    assert "Traceback" not in stderr and "Error" not in stderr and lines[-1] == "robotexp: interrupted", stderr
+    assert took < 15 + waited, (took, waited)
+    assert _lines(tmp_path / "out" / "results.jsonl") == []         # the runs cut short are not recorded
+    gone = time.monotonic() + 30
+    while [w for w in workers if Path(f"/proc/{w}").exists()] and time.monotonic() < gone:
+        time.sleep(0.1)
+    assert not [w for w in workers if Path(f"/proc/{w}").exists()], "processes outlived the campaign"
