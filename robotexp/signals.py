@@ -36,7 +36,8 @@ from contextlib import contextmanager
 from types import FrameType
 from typing import Any
 
-__all__ = ["safe_handler", "install_safe", "in_numba", "held", "children_start_deaf", "hear_signals"]
+__all__ = ["safe_handler", "install_safe", "in_numba", "held", "children_start_deaf", "hear_signals",
+           "first_stop_only"]
 
 Handler = Callable[[int, FrameType | None], Any]
 
@@ -81,6 +82,22 @@ def _send_later(signum: int, delay: float) -> None:
     timer.start()
 
 
+class _Once:
+    """`first_stop_only`: this process's handlers take its first Ctrl-C or SIGTERM only."""
+
+    on = False
+    taken = False
+
+
+def first_stop_only() -> None:
+    """From now on the handlers wrapped by `safe_handler` take this process's first Ctrl-C or SIGTERM only, and
+    ignore the later ones: for the script's process of `robotexp run`, which gets a terminal's Ctrl-C (or a
+    process manager's SIGTERM to the whole group) twice, once directly and once passed on by its supervisor
+    (the second one, raised while the first one's line was said, ended the process in click's "Aborted!").
+    Its supervisor kills it when it does not stop in time."""
+    _Once.on = True
+
+
 def _given() -> None:
     """The signal held back was given to its handler: the next one starts afresh."""
     _Retry.delay, _Retry.since = FIRST_RETRY, None
@@ -106,6 +123,10 @@ def safe_handler(handler: Handler) -> Handler:
             if now - _Retry.since < CUT_AFTER:
                 return None                         # the first one is still on its way
         _given()
+        if _Once.on:
+            if _Once.taken:
+                return None
+            _Once.taken = True
         return handler(signum, frame)
 
     safe._robotexp_safe = True      # type: ignore[attr-defined]
@@ -158,21 +179,24 @@ _STOPPING = {signal.SIGINT, signal.SIGTERM}
 
 
 @contextmanager
-def children_start_deaf(signals: frozenset[int] | set[int] = frozenset(_STOPPING)) -> Iterator[None]:
+def children_start_deaf(signals: frozenset[int] | set[int] = frozenset(_STOPPING), pool: bool = False
+                        ) -> Iterator[None]:
     """Block `signals` (Ctrl-C (SIGINT) and SIGTERM) in this thread for the block. The processes started in it
     inherit the block through their exec (as do threads started in it, for good: a signal then goes to a thread
     that takes it); each calls `hear_signals` once its handlers are installed and then gets, at once, a signal
     that came while it started (a process that never calls it never hears them: a worker that its parent
-    stops). A signal that came to this process in the block is delivered at its end. Does nothing where
-    signals cannot be blocked (Windows)."""
+    stops). A signal that came to this process in the block is delivered at its end. `pool`: the block starts
+    processes through multiprocessing (its resource tracker is started first). Does nothing where signals
+    cannot be blocked (Windows)."""
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    # multiprocessing's resource tracker, started by the first lock or queue a pool makes, unblocks SIGINT and
-    # SIGTERM in the thread that starts it: started now, it is not started again inside the block
-    from multiprocessing import resource_tracker
+    if pool:
+        # multiprocessing's resource tracker, started by the first lock or queue a pool makes, unblocks SIGINT
+        # and SIGTERM in the thread that starts it: started now, it is not started again inside the block
+        from multiprocessing import resource_tracker
 
-    resource_tracker.ensure_running()
+        resource_tracker.ensure_running()
     before = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
     try:
         yield

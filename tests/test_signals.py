@@ -274,3 +274,23 @@ def test_a_process_started_deaf_takes_a_ctrl_c_of_its_start_up_once_it_hears() -
     finally:
         signal.signal(signal.SIGINT, before)
     assert proc.returncode == 0 and out.split() == ["pending", "heard", "1"]
+
+
+def test_first_stop_only_takes_the_first_of_two_signals() -> None:
+    # process-wide: in a process of its own
+    code = textwrap.dedent("""
+        import os, signal
+        from robotexp.signals import first_stop_only, safe_handler
+        got = []
+        signal.signal(signal.SIGINT, safe_handler(lambda s, f: got.append(s)))
+        signal.signal(signal.SIGTERM, safe_handler(lambda s, f: got.append(s)))
+        os.kill(os.getpid(), signal.SIGINT)
+        first_stop_only()
+        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGTERM):
+            os.kill(os.getpid(), sig)
+        print(got)
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    # before: every signal taken; after: the first one only, whichever it is
+    assert done.stdout.strip() == f"[{int(signal.SIGINT)}, {int(signal.SIGTERM)}]"

@@ -271,7 +271,7 @@ def _client(address: str) -> Iterator[Any]:
             # the worker processes (and the cluster's threads, which start them) never hear Ctrl-C: a terminal's
             # reaches every process of its group, and this process stops the runs and closes the cluster
             # (a worker's own Ctrl-C printed tracebacks out of Dask's event loop)
-            with dask.config.set(LOCAL_CONFIG), children_start_deaf(frozenset({signal.SIGINT})):
+            with dask.config.set(LOCAL_CONFIG), children_start_deaf(frozenset({signal.SIGINT}), pool=True):
                 # no dashboard; the scheduler's HTTP server (health routes) on a free port: 8787 may be taken
                 # by another cluster on a shared machine (a warning, and in the tests an error)
                 # (Dask's own log, silenced: on Ctrl-C the runs it makes are cancelled and the cluster closed under its

@@ -123,7 +123,7 @@ def _run_locked(campaign: Campaign, out: Path, *, jobs: int, resume: bool,  # no
         # submitted in order; the pool hands each worker the next one as it comes free
         # (the workers start while Ctrl-C and SIGTERM are blocked, and unblock them once their handlers are in:
         # a Ctrl-C that reaches them while they import waits for those handlers; one to this process acts after)
-        with children_start_deaf():
+        with children_start_deaf(pool=True):
             pending: set[Future[tuple[RunRecord, RunTiming] | None]] = {
                 pool.submit(run_one, spec, str(out), campaign.record, record_extra(spec, campaign.sweep_of(spec)))
                 for spec in todo}

@@ -30,6 +30,15 @@ def _tell_supervisor(fd: int | None, what: bytes) -> None:
         pass
 
 
+def _started(fd: int | None, ready: bytes) -> None:
+    """The script starts (its handlers of Ctrl-C and SIGTERM in place): tell the supervisor, then hear the signals
+    it started this process with blocked (one that came meanwhile acts now)."""
+    _tell_supervisor(fd, ready)
+    from robotexp.signals import hear_signals
+
+    hear_signals()
+
+
 def _check_robot_and_world(robot: str, world: str | None) -> None:
     """--robot and --world name things the script cannot change: checked before it starts (it may write files
     before its first run)."""
@@ -139,7 +148,7 @@ def run_lua(script: Path, world: str | None, robot: str, out: Path, sandbox: boo
                                 allow_addresses=allow_address, retire=True,
                                 observers=(progress,) if live is None else (progress, live.observer),
                                 record=record, max_write=None if written is None else int(written * 2**20),
-                                on_start=lambda: _tell_supervisor(ready_fd, READY),
+                                on_start=lambda: _started(ready_fd, READY),
                                 on_run=lambda on: _tell_supervisor(ready_fd, RUN_STARTS if on else RUN_ENDS))
     except BaseException:
         end_view(live, interrupted=True)

@@ -20,6 +20,12 @@ def main() -> None:
     # the supervisor stops the script with SIGINT: obeyed even when this process started with it ignored (a
     # `robotexp run` started in the background by a shell, whose children ignore Ctrl-C)
     signal.signal(signal.SIGINT, signal.default_int_handler)
+    # the supervisor started it with Ctrl-C and SIGTERM blocked: they are heard once the script starts (the
+    # script's start unblocks them), and only the first one (the supervisor passes on the one it got, which a
+    # terminal or a process manager sent to this process too)
+    from robotexp.signals import first_stop_only
+
+    first_stop_only()
     from robotexp.cli import main as cli
 
     args = sys.argv[1:]

@@ -190,7 +190,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
             `exploration.setRecordFolder` does; the script may change it).
         max_write: [bytes] what the script may write to files in all (`robotexp.lua.sandbox.WriteQuota`;
             None: no limit; --sandbox gives `SANDBOX_MAX_WRITE_MB` by default at the command line).
-        on_start: called once the timeout's clock starts (the supervisor's kill counts from then).
+        on_start: called as the script starts, its handlers of Ctrl-C and SIGTERM in place (the supervisor's
+            kill counts from then).
         on_run: called with True when a run of the script starts, with False when it is over (written or
             failed): the supervisor's kill waits for a run in progress to be written.
 
@@ -214,8 +215,6 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         raise ConfigError(f"--max-memory must be at least 1 MB, got {max_memory / 2**20:g} MB")
     addresses = AddressPolicy(sandbox, allow_addresses)
     control = Control(timeout, time.monotonic, on_run)
-    if on_start is not None:
-        on_start()
     if max_write is not None and max_write < 0:
         raise ConfigError(f"--max-write must be >= 0 MB, got {max_write / 2**20:g} MB")
     paths = PathPolicy(out, sandbox, max_write)
@@ -268,6 +267,8 @@ def run_script(path: Path, *, out: Path, world: str | None = None, robot: str = 
         raise ConfigError(f"{_message(exc, name, max_memory)} (the script does not compile; nothing was run)") from None
     with _stops_set(control):
         try:
+            if on_start is not None:
+                on_start()
             chunk()
             try:
                 session.finish()

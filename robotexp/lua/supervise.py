@@ -25,9 +25,12 @@ in-process) and watches it:
   waits `WRITE_HOLD` s more once (a second Ctrl-C ends the wait), and the grace again from its end;
 - Ctrl-C or SIGTERM is passed on to the child as it came: the child ends its script the same way for both,
   and a SIGTERM's run record, line and exit status say SIGTERM;
-- Ctrl-C or SIGTERM before the child said its script started kills it at once (nothing of the script ran,
-  and a Ctrl-C passed on would land in the child's own start-up: a traceback from Python's imports); the
-  child obeys the Ctrl-C passed on to it even when it started with Ctrl-C ignored (a background job);
+- the child starts with Ctrl-C and SIGTERM blocked, and unblocks them once its script starts and its
+  handlers are in place: a terminal's Ctrl-C (or a SIGTERM to the whole group) reaches it too, and waits until
+  then; it takes its first Ctrl-C or SIGTERM only (`robotexp.signals.first_stop_only`: the one passed on by
+  the parent is the same signal again);
+- Ctrl-C or SIGTERM before the child said its script started kills it at once (nothing of the script ran);
+  the child obeys the Ctrl-C passed on to it even when it started with Ctrl-C ignored (a background job);
 - the child dies with the parent (kill -9 of `robotexp run` included: `robotexp.lifeline`);
 - the child's output is relayed to the parent's stdout and stderr as it comes, not by lines (a
   redrawn progress line too), in chunks of at most `CHUNK` bytes (a script writing gigabytes without a
@@ -50,6 +53,7 @@ import click
 
 from robotexp.errors import Terminated
 from robotexp.lifeline import die_with_parent
+from robotexp.signals import children_start_deaf
 
 __all__ = ["supervise", "TIMEOUT_GRACE", "INTERRUPT_GRACE", "COMPILE_HOLD", "WRITE_HOLD", "READY", "COMPILING",
            "COMPILED", "RUN_STARTS", "RUN_ENDS"]
@@ -148,9 +152,19 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
     ready, ready_w = os.pipe()          # the child says there when its script starts and when it compiles
     os.set_blocking(ready, False)
     cmd = [*(child or [sys.executable, "-m", "robotexp.cli.lua_child"]), *args, f"--ready-fd={ready_w}"]
+    proc = None
     try:
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                preexec_fn=die_with_parent, pass_fds=(ready_w,))
+        # the child starts with Ctrl-C and SIGTERM blocked and hears them once its script starts (a terminal's
+        # Ctrl-C reaches it too: before, in its imports, it printed a traceback); one that came here meanwhile
+        # is raised at the block's end, and the child goes with it
+        with children_start_deaf():
+            proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    preexec_fn=die_with_parent, pass_fds=(ready_w,))
+    except KeyboardInterrupt:
+        if proc is not None:
+            proc.kill()
+            proc.wait()
+        raise
     finally:
         os.close(ready_w)
     failures: list[OSError | ValueError] = []

@@ -268,3 +268,54 @@ def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_in
     gc.collect()
     assert reached == [KeyboardInterrupt, ValueError, KeyboardInterrupt]
 
+
+
+def _importing(pid: int) -> bool:
+    try:
+        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize(("sig", "status", "line"), [(signal.SIGINT, 130, "robotexp: interrupted"),
+                                                     (signal.SIGTERM, 143, "robotexp: terminated (SIGTERM)")])
+@pytest.mark.parametrize("when", ["importing", "running"])
+def test_a_signal_to_the_whole_group_is_taken_once(tmp_path, sig, status, line, when):
+    """A terminal's Ctrl-C (or a process manager's SIGTERM to the group) reaches the script's process as well as
+    `robotexp run`, which passes it on again: the script's process, started with both signals blocked, hears
+    them once its script starts, and takes the first one only. While it still imports: no traceback out of
+    its imports; during a run: the run written, one line (a second copy raised as the first was said ended in
+    click's "Aborted!", exit 1)."""
+    script = tmp_path / "s.lua"
+    script.write_text('mapView.setFrameFolder("f"); exploration.setWorld("dense"); robot.setMaxSpeed(40)\n'
+                      'exploration.start(); exploration.wait(); print("not reached")')
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "robotexp.cli", "run", str(script), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            kids = [int(k) for task in Path(f"/proc/{proc.pid}/task").iterdir()
+                    for k in (task / "children").read_text().split()]
+            if when == "importing" and kids and _importing(kids[0]):
+                break
+            if when == "running" and (out / "f/frame_000003.png").exists():
+                break
+            time.sleep(0.002 if when == "importing" else 0.05)
+        assert kids and not (out / "results.jsonl").exists(), "the script's process was not caught"
+        if when == "importing":     # the signal reaches the script's process first: it waits, blocked
+            os.kill(kids[0], sig)
+            time.sleep(0.5)
+            assert proc.poll() is None and Path(f"/proc/{kids[0]}").exists()
+        os.killpg(proc.pid, sig)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == status, stderr
+    assert "Traceback" not in stderr and "Aborted" not in stderr and stderr.strip().splitlines() == [line], stderr
+    if when == "running":
+        (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+        assert rec["completed"] is False and rec["end"] == "interrupted"

@@ -325,6 +325,7 @@ with open(os.path.join(sys.argv[1], "results.jsonl"), "a") as f:
     f.write('{"run": "finished before Ctrl-C"}\\n')
 signal.signal(signal.SIGINT, lambda *_: os.kill(os.getpid(), signal.SIGSEGV))
 os.write(fd, b"r")
+signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})   # started with them blocked
 time.sleep(60)
 """
 
