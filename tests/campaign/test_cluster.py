@@ -19,6 +19,7 @@ from click.testing import CliRunner
 from robotexp.campaign.spec import load_campaign, record_key, run_key
 from robotexp.cli import main
 from dask_ports import free_port, wait_port
+from procs import cpu_seconds, descendants
 
 TINY = """
 [campaign]
@@ -228,25 +229,6 @@ def test_local_cluster_workers_run_lean_and_time_their_runs(tmp_path: Path) -> N
         assert 0 < t.loop_s < t.wall_s and t.cpu_s > 0
 
 
-def _descendants(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        for task in Path(f"/proc/{todo.pop()}/task").iterdir():
-            with open(task / "children") as f:
-                kids = [int(k) for k in f.read().split()]
-            out += kids
-            todo += kids
-    return out
-
-
-def _cpu_seconds(pid: int) -> float:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 def test_ctrl_c_from_a_terminal_stops_a_local_cluster_with_one_line(tmp_path: Path, cpu_wait: Any) -> None:
     # a terminal's Ctrl-C goes to every process of its group, the local cluster's worker processes included:
     # they do not take it (Dask's event loop printed a traceback each); the campaign cancels the runs, closes
@@ -260,11 +242,11 @@ def test_ctrl_c_from_a_terminal_stops_a_local_cluster_with_one_line(tmp_path: Pa
     try:
         end = time.monotonic() + 90
         while time.monotonic() < end and campaign.poll() is None:
-            busy = [k for k in _descendants(campaign.pid) if _cpu_seconds(k) > 3.0]
+            busy = [k for k in descendants(campaign.pid) if cpu_seconds(k) > 3.0]
             if len(busy) == 2:                  # both worker processes inside a run
                 break
             time.sleep(0.1)
-        workers = _descendants(campaign.pid)
+        workers = descendants(campaign.pid)
         assert len(busy) == 2, "the workers did not start their runs"
         os.killpg(campaign.pid, signal.SIGINT)
         t0, mark = time.monotonic(), cpu_wait.total()

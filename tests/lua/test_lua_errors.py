@@ -17,6 +17,7 @@ from click.testing import CliRunner
 from robotexp.cli import main
 from robotexp.errors import ConfigError, ScriptError
 from robotexp.run.loop import TERMINATED_REASON
+from procs import children, importing
 
 
 @pytest.mark.parametrize(("code", "message"), [
@@ -271,13 +272,6 @@ def test_an_interrupt_python_cannot_pass_on_is_not_printed_once_the_script_is_in
 
 
 
-def _importing(pid: int) -> bool:
-    try:
-        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
-    except OSError:
-        return False
-
-
 @pytest.mark.parametrize(("sig", "status", "line"), [(signal.SIGINT, 130, "robotexp: interrupted"),
                                                      (signal.SIGTERM, 143, "robotexp: terminated (SIGTERM)")])
 @pytest.mark.parametrize("when", ["importing", "running"])
@@ -297,9 +291,8 @@ def test_a_signal_to_the_whole_group_is_taken_once(tmp_path, sig, status, line, 
     try:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and proc.poll() is None:
-            kids = [int(k) for task in Path(f"/proc/{proc.pid}/task").iterdir()
-                    for k in (task / "children").read_text().split()]
-            if when == "importing" and kids and _importing(kids[0]):
+            kids = children(proc.pid)
+            if when == "importing" and kids and importing(kids[0]):
                 break
             if when == "running" and (out / "f/frame_000003.png").exists():
                 break

@@ -24,6 +24,7 @@ from robotexp.output.results import read_jsonl, read_records as read_run_records
 from robotexp.output.safefile import append_line, folder_lock, read_records
 from robotexp.run.loop import TERMINATED_REASON
 from robotexp.run.record import record_problem
+from procs import alive, children, cmdline, cpu_seconds, importing
 
 REC = {"run": "a", "method": "frontier", "world": "dense", "path_length_m": 1.0}
 
@@ -149,35 +150,6 @@ def test_campaign_keys_and_names_are_checked(tmp_path, change, words):
         load_campaign(path)
 
 
-def _children(pid: int) -> list[int]:
-    kids = []
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        kids += [int(x) for x in (task / "children").read_text().split()]
-    return kids
-
-
-def _cmdline(pid: int) -> bytes:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_bytes()
-    except OSError:
-        return b""
-
-
-def _cpu_seconds(pid: int) -> float:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
-    except OSError:
-        return False
-
-
 def test_kill_9_of_the_campaign_kills_its_workers_and_resume_does_not_duplicate(tmp_path):
     camp, out = tmp_path / "c.toml", tmp_path / "out"
     camp.write_text(MINI)
@@ -187,14 +159,14 @@ def test_kill_9_of_the_campaign_kills_its_workers_and_resume_does_not_duplicate(
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and not (out / "results.jsonl").exists():
             time.sleep(0.05)
-        workers = [k for k in _children(proc.pid)]
+        workers = [k for k in children(proc.pid)]
         assert workers, "no worker process found"
         proc.kill()
         proc.wait()
         deadline = time.monotonic() + 30          # they go at once; a loaded machine may take a while to run them
-        while [w for w in workers if _alive(w)] and time.monotonic() < deadline:
+        while [w for w in workers if alive(w)] and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert not [w for w in workers if _alive(w)], "workers outlived their campaign"
+        assert not [w for w in workers if alive(w)], "workers outlived their campaign"
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -217,7 +189,7 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait, sig, sta
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 90
-        while time.monotonic() < deadline and not any(_cpu_seconds(k) > 5.0 for k in _children(proc.pid)):
+        while time.monotonic() < deadline and not any(cpu_seconds(k) > 5.0 for k in children(proc.pid)):
             time.sleep(0.1)                 # the worker is inside its first (long) run: past its imports
         t0, mark = time.monotonic(), cpu_wait.total()
         proc.send_signal(sig)               # to the campaign alone: it passes it on
@@ -233,14 +205,6 @@ def test_ctrl_c_on_a_campaign_drops_the_queued_runs(tmp_path, cpu_wait, sig, sta
     assert took < 15 + waited           # (a loaded machine: plus what the processes waited for a CPU)
 
 
-def _importing(pid: int) -> bool:
-    """The process has numpy's compiled core loaded: it is inside its imports."""
-    try:
-        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
-    except OSError:
-        return False
-
-
 def test_ctrl_c_while_the_workers_still_import_stops_the_campaign_with_one_line(tmp_path):
     # a terminal's Ctrl-C goes to every process of the group, workers that are still importing included: they
     # take it once their handlers are in, as a worker waiting for work does (no traceback from their imports,
@@ -253,8 +217,8 @@ def test_ctrl_c_while_the_workers_still_import_stops_the_campaign_with_one_line(
     try:
         deadline, workers = time.monotonic() + 60, []
         while time.monotonic() < deadline and proc.poll() is None:
-            workers = [k for k in _children(proc.pid) if b"spawn_main" in _cmdline(k)]
-            if len(workers) == 2 and all(_importing(k) for k in workers):
+            workers = [k for k in children(proc.pid) if b"spawn_main" in cmdline(k)]
+            if len(workers) == 2 and all(importing(k) for k in workers):
                 break
             time.sleep(0.002)
         assert len(workers) == 2 and not (out / "results.jsonl").exists(), "the workers were not caught importing"
@@ -269,9 +233,9 @@ def test_ctrl_c_while_the_workers_still_import_stops_the_campaign_with_one_line(
     assert "Traceback" not in stderr and lines[-1] == "robotexp: interrupted" and len(lines) == 2, stderr
     assert not (out / "results.jsonl").exists() or read_records(out / "results.jsonl") == []
     deadline = time.monotonic() + 30
-    while [w for w in workers if _alive(w)] and time.monotonic() < deadline:
+    while [w for w in workers if alive(w)] and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not [w for w in workers if _alive(w)], "workers outlived their campaign"
+    assert not [w for w in workers if alive(w)], "workers outlived their campaign"
 
 
 def test_report_counts_a_run_recorded_twice_once_and_says_so(tmp_path):
