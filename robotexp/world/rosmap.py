@@ -150,10 +150,14 @@ def world_from_grid(values: npt.NDArray[np.int8], geo: GridGeometry, *, name: st
     cells merged into boxes, bounds and declared area the grid's extent, collision "index".
 
     Raises:
-        WorldError: the grid has no occupied or unknown cell at all, or its blocked cells make more than
-            MAX_BOXES rectangles (noise, a dithered image), told before they are merged.
+        WorldError: the grid has no occupied or unknown cell at all, or no free one, or its blocked cells make
+            more than MAX_BOXES rectangles (noise, a dithered image), told before they are merged.
     """
     blocked = (values < 0) | (values >= 50)
+    if blocked.all():
+        raise WorldError(f"{source}: the map has no free cell ({int(np.count_nonzero(values >= 50))} occupied, "
+                         f"{int(np.count_nonzero(values < 0))} unknown): is its negate, mode or free_thresh "
+                         "right for its image? (free cells are light pixels unless negate: 1)")
     # at least one rectangle per run of blocked cells along a row that does not start where a run of the
     # row before starts (merged rectangles stack equal runs): a cheap lower bound of their number
     starts = blocked.copy()

@@ -31,6 +31,7 @@ WELL_INSIDE = 0.75          # [m] clearance of a start "well inside" its region
 INNER_SHARE = 0.05          # a closed region this share of the largest region's area is preferred to the
 INNER_AREA = 100.0          # [m^2] ... or this large: regions that reach the map's edge
 MAX_CELLS = 4_000_000       # the search grid is coarsened beyond this many cells
+FEW_FREE = 0.1             # a ROS map with less of its area free than this and no room: its image may be read wrong
 
 
 @dataclass(frozen=True)
@@ -83,8 +84,15 @@ def default_start(world: World, radius: float, *, cell: float = 0.05) -> StartCh
     sizes = regions.area.copy()
     sizes[np.bincount(labels.ravel(), minlength=n + 1) == 0] = 0.0       # no cell centre: no start there
     if n == 0 or not sizes.any():
+        free = 1.0 - float(np.count_nonzero(occ)) / max(occ.size, 1)
+        hint, ros = "", str(world.source or "").endswith((".yaml", ".yml"))
+        if min(x1 - x0, y1 - y0) < 2 * radius:
+            hint = f" (the map is {x1 - x0:.3g} x {y1 - y0:.3g} m" + (": is its resolution right?)" if ros else ")")
+        elif free < FEW_FREE and ros:
+            hint = (f" (only {100 * free:.1f} % of the map is free: is its negate, mode or free_thresh right for its "
+                    "image? free cells are light pixels unless negate: 1)")
         raise WorldError(f"world {world.name!r}: no place where a robot of radius {radius:g} m fits: "
-                         f"give a start pose or a larger map")
+                         f"give a start pose or a larger map{hint}")
     rim = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1],
                           regions.coarse[0], regions.coarse[-1], regions.coarse[:, 0], regions.coarse[:, -1]])
     inner = sizes.copy()

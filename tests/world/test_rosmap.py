@@ -291,6 +291,17 @@ def test_load_ros_world_without_obstacles_is_refused(tmp_path):
         load_ros_world(tmp_path / "e.yaml")
 
 
+def test_a_map_without_a_free_cell_is_refused_with_what_to_check(tmp_path):
+    # every cell occupied or unknown (a white-on-black image read without negate, a raw image): one line that says
+    # so, before any start pose is searched for
+    values = np.full((4, 5), 100, np.int8)
+    values[1:3, 1:3] = -1
+    save_ros_map(tmp_path / "w.yaml", values, GridGeometry(0.0, 0.0, 0.1, 4, 5))
+    with pytest.raises(WorldError, match=r"w\.yaml: the map has no free cell \(16 occupied, 4 unknown\): is its "
+                                         r"negate, mode or free_thresh right"):
+        load_ros_world(tmp_path / "w.yaml")
+
+
 def test_a_map_of_noise_is_refused_before_its_cells_are_merged(tmp_path, monkeypatch):
     # a checkerboard: every blocked cell its own rectangle (4000 x 4000 pixels: 8 million boxes, which took
     # tens of seconds and gigabytes before the default start found no room); refused from a cheap count

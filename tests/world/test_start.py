@@ -78,6 +78,25 @@ def test_nowhere_to_fit_is_one_clear_error():
         default_start(world, 0.25)
 
 
+def test_a_ros_map_read_wrong_is_told_what_to_check(tmp_path):
+    # a room drawn black on white read with negate: 1 (its walls the only free cells: 196 of 60 x 40, 8.2 %),
+    # and the same room at a resolution 100 times too fine (3 x 2 cm): each refusal says what to check
+    from robotexp.world.rosmap import load_ros_world
+
+    image = np.full((40, 60), 254, np.uint8)
+    image[0, :] = image[-1, :] = image[:, 0] = image[:, -1] = 0
+    (tmp_path / "room.pgm").write_bytes(b"P5\n60 40\n255\n" + image.tobytes())
+    yaml = "image: room.pgm\nresolution: {res}\norigin: [0.0, 0.0, 0.0]\nnegate: {neg}\noccupied_thresh: 0.65\n" \
+           "free_thresh: 0.196\n"
+    (tmp_path / "neg.yaml").write_text(yaml.format(res=0.05, neg=1))
+    (tmp_path / "fine.yaml").write_text(yaml.format(res=0.0005, neg=0))
+    with pytest.raises(WorldError, match=r"fits: give a start pose or a larger map \(only 8\.2 % of the map is "
+                                         r"free: is its negate, mode or free_thresh right"):
+        default_start(load_ros_world(tmp_path / "neg.yaml"), 0.25)
+    with pytest.raises(WorldError, match=r"larger map \(the map is 0\.03 x 0\.02 m: is its resolution right\?\)"):
+        default_start(load_ros_world(tmp_path / "fine.yaml"), 0.25)
+
+
 def test_the_start_is_deterministic_and_free_on_generated_maps():
     from robotexp.world.generate import generated_world
 
