@@ -139,9 +139,9 @@ def figure(source: Path, out: Path | None, formats: str, include_incomplete: boo
         run = replay_bag(read_bag(source), None)
         written = save_figure(run_map_figure(run), folder / f"{run.info.name}.map", fmts)
     elif source.suffix.lower() == ".jsonl":
-        from robotexp.output.results import read_records
+        from robotexp.campaign.compare import load_results      # checked and counted as `campaign report` does
 
-        written = campaign_figures(read_records(source), folder, fmts, include_incomplete=include_incomplete)
+        written = campaign_figures(load_results(source), folder, fmts, include_incomplete=include_incomplete)
     else:
         raise ConfigError(f"{source}: give a recording (.mcap) or a results file (.jsonl)")
     for path in written:

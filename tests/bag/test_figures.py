@@ -51,6 +51,10 @@ def test_campaign_box_figures(tmp_path: Path) -> None:
     assert not (tmp_path / "box_coverage_dense.pdf").exists()
     res = CliRunner().invoke(main, ["figure", str(results), "--format", "jpg"])
     assert res.exit_code == 2 and "--format" in res.output
+    # a line that is no run record (not robotexp's results): one line, exit 2, as `campaign report` says it
+    results.write_text("{}\n")
+    res = CliRunner().invoke(main, ["figure", str(results), "--format", "svg"])
+    assert res.exit_code == 2 and "record lacks run, world, method, visited_cells" in res.output, res.output
 
 
 def test_box_figure_draws_boxes_only_for_enough_runs() -> None:
