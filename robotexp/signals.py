@@ -21,7 +21,9 @@ away and back).
 `children_start_deaf` blocks both while a block starts processes: a process started from it (a worker of a
 pool) begins with them blocked, so a Ctrl-C from the terminal that reaches it during its Python start-up (its
 imports) waits, pending, until the process has put its handlers in place and calls `hear_signals`; a
-signal sent to the starting process in the block acts at the block's end.
+signal sent to the starting process in the block acts at the block's end. `first_stop_only` makes a process's
+handlers take its first Ctrl-C or SIGTERM only (a child that gets a terminal's signal twice: directly, and
+passed on by its parent).
 """
 
 from __future__ import annotations
