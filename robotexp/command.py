@@ -29,9 +29,9 @@ def main() -> None:
         if guard:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)     # each command installs its own handler
     except KeyboardInterrupt as exc:
-        from robotexp.errors import Terminated
+        from robotexp.errors import Terminated, stop_line
 
-        terminated = isinstance(exc, Terminated)
-        sys.stderr.write("robotexp: terminated (SIGTERM)\n" if terminated else "robotexp: interrupted\n")
-        sys.exit(143 if terminated else 130)
+        line, status = stop_line(isinstance(exc, Terminated))
+        sys.stderr.write(line + "\n")
+        sys.exit(status)
     command()

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 __all__ = [
     "RobotexpError", "RobotError", "ConnectionLost", "ProtocolError",
-    "WorldError", "ScriptError", "PluginError", "ConfigError", "Terminated",
+    "WorldError", "ScriptError", "PluginError", "ConfigError", "Terminated", "stop_line",
 ]
 
 
@@ -47,6 +47,11 @@ class ConfigError(RobotexpError, ValueError):
 class Terminated(KeyboardInterrupt):
     """SIGTERM (a `kill`, a process manager, `timeout`) taken as a Ctrl-C: the run in progress ends with its
     robot stopped and its partial result written (`robotexp.cli` installs the handler that raises it)."""
+
+
+def stop_line(terminated: bool) -> tuple[str, int]:
+    """What a command that a SIGTERM (`terminated`) or a Ctrl-C ended says last, and its exit status."""
+    return ("robotexp: terminated (SIGTERM)", 143) if terminated else ("robotexp: interrupted", 130)
 
 
 def interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:

@@ -11,7 +11,7 @@ from typing import Any, NoReturn, TypeVar
 import click
 
 from robotexp.errors import (ConfigError, PluginError, RobotError, RobotexpError, ScriptError, Terminated, WorldError,
-                             interrupt_in)
+                             interrupt_in, stop_line)
 
 __all__ = ["fail", "one_line", "handle_errors", "interrupted", "mm", "params", "image_formats", "compile_watch",
            "watch_signals"]
@@ -55,11 +55,9 @@ def interrupted(exc: KeyboardInterrupt) -> NoReturn:
 
 def end_interrupted(terminated: bool) -> NoReturn:
     """End a command that a SIGTERM (`terminated`: exit status 143) or a Ctrl-C (130) interrupted, saying which."""
-    if terminated:
-        click.echo("robotexp: terminated (SIGTERM)", err=True)
-        sys.exit(143)
-    click.echo("robotexp: interrupted", err=True)
-    sys.exit(130)
+    line, status = stop_line(terminated)
+    click.echo(line, err=True)
+    sys.exit(status)
 
 
 def watch_signals() -> None:

@@ -51,7 +51,7 @@ from typing import IO, BinaryIO
 
 import click
 
-from robotexp.errors import Terminated
+from robotexp.errors import Terminated, stop_line
 from robotexp.lifeline import die_with_parent
 from robotexp.signals import children_start_deaf
 
@@ -255,8 +255,9 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
         _tell(f"robotexp: error: {script}: the script's output could not be written ({why_not}); the rest of it "
               f"was dropped; the {made} run(s) finished are in {results}")
     if early:
-        click.echo("robotexp: terminated (SIGTERM)" if terminated else "robotexp: interrupted", err=True)
-        return 143 if terminated else 130
+        line, status = stop_line(terminated)
+        click.echo(line, err=True)
+        return status
     if why == "timeout":
         click.echo(f"robotexp: error: {script}: stopped by --timeout after {timeout:g} s (it did not stop by "
                    f"itself within {timeout_grace:g} s: killed); the {made} run(s) finished so far are in "
@@ -267,7 +268,7 @@ def supervise(args: list[str], *, script: str, out: Path, timeout: float | None,
             click.echo(f"robotexp: {script}: did not stop within {interrupt_grace:g} s of "
                        f"{'SIGTERM' if terminated else 'Ctrl-C'}: killed; the {made} run(s) finished so far are in "
                        f"{results}", err=True)
-            click.echo("robotexp: terminated (SIGTERM)" if terminated else "robotexp: interrupted", err=True)
+            click.echo(stop_line(terminated)[0], err=True)
         elif proc.returncode < 0:       # it died of a signal before it stopped by itself (not the parent's kill)
             click.echo(f"robotexp: error: {script}: the script's process was killed by "
                        f"{_signal_name(-proc.returncode)} after {'SIGTERM' if terminated else 'Ctrl-C'}, before it "

@@ -43,6 +43,9 @@ MAX_YAML_BYTES = 1 << 20    # a map YAML is a few lines; a larger file is not on
 MAX_BOXES = 1_000_000       # obstacle rectangles of a grid map (real buildings: tens of thousands at most)
 
 
+# what to check in a map's YAML when its image seems read wrong (too little of it free)
+READ_WRONG = "is its negate, mode or free_thresh right for its image? (free cells are light pixels unless negate: 1)"
+
 @dataclass(frozen=True)
 class _Entry:
     """One top-level YAML value: a scalar string or a list of scalar strings, and its line."""
@@ -156,8 +159,7 @@ def world_from_grid(values: npt.NDArray[np.int8], geo: GridGeometry, *, name: st
     blocked = (values < 0) | (values >= 50)
     if blocked.all():
         raise WorldError(f"{source}: the map has no free cell ({int(np.count_nonzero(values >= 50))} occupied, "
-                         f"{int(np.count_nonzero(values < 0))} unknown): is its negate, mode or free_thresh "
-                         "right for its image? (free cells are light pixels unless negate: 1)")
+                         f"{int(np.count_nonzero(values < 0))} unknown): {READ_WRONG}")
     # at least one rectangle per run of blocked cells along a row that does not start where a run of the
     # row before starts (merged rectangles stack equal runs): a cheap lower bound of their number
     starts = blocked.copy()

@@ -24,6 +24,7 @@ from robotexp.errors import WorldError
 from robotexp.mapping.geometry import GridGeometry
 from robotexp.robot import Pose
 from robotexp.world.model import World
+from robotexp.world.rosmap import READ_WRONG
 
 __all__ = ["INNER_AREA", "INNER_SHARE", "StartChoice", "WELL_INSIDE", "chosen_start", "default_start"]
 
@@ -89,8 +90,7 @@ def default_start(world: World, radius: float, *, cell: float = 0.05) -> StartCh
         if min(x1 - x0, y1 - y0) < 2 * radius:
             hint = f" (the map is {x1 - x0:.3g} x {y1 - y0:.3g} m" + (": is its resolution right?)" if ros else ")")
         elif free < FEW_FREE and ros:
-            hint = (f" (only {100 * free:.1f} % of the map is free: is its negate, mode or free_thresh right for its "
-                    "image? free cells are light pixels unless negate: 1)")
+            hint = f" (only {100 * free:.1f} % of the map is free: {READ_WRONG})"
         raise WorldError(f"world {world.name!r}: no place where a robot of radius {radius:g} m fits: "
                          f"give a start pose or a larger map{hint}")
     rim = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1],

@@ -182,14 +182,13 @@ def test_sigterm_to_the_scripts_own_process_ends_the_script_not_only_its_run(tmp
         deadline = time.monotonic() + 60
         while not (out / "f/frame_000003.png").exists() and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.05)
-        (child,) = [int(k) for task in Path(f"/proc/{proc.pid}/task").iterdir()
-                    for k in (task / "children").read_text().split()]
+        (child,) = children(proc.pid)
         os.kill(child, signal.SIGTERM)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.wait()
+            proc.communicate()
     assert proc.returncode == 143, stderr
     assert "not reached" not in stdout and stderr.strip().splitlines()[-1] == "robotexp: terminated (SIGTERM)", stderr
     (rec,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
